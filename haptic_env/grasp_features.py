@@ -1,0 +1,482 @@
+r"""The grasp parameterisation :math:`\Phi_n` and scale normalisation.
+
+Pure, vectorised NumPy functions over batches of grasps. A grasp is ``n`` fingertip contact
+points ``contacts`` of shape ``(B, n, 3)`` (or ``(n, 3)`` for a single grasp) and, optionally,
+unit contact normals of the same shape. :func:`phi` maps it to a vector ``q`` that is invariant to
+rigid motions of the grasp (Theorem 1 of Sintov & Ben-David) and to the order of the fingers.
+
+Spatial grasps, ``n >= 3`` (:func:`phi`)
+    The contacts span a polyhedron (their convex hull; a single triangle for ``n = 3``).
+
+    1. ``t1`` is the largest-area hull facet and ``d = ab`` its longest edge, with ``a`` the
+       endpoint of the larger interior angle of ``t1``: values ``|ab|, angle_a(t1), angle_b(t1)``.
+    2. ``t2`` is the other hull facet on ``ab``; each further facet is the largest-area hull facet
+       that shares an edge with an already visited facet and adds one new contact. A facet adds
+       its two interior angles at the shared edge (earlier contact of the chain first) and the
+       signed dihedral angle (radians, in ``(-pi, pi]``) from the facet it is attached to.
+    3. Contacts that are no hull vertex (inside the polyhedron; possible on concave objects) are
+       attached to ``ab`` of ``t1`` as a virtual facet with the same three values, taken in the
+       order of their angle at ``a``.
+
+    That is ``3 + 3 (n - 3) = 3n - 6`` values, and the contact order is that of the chain, never the
+    input order. With normals, each contact (in chain order) adds its angle to the normal of
+    ``t1`` and to the normal of ``t2`` (for ``n = 3``: to ``t1``'s normal and to the direction of
+    ``ab``): ``5n - 6`` values.
+
+Two contacts, ``n = 2``
+    The distance; with normals also each normal's angle to the line between the contacts and the
+    signed twist between the normals about that line: ``1`` or ``4`` (``= 5n - 6``) values.
+
+Planar grasps (:func:`phi_planar`, ``(B, n, 2)``)
+    The polygon of the contacts sorted counter-clockwise about their centroid; starting at the
+    longest counter-clockwise edge ``v0 v1``: ``|v0 v1|``, then for each further vertex the signed
+    interior angle at the previous vertex and the next edge length: ``2n - 3`` values; normals add
+    their signed angle to ``v0 v1``: ``3n - 3``.
+
+Degenerate grasps
+    Coincident contacts, collinear contacts, and (for ``n >= 4``) coplanar contacts have no
+    polyhedron. In a batch they are reported in ``valid`` (their ``q`` row is all zeros, never NaN);
+    with ``strict=True`` a :class:`DegenerateGraspError` names the first bad grasp and why.
+    Non-finite input is always an error.
+
+Scale (:func:`normalize_scale`)
+    Contacts are divided by ``A = sqrt(total surface area of the grasp polyhedron)``; angles are
+    unchanged and lengths become scale-free (Theorem 2).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from itertools import combinations
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = [
+    "DegenerateGraspError",
+    "GraspFeatures",
+    "DEGENERACY_REASONS",
+    "feature_dim",
+    "phi",
+    "phi_planar",
+    "surface_area",
+    "normalize_scale",
+]
+
+#: Relative tolerance for degeneracy tests (lengths relative to the grasp's diameter).
+DEFAULT_TOL = 1e-7
+
+#: Codes of :attr:`GraspFeatures.reason`.
+DEGENERACY_REASONS = {0: "ok", 1: "coincident contacts", 2: "collinear contacts", 3: "coplanar contacts"}
+
+_CHUNK_ELEMENTS = 1 << 22  # bound on B * T * n per chunk (memory)
+
+
+class DegenerateGraspError(ValueError):
+    """A grasp whose contacts span no polyhedron (coincident, collinear or coplanar)."""
+
+
+class GraspFeatures(NamedTuple):
+    """Result of :func:`phi` for a batch of ``B`` grasps of ``n`` contacts."""
+
+    q: np.ndarray  #: ``(B, d)`` float64 grasp vectors; all-zero rows where not ``valid``
+    valid: np.ndarray  #: ``(B,)`` bool, False for degenerate grasps
+    order: np.ndarray  #: ``(B, n)`` int, input index of the contact at each chain position
+    reason: np.ndarray  #: ``(B,)`` int8 code into :data:`DEGENERACY_REASONS`
+
+
+def feature_dim(n: int, normals: bool = False, dim: int = 3) -> int:
+    """Length of :math:`\\Phi_n` for ``n`` contacts in ``dim`` (2 or 3) dimensions."""
+    if dim not in (2, 3):
+        raise ValueError(f"dim must be 2 or 3, got {dim}")
+    if n < 2:
+        raise ValueError(f"a grasp needs at least 2 contacts, got n={n}")
+    if n == 2:
+        return (4 if dim == 3 else 3) if normals else 1
+    if dim == 3:
+        return 5 * n - 6 if normals else 3 * n - 6
+    return 3 * n - 3 if normals else 2 * n - 3
+
+
+# --------------------------------------------------------------------------------------- helpers
+def _as_batch(contacts, normals, dim: int) -> tuple[np.ndarray, np.ndarray | None, bool]:
+    P = np.asarray(contacts, dtype=np.float64)
+    single = P.ndim == 2
+    if single:
+        P = P[None]
+    if P.ndim != 3 or P.shape[-1] != dim:
+        raise ValueError(f"contacts must have shape (B, n, {dim}) or (n, {dim}), got {np.shape(contacts)}")
+    if P.shape[1] < 2:
+        raise ValueError(f"a grasp needs at least 2 contacts, got n={P.shape[1]}")
+    bad = ~np.isfinite(P).all(axis=(1, 2))
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"contacts of grasp {i} are not finite: {P[i].tolist()}")
+    N = None
+    if normals is not None:
+        N = np.asarray(normals, dtype=np.float64)
+        if single:
+            N = N[None]
+        if N.shape != P.shape:
+            raise ValueError(f"normals must have the shape of contacts {P.shape}, got {np.shape(normals)}")
+        norm = np.linalg.norm(N, axis=-1)
+        bad = ~(np.isfinite(norm) & (norm > 1e-12))
+        if bad.any():
+            i, j = np.argwhere(bad)[0]
+            raise ValueError(f"normal {j} of grasp {i} is zero or not finite: {N[i, j].tolist()}")
+        N = N / norm[..., None]
+    return P, N, single
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.where(n > 0, n, 1.0)
+
+
+def _angle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Unsigned angle between vectors (last axis), stable near 0 and pi."""
+    if u.shape[-1] == 2:
+        cr = np.abs(u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0])
+    else:
+        cr = np.linalg.norm(np.cross(u, v), axis=-1)
+    return np.arctan2(cr, np.einsum("...k,...k->...k", u, v).sum(-1))
+
+
+def _signed_dihedral(x, y, w, u) -> np.ndarray:
+    """Signed angle about axis ``y - x`` from half-plane ``(x, y, w)`` to half-plane ``(x, y, u)``."""
+    e = _unit(y - x)
+    u1 = w - x
+    u2 = u - x
+    u1 = u1 - np.sum(u1 * e, -1, keepdims=True) * e
+    u2 = u2 - np.sum(u2 * e, -1, keepdims=True) * e
+    return np.arctan2(np.sum(e * np.cross(u1, u2), -1), np.sum(u1 * u2, -1))
+
+
+def _take(P: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """``P[b, idx[b]]`` for ``P`` of shape (B, n, k) and ``idx`` (B,) -> (B, k)."""
+    return P[np.arange(P.shape[0]), idx]
+
+
+@lru_cache(maxsize=None)
+def _topology(n: int):
+    """Static index tables: triangles (T,3), their edges (T,3) and a (n,n,n) triangle lookup."""
+    tri = np.array(list(combinations(range(n), 3)), dtype=np.int64)
+    edges = list(combinations(range(n), 2))
+    eidx = {e: i for i, e in enumerate(edges)}
+    # edge opposite triangle position 0, 1, 2
+    tri_edges = np.array([[eidx[(j, k)], eidx[(i, k)], eidx[(i, j)]] for i, j, k in tri], dtype=np.int64)
+    lut = -np.ones((n, n, n), dtype=np.int64)
+    for t, (i, j, k) in enumerate(tri):
+        for p in ((i, j, k), (i, k, j), (j, i, k), (j, k, i), (k, i, j), (k, j, i)):
+            lut[p] = t
+    return tri, tri_edges, lut, len(edges)
+
+
+def _hull_facets(P: np.ndarray, tol: float):
+    """Candidate triangles of each grasp, which of them are hull facets, and degeneracy codes.
+
+    Returns ``area (B,T)``, ``hull (B,T)`` bool, ``reason (B,)`` int8 and ``scale (B,)``.
+    Where near-coplanar points make the facet test ambiguous the hull comes from Qhull
+    (triangulated), so every grasp gets a proper triangulated surface.
+    """
+    B, n, _ = P.shape
+    tri, _, lut, _ = _topology(n)
+    diff = P[:, :, None, :] - P[:, None, :, :]
+    dist = np.linalg.norm(diff, axis=-1)
+    scale = dist.max(axis=(1, 2))
+    iu = np.triu_indices(n, 1)
+    reason = np.zeros(B, dtype=np.int8)
+    reason[dist[:, iu[0], iu[1]].min(axis=1) <= tol * np.maximum(scale, 1e-300)] = 1
+    reason[scale <= 1e-300] = 1
+    a, b, c = P[:, tri[:, 0]], P[:, tri[:, 1]], P[:, tri[:, 2]]
+    cr = np.cross(b - a, c - a)
+    area = 0.5 * np.linalg.norm(cr, axis=-1)
+    s2 = np.maximum(scale, 1e-300) ** 2
+    flat = area.max(axis=1) <= 0.5 * tol * s2
+    reason[(reason == 0) & flat] = 2
+    if n == 3:
+        return area, np.ones_like(area, dtype=bool), reason, scale
+    # signed volumes of every other contact against every triangle's plane: (B, T, n)
+    s = np.einsum("btk,bmk->btm", cr, P) - np.einsum("btk,btk->bt", cr, a)[..., None]
+    thr = tol * np.maximum(scale, 1e-300)[:, None, None] ** 3
+    pos = s > thr
+    neg = s < -thr
+    planar = np.abs(s).max(axis=(1, 2)) <= thr[:, 0, 0]
+    reason[(reason == 0) & planar] = 3
+    proper = area > 0.5 * tol * s2[:, None]
+    hull = proper & ~(pos.any(-1) & neg.any(-1))
+    # ambiguous: a hull candidate with another contact (not its own vertex) on its plane
+    own = np.zeros((len(tri), n), dtype=bool)
+    own[np.arange(len(tri))[:, None], tri] = True
+    onplane = ~(pos | neg) & ~own[None]
+    ambiguous = (hull & onplane.any(-1)).any(-1) & (reason == 0)
+    if ambiguous.any():
+        from scipy.spatial import ConvexHull
+
+        for i in np.flatnonzero(ambiguous):
+            try:
+                simp = ConvexHull(P[i], qhull_options="Qt").simplices
+            except Exception:  # pragma: no cover - qhull failure on a flat input already flagged
+                reason[i] = 3
+                continue
+            hull[i] = False
+            hull[i, lut[simp[:, 0], simp[:, 1], simp[:, 2]]] = True
+    return area, hull, reason, scale
+
+
+# ------------------------------------------------------------------------------------------ phi
+def phi(contacts, normals=None, *, strict: bool = False, tol: float = DEFAULT_TOL) -> GraspFeatures:
+    r"""Grasp vectors :math:`q = \Phi_n(P[, N])` of a batch of spatial grasps.
+
+    Args:
+        contacts: ``(B, n, 3)`` or ``(n, 3)`` contact points, ``n >= 2``.
+        normals: optional contact normals of the same shape (need not be unit length).
+        strict: raise :class:`DegenerateGraspError` for the first degenerate grasp instead of
+            flagging it in ``valid``.
+        tol: relative tolerance of the degeneracy tests.
+
+    Returns:
+        :class:`GraspFeatures` with ``q`` of shape ``(B, feature_dim(n, normals))`` (``(d,)`` etc.
+        for a single grasp).
+    """
+    P, N, single = _as_batch(contacts, normals, 3)
+    B, n, _ = P.shape
+    d = feature_dim(n, N is not None)
+    q = np.zeros((B, d))
+    valid = np.zeros(B, dtype=bool)
+    order = np.tile(np.arange(n), (B, 1))
+    reason = np.zeros(B, dtype=np.int8)
+    T = max(1, len(_topology(n)[0])) if n >= 3 else 1
+    step = max(1, _CHUNK_ELEMENTS // (T * n))
+    for lo in range(0, B, step):
+        sl = slice(lo, min(B, lo + step))
+        fn = _phi2 if n == 2 else _phi_chain
+        q[sl], valid[sl], order[sl], reason[sl] = fn(P[sl], None if N is None else N[sl], tol)
+    if strict and not valid.all():
+        i = int(np.flatnonzero(~valid)[0])
+        raise DegenerateGraspError(
+            f"grasp {i} is degenerate ({DEGENERACY_REASONS[int(reason[i])]}): contacts {P[i].tolist()}"
+        )
+    if single:
+        return GraspFeatures(q[0], valid[0], order[0], reason[0])
+    return GraspFeatures(q, valid, order, reason)
+
+
+def _phi2(P, N, tol):
+    B = P.shape[0]
+    v = P[:, 1] - P[:, 0]
+    dist = np.linalg.norm(v, axis=-1)
+    reason = np.where(dist > 1e-300, 0, 1).astype(np.int8)
+    order = np.tile(np.arange(2), (B, 1))
+    if N is None:
+        q = dist[:, None]
+    else:
+        al0 = _angle(N[:, 0], v)
+        al1 = _angle(N[:, 1], -v)
+        # canonical order: the contact whose normal makes the larger angle with the line first
+        swap = al1 > al0
+        order[swap] = [1, 0]
+        e = _unit(v)
+        n0 = N[:, 0] - np.sum(N[:, 0] * e, -1, keepdims=True) * e
+        n1 = N[:, 1] - np.sum(N[:, 1] * e, -1, keepdims=True) * e
+        twist = np.arctan2(np.sum(e * np.cross(n0, n1), -1), np.sum(n0 * n1, -1))  # symmetric in swap
+        q = np.stack([dist, np.maximum(al0, al1), np.minimum(al0, al1), twist], axis=1)
+    valid = reason == 0
+    q = np.where(valid[:, None], q, 0.0)
+    return q, valid, order, reason
+
+
+def _phi_chain(P, N, tol):
+    B, n, _ = P.shape
+    tri, tri_edges, _, n_edges = _topology(n)
+    area, hull, reason, _ = _hull_facets(P, tol)
+    valid = reason == 0
+    rows = np.arange(B)
+    # --- t1 and its longest edge ab
+    t1 = np.argmax(np.where(hull, area, -1.0), axis=1)
+    v = tri[t1]  # (B, 3) contact indices
+    pts = P[rows[:, None], v]  # (B, 3, 3)
+    # edge lengths opposite each position: edge (1,2), (0,2), (0,1)
+    L = np.stack(
+        [
+            np.linalg.norm(pts[:, 1] - pts[:, 2], axis=-1),
+            np.linalg.norm(pts[:, 0] - pts[:, 2], axis=-1),
+            np.linalg.norm(pts[:, 0] - pts[:, 1], axis=-1),
+        ],
+        axis=1,
+    )
+    opp = np.argmax(L, axis=1)  # position of c (opposite the longest edge)
+    cpos = opp
+    apos = (opp + 1) % 3
+    bpos = (opp + 2) % 3
+    ia, ib, ic = v[rows, apos], v[rows, bpos], v[rows, cpos]
+    A, Bp, C = _take(P, ia), _take(P, ib), _take(P, ic)
+    ang_a = _angle(Bp - A, C - A)
+    ang_b = _angle(A - Bp, C - Bp)
+    swap = ang_b > ang_a
+    ia, ib = np.where(swap, ib, ia), np.where(swap, ia, ib)
+    A, Bp = np.where(swap[:, None], Bp, A), np.where(swap[:, None], A, Bp)
+    ang_a, ang_b = np.maximum(ang_a, ang_b), np.minimum(ang_a, ang_b)
+    shape_vals = [np.linalg.norm(Bp - A, axis=-1), ang_a, ang_b]
+
+    order = np.empty((B, n), dtype=np.int64)
+    order[:, 0], order[:, 1], order[:, 2] = ia, ib, ic
+    rank = np.full((B, n), n, dtype=np.int64)
+    rank[rows, ia], rank[rows, ib], rank[rows, ic] = 0, 1, 2
+    visited = np.zeros((B, n), dtype=bool)
+    visited[rows, ia] = visited[rows, ib] = visited[rows, ic] = True
+    owner = np.full((B, n_edges), -1, dtype=np.int64)  # first visited facet on each edge
+    owner[rows[:, None], tri_edges[t1]] = t1[:, None]
+
+    if n >= 4:
+        # virtual attachment of every contact to ab of t1, for contacts inside the hull
+        att_a = _angle(Bp[:, None] - A[:, None], P - A[:, None])
+        att_b = _angle(A[:, None] - Bp[:, None], P - Bp[:, None])
+        att_d = _signed_dihedral(A[:, None], Bp[:, None], C[:, None], P)
+        for k in range(3, n):
+            unv = ~visited[:, tri]  # (B, T, 3)
+            n_unv = unv.sum(-1)
+            upos = np.argmax(unv, axis=-1)  # position of the (first) unvisited vertex
+            shared = np.take_along_axis(tri_edges[None].repeat(B, 0), upos[..., None], -1)[..., 0]
+            g_all = np.take_along_axis(owner, shared, axis=1)  # (B, T)
+            cand = hull & (n_unv == 1) & (g_all >= 0)
+            has = cand.any(axis=1)
+            f = np.argmax(np.where(cand, area, -1.0), axis=1)
+            fv = tri[f]  # (B, 3)
+            fu = upos[rows, f]
+            u_new = fv[rows, fu]
+            others = np.stack([fv[rows, (fu + 1) % 3], fv[rows, (fu + 2) % 3]], axis=1)
+            early = rank[rows[:, None], others].argmin(axis=1)
+            x = others[rows, early]
+            y = others[rows, 1 - early]
+            g = g_all[rows, f]
+            gv = tri[np.maximum(g, 0)]
+            w = gv[rows, np.argmax((gv != x[:, None]) & (gv != y[:, None]), axis=1)]
+            X, Y, U, W = _take(P, x), _take(P, y), _take(P, u_new), _take(P, w)
+            vals = np.stack([_angle(Y - X, U - X), _angle(X - Y, U - Y), _signed_dihedral(X, Y, W, U)], 1)
+            # contacts no hull facet reaches: attach to ab, largest angle at a first
+            u_att = np.argmax(np.where(visited, -np.inf, att_a), axis=1)
+            vals_att = np.stack([att_a[rows, u_att], att_b[rows, u_att], att_d[rows, u_att]], 1)
+            u_new = np.where(has, u_new, u_att)
+            vals = np.where(has[:, None], vals, vals_att)
+            shape_vals.extend(vals.T)
+            order[:, k] = u_new
+            rank[rows, u_new] = k
+            visited[rows, u_new] = True
+            fe = tri_edges[f]
+            cur = owner[rows[:, None], fe]
+            owner[rows[:, None], fe] = np.where((cur < 0) & has[:, None], f[:, None], cur)
+    parts = [np.stack(shape_vals, axis=1)]
+    if N is not None:
+        N1 = _unit(np.cross(Bp - A, C - A))
+        if n == 3:
+            N2 = _unit(Bp - A)
+        else:
+            N2 = _unit(np.cross(Bp - A, _take(P, order[:, 3]) - A))
+        No = N[rows[:, None], order]  # (B, n, 3) in chain order
+        ang1 = _angle(No, N1[:, None])
+        ang2 = _angle(No, N2[:, None])
+        parts.append(np.stack([ang1, ang2], axis=-1).reshape(B, 2 * n))
+    q = np.concatenate(parts, axis=1)
+    q = np.where(valid[:, None], q, 0.0)
+    order = np.where(valid[:, None], order, np.arange(n)[None])
+    return q, valid, order, reason
+
+
+# ----------------------------------------------------------------------------------- planar phi
+def phi_planar(contacts, normals=None, *, strict: bool = False, tol: float = DEFAULT_TOL) -> GraspFeatures:
+    """Planar sibling of :func:`phi` for ``(B, n, 2)`` contacts (``2n - 3`` values, ``3n - 3`` with normals)."""
+    P, N, single = _as_batch(contacts, normals, 2)
+    B, n, _ = P.shape
+    rows = np.arange(B)
+    dist = np.linalg.norm(P[:, :, None] - P[:, None], axis=-1)
+    scale = dist.max(axis=(1, 2))
+    iu = np.triu_indices(n, 1)
+    reason = np.zeros(B, dtype=np.int8)
+    reason[dist[:, iu[0], iu[1]].min(axis=1) <= tol * np.maximum(scale, 1e-300)] = 1
+    reason[scale <= 1e-300] = 1
+    if n == 2:
+        v = P[:, 1] - P[:, 0]
+        vals = [dist[:, 0, 1]]
+        order = np.tile(np.arange(2), (B, 1))
+        if N is not None:
+            a0 = _signed_angle2(v, N[:, 0])
+            a1 = _signed_angle2(-v, N[:, 1])
+            swap = np.abs(a1) > np.abs(a0)
+            order[swap] = [1, 0]
+            vals += [np.where(swap, a1, a0), np.where(swap, a0, a1)]
+        q = np.stack(vals, 1)
+    else:
+        c = P.mean(axis=1, keepdims=True)
+        r = P - c
+        # collinear: all cross products of edges from contact 0 vanish
+        e0 = P[:, 1:] - P[:, :1]
+        cr = e0[:, :, None, 0] * e0[:, None, :, 1] - e0[:, :, None, 1] * e0[:, None, :, 0]
+        flat = np.abs(cr).max(axis=(1, 2)) <= tol * np.maximum(scale, 1e-300) ** 2
+        reason[(reason == 0) & flat] = 2
+        ccw = np.argsort(np.arctan2(r[..., 1], r[..., 0]), axis=1, kind="stable")
+        V = P[rows[:, None], ccw]
+        nxt = np.roll(V, -1, axis=1)
+        elen = np.linalg.norm(nxt - V, axis=-1)
+        start = np.argmax(elen, axis=1)
+        idx = (start[:, None] + np.arange(n)[None]) % n
+        order = ccw[rows[:, None], idx]
+        V = P[rows[:, None], order]
+        vals = [np.linalg.norm(V[:, 1] - V[:, 0], axis=-1)]
+        for k in range(2, n):
+            vals.append(_signed_angle2(V[:, k] - V[:, k - 1], V[:, k - 2] - V[:, k - 1]) % (2 * np.pi))
+            vals.append(np.linalg.norm(V[:, k] - V[:, k - 1], axis=-1))
+        if N is not None:
+            e = V[:, 1] - V[:, 0]
+            No = N[rows[:, None], order]
+            vals.extend(_signed_angle2(e[:, None], No).T)
+        q = np.stack(vals, axis=1)
+    valid = reason == 0
+    q = np.where(valid[:, None], q, 0.0)
+    if strict and not valid.all():
+        i = int(np.flatnonzero(~valid)[0])
+        raise DegenerateGraspError(
+            f"planar grasp {i} is degenerate ({DEGENERACY_REASONS[int(reason[i])]}): contacts {P[i].tolist()}"
+        )
+    if single:
+        return GraspFeatures(q[0], valid[0], order[0], reason[0])
+    return GraspFeatures(q, valid, order, reason)
+
+
+def _signed_angle2(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Signed angle from 2-D vector ``u`` to ``v`` in ``(-pi, pi]``."""
+    return np.arctan2(u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0], np.sum(u * v, -1))
+
+
+# ------------------------------------------------------------------------------------- scaling
+def surface_area(contacts, *, tol: float = DEFAULT_TOL) -> np.ndarray:
+    """Total surface area of each grasp polyhedron, ``(B,)`` (``(,)`` for one grasp).
+
+    ``n = 2``: the squared distance (so that scaling divides it to 1); ``n = 3``: the triangle's
+    area; ``n >= 4``: the area of the convex hull. Degenerate grasps get 0.
+    """
+    P, _, single = _as_batch(contacts, None, 3)
+    B, n, _ = P.shape
+    if n == 2:
+        out = np.sum((P[:, 1] - P[:, 0]) ** 2, -1)
+    else:
+        out = np.zeros(B)
+        T = len(_topology(n)[0])
+        step = max(1, _CHUNK_ELEMENTS // (T * n))
+        for lo in range(0, B, step):
+            area, hull, reason, _ = _hull_facets(P[lo : lo + step], tol)
+            ok = reason == 0 if n > 3 else reason < 2
+            out[lo : lo + step] = np.where(ok, np.where(hull, area, 0.0).sum(1), 0.0)
+    return out[0] if single else out
+
+
+def normalize_scale(contacts, *, tol: float = DEFAULT_TOL) -> tuple[np.ndarray, np.ndarray]:
+    """Divide contacts by ``sqrt(surface_area)``: returns ``(scaled contacts, sqrt(area))``.
+
+    Degenerate grasps (zero area) are returned unscaled with factor 1, and stay flagged by
+    :func:`phi`. Normals are unaffected by scaling and need no change.
+    """
+    P = np.asarray(contacts, dtype=np.float64)
+    s = np.sqrt(surface_area(P, tol=tol))
+    s = np.where(s > 0, s, 1.0)
+    return P / np.asarray(s)[..., None, None], s
