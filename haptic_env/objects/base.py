@@ -117,7 +117,7 @@ class GraspObject:
     @property
     def extents(self) -> np.ndarray:
         """``(3,)`` bounding-box size in metres."""
-        return np.asarray(self.mesh.extents, dtype=np.float64)
+        return np.array(self.mesh.extents, dtype=np.float64)  # a writable copy
 
     # ------------------------------------------------------------------------------ sampling
     def sample_surface(
