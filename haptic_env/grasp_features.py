@@ -165,7 +165,9 @@ def _signed_dihedral(x, y, w, u) -> np.ndarray:
     u2 = u - x
     u1 = u1 - _dot(u1, e)[..., None] * e
     u2 = u2 - _dot(u2, e)[..., None] * e
-    return np.arctan2(_dot(e, _cross(*np.broadcast_arrays(u1, u2))), _dot(u1, u2))
+    ang = np.arctan2(_dot(e, _cross(*np.broadcast_arrays(u1, u2))), _dot(u1, u2))
+    # a flat (coplanar) pair of facets is +-pi up to rounding: report it as +pi
+    return np.where(np.abs(ang) > np.pi - 1e-9, np.pi, ang)
 
 
 def _take(P: np.ndarray, idx: np.ndarray) -> np.ndarray:
@@ -224,20 +226,60 @@ def _hull_facets(P: np.ndarray, tol: float):
     reason[(reason == 0) & planar] = 3
     proper = area > 0.5 * tol * s2[:, None]
     hull = proper & ~(pos & neg)
-    # ambiguous: a hull candidate with another contact on its plane (several triangulations)
+    # ambiguous: a hull candidate with another contact on its plane (a planar face of >= 4
+    # contacts has several triangulations): triangulate those faces canonically instead
     ambiguous = (hull & onplane).any(-1) & (reason == 0)
-    if ambiguous.any():
-        from scipy.spatial import ConvexHull
-
-        for i in np.flatnonzero(ambiguous):
-            try:
-                simp = ConvexHull(P[i], qhull_options="Qt").simplices
-            except Exception:  # pragma: no cover - qhull failure on a flat input already flagged
-                reason[i] = 3
-                continue
-            hull[i] = False
-            hull[i, lut[simp[:, 0], simp[:, 1], simp[:, 2]]] = True
+    for i in np.flatnonzero(ambiguous):
+        tris = _canonical_hull_triangles(P[i], tol)
+        if tris is None:  # pragma: no cover - qhull failure on an input already near-flat
+            reason[i] = 3
+            continue
+        hull[i] = False
+        hull[i, lut[tris[:, 0], tris[:, 1], tris[:, 2]]] = True
     return area, hull, reason, scale
+
+
+def _canonical_hull_triangles(pts: np.ndarray, tol: float) -> np.ndarray | None:
+    """Hull triangles of one grasp ``(n, 3)`` whose planar faces of >= 4 contacts are fanned canonically.
+
+    Qhull's triangulation of a planar face depends on the input order. Here each planar face is
+    fanned from its vertex with the largest sum of distances to all contacts (a rigid- and
+    permutation-invariant key), around the face in the direction of its outward normal, so the
+    triangulation, and hence the chain, is a function of the geometry alone.
+    """
+    from scipy.spatial import ConvexHull
+
+    try:
+        hull = ConvexHull(pts)
+    except Exception:
+        return None
+    scale = np.linalg.norm(pts.max(0) - pts.min(0))
+    key = _norm(pts[:, None] - pts[None]).sum(1)
+    eq = hull.equations  # (F, 4): outward unit normal, offset
+    groups: list[list[int]] = []
+    for f in range(len(eq)):
+        for g in groups:
+            if np.abs(eq[g[0]] - eq[f]).max() <= 1e3 * tol * max(scale, 1.0):
+                g.append(f)
+                break
+        else:
+            groups.append([f])
+    out = []
+    for g in groups:
+        verts = np.unique(hull.simplices[g])
+        if len(verts) == 3:
+            out.append(verts)
+            continue
+        nrm = eq[g[0], :3]
+        c = pts[verts].mean(0)
+        u = _unit(pts[verts[0]] - c)
+        v = np.cross(nrm, u)
+        rel = pts[verts] - c
+        ring = verts[np.argsort(np.arctan2(rel @ v, rel @ u))]
+        start = int(np.argmax(key[ring]))
+        ring = np.roll(ring, -start)
+        out.extend([ring[0], ring[j], ring[j + 1]] for j in range(1, len(ring) - 1))
+    return np.array(out, dtype=np.int64)
 
 
 # ------------------------------------------------------------------------------------------ phi
