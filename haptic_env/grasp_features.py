@@ -70,6 +70,7 @@ DEFAULT_TOL = 1e-7
 DEGENERACY_REASONS = {0: "ok", 1: "coincident contacts", 2: "collinear contacts", 3: "coplanar contacts"}
 
 _CHUNK_ELEMENTS = 1 << 18  # bound on B * T * n per chunk (cache-friendly; measured fastest)
+_MIN_CHUNK_ROWS = 1024  # but never fewer rows than this (Python overhead of the chain loop)
 
 
 class DegenerateGraspError(ValueError):
@@ -214,7 +215,7 @@ def _hull_facets(P: np.ndarray, tol: float):
     if n == 3:
         return area, np.ones_like(area, dtype=bool), reason, scale
     # signed volumes of every other contact against every triangle's plane: (B, T, n)
-    s = np.einsum("btk,bmk->btm", cr, P) - _dot(cr, a)[..., None]
+    s = np.matmul(cr, P.transpose(0, 2, 1)) - _dot(cr, a)[..., None]
     own = np.zeros((len(tri), n), dtype=bool)
     own[np.arange(len(tri))[:, None], tri] = True
     s = s[:, ~own].reshape(B, len(tri), n - 3)  # each triangle against the other contacts only
@@ -305,7 +306,7 @@ def phi(contacts, normals=None, *, strict: bool = False, tol: float = DEFAULT_TO
     order = np.tile(np.arange(n), (B, 1))
     reason = np.zeros(B, dtype=np.int8)
     T = max(1, len(_topology(n)[0])) if n >= 3 else 1
-    step = max(1, _CHUNK_ELEMENTS // (T * n))
+    step = max(_MIN_CHUNK_ROWS, _CHUNK_ELEMENTS // (T * n))
     for lo in range(0, B, step):
         sl = slice(lo, min(B, lo + step))
         fn = _phi2 if n == 2 else _phi_chain
@@ -388,7 +389,7 @@ def _phi_chain(P, N, tol):
             unv = ~visited[:, tri]  # (B, T, 3)
             n_unv = unv.sum(-1)
             upos = np.argmax(unv, axis=-1)  # position of the (first) unvisited vertex
-            shared = np.take_along_axis(tri_edges[None].repeat(B, 0), upos[..., None], -1)[..., 0]
+            shared = tri_edges[np.arange(len(tri))[None], upos]  # (B, T) edge opposite it
             g_all = np.take_along_axis(owner, shared, axis=1)  # (B, T)
             cand = hull & (n_unv == 1) & (g_all >= 0)
             has = cand.any(axis=1)
@@ -513,7 +514,7 @@ def surface_area(contacts, *, tol: float = DEFAULT_TOL) -> np.ndarray:
     else:
         out = np.zeros(B)
         T = len(_topology(n)[0])
-        step = max(1, _CHUNK_ELEMENTS // (T * n))
+        step = max(_MIN_CHUNK_ROWS, _CHUNK_ELEMENTS // (T * n))
         for lo in range(0, B, step):
             area, hull, reason, _ = _hull_facets(P[lo : lo + step], tol)
             ok = reason == 0 if n > 3 else reason < 2
