@@ -171,12 +171,12 @@ def validate_actions(actions: Any, action_dim: int = ACTION_DIM) -> np.ndarray:
     bad = ~np.isfinite(arr)
     if bad.any():
         b, j = np.argwhere(bad)[0]
-        raise ValueError(f"action[{b}][{j}] ({ACTION_NAMES[j] if j < len(ACTION_NAMES) else j}) is {arr[b, j]}, "
+        raise ValueError(f"action[{b}][{j}] ({ACTION_NAMES[j] if j < len(ACTION_NAMES) else j}) is {float(arr[b, j])}, "
                          "must be finite")
     out = np.abs(arr) > 1.0 + 1e-6
     if out.any():
         b, j = np.argwhere(out)[0]
-        raise ValueError(f"action[{b}][{j}] ({ACTION_NAMES[j] if j < len(ACTION_NAMES) else j}) = {arr[b, j]!r} "
+        raise ValueError(f"action[{b}][{j}] ({ACTION_NAMES[j] if j < len(ACTION_NAMES) else j}) = {float(arr[b, j])!r} "
                          "is outside [-1, 1]")
     return np.clip(arr, -1.0, 1.0)
 

@@ -171,6 +171,7 @@ def allegro_hand(side: str = "right") -> HandDescription:
     return HandDescription(name=f"allegro_{side}", spec=spec, root="palm",
                            tips=("ff_tip", "mf_tip", "rf_tip", "th_tip"),
                            open_ctrl=open_ctrl, close_ctrl=close, spread=spread,
+                           approach_axis=np.array([0.0, 0.0, 1.0]),  # palm normal in the mount frame
                            option={"cone": mujoco.mjtCone.mjCONE_ELLIPTIC, "impratio": 10.0})
 
 
@@ -196,6 +197,7 @@ def shadow_hand(side: str = "right") -> HandDescription:
     return HandDescription(name=f"shadow_{side}", spec=spec, root=f"{p}_forearm",
                            tips=tuple(f"{p}_{f}distal" for f in ("ff", "mf", "rf", "lf", "th")),
                            open_ctrl=open_ctrl, close_ctrl=close, spread=spread,
+                           approach_axis=np.array([0.0, 0.0, 1.0]),  # palm normal in the mount frame
                            option={"cone": mujoco.mjtCone.mjCONE_ELLIPTIC, "impratio": 10.0})
 
 

@@ -34,8 +34,6 @@ from typing import Any
 
 import numpy as np
 
-if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
-    os.environ["MUJOCO_GL"] = "egl"  # headless offscreen rendering; only when the user set nothing
 import mujoco  # noqa: E402
 
 from .base import (  # noqa: E402
@@ -331,7 +329,16 @@ class GraspScene:
         if self._renderer is None or (self._renderer.width, self._renderer.height) != (width, height):
             if self._renderer is not None:
                 self._renderer.close()
-            self._renderer = mujoco.Renderer(self.model, height=height, width=width)
+            if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
+                # headless: EGL offscreen (read by mujoco when the first GL context is made)
+                os.environ["MUJOCO_GL"] = "egl"
+            try:
+                self._renderer = mujoco.Renderer(self.model, height=height, width=width)
+            except Exception as exc:  # no usable GL platform (mujoco.FatalError, ImportError, ...)
+                raise RuntimeError(
+                    f"no OpenGL backend for offscreen rendering (MUJOCO_GL={os.environ.get('MUJOCO_GL')!r}: "
+                    f"{exc}). Set MUJOCO_GL=egl (libegl1) or osmesa (libosmesa6) before importing mujoco."
+                ) from exc
         cam = mujoco.MjvCamera()
         cam.lookat[:] = lookat
         cam.distance = distance
