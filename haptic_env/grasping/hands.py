@@ -156,10 +156,11 @@ def allegro_hand(side: str = "right") -> HandDescription:
     if side not in ("right", "left"):
         raise ValueError(f"side must be 'right' or 'left', got {side!r}")
     spec = _menagerie_spec("wonik_allegro", f"{side}_hand")
+    # closing synergy (tuned for fingertip contacts): proximal moderately, medial/distal fully
     close = {}
     for f in ("ff", "mf", "rf"):
-        close.update({f"{f}a1": 1.4, f"{f}a2": 1.2, f"{f}a3": 1.0})
-    close.update({"tha0": 1.396, "tha1": 0.9, "tha2": 1.2, "tha3": 1.0})
+        close.update({f"{f}a1": 1.1, f"{f}a2": 1.6, f"{f}a3": 1.5})
+    close.update({"tha0": 1.396, "tha1": 1.16, "tha2": 1.6, "tha3": 1.6})
     names = [spec.actuators[i].name for i in range(len(spec.actuators))]
     # menagerie names actuators ffa0..tha3; fall back to joint-named actuators
     if "ffa1" not in names:
@@ -167,7 +168,7 @@ def allegro_hand(side: str = "right") -> HandDescription:
     sgn = 1.0 if side == "right" else -1.0
     spread = {k: v for k, v in {
         _act(names, "ff", 0): (sgn * 0.25, -sgn * 0.1), _act(names, "rf", 0): (-sgn * 0.25, sgn * 0.1)}.items()}
-    open_ctrl = {_act(names, "th", 0): 1.396}
+    open_ctrl = {_act(names, "th", 0): 0.5}  # thumb not yet opposed: it would block the approach
     return HandDescription(name=f"allegro_{side}", spec=spec, root="palm",
                            tips=("ff_tip", "mf_tip", "rf_tip", "th_tip"),
                            open_ctrl=open_ctrl, close_ctrl=close, spread=spread,
@@ -192,7 +193,7 @@ def shadow_hand(side: str = "right") -> HandDescription:
     close.update({f"{p}_A_{f}J0": 2.2 for f in ("FF", "MF", "RF", "LF")})
     close.update({f"{p}_A_THJ5": 0.6, f"{p}_A_THJ4": 1.2, f"{p}_A_THJ2": 0.4, f"{p}_A_THJ1": 1.2,
                   f"{p}_A_LFJ5": 0.5})
-    open_ctrl = {f"{p}_A_THJ4": 1.2, f"{p}_A_THJ5": 0.6}
+    open_ctrl = {f"{p}_A_THJ4": 0.0, f"{p}_A_THJ5": 0.0}  # thumb flat: an opposed thumb blocks the approach
     spread = {f"{p}_A_FFJ4": (0.2, -0.25), f"{p}_A_LFJ4": (0.2, -0.25), f"{p}_A_RFJ4": (0.1, -0.15)}
     return HandDescription(name=f"shadow_{side}", spec=spec, root=f"{p}_forearm",
                            tips=tuple(f"{p}_{f}distal" for f in ("ff", "mf", "rf", "lf", "th")),

@@ -70,8 +70,9 @@ class MujocoConfig:
     check_every: int = 10  # test for new tip contacts / rest every this many steps
     squeeze: float = 0.15  # rad (or actuator units) past the contact configuration; 0: close fully
     rest_qvel: float = 0.05  # rad/s: fingers at rest below this
-    friction: float = 0.3  # sliding friction of object and hand geoms
+    friction: float = 0.1  # sliding friction of object and hand geoms (normal error <~ atan(friction))
     march_step: float = 0.01  # m: pre-grasp placement search step along the approach
+    standoff: float = 0.02  # m: extra back-off after the closest collision-free pre-grasp pose
     contact_noise: float = 0.0  # std (m) on reported contacts
     normal_noise_deg: float = 0.0
     collision: CollisionConfig = CollisionConfig()
@@ -212,6 +213,7 @@ class GraspScene:
             for b in c:
                 if b not in shared:
                     body_finger[b] = i
+        self._geom_finger = body_finger[m.geom_bodyid]  # finger of every geom (any link), -1 palm/none
         self.act_finger = np.full(m.nu, -1)
         self.act_joint = np.full(m.nu, -1)
         for a in range(m.nu):
@@ -300,6 +302,18 @@ class GraspScene:
                 v = inward[sel].sum(0)
                 nrm[i] = v / max(np.linalg.norm(v), 1e-12)
         return touched, pts, nrm
+
+    def finger_link_contacts(self) -> np.ndarray:
+        """(n,) bool: any link of finger i (tip included) touches the object."""
+        d = self.data
+        out = np.zeros(len(self.site_ids), dtype=bool)
+        if d.ncon:
+            geom = d.contact.geom[: d.ncon]
+            obj0, obj1 = self._is_obj_geom[geom[:, 0]], self._is_obj_geom[geom[:, 1]]
+            f = np.where(obj0, self._geom_finger[geom[:, 1]], np.where(obj1, self._geom_finger[geom[:, 0]], -1))
+            f = f[(obj0 ^ obj1) & (f >= 0) & (d.contact.dist[: d.ncon] <= 0)]
+            out[np.unique(f)] = True
+        return out
 
     def sensed_torque(self, source: str) -> np.ndarray:
         d = self.data
@@ -465,7 +479,9 @@ class MujocoBackend:
                     hi = mid
                 else:
                     lo = mid
-            sc.set_mount(self._centre + hi * u - R @ g, R)
+            s = hi
+        if free:
+            sc.set_mount(self._centre + (s + cfg.standoff) * u - R @ g, R)
         sc.data.ctrl[:] = close_u
         mujoco.mj_forward(sc.model, sc.data)
         steps = 0
@@ -474,7 +490,7 @@ class MujocoBackend:
             k = min(cfg.check_every, cfg.max_steps - steps)
             sc.step(k)
             steps += k
-            if cfg.squeeze > 0:
+            if cfg.squeeze > 0:  # a finger stops closing at its first fingertip contact
                 touched = sc.tip_contacts()[0] & ~held
                 if touched.any():
                     sc.hold_fingers(np.flatnonzero(touched), close_u, cfg.squeeze)
