@@ -1,6 +1,7 @@
-"""MuJoCo backend checks. Angle bound: torque-derived normals lie inside the friction cone of the
-true normal at equilibrium (atan(0.3) = 16.7 deg) plus settling error; we require >= 90% of touching
-fingertips within 25 deg of MuJoCo's contact normal."""
+"""MuJoCo backend checks. Angle bound: at equilibrium a fingertip-only contact force lies inside the
+friction cone (atan(0.1) = 5.7 deg with the default friction); with settling error we require >= 90%
+of touching fingertips of the generic hand within 15 deg of MuJoCo's contact normal (measured: median
+~4, 90th percentile ~8 deg), and a median below 20 deg for the Allegro / Shadow hands."""
 
 import numpy as np
 import pytest
@@ -10,7 +11,8 @@ from haptic_env.grasping import make_backend
 from haptic_env.grasping.hands import HandUnavailableError
 from haptic_env.objects import GraspObject
 
-ANGLE_DEG = 25.0
+ANGLE_DEG = 15.0
+MENAGERIE_MEDIAN_DEG = 20.0
 
 
 def _cyl():
@@ -107,7 +109,7 @@ def test_menagerie_hands(hand, n):
     assert all(r.contacts.shape == (n, 3) for r in res)
     assert sum(r.n_touched for r in res) > 0
     ang = _angles(res)
-    assert np.median(ang) < ANGLE_DEG
+    assert np.median(ang) < MENAGERIE_MEDIAN_DEG
 
 
 def test_wrong_finger_count_for_hand():

@@ -66,6 +66,7 @@ class HandDescription:
     approach_axis: np.ndarray | None = None
     thumb_axis: np.ndarray | None = None
     option: dict[str, object] = field(default_factory=dict)  # e.g. {"cone": elliptic}
+    max_steps: int = 200  # closing steps (timestep 2 ms) after which the fingers have settled
 
     @property
     def n_fingers(self) -> int:
@@ -173,7 +174,7 @@ def allegro_hand(side: str = "right") -> HandDescription:
                            tips=("ff_tip", "mf_tip", "rf_tip", "th_tip"),
                            open_ctrl=open_ctrl, close_ctrl=close, spread=spread,
                            approach_axis=np.array([0.0, 0.0, 1.0]),  # palm normal in the mount frame
-                           option={"cone": mujoco.mjtCone.mjCONE_ELLIPTIC, "impratio": 10.0})
+                           option={"cone": mujoco.mjtCone.mjCONE_ELLIPTIC, "impratio": 10.0}, max_steps=120)
 
 
 def _act(names: list[str], finger: str, k: int) -> str:
@@ -199,7 +200,7 @@ def shadow_hand(side: str = "right") -> HandDescription:
                            tips=tuple(f"{p}_{f}distal" for f in ("ff", "mf", "rf", "lf", "th")),
                            open_ctrl=open_ctrl, close_ctrl=close, spread=spread,
                            approach_axis=np.array([0.0, 0.0, 1.0]),  # palm normal in the mount frame
-                           option={"cone": mujoco.mjtCone.mjCONE_ELLIPTIC, "impratio": 10.0})
+                           option={"cone": mujoco.mjtCone.mjCONE_ELLIPTIC, "impratio": 10.0}, max_steps=150)
 
 
 def mjcf_hand(path: str | Path, tips: tuple[str, ...] | list[str], *, root: str | None = None,

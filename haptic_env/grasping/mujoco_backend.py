@@ -65,7 +65,7 @@ class MujocoConfig:
     torque_source: str = "actuator"  # "actuator" | "constraint"
     contact_point: str = "surface"  # "surface": site + r * normal estimate; "site": fingertip site centre
     timestep: float = 0.002
-    max_steps: int = 200  # closing steps at most
+    max_steps: int | None = None  # closing steps at most (None: the hand's default, HandDescription.max_steps)
     min_steps: int = 40
     check_every: int = 10  # test for new tip contacts / rest every this many steps
     squeeze: float = 0.15  # rad (or actuator units) past the contact configuration; 0: close fully
@@ -88,7 +88,7 @@ class MujocoConfig:
             v = getattr(self, name)
             if not np.isfinite(v) or v <= 0:
                 raise ValueError(f"{name} must be > 0, got {v!r}")
-        if not (1 <= self.min_steps <= self.max_steps and self.check_every >= 1):
+        if not (1 <= self.min_steps <= (self.max_steps or self.min_steps) and self.check_every >= 1):
             raise ValueError(f"need 1 <= min_steps ({self.min_steps}) <= max_steps ({self.max_steps}), "
                              f"check_every >= 1 ({self.check_every})")
 
@@ -486,8 +486,9 @@ class MujocoBackend:
         mujoco.mj_forward(sc.model, sc.data)
         steps = 0
         held = np.zeros(self.n_fingers, dtype=bool)
-        while steps < cfg.max_steps:
-            k = min(cfg.check_every, cfg.max_steps - steps)
+        max_steps = cfg.max_steps or self.hand.max_steps
+        while steps < max_steps:
+            k = min(cfg.check_every, max_steps - steps)
             sc.step(k)
             steps += k
             if cfg.squeeze > 0:  # a finger stops closing at its first fingertip contact
