@@ -57,7 +57,7 @@ def _estimator(name: str, seed: int, **cfg):
     if name == "linear-svm":
         return CalibratedClassifierCV(LinearSVC(C=cfg.get("C", 1.0), dual=False, random_state=seed), cv=3)
     if name == "rbf-svm":
-        return SVC(C=cfg.get("C", 10.0), gamma="scale", probability=True, random_state=seed)
+        return CalibratedClassifierCV(SVC(C=cfg.get("C", 10.0), gamma="scale", random_state=seed), cv=3, ensemble=False)
     if name == "gp":
         # one-vs-rest Laplace GP; the kernel's length scale is optimised on the subsample
         return GaussianProcessClassifier(ConstantKernel(1.0) * RBF(1.0), random_state=seed, n_restarts_optimizer=0)

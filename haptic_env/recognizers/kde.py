@@ -44,8 +44,9 @@ class KDEConfig:
     method: str = "tree"
     k: int = 32  #: neighbours per object ("tree")
     cutoff: float = 4.0  #: neighbour radius in bandwidths ("tree")
-    max_samples: int = 20_000  #: per object ("subsample"; also caps the bandwidth-selection fit)
-    n_select: int = 2_000  #: validation vectors per object used to choose the factor
+    max_samples: int = 20_000  #: per object ("subsample")
+    select_samples: int = 4_000  #: training vectors per object in the bandwidth-selection KDE
+    n_select: int = 500  #: validation vectors per object used to choose the factor
     seed: int = 0
 
     def __post_init__(self):
@@ -129,7 +130,7 @@ class KDELikelihood:
     def _select(self, scott: float, Zv: np.ndarray, yv: np.ndarray, rng) -> float:
         """Factor of the grid with the highest mean true-class validation log-likelihood (dense)."""
         cfg = self.config
-        m = cfg.max_samples
+        m = cfg.select_samples
         sub = [z[rng.choice(len(z), m, replace=False)] if len(z) > m else z for z in self.data]
         # the factor multiplies Scott's rule, which carries the N-dependence: on a subsample of m
         # vectors it is evaluated at factor * m^(-1/(d+4)) and then transfers to the full N
