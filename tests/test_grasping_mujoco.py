@@ -115,3 +115,26 @@ def test_menagerie_hands(hand, n):
 def test_wrong_finger_count_for_hand():
     with pytest.raises(ValueError, match="fingers"):
         make_backend("mujoco", 7, hand="generic")
+
+
+def test_any_mjcf_hand_from_file(tmp_path):
+    from haptic_env.grasping.hands import generic_hand
+
+    desc = generic_hand(3)
+    path = tmp_path / "claw.xml"
+    path.write_text(desc.spec.to_xml())
+    be = make_backend("mujoco", 3, hand=str(path), hand_kwargs=(("tips", desc.tips),), support="floating")
+    be.set_object(_cyl())
+    rng = np.random.default_rng(0)
+    res = [be.grasp(a, rng) for a in rng.uniform(-1, 1, (6, 4))]
+    assert sum(r.n_touched for r in res) > 0
+    with pytest.raises(ValueError, match="fingertip bodies"):
+        make_backend("mujoco", 3, hand=str(path), hand_kwargs=(("tips", ("nope", "f1_tip", "f2_tip")),))
+
+
+def test_backends_follow_protocol(generic):
+    from haptic_env.grasping import GraspBackend
+
+    assert isinstance(generic, GraspBackend)
+    for name in ("geometric", "uniform"):
+        assert isinstance(make_backend(name, 4), GraspBackend)
