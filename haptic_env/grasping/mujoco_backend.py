@@ -34,9 +34,9 @@ from typing import Any
 
 import numpy as np
 
-import mujoco  # noqa: E402
+import mujoco
 
-from .base import (  # noqa: E402
+from .base import (
     ACTION_DIM,
     GraspBatch,
     GraspResult,
@@ -46,8 +46,8 @@ from .base import (  # noqa: E402
     validate_actions,
     validate_pose,
 )
-from .collision import CollisionConfig, convex_pieces  # noqa: E402
-from .hands import HandDescription, load_hand  # noqa: E402
+from .collision import CollisionConfig, convex_pieces
+from .hands import HandDescription, load_hand
 
 __all__ = ["MujocoConfig", "GraspScene", "MujocoBackend", "quat_from_matrix"]
 
@@ -179,8 +179,6 @@ class GraspScene:
         self.tip_body_ids = np.array([m.body(f"hand/{t}").id for t in hand.tips])
         self.obj_geom_ids = np.array([m.geom(n).id for n in self.object_geom_names], dtype=np.int64)
         self.obj_body_id = m.body("object").id
-        # hand dofs: every joint below the mount
-        self.hand_dofs = np.arange(m.nv)
         # which tip body each body's geoms count for (only the tip body itself)
         self._geom_tip = np.full(m.ngeom, -1)
         for i, b in enumerate(self.tip_body_ids):
