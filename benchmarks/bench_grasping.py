@@ -62,7 +62,7 @@ def bench_geometric(obj, n_grasps: int, rng) -> dict:
 
 def usable_fraction(backend: str, objects, n_approaches: int, seed: int, **cfg) -> dict:
     be = make_backend(backend, cfg.pop("n_fingers", 4), **cfg)
-    fracs, angles, times, ratios = [], [], [], []
+    fracs, angles, clean, times, ratios = [], [], [], [], []
     for i, obj in enumerate(tqdm(objects, desc=f"{backend}/{cfg.get('hand', '-')}", leave=False)):
         be.set_object(obj)
         rng = np.random.default_rng(seed + i)
@@ -77,11 +77,13 @@ def usable_fraction(backend: str, objects, n_approaches: int, seed: int, **cfg) 
             for r in res:
                 for j in np.flatnonzero(r.touched):
                     angles.append(np.degrees(np.arccos(np.clip(r.normals[j] @ r.gt_normals[j], -1, 1))))
+                    clean.append(not r.info["link_contact"][j])
         else:
             fracs.append(float(be.grasp_batch(acts, rng).usable.mean()))
     out = {"usable": np.array(fracs)}
     if backend == "mujoco":
-        out.update(gps=1.0 / np.mean(times), ratio=float(np.mean(ratios)), angles=np.array(angles))
+        out.update(gps=1.0 / np.mean(times), ratio=float(np.mean(ratios)), angles=np.array(angles),
+                   clean=np.array(clean, dtype=bool))
     return out
 
 
@@ -116,6 +118,7 @@ def main(argv=None) -> int:
                         row.setdefault("gps", []).append(r["gps"])
                         row.setdefault("ratio", []).append(r["ratio"])
                         row.setdefault("angles", []).append(r["angles"])
+                        row.setdefault("clean", []).append(r["clean"])
             except HandUnavailableError as exc:
                 print(f"skipping {hand}: {exc}")
                 continue
@@ -126,18 +129,20 @@ def main(argv=None) -> int:
           f"backend/raw-Embree time ratio {geo['ratio']:.2f}")
     names = list(sets)
     head = "| backend | hand | fingers | grasps/s | time / raw mj_step | " + " | ".join(
-        f"usable {s}" for s in names) + " | normal err median / 90th pct (deg) |"
+        f"usable {s}" for s in names) + " | normal err median / 90th pct (deg), all | same, fingertip-only contacts |"
     print("\n" + head)
     print("|" + "---|" * (head.count("|") - 1))
     for r in rows:
         if r["backend"] == "mujoco":
             gps, ratio = f"{np.mean(r['gps']):.0f}", f"{np.mean(r['ratio']):.2f}"
-            ang = np.concatenate(r["angles"])
+            ang, cl = np.concatenate(r["angles"]), np.concatenate(r["clean"])
             err = f"{np.median(ang):.1f} / {np.percentile(ang, 90):.1f} (n={len(ang)})" if len(ang) else "-"
+            if cl.any():
+                err += f" | {np.median(ang[cl]):.1f} / {np.percentile(ang[cl], 90):.1f} (n={int(cl.sum())})"
         elif r["backend"] == "geometric":
-            gps, ratio, err = f"{geo['batch_gps']:,.0f} (batch) / {geo['single_gps']:,.0f}", "-", "exact"
+            gps, ratio, err = f"{geo['batch_gps']:,.0f} (batch) / {geo['single_gps']:,.0f}", "-", "exact | exact"
         else:
-            gps, ratio, err = "-", "-", "exact"
+            gps, ratio, err = "-", "-", "exact | exact"
         cells = [f"{r[s].mean():.2f} +- {r[s].std():.2f}" for s in names]
         print(f"| {r['backend']} | {r['hand']} | {r['n']} | {gps} | {ratio} | " + " | ".join(cells) + f" | {err} |")
     n_obj = {s: len(v) for s, v in sets.items()}

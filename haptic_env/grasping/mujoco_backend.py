@@ -301,16 +301,19 @@ class GraspScene:
                 nrm[i] = v / max(np.linalg.norm(v), 1e-12)
         return touched, pts, nrm
 
-    def finger_link_contacts(self) -> np.ndarray:
-        """(n,) bool: any link of finger i (tip included) touches the object."""
+    def finger_link_contacts(self, exclude_tip: bool = False) -> np.ndarray:
+        """(n,) bool: any link of finger i (tip included unless ``exclude_tip``) touches the object."""
         d = self.data
         out = np.zeros(len(self.site_ids), dtype=bool)
         if d.ncon:
             geom = d.contact.geom[: d.ncon]
             obj0, obj1 = self._is_obj_geom[geom[:, 0]], self._is_obj_geom[geom[:, 1]]
             f = np.where(obj0, self._geom_finger[geom[:, 1]], np.where(obj1, self._geom_finger[geom[:, 0]], -1))
-            f = f[(obj0 ^ obj1) & (f >= 0) & (d.contact.dist[: d.ncon] <= 0)]
-            out[np.unique(f)] = True
+            keep = (obj0 ^ obj1) & (f >= 0) & (d.contact.dist[: d.ncon] <= 0)
+            if exclude_tip:
+                tip = np.where(obj0, self._geom_tip[geom[:, 1]], self._geom_tip[geom[:, 0]])
+                keep &= tip < 0
+            out[np.unique(f[keep])] = True
         return out
 
     def sensed_torque(self, source: str) -> np.ndarray:
@@ -537,7 +540,9 @@ class MujocoBackend:
         hand_q = sc.data.qpos.copy()
         return GraspResult(contacts=contacts, normals=est if cfg.normals else None, touched=touched,
                            joint_pos=hand_q, gt_normals=gt_n,
-                           info={"steps": steps, "gt_contacts": gt_pts, "tip_sites": sites})
+                           info={"steps": steps, "gt_contacts": gt_pts, "tip_sites": sites,
+                                 # fingers touching with other links too: their torque normal is biased
+                                 "link_contact": sc.finger_link_contacts(exclude_tip=True)})
 
     def grasp_batch(self, actions: np.ndarray, rng: np.random.Generator) -> GraspBatch:
         a = validate_actions(actions, self.action_dim)
