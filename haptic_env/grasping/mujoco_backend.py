@@ -70,6 +70,7 @@ class MujocoConfig:
     check_every: int = 10  # test for new tip contacts / rest every this many steps
     squeeze: float = 0.15  # rad (or actuator units) past the contact configuration; 0: close fully
     rest_qvel: float = 0.05  # rad/s: fingers at rest below this
+    joint_frictionloss: float | None = 0.0  # override the hand's dry joint friction (None: keep the model's)
     friction: float = 0.1  # sliding friction of object and hand geoms (normal error <~ atan(friction))
     march_step: float = 0.01  # m: pre-grasp placement search step along the approach
     standoff: float = 0.02  # m: extra back-off after the closest collision-free pre-grasp pose
@@ -129,7 +130,7 @@ class GraspScene:
     """Simulator wrapper: object + hand on a mocap mount. Physics only, no task logic."""
 
     def __init__(self, hand: HandDescription, pieces: list | None, pose: np.ndarray, *, table_z: float | None,
-                 timestep: float = 0.002, friction: float = 0.5) -> None:
+                 timestep: float = 0.002, friction: float = 0.5, joint_frictionloss: float | None = 0.0) -> None:
         self.hand = hand
         spec = mujoco.MjSpec()
         spec.modelname = "grasp_scene"
@@ -165,6 +166,9 @@ class GraspScene:
         for i, (t, (pos, r)) in enumerate(zip(hand.tips, sites)):
             hspec.body(t).add_site(name=f"tipsite{i}", pos=np.asarray(pos, dtype=np.float64), size=[r, 0, 0],
                                    rgba=[0, 1, 0, 0.5])
+        if joint_frictionloss is not None:  # dry joint friction is invisible to the torque-based estimate
+            for j in hspec.joints:
+                j.frictionloss = joint_frictionloss
         for g in hspec.geoms:
             if g.contype or g.conaffinity:
                 g.contype, g.conaffinity = HAND_BITS
@@ -397,7 +401,7 @@ class MujocoBackend:
         if self.scene is not None:
             self.scene.close()
         self.scene = GraspScene(self.hand, pieces, T, table_z=table_z, timestep=self.config.timestep,
-                                friction=self.config.friction)
+                                friction=self.config.friction, joint_frictionloss=self.config.joint_frictionloss)
         self.obj = obj
         self._hull_vw = np.asarray(mesh.convex_hull.vertices) @ T[:3, :3].T + T[:3, 3]
         if self._calibrated is None:
