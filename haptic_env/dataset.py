@@ -268,8 +268,12 @@ def _object_grasps(obj: GraspObject, config: DatasetConfig, rng: np.random.Gener
     need = config.grasps_per_object
     parts: list[np.ndarray] = []
     have = 0
+    asked = 0
     for _ in range(_MAX_TOPUP_ROUNDS):
-        batch = need - have if not parts else max(64, 2 * (need - have))
+        # ask for what is missing, scaled by the yield seen so far (approach grasps can miss often)
+        rate = max(have / asked, 0.01) if asked else 1.0
+        batch = max(64, int(np.ceil(1.2 * (need - have) / rate))) if parts else need
+        asked += batch
         if config.source == "geometric":
             C, N = approach_grasps(obj, batch, config.n_fingers, rng, hand_fingers=config.hand_fingers,
                                    support=config.support)
