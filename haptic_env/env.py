@@ -11,14 +11,13 @@ import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from itertools import combinations
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces, utils
 
-from haptic_env.grasp_features import feature_dim, phi
+from haptic_env.grasp_features import feature_dim
 
 __all__ = [
     "HapticRecogConfig",
@@ -53,8 +52,9 @@ class HapticRecogConfig:
     updater: str = "bc-np"
     """Belief update: "bc-np" | "bc-ip" | "ic" (``Recognizer.make_updater(kind=...)``)."""
     z_fingers: int | None = None
-    """If set (``3 <= z < n_fingers``), incomplete grasps with at least ``z`` touching fingers update the belief
-    through the recogniser's ``z``-finger model (sub-grasps of ``z`` contacts); if None they carry no information."""
+    """If set (``2 <= z < n_fingers``), the recogniser also gets models for ``z .. n_fingers - 1`` fingers and an
+    incomplete grasp with ``t >= z`` touching fingers updates the belief through the ``t``-finger model (its
+    touching contacts as one grasp); None: only complete grasps (all ``n`` fingers touching) are scored."""
     threshold: float = 0.85
     """Certainty :math:`\\lambda` at which the episode terminates (the recogniser has decided)."""
     reward: str = "true-posterior-gain"
@@ -85,8 +85,8 @@ class HapticRecogConfig:
             raise ValueError(f"grasp_cost must be a finite number >= 0, got {self.grasp_cost!r}")
         if not isinstance(self.max_grasps, (int, np.integer)) or self.max_grasps < 1:
             raise ValueError(f"max_grasps must be an int >= 1, got {self.max_grasps!r}")
-        if self.z_fingers is not None and not (3 <= self.z_fingers < self.n_fingers):
-            raise ValueError(f"z_fingers must be None or in [3, n_fingers={self.n_fingers}), got {self.z_fingers!r}")
+        if self.z_fingers is not None and not (2 <= self.z_fingers < self.n_fingers):
+            raise ValueError(f"z_fingers must be None or in [2, n_fingers={self.n_fingers}), got {self.z_fingers!r}")
         if self.scale_range is not None:
             lo, hi = (float(v) for v in self.scale_range)
             if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo <= hi):
@@ -109,14 +109,16 @@ def get_recognizer(objects, config: HapticRecogConfig):
     """The recogniser for ``objects`` and ``config`` (built/cached on disk once, then memoised per process)."""
     from haptic_env.cache import config_key
 
+    z_values = tuple(range(config.z_fingers, config.n_fingers)) if config.z_fingers is not None else ()
     key = config_key(
-        objects.name, tuple(objects.names), config.n_fingers, config.normals, dict(config.recognizer_kwargs)
+        objects.name, tuple(objects.names), config.n_fingers, config.normals, z_values,
+        dict(config.recognizer_kwargs),
     )
     if key not in _RECOGNIZERS:
         from haptic_env.recognizers import build_recognizer  # torch: imported on first use only
 
         _RECOGNIZERS[key] = build_recognizer(
-            objects, config.n_fingers, config.normals, **dict(config.recognizer_kwargs)
+            objects, config.n_fingers, config.normals, z_values=z_values, **dict(config.recognizer_kwargs)
         )
     return _RECOGNIZERS[key]
 
@@ -204,10 +206,10 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     After ``max_grasps`` grasps (30; registered as ``max_episode_steps``; the env also truncates itself at
     ``max_grasps`` so a changed value is honoured without the wrapper).
 
-    Grasps where fewer than all ``n`` fingers touched are *incomplete*: with ``z_fingers=z`` set and at least
-    ``z`` touching fingers the belief is updated with the ``z``-finger sub-grasps of the touching contacts;
-    otherwise (and for degenerate contacts, e.g. coplanar) the grasp carries no information. Either way it
-    costs a grasp.
+    Grasps where fewer than all ``n`` fingers touched are *incomplete*. With ``z_fingers=z`` the recogniser
+    also has ``z .. n-1``-finger models and an incomplete grasp with ``t >= z`` touching fingers is scored by
+    the ``t``-finger model; otherwise (default ``z_fingers=None``, or ``t < z``, or degenerate contacts such
+    as coplanar ones) the grasp carries no information: the belief is unchanged. Either way it costs a grasp.
 
     ## Arguments
     One frozen dataclass :class:`HapticRecogConfig` holds every setting. Pass it as ``config=`` and/or
@@ -367,9 +369,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         self.backend.set_object(obj, self._pose.copy())
 
         if self._updater is None:
-            self._updater = self.recognizer.make_updater(
-                kind=self.config.updater, threshold=self.config.threshold, z=self.config.z_fingers
-            )
+            self._updater = self.recognizer.make_updater(kind=self.config.updater, threshold=self.config.threshold)
         self._belief = self._as_belief(self._updater.reset(None))
         self._grasps = 0
         self._last_q = np.zeros(self.feature_dim)
@@ -482,26 +482,24 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
             )
         return np.asarray(N, dtype=np.float64)
 
-    def _features(self, contacts, normals, touched) -> tuple[np.ndarray, Any]:
-        """Observation vector of the touching contacts and the belief-update argument (None: no information)."""
+    def _features(self, contacts, normals, touched) -> tuple[np.ndarray, np.ndarray | None]:
+        """Observation vector of the touching contacts and the rows to score (None: no information).
+
+        Both come from ``Recognizer.features`` (so a recogniser trained scale-normalised sees normalised
+        vectors): the touching contacts as one grasp, ``(1, d_t)`` for ``t`` touching fingers, or ``(0, d_t)``
+        when they are degenerate.
+        """
         n = self.config.n_fingers
-        idx = np.flatnonzero(touched)
+        t = int(touched.sum())
         q_obs = np.zeros(self.feature_dim)
-        valid = False
-        if idx.size >= 2:
-            f = phi(contacts[idx], None if normals is None else normals[idx])
-            valid = bool(f.valid[0])
-            if valid:
-                q_obs[: f.q.shape[1]] = f.q[0]
-        if idx.size == n:
-            return q_obs, (q_obs.copy() if valid else None)
-        z = self.config.z_fingers
-        if z is None or idx.size < z:
+        if t < 2:
             return q_obs, None
-        subs = np.array(list(combinations(idx, z)))  # (S, z)
-        f = phi(contacts[subs], None if normals is None else normals[subs])
-        vecs = [q for q, ok in zip(f.q, f.valid) if ok]
-        return q_obs, (vecs if vecs else None)
+        Q = self.recognizer.features(contacts, normals, touched=touched)
+        if len(Q):
+            q_obs[: Q.shape[1]] = Q[0]
+        z = self.config.z_fingers
+        scored = t == n or (z is not None and t >= z)
+        return q_obs, (Q if scored and len(Q) else None)
 
     def _gain(self, old: np.ndarray, new: np.ndarray) -> float:
         kind = self.config.reward
