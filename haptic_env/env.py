@@ -174,8 +174,8 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
 
     | Slice        | Size | Content                                                                     | Range       |
     | ------------ | ---- | --------------------------------------------------------------------------- | ----------- |
-    | grasp        | d    | :math:`\Phi` of the latest grasp's touching contacts (lengths in m, angles  | (-inf, inf) |
-    |              |      | in rad), zero-padded to ``d = feature_dim(n, normals)``; all 0 if < 2 touched |             |
+    | grasp        | d    | :math:`\Phi` of the latest grasp's touching contacts (lengths in m, angles  | +-max(pi,   |
+    |              |      | in rad), zero-padded to ``d = feature_dim(n, normals)``; all 0 if < 2 touched | diameter)   |
     | contact_mask | n    | 1 for each finger of the latest grasp that touched the object               | {0, 1}      |
     | usable       | 1    | 1 if the latest grasp updated the belief                                    | {0, 1}      |
     | belief       | K    | current posterior over the objects (sums to 1)                              | [0, 1]      |
@@ -279,8 +279,12 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         }
         self.obs_slices: dict[str, slice] = {}
         lows, highs, start = [], [], 0
+        # grasp vectors hold angles (rad, |.| <= pi) and lengths (m, <= the largest object diameter)
+        scale_hi = config.scale_range[1] if config.scale_range is not None else 1.0
+        diam = max(2.0 * float(np.linalg.norm(np.asarray(o.mesh.vertices), axis=1).max()) for o in self.objects)
+        self._q_bound = float(max(np.pi, diam * scale_hi * 1.01))
         bounds = {
-            "grasp": (-np.inf, np.inf), "contact_mask": (0, 1), "usable": (0, 1), "belief": (0, 1),
+            "grasp": (-self._q_bound, self._q_bound), "contact_mask": (0, 1), "usable": (0, 1), "belief": (0, 1),
             "prev_action": (-1, 1), "grasp_count": (0, 1),
         }
         for name, size in self.observation_structure.items():
@@ -496,7 +500,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
             return q_obs, None
         Q = self.recognizer.features(contacts, normals, touched=touched)
         if len(Q):
-            q_obs[: Q.shape[1]] = Q[0]
+            q_obs[: Q.shape[1]] = np.clip(Q[0], -self._q_bound, self._q_bound)
         z = self.config.z_fingers
         scored = t == n or (z is not None and t >= z)
         return q_obs, (Q if scored and len(Q) else None)
