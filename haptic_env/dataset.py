@@ -1,0 +1,379 @@
+r"""Training grasps: random surface contacts per object, mapped to grasp vectors :math:`\Phi_n`.
+
+A training grasp of an object is ``n`` independent random surface points (with their inward
+normals), as in Sintov & Ben-David. :func:`grasp_vectors` applies the sensing model (object scale,
+contact and normal noise, optional scale normalisation) and :func:`~haptic_env.grasp_features.phi`.
+:func:`build_dataset` does this for every object of a set, with a stratified train/validation split,
+and caches the result in ``cache_dir("datasets")`` keyed by the object meshes and the config.
+
+CLI::
+
+    python -m haptic_env.cli dataset --objects default --fingers 4 --grasps 20000 [--no-normals]
+        [--noise 0.001] [--normal-noise 5] [--normalize-scale] [--scale-range 0.1 5]
+        [--sampling area|centroid] [--val-fraction 0.2] [--out file.npz] [--seed 0] [--no-cache]
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import time
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from .cache import CacheError, cache_dir, config_key, load_npz, save_npz_atomic
+from .grasp_features import feature_dim, normalize_scale, phi
+from .objects import SAMPLING_METHODS, GraspObject, ObjectSet, load_object_set
+
+__all__ = [
+    "DatasetConfig",
+    "GraspDataset",
+    "sample_grasps",
+    "grasp_vectors",
+    "build_dataset",
+    "dataset_cache_path",
+    "add_parser",
+]
+
+_CACHE_VERSION = "grasp-dataset-v1"
+_ARRAYS = ("X_train", "y_train", "X_val", "y_val", "names")
+#: Resampling rounds used to replace degenerate grasps before giving up.
+_MAX_TOPUP_ROUNDS = 20
+
+
+@dataclass(frozen=True)
+class DatasetConfig:
+    """How training grasps are generated (frozen: it is the cache key).
+
+    Attributes:
+        n_fingers: contacts per grasp (>= 2).
+        normals: include contact normals in the grasp vector (``5n - 6`` instead of ``3n - 6``).
+        grasps_per_object: valid grasps per object (train + validation).
+        contact_noise: std (m) of isotropic Gaussian noise added to every contact.
+        normal_noise_deg: std (degrees) of the tilt of every normal, in a uniform random direction.
+        normalize_scale: divide contacts by the square root of the grasp polyhedron's area.
+        scale_range: ``(lo, hi)``: every grasp sees the object scaled by ``U(lo, hi)``; ``None``: 1.
+        sampling: surface sampling method, ``"area"`` or ``"centroid"`` (see ``GraspObject``).
+        val_fraction: fraction of each object's grasps held out for validation, in ``[0, 1)``.
+        seed: seed of everything random in the dataset.
+    """
+
+    n_fingers: int = 4
+    normals: bool = True
+    grasps_per_object: int = 20_000
+    contact_noise: float = 0.0
+    normal_noise_deg: float = 0.0
+    normalize_scale: bool = False
+    scale_range: tuple[float, float] | None = None
+    sampling: str = "area"
+    val_fraction: float = 0.2
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if int(self.n_fingers) != self.n_fingers or self.n_fingers < 2:
+            raise ValueError(f"n_fingers must be an int >= 2, got {self.n_fingers!r}")
+        if int(self.grasps_per_object) != self.grasps_per_object or self.grasps_per_object < 1:
+            raise ValueError(f"grasps_per_object must be an int >= 1, got {self.grasps_per_object!r}")
+        for fname in ("contact_noise", "normal_noise_deg"):
+            v = getattr(self, fname)
+            if not np.isfinite(v) or v < 0:
+                raise ValueError(f"{fname} must be finite and >= 0, got {v!r}")
+        if self.scale_range is not None:
+            sr = tuple(float(v) for v in self.scale_range)
+            if len(sr) != 2 or not all(np.isfinite(sr)) or not 0 < sr[0] <= sr[1]:
+                raise ValueError(f"scale_range must be (lo, hi) with 0 < lo <= hi, got {self.scale_range!r}")
+            object.__setattr__(self, "scale_range", sr)
+        if self.sampling not in SAMPLING_METHODS:
+            raise ValueError(f"sampling must be one of {SAMPLING_METHODS}, got {self.sampling!r}")
+        if not 0.0 <= self.val_fraction < 1.0:
+            raise ValueError(f"val_fraction must be in [0, 1), got {self.val_fraction!r}")
+
+    @property
+    def feature_dim(self) -> int:
+        """Length ``d`` of a grasp vector."""
+        return feature_dim(self.n_fingers, self.normals)
+
+
+@dataclass(frozen=True)
+class GraspDataset:
+    """Grasp vectors and object labels, split per object into train and validation.
+
+    Rows are grouped by object (label order = ``names`` order), not shuffled.
+
+    Attributes:
+        X_train: ``(N, d)`` float32; y_train: ``(N,)`` int64 labels into ``names``.
+        X_val: ``(M, d)`` float32; y_val: ``(M,)`` int64.
+        names: object names (class ``k`` is ``names[k]``).
+        config: the :class:`DatasetConfig` that produced it.
+        cache_path: the ``.npz`` it was read from / written to, if cached.
+        from_cache: whether it was read from the cache.
+    """
+
+    X_train: np.ndarray
+    y_train: np.ndarray
+    X_val: np.ndarray
+    y_val: np.ndarray
+    names: tuple[str, ...]
+    config: DatasetConfig
+    cache_path: Path | None = None
+    from_cache: bool = False
+
+    @property
+    def n_classes(self) -> int:
+        return len(self.names)
+
+    @property
+    def feature_dim(self) -> int:
+        return self.X_train.shape[1]
+
+    def counts(self) -> dict[str, tuple[int, int]]:
+        """``{name: (train rows, validation rows)}``."""
+        tr = np.bincount(self.y_train, minlength=self.n_classes)
+        va = np.bincount(self.y_val, minlength=self.n_classes)
+        return {n: (int(tr[k]), int(va[k])) for k, n in enumerate(self.names)}
+
+
+# ------------------------------------------------------------------------------------- grasps
+def sample_grasps(
+    obj: GraspObject, count: int, n_fingers: int, rng: np.random.Generator, *, sampling: str = "area"
+) -> tuple[np.ndarray, np.ndarray]:
+    """``count`` random grasps of ``n_fingers`` independent surface contacts.
+
+    Returns:
+        ``contacts (count, n, 3)`` in metres and inward unit ``normals (count, n, 3)``.
+    """
+    if int(n_fingers) != n_fingers or n_fingers < 1:
+        raise ValueError(f"n_fingers must be an int >= 1, got {n_fingers!r}")
+    pts, nrm = obj.sample_surface(int(count) * int(n_fingers), rng, sampling)
+    shape = (int(count), int(n_fingers), 3)
+    return pts.reshape(shape), nrm.reshape(shape)
+
+
+def _tilt(normals: np.ndarray, std_rad: float, rng: np.random.Generator) -> np.ndarray:
+    """Rotate each unit normal by ``|N(0, std)|`` towards a uniformly random perpendicular direction."""
+    r = rng.standard_normal(normals.shape)
+    t = r - np.sum(r * normals, -1, keepdims=True) * normals
+    tn = np.linalg.norm(t, axis=-1, keepdims=True)
+    t = t / np.where(tn > 0, tn, 1.0)
+    ang = std_rad * rng.standard_normal(normals.shape[:-1])[..., None]
+    return np.cos(ang) * normals + np.sin(ang) * t
+
+
+def grasp_vectors(
+    contacts: np.ndarray,
+    normals: np.ndarray | None,
+    config: DatasetConfig,
+    *,
+    rng: np.random.Generator | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Apply the sensing model of ``config`` and map grasps to grasp vectors.
+
+    In order: object scale ``U(scale_range)`` per grasp (about the object's centre, which is the
+    origin), Gaussian contact noise, normal tilt noise, optional scale normalisation, then
+    :func:`~haptic_env.grasp_features.phi`.
+
+    Args:
+        contacts: ``(G, n, 3)`` contacts in metres.
+        normals: ``(G, n, 3)`` inward unit normals; required when ``config.normals``, ignored otherwise.
+        config: the dataset config (``n`` must equal ``config.n_fingers``).
+        rng: randomness of scale and noise (default ``default_rng(config.seed)``).
+
+    Returns:
+        ``X (G, d)`` float64 grasp vectors (zero rows where invalid) and ``valid (G,)`` bool
+        (False for degenerate grasps: coincident / collinear / coplanar contacts).
+    """
+    P = np.asarray(contacts, dtype=np.float64)
+    if P.ndim != 3 or P.shape[1:] != (config.n_fingers, 3):
+        raise ValueError(f"contacts must have shape (G, {config.n_fingers}, 3), got {P.shape}")
+    N = None
+    if config.normals:
+        if normals is None:
+            raise ValueError("config.normals is True but no normals were given")
+        N = np.asarray(normals, dtype=np.float64)
+        if N.shape != P.shape:
+            raise ValueError(f"normals must have the shape of contacts {P.shape}, got {N.shape}")
+    rng = np.random.default_rng(config.seed) if rng is None else rng
+    if config.scale_range is not None:
+        lo, hi = config.scale_range
+        P = P * rng.uniform(lo, hi, size=(P.shape[0], 1, 1))
+    if config.contact_noise > 0:
+        P = P + rng.normal(0.0, config.contact_noise, size=P.shape)
+    if N is not None and config.normal_noise_deg > 0:
+        N = _tilt(N, np.deg2rad(config.normal_noise_deg), rng)
+    if config.normalize_scale:
+        P, _ = normalize_scale(P)
+    feats = phi(P, N)
+    return feats.q, feats.valid
+
+
+def _object_grasps(obj: GraspObject, config: DatasetConfig, rng: np.random.Generator) -> np.ndarray:
+    """Exactly ``grasps_per_object`` valid grasp vectors of one object, ``(G, d)`` float32."""
+    need = config.grasps_per_object
+    parts: list[np.ndarray] = []
+    have = 0
+    for _ in range(_MAX_TOPUP_ROUNDS):
+        batch = need - have if not parts else max(64, 2 * (need - have))
+        C, N = sample_grasps(obj, batch, config.n_fingers, rng, sampling=config.sampling)
+        X, valid = grasp_vectors(C, N if config.normals else None, config, rng=rng)
+        X = X[valid][: need - have]
+        parts.append(X.astype(np.float32))
+        have += len(X)
+        if have >= need:
+            return np.concatenate(parts)
+    raise RuntimeError(
+        f"object {obj.name!r}: only {have} of {need} random {config.n_fingers}-contact grasps are "
+        f"non-degenerate after {_MAX_TOPUP_ROUNDS} rounds (is the mesh flat or tiny?)"
+    )
+
+
+def _safe_name(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)[:40] or "objects"
+
+
+def dataset_cache_path(objects: ObjectSet, config: DatasetConfig) -> Path:
+    """Where :func:`build_dataset` caches the dataset of ``objects`` under ``config``."""
+    key = config_key(_CACHE_VERSION, objects.identity, config)
+    return cache_dir("datasets") / f"{_safe_name(objects.name)}-{key}.npz"
+
+
+def _from_arrays(arrays: dict, objects: ObjectSet, config: DatasetConfig, path: Path) -> GraspDataset:
+    d = config.feature_dim
+    names = tuple(str(n) for n in arrays["names"])
+    if names != objects.names:
+        raise CacheError(f"cache file {path} holds objects {names}, expected {objects.names}")
+    for x, y in (("X_train", "y_train"), ("X_val", "y_val")):
+        X, Y = arrays[x], arrays[y]
+        if X.ndim != 2 or X.shape[1] != d or Y.shape != (X.shape[0],):
+            raise CacheError(f"cache file {path}: {x} has shape {X.shape}, {y} {Y.shape}; expected (N, {d}), (N,)")
+    return GraspDataset(
+        arrays["X_train"].astype(np.float32, copy=False),
+        arrays["y_train"].astype(np.int64, copy=False),
+        arrays["X_val"].astype(np.float32, copy=False),
+        arrays["y_val"].astype(np.int64, copy=False),
+        names,
+        config,
+        cache_path=path,
+        from_cache=True,
+    )
+
+
+def build_dataset(
+    objects: ObjectSet, config: DatasetConfig, *, cache: bool = True, progress: bool = True
+) -> GraspDataset:
+    """Grasp vectors of every object of ``objects``, split per object into train and validation.
+
+    Every object gets exactly ``config.grasps_per_object`` valid grasps (degenerate ones are
+    resampled); the first ``round(val_fraction * G)`` of a random permutation go to validation.
+    Object ``k`` draws from its own stream ``SeedSequence(seed).spawn(K)[k]``.
+
+    Args:
+        objects: the object set (labels follow its order).
+        config: generation config.
+        cache: read/write ``cache_dir("datasets")/<set>-<key>.npz`` (key: object names + mesh hashes
+            + config). A corrupted cache file is rebuilt with a warning.
+        progress: tqdm bar over objects.
+    """
+    if not isinstance(objects, ObjectSet):
+        raise TypeError(f"objects must be an ObjectSet, got {type(objects).__name__}")
+    path = dataset_cache_path(objects, config) if cache else None
+    if path is not None and path.exists():
+        try:
+            return _from_arrays(load_npz(path, required=_ARRAYS), objects, config, path)
+        except CacheError as exc:
+            warnings.warn(f"{exc}; rebuilding it", RuntimeWarning, stacklevel=2)
+    streams = np.random.SeedSequence(config.seed).spawn(len(objects))
+    G = config.grasps_per_object
+    n_val = int(round(config.val_fraction * G))
+    Xtr, Ytr, Xva, Yva = [], [], [], []
+    bar = tqdm(objects, desc=f"grasps ({config.n_fingers} fingers)", unit="obj", disable=not progress)
+    for k, (obj, ss) in enumerate(zip(bar, streams)):
+        rng = np.random.default_rng(ss)
+        X = _object_grasps(obj, config, rng)
+        perm = rng.permutation(G)
+        Xva.append(X[perm[:n_val]])
+        Xtr.append(X[perm[n_val:]])
+        Yva.append(np.full(n_val, k, dtype=np.int64))
+        Ytr.append(np.full(G - n_val, k, dtype=np.int64))
+    ds = GraspDataset(
+        np.concatenate(Xtr),
+        np.concatenate(Ytr),
+        np.concatenate(Xva),
+        np.concatenate(Yva),
+        objects.names,
+        config,
+        cache_path=path,
+    )
+    if path is not None:
+        save_npz_atomic(
+            path,
+            X_train=ds.X_train,
+            y_train=ds.y_train,
+            X_val=ds.X_val,
+            y_val=ds.y_val,
+            names=np.array(ds.names, dtype=str),
+        )
+    return ds
+
+
+# ---------------------------------------------------------------------------------------- CLI
+def add_parser(subparsers) -> argparse.ArgumentParser:
+    """Register the ``dataset`` sub-command."""
+    p = subparsers.add_parser("dataset", help="generate (or load cached) training grasp vectors",
+                              description="Generate training grasp vectors for an object set.")
+    p.add_argument("--objects", default="default",
+                   help="default | families[:N] | kit8 | kit20 | ycb10 | a folder of STL/OBJ/PLY (default: default)")
+    p.add_argument("--units", default="m", help="units of a folder's mesh files: m, cm, mm or metres per unit")
+    p.add_argument("--fingers", type=int, default=4, help="contacts per grasp (default 4)")
+    p.add_argument("--no-normals", action="store_true", help="grasp vectors without contact normals")
+    p.add_argument("--grasps", type=int, default=20_000, help="grasps per object (default 20000)")
+    p.add_argument("--noise", type=float, default=0.0, help="contact noise std in metres (default 0)")
+    p.add_argument("--normal-noise", type=float, default=0.0, help="normal tilt noise std in degrees (default 0)")
+    p.add_argument("--normalize-scale", action="store_true", help="scale-normalise every grasp (Theorem 2)")
+    p.add_argument("--scale-range", type=float, nargs=2, metavar=("LO", "HI"), default=None,
+                   help="random per-grasp object scale U(LO, HI)")
+    p.add_argument("--sampling", choices=SAMPLING_METHODS, default="area", help="surface sampling (default area)")
+    p.add_argument("--val-fraction", type=float, default=0.2, help="validation fraction (default 0.2)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", type=Path, default=None, help="also write the dataset to this .npz")
+    p.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_run_cli)
+    return p
+
+
+def _run_cli(args: argparse.Namespace) -> int:
+    t0 = time.perf_counter()
+    objects = load_object_set(args.objects, units=args.units)
+    config = DatasetConfig(
+        n_fingers=args.fingers,
+        normals=not args.no_normals,
+        grasps_per_object=args.grasps,
+        contact_noise=args.noise,
+        normal_noise_deg=args.normal_noise,
+        normalize_scale=args.normalize_scale,
+        scale_range=tuple(args.scale_range) if args.scale_range else None,
+        sampling=args.sampling,
+        val_fraction=args.val_fraction,
+        seed=args.seed,
+    )
+    ds = build_dataset(objects, config, cache=not args.no_cache, progress=not args.quiet)
+    if args.out is not None:
+        save_npz_atomic(args.out, X_train=ds.X_train, y_train=ds.y_train, X_val=ds.X_val, y_val=ds.y_val,
+                        names=np.array(ds.names, dtype=str))
+    dt = time.perf_counter() - t0
+    print(f"objects: {objects.name} ({len(objects)})  fingers: {config.n_fingers}  normals: {config.normals}  "
+          f"d = {ds.feature_dim}")
+    print(f"X_train {ds.X_train.shape}  X_val {ds.X_val.shape}")
+    width = max(len(n) for n in ds.names)
+    for name, (tr, va) in ds.counts().items():
+        print(f"  {name:<{width}}  train {tr:>7}  val {va:>7}")
+    src = "hit" if ds.from_cache else ("written" if ds.cache_path else "disabled")
+    print(f"cache: {ds.cache_path if ds.cache_path else '-'} ({src})")
+    if args.out is not None:
+        print(f"written: {args.out}")
+    print(f"seconds: {dt:.2f}")
+    return 0

@@ -1,0 +1,199 @@
+"""Object sets by name or folder, and where the shared mesh data lives.
+
+Specs understood by :func:`load_object_set`:
+
+``"default"``
+    9 everyday-like shapes generated in code (no files).
+``"families"`` / ``"families:N"``
+    The paper's boxes / elliptic cylinders / ellipsoids, ``N`` (default 10) per family, seed 0.
+``"kit8"``, ``"kit20"``
+    KIT meshes from ``<data>/kit/*.stl`` (millimetres, converted to metres). ``kit20`` is every file
+    of the folder; its ``cube.stl`` is unit size in the file and is taken, like the others, as
+    millimetres (a 1 mm cube): the file is used as shipped.
+``"ycb10"``
+    ``<data>/ycb/NNN_name/mesh.stl`` (metres), with the ``collision_NN.stl`` convex pieces listed in
+    :attr:`GraspObject.collision_paths`.
+any folder
+    Every ``*.stl`` / ``*.obj`` / ``*.ply`` in it (names = file stems), scaled by ``units``; or, if it
+    has none, every sub-folder holding a ``mesh.stl`` (YCB layout).
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from .base import GraspObject, ObjectSet, prepare_mesh
+from .primitives import default_set, family_set
+
+__all__ = ["data_dir", "load_object_set", "load_folder", "MeshLoadError", "KIT8", "MESH_SUFFIXES", "unit_scale"]
+
+#: The 8 KIT objects of the paper's main experiments.
+KIT8 = ("CatLying", "GreenCup", "HeringTin", "Shampoo", "ShowerGel", "Sprayflask", "ToyCarYelloq", "Wineglass")
+MESH_SUFFIXES = (".stl", ".obj", ".ply")
+_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3}
+_DATA_HELP = (
+    "put the benchmark meshes (kit/*.stl, ycb/NNN_name/mesh.stl) in ../shared/data next to the "
+    "repository, or set HAPTIC_DATA=/path/to/data"
+)
+
+
+class MeshLoadError(ValueError):
+    """A mesh file that cannot be read or holds no usable triangles."""
+
+
+def _repo_root() -> Path:
+    return Path(__file__).resolve().parents[2]  # <repo>/haptic_env/objects/loaders.py
+
+
+def data_dir(required: bool = False) -> Path | None:
+    """The shared data folder: ``$HAPTIC_DATA``, else ``<repo>/../shared/data``, else ``./../shared/data``.
+
+    Args:
+        required: raise :class:`FileNotFoundError` (saying where to put the files) instead of
+            returning ``None`` when no folder is found.
+    """
+    env = os.environ.get("HAPTIC_DATA")
+    if env:
+        p = Path(env).expanduser()
+        if p.is_dir():
+            return p.resolve()
+        msg = f"HAPTIC_DATA={env!r} is not a directory; {_DATA_HELP}"
+        if required:
+            raise FileNotFoundError(msg)
+        warnings.warn(msg, stacklevel=2)
+        return None
+    for base in (_repo_root(), Path.cwd()):
+        p = base.parent / "shared" / "data"
+        if p.is_dir():
+            return p.resolve()
+    if required:
+        raise FileNotFoundError(f"no data folder found (looked at $HAPTIC_DATA, {_repo_root().parent / 'shared' / 'data'}, "
+                                f"{Path.cwd().parent / 'shared' / 'data'}); {_DATA_HELP}")
+    return None
+
+
+def unit_scale(units: str | float) -> float:
+    """Metres per file unit for ``"m"``, ``"cm"``, ``"mm"`` or a positive finite factor."""
+    if isinstance(units, str):
+        try:
+            return _UNITS[units.strip().lower()]
+        except KeyError:
+            raise ValueError(f"unknown units {units!r}; expected one of {list(_UNITS)} or a positive number") from None
+    try:
+        f = float(units)
+    except (TypeError, ValueError):
+        raise ValueError(f"units must be 'm', 'cm', 'mm' or a positive number, got {units!r}") from None
+    if not np.isfinite(f) or f <= 0:
+        raise ValueError(f"units factor must be positive and finite, got {units!r}")
+    return f
+
+
+def _read_mesh(path: Path) -> trimesh.Trimesh:
+    try:
+        mesh = trimesh.load(path, force="mesh", process=True)
+    except Exception as exc:
+        raise MeshLoadError(f"cannot read mesh file {path}: {type(exc).__name__}: {exc}") from exc
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise MeshLoadError(f"mesh file {path} holds no triangles")
+    return mesh
+
+
+def load_mesh_object(path: str | Path, *, units: str | float = "m", name: str | None = None,
+                     collision_paths: tuple[Path, ...] = ()) -> GraspObject:
+    """One :class:`GraspObject` from a mesh file (scaled to metres and centred)."""
+    path = Path(path)
+    name = name or path.stem
+    try:
+        mesh, offset = prepare_mesh(_read_mesh(path), name, unit_scale(units))
+    except MeshLoadError:
+        raise
+    except ValueError as exc:
+        raise MeshLoadError(f"mesh file {path}: {exc}") from exc
+    return GraspObject(name, mesh, source=path, collision_paths=tuple(collision_paths), offset=offset)
+
+
+def load_folder(folder: str | Path, *, units: str | float = "m", name: str | None = None) -> ObjectSet:
+    """Every STL/OBJ/PLY file of ``folder`` (sorted by name), or its ``*/mesh.stl`` sub-folders.
+
+    Raises:
+        FileNotFoundError: the folder does not exist.
+        ValueError: it contains no mesh files.
+        MeshLoadError: a file cannot be read (the message names it).
+    """
+    folder = Path(folder).expanduser()
+    if not folder.is_dir():
+        raise FileNotFoundError(f"object folder {folder} does not exist")
+    scale = unit_scale(units)
+    files = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in MESH_SUFFIXES)
+    set_name = name or folder.name
+    if files:
+        return ObjectSet(set_name, [load_mesh_object(p, units=scale) for p in files])
+    subs = sorted(p for p in folder.iterdir() if (p / "mesh.stl").is_file())
+    if subs:
+        return ObjectSet(
+            set_name,
+            [
+                load_mesh_object(p / "mesh.stl", units=scale, name=p.name,
+                                 collision_paths=tuple(sorted(p.glob("collision_*.stl"))))
+                for p in subs
+            ],
+        )
+    raise ValueError(f"object folder {folder} has no mesh files ({', '.join(MESH_SUFFIXES)}) "
+                     "and no sub-folders with a mesh.stl")
+
+
+def _kit(root: Path, names: tuple[str, ...] | None, set_name: str) -> ObjectSet:
+    kit = root / "kit"
+    if not kit.is_dir():
+        raise FileNotFoundError(f"KIT meshes missing: {kit} does not exist; {_DATA_HELP}")
+    if names is None:
+        return load_folder(kit, units="mm", name=set_name)
+    missing = [n for n in names if not (kit / f"{n}.stl").is_file()]
+    if missing:
+        raise FileNotFoundError(f"KIT meshes missing from {kit}: {[m + '.stl' for m in missing]}; {_DATA_HELP}")
+    return ObjectSet(set_name, [load_mesh_object(kit / f"{n}.stl", units="mm") for n in names])
+
+
+def load_object_set(spec: str | Path = "default", *, data_dir: str | Path | None = None,
+                    units: str | float = "m") -> ObjectSet:
+    """An :class:`ObjectSet` by name (``default``, ``families[:N]``, ``kit8``, ``kit20``, ``ycb10``) or folder.
+
+    Args:
+        spec: set name or folder path (see the module docstring).
+        data_dir: shared data folder for the named file sets (default: :func:`data_dir`).
+        units: units of a folder's files (``"m"``, ``"cm"``, ``"mm"`` or metres per unit); named
+            sets use their known units and ignore it.
+    """
+    s = str(spec)
+    if s == "default":
+        return default_set()
+    if s == "families" or s.startswith("families:"):
+        n = 10
+        if ":" in s:
+            try:
+                n = int(s.split(":", 1)[1])
+            except ValueError:
+                raise ValueError(f"bad families spec {s!r}; expected 'families' or 'families:N'") from None
+        return family_set(n, np.random.default_rng(0))
+    if s in ("kit8", "kit20", "ycb10"):
+        root = Path(data_dir).expanduser() if data_dir is not None else globals()["data_dir"](required=True)
+        if not root.is_dir():
+            raise FileNotFoundError(f"data folder {root} does not exist; {_DATA_HELP}")
+        if s == "kit8":
+            return _kit(root, KIT8, "kit8")
+        if s == "kit20":
+            return _kit(root, None, "kit20")
+        ycb = root / "ycb"
+        if not ycb.is_dir():
+            raise FileNotFoundError(f"YCB meshes missing: {ycb} does not exist; {_DATA_HELP}")
+        return load_folder(ycb, units="m", name="ycb10")
+    p = Path(s).expanduser()
+    if p.is_dir():
+        return load_folder(p, units=units)
+    raise ValueError(f"unknown object set {s!r}: expected 'default', 'families[:N]', 'kit8', 'kit20', "
+                     "'ycb10' or an existing folder of STL/OBJ/PLY files")

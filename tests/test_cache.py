@@ -1,0 +1,63 @@
+"""Cache helpers: stable keys, atomic writes, corrupted-file errors."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from haptic_env.cache import CacheError, atomic_write, cache_dir, config_key, load_npz, save_npz_atomic
+
+
+@dataclasses.dataclass(frozen=True)
+class Cfg:
+    a: int = 1
+    b: tuple[float, float] = (0.1, 5.0)
+
+
+def test_config_key_is_stable_and_sensitive():
+    assert config_key(Cfg()) == config_key(Cfg())
+    assert config_key(Cfg()) != config_key(Cfg(a=2))
+    assert config_key(Cfg(), np.arange(3)) != config_key(Cfg(), np.arange(4))
+    assert len(config_key(Cfg())) == 16
+
+
+def test_cache_dir_honours_env(tmp_path, monkeypatch):
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path / "c"))
+    assert cache_dir("x") == tmp_path / "c" / "x"
+    assert (tmp_path / "c" / "x").is_dir()
+
+
+def test_npz_round_trip(tmp_path):
+    p = save_npz_atomic(tmp_path / "d.npz", x=np.arange(5), y=np.eye(2))
+    out = load_npz(p, required=("x", "y"))
+    np.testing.assert_array_equal(out["x"], np.arange(5))
+
+
+def test_failed_write_leaves_nothing(tmp_path):
+    target = tmp_path / "d.npz"
+    with pytest.raises(RuntimeError):
+        with atomic_write(target) as fh:
+            fh.write(b"partial")
+            raise RuntimeError("crash mid-write")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_failed_write_keeps_previous_version(tmp_path):
+    target = save_npz_atomic(tmp_path / "d.npz", x=np.arange(3))
+    with pytest.raises(RuntimeError):
+        with atomic_write(target) as fh:
+            fh.write(b"garbage")
+            raise RuntimeError("crash")
+    np.testing.assert_array_equal(load_npz(target)["x"], np.arange(3))
+
+
+def test_corrupted_and_incomplete_cache_errors(tmp_path):
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(b"not a zip file")
+    with pytest.raises(CacheError, match="bad.npz is corrupted"):
+        load_npz(bad)
+    p = save_npz_atomic(tmp_path / "d.npz", x=np.arange(3))
+    with pytest.raises(CacheError, match=r"lacks arrays \['y'\]"):
+        load_npz(p, required=("x", "y"))

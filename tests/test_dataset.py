@@ -1,0 +1,195 @@
+"""Tests of haptic_env.dataset: grasp sampling, sensing model, dataset building, cache, CLI."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from haptic_env import cache as cache_mod
+from haptic_env.cli import main as cli_main
+from haptic_env.dataset import (
+    DatasetConfig,
+    build_dataset,
+    dataset_cache_path,
+    grasp_vectors,
+    sample_grasps,
+)
+from haptic_env.grasp_features import feature_dim, phi
+from haptic_env.objects import load_object_set
+
+
+@pytest.fixture(scope="module")
+def objects():
+    return load_object_set("default").subset(["box", "mug", "ball"], name="tiny")
+
+
+@pytest.fixture(autouse=True)
+def _cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path / "cache"))
+
+
+def test_sample_grasps_shapes_and_determinism(objects):
+    mug = objects["mug"]
+    C, N = sample_grasps(mug, 100, 5, np.random.default_rng(0))
+    assert C.shape == N.shape == (100, 5, 3)
+    C2, N2 = sample_grasps(mug, 100, 5, np.random.default_rng(0))
+    np.testing.assert_array_equal(C, C2)
+    np.testing.assert_array_equal(N, N2)
+    Cc, _ = sample_grasps(mug, 10, 3, np.random.default_rng(0), sampling="centroid")
+    assert Cc.shape == (10, 3, 3)
+
+
+@pytest.mark.parametrize("n,normals", [(3, False), (4, True), (5, True), (2, True)])
+def test_grasp_vectors_dim_and_noise_free_equals_phi(objects, n, normals):
+    cfg = DatasetConfig(n_fingers=n, normals=normals)
+    C, N = sample_grasps(objects["box"], 200, n, np.random.default_rng(1))
+    X, valid = grasp_vectors(C, N, cfg)
+    assert X.shape == (200, feature_dim(n, normals)) and valid.shape == (200,)
+    ref = phi(C, N if normals else None)
+    np.testing.assert_array_equal(X, ref.q)
+    np.testing.assert_array_equal(valid, ref.valid)
+
+
+def test_grasp_vectors_sensing_model(objects):
+    C, N = sample_grasps(objects["mug"], 300, 4, np.random.default_rng(2))
+    base = DatasetConfig(n_fingers=4, normals=True)
+    X0, v0 = grasp_vectors(C, N, base)
+    # noise changes vectors, reproducibly with the same rng seed
+    noisy = DatasetConfig(n_fingers=4, contact_noise=1e-3, normal_noise_deg=5.0)
+    Xa, _ = grasp_vectors(C, N, noisy, rng=np.random.default_rng(3))
+    Xb, _ = grasp_vectors(C, N, noisy, rng=np.random.default_rng(3))
+    np.testing.assert_array_equal(Xa, Xb)
+    assert not np.allclose(Xa, X0)
+    # a random object scale changes lengths but normalisation removes it (Theorem 2)
+    sc = DatasetConfig(n_fingers=4, scale_range=(0.5, 3.0), normalize_scale=True)
+    Xs, vs = grasp_vectors(C, N, sc, rng=np.random.default_rng(4))
+    Xn, vn = grasp_vectors(C, N, DatasetConfig(n_fingers=4, normalize_scale=True))
+    ok = vs & vn
+    np.testing.assert_allclose(Xs[ok], Xn[ok], atol=1e-8)
+    Xu, _ = grasp_vectors(C, N, DatasetConfig(n_fingers=4, scale_range=(2.0, 2.0)))
+    assert np.allclose(Xu[v0, 0], 2.0 * X0[v0, 0])  # first value is a length
+    with pytest.raises(ValueError, match="normals"):
+        grasp_vectors(C, None, base)
+    with pytest.raises(ValueError, match=r"\(G, 5, 3\)"):
+        grasp_vectors(C, N, DatasetConfig(n_fingers=5))
+
+
+def test_tilted_normals_keep_unit_length_and_angle(objects):
+    from haptic_env.dataset import _tilt
+
+    _, N = sample_grasps(objects["ball"], 2000, 1, np.random.default_rng(5))
+    N = N[:, 0]
+    T = _tilt(N, np.deg2rad(10.0), np.random.default_rng(6))
+    np.testing.assert_allclose(np.linalg.norm(T, axis=1), 1.0, atol=1e-12)
+    ang = np.degrees(np.arccos(np.clip(np.sum(T * N, 1), -1, 1)))
+    assert 6.0 < np.sqrt(np.mean(ang**2)) < 14.0  # rms tilt ~ 10 deg
+
+
+@pytest.mark.parametrize(
+    "kwargs,match",
+    [
+        ({"n_fingers": 1}, "n_fingers"),
+        ({"grasps_per_object": 0}, "grasps_per_object"),
+        ({"contact_noise": float("nan")}, "contact_noise"),
+        ({"normal_noise_deg": -1.0}, "normal_noise_deg"),
+        ({"scale_range": (2.0, 1.0)}, "scale_range"),
+        ({"sampling": "vertex"}, "sampling"),
+        ({"val_fraction": 1.0}, "val_fraction"),
+    ],
+)
+def test_config_validation(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        DatasetConfig(**kwargs)
+
+
+def test_build_dataset_shapes_split_and_cache(objects):
+    cfg = DatasetConfig(n_fingers=4, normals=True, grasps_per_object=500, val_fraction=0.2, seed=3)
+    ds = build_dataset(objects, cfg, progress=False)
+    d = feature_dim(4, True)
+    assert ds.X_train.shape == (1200, d) and ds.X_val.shape == (300, d)
+    assert ds.X_train.dtype == np.float32 and ds.y_train.dtype == np.int64
+    assert ds.counts() == {n: (400, 100) for n in objects.names}
+    assert np.isfinite(ds.X_train).all() and not (ds.X_train == 0).all(axis=1).any()  # no invalid rows
+    assert not ds.from_cache and ds.cache_path.exists()
+    assert ds.cache_path == dataset_cache_path(objects, cfg)
+    hit = build_dataset(objects, cfg, progress=False)
+    assert hit.from_cache
+    np.testing.assert_array_equal(hit.X_train, ds.X_train)
+    np.testing.assert_array_equal(hit.y_val, ds.y_val)
+    # a different config or object set is a miss
+    other = build_dataset(objects, DatasetConfig(n_fingers=4, grasps_per_object=500, seed=4), progress=False)
+    assert not other.from_cache and other.cache_path != ds.cache_path
+    assert not np.array_equal(other.X_train, ds.X_train)
+    sub = objects.subset(["box", "mug"], name="tiny")
+    assert dataset_cache_path(sub, cfg) != ds.cache_path
+    # no cache: same data, nothing written
+    nc = build_dataset(objects, cfg, cache=False, progress=False)
+    assert nc.cache_path is None
+    np.testing.assert_array_equal(nc.X_train, ds.X_train)
+
+
+def test_corrupted_cache_is_rebuilt_with_warning(objects):
+    cfg = DatasetConfig(n_fingers=3, normals=False, grasps_per_object=200)
+    path = dataset_cache_path(objects, cfg)
+    path.write_bytes(b"PK\x03\x04 truncated garbage")
+    with pytest.warns(RuntimeWarning, match="corrupted"):
+        ds = build_dataset(objects, cfg, progress=False)
+    assert not ds.from_cache and ds.X_train.shape == (480, 3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert build_dataset(objects, cfg, progress=False).from_cache  # repaired file
+
+
+def test_cache_with_wrong_shapes_is_rebuilt(objects):
+    cfg = DatasetConfig(n_fingers=3, normals=False, grasps_per_object=100)
+    path = dataset_cache_path(objects, cfg)
+    z = np.zeros((5, 7), np.float32)
+    cache_mod.save_npz_atomic(path, X_train=z, y_train=np.zeros(5, np.int64), X_val=z, y_val=np.zeros(5, np.int64),
+                              names=np.array(objects.names))
+    with pytest.warns(RuntimeWarning, match="X_train"):
+        ds = build_dataset(objects, cfg, progress=False)
+    assert ds.X_train.shape[1] == 3
+
+
+def test_failed_write_leaves_no_partial_file(objects, monkeypatch):
+    cfg = DatasetConfig(n_fingers=4, grasps_per_object=50)
+    path = dataset_cache_path(objects, cfg)
+
+    def boom(fh, **arrays):
+        fh.write(b"partial")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(cache_mod.np, "savez_compressed", boom)
+    with pytest.raises(OSError, match="disk full"):
+        build_dataset(objects, cfg, progress=False)
+    assert list(path.parent.iterdir()) == []
+
+
+def test_cli_dataset_smoke(tmp_path, capsys):
+    out = tmp_path / "ds.npz"
+    argv = ["dataset", "--objects", "default", "--fingers", "3", "--grasps", "60", "--noise", "0.001",
+            "--normalize-scale", "--scale-range", "0.5", "2", "--out", str(out), "--seed", "1", "--quiet"]
+    assert cli_main(argv) == 0
+    text = capsys.readouterr().out
+    assert "X_train (432, 9)" in text and "mug" in text and "(written)" in text and "seconds:" in text
+    with np.load(out) as z:
+        assert z["X_train"].shape == (432, 9) and list(z["names"])[:2] == ["box", "can"]
+    assert cli_main(argv) == 0
+    assert "(hit)" in capsys.readouterr().out
+
+
+def test_cli_dataset_folder_and_no_normals(tmp_path, capsys):
+    import trimesh
+
+    folder = tmp_path / "meshes"
+    folder.mkdir()
+    trimesh.creation.box(extents=(40, 60, 80)).export(folder / "block.stl")
+    trimesh.creation.icosphere(radius=30).export(folder / "orb.stl")
+    assert cli_main(["dataset", "--objects", str(folder), "--units", "mm", "--no-normals", "--fingers", "4",
+                     "--grasps", "50", "--no-cache", "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert "X_train (80, 6)" in text and "orb" in text and "(disabled)" in text
+    assert not (Path(tmp_path) / "cache" / "datasets").exists() or not any((tmp_path / "cache" / "datasets").iterdir())

@@ -1,0 +1,223 @@
+"""Property and analytic tests of Phi_n (haptic_env.grasp_features)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
+
+from haptic_env.grasp_features import (
+    DegenerateGraspError,
+    feature_dim,
+    normalize_scale,
+    phi,
+    phi_planar,
+    surface_area,
+)
+
+SETTINGS = settings(max_examples=60, deadline=None)
+
+
+def random_grasp(seed: int, n: int, batch: int = 16, normals: bool = False):
+    """Grasps in general position: Gaussian contacts (ties have probability zero)."""
+    rng = np.random.default_rng(seed)
+    P = rng.normal(size=(batch, n, 3))
+    N = rng.normal(size=(batch, n, 3)) if normals else None
+    return P, N
+
+
+rigid = st.tuples(
+    st.integers(0, 2**32 - 1),  # rotation seed
+    st.lists(st.floats(-10, 10), min_size=3, max_size=3),  # translation
+)
+
+
+@SETTINGS
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(2, 10), normals=st.booleans(), motion=rigid)
+def test_rigid_motion_invariance(seed, n, normals, motion):
+    """Theorem 1: q is invariant to rotation + translation of the grasp (normals rotate along)."""
+    P, N = random_grasp(seed, n, normals=normals)
+    Rm = Rotation.random(random_state=motion[0]).as_matrix()
+    t = np.array(motion[1])
+    f = phi(P, N)
+    g = phi(P @ Rm.T + t, None if N is None else N @ Rm.T)
+    assert f.q.shape == (len(P), feature_dim(n, normals))
+    assert f.valid.all() and g.valid.all()
+    np.testing.assert_allclose(f.q, g.q, atol=1e-8)
+
+
+@SETTINGS
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(2, 10), normals=st.booleans(), data=st.data())
+def test_finger_permutation_invariance(seed, n, normals, data):
+    """The chain orders the contacts, never the input order."""
+    P, N = random_grasp(seed, n, normals=normals)
+    perm = np.array(data.draw(st.permutations(range(n))))
+    f = phi(P, N)
+    g = phi(P[:, perm], None if N is None else N[:, perm])
+    np.testing.assert_allclose(f.q, g.q, atol=1e-9)
+    if n >= 3 or normals:  # (two contacts without normals are symmetric: no canonical order)
+        # the returned order names the same physical contacts
+        np.testing.assert_array_equal(perm[g.order], f.order)
+
+
+@SETTINGS
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(2, 10), normals=st.booleans(),
+       scale=st.floats(1e-2, 1e2))
+def test_scale_invariance_after_normalisation(seed, n, normals, scale):
+    """Theorem 2: after dividing by sqrt(surface area), uniform scaling leaves q unchanged."""
+    P, N = random_grasp(seed, n, normals=normals)
+    a, sa = normalize_scale(P)
+    b, sb = normalize_scale(P * scale)
+    np.testing.assert_allclose(sb, sa * scale, rtol=1e-9)
+    np.testing.assert_allclose(phi(a, N).q, phi(b, N).q, atol=1e-8)
+    np.testing.assert_allclose(surface_area(a), 1.0, rtol=1e-9)
+
+
+@SETTINGS
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(3, 8))
+def test_interior_contacts_are_attached_invariantly(seed, n):
+    """Contacts inside the hull (concave objects) still get a rigid- and permutation-invariant code."""
+    rng = np.random.default_rng(seed)
+    P = rng.normal(size=(8, n, 3))
+    P[:, -1] = P[:, :-1].mean(axis=1) + 0.01 * rng.normal(size=(8, 3))  # inside the hull
+    Rm = Rotation.random(random_state=seed).as_matrix()
+    perm = rng.permutation(n)
+    f = phi(P)
+    g = phi((P @ Rm.T)[:, perm])
+    assert f.valid.all()
+    np.testing.assert_allclose(f.q, g.q, atol=1e-8)
+
+
+@pytest.mark.parametrize("n", [2, 3, 4, 5, 7])
+@pytest.mark.parametrize("normals", [False, True])
+def test_distinct_grasps_give_distinct_vectors(n, normals):
+    """Non-congruent random grasps map to distinct vectors (no collisions in 2,000)."""
+    P, N = random_grasp(123, n, batch=2000, normals=normals)
+    q = phi(P, N).q
+    d = np.linalg.norm(q[:, None] - q[None], axis=-1)
+    d[np.diag_indices_from(d)] = np.inf
+    assert d.min() > 1e-10  # float noise of congruent grasps is ~1e-15 (see the invariance tests)
+
+
+def test_regular_tetrahedron():
+    tet = np.array([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1.0]])
+    f = phi(tet, strict=True)
+    edge = 2 * np.sqrt(2)
+    expected = [edge, np.pi / 3, np.pi / 3, np.pi / 3, np.pi / 3, np.arccos(1 / 3)]
+    np.testing.assert_allclose(np.abs(f.q), expected, atol=1e-12)
+    # surface area: 4 equilateral triangles of side 2 sqrt 2
+    np.testing.assert_allclose(surface_area(tet), 4 * np.sqrt(3) / 4 * edge**2)
+
+
+def test_unit_box_corner_grasp_with_normals():
+    """Contacts on a unit box corner: t1 is the equilateral face, t2 a right isosceles face."""
+    P = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+    N = np.array([[1, 1, 1], [-1, 0, 0], [0, -1, 0], [0, 0, -1.0]])  # inward face normals
+    f = phi(P, N, strict=True)
+    q = f.q
+    np.testing.assert_allclose(q[0], np.sqrt(2))  # longest edge of t1
+    np.testing.assert_allclose(q[1:3], [np.pi / 3, np.pi / 3])  # t1 equilateral
+    np.testing.assert_allclose(q[3:5], [np.pi / 4, np.pi / 4])  # t2 right isosceles at the hypotenuse
+    np.testing.assert_allclose(abs(q[5]), np.arccos(1 / np.sqrt(3)))  # dihedral equilateral/right face
+    assert q.shape == (feature_dim(4, True),) == (14,)
+    # the corner contact (origin) has its normal along t1's normal (the (1,1,1) diagonal): angle 0 or pi
+    corner = int(np.flatnonzero(f.order == 0)[0])
+    a1 = q[6 + 2 * corner]
+    assert min(a1, np.pi - a1) < 1e-12
+    np.testing.assert_allclose(surface_area(P), 3 * 0.5 + np.sqrt(3) / 4 * 2)
+
+
+def test_triangle_with_normals_uses_longest_edge():
+    P = np.array([[0, 0, 0], [3, 0, 0], [0, 4, 0.0]])  # 3-4-5 triangle
+    N = np.array([[0, 0, 1], [0, 0, 1], [1, 0, 0.0]])
+    f = phi(P, N, strict=True)
+    np.testing.assert_allclose(f.q[0], 5.0)
+    angles = sorted(f.q[1:3])
+    np.testing.assert_allclose(angles, sorted([np.arctan2(3, 4), np.arctan2(4, 3)]))
+    assert f.q.shape == (9,)
+
+
+def test_two_fingers():
+    P = np.array([[0, 0, 0], [0, 0, 2.0]])
+    assert phi(P).q.tolist() == [2.0]
+    N = np.array([[0, 0, 1], [0, 1, -1.0]])
+    f = phi(P, N)
+    np.testing.assert_allclose(f.q[:3], [2.0, np.pi / 4, 0.0])
+    g = phi(P[::-1], N[::-1])
+    np.testing.assert_allclose(f.q, g.q)
+
+
+@pytest.mark.parametrize(
+    "contacts, reason",
+    [
+        ([[0, 0, 0], [0, 0, 0], [1, 0, 0], [0, 1, 0]], "coincident"),
+        ([[0, 0, 0], [1, 1, 1], [2, 2, 2]], "collinear"),
+        ([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], "coplanar"),
+        ([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [0.3, 0.7, 0]], "coplanar"),
+        ([[1, 2, 3]] * 2, "coincident"),
+    ],
+)
+def test_degenerate_grasps_flagged_never_nan(contacts, reason):
+    good, _ = random_grasp(0, len(contacts), batch=3)
+    batch = np.concatenate([good, np.array(contacts, float)[None]], axis=0)
+    f = phi(batch)
+    assert np.isfinite(f.q).all()
+    assert f.valid.tolist() == [True, True, True, False]
+    assert not f.q[-1].any()
+    np.testing.assert_allclose(f.q[:3], phi(good).q)  # good rows unaffected by the bad one
+    with pytest.raises(DegenerateGraspError, match=f"grasp 3 is degenerate \\({reason}"):
+        phi(batch, strict=True)
+
+
+def test_bad_input_raises_clear_errors():
+    P = np.random.default_rng(0).normal(size=(4, 4, 3))
+    P[2, 1, 0] = np.nan
+    with pytest.raises(ValueError, match="grasp 2 are not finite"):
+        phi(P)
+    with pytest.raises(ValueError, match=r"shape \(B, n, 3\)"):
+        phi(np.zeros((4, 4, 2)))
+    with pytest.raises(ValueError, match="at least 2 contacts"):
+        phi(np.zeros((3, 1, 3)))
+    with pytest.raises(ValueError, match="normal 1 of grasp 0 is zero"):
+        phi(np.eye(3), np.array([[1, 0, 0], [0, 0, 0], [0, 0, 1.0]]))
+
+
+def test_box_face_coplanar_subset_is_deterministic():
+    """Four contacts on one box face plus one off it: a valid grasp whose hull comes from Qhull.
+
+    The coplanar face has two triangulations, so (as for any tie) which one Qhull picks may depend
+    on the frame; the result is valid, finite, repeatable and its area exact.
+    """
+    P = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [0.5, 0.5, 1.0]])
+    f = phi(P, strict=True)
+    assert f.valid and np.isfinite(f.q).all()
+    np.testing.assert_array_equal(phi(P).q, f.q)
+    np.testing.assert_allclose(surface_area(P), 1 + 4 * 0.5 * np.sqrt(1.25))
+
+
+# ------------------------------------------------------------------------------------- planar
+@SETTINGS
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(2, 9), normals=st.booleans(),
+       angle=st.floats(-np.pi, np.pi), data=st.data())
+def test_planar_invariances(seed, n, normals, angle, data):
+    rng = np.random.default_rng(seed)
+    P = rng.normal(size=(8, n, 2))
+    N = rng.normal(size=(8, n, 2)) if normals else None
+    c, s = np.cos(angle), np.sin(angle)
+    Rm = np.array([[c, -s], [s, c]])
+    perm = np.array(data.draw(st.permutations(range(n))))
+    f = phi_planar(P, N)
+    g = phi_planar((P @ Rm.T + 3.0)[:, perm], None if N is None else (N @ Rm.T)[:, perm])
+    assert f.q.shape == (8, feature_dim(n, normals, dim=2))
+    np.testing.assert_allclose(f.q, g.q, atol=1e-8)
+
+
+def test_planar_square_and_degenerate():
+    sq = np.array([[0, 0], [1, 0], [1, 1], [0, 1.0]])
+    q = phi_planar(sq, strict=True).q
+    np.testing.assert_allclose(q, [1, np.pi / 2, 1, np.pi / 2, 1])
+    assert not phi_planar(np.array([[0, 0], [1, 1], [2, 2.0]])).valid
+    with pytest.raises(DegenerateGraspError, match="collinear"):
+        phi_planar(np.array([[0, 0], [1, 1], [2, 2.0]]), strict=True)

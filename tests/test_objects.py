@@ -1,0 +1,236 @@
+"""Tests of haptic_env.objects: generated sets, loaders, surface sampling."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from haptic_env.objects import (
+    FAMILIES,
+    GraspObject,
+    MeshLoadError,
+    ObjectSet,
+    data_dir,
+    family_set,
+    load_object_set,
+)
+from haptic_env.objects.loaders import KIT8, unit_scale
+
+
+@pytest.fixture(scope="module")
+def default_set():
+    return load_object_set("default")
+
+
+def _surface_distance(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
+    # trimesh's closest-point query uses absolute tolerances that misjudge sub-millimetre
+    # triangles in metres (errors ~1e-4 m), so query in millimetres.
+    mm = mesh.copy()
+    mm.apply_scale(1000.0)
+    return trimesh.proximity.closest_point(mm, points * 1000.0)[1] / 1000.0
+
+
+def _data_or_skip():
+    root = data_dir()
+    if root is None:
+        pytest.skip("shared mesh data absent (set HAPTIC_DATA or put it in ../shared/data)")
+    return root
+
+
+# ------------------------------------------------------------------------------ default set
+def test_default_set_has_distinct_watertight_everyday_shapes(default_set):
+    assert len(default_set) >= 8
+    assert len(set(default_set.names)) == len(default_set)
+    assert len({o.mesh_hash for o in default_set}) == len(default_set)
+    for o in default_set:
+        m = o.mesh
+        assert m.is_watertight, o.name
+        assert m.volume > 0, f"{o.name} is inside out"
+        assert len(m.split(only_watertight=False)) == 1, f"{o.name} is not one piece"
+        assert 0.03 <= m.extents.max() <= 0.5, (o.name, m.extents)
+        assert m.extents.min() >= 0.01, (o.name, m.extents)
+        assert 1000 <= len(m.faces) <= 20_000, (o.name, len(m.faces))
+        np.testing.assert_allclose(m.bounds.mean(axis=0), 0.0, atol=1e-9, err_msg=o.name)
+
+
+def test_default_set_is_deterministic(default_set):
+    again = load_object_set("default")
+    assert again.names == default_set.names
+    assert [o.mesh_hash for o in again] == [o.mesh_hash for o in default_set]
+
+
+def test_object_set_indexing_and_errors(default_set):
+    assert default_set[0] is default_set[default_set.names[0]]
+    assert default_set.index("mug") == default_set.names.index("mug")
+    assert "mug" in default_set and list(iter(default_set))[1] is default_set[1]
+    with pytest.raises(KeyError, match="nope"):
+        default_set["nope"]
+    with pytest.raises(ValueError, match="duplicate"):
+        ObjectSet("dup", [default_set[0], default_set[0]])
+    with pytest.raises(ValueError, match="empty"):
+        ObjectSet("none", [])
+    sub = default_set.subset(["mug", "box"])
+    assert sub.names == ("mug", "box")
+
+
+# -------------------------------------------------------------------------------- sampling
+@pytest.mark.parametrize("method", ["area", "centroid"])
+def test_samples_lie_on_surface_with_inward_normals(default_set, method):
+    rng = np.random.default_rng(1)
+    for o in default_set:
+        pts, nrm = o.sample_surface(500, rng, method)
+        assert pts.shape == nrm.shape == (500, 3)
+        assert _surface_distance(o.mesh, pts).max() < 1e-6, o.name
+        np.testing.assert_allclose(np.linalg.norm(nrm, axis=1), 1.0, atol=1e-12)
+        inside = o.mesh.contains(pts + 1e-5 * nrm)
+        outside = o.mesh.contains(pts - 1e-5 * nrm)
+        # a point within 1e-5 m of a sharp edge may step out through the neighbouring face
+        assert inside.mean() >= 0.99 and outside.mean() <= 0.01, (o.name, inside.mean(), outside.mean())
+
+
+def test_area_sampling_is_area_weighted(default_set):
+    box = default_set["box"]
+    pts, nrm = box.sample_surface(60_000, np.random.default_rng(2))
+    half = box.extents / 2
+    frac = np.array([np.isclose(np.abs(pts[:, i]), half[i]).mean() for i in range(3)])
+    areas = np.array([half[1] * half[2], half[0] * half[2], half[0] * half[1]])
+    np.testing.assert_allclose(frac, areas / areas.sum(), atol=0.01)
+    # inward normal of a point on the +x face is -x
+    on_px = np.isclose(pts[:, 0], half[0])
+    np.testing.assert_allclose(nrm[on_px], np.tile([-1.0, 0, 0], (on_px.sum(), 1)), atol=1e-12)
+
+
+def test_sampling_rng_determinism(default_set):
+    o = default_set["mug"]
+    for method in ("area", "centroid"):
+        a = o.sample_surface(1000, np.random.default_rng(7), method)
+        b = o.sample_surface(1000, np.random.default_rng(7), method)
+        c = o.sample_surface(1000, np.random.default_rng(8), method)
+        np.testing.assert_array_equal(a[0], b[0])
+        np.testing.assert_array_equal(a[1], b[1])
+        assert not np.array_equal(a[0], c[0])
+
+
+def test_sampling_argument_errors(default_set):
+    o = default_set[0]
+    with pytest.raises(ValueError, match="sampling method 'vertex'"):
+        o.sample_surface(3, np.random.default_rng(0), "vertex")
+    with pytest.raises(ValueError, match="-1"):
+        o.sample_surface(-1, np.random.default_rng(0))
+    with pytest.raises(TypeError, match="Generator"):
+        o.sample_surface(3, np.random.RandomState(0))
+    assert o.sample_surface(0, np.random.default_rng(0))[0].shape == (0, 3)
+
+
+def test_centroid_sampling_returns_face_centroids(default_set):
+    o = default_set["cone"]
+    pts, _ = o.sample_surface(200, np.random.default_rng(3), "centroid")
+    cent = o.mesh.triangles_center
+    d = np.linalg.norm(pts[:, None] - cent[None], axis=-1).min(axis=1)
+    assert d.max() < 1e-12
+
+
+# -------------------------------------------------------------------------------- families
+def test_family_set_labels_and_scales():
+    fs = family_set(4, np.random.default_rng(0))
+    assert len(fs) == 12
+    assert set(fs.families.values()) == set(FAMILIES)
+    assert fs.families["box_03"] == "box"
+    for o in fs:
+        assert o.mesh.is_watertight and o.name.startswith(o.family)
+        assert np.all(o.extents >= 0.5 * 0.08 - 1e-9) and np.all(o.extents <= 1.5 * 0.08 + 1e-9)
+    again = family_set(4, np.random.default_rng(0))
+    assert [o.mesh_hash for o in again] == [o.mesh_hash for o in fs]
+    assert len(load_object_set("families:2")) == 6
+    with pytest.raises(ValueError, match="families:x"):
+        load_object_set("families:x")
+
+
+# ---------------------------------------------------------------------------------- folders
+def _write_meshes(folder, units_scale=1.0):
+    folder.mkdir(parents=True, exist_ok=True)
+    box = trimesh.creation.box(extents=np.array([0.1, 0.05, 0.02]) * units_scale)
+    box.apply_translation([1.0, 2.0, 3.0])  # off-centre in the file
+    box.export(folder / "brick.stl")
+    trimesh.creation.icosphere(subdivisions=2, radius=0.03 * units_scale).export(folder / "marble.ply")
+    trimesh.creation.cylinder(radius=0.02 * units_scale, height=0.1 * units_scale).export(folder / "peg.obj")
+    (folder / "notes.txt").write_text("not a mesh")
+
+
+@pytest.mark.parametrize("units,factor", [("m", 1.0), ("mm", 1000.0), ("cm", 100.0), (0.5, 2.0)])
+def test_folder_loader_units(tmp_path, units, factor):
+    _write_meshes(tmp_path / "objs", factor)
+    s = load_object_set(str(tmp_path / "objs"), units=units)
+    assert s.names == ("brick", "marble", "peg")
+    np.testing.assert_allclose(np.sort(s["brick"].extents), [0.02, 0.05, 0.1], rtol=1e-5)  # STL stores float32
+    np.testing.assert_allclose(s["marble"].extents.max(), 0.06, rtol=0.05)
+    np.testing.assert_allclose(s["brick"].mesh.bounds.mean(0), 0.0, atol=1e-9)
+    assert s["brick"].source == tmp_path / "objs" / "brick.stl"
+
+
+def test_folder_loader_errors(tmp_path):
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "empty" / "readme.txt").write_text("x")
+    with pytest.raises(ValueError, match="no mesh files"):
+        load_object_set(str(tmp_path / "empty"))
+    bad = tmp_path / "bad"
+    _write_meshes(bad)
+    (bad / "broken.stl").write_bytes(b"solid broken\n this is not an stl\n")
+    with pytest.raises(MeshLoadError, match="broken.stl"):
+        load_object_set(str(bad))
+    with pytest.raises(ValueError, match="unknown object set"):
+        load_object_set(str(tmp_path / "missing"))
+    for units in ("inch", -1.0, float("nan")):
+        with pytest.raises(ValueError, match="units"):
+            unit_scale(units)
+
+
+def test_data_dir_env(tmp_path, monkeypatch):
+    monkeypatch.setenv("HAPTIC_DATA", str(tmp_path))
+    assert data_dir() == tmp_path.resolve()
+    with pytest.raises(FileNotFoundError, match="kit"):
+        load_object_set("kit8")
+    monkeypatch.setenv("HAPTIC_DATA", str(tmp_path / "nowhere"))
+    with pytest.raises(FileNotFoundError, match="HAPTIC_DATA"):
+        data_dir(required=True)
+    with pytest.warns(UserWarning, match="HAPTIC_DATA"):
+        assert data_dir() is None
+
+
+# ---------------------------------------------------------------------------- shared data
+def test_kit8_loads_in_metres():
+    _data_or_skip()
+    s = load_object_set("kit8")
+    assert s.names == KIT8
+    for o in s:
+        assert 0.03 <= o.extents.max() <= 0.3, (o.name, o.extents)
+        assert len(o.mesh.faces) > 20_000
+        assert o.source is not None and o.source.suffix == ".stl"
+
+
+def test_ycb10_loads_with_collision_pieces():
+    _data_or_skip()
+    s = load_object_set("ycb10")
+    assert len(s) == 10
+    assert s["001_chips_can"].collision_paths == ()
+    assert len(s["025_mug"].collision_paths) > 1
+    assert all(p.name.startswith("collision_") for p in s["025_mug"].collision_paths)
+    for o in s:
+        assert 0.05 <= o.extents.max() <= 0.4, (o.name, o.extents)
+
+
+@pytest.mark.slow
+def test_kit20_loads():
+    _data_or_skip()
+    s = load_object_set("kit20")
+    assert len(s) == 20 and "cube" in s
+    pts, nrm = s["GreenCup"].sample_surface(100, np.random.default_rng(0))
+    assert _surface_distance(s["GreenCup"].mesh, pts).max() < 1e-6
+
+
+def test_grasp_object_validation():
+    with pytest.raises(ValueError, match="non-empty"):
+        GraspObject("", trimesh.creation.box())
+    with pytest.raises(ValueError, match="faces"):
+        GraspObject("x", trimesh.Trimesh())
