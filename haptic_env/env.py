@@ -68,7 +68,9 @@ class HapticRecogConfig:
     max_grasps: int = 30
     """Grasps per episode before truncation; also normalises the grasp count in the observation."""
     recognizer_kwargs: Mapping[str, Any] = field(default_factory=dict)
-    """Extra keyword arguments of :func:`haptic_env.recognizers.build_recognizer` (dataset size, model ...)."""
+    """Extra keyword arguments of :func:`haptic_env.recognizers.build_recognizer`, e.g.
+    ``{"config": RecognizerConfig(grasps_per_object=5000)}``; ``config`` may also be a JSON-style dict
+    (``{"grasps_per_object": 5000, "mlp": {"max_epochs": 5}}``)."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.n_fingers, (int, np.integer)) or self.n_fingers < 3:
@@ -118,9 +120,28 @@ def get_recognizer(objects, config: HapticRecogConfig):
         from haptic_env.recognizers import build_recognizer  # torch: imported on first use only
 
         _RECOGNIZERS[key] = build_recognizer(
-            objects, config.n_fingers, config.normals, z_values=z_values, **dict(config.recognizer_kwargs)
+            objects, config.n_fingers, config.normals, z_values=z_values, **_recognizer_kwargs(config)
         )
     return _RECOGNIZERS[key]
+
+
+def _recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
+    """``recognizer_kwargs`` with a JSON-style ``{"config": {..., "mlp": {...}, "kde": {...}}}`` turned into
+    ``RecognizerConfig`` (so the command line can pass recogniser settings as JSON)."""
+    kw = dict(config.recognizer_kwargs)
+    rc = kw.get("config")
+    if isinstance(rc, Mapping):
+        from haptic_env.recognizers import KDEConfig, MLPConfig, RecognizerConfig
+
+        rc = dict(rc)
+        if isinstance(rc.get("mlp"), Mapping):
+            rc["mlp"] = MLPConfig(**rc["mlp"])
+        if isinstance(rc.get("kde"), Mapping):
+            rc["kde"] = KDEConfig(**rc["kde"])
+        if isinstance(rc.get("scale_range"), list):
+            rc["scale_range"] = tuple(rc["scale_range"])
+        kw["config"] = RecognizerConfig(**rc)
+    return kw
 
 
 def random_pose(rng: np.random.Generator, mode: str) -> np.ndarray:
