@@ -22,11 +22,9 @@ def haptic_cache(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def small_recognizer_kwargs():
-    """``recognizer_kwargs`` of a recogniser that builds in seconds (small dataset, 1-epoch tiny MLP)."""
-    from haptic_env.recognizers import MLPConfig, RecognizerConfig
-
-    return {"config": RecognizerConfig(grasps_per_object=1500,
-                                       mlp=MLPConfig(depth=1, width=32, max_epochs=1, progress=False)),
+    """``recognizer_kwargs`` (JSON-style) of a recogniser that builds in seconds (small dataset, tiny MLP)."""
+    return {"config": {"grasps_per_object": 1500,
+                       "mlp": {"depth": 1, "width": 32, "max_epochs": 1, "progress": False}},
             "progress": False}
 
 

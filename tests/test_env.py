@@ -246,7 +246,7 @@ def test_render_rgb_array(env_config):
 def test_subproc_vec_env(env_config):
     from stable_baselines3.common.vec_env import SubprocVecEnv
 
-    venv = SubprocVecEnv([lambda: haptic_env.make(env_config) for _ in range(2)])
+    venv = SubprocVecEnv([lambda: haptic_env.make(env_config) for _ in range(2)], start_method="fork")
     try:
         venv.seed(0)
         obs = venv.reset()
