@@ -42,6 +42,7 @@ __all__ = [
     "bootstrap_ci",
     "write_report",
     "plot_learning_curves",
+    "read_monitor",
     "make_agent",
     "add_parser",
 ]
@@ -234,6 +235,38 @@ def write_report(records: Sequence[EpisodeRecord], out: str | Path, max_grasps: 
     return paths
 
 
+def read_monitor(folder: str | Path) -> dict[str, np.ndarray]:
+    """All ``*.monitor.csv`` of ``folder`` (SB3 ``Monitor`` format) merged and sorted by wall time:
+    ``{"r", "l", "t", ...info keywords}`` as float arrays."""
+    files = sorted(Path(folder).glob("*monitor.csv"))
+    if not files:
+        raise FileNotFoundError(f"no *.monitor.csv in {folder} (train with agents.sb3.make_vec_env(log_dir=...))")
+    rows: list[dict[str, str]] = []
+    for f in files:
+        with open(f) as fh:
+            first = fh.readline()
+            if not first.startswith("#"):
+                raise ValueError(f"{f} is not a Monitor log (no '#{{...}}' header line)")
+            t0 = float(json.loads(first[1:]).get("t_start", 0.0))
+            for row in csv.DictReader(fh):
+                row["t"] = str(float(row["t"]) + t0)
+                rows.append(row)
+    if not rows:
+        return {"r": np.zeros(0), "l": np.zeros(0), "t": np.zeros(0)}
+    keys = [k for k in rows[0] if all(k in r for r in rows)]
+    out = {k: np.array([float(r[k] == "True") if r[k] in ("True", "False") else float(r[k]) for r in rows])
+           for k in keys}
+    order = np.argsort(out["t"], kind="stable")
+    return {k: v[order] for k, v in out.items()}
+
+
+def _rolling_mean(x: np.ndarray, window: int) -> np.ndarray:
+    c = np.cumsum(np.insert(np.asarray(x, dtype=np.float64), 0, 0.0))
+    i = np.arange(1, len(x) + 1)
+    lo = np.maximum(0, i - window)
+    return (c[i] - c[lo]) / (i - lo)
+
+
 def plot_learning_curves(log_dirs: dict[str, str | Path], out: str | Path, window: int = 200) -> Path:
     """Episode length (= grasps), return and success vs env steps from the ``Monitor`` CSVs of each run
     (``<log_dir>/monitor/*.monitor.csv``, as written by :func:`agents.sb3.make_vec_env`)."""
@@ -241,19 +274,16 @@ def plot_learning_curves(log_dirs: dict[str, str | Path], out: str | Path, windo
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from stable_baselines3.common.monitor import load_results
 
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     for name, d in log_dirs.items():
         d = Path(d)
         mon = d / "monitor" if (d / "monitor").is_dir() else d
-        df = load_results(str(mon)).sort_values("t")
-        steps = np.cumsum(df["l"].to_numpy())
+        data = read_monitor(mon)
+        steps = np.cumsum(data["l"])
         for ax, col in zip(axes, ["l", "r", "correct"]):
-            if col not in df:
-                continue
-            y = df[col].astype(float).rolling(window, min_periods=1).mean().to_numpy()
-            ax.plot(steps, y, label=name)
+            if col in data:
+                ax.plot(steps, _rolling_mean(data[col], window), label=name)
     for ax, lab in zip(axes, ["grasps per episode", "episode return", "correct at stop"]):
         ax.set_xlabel("env steps (grasps)")
         ax.set_ylabel(f"{lab} (rolling mean, {window} ep.)")

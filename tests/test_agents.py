@@ -79,7 +79,7 @@ def test_tiny_ppo_trains_saves_reloads_and_resumes(env_config, small_recognizer_
     a1, a2 = agent.act(obs, env), SB3Agent.from_path(path).act(obs, env)
     np.testing.assert_array_equal(a1, a2)
 
-    path2 = train.main(args[:-4] + ["--resume", str(run / "checkpoints" / "ppo_128_steps.zip"),
+    path2 = train.main(args[:-2] + ["--resume", str(run / "checkpoints" / "ppo_128_steps.zip"),
                                     "--total-timesteps", "128", "--run-dir", str(tmp_path / "resumed"),
                                     "--hyperparams", json.dumps({"n_steps": 64, "batch_size": 32})])
     assert load_model(path2).num_timesteps >= 256
