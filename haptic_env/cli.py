@@ -13,6 +13,7 @@ import sys
 # name -> module that defines add_parser(subparsers) and sets func on its parser
 SUBCOMMANDS: dict[str, str] = {
     "dataset": "haptic_env.dataset",
+    "analysis": "haptic_env.recognizers.analysis",
     "evaluate": "agents.evaluate",
 }
 

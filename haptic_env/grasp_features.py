@@ -70,6 +70,7 @@ DEFAULT_TOL = 1e-7
 DEGENERACY_REASONS = {0: "ok", 1: "coincident contacts", 2: "collinear contacts", 3: "coplanar contacts"}
 
 _CHUNK_ELEMENTS = 1 << 18  # bound on B * T * n per chunk (cache-friendly; measured fastest)
+_MIN_CHUNK_ROWS = 1024  # but never fewer rows than this (Python overhead of the chain loop)
 
 
 class DegenerateGraspError(ValueError):
@@ -165,7 +166,9 @@ def _signed_dihedral(x, y, w, u) -> np.ndarray:
     u2 = u - x
     u1 = u1 - _dot(u1, e)[..., None] * e
     u2 = u2 - _dot(u2, e)[..., None] * e
-    return np.arctan2(_dot(e, _cross(*np.broadcast_arrays(u1, u2))), _dot(u1, u2))
+    ang = np.arctan2(_dot(e, _cross(*np.broadcast_arrays(u1, u2))), _dot(u1, u2))
+    # a flat (coplanar) pair of facets is +-pi up to rounding: report it as +pi
+    return np.where(np.abs(ang) > np.pi - 1e-9, np.pi, ang)
 
 
 def _take(P: np.ndarray, idx: np.ndarray) -> np.ndarray:
@@ -212,7 +215,7 @@ def _hull_facets(P: np.ndarray, tol: float):
     if n == 3:
         return area, np.ones_like(area, dtype=bool), reason, scale
     # signed volumes of every other contact against every triangle's plane: (B, T, n)
-    s = np.einsum("btk,bmk->btm", cr, P) - _dot(cr, a)[..., None]
+    s = np.matmul(cr, P.transpose(0, 2, 1)) - _dot(cr, a)[..., None]
     own = np.zeros((len(tri), n), dtype=bool)
     own[np.arange(len(tri))[:, None], tri] = True
     s = s[:, ~own].reshape(B, len(tri), n - 3)  # each triangle against the other contacts only
@@ -224,20 +227,60 @@ def _hull_facets(P: np.ndarray, tol: float):
     reason[(reason == 0) & planar] = 3
     proper = area > 0.5 * tol * s2[:, None]
     hull = proper & ~(pos & neg)
-    # ambiguous: a hull candidate with another contact on its plane (several triangulations)
+    # ambiguous: a hull candidate with another contact on its plane (a planar face of >= 4
+    # contacts has several triangulations): triangulate those faces canonically instead
     ambiguous = (hull & onplane).any(-1) & (reason == 0)
-    if ambiguous.any():
-        from scipy.spatial import ConvexHull
-
-        for i in np.flatnonzero(ambiguous):
-            try:
-                simp = ConvexHull(P[i], qhull_options="Qt").simplices
-            except Exception:  # pragma: no cover - qhull failure on a flat input already flagged
-                reason[i] = 3
-                continue
-            hull[i] = False
-            hull[i, lut[simp[:, 0], simp[:, 1], simp[:, 2]]] = True
+    for i in np.flatnonzero(ambiguous):
+        tris = _canonical_hull_triangles(P[i], tol)
+        if tris is None:  # pragma: no cover - qhull failure on an input already near-flat
+            reason[i] = 3
+            continue
+        hull[i] = False
+        hull[i, lut[tris[:, 0], tris[:, 1], tris[:, 2]]] = True
     return area, hull, reason, scale
+
+
+def _canonical_hull_triangles(pts: np.ndarray, tol: float) -> np.ndarray | None:
+    """Hull triangles of one grasp ``(n, 3)`` whose planar faces of >= 4 contacts are fanned canonically.
+
+    Qhull's triangulation of a planar face depends on the input order. Here each planar face is
+    fanned from its vertex with the largest sum of distances to all contacts (a rigid- and
+    permutation-invariant key), around the face in the direction of its outward normal, so the
+    triangulation, and hence the chain, is a function of the geometry alone.
+    """
+    from scipy.spatial import ConvexHull
+
+    try:
+        hull = ConvexHull(pts)
+    except Exception:
+        return None
+    scale = np.linalg.norm(pts.max(0) - pts.min(0))
+    key = _norm(pts[:, None] - pts[None]).sum(1)
+    eq = hull.equations  # (F, 4): outward unit normal, offset
+    groups: list[list[int]] = []
+    for f in range(len(eq)):
+        for g in groups:
+            if np.abs(eq[g[0]] - eq[f]).max() <= 1e3 * tol * max(scale, 1.0):
+                g.append(f)
+                break
+        else:
+            groups.append([f])
+    out = []
+    for g in groups:
+        verts = np.unique(hull.simplices[g])
+        if len(verts) == 3:
+            out.append(verts)
+            continue
+        nrm = eq[g[0], :3]
+        c = pts[verts].mean(0)
+        u = _unit(pts[verts[0]] - c)
+        v = np.cross(nrm, u)
+        rel = pts[verts] - c
+        ring = verts[np.argsort(np.arctan2(rel @ v, rel @ u))]
+        start = int(np.argmax(key[ring]))
+        ring = np.roll(ring, -start)
+        out.extend([ring[0], ring[j], ring[j + 1]] for j in range(1, len(ring) - 1))
+    return np.array(out, dtype=np.int64)
 
 
 # ------------------------------------------------------------------------------------------ phi
@@ -263,7 +306,7 @@ def phi(contacts, normals=None, *, strict: bool = False, tol: float = DEFAULT_TO
     order = np.tile(np.arange(n), (B, 1))
     reason = np.zeros(B, dtype=np.int8)
     T = max(1, len(_topology(n)[0])) if n >= 3 else 1
-    step = max(1, _CHUNK_ELEMENTS // (T * n))
+    step = max(_MIN_CHUNK_ROWS, _CHUNK_ELEMENTS // (T * n))
     for lo in range(0, B, step):
         sl = slice(lo, min(B, lo + step))
         fn = _phi2 if n == 2 else _phi_chain
@@ -346,7 +389,7 @@ def _phi_chain(P, N, tol):
             unv = ~visited[:, tri]  # (B, T, 3)
             n_unv = unv.sum(-1)
             upos = np.argmax(unv, axis=-1)  # position of the (first) unvisited vertex
-            shared = np.take_along_axis(tri_edges[None].repeat(B, 0), upos[..., None], -1)[..., 0]
+            shared = tri_edges[np.arange(len(tri))[None], upos]  # (B, T) edge opposite it
             g_all = np.take_along_axis(owner, shared, axis=1)  # (B, T)
             cand = hull & (n_unv == 1) & (g_all >= 0)
             has = cand.any(axis=1)
@@ -471,7 +514,7 @@ def surface_area(contacts, *, tol: float = DEFAULT_TOL) -> np.ndarray:
     else:
         out = np.zeros(B)
         T = len(_topology(n)[0])
-        step = max(1, _CHUNK_ELEMENTS // (T * n))
+        step = max(_MIN_CHUNK_ROWS, _CHUNK_ELEMENTS // (T * n))
         for lo in range(0, B, step):
             area, hull, reason, _ = _hull_facets(P[lo : lo + step], tol)
             ok = reason == 0 if n > 3 else reason < 2

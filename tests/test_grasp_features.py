@@ -221,3 +221,29 @@ def test_planar_square_and_degenerate():
     assert not phi_planar(np.array([[0, 0], [1, 1], [2, 2.0]])).valid
     with pytest.raises(DegenerateGraspError, match="collinear"):
         phi_planar(np.array([[0, 0], [1, 1], [2, 2.0]]), strict=True)
+
+
+def test_planar_hull_face_is_triangulated_canonically():
+    """Regression: four contacts on one box face (n=5) gave an order-dependent chain via Qhull."""
+    P = np.array([[0.035, 0.0108, -0.1168], [0.035, -0.0584, 0.0719], [-0.035, 0.0798, 0.0915],
+                  [0.035, 0.0283, -0.0921], [0.035, 0.0655, -0.0012]])
+    f = phi(P, strict=True)
+    for perm in ([4, 2, 0, 1, 3], [1, 0, 3, 4, 2], [2, 3, 4, 0, 1]):
+        Rm = Rotation.random(random_state=perm[0]).as_matrix()
+        np.testing.assert_allclose(phi(P[perm] @ Rm.T).q, f.q, atol=1e-9)
+
+
+@pytest.mark.parametrize("n", [5, 6])
+def test_box_surface_grasps_are_order_and_frame_invariant(n):
+    """Grasps sampled on a box often put >= 4 contacts on one face; all must stay canonical."""
+    from haptic_env.dataset import sample_grasps
+    from haptic_env.objects import load_object_set
+
+    rng = np.random.default_rng(n)
+    C, N = sample_grasps(load_object_set("default")["box"], 3000, n, rng)
+    perm = rng.permutation(n)
+    Rm = Rotation.random(random_state=n).as_matrix()
+    f, g = phi(C, N), phi((C @ Rm.T)[:, perm], (N @ Rm.T)[:, perm])
+    assert f.valid.mean() > 0.98
+    np.testing.assert_array_equal(f.valid, g.valid)
+    np.testing.assert_allclose(f.q, g.q, atol=1e-7)

@@ -1,0 +1,271 @@
+"""Grasp results, the backend protocol and the approach (action) parameterisation.
+
+The approach
+------------
+Every backend takes the same action, a ``float32`` vector in ``[-1, 1]^4``:
+
+=====  ==============  =====================================================================
+index  name            meaning
+=====  ==============  =====================================================================
+0      ``azimuth``     approach azimuth ``phi = pi * a[0]`` in ``[-pi, pi]`` (world z-axis)
+1      ``elevation``   approach elevation; ``support="table"``: ``(a[1] + 1) / 2 * pi/2`` in
+                       ``[0, pi/2]`` (upper hemisphere, object resting on a table);
+                       ``support="floating"``: ``a[1] * pi/2`` in ``[-pi/2, pi/2]`` (full sphere)
+2      ``roll``        roll of the hand about the approach axis, ``psi = pi * a[2]``
+3      ``spread``      grasp shape: finger spread / aperture ``s = (a[3] + 1) / 2`` in ``[0, 1]``
+                       (0 = fingers together opposite the thumb, 1 = evenly spread)
+=====  ==============  =====================================================================
+
+The hand comes *from* the unit direction ``u = (cos el cos phi, cos el sin phi, sin el)`` (seen
+from the object's centre) and moves along ``-u``; :func:`approach_frame` returns the rotation whose
+columns are ``(e1, e2, e3)`` with ``e3 = -u`` (the approach axis, into the object) and ``e1`` the
+thumb direction after the roll.
+
+Invalid actions (wrong shape, NaN/inf, outside ``[-1, 1]``) raise :class:`ValueError` naming the
+offending value. Backends are deterministic given the action and the ``np.random.Generator`` they
+are handed (the generator is only used for sensing noise / random surface points).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+__all__ = [
+    "ACTION_DIM",
+    "ACTION_NAMES",
+    "GraspResult",
+    "GraspBatch",
+    "GraspBackend",
+    "Approach",
+    "validate_action",
+    "validate_actions",
+    "decode_approach",
+    "approach_frame",
+    "validate_pose",
+    "make_backend",
+    "BACKENDS",
+]
+
+ACTION_DIM = 4
+ACTION_NAMES = ("azimuth", "elevation", "roll", "spread")
+SUPPORTS = ("table", "floating")
+
+
+@dataclass(frozen=True)
+class GraspResult:
+    """One grasp. ``n`` fingers; rows of untouched fingers are 0 in ``contacts``/``normals``.
+
+    contacts   (n, 3) float64, world frame (m)
+    normals    (n, 3) unit INWARD normals (into the object) or ``None`` when not sensed
+    touched    (n,) bool
+    joint_pos  (k,) hand joint state (empty for geometric / uniform)
+    gt_normals (n, 3) ground-truth inward normals (mujoco backend) or ``None``
+    info       free-form extras (e.g. mujoco: steps taken, ground-truth contact points)
+    """
+
+    contacts: np.ndarray
+    normals: np.ndarray | None
+    touched: np.ndarray
+    joint_pos: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    gt_normals: np.ndarray | None = None
+    info: dict[str, Any] = field(default_factory=dict, compare=False)
+
+    @property
+    def n_touched(self) -> int:
+        return int(np.count_nonzero(self.touched))
+
+    @property
+    def usable(self) -> bool:
+        """At least 3 fingers touched (a grasp the Phi_n features accept)."""
+        return self.n_touched >= 3
+
+
+@dataclass(frozen=True)
+class GraspBatch:
+    """``B`` grasps as stacked arrays (the shapes of :class:`GraspResult` with a leading ``B``)."""
+
+    contacts: np.ndarray  # (B, n, 3)
+    normals: np.ndarray | None  # (B, n, 3)
+    touched: np.ndarray  # (B, n) bool
+    joint_pos: np.ndarray  # (B, k)
+    gt_normals: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return int(self.contacts.shape[0])
+
+    def __getitem__(self, i: int) -> GraspResult:
+        return GraspResult(
+            contacts=self.contacts[i],
+            normals=None if self.normals is None else self.normals[i],
+            touched=self.touched[i],
+            joint_pos=self.joint_pos[i],
+            gt_normals=None if self.gt_normals is None else self.gt_normals[i],
+        )
+
+    def __iter__(self):
+        return (self[i] for i in range(len(self)))
+
+    @property
+    def usable(self) -> np.ndarray:
+        """(B,) bool: at least 3 fingers touched."""
+        return self.touched.sum(axis=1) >= 3
+
+    @classmethod
+    def stack(cls, results: list[GraspResult]) -> "GraspBatch":
+        if not results:
+            raise ValueError("GraspBatch.stack needs at least one GraspResult")
+        has_n = all(r.normals is not None for r in results)
+        has_gt = all(r.gt_normals is not None for r in results)
+        return cls(
+            contacts=np.stack([r.contacts for r in results]),
+            normals=np.stack([r.normals for r in results]) if has_n else None,
+            touched=np.stack([r.touched for r in results]),
+            joint_pos=np.stack([r.joint_pos for r in results]),
+            gt_normals=np.stack([r.gt_normals for r in results]) if has_gt else None,
+        )
+
+
+@runtime_checkable
+class GraspBackend(Protocol):
+    """What every grasp backend offers (see module docstring for the action layout)."""
+
+    n_fingers: int
+    action_dim: int
+
+    def set_object(self, obj: Any, pose: np.ndarray | None = None) -> None: ...
+
+    def grasp(self, action: np.ndarray, rng: np.random.Generator) -> GraspResult: ...
+
+    def grasp_batch(self, actions: np.ndarray, rng: np.random.Generator) -> GraspBatch: ...
+
+    def render(self, width: int = 480, height: int = 480) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class Approach:
+    """A decoded action. Angles in radians, ``spread`` in [0, 1]; arrays for batches."""
+
+    azimuth: np.ndarray
+    elevation: np.ndarray
+    roll: np.ndarray
+    spread: np.ndarray
+
+    @property
+    def direction(self) -> np.ndarray:
+        """(..., 3) unit vector from the object centre towards the hand (``u``)."""
+        ce = np.cos(self.elevation)
+        return np.stack([ce * np.cos(self.azimuth), ce * np.sin(self.azimuth), np.sin(self.elevation)], axis=-1)
+
+
+def validate_actions(actions: Any, action_dim: int = ACTION_DIM) -> np.ndarray:
+    """Check a batch of actions: returns ``(B, action_dim)`` float64; ValueError naming the bad value."""
+    try:
+        arr = np.asarray(actions, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"actions must be numeric, got {actions!r}") from exc
+    if arr.ndim != 2 or arr.shape[1] != action_dim:
+        raise ValueError(f"actions must have shape (B, {action_dim}), got shape {arr.shape}")
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        b, j = np.argwhere(bad)[0]
+        raise ValueError(f"action[{b}][{j}] ({ACTION_NAMES[j] if j < len(ACTION_NAMES) else j}) is {float(arr[b, j])}, "
+                         "must be finite")
+    out = np.abs(arr) > 1.0 + 1e-6
+    if out.any():
+        b, j = np.argwhere(out)[0]
+        raise ValueError(f"action[{b}][{j}] ({ACTION_NAMES[j] if j < len(ACTION_NAMES) else j}) = {float(arr[b, j])!r} "
+                         "is outside [-1, 1]")
+    return np.clip(arr, -1.0, 1.0)
+
+
+def validate_action(action: Any, action_dim: int = ACTION_DIM) -> np.ndarray:
+    """Check one action: returns ``(action_dim,)`` float64; ValueError naming the bad value."""
+    try:
+        arr = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"action must be numeric, got {action!r}") from exc
+    if arr.shape != (action_dim,):
+        raise ValueError(f"action must have shape ({action_dim},), got shape {arr.shape}: {action!r}")
+    return validate_actions(arr[None], action_dim)[0]
+
+
+def decode_approach(actions: np.ndarray, support: str = "table") -> Approach:
+    """Map validated actions ``(..., 4)`` in [-1, 1] to angles (see the table in the module docstring)."""
+    if support not in SUPPORTS:
+        raise ValueError(f"support must be one of {SUPPORTS}, got {support!r}")
+    a = np.asarray(actions, dtype=np.float64)
+    el = (a[..., 1] + 1.0) * (np.pi / 4.0) if support == "table" else a[..., 1] * (np.pi / 2.0)
+    return Approach(azimuth=np.pi * a[..., 0], elevation=el, roll=np.pi * a[..., 2], spread=(a[..., 3] + 1.0) / 2.0)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross product of (..., 3) arrays (np.cross is slow on small arrays)."""
+    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+                     a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
+
+
+def approach_frame(approach: Approach) -> np.ndarray:
+    """(..., 3, 3) rotations with columns ``(e1, e2, e3)``: ``e3 = -u`` the approach axis (into the object),
+    ``e1`` the thumb direction (rolled by ``approach.roll`` about ``e3``), ``e2 = e3 x e1``."""
+    u = approach.direction
+    e3 = -u
+    # reference perpendicular: world z projected (degenerate at the poles -> use the azimuth direction)
+    az = np.asarray(approach.azimuth, dtype=np.float64)
+    horiz = np.stack([np.cos(az), np.sin(az), np.zeros_like(az)], axis=-1)
+    zref = np.broadcast_to(np.array([0.0, 0.0, 1.0]), e3.shape)
+    ref = zref - np.sum(zref * e3, axis=-1, keepdims=True) * e3
+    nref = np.linalg.norm(ref, axis=-1, keepdims=True)
+    alt = horiz - np.sum(horiz * e3, axis=-1, keepdims=True) * e3
+    ref = np.where(nref > 1e-6, ref / np.maximum(nref, 1e-12), alt / np.maximum(np.linalg.norm(alt, axis=-1,
+                                                                                               keepdims=True), 1e-12))
+    b1 = ref
+    b2 = _cross(e3, b1)
+    c, s = np.cos(approach.roll)[..., None], np.sin(approach.roll)[..., None]
+    e1 = c * b1 + s * b2
+    e2 = _cross(e3, e1)
+    return np.stack([e1, e2, e3], axis=-1)
+
+
+def validate_pose(pose: Any) -> np.ndarray:
+    """A 4x4 rigid transform (identity when ``None``); ValueError naming what is wrong."""
+    if pose is None:
+        return np.eye(4)
+    T = np.asarray(pose, dtype=np.float64)
+    if T.shape != (4, 4):
+        raise ValueError(f"object pose must be a 4x4 matrix, got shape {T.shape}")
+    if not np.all(np.isfinite(T)):
+        raise ValueError(f"object pose contains non-finite values: {T.tolist()}")
+    R = T[:3, :3]
+    if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0 or not np.allclose(T[3], [0, 0, 0, 1]):
+        raise ValueError(f"object pose must be a rigid transform (rotation + translation), got {T.tolist()}")
+    return T
+
+
+BACKENDS = ("geometric", "uniform", "mujoco")
+
+
+def make_backend(name: str = "geometric", n_fingers: int = 4, **cfg: Any) -> GraspBackend:
+    """Build a backend by name: ``"geometric"`` | ``"uniform"`` | ``"mujoco"``.
+
+    ``cfg`` are the fields of that backend's config dataclass (:class:`GeometricConfig`,
+    :class:`UniformConfig`, :class:`MujocoConfig`); unknown keys raise TypeError naming them.
+    For ``"mujoco"``, ``hand="generic"|"allegro"|"shadow"|"<path to .xml>"`` picks the hand; the
+    Allegro hand has 4 fingers, Shadow 5 (``n_fingers`` must agree).
+    """
+    if name == "geometric":
+        from .geometric import GeometricBackend, GeometricConfig
+
+        return GeometricBackend(GeometricConfig(n_fingers=n_fingers, **cfg))
+    if name == "uniform":
+        from .uniform import UniformBackend, UniformConfig
+
+        return UniformBackend(UniformConfig(n_fingers=n_fingers, **cfg))
+    if name == "mujoco":
+        from .mujoco_backend import MujocoBackend, MujocoConfig
+
+        return MujocoBackend(MujocoConfig(n_fingers=n_fingers, **cfg))
+    raise ValueError(f"unknown grasp backend {name!r}; choose one of {BACKENDS}")

@@ -1,0 +1,242 @@
+"""Geometric (physics-free) grasp backend: fingertips close along rays until they hit the mesh.
+
+The hand pattern: ``n - 1`` fingers opposite a thumb, on a circle of radius ``R = margin * r_bound``
+(``r_bound`` = bounding-sphere radius about the bounding-box centre) in the plane through the
+object's centre perpendicular to the approach axis ``e3`` (see :mod:`.base`). In the approach frame
+the thumb sits at angle 0 along ``e1``; finger ``j = 0..n-2`` sits at
+``pi + (j - (n-2)/2) * delta`` with ``delta = (min_spread + (1 - min_spread) * s) * 2 pi / n`` for the
+spread ``s`` in [0, 1] (``s = 1``: all n fingertips evenly spaced). Each fingertip moves radially
+towards the axis and stops at its first intersection with the mesh; a fingertip that reaches the
+axis without hitting (or, with ``support="table"``, would touch below the table top) reports no
+contact. Rays are cast in the object frame (the rays are transformed, not the mesh) with Embree
+when ``embreex`` is installed, else trimesh's triangle intersector.
+
+Fingertip order: fingers ``0..n-2`` then the thumb last (like the Allegro hand: ff, mf, rf, th).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import trimesh
+
+from .base import (
+    ACTION_DIM,
+    GraspBatch,
+    GraspResult,
+    approach_frame,
+    decode_approach,
+    validate_action,
+    validate_actions,
+    validate_pose,
+)
+
+__all__ = ["GeometricConfig", "GeometricBackend", "make_intersector"]
+
+
+@dataclass(frozen=True)
+class GeometricConfig:
+    """n_fingers >= 2; noise std in metres / degrees; ``margin`` > 1 scales the start circle."""
+
+    n_fingers: int = 4
+    support: str = "table"  # "table": upper hemisphere + table top; "floating": full sphere
+    normals: bool = True  # report normals (else GraspResult.normals is None)
+    contact_noise: float = 0.0  # std (m) of Gaussian noise added to each touched contact
+    normal_noise_deg: float = 0.0  # approx. std (deg) of the angular noise on each normal
+    margin: float = 1.05
+    min_spread: float = 0.15  # finger spacing at spread 0, as a fraction of 2 pi / n
+    table_clearance: float = 1e-3  # contacts lower than table top + this are unreachable (m)
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.n_fingers, (int, np.integer)) and 2 <= self.n_fingers <= 16):
+            raise ValueError(f"n_fingers must be an integer in [2, 16], got {self.n_fingers!r}")
+        if self.support not in ("table", "floating"):
+            raise ValueError(f"support must be 'table' or 'floating', got {self.support!r}")
+        for name in ("contact_noise", "normal_noise_deg", "table_clearance"):
+            v = getattr(self, name)
+            if not np.isfinite(v) or v < 0:
+                raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
+        if not np.isfinite(self.margin) or self.margin <= 1.0:
+            raise ValueError(f"margin must be > 1, got {self.margin!r}")
+        if not 0.0 < self.min_spread <= 1.0:
+            raise ValueError(f"min_spread must be in (0, 1], got {self.min_spread!r}")
+
+
+def make_intersector(mesh: trimesh.Trimesh):
+    """Embree intersector when ``embreex`` imports, else trimesh's pure-python triangle intersector."""
+    try:
+        from trimesh.ray.ray_pyembree import RayMeshIntersector
+
+        return RayMeshIntersector(mesh)
+    except Exception:  # embreex missing or unusable on this platform
+        from trimesh.ray.ray_triangle import RayMeshIntersector
+
+        return RayMeshIntersector(mesh)
+
+
+def finger_angles(spread: np.ndarray, n: int, min_spread: float) -> np.ndarray:
+    """(..., n) angles of the fingertips about the approach axis (thumb last, at angle 0)."""
+    s = np.asarray(spread, dtype=np.float64)[..., None]
+    delta = (min_spread + (1.0 - min_spread) * s) * (2.0 * np.pi / n)
+    j = np.arange(n - 1, dtype=np.float64) - (n - 2) / 2.0
+    fingers = np.pi + j * delta
+    return np.concatenate([fingers, np.zeros_like(s)], axis=-1)
+
+
+class GeometricBackend:
+    """Ray-casting grasps. ``set_object(obj, pose)`` first; then ``grasp`` / ``grasp_batch``."""
+
+    action_dim = ACTION_DIM
+
+    def __init__(self, config: GeometricConfig | None = None) -> None:
+        self.config = config or GeometricConfig()
+        self.n_fingers = int(self.config.n_fingers)
+        self._obj: Any = None
+        self._last: tuple[np.ndarray, np.ndarray, GraspResult] | None = None
+
+    # ------------------------------------------------------------------ object
+    def set_object(self, obj: Any, pose: np.ndarray | None = None) -> None:
+        """``obj`` has ``.mesh`` (trimesh, metres, object frame); ``pose`` (4, 4) object-to-world."""
+        mesh = getattr(obj, "mesh", None)
+        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+            raise ValueError(f"object {getattr(obj, 'name', obj)!r} has no usable triangle mesh")
+        T = validate_pose(pose)
+        self._obj = obj
+        self._mesh = mesh
+        self._T = T
+        self._R = T[:3, :3].copy()
+        self._t = T[:3, 3].copy()
+        self._intersector = make_intersector(mesh)
+        self._face_normals = np.asarray(mesh.face_normals, dtype=np.float64)
+        self._face_v0 = np.asarray(mesh.triangles[:, 0, :], dtype=np.float64)
+        v = np.asarray(mesh.vertices, dtype=np.float64)
+        c_obj = 0.5 * (v.min(axis=0) + v.max(axis=0))
+        self._radius = float(np.linalg.norm(v - c_obj, axis=1).max())
+        self._centre = self._R @ c_obj + self._t
+        self._table_z = float((v @ self._R.T + self._t)[:, 2].min())
+        self._last = None
+
+    @property
+    def object(self) -> Any:
+        return self._obj
+
+    def _require_object(self) -> None:
+        if self._obj is None:
+            raise RuntimeError("call set_object(obj, pose) before grasping")
+
+    # ------------------------------------------------------------------ grasps
+    def rays(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World-frame ray origins and unit directions, each (B, n, 3), for validated actions (B, 4)."""
+        cfg = self.config
+        ap = decode_approach(actions, cfg.support)
+        frame = approach_frame(ap)  # (B, 3, 3)
+        ang = finger_angles(ap.spread, self.n_fingers, cfg.min_spread)  # (B, n)
+        e1, e2 = frame[:, None, :, 0], frame[:, None, :, 1]
+        radial = np.cos(ang)[..., None] * e1 + np.sin(ang)[..., None] * e2  # (B, n, 3)
+        R0 = cfg.margin * self._radius
+        return self._centre + R0 * radial, -radial
+
+    def grasp_batch(self, actions: np.ndarray, rng: np.random.Generator) -> GraspBatch:
+        """(B, 4) actions -> :class:`GraspBatch` (contacts/normals (B, n, 3), touched (B, n))."""
+        self._require_object()
+        a = validate_actions(actions, self.action_dim)
+        origins, dirs = self.rays(a)
+        contacts, normals, touched = self._cast(origins.reshape(-1, 3), dirs.reshape(-1, 3))
+        B, n = a.shape[0], self.n_fingers
+        contacts, normals, touched = contacts.reshape(B, n, 3), normals.reshape(B, n, 3), touched.reshape(B, n)
+        contacts, normals = self._noise(contacts, normals, touched, rng)
+        batch = GraspBatch(contacts=contacts, normals=normals if self.config.normals else None, touched=touched,
+                           joint_pos=np.zeros((B, 0)))
+        self._last = (origins[-1], dirs[-1], batch[B - 1])
+        return batch
+
+    def grasp(self, action: np.ndarray, rng: np.random.Generator) -> GraspResult:
+        """(4,) action -> :class:`GraspResult`."""
+        a = validate_action(action, self.action_dim)
+        return self.grasp_batch(a[None], rng)[0]
+
+    def _cast(self, o_w: np.ndarray, d_w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        R, t = self._R, self._t
+        o = (o_w - t) @ R  # R^T (o - t), row-wise
+        d = d_w @ R
+        m = o.shape[0]
+        contacts = np.zeros((m, 3))
+        normals = np.zeros((m, 3))
+        touched = np.zeros(m, dtype=bool)
+        scene = getattr(self._intersector, "_scene", None)
+        if scene is not None:  # embree: first-hit triangle ids, the hit point recomputed in float64
+            tri = np.asarray(scene.run(o, d), dtype=np.int64)
+        else:
+            tri = np.asarray(self._intersector.intersects_first(o, d), dtype=np.int64)
+        idx_ray = np.flatnonzero(tri >= 0)
+        if len(idx_ray):
+            idx_tri = tri[idx_ray]
+            fn = self._face_normals[idx_tri]
+            dn = np.einsum("ij,ij->i", fn, d[idx_ray])
+            safe = np.where(np.abs(dn) > 1e-12, dn, 1e-12)
+            tdist = np.einsum("ij,ij->i", self._face_v0[idx_tri] - o[idx_ray], fn) / safe
+            locs = o[idx_ray] + tdist[:, None] * d[idx_ray]
+            # stopped before reaching the axis (a finger passing the axis touched nothing)
+            ok = (tdist >= 0.0) & (tdist <= self.config.margin * self._radius + 1e-9) & (np.abs(dn) > 1e-12)
+            # inward normal = face normal oriented along the finger's motion (robust to face winding)
+            sign = np.where(dn >= 0.0, 1.0, -1.0)
+            pw = locs @ R.T + t
+            nw = (sign[:, None] * fn) @ R.T
+            if self.config.support == "table":
+                ok &= pw[:, 2] > self._table_z + self.config.table_clearance
+            r = idx_ray[ok]
+            contacts[r], normals[r], touched[r] = pw[ok], nw[ok], True
+        return contacts, normals, touched
+
+    def _noise(self, contacts: np.ndarray, normals: np.ndarray, touched: np.ndarray,
+               rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        cfg = self.config
+        if cfg.contact_noise > 0:
+            contacts = contacts + rng.normal(0.0, cfg.contact_noise, contacts.shape) * touched[..., None]
+        if cfg.normal_noise_deg > 0 and cfg.normals:
+            g = rng.normal(0.0, np.deg2rad(cfg.normal_noise_deg), normals.shape)
+            g -= np.sum(g * normals, axis=-1, keepdims=True) * normals  # tangent perturbation
+            nn = normals + g
+            norm = np.linalg.norm(nn, axis=-1, keepdims=True)
+            normals = np.where(touched[..., None], nn / np.maximum(norm, 1e-12), 0.0)
+        return contacts, normals
+
+    # ------------------------------------------------------------------ render
+    def render(self, width: int = 480, height: int = 480) -> np.ndarray:
+        """(H, W, 3) uint8 matplotlib picture: mesh, last grasp's finger rays, contacts and normals."""
+        self._require_object()
+        import matplotlib
+
+        matplotlib.use("Agg", force=False)
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+        from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+        fig = Figure(figsize=(width / 100, height / 100), dpi=100)
+        FigureCanvasAgg(fig)
+        ax = fig.add_subplot(projection="3d")
+        faces = np.asarray(self._mesh.faces)
+        if len(faces) > 4000:  # keep rendering fast: a random subset of faces
+            faces = faces[np.random.default_rng(0).choice(len(faces), 4000, replace=False)]
+        tri = (np.asarray(self._mesh.vertices)[faces] @ self._R.T) + self._t
+        ax.add_collection3d(Poly3DCollection(tri, alpha=0.25, facecolor="tab:blue", edgecolor="none"))
+        r = self._radius * self.config.margin
+        lo, hi = self._centre - r, self._centre + r
+        if self._last is not None:
+            origins, dirs, res = self._last
+            for o, dvec, c, t in zip(origins, dirs, res.contacts, res.touched):
+                end = c if t else o + dvec * r
+                ax.plot(*np.stack([o, end]).T, color="tab:green" if t else "tab:red", lw=1)
+            pts = res.contacts[res.touched]
+            if len(pts):
+                ax.scatter(*pts.T, color="k", s=20)
+                if res.normals is not None:
+                    nv = res.normals[res.touched] * 0.3 * r
+                    ax.quiver(*pts.T, *nv.T, color="tab:orange")
+        ax.set_xlim(lo[0], hi[0]), ax.set_ylim(lo[1], hi[1]), ax.set_zlim(lo[2], hi[2])
+        ax.set_title(f"geometric grasp: {getattr(self._obj, 'name', '')}")
+        fig.canvas.draw()
+        img = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+        return img

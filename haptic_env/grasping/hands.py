@@ -1,0 +1,252 @@
+"""Robot hands for the MuJoCo backend, each described as an :class:`HandDescription`.
+
+* :func:`generic_hand` - an n-finger hand (n = 3..6) built with ``mujoco.MjSpec``: a disc palm
+  (normal +z), fingers on a circle around it (a thumb at +x opposite n-1 fingers), each with a
+  swivel joint (finger spread) and 3 flexion joints, capsule links, a sphere fingertip with a site,
+  position actuators. No data files needed; the default.
+* :func:`allegro_hand` / :func:`shadow_hand` - the Wonik Allegro (4 fingers) and Shadow E3M5
+  (5 fingers) hands of MuJoCo Menagerie via the ``mujoco-menagerie`` package. Offline they load
+  from ``$MENAGERIE_ROOT``; when that is unset and ``<data_dir>/menagerie`` exists it is used.
+* :func:`mjcf_hand` - any MJCF hand given its file and fingertip body names.
+
+Fingertip sites (the kinesthetic contact points) are added with MjSpec: at the centre of the
+distal end cap of the fingertip body's collision geometry (auto-detected), radius = that cap's
+radius. Fingertip order: fingers, thumb last.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+__all__ = [
+    "HandDescription",
+    "HandUnavailableError",
+    "generic_hand",
+    "allegro_hand",
+    "shadow_hand",
+    "mjcf_hand",
+    "load_hand",
+    "HANDS",
+]
+
+HANDS = ("generic", "allegro", "shadow")
+
+
+class HandUnavailableError(RuntimeError):
+    """A hand model cannot be loaded (menagerie data missing and no download possible)."""
+
+
+@dataclass
+class HandDescription:
+    """A hand ready to be mounted in a grasp scene.
+
+    spec        the hand alone (an ``MjSpec``); ``root`` is its base body (attached to a mocap mount)
+    tips        fingertip body names (thumb last); ``tip_sites[i] = (pos (3,) in the tip body, radius)``
+    open_ctrl   actuator name -> control in the pre-grasp (open) pose
+    close_ctrl  actuator name -> control target while closing
+    spread      actuator name -> (ctrl at spread 0, ctrl at spread 1), held during the grasp
+    approach_axis / thumb_axis (3,) in the mount frame, or None to calibrate them (see
+                :class:`~haptic_env.grasping.mujoco_backend.GraspScene`)
+    Actuators not named in any dict are held at 0 (clipped to their range).
+    """
+
+    name: str
+    spec: mujoco.MjSpec
+    root: str
+    tips: tuple[str, ...]
+    tip_sites: tuple[tuple[np.ndarray, float], ...] | None = None
+    open_ctrl: dict[str, float] = field(default_factory=dict)
+    close_ctrl: dict[str, float] = field(default_factory=dict)
+    spread: dict[str, tuple[float, float]] = field(default_factory=dict)
+    approach_axis: np.ndarray | None = None
+    thumb_axis: np.ndarray | None = None
+    option: dict[str, object] = field(default_factory=dict)  # e.g. {"cone": elliptic}
+    max_steps: int = 200  # closing steps (timestep 2 ms) after which the fingers have settled
+
+    @property
+    def n_fingers(self) -> int:
+        return len(self.tips)
+
+
+# --------------------------------------------------------------------------------------- generic
+def generic_hand(n_fingers: int = 4, *, finger_length: float = 0.12, palm_radius: float = 0.045,
+                 tip_radius: float = 0.01, kp: tuple[float, float, float] = (1.0, 1.0, 1.0),
+                 close: tuple[float, float, float] = (1.6, 1.6, 1.6)) -> HandDescription:
+    """An n-finger hand (3 <= n <= 6) built with MjSpec; palm normal +z, thumb towards +x."""
+    if not (isinstance(n_fingers, (int, np.integer)) and 3 <= n_fingers <= 6):
+        raise ValueError(f"the generic hand has 3..6 fingers, got n_fingers={n_fingers!r}")
+    if not (0.03 <= finger_length <= 0.4):
+        raise ValueError(f"finger_length must be in [0.03, 0.4] m, got {finger_length!r}")
+    spec = mujoco.MjSpec()
+    spec.modelname = f"generic_hand_{n_fingers}"
+    spec.compiler.degree = False
+    palm = spec.worldbody.add_body(name="palm")
+    palm.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[palm_radius, 0.01, 0], pos=[0, 0, -0.01],
+                  rgba=[0.3, 0.3, 0.35, 1], density=500)
+    n = int(n_fingers)
+    # fingers j = 0..n-2 evenly around pi, thumb (last) at angle 0
+    angles = [np.pi + (j - (n - 2) / 2.0) * 2.0 * np.pi / n for j in range(n - 1)] + [0.0]
+    lengths = np.array([0.42, 0.33, 0.25]) * finger_length
+    cap_r = 0.8 * tip_radius
+    base_r = 0.75 * palm_radius
+    tips, open_ctrl, close_ctrl, spread = [], {}, {}, {}
+    for i, a in enumerate(angles):
+        f = f"f{i}"
+        q = [np.cos(a / 2), 0, 0, np.sin(a / 2)]
+        body = palm.add_body(name=f"{f}_base", pos=[base_r * np.cos(a), base_r * np.sin(a), 0.0], quat=q)
+        body.add_joint(name=f"{f}_swivel", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1], range=[-0.6, 0.6],
+                       damping=0.05, armature=0.002)
+        body.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[cap_r, 0, 0], contype=0, conaffinity=0,
+                      rgba=[0.3, 0.3, 0.35, 1], density=800)  # knuckle (mass for the swivel joint)
+        parent = body
+        ranges = [[-0.8, 1.6], [-0.2, 1.6], [-0.2, 1.6]]
+        for k, L in enumerate(lengths):
+            link = parent.add_body(name=f"{f}_l{k}", pos=[0, 0, 0 if k == 0 else lengths[k - 1]])
+            link.add_joint(name=f"{f}_j{k}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, -1, 0], range=ranges[k],
+                           damping=0.05, armature=0.002)
+            link.add_geom(type=mujoco.mjtGeom.mjGEOM_CAPSULE, fromto=[0, 0, 0, 0, 0, L], size=[cap_r, 0, 0],
+                          rgba=[0.8, 0.6, 0.4, 1], density=800)
+            parent = link
+        tip = parent.add_body(name=f"{f}_tip", pos=[0, 0, lengths[-1]])
+        tip.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[tip_radius, 0, 0], rgba=[0.9, 0.3, 0.3, 1], density=800)
+        tips.append(f"{f}_tip")
+        for k in range(3):
+            spec.add_actuator(name=f"{f}_a{k}", target=f"{f}_j{k}", trntype=mujoco.mjtTrn.mjTRN_JOINT,
+                              ctrlrange=ranges[k]).set_to_position(kp=kp[k])
+            close_ctrl[f"{f}_a{k}"] = close[k]
+        open_ctrl[f"{f}_a0"] = -0.4
+        spec.add_actuator(name=f"{f}_aswivel", target=f"{f}_swivel", trntype=mujoco.mjtTrn.mjTRN_JOINT,
+                          ctrlrange=[-0.6, 0.6]).set_to_position(kp=kp[0])
+        if i < n - 1:  # spread 0: fingers lean towards the middle one; spread 1: straight
+            lean = 0.3 * (i - (n - 2) / 2.0)
+            spread[f"{f}_aswivel"] = (float(np.clip(lean, -0.6, 0.6)), 0.0)
+    return HandDescription(
+        name=f"generic{n}", spec=spec, root="palm", tips=tuple(tips),
+        tip_sites=tuple((np.zeros(3), tip_radius) for _ in tips),
+        open_ctrl=open_ctrl, close_ctrl=close_ctrl, spread=spread,
+        approach_axis=np.array([0.0, 0.0, 1.0]), thumb_axis=np.array([1.0, 0.0, 0.0]),
+    )
+
+
+# ------------------------------------------------------------------------------------- menagerie
+def _menagerie_spec(robot: str, entry: str) -> mujoco.MjSpec:
+    if not os.environ.get("MENAGERIE_ROOT"):
+        from ..objects import data_dir
+
+        d = data_dir()
+        if d is not None and (d / "menagerie" / robot).is_dir():
+            os.environ["MENAGERIE_ROOT"] = str(d / "menagerie")
+    try:
+        import mujoco_menagerie as mm
+
+        return mm.get(robot).spec(entry)
+    except Exception as exc:  # missing data + no network, unknown robot, bad files ...
+        raise HandUnavailableError(
+            f"cannot load MuJoCo Menagerie hand {robot!r}/{entry!r} ({type(exc).__name__}: {exc}). "
+            f"Set MENAGERIE_ROOT to a menagerie folder containing {robot}/ (e.g. <data_dir>/menagerie), "
+            "or allow mujoco-menagerie to download it.") from exc
+
+
+def allegro_hand(side: str = "right") -> HandDescription:
+    """Wonik Allegro V3 (4 fingers: ff, mf, rf, thumb; 16 position actuators)."""
+    if side not in ("right", "left"):
+        raise ValueError(f"side must be 'right' or 'left', got {side!r}")
+    spec = _menagerie_spec("wonik_allegro", f"{side}_hand")
+    # closing synergy (tuned for fingertip contacts): proximal moderately, medial/distal fully
+    close = {}
+    for f in ("ff", "mf", "rf"):
+        close.update({f"{f}a1": 1.1, f"{f}a2": 1.6, f"{f}a3": 1.5})
+    close.update({"tha0": 1.396, "tha1": 1.16, "tha2": 1.6, "tha3": 1.6})
+    names = [spec.actuators[i].name for i in range(len(spec.actuators))]
+    # menagerie names actuators ffa0..tha3; fall back to joint-named actuators
+    if "ffa1" not in names:
+        close = {k.replace("a", "j", 1) if k[2] == "a" else k: v for k, v in close.items()}
+    sgn = 1.0 if side == "right" else -1.0
+    spread = {k: v for k, v in {
+        _act(names, "ff", 0): (sgn * 0.25, -sgn * 0.1), _act(names, "rf", 0): (-sgn * 0.25, sgn * 0.1)}.items()}
+    open_ctrl = {_act(names, "th", 0): 0.5}  # thumb not yet opposed: it would block the approach
+    return HandDescription(name=f"allegro_{side}", spec=spec, root="palm",
+                           tips=("ff_tip", "mf_tip", "rf_tip", "th_tip"),
+                           open_ctrl=open_ctrl, close_ctrl=close, spread=spread,
+                           approach_axis=np.array([0.0, 0.0, 1.0]),  # palm normal in the mount frame
+                           option={"cone": mujoco.mjtCone.mjCONE_ELLIPTIC, "impratio": 10.0}, max_steps=120)
+
+
+def _act(names: list[str], finger: str, k: int) -> str:
+    for cand in (f"{finger}a{k}", f"{finger}j{k}"):
+        if cand in names:
+            return cand
+    raise HandUnavailableError(f"actuator for {finger} joint {k} not found among {names}")
+
+
+def shadow_hand(side: str = "right") -> HandDescription:
+    """Shadow E3M5 (5 fingers: ff, mf, rf, lf, thumb; 20 actuators, coupled distal joints)."""
+    if side not in ("right", "left"):
+        raise ValueError(f"side must be 'right' or 'left', got {side!r}")
+    p = "rh" if side == "right" else "lh"
+    spec = _menagerie_spec("shadow_hand", f"{side}_hand")
+    close = {f"{p}_A_{f}J3": 1.3 for f in ("FF", "MF", "RF", "LF")}
+    close.update({f"{p}_A_{f}J0": 2.2 for f in ("FF", "MF", "RF", "LF")})
+    close.update({f"{p}_A_THJ5": 0.6, f"{p}_A_THJ4": 1.2, f"{p}_A_THJ2": 0.4, f"{p}_A_THJ1": 1.2,
+                  f"{p}_A_LFJ5": 0.5})
+    open_ctrl = {f"{p}_A_THJ4": 0.0, f"{p}_A_THJ5": 0.0}  # thumb flat: an opposed thumb blocks the approach
+    spread = {f"{p}_A_FFJ4": (0.2, -0.25), f"{p}_A_LFJ4": (0.2, -0.25), f"{p}_A_RFJ4": (0.1, -0.15)}
+    return HandDescription(name=f"shadow_{side}", spec=spec, root=f"{p}_forearm",
+                           tips=tuple(f"{p}_{f}distal" for f in ("ff", "mf", "rf", "lf", "th")),
+                           open_ctrl=open_ctrl, close_ctrl=close, spread=spread,
+                           approach_axis=np.array([0.0, 0.0, 1.0]),  # palm normal in the mount frame
+                           option={"cone": mujoco.mjtCone.mjCONE_ELLIPTIC, "impratio": 10.0}, max_steps=150)
+
+
+def mjcf_hand(path: str | Path, tips: tuple[str, ...] | list[str], *, root: str | None = None,
+              open_ctrl: dict[str, float] | None = None, close_ctrl: dict[str, float] | None = None,
+              spread: dict[str, tuple[float, float]] | None = None) -> HandDescription:
+    """Any MJCF hand: ``tips`` are its fingertip bodies (thumb last). Without ``close_ctrl`` every
+    actuator closes to the top of its ctrlrange (open: 0 clipped to the range)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"MJCF hand file {path} does not exist")
+    spec = mujoco.MjSpec.from_file(str(path))
+    names = [spec.bodies[i].name for i in range(len(spec.bodies))]
+    missing = [t for t in tips if t not in names]
+    if missing:
+        raise ValueError(f"fingertip bodies {missing} not in {path} (bodies: {names})")
+    if root is None:
+        first = spec.worldbody.first_body()
+        if first is None:
+            raise ValueError(f"{path} has no body under <worldbody>")
+        root = first.name
+    if close_ctrl is None:
+        close_ctrl = {}
+        for i in range(len(spec.actuators)):
+            a = spec.actuators[i]
+            close_ctrl[a.name] = float(a.ctrlrange[1]) if a.ctrlrange[1] > a.ctrlrange[0] else 0.0
+    return HandDescription(name=path.stem, spec=spec, root=root, tips=tuple(tips), open_ctrl=open_ctrl or {},
+                           close_ctrl=close_ctrl, spread=spread or {})
+
+
+def load_hand(hand: str | HandDescription, n_fingers: int = 4, **kw) -> HandDescription:
+    """``"generic"`` (n fingers), ``"allegro"`` (4), ``"shadow"`` (5), a HandDescription, or an MJCF path
+    (then ``tips=`` is required)."""
+    if isinstance(hand, HandDescription):
+        desc = hand
+    elif hand == "generic":
+        desc = generic_hand(n_fingers, **kw)
+    elif hand in ("allegro", "allegro_right", "allegro_left"):
+        desc = allegro_hand("left" if hand.endswith("left") else "right")
+    elif hand in ("shadow", "shadow_right", "shadow_left"):
+        desc = shadow_hand("left" if hand.endswith("left") else "right")
+    elif str(hand).endswith(".xml"):
+        if "tips" not in kw:
+            raise ValueError(f"MJCF hand {hand!r} needs tips=(fingertip body names, thumb last)")
+        desc = mjcf_hand(hand, **kw)
+    else:
+        raise ValueError(f"unknown hand {hand!r}; use one of {HANDS}, an MJCF .xml path or a HandDescription")
+    if desc.n_fingers != n_fingers:
+        raise ValueError(f"hand {desc.name!r} has {desc.n_fingers} fingers but n_fingers={n_fingers}")
+    return desc

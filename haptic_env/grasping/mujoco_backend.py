@@ -1,0 +1,576 @@
+"""MuJoCo grasp backend: a hand on a mocap mount approaches a fixed object and closes its fingers.
+
+Split dm_control-style into
+
+* :class:`GraspScene` - the simulator wrapper: builds the MjSpec scene (object as convex pieces on a
+  static body, optional table, hand attached to a mocap body, fingertip sites), owns
+  ``MjModel``/``MjData``, and offers physics-level operations (teleport the mount, set controls,
+  step, fingertip kinematics, contact queries, rendering). Knows nothing about actions.
+* :class:`MujocoBackend` - the task logic behind the :class:`~.base.GraspBackend` protocol: decodes
+  an approach, places the open hand outside the object along it (teleport, no simulated approach),
+  closes the fingers with their position actuators until they stall on contact or reach their
+  targets, and reads the grasp: fingertip positions from forward kinematics, contact normals
+  estimated from joint torques through the hand Jacobian, ground-truth normals from MuJoCo contacts.
+
+Torque-derived normals: with the fingers at rest, the joint torques the motors hold against the
+object are ``tau = -(qfrc_actuator + qfrc_passive - qfrc_bias)`` (``torque_source="actuator"``,
+what a kinesthetic hand senses) or ``qfrc_constraint`` (``"constraint"``). With ``J_h`` the stacked
+(3m, nv) fingertip-site position Jacobians of the m touching fingers (``mj_jacSite``),
+``tau = J_h^T f`` so ``f = (J_h^T)^+ tau`` (least squares) and each finger's inward normal estimate
+is ``-f_i / |f_i|`` (``f_i`` is the force the object exerts on finger i). Friction tilts the force
+inside the friction cone, so estimates are within about ``atan(mu)`` of the true normal.
+
+Gravity is off (equivalent to a gravity-compensated hand; the object is fixed anyway). The hand
+only collides with the object (no self-collision, the table is a visual plane that restricts the
+approach to the upper hemisphere).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+import mujoco
+
+from .base import (
+    ACTION_DIM,
+    GraspBatch,
+    GraspResult,
+    approach_frame,
+    decode_approach,
+    validate_action,
+    validate_actions,
+    validate_pose,
+)
+from .collision import CollisionConfig, convex_pieces
+from .hands import HandDescription, load_hand
+
+__all__ = ["MujocoConfig", "GraspScene", "MujocoBackend", "quat_from_matrix"]
+
+HAND_BITS = (1, 2)  # (contype, conaffinity) of hand geoms: collide with the object only
+OBJ_BITS = (2, 1)
+
+
+@dataclass(frozen=True)
+class MujocoConfig:
+    n_fingers: int = 4
+    hand: Any = "generic"  # "generic" | "allegro" | "shadow" | path to an MJCF .xml | HandDescription
+    hand_kwargs: tuple[tuple[str, Any], ...] = ()  # e.g. (("tips", ("a", "b", "c")),) for an MJCF hand
+    support: str = "table"  # "table" | "floating" (see base.decode_approach)
+    normals: bool = True  # report torque-derived normals
+    torque_source: str = "actuator"  # "actuator" | "constraint"
+    contact_point: str = "surface"  # "surface": site + r * normal estimate; "site": fingertip site centre
+    timestep: float = 0.002
+    max_steps: int | None = None  # closing steps at most (None: the hand's default, HandDescription.max_steps)
+    min_steps: int = 40
+    check_every: int = 10  # test for new tip contacts / rest every this many steps
+    squeeze: float = 0.15  # rad (or actuator units) past the contact configuration; 0: close fully
+    rest_qvel: float = 0.05  # rad/s: fingers at rest below this
+    joint_frictionloss: float | None = 0.0  # override the hand's dry joint friction (None: keep the model's)
+    friction: float = 0.1  # sliding friction of object and hand geoms (normal error <~ atan(friction))
+    march_step: float = 0.01  # m: pre-grasp placement search step along the approach
+    standoff: float = 0.02  # m: extra back-off after the closest collision-free pre-grasp pose
+    contact_noise: float = 0.0  # std (m) on reported contacts
+    normal_noise_deg: float = 0.0
+    collision: CollisionConfig = CollisionConfig()
+
+    def __post_init__(self) -> None:
+        if self.support not in ("table", "floating"):
+            raise ValueError(f"support must be 'table' or 'floating', got {self.support!r}")
+        if self.torque_source not in ("actuator", "constraint"):
+            raise ValueError(f"torque_source must be 'actuator' or 'constraint', got {self.torque_source!r}")
+        if self.contact_point not in ("surface", "site"):
+            raise ValueError(f"contact_point must be 'surface' or 'site', got {self.contact_point!r}")
+        for name in ("timestep", "march_step", "rest_qvel"):
+            v = getattr(self, name)
+            if not np.isfinite(v) or v <= 0:
+                raise ValueError(f"{name} must be > 0, got {v!r}")
+        if not (1 <= self.min_steps <= (self.max_steps or self.min_steps) and self.check_every >= 1):
+            raise ValueError(f"need 1 <= min_steps ({self.min_steps}) <= max_steps ({self.max_steps}), "
+                             f"check_every >= 1 ({self.check_every})")
+
+
+def quat_from_matrix(R: np.ndarray) -> np.ndarray:
+    q = np.zeros(4)
+    mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, dtype=np.float64).ravel())
+    return q
+
+
+def _tip_site_auto(model: mujoco.MjModel, body_id: int) -> tuple[np.ndarray, float]:
+    """Centre and radius of the distal end cap of a body's collision geometry (body frame)."""
+    gids = [g for g in range(model.ngeom) if model.geom_bodyid[g] == body_id
+            and (model.geom_contype[g] or model.geom_conaffinity[g])]
+    if not gids:
+        raise ValueError(f"fingertip body {model.body(body_id).name!r} has no collision geoms")
+    corners = []
+    for g in gids:
+        c, h = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
+        signs = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T
+        local = c + signs * h
+        R = np.zeros(9)
+        mujoco.mju_quat2Mat(R, model.geom_quat[g])
+        corners.append(local @ R.reshape(3, 3).T + model.geom_pos[g])
+    pts = np.concatenate(corners)
+    lo, hi = pts.min(0), pts.max(0)
+    reach = np.maximum(np.abs(lo), np.abs(hi))
+    k = int(np.argmax(reach))
+    others = [i for i in range(3) if i != k]
+    r = float(0.5 * min(hi[others] - lo[others]))
+    centre = 0.5 * (lo + hi)
+    far = hi[k] if abs(hi[k]) >= abs(lo[k]) else lo[k]
+    centre[k] = far - np.sign(far) * r
+    return centre, r
+
+
+class GraspScene:
+    """Simulator wrapper: object + hand on a mocap mount. Physics only, no task logic."""
+
+    def __init__(self, hand: HandDescription, pieces: list | None, pose: np.ndarray, *, table_z: float | None,
+                 timestep: float = 0.002, friction: float = 0.5, joint_frictionloss: float | None = 0.0) -> None:
+        self.hand = hand
+        spec = mujoco.MjSpec()
+        spec.modelname = "grasp_scene"
+        spec.option.timestep = timestep
+        spec.option.gravity = [0.0, 0.0, 0.0]
+        spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+        for k, v in hand.option.items():
+            setattr(spec.option, k, v)
+        spec.visual.global_.offwidth = 1280
+        spec.visual.global_.offheight = 1280
+        spec.worldbody.add_light(pos=[0, 0, 2], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
+        if table_z is not None:
+            spec.worldbody.add_geom(name="table", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[1, 1, 0.01],
+                                    pos=[0, 0, table_z - 1e-4], rgba=[0.6, 0.55, 0.5, 1], contype=0, conaffinity=0)
+        # object: static body at the pose, one mesh geom per convex piece
+        obj_body = spec.worldbody.add_body(name="object", pos=pose[:3, 3], quat=quat_from_matrix(pose[:3, :3]))
+        self.object_geom_names: list[str] = []
+        for i, piece in enumerate(pieces or []):
+            spec.add_mesh(name=f"obj_piece{i}", uservert=np.asarray(piece.vertices, dtype=np.float32).ravel(),
+                          userface=np.asarray(piece.faces, dtype=np.int32).ravel())
+            obj_body.add_geom(name=f"obj{i}", type=mujoco.mjtGeom.mjGEOM_MESH, meshname=f"obj_piece{i}",
+                              contype=OBJ_BITS[0], conaffinity=OBJ_BITS[1], friction=[friction, 0.005, 1e-4],
+                              rgba=[0.2, 0.5, 0.8, 1], condim=3)
+            self.object_geom_names.append(f"obj{i}")
+        # hand: fingertip sites, collision bits, attached under a mocap mount
+        hspec = hand.spec.copy()
+        if hand.tip_sites is None:
+            hm = hspec.compile()
+            sites = tuple(_tip_site_auto(hm, hm.body(t).id) for t in hand.tips)
+        else:
+            sites = hand.tip_sites
+        self.tip_radius = np.array([r for _, r in sites])
+        for i, (t, (pos, r)) in enumerate(zip(hand.tips, sites)):
+            hspec.body(t).add_site(name=f"tipsite{i}", pos=np.asarray(pos, dtype=np.float64), size=[r, 0, 0],
+                                   rgba=[0, 1, 0, 0.5])
+        if joint_frictionloss is not None:  # dry joint friction is invisible to the torque-based estimate
+            for j in hspec.joints:
+                j.frictionloss = joint_frictionloss
+        for g in hspec.geoms:
+            if g.contype or g.conaffinity:
+                g.contype, g.conaffinity = HAND_BITS
+                g.friction = [friction, 0.005, 1e-4]
+        mount = spec.worldbody.add_body(name="mount", mocap=True)
+        mount.add_frame().attach_body(hspec.body(hand.root), "hand/", "")
+        self.spec = spec
+        self.model = spec.compile()
+        self.data = mujoco.MjData(self.model)
+        m = self.model
+        self.site_ids = np.array([m.site(f"hand/tipsite{i}").id for i in range(len(hand.tips))])
+        self.tip_body_ids = np.array([m.body(f"hand/{t}").id for t in hand.tips])
+        self.obj_geom_ids = np.array([m.geom(n).id for n in self.object_geom_names], dtype=np.int64)
+        self.obj_body_id = m.body("object").id
+        # which tip body each body's geoms count for (only the tip body itself)
+        self._geom_tip = np.full(m.ngeom, -1)
+        for i, b in enumerate(self.tip_body_ids):
+            self._geom_tip[m.geom_bodyid == b] = i
+        self._is_obj_geom = np.zeros(m.ngeom, dtype=bool)
+        self._is_obj_geom[self.obj_geom_ids] = True
+        act_names = [m.actuator(i).name for i in range(m.nu)]
+        self.act_index = {n.removeprefix("hand/"): i for i, n in enumerate(act_names)}
+        for d in (hand.open_ctrl, hand.close_ctrl, hand.spread):
+            bad = [k for k in d if k not in self.act_index]
+            if bad:
+                raise ValueError(f"hand {hand.name!r}: unknown actuators {bad} (have {list(self.act_index)})")
+        self.ctrl_lo = m.actuator_ctrlrange[:, 0].copy()
+        self.ctrl_hi = m.actuator_ctrlrange[:, 1].copy()
+        limited = m.actuator_ctrllimited.astype(bool)
+        self.ctrl_lo[~limited], self.ctrl_hi[~limited] = -np.inf, np.inf
+        one_dof = (m.jnt_type == mujoco.mjtJoint.mjJNT_HINGE) | (m.jnt_type == mujoco.mjtJoint.mjJNT_SLIDE)
+        self._limited_1dof = np.flatnonzero(one_dof & m.jnt_limited.astype(bool))
+        # finger of each actuator (via its joint or its tendon's first joint), -1 for none (e.g. wrist)
+        chains = []
+        for b in self.tip_body_ids:
+            chain, x = [], int(b)
+            while x != 0:
+                chain.append(x)
+                x = int(m.body_parentid[x])
+            chains.append(chain)
+        shared = set.intersection(*(set(c) for c in chains)) if chains else set()
+        body_finger = np.full(m.nbody, -1)
+        for i, c in enumerate(chains):
+            for b in c:
+                if b not in shared:
+                    body_finger[b] = i
+        self._geom_finger = body_finger[m.geom_bodyid]  # finger of every geom (any link), -1 palm/none
+        self.act_finger = np.full(m.nu, -1)
+        self.act_joint = np.full(m.nu, -1)
+        for a in range(m.nu):
+            tid = m.actuator_trnid[a, 0]
+            if m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT:
+                self.act_joint[a] = tid
+                self.act_finger[a] = body_finger[m.jnt_bodyid[tid]]
+            elif m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_TENDON:
+                j = m.wrap_objid[m.tendon_adr[tid]]
+                self.act_finger[a] = body_finger[m.jnt_bodyid[j]]
+        self.step_time = 0.0  # seconds spent inside mj_step
+        self.steps = 0
+        self._renderer = None
+
+    # ------------------------------------------------------------------ physics operations
+    def ctrl_vector(self, values: dict[str, float], base: np.ndarray | None = None) -> np.ndarray:
+        u = np.zeros(self.model.nu) if base is None else base.copy()
+        for k, v in values.items():
+            u[self.act_index[k]] = v
+        return np.clip(u, self.ctrl_lo, self.ctrl_hi)
+
+    def reset(self, ctrl: np.ndarray) -> None:
+        """Zero state, joints set to the actuator targets where an actuator drives one joint directly."""
+        m, d = self.model, self.data
+        mujoco.mj_resetData(m, d)
+        d.ctrl[:] = ctrl
+        for a in range(m.nu):
+            if m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT:
+                j = m.actuator_trnid[a, 0]
+                lo, hi = m.jnt_range[j] if m.jnt_limited[j] else (-np.inf, np.inf)
+                d.qpos[m.jnt_qposadr[j]] = np.clip(ctrl[a], lo, hi)
+
+    def set_mount(self, pos: np.ndarray, R: np.ndarray) -> None:
+        self.data.mocap_pos[0] = pos
+        self.data.mocap_quat[0] = quat_from_matrix(R)
+
+    def hand_object_contacts(self) -> int:
+        """Run kinematics + collision only and count hand-object contacts."""
+        m, d = self.model, self.data
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_collision(m, d)
+        if d.ncon == 0:
+            return 0
+        g = d.contact.geom[: d.ncon]
+        return int(np.count_nonzero(self._is_obj_geom[g[:, 0]] ^ self._is_obj_geom[g[:, 1]]))
+
+    def step(self, n: int) -> None:
+        t = time.perf_counter()
+        mujoco.mj_step(self.model, self.data, nstep=n)
+        self.step_time += time.perf_counter() - t
+        self.steps += n
+
+    def hold_fingers(self, fingers: np.ndarray, close_u: np.ndarray, squeeze: float) -> None:
+        """Stop closing the given fingers: targets = current actuator length + ``squeeze`` towards
+        the closing target (a light, constant squeeze instead of driving to full closure)."""
+        m, d = self.model, self.data
+        sel = np.isin(self.act_finger, fingers)
+        if not sel.any():
+            return
+        length = d.actuator_length[sel]
+        direction = np.sign(close_u[sel] - length)
+        d.ctrl[sel] = np.clip(length + squeeze * direction, self.ctrl_lo[sel], self.ctrl_hi[sel])
+
+    def tip_positions(self) -> np.ndarray:
+        return self.data.site_xpos[self.site_ids].copy()
+
+    def tip_contacts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per finger: touched (n,) bool, mean contact point (n,3), mean INWARD contact normal (n,3)."""
+        d = self.data
+        n = len(self.site_ids)
+        touched = np.zeros(n, dtype=bool)
+        pts, nrm = np.zeros((n, 3)), np.zeros((n, 3))
+        if d.ncon:
+            geom = d.contact.geom[: d.ncon]
+            frame = d.contact.frame[: d.ncon, :3]  # normal points from geom[0] to geom[1]
+            pos = d.contact.pos[: d.ncon]
+            obj0 = self._is_obj_geom[geom[:, 0]]
+            obj1 = self._is_obj_geom[geom[:, 1]]
+            finger = np.where(obj0, self._geom_tip[geom[:, 1]], np.where(obj1, self._geom_tip[geom[:, 0]], -1))
+            inward = np.where(obj0[:, None], -frame, frame)  # from finger into the object
+            ok = (finger >= 0) & (obj0 ^ obj1) & (d.contact.dist[: d.ncon] <= 0)
+            for i in np.unique(finger[ok]):
+                sel = ok & (finger == i)
+                touched[i] = True
+                pts[i] = pos[sel].mean(0)
+                v = inward[sel].sum(0)
+                nrm[i] = v / max(np.linalg.norm(v), 1e-12)
+        return touched, pts, nrm
+
+    def finger_link_contacts(self, exclude_tip: bool = False) -> np.ndarray:
+        """(n,) bool: any link of finger i (tip included unless ``exclude_tip``) touches the object."""
+        d = self.data
+        out = np.zeros(len(self.site_ids), dtype=bool)
+        if d.ncon:
+            geom = d.contact.geom[: d.ncon]
+            obj0, obj1 = self._is_obj_geom[geom[:, 0]], self._is_obj_geom[geom[:, 1]]
+            f = np.where(obj0, self._geom_finger[geom[:, 1]], np.where(obj1, self._geom_finger[geom[:, 0]], -1))
+            keep = (obj0 ^ obj1) & (f >= 0) & (d.contact.dist[: d.ncon] <= 0)
+            if exclude_tip:
+                tip = np.where(obj0, self._geom_tip[geom[:, 1]], self._geom_tip[geom[:, 0]])
+                keep &= tip < 0
+            out[np.unique(f[keep])] = True
+        return out
+
+    def sensed_torque(self, source: str) -> np.ndarray:
+        d = self.data
+        if source == "constraint":
+            return d.qfrc_constraint.copy()
+        return -(d.qfrc_actuator + d.qfrc_passive - d.qfrc_bias)
+
+    def dofs_at_limit(self, tol: float = 0.01) -> np.ndarray:
+        """(nv,) bool: hinge/slide dofs within ``tol`` of (or beyond) a joint limit."""
+        m, d = self.model, self.data
+        out = np.zeros(m.nv, dtype=bool)
+        lim = self._limited_1dof
+        q = d.qpos[m.jnt_qposadr[lim]]
+        lo, hi = m.jnt_range[lim, 0], m.jnt_range[lim, 1]
+        out[m.jnt_dofadr[lim]] = (q <= lo + tol) | (q >= hi - tol)
+        return out
+
+    def site_jacobians(self, fingers: np.ndarray) -> np.ndarray:
+        """(3 m, nv) stacked fingertip-site position Jacobians of the given fingers."""
+        m, d = self.model, self.data
+        J = np.zeros((3 * len(fingers), m.nv))
+        for k, i in enumerate(fingers):
+            mujoco.mj_jacSite(m, d, J[3 * k: 3 * k + 3], None, int(self.site_ids[i]))
+        return J
+
+    def render(self, width: int, height: int, lookat: np.ndarray, distance: float) -> np.ndarray:
+        if self._renderer is None or (self._renderer.width, self._renderer.height) != (width, height):
+            if self._renderer is not None:
+                self._renderer.close()
+            if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
+                # headless: EGL offscreen (read by mujoco when the first GL context is made)
+                os.environ["MUJOCO_GL"] = "egl"
+            try:
+                self._renderer = mujoco.Renderer(self.model, height=height, width=width)
+            except Exception as exc:  # no usable GL platform (mujoco.FatalError, ImportError, ...)
+                raise RuntimeError(
+                    f"no OpenGL backend for offscreen rendering (MUJOCO_GL={os.environ.get('MUJOCO_GL')!r}: "
+                    f"{exc}). Set MUJOCO_GL=egl (libegl1) or osmesa (libosmesa6) before importing mujoco."
+                ) from exc
+        cam = mujoco.MjvCamera()
+        cam.lookat[:] = lookat
+        cam.distance = distance
+        cam.azimuth, cam.elevation = 135.0, -25.0
+        mujoco.mj_forward(self.model, self.data)
+        self._renderer.update_scene(self.data, camera=cam)
+        return self._renderer.render().copy()
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+
+class MujocoBackend:
+    """Physics grasps (see module docstring). ``set_object`` builds the scene (convex decomposition
+    cached on disk); ``grasp(action, rng)`` runs one grasp from a fresh reset."""
+
+    action_dim = ACTION_DIM
+
+    def __init__(self, config: MujocoConfig | None = None) -> None:
+        self.config = config or MujocoConfig()
+        self.hand = load_hand(self.config.hand, self.config.n_fingers, **dict(self.config.hand_kwargs))
+        self.n_fingers = self.hand.n_fingers
+        self.scene: GraspScene | None = None
+        self._calibrated: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self.grasp_time = 0.0
+        self.n_grasps = 0
+
+    # ------------------------------------------------------------------ scene
+    def set_object(self, obj: Any, pose: np.ndarray | None = None) -> None:
+        T = validate_pose(pose)
+        mesh = obj.mesh
+        v = np.asarray(mesh.vertices, dtype=np.float64)
+        vw = v @ T[:3, :3].T + T[:3, 3]
+        c_obj = 0.5 * (v.min(0) + v.max(0))
+        self._centre = T[:3, :3] @ c_obj + T[:3, 3]
+        self._radius = float(np.linalg.norm(vw - self._centre, axis=1).max())
+        table_z = float(vw[:, 2].min()) if self.config.support == "table" else None
+        pieces = convex_pieces(obj, self.config.collision)
+        if self.scene is not None:
+            self.scene.close()
+        self.scene = GraspScene(self.hand, pieces, T, table_z=table_z, timestep=self.config.timestep,
+                                friction=self.config.friction, joint_frictionloss=self.config.joint_frictionloss)
+        self.obj = obj
+        self._hull_vw = np.asarray(mesh.convex_hull.vertices) @ T[:3, :3].T + T[:3, 3]
+        if self._calibrated is None:
+            self._calibrated = self._calibrate()
+
+    def _require(self) -> GraspScene:
+        if self.scene is None:
+            raise RuntimeError("call set_object(obj, pose) before grasping")
+        return self.scene
+
+    def _ctrls(self, spread: float) -> tuple[np.ndarray, np.ndarray]:
+        sc, h = self._require(), self.hand
+        sp = {k: lo + spread * (hi - lo) for k, (lo, hi) in h.spread.items()}
+        base = sc.ctrl_vector({})
+        open_u = sc.ctrl_vector({**h.open_ctrl, **sp}, base)
+        close_u = sc.ctrl_vector({**h.close_ctrl, **sp}, open_u)
+        return open_u, close_u
+
+    def _calibrate(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Hand frame in the mount frame: approach axis n, thumb axis t, grasp centre g (closed fingertips)."""
+        sc, h = self._require(), self.hand
+        far = np.array([0.0, 0.0, 1e3])  # far away from the object: closes freely
+        open_u, close_u = self._ctrls(0.5)
+        sc.reset(open_u)
+        sc.set_mount(far, np.eye(3))
+        mujoco.mj_forward(sc.model, sc.data)
+        p_open = sc.tip_positions() - far
+        sc.data.ctrl[:] = close_u
+        mujoco.mj_step(sc.model, sc.data, nstep=400)
+        p_closed = sc.tip_positions() - far
+        g = p_closed.mean(0)
+        if h.approach_axis is not None:
+            n = np.asarray(h.approach_axis, dtype=np.float64)
+        else:
+            a = p_open[:-1].mean(0)
+            a /= np.linalg.norm(a)
+            b = p_closed.mean(0) - p_open.mean(0)
+            b -= (b @ a) * a
+            n = b / np.linalg.norm(b) if np.linalg.norm(b) > 1e-6 else a
+        n = n / np.linalg.norm(n)
+        if h.thumb_axis is not None:
+            t = np.asarray(h.thumb_axis, dtype=np.float64)
+        else:
+            t = p_closed[-1] - g
+        t = t - (t @ n) * n
+        if np.linalg.norm(t) < 1e-9:
+            t = np.cross(n, [1.0, 0, 0]) if abs(n[0]) < 0.9 else np.cross(n, [0, 1.0, 0])
+        t /= np.linalg.norm(t)
+        return n, t, g
+
+    # ------------------------------------------------------------------ grasps
+    def grasp(self, action: np.ndarray, rng: np.random.Generator) -> GraspResult:
+        a = validate_action(action, self.action_dim)
+        sc = self._require()
+        cfg = self.config
+        t0 = time.perf_counter()
+        ap = decode_approach(a, cfg.support)
+        F = approach_frame(ap)  # columns e1 (thumb), e2, e3 (into the object)
+        n, t, g = self._calibrated
+        B = np.stack([t, np.cross(n, t), n], axis=1)
+        R = F @ B.T  # mount rotation: n -> e3, t -> e1
+        u = -F[:, 2]
+        open_u, close_u = self._ctrls(float(ap.spread))
+        sc.reset(open_u)
+        # pre-grasp: grasp centre on the approach axis, as close to the object as collision-free
+        s_max = float(np.max(self._hull_vw @ u - self._centre @ u)) + 0.3
+        s, free = 0.0, False
+        while s <= s_max:
+            sc.set_mount(self._centre + s * u - R @ g, R)
+            if sc.hand_object_contacts() == 0:
+                free = True
+                break
+            s += cfg.march_step
+        if free and s > 0:  # refine between the last colliding and the first free position
+            lo, hi = s - cfg.march_step, s
+            for _ in range(4):
+                mid = 0.5 * (lo + hi)
+                sc.set_mount(self._centre + mid * u - R @ g, R)
+                if sc.hand_object_contacts() == 0:
+                    hi = mid
+                else:
+                    lo = mid
+            s = hi
+        if free:
+            sc.set_mount(self._centre + (s + cfg.standoff) * u - R @ g, R)
+        sc.data.ctrl[:] = close_u
+        mujoco.mj_forward(sc.model, sc.data)
+        steps = 0
+        held = np.zeros(self.n_fingers, dtype=bool)
+        max_steps = cfg.max_steps or self.hand.max_steps
+        while steps < max_steps:
+            k = min(cfg.check_every, max_steps - steps)
+            sc.step(k)
+            steps += k
+            if cfg.squeeze > 0:  # a finger stops closing at its first fingertip contact
+                touched = sc.tip_contacts()[0] & ~held
+                if touched.any():
+                    sc.hold_fingers(np.flatnonzero(touched), close_u, cfg.squeeze)
+                    held |= touched
+            if steps >= cfg.min_steps and np.max(np.abs(sc.data.qvel)) < cfg.rest_qvel:
+                break
+        res = self._read(rng, steps)
+        self.grasp_time += time.perf_counter() - t0
+        self.n_grasps += 1
+        return res
+
+    def _read(self, rng: np.random.Generator, steps: int) -> GraspResult:
+        sc, cfg = self._require(), self.config
+        mujoco.mj_forward(sc.model, sc.data)  # consistent kinematics/forces at the final state
+        nf = self.n_fingers
+        touched, gt_pts, gt_n = sc.tip_contacts()
+        sites = sc.tip_positions()
+        est = np.zeros((nf, 3))
+        idx = np.flatnonzero(touched)
+        if len(idx):
+            J = sc.site_jacobians(idx)  # (3m, nv)
+            tau = sc.sensed_torque(cfg.torque_source)
+            rows = ~sc.dofs_at_limit()  # a joint at its limit also carries an unknown limit reaction
+            f, *_ = np.linalg.lstsq(J.T[rows], tau[rows], rcond=None)
+            f = f.reshape(-1, 3)
+            norm = np.linalg.norm(f, axis=1, keepdims=True)
+            est[idx] = -f / np.maximum(norm, 1e-12)
+            weak = norm[:, 0] < 1e-9  # no force sensed: fall back to the site-to-contact direction
+            if weak.any():
+                w = idx[weak]
+                dvec = gt_pts[w] - sites[w]
+                est[w] = dvec / np.maximum(np.linalg.norm(dvec, axis=1, keepdims=True), 1e-12)
+        if cfg.normal_noise_deg > 0 and len(idx):
+            g = rng.normal(0.0, np.deg2rad(cfg.normal_noise_deg), (len(idx), 3))
+            g -= np.sum(g * est[idx], axis=1, keepdims=True) * est[idx]
+            v = est[idx] + g
+            est[idx] = v / np.linalg.norm(v, axis=1, keepdims=True)
+        contacts = np.zeros((nf, 3))
+        if cfg.contact_point == "surface":
+            contacts[idx] = sites[idx] + sc.tip_radius[idx, None] * est[idx]
+        else:
+            contacts[idx] = sites[idx]
+        if cfg.contact_noise > 0 and len(idx):
+            contacts[idx] += rng.normal(0.0, cfg.contact_noise, (len(idx), 3))
+        hand_q = sc.data.qpos.copy()
+        return GraspResult(contacts=contacts, normals=est if cfg.normals else None, touched=touched,
+                           joint_pos=hand_q, gt_normals=gt_n,
+                           info={"steps": steps, "gt_contacts": gt_pts, "tip_sites": sites,
+                                 # fingers touching with other links too: their torque normal is biased
+                                 "link_contact": sc.finger_link_contacts(exclude_tip=True)})
+
+    def grasp_batch(self, actions: np.ndarray, rng: np.random.Generator) -> GraspBatch:
+        a = validate_actions(actions, self.action_dim)
+        return GraspBatch.stack([self.grasp(x, rng) for x in a])
+
+    # ------------------------------------------------------------------ stats / render
+    @property
+    def timing(self) -> dict[str, float]:
+        """Backend time per grasp, raw mj_step time per grasp, and their ratio (>= 1)."""
+        sc = self._require()
+        per = self.grasp_time / max(self.n_grasps, 1)
+        step = sc.step_time / max(self.n_grasps, 1)
+        return {"grasps": self.n_grasps, "time_per_grasp": per, "step_time_per_grasp": step,
+                "steps_per_grasp": sc.steps / max(self.n_grasps, 1), "ratio": per / max(step, 1e-12)}
+
+    def reset_timing(self) -> None:
+        sc = self._require()
+        self.grasp_time, self.n_grasps, sc.step_time, sc.steps = 0.0, 0, 0.0, 0
+
+    def render(self, width: int = 480, height: int = 480) -> np.ndarray:
+        """(H, W, 3) uint8 offscreen render of the current scene (mujoco.Renderer; EGL/OSMesa)."""
+        sc = self._require()
+        return sc.render(width, height, self._centre, 4.0 * max(self._radius, 0.05))
+
+    def close(self) -> None:
+        if self.scene is not None:
+            self.scene.close()

@@ -1,0 +1,297 @@
+"""Torch MLP grasp classifier: ``q (B, d) -> P(object | q) (B, K)``.
+
+A plain ReLU multi-layer perceptron with the feature standardisation stored in the model, trained
+with Adam on cross-entropy, a held-out validation split and early stopping on validation loss.
+
+Defaults (:class:`MLPConfig`): 3 hidden layers of 256 units, batch 1024. The paper used 7 x 500
+for 14 inputs; on 2 CPU cores that costs tens of seconds per epoch over 160k grasps, ~10x the
+default, so the paper's size is available as ``MLPConfig(depth=7, width=500)`` but is not the
+default (RESULTS.md compares both where time allowed).
+
+Everything random (initialisation, validation split, mini-batch order) comes from a
+``torch.Generator`` / ``np.random.Generator`` seeded by ``MLPConfig.seed``; no global RNG is used.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+from tqdm.auto import tqdm
+
+from haptic_env.cache import CacheError, atomic_write
+
+__all__ = ["MLPConfig", "MLPClassifier", "FORMAT_VERSION", "set_torch_threads", "Standardizer"]
+
+#: Version of the file written by :meth:`MLPClassifier.save`.
+FORMAT_VERSION = 1
+
+
+def set_torch_threads(n: int | None = None) -> int:
+    """Use ``n`` intra-op threads (default: ``$HAPTIC_TORCH_THREADS`` or all cores, at most 8)."""
+    if n is None:
+        n = int(os.environ.get("HAPTIC_TORCH_THREADS", min(8, os.cpu_count() or 1)))
+    if n < 1:
+        raise ValueError(f"torch threads must be >= 1, got {n}")
+    if torch.get_num_threads() != n:
+        torch.set_num_threads(n)
+    return n
+
+
+@dataclass(frozen=True)
+class MLPConfig:
+    """Architecture and training of :class:`MLPClassifier`."""
+
+    depth: int = 3  #: hidden layers
+    width: int = 256  #: units per hidden layer
+    lr: float = 3e-3  #: Adam learning rate (decayed by ``lr_decay`` per epoch)
+    lr_decay: float = 0.93
+    weight_decay: float = 0.0
+    batch_size: int = 1024
+    max_epochs: int = 40
+    patience: int = 4  #: epochs without validation-loss improvement before stopping
+    max_train: int | None = None  #: train on a random subsample of at most this many rows
+    val_fraction: float = 0.1  #: used only when no explicit validation set is given to ``fit``
+    seed: int = 0
+    threads: int | None = None  #: torch intra-op threads (None: see :func:`set_torch_threads`)
+    progress: bool = True
+
+    def __post_init__(self):
+        for name in ("depth", "width", "batch_size", "max_epochs", "patience"):
+            v = getattr(self, name)
+            if not isinstance(v, (int, np.integer)) or v < (0 if name == "depth" else 1):
+                raise ValueError(f"MLPConfig.{name} must be a positive integer, got {v!r}")
+        if not (self.lr > 0 and np.isfinite(self.lr)):
+            raise ValueError(f"MLPConfig.lr must be positive and finite, got {self.lr!r}")
+        if not 0.0 < self.val_fraction < 1.0:
+            raise ValueError(f"MLPConfig.val_fraction must be in (0, 1), got {self.val_fraction!r}")
+
+
+@dataclass(frozen=True)
+class Standardizer:
+    """Per-feature ``(x - mean) / std``; constant features get std 1."""
+
+    mean: np.ndarray  #: (d,)
+    std: np.ndarray  #: (d,)
+
+    @classmethod
+    def fit(cls, X: np.ndarray) -> Standardizer:
+        X = np.asarray(X, dtype=np.float64)
+        std = X.std(axis=0)
+        return cls(X.mean(axis=0), np.where(std > 1e-12, std, 1.0))
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        return (np.asarray(X, dtype=np.float64) - self.mean) / self.std
+
+
+def _check_xy(X, y=None, d: int | None = None, what: str = "X"):
+    X = np.asarray(X)
+    if X.ndim != 2:
+        raise ValueError(f"{what} must have shape (B, d), got {X.shape}")
+    if d is not None and X.shape[1] != d:
+        raise ValueError(f"{what} has {X.shape[1]} features, the model expects {d}")
+    if not np.isfinite(X).all():
+        i = int(np.flatnonzero(~np.isfinite(X).all(axis=1))[0])
+        raise ValueError(f"{what} row {i} is not finite: {X[i].tolist()}")
+    if y is None:
+        return X
+    y = np.asarray(y)
+    if y.shape != (X.shape[0],):
+        raise ValueError(f"labels must have shape ({X.shape[0]},), got {y.shape}")
+    if not np.issubdtype(y.dtype, np.integer) or (y < 0).any():
+        raise ValueError("labels must be non-negative integers (class indices)")
+    return X, y.astype(np.int64)
+
+
+def _network(d: int, k: int, depth: int, width: int) -> nn.Sequential:
+    layers: list[nn.Module] = []
+    last = d
+    for _ in range(depth):
+        layers += [nn.Linear(last, width), nn.ReLU()]
+        last = width
+    layers.append(nn.Linear(last, k))
+    return nn.Sequential(*layers)
+
+
+class MLPClassifier:
+    """ReLU MLP with stored standardisation; ``fit``/``predict_proba``/``save``/``load``."""
+
+    def __init__(self, config: MLPConfig | None = None, **overrides):
+        config = config or MLPConfig()
+        self.config = dataclasses.replace(config, **overrides) if overrides else config
+        self.net: nn.Sequential | None = None
+        self.scaler: Standardizer | None = None
+        self.n_classes: int = 0
+        self.history: dict[str, list[float]] = {}
+
+    @property
+    def classes_(self) -> np.ndarray:
+        return np.arange(self.n_classes)
+
+    @property
+    def n_features(self) -> int:
+        self._check_fitted()
+        return int(self.scaler.mean.shape[0])
+
+    def _check_fitted(self):
+        if self.net is None:
+            raise RuntimeError("MLPClassifier is not fitted; call fit() or MLPClassifier.load()")
+
+    # ------------------------------------------------------------------------------ training
+    def fit(self, X, y, X_val=None, y_val=None, *, n_classes: int | None = None) -> MLPClassifier:
+        """Train on ``X (N, d)``, ``y (N,)`` (class indices); early stopping on ``(X_val, y_val)``.
+
+        Without an explicit validation set, ``config.val_fraction`` of ``X`` is held out.
+        """
+        cfg = self.config
+        set_torch_threads(cfg.threads)
+        X, y = _check_xy(X, y)
+        rng = np.random.default_rng(cfg.seed)
+        if cfg.max_train is not None and len(X) > cfg.max_train:
+            keep = rng.choice(len(X), cfg.max_train, replace=False)
+            X, y = X[keep], y[keep]
+        if X_val is None:
+            perm = rng.permutation(len(X))
+            n_val = max(1, int(round(cfg.val_fraction * len(X))))
+            X_val, y_val = X[perm[:n_val]], y[perm[:n_val]]
+            X, y = X[perm[n_val:]], y[perm[n_val:]]
+        else:
+            X_val, y_val = _check_xy(X_val, y_val, X.shape[1], "X_val")
+        self.n_classes = int(n_classes or max(y.max(), y_val.max()) + 1)
+        self.scaler = Standardizer.fit(X)
+        gen = torch.Generator().manual_seed(cfg.seed)
+        torch_state = torch.random.get_rng_state()  # nn.Linear() draws from the global RNG: restore it
+        self.net = _network(X.shape[1], self.n_classes, cfg.depth, cfg.width)
+        torch.random.set_rng_state(torch_state)
+        with torch.no_grad():  # He-uniform initialisation from our own generator
+            for m in self.net:
+                if isinstance(m, nn.Linear):
+                    bound = float(np.sqrt(6.0 / m.in_features))
+                    m.weight.uniform_(-bound, bound, generator=gen)
+                    m.bias.zero_()
+        Xt = torch.as_tensor(self.scaler(X), dtype=torch.float32)
+        yt = torch.as_tensor(y)
+        Xv = torch.as_tensor(self.scaler(X_val), dtype=torch.float32)
+        yv = torch.as_tensor(y_val)
+        opt = torch.optim.Adam(self.net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+        sched = torch.optim.lr_scheduler.ExponentialLR(opt, gamma=cfg.lr_decay)
+        lossf = nn.CrossEntropyLoss()
+        best, best_state, bad = np.inf, None, 0
+        self.history = {"train_loss": [], "val_loss": [], "val_acc": []}
+        bar = tqdm(range(cfg.max_epochs), desc=f"MLP {cfg.depth}x{cfg.width}", disable=not cfg.progress, leave=False)
+        for _epoch in bar:
+            self.net.train()
+            order = torch.randperm(len(Xt), generator=gen)
+            tot = 0.0
+            for lo in range(0, len(Xt), cfg.batch_size):
+                idx = order[lo : lo + cfg.batch_size]
+                opt.zero_grad(set_to_none=True)
+                loss = lossf(self.net(Xt[idx]), yt[idx])
+                loss.backward()
+                opt.step()
+                tot += float(loss.detach()) * len(idx)
+            sched.step()
+            vl, va = self._evaluate(Xv, yv)
+            self.history["train_loss"].append(tot / len(Xt))
+            self.history["val_loss"].append(vl)
+            self.history["val_acc"].append(va)
+            bar.set_postfix(val_loss=f"{vl:.3f}", val_acc=f"{va:.3f}")
+            if vl < best - 1e-4:
+                best, bad = vl, 0
+                best_state = {k: v.detach().clone() for k, v in self.net.state_dict().items()}
+            else:
+                bad += 1
+                if bad >= cfg.patience:
+                    break
+        if best_state is not None:
+            self.net.load_state_dict(best_state)
+        self.net.eval()
+        return self
+
+    @torch.no_grad()
+    def _evaluate(self, Xv: torch.Tensor, yv: torch.Tensor) -> tuple[float, float]:
+        self.net.eval()
+        logits = torch.cat([self.net(Xv[lo : lo + 65536]) for lo in range(0, len(Xv), 65536)])
+        return float(nn.functional.cross_entropy(logits, yv)), float((logits.argmax(1) == yv).float().mean())
+
+    # ----------------------------------------------------------------------------- inference
+    @torch.no_grad()
+    def predict_log_proba(self, X) -> np.ndarray:
+        """``(B, d) -> (B, K)`` log class probabilities (a single ``(d,)`` vector gives ``(1, K)``)."""
+        self._check_fitted()
+        X = _check_xy(np.atleast_2d(X), d=self.n_features)
+        xt = torch.as_tensor(self.scaler(X), dtype=torch.float32)
+        out = [torch.log_softmax(self.net(xt[lo : lo + 65536]), dim=1) for lo in range(0, len(xt), 65536)]
+        return torch.cat(out).double().numpy() if out else np.zeros((0, self.n_classes))
+
+    def predict_proba(self, X) -> np.ndarray:
+        """``(B, d) -> (B, K)`` class probabilities (rows sum to 1)."""
+        return np.exp(self.predict_log_proba(X))
+
+    def predict(self, X) -> np.ndarray:
+        return self.predict_log_proba(X).argmax(axis=1)
+
+    def score(self, X, y) -> float:
+        return float(np.mean(self.predict(X) == np.asarray(y)))
+
+    # ------------------------------------------------------------------------------- storage
+    def to_dict(self) -> dict:
+        self._check_fitted()
+        return {
+            "format": "haptic_env.MLPClassifier",
+            "version": FORMAT_VERSION,
+            "config": dataclasses.asdict(self.config),
+            "n_classes": self.n_classes,
+            "state_dict": self.net.state_dict(),
+            "scaler_mean": torch.as_tensor(self.scaler.mean),
+            "scaler_std": torch.as_tensor(self.scaler.std),
+            "history": self.history,
+        }
+
+    @classmethod
+    def from_dict(cls, blob: dict, where: str = "<dict>") -> MLPClassifier:
+        if not isinstance(blob, dict) or blob.get("format") != "haptic_env.MLPClassifier":
+            raise CacheError(f"{where} is not a saved MLPClassifier")
+        if blob.get("version") != FORMAT_VERSION:
+            raise CacheError(
+                f"{where} has MLPClassifier format version {blob.get('version')!r}, this code reads "
+                f"version {FORMAT_VERSION}; delete it to retrain"
+            )
+        try:
+            model = cls(MLPConfig(**blob["config"]))
+            model.n_classes = int(blob["n_classes"])
+            model.scaler = Standardizer(blob["scaler_mean"].numpy(), blob["scaler_std"].numpy())
+            d = model.scaler.mean.shape[0]
+            model.net = _network(d, model.n_classes, model.config.depth, model.config.width)
+            model.net.load_state_dict(blob["state_dict"])
+            model.net.eval()
+            model.history = blob.get("history", {})
+        except (KeyError, TypeError, RuntimeError, ValueError) as exc:
+            raise CacheError(f"{where} is a corrupted MLPClassifier file ({exc}); delete it to retrain") from exc
+        return model
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write config, weights, scaler and format version to one file (atomically)."""
+        buf = io.BytesIO()
+        torch.save(self.to_dict(), buf)
+        with atomic_write(path) as fh:
+            fh.write(buf.getvalue())
+        return Path(path)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> MLPClassifier:
+        """Read a file written by :meth:`save`; :class:`~haptic_env.cache.CacheError` if unusable."""
+        path = Path(path)
+        if not path.exists():
+            raise FileNotFoundError(f"no saved MLPClassifier at {path}")
+        try:
+            blob = torch.load(path, map_location="cpu", weights_only=True)
+        except Exception as exc:
+            raise CacheError(f"{path} is corrupted or not a torch file ({exc}); delete it to retrain") from exc
+        return cls.from_dict(blob, str(path))

@@ -1,0 +1,260 @@
+r"""Belief updaters: turn a sequence of grasps into a belief over the ``K`` objects.
+
+All updaters share one interface (:class:`BeliefUpdater`)::
+
+    b = u.reset(prior=None)     # (K,) initial belief
+    b = u.update(q)             # q: (d,) one grasp vector, or (m, d) sub-grasp vectors of ONE grasp
+    u.belief, u.certainty, u.decided, u.prediction, u.n_grasps
+
+``update`` evaluates the models and hands the per-row scores to :meth:`BeliefUpdater.update_scores`
+(``log_lik (m, K)`` and/or ``proba (m, K)``), which holds the maths; experiments that precompute
+scores for a pool of grasps call it directly.
+
+Sub-grasps (z-finger scoring, Algorithms 3 and 4 of the paper): the ``m`` rows of one update are
+combined before the belief step. Likelihood updaters multiply the likelihoods of the subsets
+(sum of log-likelihoods; ``combine="mean"`` takes their geometric mean instead, which does not
+count the heavily overlapping subsets as independent evidence); classifier updaters sum the
+subsets' probability vectors (equivalently, use their mean).
+
+IC — iterative classification (paper, Algorithm 1)
+    Scores ``S (K,)`` start at 0. Per grasp the classifier gives ``p``; the winner ``j = argmax p``
+    gets ``S_j += p_j`` (``"ic"``), or the whole vector is added, ``S += p`` (``"ic-full"``).
+    Belief ``S / k`` after ``k`` grasps (sub-stochastic for ``"ic"``); certainty ``max S / k``.
+    We normalise by the grasp count: normalising the winner-only scores by ``sum S`` would give
+    certainty 1 after the first grasp whatever the classifier said.
+BC-NP — Bayesian classification, non-informative prior
+    ``log b <- log b + log p(q | c)``, renormalised with logsumexp (exact in log space).
+BC-IP — informative prior
+    The first grasp's classifier probabilities (clipped at ``eps``) form the prior; later grasps
+    are KDE likelihood updates as in BC-NP.
+
+A decision is made once ``certainty >= threshold`` (``lambda_s``, default 0.85).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+import numpy as np
+from scipy.special import logsumexp
+
+__all__ = ["BeliefUpdater", "IterativeClassification", "BayesianUpdater", "BCNP", "BCIP", "make_updater", "UPDATERS"]
+
+UPDATERS = ("ic", "ic-full", "bc-np", "bc-ip")
+
+
+def _check_threshold(threshold: float) -> float:
+    if not (0.0 < threshold <= 1.0):
+        raise ValueError(f"threshold (lambda_s) must be in (0, 1], got {threshold!r}")
+    return float(threshold)
+
+
+def _rows(q) -> np.ndarray:
+    Q = np.asarray(q, dtype=np.float64)
+    if Q.ndim == 1:
+        Q = Q[None]
+    if Q.ndim != 2:
+        raise ValueError(f"a grasp update takes q of shape (d,) or (m, d), got {Q.shape}")
+    return Q
+
+
+class BeliefUpdater(ABC):
+    """Common state and interface; subclasses implement :meth:`_step` and the belief."""
+
+    kind: str = ""
+
+    def __init__(self, n_classes: int, threshold: float = 0.85):
+        if n_classes < 2:
+            raise ValueError(f"an updater needs at least 2 classes, got {n_classes}")
+        self.n_classes = int(n_classes)
+        self.threshold = _check_threshold(threshold)
+        self.n_grasps = 0
+        self.reset()
+
+    def _check_prior(self, prior) -> np.ndarray:
+        if prior is None:
+            return np.full(self.n_classes, 1.0 / self.n_classes)
+        p = np.asarray(prior, dtype=np.float64)
+        if p.shape != (self.n_classes,) or not np.isfinite(p).all() or (p < 0).any() or p.sum() <= 0:
+            raise ValueError(f"prior must be {self.n_classes} non-negative finite numbers with a positive sum, got {prior!r}")
+        return p / p.sum()
+
+    @abstractmethod
+    def reset(self, prior=None) -> np.ndarray:
+        """Forget all grasps; returns the initial belief ``(K,)``."""
+
+    @abstractmethod
+    def update_scores(self, log_lik=None, proba=None) -> np.ndarray:
+        """One grasp from precomputed scores of its ``m`` rows: ``log_lik (m, K)``, ``proba (m, K)``."""
+
+    @abstractmethod
+    def update(self, q) -> np.ndarray:
+        """One grasp: ``q (d,)`` or ``(m, d)`` sub-grasp vectors; returns the new belief ``(K,)``."""
+
+    @property
+    @abstractmethod
+    def belief(self) -> np.ndarray: ...
+
+    @property
+    def certainty(self) -> float:
+        return float(self.belief.max())
+
+    @property
+    def decided(self) -> bool:
+        return self.n_grasps > 0 and self.certainty >= self.threshold
+
+    @property
+    def prediction(self) -> int:
+        return int(np.argmax(self.belief))
+
+
+class IterativeClassification(BeliefUpdater):
+    """IC (``full=False``, paper Algorithm 1) and its full-accumulation variant (``full=True``)."""
+
+    def __init__(self, classifier, threshold: float = 0.85, *, full: bool = False, n_classes: int | None = None):
+        self.classifier = classifier
+        self.full = bool(full)
+        self.kind = "ic-full" if full else "ic"
+        super().__init__(n_classes or classifier.n_classes, threshold)
+
+    def reset(self, prior=None) -> np.ndarray:
+        self._prior = self._check_prior(prior)  # shown as the belief before the first grasp only
+        self.scores = np.zeros(self.n_classes)
+        self.n_grasps = 0
+        return self.belief
+
+    @property
+    def belief(self) -> np.ndarray:
+        if self.n_grasps == 0:
+            return self._prior.copy()
+        return self.scores / self.n_grasps
+
+    def update_scores(self, log_lik=None, proba=None) -> np.ndarray:
+        self.n_grasps += 1
+        if proba is None:
+            raise ValueError("IC updates need classifier probabilities (proba)")
+        P = np.asarray(proba, dtype=np.float64).reshape(-1, self.n_classes)
+        if len(P) == 0:  # no usable (sub-)grasp: the grasp is spent, the scores stay
+            return self.belief
+        p = P.mean(axis=0)
+        if self.full:
+            self.scores += p
+        else:
+            j = int(np.argmax(p))
+            self.scores[j] += p[j]
+        return self.belief
+
+    def update(self, q) -> np.ndarray:
+        Q = _rows(q)
+        return self.update_scores(proba=self.classifier.predict_proba(Q) if len(Q) else np.zeros((0, self.n_classes)))
+
+
+class BayesianUpdater(BeliefUpdater):
+    """Posterior ``∝ prior × Π likelihoods`` in log space (BC-NP; base of BC-IP)."""
+
+    kind = "bc-np"
+
+    def __init__(self, likelihood, threshold: float = 0.85, *, combine: str = "product",
+                 max_log_ratio: float | None = None, n_classes: int | None = None):
+        """``likelihood`` has ``log_likelihood(Q (m, d)) -> (m, K)``.
+
+        ``max_log_ratio``: if set, one grasp can lower a class's log-likelihood by at most this much
+        below the best class (robustness against an outlier grasp); ``None`` is the plain rule.
+        """
+        if combine not in ("product", "mean"):
+            raise ValueError(f"combine must be 'product' or 'mean', got {combine!r}")
+        if max_log_ratio is not None and not max_log_ratio > 0:
+            raise ValueError(f"max_log_ratio must be positive or None, got {max_log_ratio!r}")
+        self.likelihood = likelihood
+        self.combine = combine
+        self.max_log_ratio = max_log_ratio
+        super().__init__(n_classes or likelihood.n_classes, threshold)
+
+    def reset(self, prior=None) -> np.ndarray:
+        self.log_belief = np.log(np.maximum(self._check_prior(prior), 1e-300))
+        self.n_grasps = 0
+        return self.belief
+
+    @property
+    def belief(self) -> np.ndarray:
+        return np.exp(self.log_belief)
+
+    def _bayes(self, log_lik: np.ndarray) -> None:
+        L = np.asarray(log_lik, dtype=np.float64).reshape(-1, self.n_classes)
+        if len(L) == 0:
+            return
+        if np.isnan(L).any():
+            raise ValueError("log-likelihood contains NaN")
+        ll = L.sum(axis=0) if self.combine == "product" else L.mean(axis=0)
+        top = ll.max()
+        if not np.isfinite(top):  # every class impossible: no information
+            return
+        if self.max_log_ratio is not None:
+            ll = np.maximum(ll, top - self.max_log_ratio)
+        post = self.log_belief + (ll - top)
+        self.log_belief = post - logsumexp(post)
+
+    def update_scores(self, log_lik=None, proba=None) -> np.ndarray:
+        self.n_grasps += 1
+        if log_lik is None:
+            raise ValueError("Bayesian updates need log-likelihoods (log_lik)")
+        self._bayes(log_lik)
+        return self.belief
+
+    def update(self, q) -> np.ndarray:
+        Q = _rows(q)
+        return self.update_scores(log_lik=self.likelihood.log_likelihood(Q) if len(Q) else np.zeros((0, self.n_classes)))
+
+
+BCNP = BayesianUpdater
+
+
+class BCIP(BayesianUpdater):
+    """BC with the informative prior of the first grasp's classifier probabilities."""
+
+    kind = "bc-ip"
+
+    def __init__(self, classifier, likelihood, threshold: float = 0.85, *, eps: float = 1e-4, **kw):
+        if not 0 < eps < 1:
+            raise ValueError(f"eps must be in (0, 1), got {eps!r}")
+        self.classifier = classifier
+        self.eps = float(eps)
+        super().__init__(likelihood, threshold, **kw)
+
+    def update_scores(self, log_lik=None, proba=None) -> np.ndarray:
+        if self.n_grasps > 0:
+            return super().update_scores(log_lik=log_lik)
+        self.n_grasps += 1
+        if proba is None:
+            raise ValueError("the first BC-IP update needs classifier probabilities (proba)")
+        P = np.asarray(proba, dtype=np.float64).reshape(-1, self.n_classes)
+        if len(P):
+            p = np.maximum(P.mean(axis=0), self.eps)
+            post = self.log_belief + np.log(p / p.sum())
+            self.log_belief = post - logsumexp(post)
+        return self.belief
+
+    def update(self, q) -> np.ndarray:
+        Q = _rows(q)
+        if len(Q) == 0:
+            return self.update_scores(log_lik=np.zeros((0, self.n_classes)), proba=np.zeros((0, self.n_classes)))
+        if self.n_grasps == 0:
+            return self.update_scores(proba=self.classifier.predict_proba(Q))
+        return self.update_scores(log_lik=self.likelihood.log_likelihood(Q))
+
+
+def make_updater(kind: str, *, classifier=None, likelihood=None, threshold: float = 0.85, **kw) -> BeliefUpdater:
+    """An updater by name (:data:`UPDATERS`), given the models it needs."""
+    if kind not in UPDATERS:
+        raise ValueError(f"unknown updater kind {kind!r}; choose one of {UPDATERS}")
+    if kind in ("ic", "ic-full", "bc-ip") and classifier is None:
+        raise ValueError(f"updater {kind!r} needs a classifier")
+    if kind in ("bc-np", "bc-ip") and likelihood is None:
+        raise ValueError(f"updater {kind!r} needs a likelihood model")
+    if kind == "ic":
+        return IterativeClassification(classifier, threshold, full=False, **kw)
+    if kind == "ic-full":
+        return IterativeClassification(classifier, threshold, full=True, **kw)
+    if kind == "bc-np":
+        return BayesianUpdater(likelihood, threshold, **kw)
+    return BCIP(classifier, likelihood, threshold, **kw)

@@ -1,0 +1,126 @@
+"""z-finger scoring of n-finger grasps (paper, Algorithms 3 and 4) and incomplete grasps.
+
+A model trained on z-finger grasps can score an ``n``-finger grasp (``n > z``) through its
+z-subsets of contacts: every subset (Algorithm 3, ``k=None``) or ``k`` random distinct subsets
+(Algorithm 4, the paper uses ``k = 4``). Each subset gives one grasp vector ``Phi_z``; the
+:class:`~haptic_env.recognizers.updaters.BeliefUpdater` combines the rows of one update (product of
+likelihoods for BC, sum of probabilities for IC).
+
+Incomplete grasps: when only ``z`` of the ``n`` fingers touch, the grasp is scored by the z-finger
+model (the models are routed by feature dimension, see :class:`~haptic_env.recognizers.recognizer.ModelBank`);
+:func:`sample_finger_counts` draws ``z ~ p_n(z)`` for such experiments.
+"""
+
+from __future__ import annotations
+
+from itertools import combinations
+from math import comb
+
+import numpy as np
+
+from haptic_env.grasp_features import feature_dim, normalize_scale, phi
+
+__all__ = ["subsets", "subset_vectors", "grasp_vectors_for", "ZFingerUpdater", "sample_finger_counts"]
+
+
+def subsets(n: int, z: int, k: int | None = None, rng: np.random.Generator | None = None) -> np.ndarray:
+    """Contact-index subsets: all ``C(n, z)`` (``k=None``) or ``min(k, C(n, z))`` distinct random ones.
+
+    Returns an ``(m, z)`` int array, rows sorted ascending (the lexicographic order for "all").
+    """
+    if not 2 <= z <= n:
+        raise ValueError(f"need 2 <= z <= n, got z={z}, n={n}")
+    total = comb(n, z)
+    if k is None or k >= total:
+        return np.array(list(combinations(range(n), z)), dtype=np.int64).reshape(-1, z)
+    if k < 1:
+        raise ValueError(f"k must be >= 1 or None, got {k}")
+    if rng is None:
+        raise ValueError("random subsets (k given) need an rng (np.random.Generator)")
+    if total <= 4096:
+        pick = np.sort(rng.choice(total, size=k, replace=False))
+        allsub = list(combinations(range(n), z))
+        return np.array([allsub[i] for i in pick], dtype=np.int64)
+    seen: set[tuple[int, ...]] = set()
+    while len(seen) < k:
+        seen.add(tuple(sorted(rng.choice(n, size=z, replace=False).tolist())))
+    return np.array(sorted(seen), dtype=np.int64)
+
+
+def grasp_vectors_for(contacts, normals=None, *, normalize: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """``Phi`` of a batch ``(B, n, 3)`` (optionally scale-normalised): ``(q (B, d), valid (B,))``."""
+    P = np.asarray(contacts, dtype=np.float64)
+    if normalize:
+        P, _ = normalize_scale(P)
+    f = phi(P, normals)
+    return np.atleast_2d(f.q), np.atleast_1d(f.valid)
+
+
+def subset_vectors(contacts, normals=None, z: int | None = None, *, k: int | None = None,
+                   rng: np.random.Generator | None = None, touched=None, normalize: bool = False) -> np.ndarray:
+    """Grasp vectors of the z-subsets of one grasp's touching contacts.
+
+    Args:
+        contacts: ``(n, 3)``; normals ``(n, 3)`` or None.
+        z: subset size (default: all touching contacts, i.e. one row = the whole grasp).
+        k: number of random subsets (None: all of them).
+        touched: optional ``(n,)`` bool; only touching contacts are used (incomplete grasps).
+        normalize: scale-normalise each subset (objects of unknown scale).
+
+    Returns:
+        ``(m, feature_dim(z, normals))`` vectors of the non-degenerate subsets (``m`` may be 0).
+    """
+    P = np.asarray(contacts, dtype=np.float64)
+    if P.ndim != 2 or P.shape[1] != 3:
+        raise ValueError(f"contacts of one grasp must have shape (n, 3), got {P.shape}")
+    N = None if normals is None else np.asarray(normals, dtype=np.float64)
+    if touched is not None:
+        t = np.asarray(touched, dtype=bool)
+        if t.shape != (len(P),):
+            raise ValueError(f"touched must have shape ({len(P)},), got {t.shape}")
+        P = P[t]
+        N = None if N is None else N[t]
+    n = len(P)
+    z = n if z is None else int(z)
+    d = feature_dim(max(z, 2), N is not None)
+    if n < z or z < 2:
+        return np.zeros((0, d))
+    idx = subsets(n, z, k, rng)
+    Pz = P[idx]
+    Nz = None if N is None else N[idx]
+    q, valid = grasp_vectors_for(Pz, Nz, normalize=normalize)
+    return q[valid]
+
+
+class ZFingerUpdater:
+    """Wraps a belief updater whose models are z-finger models; updates from whole n-finger grasps."""
+
+    def __init__(self, base, z: int | None = None, *, k: int | None = None, rng: np.random.Generator | None = None,
+                 normalize: bool = False):
+        if k is not None and rng is None:
+            raise ValueError("ZFingerUpdater with random subsets (k) needs an rng")
+        self.base, self.z, self.k, self.rng, self.normalize = base, z, k, rng, normalize
+
+    def __getattr__(self, name):  # belief, certainty, decided, prediction, n_grasps, n_classes, ...
+        return getattr(self.base, name)
+
+    def reset(self, prior=None) -> np.ndarray:
+        return self.base.reset(prior)
+
+    def update(self, q) -> np.ndarray:
+        """Sub-grasp vectors ``(m, d_z)`` of one grasp (already computed)."""
+        return self.base.update(q)
+
+    def update_grasp(self, contacts, normals=None, touched=None) -> np.ndarray:
+        """One grasp from raw contacts ``(n, 3)`` (+ inward normals) -> new belief ``(K,)``."""
+        Q = subset_vectors(contacts, normals, self.z, k=self.k, rng=self.rng, touched=touched, normalize=self.normalize)
+        return self.base.update(Q)
+
+
+def sample_finger_counts(p_n, size: int, rng: np.random.Generator) -> np.ndarray:
+    """Draw ``size`` finger counts from ``p_n``: a dict ``{z: prob}`` -> ``(size,)`` int array."""
+    zs = np.array(sorted(p_n), dtype=np.int64)
+    p = np.array([p_n[z] for z in zs], dtype=np.float64)
+    if (zs < 2).any() or (p < 0).any() or not np.isfinite(p).all() or p.sum() <= 0:
+        raise ValueError(f"p_n must map finger counts >= 2 to non-negative probabilities, got {p_n!r}")
+    return rng.choice(zs, size=size, p=p / p.sum())

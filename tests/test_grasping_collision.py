@@ -1,0 +1,51 @@
+import numpy as np
+import pytest
+import trimesh
+
+from haptic_env.cache import CacheError
+from haptic_env.grasping.collision import CollisionConfig, convex_pieces
+from haptic_env.objects import GraspObject, data_dir, load_object_set
+
+
+def _l_shape():
+    a = trimesh.creation.box([0.08, 0.02, 0.02])
+    b = trimesh.creation.box([0.02, 0.08, 0.02])
+    b.apply_translation([0.03, 0.03, 0])
+    return GraspObject("ell", trimesh.boolean.union([a, b], engine="manifold"))
+
+
+def test_convex_object_uses_hull():
+    obj = GraspObject("box", trimesh.creation.box([0.05, 0.06, 0.07]))
+    pieces = convex_pieces(obj)
+    assert len(pieces) == 1 and np.isclose(pieces[0].volume, obj.mesh.volume)
+
+
+def test_coacd_decomposition_is_cached(tmp_path, monkeypatch):
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path))
+    obj = _l_shape()
+    cfg = CollisionConfig(threshold=0.05)
+    p1 = convex_pieces(obj, cfg)
+    files = list((tmp_path / "collision").glob("*.npz"))
+    assert len(files) == 1 and len(p1) >= 2
+    assert all(np.isclose(abs(p.volume), p.convex_hull.volume, rtol=0.02) for p in p1)  # convex pieces
+    p2 = convex_pieces(obj, cfg)
+    assert len(p2) == len(p1) and all(np.allclose(a.vertices, b.vertices) for a, b in zip(p1, p2))
+    files[0].write_bytes(b"garbage")
+    with pytest.raises(CacheError, match="corrupted"):
+        convex_pieces(obj, cfg)
+
+
+def test_shipped_ycb_pieces_align_with_mesh():
+    if data_dir() is None or not (data_dir() / "ycb" / "025_mug").is_dir():
+        pytest.skip("shared data (ycb/025_mug) absent; set HAPTIC_DATA to the data folder")
+    mug = load_object_set("ycb10")["025_mug"]
+    pieces = convex_pieces(mug)
+    assert len(pieces) == len(mug.collision_paths) > 1
+    bounds = np.array([p.bounds for p in pieces])
+    lo, hi = bounds[:, 0].min(0), bounds[:, 1].max(0)
+    assert np.allclose(lo, mug.mesh.bounds[0], atol=5e-3) and np.allclose(hi, mug.mesh.bounds[1], atol=5e-3)
+
+
+def test_bad_method():
+    with pytest.raises(ValueError, match="collision method"):
+        CollisionConfig(method="voxels")

@@ -1,0 +1,122 @@
+import numpy as np
+import pytest
+import trimesh
+
+from haptic_env.grasping import GraspBatch, make_backend
+from haptic_env.objects import GraspObject
+
+
+def _sphere(r=0.04):
+    return GraspObject("sphere", trimesh.creation.icosphere(subdivisions=4, radius=r))
+
+
+def _box():
+    return GraspObject("box", trimesh.creation.box([0.06, 0.09, 0.12]))
+
+
+def _dumbbell():
+    a = trimesh.creation.icosphere(subdivisions=3, radius=0.02)
+    b = a.copy()
+    a.apply_translation([0.06, 0, 0])
+    b.apply_translation([-0.06, 0, 0])
+    return GraspObject("dumbbell", trimesh.util.concatenate([a, b]))
+
+
+def _pose():
+    T = trimesh.transformations.random_rotation_matrix(np.random.default_rng(3).uniform(size=3))
+    T[:3, 3] = [0.3, -0.2, 0.5]
+    return T
+
+
+@pytest.mark.parametrize("make_obj", [_sphere, _box])
+@pytest.mark.parametrize("posed", [False, True])
+def test_exact_contacts_on_surface_with_inward_normals(make_obj, posed):
+    obj = make_obj()
+    T = _pose() if posed else np.eye(4)
+    be = make_backend("geometric", 4, support="floating")
+    be.set_object(obj, T)
+    rng = np.random.default_rng(0)
+    b = be.grasp_batch(rng.uniform(-1, 1, (300, 4)), rng)
+    assert isinstance(b, GraspBatch) and b.contacts.shape == (300, 4, 3) and b.touched.shape == (300, 4)
+    assert b.touched.mean() > 0.9
+    world = obj.mesh.copy().apply_transform(T)
+    pts = b.contacts[b.touched]
+    _, dist, tri = trimesh.proximity.closest_point(world, pts)
+    assert dist.max() < 1e-3
+    n = b.normals[b.touched]
+    assert np.allclose(np.linalg.norm(n, axis=1), 1.0)
+    # inward: agrees with minus the outward face normal at the closest point
+    assert np.mean(np.einsum("ij,ij->i", n, -world.face_normals[tri]) > 0.99) > 0.98
+
+
+def test_fingers_that_miss_are_reported():
+    be = make_backend("geometric", 4, support="floating")
+    be.set_object(_dumbbell())
+    rng = np.random.default_rng(1)
+    b = be.grasp_batch(rng.uniform(-1, 1, (400, 4)), rng)
+    miss = ~b.touched
+    assert miss.any() and b.touched.any()
+    assert np.all(b.contacts[miss] == 0) and np.all(b.normals[miss] == 0)
+
+
+def test_table_support_hides_the_bottom():
+    obj = _box()
+    be = make_backend("geometric", 4, support="table")
+    be.set_object(obj)
+    rng = np.random.default_rng(2)
+    b = be.grasp_batch(rng.uniform(-1, 1, (300, 4)), rng)
+    z = b.contacts[b.touched][:, 2]
+    assert z.min() > obj.mesh.bounds[0, 2] + 1e-3 - 1e-9
+
+
+def test_same_seed_same_grasp_and_batch_matches_single():
+    be = make_backend("geometric", 4, contact_noise=0.001, normal_noise_deg=5.0)
+    be.set_object(_box())
+    a = np.random.default_rng(5).uniform(-1, 1, (10, 4)).astype(np.float32)
+    r1 = be.grasp_batch(a, np.random.default_rng(7))
+    r2 = be.grasp_batch(a, np.random.default_rng(7))
+    assert np.array_equal(r1.contacts, r2.contacts) and np.array_equal(r1.normals, r2.normals)
+    exact = make_backend("geometric", 4)
+    exact.set_object(_box())
+    batch = exact.grasp_batch(a, np.random.default_rng(0))
+    single = exact.grasp(a[3], np.random.default_rng(0))
+    assert np.array_equal(single.contacts, batch.contacts[3]) and np.array_equal(single.touched, batch.touched[3])
+
+
+def test_noise_perturbs_only_touched_and_keeps_unit_normals():
+    be = make_backend("geometric", 4, contact_noise=0.002, normal_noise_deg=10.0, support="floating")
+    be.set_object(_dumbbell())
+    rng = np.random.default_rng(4)
+    b = be.grasp_batch(rng.uniform(-1, 1, (200, 4)), rng)
+    assert np.all(b.contacts[~b.touched] == 0)
+    assert np.allclose(np.linalg.norm(b.normals[b.touched], axis=1), 1.0)
+
+
+def test_spread_changes_finger_pattern():
+    be = make_backend("geometric", 4)
+    be.set_object(_sphere())
+    rng = np.random.default_rng(0)
+    tight = be.grasp(np.array([0.0, 0.0, 0.0, -1.0]), rng).contacts
+    wide = be.grasp(np.array([0.0, 0.0, 0.0, 1.0]), rng).contacts
+    spread = lambda c: np.linalg.norm(c[:-1] - c[:-1].mean(0), axis=1).mean()  # noqa: E731
+    assert spread(wide) > 2 * spread(tight)
+
+
+def test_requires_object_and_valid_pose():
+    be = make_backend("geometric", 3)
+    with pytest.raises(RuntimeError, match="set_object"):
+        be.grasp(np.zeros(4), np.random.default_rng(0))
+    bad = np.eye(4)
+    bad[0, 0] = 2.0
+    with pytest.raises(ValueError, match="rigid"):
+        be.set_object(_box(), bad)
+    with pytest.raises(ValueError, match="nan"):
+        be.grasp(np.array([np.nan, 0, 0, 0]), np.random.default_rng(0))
+
+
+def test_render_matplotlib():
+    be = make_backend("geometric", 4)
+    be.set_object(_box())
+    be.grasp(np.zeros(4), np.random.default_rng(0))
+    img = be.render(160, 120)
+    assert img.shape == (120, 160, 3) and img.dtype == np.uint8 and img.std() > 0

@@ -1,0 +1,140 @@
+"""MuJoCo backend checks. Angle bound: at equilibrium a fingertip-only contact force lies inside the
+friction cone (atan(0.1) = 5.7 deg with the default friction); with settling error we require >= 90%
+of touching fingertips of the generic hand within 15 deg of MuJoCo's contact normal (measured: median
+~4, 90th percentile ~8 deg), and a median below 20 deg for the Allegro / Shadow hands."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from haptic_env.grasping import make_backend
+from haptic_env.grasping.hands import HandUnavailableError
+from haptic_env.objects import GraspObject
+
+ANGLE_DEG = 15.0
+MENAGERIE_MEDIAN_DEG = 20.0
+
+
+def _cyl():
+    return GraspObject("cyl", trimesh.creation.cylinder(0.035, 0.12, sections=48))
+
+
+def _angles(results):
+    out = []
+    for r in results:
+        for i in np.flatnonzero(r.touched):
+            out.append(np.degrees(np.arccos(np.clip(r.normals[i] @ r.gt_normals[i], -1, 1))))
+    return np.array(out)
+
+
+@pytest.fixture(scope="module")
+def generic():
+    be = make_backend("mujoco", 4, hand="generic")
+    be.set_object(_cyl())
+    return be
+
+
+@pytest.fixture(scope="module")
+def generic_results(generic):
+    rng = np.random.default_rng(0)
+    acts = rng.uniform(-1, 1, (30, 4))
+    return acts, [generic.grasp(a, rng) for a in acts]
+
+
+def test_torque_normals_agree_with_contact_normals(generic_results):
+    _, res = generic_results
+    ang = _angles(res)
+    assert len(ang) >= 60
+    assert np.mean(ang < ANGLE_DEG) >= 0.9, np.percentile(ang, [50, 90, 100])
+
+
+def test_contacts_near_surface_and_results_consistent(generic_results):
+    _, res = generic_results
+    mesh = _cyl().mesh
+    usable = np.mean([r.usable for r in res])
+    assert usable > 0.8
+    pts = np.concatenate([r.contacts[r.touched] for r in res])
+    d = np.abs(trimesh.proximity.signed_distance(mesh, pts))
+    assert np.mean(d < 3e-3) >= 0.9, np.percentile(d, [50, 90, 100])
+    for r in res:
+        assert r.contacts.shape == (4, 3) and r.joint_pos.shape == (16,)
+        assert np.all(r.contacts[~r.touched] == 0) and np.all(r.normals[~r.touched] == 0)
+        assert np.allclose(np.linalg.norm(r.normals[r.touched], axis=1), 1.0)
+
+
+def test_same_seed_same_grasp(generic):
+    a = np.array([0.2, 0.1, -0.3, 0.5], dtype=np.float32)
+    r1 = generic.grasp(a, np.random.default_rng(1))
+    generic.grasp(np.array([-0.7, 0.9, 0.3, -1.0]), np.random.default_rng(2))  # state in between
+    r2 = generic.grasp(a, np.random.default_rng(1))
+    assert np.array_equal(r1.contacts, r2.contacts) and np.array_equal(r1.touched, r2.touched)
+
+
+def test_missing_fingers_reported():
+    be = make_backend("mujoco", 5, hand="generic")
+    be.set_object(GraspObject("pole", trimesh.creation.cylinder(0.006, 0.2, sections=24)))
+    rng = np.random.default_rng(3)
+    res = [be.grasp(a, rng) for a in rng.uniform(-1, 1, (12, 4))]
+    touched = np.stack([r.touched for r in res])
+    assert (~touched).any()
+    for r in res:  # a finger reported untouched has no MuJoCo contact between its tip and the object
+        assert np.all(r.contacts[~r.touched] == 0)
+        assert np.all(r.gt_normals[~r.touched] == 0)
+
+
+def test_invalid_action_and_timing(generic):
+    with pytest.raises(ValueError, match="outside"):
+        generic.grasp(np.array([0, 0, 1.01, 0]), np.random.default_rng(0))
+    t = generic.timing
+    assert t["ratio"] >= 1.0 and t["steps_per_grasp"] > 0
+
+
+def test_render_offscreen(generic):
+    try:
+        img = generic.render(96, 64)
+    except RuntimeError as exc:
+        pytest.skip(f"no OpenGL backend for offscreen rendering: {exc}")
+    assert img.shape == (64, 96, 3) and img.dtype == np.uint8 and img.std() > 0
+
+
+@pytest.mark.parametrize("hand, n", [("allegro", 4), ("shadow", 5)])
+def test_menagerie_hands(hand, n):
+    try:
+        be = make_backend("mujoco", n, hand=hand)
+    except HandUnavailableError as exc:
+        pytest.skip(f"{hand} hand unavailable (menagerie data absent, no download): {exc}")
+    be.set_object(_cyl())
+    rng = np.random.default_rng(0)
+    res = [be.grasp(a, rng) for a in rng.uniform(-1, 1, (10, 4))]
+    assert all(r.contacts.shape == (n, 3) for r in res)
+    assert sum(r.n_touched for r in res) > 0
+    ang = _angles(res)
+    assert np.median(ang) < MENAGERIE_MEDIAN_DEG
+
+
+def test_wrong_finger_count_for_hand():
+    with pytest.raises(ValueError, match="fingers"):
+        make_backend("mujoco", 7, hand="generic")
+
+
+def test_any_mjcf_hand_from_file(tmp_path):
+    from haptic_env.grasping.hands import generic_hand
+
+    desc = generic_hand(3)
+    path = tmp_path / "claw.xml"
+    path.write_text(desc.spec.to_xml())
+    be = make_backend("mujoco", 3, hand=str(path), hand_kwargs=(("tips", desc.tips),), support="floating")
+    be.set_object(_cyl())
+    rng = np.random.default_rng(0)
+    res = [be.grasp(a, rng) for a in rng.uniform(-1, 1, (6, 4))]
+    assert sum(r.n_touched for r in res) > 0
+    with pytest.raises(ValueError, match="fingertip bodies"):
+        make_backend("mujoco", 3, hand=str(path), hand_kwargs=(("tips", ("nope", "f1_tip", "f2_tip")),))
+
+
+def test_backends_follow_protocol(generic):
+    from haptic_env.grasping import GraspBackend
+
+    assert isinstance(generic, GraspBackend)
+    for name in ("geometric", "uniform"):
+        assert isinstance(make_backend(name, 4), GraspBackend)

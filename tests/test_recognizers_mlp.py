@@ -1,0 +1,75 @@
+"""Torch MLP: learns a separable toy problem, save/load round trip, corrupted files rejected."""
+
+import numpy as np
+import pytest
+import torch
+
+from haptic_env.cache import CacheError
+from haptic_env.recognizers.mlp import MLPClassifier, MLPConfig
+
+
+def _toy(rng, n=1500):
+    X = rng.normal(size=(n, 4)) * [1.0, 1.0, 100.0, 0.01]  # badly scaled on purpose
+    y = (X[:, 0] + X[:, 1] > 0).astype(int) + 2 * (X[:, 2] > 0)
+    return X, y
+
+
+@pytest.fixture(scope="module")
+def trained():
+    X, y = _toy(np.random.default_rng(0))
+    cfg = MLPConfig(depth=2, width=32, max_epochs=40, patience=40, batch_size=128, lr=1e-2, progress=False, threads=1)
+    return MLPClassifier(cfg).fit(X, y), cfg
+
+
+def test_learns_separable_problem(trained):
+    clf, _ = trained
+    Xt, yt = _toy(np.random.default_rng(1), 1000)
+    assert clf.score(Xt, yt) > 0.95
+    P = clf.predict_proba(Xt)
+    assert P.shape == (1000, 4) and np.allclose(P.sum(1), 1.0)
+
+
+def test_training_is_seeded_and_leaves_global_rng_alone(trained):
+    clf, cfg = trained
+    X, y = _toy(np.random.default_rng(0))
+    state = torch.random.get_rng_state()
+    again = MLPClassifier(cfg).fit(X, y)
+    assert torch.equal(state, torch.random.get_rng_state())
+    assert np.allclose(again.predict_proba(X[:50]), clf.predict_proba(X[:50]), atol=1e-5)
+
+
+def test_save_load_round_trip(trained, tmp_path):
+    clf, _ = trained
+    path = clf.save(tmp_path / "m.pt")
+    back = MLPClassifier.load(path)
+    X, _ = _toy(np.random.default_rng(2), 100)
+    assert np.allclose(back.predict_proba(X), clf.predict_proba(X), atol=1e-6)
+    assert back.config == clf.config
+
+
+def test_corrupt_and_wrong_version_rejected(trained, tmp_path):
+    clf, _ = trained
+    bad = tmp_path / "bad.pt"
+    bad.write_bytes(b"not a torch file at all")
+    with pytest.raises(CacheError, match="corrupted"):
+        MLPClassifier.load(bad)
+    blob = clf.to_dict()
+    blob["version"] = 999
+    old = tmp_path / "old.pt"
+    torch.save(blob, old)
+    with pytest.raises(CacheError, match="version 999"):
+        MLPClassifier.load(old)
+    with pytest.raises(FileNotFoundError):
+        MLPClassifier.load(tmp_path / "missing.pt")
+
+
+def test_input_checks(trained):
+    clf, _ = trained
+    with pytest.raises(ValueError, match="features"):
+        clf.predict_proba(np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="not finite"):
+        clf.predict_proba(np.array([[0, np.inf, 0, 0]]))
+    with pytest.raises(ValueError, match="depth"):
+        MLPConfig(depth=-1)
+    with pytest.raises(RuntimeError, match="not fitted"):
+        MLPClassifier().predict_proba(np.zeros((1, 2)))

@@ -1,0 +1,121 @@
+"""Belief-updater maths on hand-made likelihoods and probabilities."""
+
+import numpy as np
+import pytest
+from scipy.special import logsumexp
+
+from haptic_env.recognizers.updaters import BCIP, BayesianUpdater, IterativeClassification, make_updater
+
+
+class FixedModel:
+    """Returns preset rows: ``log_likelihood``/``predict_proba`` of row ``int(q[0])``."""
+
+    def __init__(self, table):
+        self.table = np.asarray(table, dtype=float)
+        self.n_classes = self.table.shape[1]
+
+    def log_likelihood(self, Q):
+        return self.table[np.asarray(Q)[:, 0].astype(int)]
+
+    def predict_proba(self, Q):
+        return self.table[np.asarray(Q)[:, 0].astype(int)]
+
+
+def test_ic_accumulates_winner_probability():
+    P = [[0.6, 0.3, 0.1], [0.2, 0.7, 0.1], [0.5, 0.4, 0.1]]
+    u = IterativeClassification(FixedModel(P), threshold=0.85)
+    assert np.allclose(u.reset(), 1 / 3) and not u.decided
+    u.update([0.0])
+    u.update([1.0])
+    b = u.update([2.0])
+    assert np.allclose(u.scores, [0.6 + 0.5, 0.7, 0.0])
+    assert np.allclose(b, u.scores / 3)
+    assert u.prediction == 0 and u.certainty == pytest.approx(1.1 / 3)
+
+
+def test_ic_full_adds_whole_vector():
+    P = [[0.6, 0.3, 0.1], [0.2, 0.7, 0.1]]
+    u = make_updater("ic-full", classifier=FixedModel(P))
+    u.update([0.0])
+    b = u.update([1.0])
+    assert np.allclose(b, np.mean(P, axis=0)) and b.sum() == pytest.approx(1.0)
+
+
+def test_ic_decides_at_threshold():
+    u = IterativeClassification(FixedModel([[0.9, 0.1], [0.7, 0.3], [0.85, 0.15]]), threshold=0.85)
+    u.update([0.0])
+    assert u.decided and u.certainty == pytest.approx(0.9)  # one grasp at 0.9 >= 0.85
+    u.update([1.0])
+    assert not u.decided and u.certainty == pytest.approx(0.8)  # (0.9 + 0.7) / 2
+    u.reset()
+    u.update([2.0])
+    assert u.certainty == 0.85 and u.decided  # exactly at the threshold counts as decided
+
+
+def test_bc_posterior_is_normalised_product():
+    rng = np.random.default_rng(0)
+    L = rng.uniform(0.01, 1.0, size=(5, 4))
+    prior = np.array([0.1, 0.2, 0.3, 0.4])
+    u = BayesianUpdater(FixedModel(np.log(L)), threshold=0.99)
+    u.reset(prior)
+    for i in range(5):
+        b = u.update([float(i)])
+    expect = prior * L.prod(axis=0)
+    assert np.allclose(b, expect / expect.sum())
+    assert u.n_grasps == 5
+
+
+def test_bc_log_space_stable_with_tiny_likelihoods():
+    ll = np.array([[-2000.0, -2001.0, -2010.0]])  # exp() underflows to 0 in every class
+    u = BayesianUpdater(FixedModel(ll), threshold=0.85)
+    for _ in range(3):
+        b = u.update([0.0])
+    assert np.all(np.isfinite(b)) and b.sum() == pytest.approx(1.0)
+    w = np.exp(3 * (ll[0] - logsumexp(ll[0])))
+    assert np.allclose(b, w / w.sum())
+
+
+def test_bc_decided_threshold_and_sub_grasp_product():
+    ll = np.log([[0.5, 0.5], [0.9, 0.1]])
+    u = BayesianUpdater(FixedModel(ll), threshold=0.85)
+    u.update([0.0])
+    assert not u.decided and u.certainty == pytest.approx(0.5)
+    u.update(np.array([[1.0], [1.0]]))  # two sub-grasps of one grasp multiply: 0.81 : 0.01
+    assert u.decided and u.prediction == 0 and u.certainty == pytest.approx(0.81 / 0.82)
+    m = BayesianUpdater(FixedModel(ll), combine="mean")
+    m.update(np.array([[1.0], [1.0]]))
+    assert m.certainty == pytest.approx(0.9)
+
+
+def test_bcip_prior_from_classifier_then_kde():
+    proba = np.array([[0.7, 0.2, 0.1]])
+    ll = np.log([[0.2, 0.5, 0.3]])
+
+    class Clf(FixedModel):
+        pass
+
+    u = BCIP(Clf(proba), FixedModel(ll), threshold=0.99)
+    b1 = u.update([0.0])
+    assert np.allclose(b1, proba[0])  # first grasp: classifier only
+    b2 = u.update([0.0])
+    e = proba[0] * np.exp(ll[0])
+    assert np.allclose(b2, e / e.sum())
+
+
+def test_max_log_ratio_limits_one_outlier():
+    ll = np.array([[0.0, -500.0]])
+    u = BayesianUpdater(FixedModel(ll), max_log_ratio=10.0)
+    b = u.update([0.0])
+    assert b[1] == pytest.approx(np.exp(-10) / (1 + np.exp(-10)))
+
+
+def test_bad_inputs_are_rejected():
+    m = FixedModel([[0.5, 0.5]])
+    with pytest.raises(ValueError, match="threshold"):
+        BayesianUpdater(m, threshold=1.5)
+    with pytest.raises(ValueError, match="prior"):
+        BayesianUpdater(m).reset([1.0, -1.0])
+    with pytest.raises(ValueError, match="unknown updater"):
+        make_updater("bogus", classifier=m, likelihood=m)
+    with pytest.raises(ValueError, match="needs a classifier"):
+        make_updater("ic", likelihood=m)
