@@ -19,8 +19,8 @@ Approximations (documented, deliberate):
 * the per-episode random scale (``scale_range``) is ignored (hypotheses at scale 1);
 * the simulation always uses the geometric backend, even when the env uses another backend (the mujoco
   hand's contacts differ from the simulated ones);
-* a simulated grasp that is incomplete or degenerate counts as "no information" (entropy unchanged), also
-  when the env has a ``z_fingers`` model.
+* simulated grasps are scored exactly as the env scores real ones (:meth:`HapticRecogEnv.grasp_rows`:
+  incomplete/degenerate grasps carry no information unless the env has ``z_fingers`` models).
 """
 
 from __future__ import annotations
@@ -31,7 +31,6 @@ from typing import Any
 import numpy as np
 from scipy.special import logsumexp
 
-from haptic_env.grasp_features import phi
 
 __all__ = ["GreedyInfoGainAgent", "predicted_beliefs", "entropy_rows"]
 
@@ -44,30 +43,43 @@ def entropy_rows(P: np.ndarray) -> np.ndarray:
     return -t.sum(axis=-1)
 
 
-def predicted_beliefs(updater, Q: np.ndarray) -> np.ndarray:
-    """Beliefs ``(B, K)`` the updater would hold after ONE more grasp with each row of ``Q (B, d)``.
+def predicted_beliefs(updater, Q: np.ndarray, groups: np.ndarray | None = None) -> np.ndarray:
+    """Beliefs ``(G, K)`` the updater would hold after ONE more grasp, for each of ``G`` candidate grasps.
 
-    The updater is not modified. Bayesian updaters (BC-NP, and BC-IP after its first grasp) are computed
-    in one batched likelihood call; any other updater through a copy per row.
+    ``Q (R, d)`` are score rows; ``groups (R,)`` (sorted, ``0..G-1``) says which grasp each row belongs to
+    (several rows per grasp for z-subset scoring; default: one row per grasp). The updater is not modified.
+    Bayesian updaters (BC-NP, and BC-IP after its first grasp) are computed with ONE batched likelihood call;
+    any other updater through a copy per grasp.
     """
     Q = np.asarray(Q, dtype=np.float64)
-    if len(Q) == 0:
+    groups = np.arange(len(Q)) if groups is None else np.asarray(groups)
+    G = int(groups.max()) + 1 if len(groups) else 0
+    if G == 0:
         return np.zeros((0, updater.n_classes))
     bayes = hasattr(updater, "likelihood") and hasattr(updater, "log_belief")
     if bayes and not (getattr(updater, "kind", "") == "bc-ip" and updater.n_grasps == 0):
-        L = np.asarray(updater.likelihood.log_likelihood(Q), dtype=np.float64)  # (B, K)
-        top = L.max(axis=1, keepdims=True)
+        L = np.asarray(updater.likelihood.log_likelihood(Q), dtype=np.float64)  # (R, K)
+        combine = getattr(updater, "combine", "product")
+        starts = np.flatnonzero(np.r_[True, groups[1:] != groups[:-1]])
+        ll = np.add.reduceat(L, starts, axis=0)  # (G, K) product of the rows' likelihoods
+        if combine == "mean":
+            ll = ll / np.diff(np.r_[starts, len(groups)])[:, None]
+        top = ll.max(axis=1, keepdims=True)
         ok = np.isfinite(top[:, 0])
         mlr = getattr(updater, "max_log_ratio", None)
         if mlr is not None:
-            L = np.maximum(L, top - mlr)
-        post = updater.log_belief[None, :] + np.where(ok[:, None], L - np.where(ok[:, None], top, 0.0), 0.0)
-        post = post - logsumexp(post, axis=1, keepdims=True)
-        return np.exp(post)
-    out = np.empty((len(Q), updater.n_classes))
-    for i, q in enumerate(Q):
-        u = copy.deepcopy(updater)
-        out[i] = u.update(q)
+            ll = np.maximum(ll, top - mlr)
+        step = np.where(ok[:, None], ll - np.where(ok[:, None], top, 0.0), 0.0)
+        post = updater.log_belief[None, :] + step
+        return np.exp(post - logsumexp(post, axis=1, keepdims=True))
+    base = getattr(updater, "base", updater)
+    out = np.empty((G, updater.n_classes))
+    for g in range(G):
+        u = copy.copy(base)  # shallow copy; copy the mutable state arrays, share the models
+        for name, value in vars(u).items():
+            if isinstance(value, np.ndarray):
+                setattr(u, name, value.copy())
+        out[g] = u.update(Q[groups == g])
     return out
 
 
@@ -125,7 +137,6 @@ class GreedyInfoGainAgent:
         if active.size == 0:
             active = np.array([int(np.argmax(b))])
         w = b[active] / b[active].sum()
-        n = base.config.n_fingers
         expected = np.zeros(M)
         acts = np.repeat(cands, S, axis=0).astype(np.float64)  # (M*S, A)
         for wk, k in zip(w, active):
@@ -135,13 +146,17 @@ class GreedyInfoGainAgent:
             normals = None
             if base.config.normals:
                 normals = res.normals if res.normals is not None else res.gt_normals
+            rows, groups, scored = [], [], []
+            for i in range(M * S):  # score each simulated grasp exactly as the env would
+                _, Q = base.grasp_rows(contacts[i], None if normals is None else normals[i], touched[i])
+                if Q is not None:
+                    rows.append(Q)
+                    groups.append(np.full(len(Q), len(scored)))
+                    scored.append(i)
             H = np.full(M * S, H0)
-            full = touched.sum(axis=1) == n
-            if full.any():
-                f = phi(contacts[full], None if normals is None else np.asarray(normals)[full])
-                rows = np.flatnonzero(full)[f.valid]
-                if rows.size:
-                    H[rows] = entropy_rows(predicted_beliefs(updater, f.q[f.valid]))
+            if scored:
+                post = predicted_beliefs(updater, np.concatenate(rows), np.concatenate(groups))
+                H[np.array(scored)] = entropy_rows(post)
             expected += wk * H.reshape(M, S).mean(axis=1)
         self.last_scores = expected
         return cands[int(np.argmin(expected))].astype(space.dtype)

@@ -55,6 +55,10 @@ class HapticRecogConfig:
     """If set (``2 <= z < n_fingers``), the recogniser also gets models for ``z .. n_fingers - 1`` fingers and an
     incomplete grasp with ``t >= z`` touching fingers updates the belief through the ``t``-finger model (its
     touching contacts as one grasp); None: only complete grasps (all ``n`` fingers touching) are scored."""
+    score_subsets: bool = False
+    """z-finger scoring (paper, Alg. 3): score every grasp with ``t >= z_fingers`` touching fingers through all
+    its ``z_fingers``-subsets of contacts with the ``z``-finger model (likelihoods multiplied), instead of the
+    ``t``-finger model. Needs ``z_fingers``."""
     threshold: float = 0.85
     """Certainty :math:`\\lambda` at which the episode terminates (the recogniser has decided)."""
     reward: str = "true-posterior-gain"
@@ -89,6 +93,8 @@ class HapticRecogConfig:
             raise ValueError(f"max_grasps must be an int >= 1, got {self.max_grasps!r}")
         if self.z_fingers is not None and not (2 <= self.z_fingers < self.n_fingers):
             raise ValueError(f"z_fingers must be None or in [2, n_fingers={self.n_fingers}), got {self.z_fingers!r}")
+        if self.score_subsets and self.z_fingers is None:
+            raise ValueError("score_subsets=True needs z_fingers (the subset size)")
         if self.scale_range is not None:
             lo, hi = (float(v) for v in self.scale_range)
             if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo <= hi):
@@ -231,6 +237,8 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     also has ``z .. n-1``-finger models and an incomplete grasp with ``t >= z`` touching fingers is scored by
     the ``t``-finger model; otherwise (default ``z_fingers=None``, or ``t < z``, or degenerate contacts such
     as coplanar ones) the grasp carries no information: the belief is unchanged. Either way it costs a grasp.
+    With ``score_subsets=True`` every grasp with ``t >= z`` touching fingers is scored through all its
+    ``z``-subsets by the ``z``-finger model instead (the paper's z-finger scoring).
 
     ## Arguments
     One frozen dataclass :class:`HapticRecogConfig` holds every setting. Pass it as ``config=`` and/or
@@ -251,6 +259,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     | normals            | True                    | contact normals in :math:`\Phi`                            |
     | updater            | "bc-np"                 | "bc-np" / "bc-ip" / "ic"                                   |
     | z_fingers          | None                    | sub-grasp model for incomplete grasps                      |
+    | score_subsets      | False                   | score grasps by their z_fingers-subsets (paper Alg. 3)     |
     | threshold          | 0.85                    | certainty to terminate                                     |
     | reward             | "true-posterior-gain"   | see *Rewards*                                              |
     | grasp_cost         | 0.0                     | per-grasp cost                                             |
@@ -419,7 +428,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         touched = np.asarray(result.touched, dtype=bool).reshape(-1)
         contacts = np.asarray(result.contacts, dtype=np.float64)
         normals = self._normals_of(result) if self.config.normals else None
-        q_obs, update_arg = self._features(contacts, normals, touched)
+        q_obs, update_arg = self.grasp_rows(contacts, normals, touched)
         self._last_q = q_obs
         self._last_mask = touched.astype(np.float64)
         usable = update_arg is not None
@@ -507,12 +516,14 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
             )
         return np.asarray(N, dtype=np.float64)
 
-    def _features(self, contacts, normals, touched) -> tuple[np.ndarray, np.ndarray | None]:
+    def grasp_rows(self, contacts, normals, touched) -> tuple[np.ndarray, np.ndarray | None]:
         """Observation vector of the touching contacts and the rows to score (None: no information).
 
-        Both come from ``Recognizer.features`` (so a recogniser trained scale-normalised sees normalised
-        vectors): the touching contacts as one grasp, ``(1, d_t)`` for ``t`` touching fingers, or ``(0, d_t)``
-        when they are degenerate.
+        ``contacts``/``normals`` ``(n, 3)`` and ``touched`` ``(n,)`` of one grasp. Returns ``q_obs (d,)`` (the
+        observation slice) and ``Q (m, d_z)`` for ``updater.update`` or None. Both come from
+        ``Recognizer.features`` (a recogniser trained scale-normalised sees normalised vectors): the touching
+        contacts as one grasp, or their ``z``-subsets with ``score_subsets``. Agents that simulate grasps
+        (:mod:`agents.greedy`) use it to score them exactly as the env does.
         """
         n = self.config.n_fingers
         t = int(touched.sum())
@@ -523,6 +534,9 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         if len(Q):
             q_obs[: Q.shape[1]] = np.clip(Q[0], -self._q_bound, self._q_bound)
         z = self.config.z_fingers
+        if self.config.score_subsets and t >= z:
+            Q = self.recognizer.features(contacts, normals, touched=touched, z=z)
+            return q_obs, (Q if len(Q) else None)
         scored = t == n or (z is not None and t >= z)
         return q_obs, (Q if scored and len(Q) else None)
 

@@ -42,7 +42,7 @@ def test_greedy_prediction_matches_the_updater(env_config):
     Q = np.stack(Q)
     pred = predicted_beliefs(base.updater, Q)
     for q, p in zip(Q, pred):
-        u = copy.deepcopy(base.updater.base)
+        u = copy.deepcopy(base.updater.base)  # (deep copy: reference result)
         np.testing.assert_allclose(p, u.update(q), rtol=1e-9, atol=1e-12)
     assert np.all(entropy_rows(pred) >= 0)
 
