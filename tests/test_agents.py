@@ -42,9 +42,21 @@ def test_greedy_prediction_matches_the_updater(env_config):
     Q = np.stack(Q)
     pred = predicted_beliefs(base.updater, Q)
     for q, p in zip(Q, pred):
-        u = copy.deepcopy(base.updater.base)  # (deep copy: reference result)
+        u = copy.deepcopy(base.updater.base)  # reference: really update a copy
         np.testing.assert_allclose(p, u.update(q), rtol=1e-9, atol=1e-12)
     assert np.all(entropy_rows(pred) >= 0)
+    # several rows per grasp (z-subset scoring): rows 0-1 are one grasp, row 2 another
+    pred = predicted_beliefs(base.updater, Q, groups=np.array([0, 0, 1]))
+    u = copy.deepcopy(base.updater.base)
+    np.testing.assert_allclose(pred[0], u.update(Q[:2]), rtol=1e-9, atol=1e-12)
+    # a non-Bayesian updater (IC) goes through copies of its state; the original is untouched
+    ic = base.recognizer.make_updater("ic")
+    ic.update(Q[0])
+    before = ic.belief.copy()
+    pred = predicted_beliefs(ic, Q[1:])
+    u = copy.deepcopy(ic.base)
+    np.testing.assert_allclose(pred[0], u.update(Q[1]), rtol=1e-12)
+    np.testing.assert_array_equal(ic.belief, before)
 
 
 def test_greedy_picks_the_lowest_expected_entropy(env_config):

@@ -256,3 +256,33 @@ def test_subproc_vec_env(env_config):
             assert np.isfinite(rew).all() and len(infos) == 2
     finally:
         venv.close()
+
+
+def test_z_finger_models_score_incomplete_grasps_and_subsets(env_config):
+    from haptic_env.grasp_features import feature_dim
+
+    n = env_config.n_fingers
+    z = n - 1
+    env = HapticRecogEnv(env_config.replace(z_fingers=z))
+    env.reset(seed=0, options={"object": "hammer"})
+    rng = np.random.default_rng(0)
+    scored_incomplete = 0
+    for _ in range(60):
+        _, _, term, trunc, info = env.step(rng.uniform(-1, 1, 4))
+        t = int(info["touched"].sum())
+        if t < z:
+            assert not info["usable"]
+        scored_incomplete += info["usable"] and t == z
+        if term or trunc:
+            env.reset(options={"object": "hammer"})
+    assert scored_incomplete > 0
+    # z-subset scoring: each scored grasp gives C(t, z) rows of the z-finger model
+    env = HapticRecogEnv(env_config.replace(z_fingers=z, score_subsets=True))
+    env.reset(seed=1)
+    res = env.backend.grasp(np.zeros(4), np.random.default_rng(0))
+    _, Q = env.grasp_rows(res.contacts, res.normals, res.touched)
+    t = int(res.touched.sum())
+    if Q is not None:
+        from math import comb
+
+        assert Q.shape[1] == feature_dim(z, env_config.normals) and len(Q) <= comb(t, z)
