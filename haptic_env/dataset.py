@@ -33,6 +33,8 @@ __all__ = [
     "DatasetConfig",
     "GraspDataset",
     "sample_grasps",
+    "approach_grasps",
+    "SOURCES",
     "grasp_vectors",
     "build_dataset",
     "dataset_cache_path",
@@ -40,6 +42,8 @@ __all__ = [
 ]
 
 _CACHE_VERSION = "grasp-dataset-v1"
+#: Values of :attr:`DatasetConfig.source`.
+SOURCES = ("surface", "geometric")
 _ARRAYS = ("X_train", "y_train", "X_val", "y_val", "names")
 #: Resampling rounds used to replace degenerate grasps before giving up.
 _MAX_TOPUP_ROUNDS = 20
@@ -60,6 +64,16 @@ class DatasetConfig:
         sampling: surface sampling method, ``"area"`` or ``"centroid"`` (see ``GraspObject``).
         val_fraction: fraction of each object's grasps held out for validation, in ``[0, 1)``.
         seed: seed of everything random in the dataset.
+        source: where contacts come from. ``"surface"`` (the paper's analysis protocol): ``n``
+            independent random surface points. ``"geometric"``: grasps of the geometric approach
+            model (:mod:`haptic_env.grasping.geometric`) under uniformly random approaches, still
+            computed from the mesh alone (no robot data), so the training distribution matches
+            what a hand closing along an approach touches.
+        hand_fingers: with ``source="geometric"``, the fingers of the simulated hand (default
+            ``n_fingers``); each training grasp is a random ``n_fingers``-subset of the fingers
+            that touched, which models incomplete grasps / z-finger subsets of a bigger hand.
+        support: with ``source="geometric"``, ``"table"`` (approaches from the upper hemisphere)
+            or ``"floating"`` (the full sphere).
     """
 
     n_fingers: int = 4
@@ -72,6 +86,9 @@ class DatasetConfig:
     sampling: str = "area"
     val_fraction: float = 0.2
     seed: int = 0
+    source: str = "surface"
+    hand_fingers: int | None = None
+    support: str = "table"
 
     def __post_init__(self) -> None:
         if int(self.n_fingers) != self.n_fingers or self.n_fingers < 2:
@@ -91,6 +108,14 @@ class DatasetConfig:
             raise ValueError(f"sampling must be one of {SAMPLING_METHODS}, got {self.sampling!r}")
         if not 0.0 <= self.val_fraction < 1.0:
             raise ValueError(f"val_fraction must be in [0, 1), got {self.val_fraction!r}")
+        if self.source not in SOURCES:
+            raise ValueError(f"source must be one of {SOURCES}, got {self.source!r}")
+        if self.hand_fingers is not None and (
+            int(self.hand_fingers) != self.hand_fingers or self.hand_fingers < self.n_fingers
+        ):
+            raise ValueError(f"hand_fingers must be an int >= n_fingers={self.n_fingers}, got {self.hand_fingers!r}")
+        if self.support not in ("table", "floating"):
+            raise ValueError(f"support must be 'table' or 'floating', got {self.support!r}")
 
     @property
     def feature_dim(self) -> int:
@@ -151,6 +176,34 @@ def sample_grasps(
     pts, nrm = obj.sample_surface(int(count) * int(n_fingers), rng, sampling)
     shape = (int(count), int(n_fingers), 3)
     return pts.reshape(shape), nrm.reshape(shape)
+
+
+def approach_grasps(
+    obj: GraspObject, count: int, n_fingers: int, rng: np.random.Generator, *,
+    hand_fingers: int | None = None, support: str = "table",
+) -> tuple[np.ndarray, np.ndarray]:
+    """Grasps of the geometric approach model under ``count`` uniformly random approaches.
+
+    A ``hand_fingers``-finger geometric hand (default ``n_fingers``) closes on ``obj`` (identity
+    pose) along random approaches; grasps where fewer than ``n_fingers`` fingers touched are
+    dropped, and of the others a random ``n_fingers``-subset of the touching fingers is kept.
+
+    Returns:
+        ``contacts (m, n, 3)`` and inward ``normals (m, n, 3)`` with ``m <= count``.
+    """
+    from .grasping import make_backend
+
+    hand_n = int(hand_fingers or n_fingers)
+    backend = make_backend("geometric", n_fingers=hand_n, support=support, normals=True)
+    backend.set_object(obj)
+    actions = rng.uniform(-1.0, 1.0, size=(int(count), backend.action_dim)).astype(np.float32)
+    batch = backend.grasp_batch(actions, rng)
+    ok = batch.touched.sum(axis=1) >= n_fingers
+    keys = rng.random(batch.touched.shape) + 2.0 * ~batch.touched  # touching fingers sort first
+    pick = np.argsort(keys, axis=1)[ok, :n_fingers, None]
+    C = np.take_along_axis(batch.contacts[ok], pick, axis=1)
+    N = np.take_along_axis(batch.normals[ok], pick, axis=1)
+    return C, N
 
 
 def _tilt(normals: np.ndarray, std_rad: float, rng: np.random.Generator) -> np.ndarray:
@@ -215,9 +268,17 @@ def _object_grasps(obj: GraspObject, config: DatasetConfig, rng: np.random.Gener
     need = config.grasps_per_object
     parts: list[np.ndarray] = []
     have = 0
+    asked = 0
     for _ in range(_MAX_TOPUP_ROUNDS):
-        batch = need - have if not parts else max(64, 2 * (need - have))
-        C, N = sample_grasps(obj, batch, config.n_fingers, rng, sampling=config.sampling)
+        # ask for what is missing, scaled by the yield seen so far (approach grasps can miss often)
+        rate = max(have / asked, 0.01) if asked else 1.0
+        batch = max(64, int(np.ceil(1.2 * (need - have) / rate))) if parts else need
+        asked += batch
+        if config.source == "geometric":
+            C, N = approach_grasps(obj, batch, config.n_fingers, rng, hand_fingers=config.hand_fingers,
+                                   support=config.support)
+        else:
+            C, N = sample_grasps(obj, batch, config.n_fingers, rng, sampling=config.sampling)
         X, valid = grasp_vectors(C, N if config.normals else None, config, rng=rng)
         X = X[valid][: need - have]
         parts.append(X.astype(np.float32))
@@ -225,8 +286,8 @@ def _object_grasps(obj: GraspObject, config: DatasetConfig, rng: np.random.Gener
         if have >= need:
             return np.concatenate(parts)
     raise RuntimeError(
-        f"object {obj.name!r}: only {have} of {need} random {config.n_fingers}-contact grasps are "
-        f"non-degenerate after {_MAX_TOPUP_ROUNDS} rounds (is the mesh flat or tiny?)"
+        f"object {obj.name!r}: only {have} of {need} {config.source} {config.n_fingers}-contact grasps are "
+        f"non-degenerate after {_MAX_TOPUP_ROUNDS} rounds (is the mesh flat or tiny, or does the hand miss it?)"
     )
 
 
@@ -337,6 +398,13 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="random per-grasp object scale U(LO, HI)")
     p.add_argument("--sampling", choices=SAMPLING_METHODS, default="area", help="surface sampling (default area)")
     p.add_argument("--val-fraction", type=float, default=0.2, help="validation fraction (default 0.2)")
+    p.add_argument("--source", choices=SOURCES, default="surface",
+                   help="surface: n random surface points (paper); geometric: random approaches of the "
+                        "geometric hand model (default surface)")
+    p.add_argument("--hand-fingers", type=int, default=None,
+                   help="geometric source: fingers of the simulated hand (default --fingers)")
+    p.add_argument("--support", choices=("table", "floating"), default="table",
+                   help="geometric source: approaches from the upper hemisphere (table) or the sphere")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=Path, default=None, help="also write the dataset to this .npz")
     p.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
@@ -359,6 +427,9 @@ def _run_cli(args: argparse.Namespace) -> int:
         sampling=args.sampling,
         val_fraction=args.val_fraction,
         seed=args.seed,
+        source=args.source,
+        hand_fingers=args.hand_fingers,
+        support=args.support,
     )
     ds = build_dataset(objects, config, cache=not args.no_cache, progress=not args.quiet)
     if args.out is not None:

@@ -193,3 +193,28 @@ def test_cli_dataset_folder_and_no_normals(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "X_train (80, 6)" in text and "orb" in text and "(disabled)" in text
     assert not (Path(tmp_path) / "cache" / "datasets").exists() or not any((tmp_path / "cache" / "datasets").iterdir())
+
+
+def test_geometric_source_matches_approach_model(tmp_path, monkeypatch):
+    """source="geometric": contacts are where the geometric hand touches, on the surface, with subsets."""
+    import trimesh
+
+    from haptic_env.dataset import approach_grasps
+
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path))
+    objects = load_object_set("default").subset(["box", "ball"])
+    rng = np.random.default_rng(0)
+    C, N = approach_grasps(objects["box"], 400, 3, rng, hand_fingers=5)
+    assert C.shape[1:] == (3, 3) and N.shape == C.shape and 0.3 * 400 < len(C) <= 400
+    d = np.abs(trimesh.proximity.signed_distance(objects["box"].mesh, C.reshape(-1, 3) * 1.0))
+    assert np.quantile(d, 0.99) < 1e-4
+    cfg = DatasetConfig(n_fingers=3, grasps_per_object=300, source="geometric", hand_fingers=5, seed=1)
+    ds = build_dataset(objects, cfg, progress=False)
+    assert ds.X_train.shape[1] == cfg.feature_dim and np.isfinite(ds.X_train).all()
+    assert sum(ds.counts()["box"]) == 300
+    surf = build_dataset(objects, DatasetConfig(n_fingers=3, grasps_per_object=300, seed=1), progress=False)
+    assert surf.cache_path != ds.cache_path  # the source is part of the cache key
+    with pytest.raises(ValueError, match="hand_fingers must be an int >= n_fingers=3"):
+        DatasetConfig(n_fingers=3, source="geometric", hand_fingers=2)
+    with pytest.raises(ValueError, match="source must be one of"):
+        DatasetConfig(source="robot")

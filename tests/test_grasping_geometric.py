@@ -120,3 +120,22 @@ def test_render_matplotlib():
     be.grasp(np.zeros(4), np.random.default_rng(0))
     img = be.render(160, 120)
     assert img.shape == (120, 160, 3) and img.dtype == np.uint8 and img.std() > 0
+
+
+def test_full_grasps_span_a_polyhedron():
+    """The curled closing paths keep 4-finger contacts off a common plane, so Phi_n is defined.
+
+    (A closing pattern in one plane would make every 4-finger grasp coplanar, i.e. degenerate.)
+    """
+    from haptic_env.grasp_features import phi
+    from haptic_env.objects import load_object_set
+
+    objects = load_object_set("default")
+    be = make_backend("geometric", n_fingers=4)
+    rng = np.random.default_rng(0)
+    for name in ("box", "can", "ball", "hammer"):
+        be.set_object(objects[name])
+        b = be.grasp_batch(rng.uniform(-1, 1, (400, 4)).astype(np.float32), rng)
+        full = b.touched.all(axis=1)
+        assert full.mean() > 0.5, name
+        assert phi(b.contacts[full], b.normals[full]).valid.mean() > 0.99, name

@@ -1,13 +1,20 @@
 """Geometric (physics-free) grasp backend: fingertips close along rays until they hit the mesh.
 
-The hand pattern: ``n - 1`` fingers opposite a thumb, on a circle of radius ``R = margin * r_bound``
-(``r_bound`` = bounding-sphere radius about the bounding-box centre) in the plane through the
-object's centre perpendicular to the approach axis ``e3`` (see :mod:`.base`). In the approach frame
-the thumb sits at angle 0 along ``e1``; finger ``j = 0..n-2`` sits at
-``pi + (j - (n-2)/2) * delta`` with ``delta = (min_spread + (1 - min_spread) * s) * 2 pi / n`` for the
-spread ``s`` in [0, 1] (``s = 1``: all n fingertips evenly spaced). Each fingertip moves radially
-towards the axis and stops at its first intersection with the mesh; a fingertip that reaches the
-axis without hitting (or, with ``support="table"``, would touch below the table top) reports no
+The hand pattern: ``n - 1`` fingers opposite a thumb around the approach axis ``e3`` (see
+:mod:`.base`). In the approach frame the thumb sits at angle 0 along ``e1``; finger ``j = 0..n-2``
+sits at ``pi + (j - (n-2)/2) * delta`` with ``delta = (min_spread + (1 - min_spread) * s) * 2 pi / n``
+for the spread ``s`` in [0, 1] (``s = 1``: all n fingertips evenly spaced). Fingertip ``i`` closes
+along a straight path through the object's centre ``c`` (its centre of mass when the mesh is a
+closed volume, else its bounding-box centre), tilted by its curl
+angle ``beta_i`` (``GeometricConfig.curl_deg``, one per finger, the thumb last) out of the plane
+perpendicular to the approach: it starts on the palm side at ``c - R d_i`` with
+``R = margin * r_bound`` (outside the bounding sphere) and direction
+``d_i = -cos(beta_i) r_i + sin(beta_i) e3`` (``r_i`` its radial direction), i.e. it reaches in and
+down around the object like a curling finger. Distinct curl angles keep the contacts off a common
+plane (a planar closing pattern would make every grasp of ``n >= 4`` coplanar, hence degenerate
+for Phi_n). Each fingertip stops at its first intersection with the mesh within ``reach * R`` of
+its start (default 2: it may sweep across the whole bounding sphere); a fingertip that passes the
+object without hitting (or, with ``support="table"``, would touch below the table top) reports no
 contact. Rays are cast in the object frame (the rays are transformed, not the mesh) with Embree
 when ``embreex`` is installed, else trimesh's triangle intersector.
 
@@ -48,6 +55,10 @@ class GeometricConfig:
     margin: float = 1.05
     min_spread: float = 0.15  # finger spacing at spread 0, as a fraction of 2 pi / n
     table_clearance: float = 1e-3  # contacts lower than table top + this are unreachable (m)
+    #: curl (tilt) angle of each fingertip's closing path in degrees: fingers first, the thumb last
+    #: (the first n - 1 entries are the fingers' angles, the last entry the thumb's)
+    curl_deg: tuple[float, ...] = (10.0, 20.0, 30.0, 40.0, 50.0, 0.0)
+    reach: float = 2.0  # path length of a closing fingertip, in units of its start distance R
 
     def __post_init__(self) -> None:
         if not (isinstance(self.n_fingers, (int, np.integer)) and 2 <= self.n_fingers <= 16):
@@ -60,8 +71,14 @@ class GeometricConfig:
                 raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
         if not np.isfinite(self.margin) or self.margin <= 1.0:
             raise ValueError(f"margin must be > 1, got {self.margin!r}")
+        if not np.isfinite(self.reach) or self.reach <= 0:
+            raise ValueError(f"reach must be > 0, got {self.reach!r}")
         if not 0.0 < self.min_spread <= 1.0:
             raise ValueError(f"min_spread must be in (0, 1], got {self.min_spread!r}")
+        curl = np.asarray(self.curl_deg, dtype=np.float64)
+        if curl.ndim != 1 or len(curl) < self.n_fingers or not np.all((curl >= 0) & (curl < 90)):
+            raise ValueError(f"curl_deg needs >= n_fingers={self.n_fingers} angles in [0, 90) degrees "
+                             f"(fingers first, thumb last), got {self.curl_deg!r}")
 
 
 def make_intersector(mesh: trimesh.Trimesh):
@@ -113,6 +130,8 @@ class GeometricBackend:
         self._face_v0 = np.asarray(mesh.triangles[:, 0, :], dtype=np.float64)
         v = np.asarray(mesh.vertices, dtype=np.float64)
         c_obj = 0.5 * (v.min(axis=0) + v.max(axis=0))
+        if mesh.is_volume and mesh.volume > 0:
+            c_obj = np.asarray(mesh.center_mass, dtype=np.float64)
         self._radius = float(np.linalg.norm(v - c_obj, axis=1).max())
         self._centre = self._R @ c_obj + self._t
         self._table_z = float((v @ self._R.T + self._t)[:, 2].min())
@@ -135,8 +154,11 @@ class GeometricBackend:
         ang = finger_angles(ap.spread, self.n_fingers, cfg.min_spread)  # (B, n)
         e1, e2 = frame[:, None, :, 0], frame[:, None, :, 1]
         radial = np.cos(ang)[..., None] * e1 + np.sin(ang)[..., None] * e2  # (B, n, 3)
+        beta = np.deg2rad(np.r_[np.asarray(cfg.curl_deg[: self.n_fingers - 1]), cfg.curl_deg[-1]])
+        e3 = frame[:, None, :, 2]
+        d = -np.cos(beta)[:, None] * radial + np.sin(beta)[:, None] * e3  # (B, n, 3) unit
         R0 = cfg.margin * self._radius
-        return self._centre + R0 * radial, -radial
+        return self._centre - R0 * d, d
 
     def grasp_batch(self, actions: np.ndarray, rng: np.random.Generator) -> GraspBatch:
         """(B, 4) actions -> :class:`GraspBatch` (contacts/normals (B, n, 3), touched (B, n))."""
@@ -178,8 +200,9 @@ class GeometricBackend:
             safe = np.where(np.abs(dn) > 1e-12, dn, 1e-12)
             tdist = np.einsum("ij,ij->i", self._face_v0[idx_tri] - o[idx_ray], fn) / safe
             locs = o[idx_ray] + tdist[:, None] * d[idx_ray]
-            # stopped before reaching the axis (a finger passing the axis touched nothing)
-            ok = (tdist >= 0.0) & (tdist <= self.config.margin * self._radius + 1e-9) & (np.abs(dn) > 1e-12)
+            # stopped within the finger's reach (a finger sweeping past the object touched nothing)
+            reach = self.config.reach * self.config.margin * self._radius
+            ok = (tdist >= 0.0) & (tdist <= reach + 1e-9) & (np.abs(dn) > 1e-12)
             # inward normal = face normal oriented along the finger's motion (robust to face winding)
             sign = np.where(dn >= 0.0, 1.0, -1.0)
             pw = locs @ R.T + t
