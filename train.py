@@ -40,6 +40,8 @@ class Args:
     seed: int = 0
     run_dir: str = "runs/ppo"
     checkpoint_freq: int = 20_000
+    max_minutes: float = 0.0
+    """stop learning after this many wall-clock minutes (0 = no limit); the model is saved either way"""
     resume: str = ""
     """checkpoint .zip to continue from ("" = fresh model)"""
     torch_threads: int = 1
@@ -114,11 +116,13 @@ def main(argv: list[str] | None = None) -> Path:
     model, path = sb3.train(
         args.algo, venv, args.total_timesteps, run_dir, seed=args.seed, checkpoint_freq=args.checkpoint_freq,
         resume=args.resume or None, progress_bar=args.progress_bar, verbose=args.verbose,
+        max_minutes=args.max_minutes or None,
         **json.loads(args.hyperparams),
     )
     venv.close()
     dt = time.time() - t0
-    print(f"[train] {args.total_timesteps} steps in {dt / 60:.1f} min ({args.total_timesteps / dt:.0f} steps/s); "
+    steps = int(model.num_timesteps)
+    print(f"[train] {steps} steps in {dt / 60:.1f} min ({steps / dt:.0f} steps/s); "
           f"saved {path}", flush=True)
     return path
 

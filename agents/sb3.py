@@ -102,15 +102,35 @@ def load_model(path: str | os.PathLike, algo: str | None = None, env=None):
     return _algo_class(algo).load(str(path), env=env, device="cpu")
 
 
+def _time_limit_callback(max_minutes: float):
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class TimeLimit(BaseCallback):
+        """Stop learning after ``max_minutes`` of wall-clock time (the model is then saved as usual)."""
+
+        def _on_training_start(self) -> None:
+            import time
+
+            self._deadline = time.monotonic() + 60.0 * max_minutes
+
+        def _on_step(self) -> bool:
+            import time
+
+            return time.monotonic() < self._deadline
+
+    return TimeLimit()
+
+
 def train(algo: str, venv, total_timesteps: int, log_dir: str | os.PathLike, *, seed: int = 0,
           checkpoint_freq: int = 10_000, resume: str | os.PathLike | None = None, progress_bar: bool = False,
-          verbose: int = 0, **hyperparams: Any):
+          verbose: int = 0, max_minutes: float | None = None, **hyperparams: Any):
     """Train (or resume) and save ``<log_dir>/<algo>_final.zip``; returns ``(model, path)``.
 
     ``checkpoint_freq`` is in env steps summed over the envs; with ``resume`` the model (and, for SAC, its
     replay buffer if ``<checkpoint>_replay_buffer.pkl`` exists) continues from the checkpoint's step count.
+    ``max_minutes`` stops learning early after that much wall-clock time.
     """
-    from stable_baselines3.common.callbacks import CheckpointCallback
+    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
 
     log_dir = Path(log_dir)
     log_dir.mkdir(parents=True, exist_ok=True)
@@ -126,7 +146,8 @@ def train(algo: str, venv, total_timesteps: int, log_dir: str | os.PathLike, *, 
         save_freq=max(1, checkpoint_freq // venv.num_envs), save_path=str(log_dir / "checkpoints"),
         name_prefix=algo.lower(), save_replay_buffer=algo.lower() == "sac",
     )
-    model.learn(total_timesteps=total_timesteps, callback=ckpt, reset_num_timesteps=resume is None,
+    callbacks = [ckpt] + ([_time_limit_callback(max_minutes)] if max_minutes else [])
+    model.learn(total_timesteps=total_timesteps, callback=CallbackList(callbacks), reset_num_timesteps=resume is None,
                 tb_log_name=algo.lower(), progress_bar=progress_bar)
     path = log_dir / f"{algo.lower()}_final.zip"
     model.save(str(path))
