@@ -32,7 +32,7 @@ import numpy as np
 from scipy.special import logsumexp
 
 
-__all__ = ["GreedyInfoGainAgent", "predicted_beliefs", "entropy_rows"]
+__all__ = ["GreedyInfoGainAgent", "predicted_beliefs", "predicted_beliefs_rows", "entropy_rows"]
 
 
 def entropy_rows(P: np.ndarray) -> np.ndarray:
@@ -80,6 +80,19 @@ def predicted_beliefs(updater, Q: np.ndarray, groups: np.ndarray | None = None) 
             if isinstance(value, np.ndarray):
                 setattr(u, name, value.copy())
         out[g] = u.update(Q[groups == g])
+    return out
+
+
+def predicted_beliefs_rows(updater, rows: list[np.ndarray]) -> np.ndarray:
+    """:func:`predicted_beliefs` for ``G`` grasps given as a list of score rows ``(m_g, d_g)`` (the row width
+    may differ between grasps, e.g. 3- and 4-finger models): one batched call per width."""
+    out = np.zeros((len(rows), updater.n_classes))
+    dims = np.array([r.shape[1] for r in rows])
+    for d in np.unique(dims):
+        idx = np.flatnonzero(dims == d)
+        Q = np.concatenate([rows[i] for i in idx])
+        groups = np.repeat(np.arange(idx.size), [len(rows[i]) for i in idx])
+        out[idx] = predicted_beliefs(updater, Q, groups)
     return out
 
 
@@ -146,17 +159,10 @@ class GreedyInfoGainAgent:
             normals = None
             if base.config.normals:
                 normals = res.normals if res.normals is not None else res.gt_normals
-            rows, groups, scored = [], [], []
-            for i in range(M * S):  # score each simulated grasp exactly as the env would
-                _, Q = base.grasp_rows(contacts[i], None if normals is None else normals[i], touched[i])
-                if Q is not None:
-                    rows.append(Q)
-                    groups.append(np.full(len(Q), len(scored)))
-                    scored.append(i)
+            rows, scored = base.grasp_rows_batch(contacts, normals, touched)  # scored as the env would
             H = np.full(M * S, H0)
-            if scored:
-                post = predicted_beliefs(updater, np.concatenate(rows), np.concatenate(groups))
-                H[np.array(scored)] = entropy_rows(post)
+            if scored.size:
+                H[scored] = entropy_rows(predicted_beliefs_rows(updater, rows))
             expected += wk * H.reshape(M, S).mean(axis=1)
         self.last_scores = expected
         return cands[int(np.argmin(expected))].astype(space.dtype)

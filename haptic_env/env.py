@@ -540,6 +540,29 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         scored = t == n or (z is not None and t >= z)
         return q_obs, (Q if scored and len(Q) else None)
 
+    def grasp_rows_batch(self, contacts, normals, touched) -> tuple[list[np.ndarray], np.ndarray]:
+        """:meth:`grasp_rows` for ``B`` grasps ``(B, n, 3)`` / ``(B, n)``: ``(rows, scored)`` with ``scored (G,)`` the
+        batch indices of the grasps that update the belief and ``rows[g] (m_g, d_g)`` the score rows of grasp
+        ``scored[g]``. Vectorised when only complete grasps are scored by one model (the default)."""
+        contacts = np.asarray(contacts, dtype=np.float64)
+        touched = np.asarray(touched, dtype=bool)
+        rc = getattr(self.recognizer, "config", None)
+        if self.config.z_fingers is None and not getattr(rc, "normalize_scale", False):
+            from haptic_env.grasp_features import phi
+
+            full = np.flatnonzero(touched.all(axis=1))
+            if full.size == 0:
+                return [], full
+            f = phi(contacts[full], None if normals is None else np.asarray(normals, dtype=np.float64)[full])
+            return list(f.q[f.valid][:, None, :]), full[f.valid]
+        rows, scored = [], []
+        for i in range(len(contacts)):
+            _, Q = self.grasp_rows(contacts[i], None if normals is None else normals[i], touched[i])
+            if Q is not None:
+                rows.append(Q)
+                scored.append(i)
+        return rows, np.asarray(scored, dtype=np.int64)
+
     def _gain(self, old: np.ndarray, new: np.ndarray) -> float:
         kind = self.config.reward
         if kind == "true-posterior-gain":

@@ -286,3 +286,16 @@ def test_z_finger_models_score_incomplete_grasps_and_subsets(env_config):
         from math import comb
 
         assert Q.shape[1] == feature_dim(z, env_config.normals) and len(Q) <= comb(t, z)
+
+
+@pytest.mark.parametrize("z", [None, "n-1"])
+def test_grasp_rows_batch_matches_grasp_rows(env_config, z):
+    env = HapticRecogEnv(env_config.replace(z_fingers=None if z is None else env_config.n_fingers - 1))
+    env.reset(seed=3, options={"object": "ring"})
+    res = env.backend.grasp_batch(np.random.default_rng(0).uniform(-1, 1, (40, 4)), np.random.default_rng(1))
+    rows, scored = env.grasp_rows_batch(res.contacts, res.normals, res.touched)
+    expect = [(i, env.grasp_rows(res.contacts[i], res.normals[i], res.touched[i])[1]) for i in range(40)]
+    expect = [(i, q) for i, q in expect if q is not None]
+    assert scored.tolist() == [i for i, _ in expect] and len(expect) > 0
+    for r, (_, q) in zip(rows, expect):
+        np.testing.assert_allclose(r, q, rtol=1e-12, atol=1e-12)
