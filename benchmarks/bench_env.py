@@ -77,39 +77,48 @@ def main(argv=None) -> None:
             t_grasp += time.perf_counter() - t
         return t_grasp
 
-    def run_parts():
-        """Time the step's parts on the same grasps: features (Phi) and the belief update alone."""
-        be, brng = env.backend, np.random.default_rng(1)
-        rec, upd = env.recognizer, env.updater
-        t_feat = t_upd = 0.0
-        for i, a in enumerate(actions):
-            if i % per_obj == 0:
-                env.reset(options={"object": (i // per_obj) % env.n_classes})
-            r = be.grasp(a, brng)
-            if r.touched.sum() < 2:
-                continue
-            t = time.perf_counter()
-            Q = rec.features(r.contacts, r.normals, touched=r.touched)
-            t_feat += time.perf_counter() - t
-            if r.touched.all() and len(Q):
+    def run_instrumented():
+        """One env pass with the step's parts timed inline (same calls, same pass): grasp, Phi, update."""
+        spent = {"grasp": 0.0, "features": 0.0, "update": 0.0}
+
+        def timed(obj, name, key):
+            fn = getattr(obj, name)
+
+            def wrapper(*a, **kw):
                 t = time.perf_counter()
-                upd.update(Q)
-                t_upd += time.perf_counter() - t
-        return t_feat, t_upd
+                try:
+                    return fn(*a, **kw)
+                finally:
+                    spent[key] += time.perf_counter() - t
+
+            setattr(obj, name, wrapper)  # instance attribute shadows the method
+            return lambda: delattr(obj, name)
+
+        undo = [timed(env.backend, "grasp", "grasp"), timed(env.recognizer, "features", "features"),
+                timed(env.updater, "update", "update")]
+        try:
+            t_step, _, _ = run_env()
+        finally:
+            for u in undo:
+                u()
+        return t_step, spent
 
     env_times, be_times, parts = [], [], []
     for _ in range(args.repeats):
         t_step, t_reset, usable = run_env()
         env_times.append(t_step)
         be_times.append(run_backend())
-        parts.append(run_parts())
+        parts.append(run_instrumented())
     t_step, t_grasp = min(env_times), min(be_times)
-    t_feat, t_upd = min(p[0] for p in parts), min(p[1] for p in parts)
+    t_inst, spent = min(parts, key=lambda p: p[0])
     n = len(actions)
     print(f"backend.grasp alone : {1e6 * t_grasp / n:8.1f} us/grasp  ({n / t_grasp:8.0f} grasps/s)")
-    print(f"  features (Phi)    : {1e6 * t_feat / n:8.1f} us/step  (Recognizer.features)")
-    print(f"  belief update     : {1e6 * t_upd / n:8.1f} us/step  ({args.updater}: likelihoods + Bayes)")
-    print(f"  bookkeeping (rest): {1e6 * (t_step - t_grasp - t_feat - t_upd) / n:8.1f} us/step")
+    print(f"env.step, timed inline by part ({1e6 * t_inst / n:.0f} us/step):")
+    rest = t_inst - sum(spent.values())
+    for key, label in [("grasp", "backend.grasp"), ("features", "features (Phi)"), ("update", "belief update")]:
+        print(f"  {label:<18}: {1e6 * spent[key] / n:8.1f} us/step  ({100 * spent[key] / t_inst:4.1f}%)")
+    print(f"  {'env bookkeeping':<18}: {1e6 * rest / n:8.1f} us/step  ({100 * rest / t_inst:4.1f}%)"
+          f"  (action check, reward, observation, info)")
     print(f"env.step            : {1e6 * t_step / n:8.1f} us/step   ({n / t_step:8.0f} steps/s); "
           f"{100 * usable / n:.0f}% of grasps scored by the recogniser")
     print(f"env.reset           : {1e6 * t_reset / max(1, n // per_obj):8.1f} us/reset")
