@@ -39,7 +39,6 @@ from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
 from haptic_env.recognizers.mlp import MLPClassifier, MLPConfig
 from haptic_env.recognizers.recognizer import RecognizerConfig, build_recognizer
 from haptic_env.recognizers.updaters import make_updater
-from haptic_env.recognizers.zfinger import subset_vectors
 
 __all__ = ["AnalysisConfig", "run_analysis", "simulate_trials", "add_parser", "PAPER"]
 
@@ -290,6 +289,41 @@ def _raw_pool(objects, n, normals, count, seed):
     return out
 
 
+def _subset_scores(models, C, N, z, k_sub, rng):
+    """Per grasp of ``C (G, n, 3)``: summed log-likelihoods and mean probabilities of its z-subsets.
+
+    ``k_sub=None``: every subset; else ``k_sub`` distinct random subsets per grasp. Degenerate
+    subsets are left out; grasps without any valid subset are dropped. Returns two ``(G', K)``.
+    """
+    from itertools import combinations
+
+    G, n, _ = C.shape
+    allsub = np.array(list(combinations(range(n), z)))
+    if k_sub is None or k_sub >= len(allsub):
+        pick = np.broadcast_to(np.arange(len(allsub)), (G, len(allsub)))
+    else:
+        pick = np.argsort(rng.random((G, len(allsub))), axis=1)[:, :k_sub]
+    idx = allsub[pick]  # (G, m, z)
+    rows = np.arange(G)[:, None, None]
+    Pz = C[rows, idx].reshape(-1, z, 3)
+    Nz = None if N is None else N[rows, idx].reshape(-1, z, 3)
+    from haptic_env.recognizers.zfinger import grasp_vectors_for
+
+    q, valid = grasp_vectors_for(Pz, Nz)
+    m = idx.shape[1]
+    K = models.n_classes
+    ll = np.zeros((G * m, K))
+    pr = np.zeros((G * m, K))
+    ll[valid] = models.log_likelihood(q[valid])
+    pr[valid] = models.predict_proba(q[valid])
+    v = valid.reshape(G, m)
+    cnt = v.sum(1)
+    keep = cnt > 0
+    ll = ll.reshape(G, m, K).sum(1)
+    pr = pr.reshape(G, m, K).sum(1) / np.maximum(cnt, 1)[:, None]
+    return ll[keep], pr[keep]
+
+
 def exp3(objects, cfg, rep, rng):
     rep.h(f"3. z-finger scoring and incomplete grasps (lambda = {cfg.threshold}, normals: {cfg.normals})")
     zs = (3, 4)
@@ -304,15 +338,9 @@ def exp3(objects, cfg, rep, rng):
                 srng = np.random.default_rng([cfg.seed, n, z])
                 LL, PR = [], []
                 for C, N in raw:
-                    ll_o, pr_o = [], []
-                    for g in range(len(C)):
-                        Q = subset_vectors(C[g], None if N is None else N[g], z, k=k_sub, rng=srng)
-                        if len(Q) == 0:
-                            continue
-                        ll_o.append(recs[z].models.log_likelihood(Q).sum(0))
-                        pr_o.append(recs[z].models.predict_proba(Q).mean(0))
-                    LL.append(np.array(ll_o))
-                    PR.append(np.array(pr_o))
+                    ll, pr = _subset_scores(recs[z].models, C, N, z, k_sub, srng)
+                    LL.append(ll)
+                    PR.append(pr)
                 row = [n, z, "all" if k_sub is None else f"k={k_sub}"]
                 for kind in ("ic", "bc-np", "bc-ip"):
                     sr, se, gm, gs = _summ(simulate_trials(LL, PR, kind, trials=cfg.trials, max_grasps=cfg.max_grasps,
@@ -505,6 +533,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--max-grasps", type=int, default=d.max_grasps)
     p.add_argument("--threshold", type=float, default=d.threshold, help="lambda_s")
     p.add_argument("--fingers", default="2-10", help="finger counts of experiment 2 (e.g. 2-10 or 3,4,5)")
+    p.add_argument("--oneshot-fingers", default="3,4,5", help="finger counts of experiment 1")
     p.add_argument("--classifiers", default=",".join(d.classifiers), help="experiment 1 classifiers")
     p.add_argument("--baseline-max-train", type=int, default=d.baseline_max_train)
     p.add_argument("--zfinger-hands", default="5,6,8", help="experiment 3 hand sizes n")
@@ -525,6 +554,7 @@ def _run_cli(args) -> int:
         objects=args.objects, data_dir=args.data_dir, units=args.units, experiments=_ints(args.experiments),
         grasps_per_object=args.grasps_per_object, test_grasps=args.test_grasps, trials=args.trials,
         max_grasps=args.max_grasps, threshold=args.threshold, fingers=_ints(args.fingers),
+        oneshot_fingers=_ints(args.oneshot_fingers),
         classifiers=tuple(c for c in args.classifiers.split(",") if c), baseline_max_train=args.baseline_max_train,
         zfinger_hands=_ints(args.zfinger_hands), normals=not args.no_normals, seed=args.seed,
         mlp=MLPConfig(depth=args.mlp_depth, width=args.mlp_width, max_epochs=args.mlp_epochs, patience=3,

@@ -50,15 +50,23 @@ class RecognizerConfig:
     scale_range: tuple[float, float] | None = None
     sampling: str = "area"
     seed: int = 0
+    #: training contacts: "surface" (the paper: random surface points) or "geometric" (grasps of
+    #: the geometric approach model, still from the mesh alone); see DatasetConfig.source
+    source: str = "surface"
+    #: with source="geometric": fingers of the simulated hand (default: the recogniser's n_fingers,
+    #: so z-finger models are trained on z-subsets of that hand's grasps) and its support
+    hand_fingers: int | None = None
+    support: str = "table"
 
-    def dataset_config(self, n_fingers: int, normals: bool):
+    def dataset_config(self, n_fingers: int, normals: bool, hand_fingers: int | None = None):
         from haptic_env.dataset import DatasetConfig
 
         return DatasetConfig(
             n_fingers=n_fingers, normals=normals, grasps_per_object=self.grasps_per_object,
             contact_noise=self.contact_noise, normal_noise_deg=self.normal_noise_deg,
             normalize_scale=self.normalize_scale, scale_range=self.scale_range, sampling=self.sampling,
-            seed=self.seed,
+            seed=self.seed, source=self.source, support=self.support,
+            hand_fingers=(self.hand_fingers or hand_fingers) if self.source == "geometric" else None,
         )
 
 
@@ -189,7 +197,7 @@ def build_recognizer(objects, n_fingers: int, normals: bool = True, *, z_values=
             loaded = _load(root, key, config)
         if loaded is None:
             t0 = time.perf_counter()
-            ds = dataset_fn(objects, config.dataset_config(z, bool(normals)))
+            ds = dataset_fn(objects, config.dataset_config(z, bool(normals), hand_fingers=int(n_fingers)))
             if tuple(ds.names) != names:
                 raise ValueError(f"dataset names {tuple(ds.names)} differ from the object set's {names}")
             clf, kde = _train_one(ds, z, config, progress)

@@ -1,0 +1,64 @@
+"""build_recognizer + the analysis CLI on a tiny configuration (default objects, generated in code)."""
+
+import numpy as np
+import pytest
+
+from haptic_env.cli import main
+from haptic_env.recognizers import MLPConfig, RecognizerConfig, build_recognizer
+from haptic_env.recognizers.analysis import simulate_trials
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path / "cache"))
+    return tmp_path / "cache"
+
+
+def test_analysis_cli_smoke(tmp_path, cache):
+    out = tmp_path / "out"
+    rc = main(["analysis", "--out", str(out), "--experiments", "1,2,6", "--grasps-per-object", "200",
+               "--test-grasps", "20", "--trials", "10", "--fingers", "4", "--oneshot-fingers", "4",
+               "--classifiers", "mlp,decision-tree",
+               "--mlp-epochs", "1", "--quiet"])
+    assert rc == 0
+    text = (out / "results.md").read_text()
+    for heading in ("## 1.", "## 2.", "## 6."):
+        assert heading in text
+    assert (out / "success_vs_grasps.png").stat().st_size > 1000
+
+
+def test_build_recognizer_caches_and_updates(cache):
+    from haptic_env.objects import load_object_set
+
+    objs = load_object_set("default")
+    objs = objs.subset(objs.names[:3], name="three")
+    cfg = RecognizerConfig(grasps_per_object=300, mlp=MLPConfig(max_epochs=2, progress=False))
+    rec = build_recognizer(objs, 4, True, z_values=(3,), config=cfg, progress=False)
+    files = sorted(p.name for p in (cache / "recognizers").iterdir())
+    assert len(files) == 6  # mlp, kde, json for z = 3 and 4
+    again = build_recognizer(objs, 4, True, z_values=(3,), config=cfg, progress=False)
+    rng = np.random.default_rng(0)
+    pts, nrm = objs[0].sample_surface(4, rng)
+    q = rec.features(pts, nrm)
+    assert np.allclose(rec.models.log_likelihood(q), again.models.log_likelihood(q), atol=1e-4)
+    for kind in ("bc-np", "bc-ip", "ic", "ic-full"):
+        u = rec.make_updater(kind)
+        b = u.update_grasp(pts, nrm)
+        assert b.shape == (3,) and u.n_grasps == 1
+    uz = rec.make_updater("bc-np", z=3, k=2, rng=rng)
+    assert uz.update_grasp(pts, nrm).shape == (3,)
+    inc = rec.make_updater("bc-np")  # incomplete grasp routed to the 3-finger model
+    assert inc.update_grasp(pts, nrm, touched=np.array([True, True, False, True])).shape == (3,)
+    (cache / "recognizers" / next(f for f in files if f.endswith("_mlp.pt"))).write_bytes(b"garbage")
+    with pytest.warns(UserWarning, match="rebuilding"):
+        build_recognizer(objs, 4, True, z_values=(3,), config=cfg, progress=False)
+
+
+def test_simulate_trials_counts_and_success():
+    # object 0 is recognised on the first grasp; object 1 never separates from 0
+    LL = [np.log([[0.99, 0.01]] * 5), np.log([[0.5, 0.5]] * 5)]
+    res = simulate_trials(LL, [np.exp(x) for x in LL], "bc-np", trials=40, max_grasps=5, threshold=0.85,
+                          rng=np.random.default_rng(0))
+    zero = res["truth"] == 0
+    assert np.all(res["grasps"][zero] == 1) and np.all(res["success"][zero])
+    assert np.all(res["grasps"][~zero] == 5)
