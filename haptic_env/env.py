@@ -71,6 +71,10 @@ class HapticRecogConfig:
     """Uniform random object scale per episode, or None (scale 1)."""
     max_grasps: int = 30
     """Grasps per episode before truncation; also normalises the grasp count in the observation."""
+    recognizer_source: str = "geometric"
+    """Training grasps of the recogniser (``RecognizerConfig.source``) unless ``recognizer_kwargs`` sets its own
+    config: "geometric" (the geometric hand's approach grasps, from the meshes alone: matches what the env's
+    hand touches) or "surface" (random surface points, the paper's protocol)."""
     recognizer_kwargs: Mapping[str, Any] = field(default_factory=dict)
     """Extra keyword arguments of :func:`haptic_env.recognizers.build_recognizer`, e.g.
     ``{"config": RecognizerConfig(grasps_per_object=5000)}``; ``config`` may also be a JSON-style dict
@@ -79,6 +83,8 @@ class HapticRecogConfig:
     def __post_init__(self) -> None:
         if not isinstance(self.n_fingers, (int, np.integer)) or self.n_fingers < 3:
             raise ValueError(f"n_fingers must be an int >= 3 (a grasp needs a polyhedron), got {self.n_fingers!r}")
+        if self.recognizer_source not in ("geometric", "surface"):
+            raise ValueError(f"recognizer_source must be 'geometric' or 'surface', got {self.recognizer_source!r}")
         if self.updater not in UPDATER_KINDS:
             raise ValueError(f"updater must be one of {UPDATER_KINDS}, got {self.updater!r}")
         if self.reward not in REWARD_KINDS:
@@ -118,28 +124,29 @@ def get_recognizer(objects, config: HapticRecogConfig):
     from haptic_env.cache import config_key
 
     z_values = tuple(range(config.z_fingers, config.n_fingers)) if config.z_fingers is not None else ()
-    key = config_key(
-        objects.name, tuple(objects.names), config.n_fingers, config.normals, z_values,
-        dict(config.recognizer_kwargs),
-    )
+    kwargs = _recognizer_kwargs(config)  # torch: imported on first use only
+    key = config_key(objects.name, tuple(objects.names), config.n_fingers, config.normals, z_values, kwargs)
     if key not in _RECOGNIZERS:
-        from haptic_env.recognizers import build_recognizer  # torch: imported on first use only
+        from haptic_env.recognizers import build_recognizer
 
-        _RECOGNIZERS[key] = build_recognizer(
-            objects, config.n_fingers, config.normals, z_values=z_values, **_recognizer_kwargs(config)
-        )
+        _RECOGNIZERS[key] = build_recognizer(objects, config.n_fingers, config.normals, z_values=z_values, **kwargs)
     return _RECOGNIZERS[key]
 
 
 def _recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
     """``recognizer_kwargs`` with a JSON-style ``{"config": {..., "mlp": {...}, "kde": {...}}}`` turned into
-    ``RecognizerConfig`` (so the command line can pass recogniser settings as JSON)."""
-    kw = dict(config.recognizer_kwargs)
-    rc = kw.get("config")
-    if isinstance(rc, Mapping):
-        from haptic_env.recognizers import KDEConfig, MLPConfig, RecognizerConfig
+    ``RecognizerConfig`` (so the command line can pass recogniser settings as JSON); without a config, or a
+    JSON config without ``source``, the recogniser trains on ``config.recognizer_source`` grasps (with
+    ``support`` from the backend's ``support`` setting, default "table")."""
+    from haptic_env.recognizers import KDEConfig, MLPConfig, RecognizerConfig
 
+    kw = dict(config.recognizer_kwargs)
+    rc = kw.get("config", {})
+    if isinstance(rc, Mapping):
         rc = dict(rc)
+        rc.setdefault("source", config.recognizer_source)
+        if rc["source"] == "geometric":
+            rc.setdefault("support", dict(config.backend_kwargs).get("support", "table"))
         if isinstance(rc.get("mlp"), Mapping):
             rc["mlp"] = MLPConfig(**rc["mlp"])
         if isinstance(rc.get("kde"), Mapping):
@@ -266,6 +273,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     | pose               | "table-yaw"             | "table-yaw" / "so3"                                        |
     | scale_range        | None                    | (lo, hi) random scale                                      |
     | max_grasps         | 30                      | truncation and count normalisation                         |
+    | recognizer_source  | "geometric"             | recogniser training grasps: "geometric" / "surface"        |
     | recognizer_kwargs  | {}                      | passed to ``build_recognizer``                             |
 
     The recogniser is built (or loaded from the cache, ``$HAPTIC_CACHE``) on the first ``reset`` and shared
