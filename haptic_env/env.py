@@ -193,14 +193,16 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     and the only sensing is *where* the fingertips stopped (kinesthetic haptics: contact points from
     joint angles, optionally contact normals). The contacts are mapped to the pose-invariant grasp vector
     :math:`q = \Phi_n(\text{contacts})` and a Bayesian belief over the ``K`` objects is updated with a
-    learned likelihood (BC-NP by default). The task is to become certain of the object's identity in as
+    learned likelihood (BC-NP by default; the models are trained from the object meshes alone, by default on
+    grasps of the geometric hand model, ``recognizer_source``). The task is to become certain of the object's identity in as
     few grasps as possible. The agent does not see the object or its pose.
 
     ## Action Space
     ``Box(-1, 1, (A,), float32)`` where ``A = backend.action_dim``: the approach parameters of one grasp,
-    defined by the backend (for the geometric backend: approach direction, roll about it and the offset of
-    the approach axis; see :mod:`haptic_env.grasping`). Actions outside ``[-1, 1]``, of the wrong shape or
-    non-finite raise ``ValueError``.
+    defined by the backend; every backend takes ``A = 4``: approach azimuth, elevation (upper hemisphere with
+    ``support="table"``), roll of the hand about the approach axis, finger spread (see
+    :mod:`haptic_env.grasping.base`). Actions outside ``[-1, 1]``, of the wrong shape or non-finite raise
+    ``ValueError``.
 
     ## Observation Space
     ``Box(float32)`` of length ``d + n + 1 + K + A + 1`` (``env.observation_structure`` gives each part's
@@ -225,6 +227,10 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     - ``"entropy-reduction"``: :math:`H(b_{t-1}) - H(b_t)` in nats.
 
     ``info["reward_terms"] = {"gain": ..., "grasp_cost": -c}``; its values sum exactly to the reward.
+
+    ``info`` (reset and step): ``true_object``/``true_index``, ``predicted``/``predicted_index`` (belief argmax),
+    ``correct``, ``certainty``, ``decided``, ``grasps``, ``usable`` (the grasp updated the belief),
+    ``belief (K,)``, ``touched (n,)``; step adds ``reward_terms``.
 
     ## Starting State
     An object drawn uniformly from the set (or ``options={"object": name_or_index}``), a random pose
