@@ -14,6 +14,7 @@ import sys
 SUBCOMMANDS: dict[str, str] = {
     "dataset": "haptic_env.dataset",
     "analysis": "haptic_env.recognizers.analysis",
+    "evaluate": "agents.evaluate",
 }
 
 

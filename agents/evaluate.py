@@ -1,0 +1,359 @@
+"""Evaluate agents on HapticRecog: success at the stop, grasps to the threshold, 95% CIs, plots.
+
+For each agent and each seed ``s`` the env is reset with ``seed=s`` once and then runs ``episodes``
+episodes (unseeded resets continue its RNG), so every agent sees the same objects and poses.
+
+Per episode we record the number of grasps at the stop (termination at the threshold, or truncation at
+``max_grasps``: censored), whether the recogniser *decided* (reached the threshold) and whether its
+prediction at the stop is the true object (``correct``). The summary reports, per agent:
+
+* ``success``: fraction correct at the stop, 95% bootstrap CI (episodes resampled; 2000 resamples);
+* ``decided``: fraction that reached the threshold;
+* ``grasps``: mean and median grasps at the stop with 95% bootstrap CIs, and the spread over seeds;
+* ``fewer_than_random``: relative reduction of mean grasps vs the ``random`` agent, with a bootstrap CI;
+* the success-vs-grasps curve: fraction of episodes decided **and** correct within ``g`` grasps.
+
+Outputs in ``--out``: ``results.md`` (markdown table), ``results.json``, ``episodes.csv``,
+``success_vs_grasps.png``, ``grasps_boxplot.png`` and, with ``--learning-curves``, ``learning_curves.png``.
+
+Command line (a sub-command of ``python -m haptic_env.cli``)::
+
+    python -m haptic_env.cli evaluate --agents random greedy ppo=runs/ppo/ppo_final.zip \\
+        --episodes 40 --seeds 0 1 2 3 4 --out outputs/eval --learning-curves runs/ppo
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, Callable, Iterable, Sequence
+
+import numpy as np
+
+__all__ = [
+    "EpisodeRecord",
+    "run_episodes",
+    "evaluate_agents",
+    "summarize",
+    "success_curve",
+    "bootstrap_ci",
+    "write_report",
+    "plot_learning_curves",
+    "read_monitor",
+    "make_agent",
+    "add_parser",
+]
+
+
+@dataclass(frozen=True)
+class EpisodeRecord:
+    agent: str
+    seed: int
+    episode: int
+    object: str
+    grasps: int
+    decided: bool
+    correct: bool
+    certainty: float
+    ret: float
+
+
+def run_episodes(agent, make_env: Callable[[], Any], n_episodes: int, seed: int,
+                 progress: Callable[[int], None] | None = None) -> list[EpisodeRecord]:
+    """Run ``n_episodes`` of ``agent`` on a fresh env from ``make_env()``, seeded with ``seed``."""
+    if n_episodes < 1:
+        raise ValueError(f"n_episodes must be >= 1, got {n_episodes}")
+    env = make_env()
+    records = []
+    try:
+        for ep in range(n_episodes):
+            obs, info = env.reset(seed=seed if ep == 0 else None)
+            agent.reset(env, seed=seed if ep == 0 else None)
+            ret, done = 0.0, False
+            while not done:
+                obs, r, terminated, truncated, info = env.step(agent.act(obs, env))
+                ret += float(r)
+                done = terminated or truncated
+            records.append(EpisodeRecord(
+                agent=agent.name, seed=int(seed), episode=ep, object=str(info["true_object"]),
+                grasps=int(info["grasps"]), decided=bool(info["decided"]), correct=bool(info["correct"]),
+                certainty=float(info["certainty"]), ret=ret,
+            ))
+            if progress is not None:
+                progress(1)
+    finally:
+        env.close()
+    return records
+
+
+def evaluate_agents(agents: Sequence[Any], make_env: Callable[[], Any], n_episodes: int,
+                    seeds: Iterable[int], progress: bool = True) -> list[EpisodeRecord]:
+    """Every agent x every seed x ``n_episodes`` episodes (tqdm progress)."""
+    from tqdm.auto import tqdm
+
+    seeds = list(seeds)
+    out: list[EpisodeRecord] = []
+    with tqdm(total=len(agents) * len(seeds) * n_episodes, desc="evaluate", disable=not progress) as bar:
+        for agent in agents:
+            for s in seeds:
+                bar.set_postfix_str(f"{agent.name} seed={s}")
+                out += run_episodes(agent, make_env, n_episodes, s, progress=bar.update)
+    return out
+
+
+# ------------------------------------------------------------------------------------ stats
+def bootstrap_ci(x: np.ndarray, stat: Callable[[np.ndarray], float] = np.mean, n_boot: int = 2000,
+                 alpha: float = 0.05, seed: int = 0) -> tuple[float, float]:
+    """Percentile bootstrap ``(lo, hi)`` of ``stat`` over the entries of ``x``."""
+    x = np.asarray(x, dtype=np.float64)
+    if x.size == 0:
+        return (float("nan"), float("nan"))
+    rng = np.random.default_rng(seed)
+    idx = rng.integers(0, x.size, size=(n_boot, x.size))
+    if stat is np.mean:
+        vals = x[idx].mean(axis=1)
+    elif stat is np.median:
+        vals = np.median(x[idx], axis=1)
+    else:
+        vals = np.array([stat(x[i]) for i in idx])
+    return float(np.quantile(vals, alpha / 2)), float(np.quantile(vals, 1 - alpha / 2))
+
+
+def _ratio_ci(a: np.ndarray, b: np.ndarray, n_boot: int = 2000, seed: int = 1) -> tuple[float, float, float]:
+    """``1 - mean(a) / mean(b)`` and its percentile bootstrap CI (a and b resampled independently)."""
+    rng = np.random.default_rng(seed)
+    ia = rng.integers(0, a.size, size=(n_boot, a.size))
+    ib = rng.integers(0, b.size, size=(n_boot, b.size))
+    vals = 1.0 - a[ia].mean(axis=1) / b[ib].mean(axis=1)
+    return float(1.0 - a.mean() / b.mean()), float(np.quantile(vals, 0.025)), float(np.quantile(vals, 0.975))
+
+
+def success_curve(records: Sequence[EpisodeRecord], max_grasps: int) -> np.ndarray:
+    """``(max_grasps,)``: fraction of episodes decided and correct within ``g = 1..max_grasps`` grasps."""
+    g = np.array([r.grasps if (r.decided and r.correct) else np.inf for r in records])
+    return np.array([(g <= k).mean() for k in range(1, max_grasps + 1)]) if len(g) else np.zeros(max_grasps)
+
+
+def summarize(records: Sequence[EpisodeRecord], baseline: str = "random") -> list[dict[str, Any]]:
+    """One summary dict per agent (in order of first appearance); see the module docstring."""
+    names = list(dict.fromkeys(r.agent for r in records))
+    by = {n: [r for r in records if r.agent == n] for n in names}
+    base = np.array([r.grasps for r in by.get(baseline, [])], dtype=np.float64)
+    rows = []
+    for n in names:
+        rs = by[n]
+        g = np.array([r.grasps for r in rs], dtype=np.float64)
+        c = np.array([r.correct for r in rs], dtype=np.float64)
+        d = np.array([r.decided for r in rs], dtype=np.float64)
+        seeds = sorted({r.seed for r in rs})
+        seed_means = [np.mean([r.grasps for r in rs if r.seed == s]) for s in seeds]
+        row = {
+            "agent": n, "episodes": len(rs), "seeds": len(seeds),
+            "success": float(c.mean()), "success_ci": bootstrap_ci(c),
+            "decided": float(d.mean()),
+            "grasps_mean": float(g.mean()), "grasps_mean_ci": bootstrap_ci(g),
+            "grasps_median": float(np.median(g)), "grasps_median_ci": bootstrap_ci(g, np.median),
+            "grasps_seed_std": float(np.std(seed_means, ddof=1)) if len(seeds) > 1 else 0.0,
+            "return_mean": float(np.mean([r.ret for r in rs])),
+        }
+        if base.size and n != baseline:
+            row["fewer_than_random"], lo, hi = _ratio_ci(g, base)
+            row["fewer_than_random_ci"] = (lo, hi)
+        rows.append(row)
+    return rows
+
+
+def _fmt_ci(v, ci, pct=False):
+    if pct:
+        return f"{100 * v:.1f}% [{100 * ci[0]:.1f}, {100 * ci[1]:.1f}]"
+    return f"{v:.2f} [{ci[0]:.2f}, {ci[1]:.2f}]"
+
+
+def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
+    head = ("| agent | episodes (seeds) | success at stop [95% CI] | decided | mean grasps [95% CI] "
+            "| median grasps [95% CI] | seed std | fewer grasps than random [95% CI] |")
+    lines = [head, "|" + "---|" * 8]
+    for r in rows:
+        fewer = _fmt_ci(r["fewer_than_random"], r["fewer_than_random_ci"], pct=True) if "fewer_than_random" in r else "—"
+        lines.append(
+            f"| {r['agent']} | {r['episodes']} ({r['seeds']}) | {_fmt_ci(r['success'], r['success_ci'], pct=True)} "
+            f"| {100 * r['decided']:.1f}% | {_fmt_ci(r['grasps_mean'], r['grasps_mean_ci'])} "
+            f"| {_fmt_ci(r['grasps_median'], r['grasps_median_ci'])} | {r['grasps_seed_std']:.2f} | {fewer} |"
+        )
+    return "\n".join(lines)
+
+
+def write_report(records: Sequence[EpisodeRecord], out: str | Path, max_grasps: int,
+                 title: str = "HapticRecog evaluation", extra: str = "") -> dict[str, Path]:
+    """Write results.md / results.json / episodes.csv and the PNG plots; returns their paths."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = summarize(records)
+    paths = {"md": out / "results.md", "json": out / "results.json", "csv": out / "episodes.csv",
+             "curve": out / "success_vs_grasps.png", "box": out / "grasps_boxplot.png"}
+    paths["md"].write_text(f"# {title}\n\n{extra}\n\n{markdown_table(rows)}\n")
+    curves = {r["agent"]: success_curve([e for e in records if e.agent == r["agent"]], max_grasps).tolist()
+              for r in rows}
+    paths["json"].write_text(json.dumps({"summary": rows, "success_vs_grasps": curves}, indent=2))
+    with open(paths["csv"], "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(asdict(records[0]).keys()))
+        w.writeheader()
+        for r in records:
+            w.writerow(asdict(r))
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    g = np.arange(1, max_grasps + 1)
+    for name, c in curves.items():
+        ax.step(g, c, where="post", label=name)
+    ax.set_xlabel("grasps")
+    ax.set_ylabel("fraction decided and correct")
+    ax.set_ylim(0, 1.02)
+    ax.grid(alpha=0.3)
+    ax.legend()
+    ax.set_title("success vs grasps")
+    fig.tight_layout()
+    fig.savefig(paths["curve"], dpi=120)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    names = [r["agent"] for r in rows]
+    ax.boxplot([[e.grasps for e in records if e.agent == n] for n in names], showmeans=True)
+    ax.set_xticks(range(1, len(names) + 1), names)
+    ax.set_ylabel("grasps at the stop")
+    ax.grid(alpha=0.3, axis="y")
+    fig.tight_layout()
+    fig.savefig(paths["box"], dpi=120)
+    plt.close(fig)
+    return paths
+
+
+def read_monitor(folder: str | Path) -> dict[str, np.ndarray]:
+    """All ``*.monitor.csv`` of ``folder`` (SB3 ``Monitor`` format) merged and sorted by wall time:
+    ``{"r", "l", "t", ...info keywords}`` as float arrays."""
+    files = sorted(Path(folder).glob("*monitor.csv"))
+    if not files:
+        raise FileNotFoundError(f"no *.monitor.csv in {folder} (train with agents.sb3.make_vec_env(log_dir=...))")
+    rows: list[dict[str, str]] = []
+    for f in files:
+        with open(f) as fh:
+            first = fh.readline()
+            if not first.startswith("#"):
+                raise ValueError(f"{f} is not a Monitor log (no '#{{...}}' header line)")
+            t0 = float(json.loads(first[1:]).get("t_start", 0.0))
+            for row in csv.DictReader(fh):
+                row["t"] = str(float(row["t"]) + t0)
+                rows.append(row)
+    if not rows:
+        return {"r": np.zeros(0), "l": np.zeros(0), "t": np.zeros(0)}
+    keys = [k for k in rows[0] if all(k in r for r in rows)]
+    out = {k: np.array([float(r[k] == "True") if r[k] in ("True", "False") else float(r[k]) for r in rows])
+           for k in keys}
+    order = np.argsort(out["t"], kind="stable")
+    return {k: v[order] for k, v in out.items()}
+
+
+def _rolling_mean(x: np.ndarray, window: int) -> np.ndarray:
+    c = np.cumsum(np.insert(np.asarray(x, dtype=np.float64), 0, 0.0))
+    i = np.arange(1, len(x) + 1)
+    lo = np.maximum(0, i - window)
+    return (c[i] - c[lo]) / (i - lo)
+
+
+def plot_learning_curves(log_dirs: dict[str, str | Path], out: str | Path, window: int = 200) -> Path:
+    """Episode length (= grasps), return and success vs env steps from the ``Monitor`` CSVs of each run
+    (``<log_dir>/monitor/*.monitor.csv``, as written by :func:`agents.sb3.make_vec_env`)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
+    for name, d in log_dirs.items():
+        d = Path(d)
+        mon = d / "monitor" if (d / "monitor").is_dir() else d
+        data = read_monitor(mon)
+        steps = np.cumsum(data["l"])
+        for ax, col in zip(axes, ["l", "r", "correct"]):
+            if col in data:
+                ax.plot(steps, _rolling_mean(data[col], window), label=name)
+    for ax, lab in zip(axes, ["grasps per episode", "episode return", "correct at stop"]):
+        ax.set_xlabel("env steps (grasps)")
+        ax.set_ylabel(f"{lab} (rolling mean, {window} ep.)")
+        ax.grid(alpha=0.3)
+    axes[0].legend()
+    fig.tight_layout()
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return out
+
+
+# --------------------------------------------------------------------------------------- CLI
+def make_agent(spec: str, seed: int = 0):
+    """``random`` | ``greedy`` | ``greedy:<n_candidates>`` | ``<name>=<model.zip>`` (PPO/SAC from the file name
+    or ``ppo=...``/``sac=...``)."""
+    if spec == "random":
+        from agents.random_policy import RandomAgent
+
+        return RandomAgent(seed)
+    if spec.startswith("greedy"):
+        from agents.greedy import GreedyInfoGainAgent
+
+        m = int(spec.split(":", 1)[1]) if ":" in spec else 16
+        agent = GreedyInfoGainAgent(n_candidates=m, seed=seed)
+        if ":" in spec:
+            agent.name = spec
+        return agent
+    if "=" in spec or spec.endswith(".zip"):
+        from agents.sb3 import SB3Agent
+
+        name, _, path = spec.partition("=") if "=" in spec else (Path(spec).stem, "", spec)
+        algo = name.lower() if name.lower() in ("ppo", "sac") else None
+        return SB3Agent.from_path(path, algo=algo, name=name)
+    raise ValueError(f"unknown agent spec {spec!r}; use random, greedy[:M], or NAME=path/to/model.zip")
+
+
+def add_parser(subparsers) -> None:
+    p = subparsers.add_parser("evaluate", help="evaluate agents on HapticRecog (table + plots)",
+                              description=__doc__.split("\n\n")[0])
+    p.add_argument("--agents", nargs="+", default=["random", "greedy"],
+                   help="random | greedy[:M] | NAME=model.zip (ppo=..., sac=...)")
+    p.add_argument("--episodes", type=int, default=40, help="episodes per seed")
+    p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
+    p.add_argument("--env-id", default="HapticRecog-v0")
+    p.add_argument("--env-kwargs", default="{}", help="JSON dict of HapticRecogConfig fields")
+    p.add_argument("--out", default="outputs/eval")
+    p.add_argument("--learning-curves", nargs="*", default=[], metavar="NAME=LOG_DIR",
+                   help="training log dirs (agents/sb3 layout) to plot learning curves from")
+    p.set_defaults(func=_main)
+
+
+def _main(args) -> int:
+    import haptic_env
+    from haptic_env.env import HapticRecogConfig
+
+    kwargs = json.loads(args.env_kwargs)
+    if not isinstance(kwargs, dict):
+        raise SystemExit(f"--env-kwargs must be a JSON object, got {args.env_kwargs!r}")
+    config = HapticRecogConfig().replace(**kwargs)
+    make_env = lambda: haptic_env.make(config, env_id=args.env_id)  # noqa: E731
+    agents = [make_agent(s) for s in args.agents]
+    t0 = time.time()
+    records = evaluate_agents(agents, make_env, args.episodes, args.seeds)
+    paths = write_report(records, args.out, config.max_grasps,
+                         extra=f"env `{args.env_id}`, config overrides `{kwargs}`; {args.episodes} episodes x seeds "
+                               f"{args.seeds}; {time.time() - t0:.0f} s.")
+    if args.learning_curves:
+        dirs = dict(s.partition("=")[::2] if "=" in s else (Path(s).name, s) for s in args.learning_curves)
+        plot_learning_curves(dirs, Path(args.out) / "learning_curves.png")
+    print(paths["md"].read_text())
+    return 0

@@ -1,0 +1,130 @@
+"""Env throughput: steps/s of HapticRecog (geometric backend, BC-NP) and its overhead over the grasp alone.
+
+    python benchmarks/bench_env.py [--steps 3000] [--n-fingers 4] [--objects default]
+
+Runs on ONE core (OMP/MKL/torch threads = 1). Baseline measured in the same run: the backend's
+``grasp()`` alone on the same actions and objects. The env step adds Phi (grasp features), the BC-NP
+belief update (KDE likelihoods) and bookkeeping (observation, reward, info); the overhead ratio is
+``time(env.step) / time(backend.grasp)``. Resets are timed separately and excluded from steps/s.
+The recogniser uses the default RecognizerConfig (built once into $HAPTIC_CACHE, then loaded).
+Goal: >= 500 steps/s and overhead <= 1.5x. The headline is the last line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+
+for _v in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+    os.environ[_v] = "1"
+
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
+
+
+def main(argv=None) -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--steps", type=int, default=3000)
+    p.add_argument("--n-fingers", type=int, default=4)
+    p.add_argument("--objects", default="default")
+    p.add_argument("--updater", default="bc-np")
+    p.add_argument("--repeats", type=int, default=3, help="timing repeats (best is reported)")
+    args = p.parse_args(argv)
+
+    import torch
+
+    torch.set_num_threads(1)
+    import haptic_env
+    from haptic_env.env import HapticRecogConfig
+
+    cfg = HapticRecogConfig(objects=args.objects, n_fingers=args.n_fingers, updater=args.updater,
+                            threshold=1.0, max_grasps=10**9)  # never stop: every step is a full step
+    env = haptic_env.make(cfg, max_episode_steps=None).unwrapped
+    t0 = time.perf_counter()
+    env.reset(seed=0)
+    print(f"objects={args.objects} (K={env.n_classes}), n_fingers={args.n_fingers}, normals={cfg.normals}, "
+          f"updater={args.updater}; recogniser ready in {time.perf_counter() - t0:.1f} s")
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1, 1, (args.steps, env.action_dim)).astype(np.float32)
+    per_obj = max(1, args.steps // env.n_classes)
+
+    def run_env():
+        t_step = t_reset = 0.0
+        usable = 0
+        for i, a in enumerate(actions):
+            if i % per_obj == 0:  # cycle through the objects (and fresh beliefs)
+                t = time.perf_counter()
+                env.reset(options={"object": (i // per_obj) % env.n_classes})
+                t_reset += time.perf_counter() - t
+            t = time.perf_counter()
+            _, _, _, _, info = env.step(a)
+            t_step += time.perf_counter() - t
+            usable += info["usable"]
+        return t_step, t_reset, usable
+
+    def run_backend():
+        be, brng, t_grasp = env.backend, np.random.default_rng(1), 0.0
+        for i, a in enumerate(actions):
+            if i % per_obj == 0:
+                env.reset(options={"object": (i // per_obj) % env.n_classes})
+            t = time.perf_counter()
+            be.grasp(a, brng)
+            t_grasp += time.perf_counter() - t
+        return t_grasp
+
+    def run_instrumented():
+        """One env pass with the step's parts timed inline (same calls, same pass): grasp, Phi, update."""
+        spent = {"grasp": 0.0, "features": 0.0, "update": 0.0}
+
+        def timed(obj, name, key):
+            fn = getattr(obj, name)
+
+            def wrapper(*a, **kw):
+                t = time.perf_counter()
+                try:
+                    return fn(*a, **kw)
+                finally:
+                    spent[key] += time.perf_counter() - t
+
+            setattr(obj, name, wrapper)  # instance attribute shadows the method
+            return lambda: delattr(obj, name)
+
+        undo = [timed(env.backend, "grasp", "grasp"), timed(env.recognizer, "features", "features"),
+                timed(env.updater, "update", "update")]
+        try:
+            t_step, _, _ = run_env()
+        finally:
+            for u in undo:
+                u()
+        return t_step, spent
+
+    env_times, be_times, parts = [], [], []
+    for _ in range(args.repeats):
+        t_step, t_reset, usable = run_env()
+        env_times.append(t_step)
+        be_times.append(run_backend())
+        parts.append(run_instrumented())
+    t_step, t_grasp = min(env_times), min(be_times)
+    t_inst, spent = min(parts, key=lambda p: p[0])
+    n = len(actions)
+    print(f"backend.grasp alone : {1e6 * t_grasp / n:8.1f} us/grasp  ({n / t_grasp:8.0f} grasps/s)")
+    print(f"env.step, timed inline by part ({1e6 * t_inst / n:.0f} us/step):")
+    rest = t_inst - sum(spent.values())
+    for key, label in [("grasp", "backend.grasp"), ("features", "features (Phi)"), ("update", "belief update")]:
+        print(f"  {label:<18}: {1e6 * spent[key] / n:8.1f} us/step  ({100 * spent[key] / t_inst:4.1f}%)")
+    print(f"  {'env bookkeeping':<18}: {1e6 * rest / n:8.1f} us/step  ({100 * rest / t_inst:4.1f}%)"
+          f"  (action check, reward, observation, info)")
+    print(f"env.step            : {1e6 * t_step / n:8.1f} us/step   ({n / t_step:8.0f} steps/s); "
+          f"{100 * usable / n:.0f}% of grasps scored by the recogniser")
+    print(f"env.reset           : {1e6 * t_reset / max(1, n // per_obj):8.1f} us/reset")
+    print(f"HEADLINE: {n / t_step:.0f} env steps/s on 1 core; env step / backend grasp = {t_step / t_grasp:.2f}x "
+          f"(goal >= 500 steps/s, <= 1.5x)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,39 @@
+"""Shared fixtures: a per-session cache directory and a small, fast recogniser for env/agent tests."""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+
+@pytest.fixture(scope="session", autouse=True)
+def haptic_cache(tmp_path_factory):
+    """Point ``$HAPTIC_CACHE`` at a fresh session directory (no test reads or pollutes ~/.cache)."""
+    path = tmp_path_factory.mktemp("haptic_cache")
+    old = os.environ.get("HAPTIC_CACHE")
+    os.environ["HAPTIC_CACHE"] = str(path)
+    yield path
+    if old is None:
+        os.environ.pop("HAPTIC_CACHE", None)
+    else:
+        os.environ["HAPTIC_CACHE"] = old
+
+
+@pytest.fixture(scope="session")
+def small_recognizer_kwargs():
+    """``recognizer_kwargs`` (JSON-style) of a recogniser that builds in seconds (small dataset, tiny MLP)."""
+    return {"config": {"grasps_per_object": 1500,
+                       "mlp": {"depth": 1, "width": 32, "max_epochs": 1, "progress": False}},
+            "progress": False}
+
+
+@pytest.fixture(scope="session")
+def env_config(small_recognizer_kwargs, haptic_cache):
+    """The default env config with the small recogniser, built once per session."""
+    from haptic_env.env import HapticRecogConfig, get_recognizer
+    from haptic_env.objects import load_object_set
+
+    cfg = HapticRecogConfig(recognizer_kwargs=small_recognizer_kwargs)
+    get_recognizer(load_object_set(cfg.objects), cfg)  # build once, shared by every env of the session
+    return cfg

@@ -1,0 +1,125 @@
+"""Agents: random and greedy complete episodes, a tiny PPO run saves/reloads/resumes, evaluate writes its report."""
+
+from __future__ import annotations
+
+import copy
+import json
+
+import numpy as np
+import pytest
+
+import haptic_env
+from agents.evaluate import evaluate_agents, plot_learning_curves, summarize, write_report
+from agents.greedy import GreedyInfoGainAgent, entropy_rows, predicted_beliefs
+from agents.random_policy import RandomAgent
+
+
+def test_random_and_greedy_complete_episodes(env_config):
+    make = lambda: haptic_env.make(env_config.replace(max_grasps=12))  # noqa: E731
+    recs = evaluate_agents([RandomAgent(), GreedyInfoGainAgent(n_candidates=8)], make, 2, seeds=[0, 1],
+                           progress=False)
+    assert len(recs) == 8
+    for r in recs:
+        assert 1 <= r.grasps <= 12
+        assert r.decided == (r.certainty >= env_config.threshold)
+    # both agents saw the same objects (same env seeds)
+    objs = {a: [r.object for r in recs if r.agent == a] for a in ("random", "greedy")}
+    assert objs["random"] == objs["greedy"]
+
+
+def test_greedy_prediction_matches_the_updater(env_config):
+    env = haptic_env.make(env_config)
+    env.reset(seed=0)
+    base = env.unwrapped
+    rng = np.random.default_rng(0)
+    Q = []
+    while len(Q) < 3:  # a few scored grasp vectors of this object
+        _, _, term, trunc, info = env.step(rng.uniform(-1, 1, 4).astype(np.float32))
+        if info["usable"]:  # complete grasp: the observed grasp vector is the scored one
+            Q.append(base._last_q.copy())
+        if term or trunc:
+            env.reset()
+    Q = np.stack(Q)
+    pred = predicted_beliefs(base.updater, Q)
+    for q, p in zip(Q, pred):
+        u = copy.deepcopy(base.updater.base)  # reference: really update a copy
+        np.testing.assert_allclose(p, u.update(q), rtol=1e-9, atol=1e-12)
+    assert np.all(entropy_rows(pred) >= 0)
+    # several rows per grasp (z-subset scoring): rows 0-1 are one grasp, row 2 another
+    pred = predicted_beliefs(base.updater, Q, groups=np.array([0, 0, 1]))
+    u = copy.deepcopy(base.updater.base)
+    np.testing.assert_allclose(pred[0], u.update(Q[:2]), rtol=1e-9, atol=1e-12)
+    # a non-Bayesian updater (IC) goes through copies of its state; the original is untouched
+    ic = base.recognizer.make_updater("ic")
+    ic.update(Q[0])
+    before = ic.belief.copy()
+    pred = predicted_beliefs(ic, Q[1:])
+    u = copy.deepcopy(ic.base)
+    np.testing.assert_allclose(pred[0], u.update(Q[1]), rtol=1e-12)
+    np.testing.assert_array_equal(ic.belief, before)
+
+
+def test_greedy_picks_the_lowest_expected_entropy(env_config):
+    env = haptic_env.make(env_config)
+    obs, _ = env.reset(seed=5)
+    agent = GreedyInfoGainAgent(n_candidates=12, seed=0)
+    agent.reset(env, seed=0)
+    a = agent.act(obs, env)
+    assert a.shape == env.action_space.shape and env.action_space.contains(a)
+    assert agent.last_scores.shape == (12,)
+    assert np.all(agent.last_scores <= entropy_rows(env.unwrapped.belief[None])[0] + 1e-9)
+
+
+def test_tiny_ppo_trains_saves_reloads_and_resumes(env_config, small_recognizer_kwargs, tmp_path):
+    import train
+    from agents.sb3 import SB3Agent, load_model
+
+    run = tmp_path / "ppo"
+    args = ["--algo", "ppo", "--total-timesteps", "256", "--n-envs", "1", "--vec", "dummy",
+            "--run-dir", str(run), "--checkpoint-freq", "128", "--max-grasps", "10",
+            "--env-kwargs", json.dumps({"recognizer_kwargs": small_recognizer_kwargs}),
+            "--hyperparams", json.dumps({"n_steps": 64, "batch_size": 32, "n_epochs": 2})]
+    path = train.main(args)
+    assert path.exists() and (run / "args.json").exists()
+    assert sorted(p.name for p in (run / "checkpoints").glob("*.zip")) == ["ppo_128_steps.zip", "ppo_256_steps.zip"]
+    assert list((run / "monitor").glob("*.monitor.csv")) and list((run / "tb").rglob("events.out.tfevents*"))
+
+    model = load_model(path)
+    agent = SB3Agent(model)
+    env = haptic_env.make(env_config.replace(max_grasps=10))
+    obs, _ = env.reset(seed=0)
+    a1, a2 = agent.act(obs, env), SB3Agent.from_path(path).act(obs, env)
+    np.testing.assert_array_equal(a1, a2)
+
+    path2 = train.main(args[:-2] + ["--resume", str(run / "checkpoints" / "ppo_128_steps.zip"),
+                                    "--total-timesteps", "128", "--run-dir", str(tmp_path / "resumed"),
+                                    "--hyperparams", json.dumps({"n_steps": 64, "batch_size": 32})])
+    assert load_model(path2).num_timesteps >= 256
+
+    curves = plot_learning_curves({"ppo": run}, tmp_path / "lc.png", window=5)
+    assert curves.stat().st_size > 0
+
+
+def test_evaluate_writes_table_and_plots(env_config, tmp_path):
+    make = lambda: haptic_env.make(env_config.replace(max_grasps=8))  # noqa: E731
+    recs = evaluate_agents([RandomAgent(), RandomAgent()], make, 3, seeds=[0, 1], progress=False)
+    recs = [r if i < 6 else type(r)(**{**r.__dict__, "agent": "random2"}) for i, r in enumerate(recs)]
+    paths = write_report(recs, tmp_path / "eval", max_grasps=8)
+    for p in paths.values():
+        assert p.exists() and p.stat().st_size > 0
+    md = paths["md"].read_text()
+    assert "| random |" in md and "| random2 |" in md
+    rows = summarize(recs)
+    assert rows[0]["episodes"] == 6 and rows[0]["seeds"] == 2
+    assert rows[1]["fewer_than_random"] == pytest.approx(0.0, abs=1e-12)  # identical agents
+    lo, hi = rows[0]["grasps_mean_ci"]
+    assert lo <= rows[0]["grasps_mean"] <= hi
+    data = json.loads(paths["json"].read_text())
+    assert len(data["success_vs_grasps"]["random"]) == 8
+
+
+def test_cli_evaluate_is_registered():
+    from haptic_env.cli import build_parser
+
+    args = build_parser().parse_args(["evaluate", "--agents", "random", "--episodes", "2", "--seeds", "0"])
+    assert args.episodes == 2 and callable(args.func)

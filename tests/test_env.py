@@ -1,0 +1,322 @@
+"""HapticRecogEnv: API conformance, determinism, pickling, errors, rewards, termination, observation layout."""
+
+from __future__ import annotations
+
+import pickle
+import subprocess
+import sys
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import haptic_env
+from haptic_env.env import HapticRecogConfig, HapticRecogEnv
+
+
+def _make(env_config, **kw):
+    return gym.make("HapticRecog-v0", config=env_config, **kw)
+
+
+def _rollout(env, seed, n_steps, action_seed=123, options=None):
+    """(obs list, rewards, infos) of ``n_steps`` random actions (resetting on episode end)."""
+    rng = np.random.default_rng(action_seed)
+    obs, info = env.reset(seed=seed, options=options)
+    out = [(obs, 0.0, info)]
+    for _ in range(n_steps):
+        a = rng.uniform(-1, 1, env.action_space.shape).astype(np.float32)
+        obs, r, term, trunc, info = env.step(a)
+        out.append((obs, r, info))
+        if term or trunc:
+            obs, info = env.reset()
+            out.append((obs, 0.0, info))
+    return out
+
+
+def test_import_is_cheap_and_registers_ids():
+    code = ("import sys, haptic_env, gymnasium as gym; "
+            "assert 'torch' not in sys.modules and 'mujoco' not in sys.modules, sorted(sys.modules); "
+            "ids = [i for i in gym.registry if i.startswith('HapticRecog')]; print(sorted(ids))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    for env_id in ("HapticRecog-v0", "HapticRecogMuJoCo-v0", "HapticRecogKIT-v0"):
+        assert env_id in out
+    assert gym.spec("HapticRecog-v0").max_episode_steps == HapticRecogConfig().max_grasps
+
+
+def test_gymnasium_check_env(env_config):
+    from gymnasium.utils.env_checker import check_env
+
+    env = _make(env_config)
+    check_env(env.unwrapped, skip_render_check=False)
+    env.close()
+
+
+def test_sb3_check_env(env_config):
+    from stable_baselines3.common.env_checker import check_env
+
+    env = _make(env_config)
+    check_env(env.unwrapped, warn=True)
+    env.close()
+
+
+def test_same_seed_same_episode(env_config):
+    a, b = _make(env_config), _make(env_config)
+    ra, rb = _rollout(a, 7, 25), _rollout(b, 7, 25)
+    assert len(ra) == len(rb)
+    for (oa, rwa, ia), (ob, rwb, ib) in zip(ra, rb):
+        np.testing.assert_array_equal(oa, ob)
+        assert rwa == rwb
+        assert ia["true_object"] == ib["true_object"] and ia["grasps"] == ib["grasps"]
+        np.testing.assert_array_equal(ia["belief"], ib["belief"])
+    # another seed gives another scene (object and/or pose)
+    c = _make(env_config)
+    c.reset(seed=8)
+    a.reset(seed=7)
+    assert (c.unwrapped.target != a.unwrapped.target) or not np.allclose(c.unwrapped.pose, a.unwrapped.pose)
+
+
+def test_pickle_round_trip(env_config):
+    env = _make(env_config)
+    env2 = pickle.loads(pickle.dumps(env))
+    assert env2.unwrapped.config == env.unwrapped.config
+    assert env2.observation_space == env.observation_space and env2.action_space == env.action_space
+    r1, r2 = _rollout(env, 3, 6), _rollout(env2, 3, 6)
+    for (o1, w1, _), (o2, w2, _) in zip(r1, r2):
+        np.testing.assert_array_equal(o1, o2)
+        assert w1 == w2
+    # a flat override survives pickling too
+    env3 = pickle.loads(pickle.dumps(HapticRecogEnv(env_config, grasp_cost=0.05)))
+    assert env3.config.grasp_cost == 0.05
+
+
+@pytest.mark.parametrize(
+    "action, match",
+    [
+        (np.zeros(3), "shape"),
+        (np.zeros((1, 4)), "shape"),
+        (np.array([0.0, np.nan, 0.0, 0.0]), "finite"),
+        (np.array([0.0, 0.0, 1.5, 0.0]), r"\[-1, 1\]"),
+        ("left", "numeric"),
+    ],
+)
+def test_invalid_actions_raise(env_config, action, match):
+    env = _make(env_config).unwrapped
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=match):
+        env.step(action)
+
+
+def test_bad_config_and_options_raise(env_config):
+    for bad in ({"reward": "bogus"}, {"updater": "xx"}, {"threshold": 1.5}, {"n_fingers": 2},
+                {"grasp_cost": -1.0}, {"pose": "upside-down"}, {"scale_range": (2.0, 1.0)}, {"z_fingers": 4}):
+        with pytest.raises(ValueError, match=str(next(iter(bad)))):
+            env_config.replace(**bad)
+    with pytest.raises(TypeError, match="unknown HapticRecogConfig field"):
+        HapticRecogEnv(env_config, no_such_field=1)
+    env = HapticRecogEnv(env_config)
+    with pytest.raises(ValueError, match="not in the object set"):
+        env.reset(seed=0, options={"object": "unicorn"})
+    with pytest.raises(ValueError, match="unknown reset option"):
+        env.reset(seed=0, options={"colour": "red"})
+    with pytest.raises(RuntimeError, match="reset"):
+        HapticRecogEnv(env_config).step(np.zeros(env.action_dim))
+
+
+def test_kit_variant_without_data_raises_clearly(tmp_path):
+    with pytest.raises(FileNotFoundError, match=str(tmp_path / "missing")):
+        gym.make("HapticRecogKIT-v0", object_kwargs={"data_dir": tmp_path / "missing"})
+
+
+@pytest.mark.parametrize("kind", ["true-posterior-gain", "max-posterior-gain", "entropy-reduction"])
+def test_reward_terms_sum_to_reward(env_config, kind):
+    from agents.greedy import entropy_rows
+
+    env = _make(env_config, reward=kind, grasp_cost=0.01).unwrapped
+    obs, info = env.reset(seed=1)
+    rng = np.random.default_rng(0)
+    prev = info["belief"]
+    total_gain = 0.0
+    for _ in range(30):
+        obs, r, term, trunc, info = env.step(rng.uniform(-1, 1, env.action_dim))
+        terms = info["reward_terms"]
+        assert r == sum(terms.values())
+        assert terms["grasp_cost"] == -0.01
+        b = info["belief"]
+        expected = {"true-posterior-gain": b[info["true_index"]] - prev[info["true_index"]],
+                    "max-posterior-gain": b.max() - prev.max(),
+                    "entropy-reduction": entropy_rows(prev[None])[0] - entropy_rows(b[None])[0]}[kind]
+        assert terms["gain"] == pytest.approx(expected, abs=1e-12)
+        total_gain += terms["gain"]
+        prev = b
+        if term or trunc:
+            break
+    if kind == "true-posterior-gain":  # the return telescopes
+        assert total_gain == pytest.approx(prev[info["true_index"]] - 1.0 / env.n_classes, abs=1e-9)
+
+
+def test_terminates_at_threshold_and_truncates(env_config):
+    env = _make(env_config, threshold=0.5, max_grasps=60)
+    rng = np.random.default_rng(1)
+    env.reset(seed=2)
+    n_terminated = 0
+    for _ in range(6):
+        done = False
+        while not done:
+            _, _, term, trunc, info = env.step(rng.uniform(-1, 1, 4))
+            assert term == (info["certainty"] >= 0.5) == info["decided"]
+            done = term or trunc
+        n_terminated += term
+        env.reset()
+    assert n_terminated > 0, "no episode reached a certainty of 0.5 in 60 grasps"
+    # threshold 1 is rarely reached: the TimeLimit (and the env itself) truncate at max_grasps
+    env = haptic_env.make(env_config.replace(threshold=1.0, max_grasps=4))
+    env.reset(seed=0)
+    truncated_once = False
+    for _ in range(20):
+        for i in range(4):
+            _, _, term, trunc, info = env.step(rng.uniform(-1, 1, 4).astype(np.float32))
+            assert trunc == (i == 3) and info["grasps"] == i + 1  # (TimeLimit truncates even when term)
+            if term or trunc:
+                break
+        truncated_once |= trunc and not term
+        env.reset()
+    assert truncated_once
+
+
+def test_observation_slices(env_config):
+    env = _make(env_config).unwrapped
+    sl = env.obs_slices
+    K, n, A, d = env.n_classes, env.config.n_fingers, env.action_dim, env.feature_dim
+    assert [sl[k].stop - sl[k].start for k in env.observation_structure] == [d, n, 1, K, A, 1]
+    assert env.observation_space.shape == (d + n + 1 + K + A + 1,)
+    obs, info = env.reset(seed=4, options={"object": "ball"})
+    assert info["true_object"] == "ball"
+    np.testing.assert_allclose(obs[sl["belief"]], np.full(K, 1 / K), rtol=1e-6)
+    assert not obs[sl["grasp"]].any() and not obs[sl["prev_action"]].any() and obs[sl["grasp_count"]][0] == 0
+    rng = np.random.default_rng(0)
+    for step in range(1, 6):
+        a = rng.uniform(-1, 1, A).astype(np.float32)
+        obs, _, term, trunc, info = env.step(a)
+        assert obs in env.observation_space
+        np.testing.assert_allclose(obs[sl["belief"]], info["belief"], rtol=1e-6, atol=1e-7)
+        np.testing.assert_array_equal(obs[sl["contact_mask"]], info["touched"].astype(np.float32))
+        np.testing.assert_allclose(obs[sl["prev_action"]], a)
+        assert obs[sl["usable"]][0] == float(info["usable"])
+        assert obs[sl["grasp_count"]][0] == pytest.approx(step / env.config.max_grasps)
+        if info["usable"]:
+            assert info["touched"].all() and obs[sl["grasp"]].any()
+        if term or trunc:
+            break
+
+
+def test_incomplete_grasp_carries_no_information(env_config):
+    env = _make(env_config).unwrapped
+    env.reset(seed=0, options={"object": "ring"})  # thin: many grasps miss with some fingers
+    rng = np.random.default_rng(3)
+    seen = 0
+    for _ in range(40):
+        before = env.belief
+        _, r, term, trunc, info = env.step(rng.uniform(-1, 1, 4))
+        if not info["touched"].all():
+            seen += 1
+            assert not info["usable"]
+            np.testing.assert_array_equal(info["belief"], before)
+            assert info["reward_terms"]["gain"] == 0.0
+        if term or trunc:
+            env.reset(options={"object": "ring"})
+    assert seen > 0
+
+
+def test_pose_modes_and_scale(env_config):
+    env = HapticRecogEnv(env_config.replace(pose="so3", scale_range=(0.8, 1.2)))
+    for s in range(5):
+        env.reset(seed=s)
+        R = env.pose[:3, :3]
+        np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+        assert np.linalg.det(R) == pytest.approx(1.0) and 0.8 <= env.scale <= 1.2
+    env = HapticRecogEnv(env_config)
+    env.reset(seed=0)
+    R = env.pose[:3, :3]
+    assert R[2, 2] == pytest.approx(1.0) and env.scale == 1.0  # table-yaw: a rotation about z only
+
+
+def test_render_rgb_array(env_config):
+    env = _make(env_config, render_mode="rgb_array")
+    env.reset(seed=0)
+    env.step(np.zeros(4, np.float32))
+    img = env.render()
+    assert img.dtype == np.uint8 and img.ndim == 3 and img.shape[2] == 3 and img.std() > 0
+    env.close()
+
+
+def test_subproc_vec_env(env_config):
+    from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    venv = SubprocVecEnv([lambda: haptic_env.make(env_config) for _ in range(2)], start_method="fork")
+    try:
+        venv.seed(0)
+        obs = venv.reset()
+        assert obs.shape == (2,) + venv.observation_space.shape
+        for _ in range(5):
+            obs, rew, done, infos = venv.step(np.zeros((2, 4), np.float32))
+            assert np.isfinite(rew).all() and len(infos) == 2
+    finally:
+        venv.close()
+
+
+def test_z_finger_models_score_incomplete_grasps_and_subsets(env_config):
+    from haptic_env.grasp_features import feature_dim
+
+    n = env_config.n_fingers
+    z = n - 1
+    env = HapticRecogEnv(env_config.replace(z_fingers=z))
+    env.reset(seed=0, options={"object": "ring"})
+    rng = np.random.default_rng(0)
+    scored_incomplete = 0
+    for _ in range(60):
+        _, _, term, trunc, info = env.step(rng.uniform(-1, 1, 4))
+        t = int(info["touched"].sum())
+        if t < z:
+            assert not info["usable"]
+        scored_incomplete += info["usable"] and t == z
+        if term or trunc:
+            env.reset(options={"object": "ring"})
+    assert scored_incomplete > 0
+    # z-subset scoring: each scored grasp gives C(t, z) rows of the z-finger model
+    env = HapticRecogEnv(env_config.replace(z_fingers=z, score_subsets=True))
+    env.reset(seed=1)
+    res = env.backend.grasp(np.zeros(4), np.random.default_rng(0))
+    _, Q = env.grasp_rows(res.contacts, res.normals, res.touched)
+    t = int(res.touched.sum())
+    if Q is not None:
+        from math import comb
+
+        assert Q.shape[1] == feature_dim(z, env_config.normals) and len(Q) <= comb(t, z)
+
+
+@pytest.mark.parametrize("z", [None, "n-1"])
+def test_grasp_rows_batch_matches_grasp_rows(env_config, z):
+    env = HapticRecogEnv(env_config.replace(z_fingers=None if z is None else env_config.n_fingers - 1))
+    env.reset(seed=3, options={"object": "ring"})
+    res = env.backend.grasp_batch(np.random.default_rng(0).uniform(-1, 1, (40, 4)), np.random.default_rng(1))
+    rows, scored = env.grasp_rows_batch(res.contacts, res.normals, res.touched)
+    expect = [(i, env.grasp_rows(res.contacts[i], res.normals[i], res.touched[i])[1]) for i in range(40)]
+    expect = [(i, q) for i, q in expect if q is not None]
+    assert scored.tolist() == [i for i, _ in expect] and len(expect) > 0
+    for r, (_, q) in zip(rows, expect):
+        np.testing.assert_allclose(r, q, rtol=1e-12, atol=1e-12)
+
+
+def test_recognizer_source_reaches_the_recognizer_config(env_config):
+    from haptic_env.env import _recognizer_kwargs
+    from haptic_env.recognizers import RecognizerConfig
+
+    assert _recognizer_kwargs(env_config)["config"].source == "geometric"
+    surf = _recognizer_kwargs(env_config.replace(recognizer_source="surface"))["config"]
+    assert surf.source == "surface" and surf.grasps_per_object == 1500  # the rest of the JSON config kept
+    floating = env_config.replace(backend_kwargs={"support": "floating"}, pose="so3")
+    assert _recognizer_kwargs(floating)["config"].support == "floating"
+    explicit = RecognizerConfig(grasps_per_object=10)
+    assert _recognizer_kwargs(env_config.replace(recognizer_kwargs={"config": explicit}))["config"] is explicit
+    with pytest.raises(ValueError, match="recognizer_source"):
+        env_config.replace(recognizer_source="photos")
