@@ -112,6 +112,7 @@ class GeometricBackend:
         self.n_fingers = int(self.config.n_fingers)
         self._obj: Any = None
         self._last: tuple[np.ndarray, np.ndarray, GraspResult] | None = None
+        self._intersectors: dict[int, tuple[trimesh.Trimesh, Any]] = {}
 
     # ------------------------------------------------------------------ object
     def set_object(self, obj: Any, pose: np.ndarray | None = None) -> None:
@@ -125,7 +126,11 @@ class GeometricBackend:
         self._T = T
         self._R = T[:3, :3].copy()
         self._t = T[:3, 3].copy()
-        self._intersector = make_intersector(mesh)
+        # one intersector (Embree scene) per mesh, built once: episodes revisit the same objects
+        key = id(mesh)
+        if key not in self._intersectors or self._intersectors[key][0] is not mesh:
+            self._intersectors[key] = (mesh, make_intersector(mesh))
+        self._intersector = self._intersectors[key][1]
         self._face_normals = np.asarray(mesh.face_normals, dtype=np.float64)
         self._face_v0 = np.asarray(mesh.triangles[:, 0, :], dtype=np.float64)
         v = np.asarray(mesh.vertices, dtype=np.float64)
