@@ -28,6 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from haptic_env.grasping import make_backend  # noqa: E402
 from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
+from haptic_env.dataset import DatasetConfig  # noqa: E402
 from haptic_env.recognizers import RecognizerConfig, build_recognizer  # noqa: E402
 
 SETUPS = (("allegro", 4, True), ("allegro", 4, False), ("shadow", 5, False))
@@ -70,8 +71,8 @@ def main(argv=None) -> int:
         print("the hand experiment needs the YCB meshes (ycb/ in the shared data folder; set HAPTIC_DATA)")
         return 1
     objects = load_object_set("ycb10")
-    cfg = RecognizerConfig(grasps_per_object=args.grasps_per_object, contact_noise=args.contact_noise,
-                           seed=args.seed)
+    cfg = RecognizerConfig(grasps=DatasetConfig(grasps_per_object=args.grasps_per_object,
+                                                contact_noise=args.contact_noise, seed=args.seed))
     rows = []
     seqs_cache: dict[tuple[str, int], dict] = {}
     for hand, n, normals in SETUPS:

@@ -77,8 +77,8 @@ class HapticRecogConfig:
     hand touches) or "surface" (random surface points, the paper's protocol)."""
     recognizer_kwargs: Mapping[str, Any] = field(default_factory=dict)
     """Extra keyword arguments of :func:`haptic_env.recognizers.build_recognizer`, e.g.
-    ``{"config": RecognizerConfig(grasps_per_object=5000)}``; ``config`` may also be a JSON-style dict
-    (``{"grasps_per_object": 5000, "mlp": {"max_epochs": 5}}``)."""
+    ``{"config": RecognizerConfig(grasps=DatasetConfig(grasps_per_object=5000))}``; ``config`` may also be a
+    JSON-style dict (``{"grasps": {"grasps_per_object": 5000}, "mlp": {"max_epochs": 5}}``)."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.n_fingers, (int, np.integer)) or self.n_fingers < 3:
@@ -134,25 +134,29 @@ def get_recognizer(objects, config: HapticRecogConfig):
 
 
 def _recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
-    """``recognizer_kwargs`` with a JSON-style ``{"config": {..., "mlp": {...}, "kde": {...}}}`` turned into
-    ``RecognizerConfig`` (so the command line can pass recogniser settings as JSON); without a config, or a
-    JSON config without ``source``, the recogniser trains on ``config.recognizer_source`` grasps (with
-    ``support`` from the backend's ``support`` setting, default "table")."""
+    """``recognizer_kwargs`` with a JSON-style ``{"config": {"grasps": {...}, "mlp": {...}, "kde": {...}}}``
+    turned into ``RecognizerConfig`` (so the command line can pass recogniser settings as JSON); without a
+    config, or a JSON config whose ``grasps`` has no ``source``, the recogniser trains on
+    ``config.recognizer_source`` grasps (with ``support`` from the backend's ``support`` setting, default
+    "table")."""
+    from haptic_env.dataset import DatasetConfig
     from haptic_env.recognizers import KDEConfig, MLPConfig, RecognizerConfig
 
     kw = dict(config.recognizer_kwargs)
     rc = kw.get("config", {})
     if isinstance(rc, Mapping):
         rc = dict(rc)
-        rc.setdefault("source", config.recognizer_source)
-        if rc["source"] == "geometric":
-            rc.setdefault("support", dict(config.backend_kwargs).get("support", "table"))
+        grasps = dict(rc.get("grasps", {}))
+        grasps.setdefault("source", config.recognizer_source)
+        if grasps["source"] == "geometric":
+            grasps.setdefault("support", dict(config.backend_kwargs).get("support", "table"))
+        if isinstance(grasps.get("scale_range"), list):
+            grasps["scale_range"] = tuple(grasps["scale_range"])
+        rc["grasps"] = DatasetConfig(**grasps)
         if isinstance(rc.get("mlp"), Mapping):
             rc["mlp"] = MLPConfig(**rc["mlp"])
         if isinstance(rc.get("kde"), Mapping):
             rc["kde"] = KDEConfig(**rc["kde"])
-        if isinstance(rc.get("scale_range"), list):
-            rc["scale_range"] = tuple(rc["scale_range"])
         kw["config"] = RecognizerConfig(**rc)
     return kw
 

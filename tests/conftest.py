@@ -23,7 +23,7 @@ def haptic_cache(tmp_path_factory):
 @pytest.fixture(scope="session")
 def small_recognizer_kwargs():
     """``recognizer_kwargs`` (JSON-style) of a recogniser that builds in seconds (small dataset, tiny MLP)."""
-    return {"config": {"grasps_per_object": 1500,
+    return {"config": {"grasps": {"grasps_per_object": 1500},
                        "mlp": {"depth": 1, "width": 32, "max_epochs": 1, "progress": False}},
             "progress": False}
 

@@ -309,14 +309,15 @@ def test_grasp_rows_batch_matches_grasp_rows(env_config, z):
 
 def test_recognizer_source_reaches_the_recognizer_config(env_config):
     from haptic_env.env import _recognizer_kwargs
+    from haptic_env.dataset import DatasetConfig
     from haptic_env.recognizers import RecognizerConfig
 
-    assert _recognizer_kwargs(env_config)["config"].source == "geometric"
-    surf = _recognizer_kwargs(env_config.replace(recognizer_source="surface"))["config"]
+    assert _recognizer_kwargs(env_config)["config"].grasps.source == "geometric"
+    surf = _recognizer_kwargs(env_config.replace(recognizer_source="surface"))["config"].grasps
     assert surf.source == "surface" and surf.grasps_per_object == 1500  # the rest of the JSON config kept
     floating = env_config.replace(backend_kwargs={"support": "floating"}, pose="so3")
-    assert _recognizer_kwargs(floating)["config"].support == "floating"
-    explicit = RecognizerConfig(grasps_per_object=10)
+    assert _recognizer_kwargs(floating)["config"].grasps.support == "floating"
+    explicit = RecognizerConfig(grasps=DatasetConfig(grasps_per_object=10))
     assert _recognizer_kwargs(env_config.replace(recognizer_kwargs={"config": explicit}))["config"] is explicit
     with pytest.raises(ValueError, match="recognizer_source"):
         env_config.replace(recognizer_source="photos")

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from haptic_env.cli import main
+from haptic_env.dataset import DatasetConfig
 from haptic_env.recognizers import MLPConfig, RecognizerConfig, build_recognizer
 from haptic_env.recognizers.analysis import simulate_trials
 
@@ -32,7 +33,7 @@ def test_build_recognizer_caches_and_updates(cache):
 
     objs = load_object_set("default")
     objs = objs.subset(objs.names[:3], name="three")
-    cfg = RecognizerConfig(grasps_per_object=300, mlp=MLPConfig(max_epochs=2, progress=False))
+    cfg = RecognizerConfig(grasps=DatasetConfig(grasps_per_object=300), mlp=MLPConfig(max_epochs=2, progress=False))
     rec = build_recognizer(objs, 4, True, z_values=(3,), config=cfg, progress=False)
     files = sorted(p.name for p in (cache / "recognizers").iterdir())
     assert len(files) == 6  # mlp, kde, json for z = 3 and 4

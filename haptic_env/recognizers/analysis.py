@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
+from haptic_env.dataset import DatasetConfig, build_dataset, sample_grasps
 from haptic_env.recognizers.baselines import CLASSIFIERS, make_classifier
 from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
 from haptic_env.recognizers.mlp import MLPClassifier, MLPConfig
@@ -80,8 +81,8 @@ class AnalysisConfig:
     progress: bool = True
 
     def recognizer_config(self, **kw) -> RecognizerConfig:
-        return RecognizerConfig(grasps_per_object=self.grasps_per_object, mlp=dataclasses.replace(self.mlp, progress=False),
-                                kde=self.kde, seed=self.seed, **kw)
+        grasps = DatasetConfig(grasps_per_object=self.grasps_per_object, seed=self.seed, **kw)
+        return RecognizerConfig(grasps=grasps, mlp=dataclasses.replace(self.mlp, progress=False), kde=self.kde)
 
 
 # ------------------------------------------------------------------------------------ trials
@@ -137,7 +138,6 @@ def _summ(res: dict) -> tuple[float, float, float, float]:
 # -------------------------------------------------------------------------------------- data
 def _test_pool(objects, n: int, normals: bool, cfg: AnalysisConfig, **dkw):
     """Fresh test grasp vectors: list over objects of ``(G, d)`` (another seed than training)."""
-    from haptic_env.dataset import DatasetConfig, build_dataset
 
     dc = DatasetConfig(n_fingers=n, normals=normals, grasps_per_object=cfg.test_grasps, val_fraction=0.0,
                        seed=cfg.seed + TEST_SEED_OFFSET, **dkw)
@@ -186,7 +186,6 @@ def _fmt(m, s, digits=1):
 
 
 def exp1(objects, cfg, rep, rng):
-    from haptic_env.dataset import build_dataset
 
     rep.h("1. One-shot accuracy (%) on fresh test grasps")
     rows = []
@@ -280,7 +279,6 @@ def _plot_confusion(plt, C, names, title, path):
 
 
 def _raw_pool(objects, n, normals, count, seed):
-    from haptic_env.dataset import sample_grasps
 
     out = []
     for k, obj in enumerate(objects):
@@ -400,7 +398,6 @@ def exp4(objects, cfg, rep, rng):
 
 
 def exp5(objects, cfg, rep, rng):
-    from haptic_env.dataset import DatasetConfig, build_dataset
     from haptic_env.objects import FAMILIES, family_set
 
     rep.h("5. Geometry recognition (families: " + ", ".join(FAMILIES) + "; n = 4, scale-normalised)")

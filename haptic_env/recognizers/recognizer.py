@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from haptic_env.dataset import DatasetConfig
 from haptic_env.cache import CacheError, atomic_write, cache_dir, config_key, load_npz, save_npz_atomic
 from haptic_env.grasp_features import feature_dim
 from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
@@ -35,39 +36,26 @@ RECOGNIZER_VERSION = 1
 class RecognizerConfig:
     """Training data and models of a :class:`Recognizer`.
 
+    ``grasps`` is the :class:`~haptic_env.dataset.DatasetConfig` of the training grasps (count,
+    noise, scale, source, seed); its ``n_fingers`` and ``normals`` are set per model by
+    :func:`build_recognizer` (and, for ``source="geometric"``, ``hand_fingers`` defaults to the
+    recogniser's ``n_fingers``, so z-finger models learn z-subsets of that hand's grasps).
+
     The default (20,000 grasps per object; MLP 3 x 256 trained on <= 60,000 of them for <= 15
     epochs; tree KDE on all training grasps with an auto-selected bandwidth) builds the default set
-    in well under a minute on 2 idle cores; the paper's protocol is
-    ``grasps_per_object=200_000`` (and optionally ``MLPConfig(depth=7, width=500)``).
+    in about a minute on 2 idle cores; the paper's protocol is
+    ``grasps=DatasetConfig(grasps_per_object=200_000)`` (and optionally ``MLPConfig(depth=7, width=500)``).
     """
 
-    grasps_per_object: int = 20_000
+    grasps: DatasetConfig = field(default_factory=DatasetConfig)
     mlp: MLPConfig = field(default_factory=lambda: MLPConfig(max_epochs=15, patience=3, max_train=60_000))
     kde: KDEConfig = field(default_factory=KDEConfig)
-    contact_noise: float = 0.0
-    normal_noise_deg: float = 0.0
-    normalize_scale: bool = False
-    scale_range: tuple[float, float] | None = None
-    sampling: str = "area"
-    seed: int = 0
-    #: training contacts: "surface" (the paper: random surface points) or "geometric" (grasps of
-    #: the geometric approach model, still from the mesh alone); see DatasetConfig.source
-    source: str = "surface"
-    #: with source="geometric": fingers of the simulated hand (default: the recogniser's n_fingers,
-    #: so z-finger models are trained on z-subsets of that hand's grasps) and its support
-    hand_fingers: int | None = None
-    support: str = "table"
 
-    def dataset_config(self, n_fingers: int, normals: bool, hand_fingers: int | None = None):
-        from haptic_env.dataset import DatasetConfig
-
-        return DatasetConfig(
-            n_fingers=n_fingers, normals=normals, grasps_per_object=self.grasps_per_object,
-            contact_noise=self.contact_noise, normal_noise_deg=self.normal_noise_deg,
-            normalize_scale=self.normalize_scale, scale_range=self.scale_range, sampling=self.sampling,
-            seed=self.seed, source=self.source, support=self.support,
-            hand_fingers=(self.hand_fingers or hand_fingers) if self.source == "geometric" else None,
-        )
+    def dataset_config(self, n_fingers: int, normals: bool, hand_fingers: int | None = None) -> DatasetConfig:
+        """The training-grasp config of the ``n_fingers`` model."""
+        g = self.grasps
+        hand = (g.hand_fingers or hand_fingers) if g.source == "geometric" else None
+        return dataclasses.replace(g, n_fingers=n_fingers, normals=normals, hand_fingers=hand)
 
 
 @dataclass(eq=False)
@@ -128,7 +116,7 @@ class Recognizer:
         if self.normals and normals is None:
             raise ValueError("this recogniser was trained with normals; pass the contact normals")
         return subset_vectors(contacts, normals if self.normals else None, z, k=k, rng=rng, touched=touched,
-                              normalize=self.config.normalize_scale)
+                              normalize=self.config.grasps.normalize_scale)
 
     def make_updater(self, kind: str = "bc-np", threshold: float = 0.85, z: int | None = None, *,
                      k: int | None = None, rng: np.random.Generator | None = None, **kw) -> ZFingerUpdater:
@@ -145,7 +133,7 @@ class Recognizer:
             raise ValueError(f"no {z}-finger model; built finger counts: {self.models.finger_counts}")
         base = make_updater(kind, classifier=self.models, likelihood=self.models, threshold=threshold,
                             n_classes=self.n_classes, **kw)
-        return ZFingerUpdater(base, z, k=k, rng=rng, normalize=self.config.normalize_scale)
+        return ZFingerUpdater(base, z, k=k, rng=rng, normalize=self.config.grasps.normalize_scale)
 
 
 def _objects_key(objects) -> list:
