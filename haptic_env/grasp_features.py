@@ -135,7 +135,10 @@ def _norm(v: np.ndarray) -> np.ndarray:
 
 
 def _dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    return np.einsum("...k,...k->...", *np.broadcast_arrays(u, v))
+    """Dot product over the last axis (einsum for equal shapes, broadcasting product otherwise)."""
+    if u.shape == v.shape:
+        return np.einsum("...k,...k->...", u, v)
+    return (u * v).sum(-1)
 
 
 def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -155,7 +158,7 @@ def _angle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     if u.shape[-1] == 2:
         cr = np.abs(u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0])
     else:
-        cr = _norm(_cross(*np.broadcast_arrays(u, v)))
+        cr = _norm(_cross(u, v))
     return np.arctan2(cr, _dot(u, v))
 
 
@@ -166,7 +169,7 @@ def _signed_dihedral(x, y, w, u) -> np.ndarray:
     u2 = u - x
     u1 = u1 - _dot(u1, e)[..., None] * e
     u2 = u2 - _dot(u2, e)[..., None] * e
-    ang = np.arctan2(_dot(e, _cross(*np.broadcast_arrays(u1, u2))), _dot(u1, u2))
+    ang = np.arctan2(_dot(e, _cross(u1, u2)), _dot(u1, u2))
     # a flat (coplanar) pair of facets is +-pi up to rounding: report it as +pi
     return np.where(np.abs(ang) > np.pi - 1e-9, np.pi, ang)
 
