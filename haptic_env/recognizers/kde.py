@@ -130,6 +130,7 @@ class KDELikelihood:
         self.bandwidth = self.factor * scott
         if cfg.method == "tree":
             self.trees = [cKDTree(z, leafsize=32, balanced_tree=False, compact_nodes=False) for z in self.data]
+        self._norm_cache = (None, None)  # refitted: normalisers change
         return self
 
     def _select(self, scott: float, Zv: np.ndarray, yv: np.ndarray, rng) -> float:
@@ -179,8 +180,14 @@ class KDELikelihood:
                 out[:, c] = self._tree_logsum(c, Z, inv)
             else:
                 out[:, c] = _dense_logsum(Z, self.data[c], inv)
-            out[:, c] += self._norm(c)
-        return out
+        return out + self._norms()
+
+    def _norms(self) -> np.ndarray:
+        """``(K,)`` log normalisers of the class densities (computed once per fitted state)."""
+        key = (self.bandwidth, id(self.scaler), tuple(len(z) for z in self.data))
+        if getattr(self, "_norm_cache", (None, None))[0] != key:
+            self._norm_cache = (key, np.array([self._norm(c) for c in range(self.n_classes)]))
+        return self._norm_cache[1]
 
     def _tree_logsum(self, c: int, Z: np.ndarray, inv: float) -> np.ndarray:
         cfg = self.config
@@ -191,7 +198,9 @@ class KDELikelihood:
         found = np.isfinite(dist[:, 0])
         res = np.empty(len(Z))
         if found.any():
-            res[found] = logsumexp(-inv * np.where(np.isfinite(dist[found]), dist[found], np.inf) ** 2, axis=1)
+            x = -inv * dist[found] ** 2  # missing neighbours are at distance inf -> x = -inf
+            m = x[:, 0]  # neighbours come sorted by distance: the first is the largest term
+            res[found] = m + np.log(np.exp(x - m[:, None]).sum(axis=1))
         if not found.all():
             d1, _ = tree.query(Z[~found], k=1, eps=cfg.eps)
             res[~found] = -inv * d1**2
