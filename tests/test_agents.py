@@ -100,6 +100,24 @@ def test_tiny_ppo_trains_saves_reloads_and_resumes(env_config, small_recognizer_
     assert curves.stat().st_size > 0
 
 
+def test_tiny_sac_trains_and_acts_in_bounds(env_config, small_recognizer_kwargs, tmp_path):
+    import train
+    from agents.sb3 import SB3Agent, load_model
+
+    run = tmp_path / "sac"
+    args = ["--algo", "sac", "--total-timesteps", "128", "--n-envs", "1", "--vec", "dummy",
+            "--run-dir", str(run), "--checkpoint-freq", "128", "--max-grasps", "10",
+            "--env-kwargs", json.dumps({"recognizer_kwargs": small_recognizer_kwargs}),
+            "--hyperparams", json.dumps({"learning_starts": 32, "batch_size": 32, "buffer_size": 1000})]
+    path = train.main(args)
+    model = load_model(path)
+    assert type(model).__name__ == "SAC" and model.num_timesteps >= 128
+    env = haptic_env.make(env_config.replace(max_grasps=10))
+    obs, _ = env.reset(seed=0)
+    a = SB3Agent(model).act(obs, env)
+    assert a.shape == env.action_space.shape and env.action_space.contains(a.astype(np.float32))
+
+
 def test_evaluate_writes_table_and_plots(env_config, tmp_path):
     make = lambda: haptic_env.make(env_config.replace(max_grasps=8))  # noqa: E731
     recs = evaluate_agents([RandomAgent(), RandomAgent()], make, 3, seeds=[0, 1], progress=False)
