@@ -321,3 +321,22 @@ def test_recognizer_source_reaches_the_recognizer_config(env_config):
     assert _recognizer_kwargs(env_config.replace(recognizer_kwargs={"config": explicit}))["config"] is explicit
     with pytest.raises(ValueError, match="recognizer_source"):
         env_config.replace(recognizer_source="photos")
+
+
+def test_mujoco_allegro_variant_runs_an_episode(env_config):
+    """``HapticRecogMuJoCo-v0``: the Allegro hand grasps YCB objects in MuJoCo inside a full env loop."""
+    from haptic_env.objects import data_dir
+
+    if data_dir() is None:
+        pytest.skip("needs the shared data (ycb/ meshes and menagerie/wonik_allegro): set HAPTIC_DATA")
+    env = haptic_env.make(env_config, env_id="HapticRecogMuJoCo-v0")
+    obs, info = env.reset(seed=0)
+    assert env.unwrapped.config.backend == "mujoco" and len(env.unwrapped.objects) == 10
+    for _ in range(3):
+        obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+        assert env.observation_space.contains(obs)
+        assert np.isclose(sum(info["reward_terms"].values()), reward)
+        assert info["touched"].shape == (4,)
+        if terminated or truncated:
+            break
+    env.close()
