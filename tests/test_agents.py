@@ -70,15 +70,21 @@ def test_greedy_picks_the_lowest_expected_entropy(env_config):
     assert np.all(agent.last_scores <= entropy_rows(env.unwrapped.belief[None])[0] + 1e-9)
 
 
+def _train_args(algo: str, steps: int, run, recognizer_kwargs: dict, hyperparams: dict) -> list[str]:
+    """``train.py`` arguments of a tiny run (one dummy-vec env, 10-grasp episodes, small recogniser);
+    the hyper-parameters come last so a test can replace them."""
+    return ["--algo", algo, "--total-timesteps", str(steps), "--n-envs", "1", "--vec", "dummy",
+            "--run-dir", str(run), "--checkpoint-freq", "128", "--max-grasps", "10",
+            "--env-kwargs", json.dumps({"recognizer_kwargs": recognizer_kwargs}),
+            "--hyperparams", json.dumps(hyperparams)]
+
+
 def test_tiny_ppo_trains_saves_reloads_and_resumes(env_config, small_recognizer_kwargs, tmp_path):
     import train
     from agents.sb3 import SB3Agent, load_model
 
     run = tmp_path / "ppo"
-    args = ["--algo", "ppo", "--total-timesteps", "256", "--n-envs", "1", "--vec", "dummy",
-            "--run-dir", str(run), "--checkpoint-freq", "128", "--max-grasps", "10",
-            "--env-kwargs", json.dumps({"recognizer_kwargs": small_recognizer_kwargs}),
-            "--hyperparams", json.dumps({"n_steps": 64, "batch_size": 32, "n_epochs": 2})]
+    args = _train_args("ppo", 256, run, small_recognizer_kwargs, {"n_steps": 64, "batch_size": 32, "n_epochs": 2})
     path = train.main(args)
     assert path.exists() and (run / "args.json").exists()
     assert sorted(p.name for p in (run / "checkpoints").glob("*.zip")) == ["ppo_128_steps.zip", "ppo_256_steps.zip"]
@@ -105,10 +111,8 @@ def test_tiny_sac_trains_and_acts_in_bounds(env_config, small_recognizer_kwargs,
     from agents.sb3 import SB3Agent, load_model
 
     run = tmp_path / "sac"
-    args = ["--algo", "sac", "--total-timesteps", "128", "--n-envs", "1", "--vec", "dummy",
-            "--run-dir", str(run), "--checkpoint-freq", "128", "--max-grasps", "10",
-            "--env-kwargs", json.dumps({"recognizer_kwargs": small_recognizer_kwargs}),
-            "--hyperparams", json.dumps({"learning_starts": 32, "batch_size": 32, "buffer_size": 1000})]
+    args = _train_args("sac", 128, run, small_recognizer_kwargs, {"learning_starts": 32, "batch_size": 32,
+                                                                 "buffer_size": 1000})
     path = train.main(args)
     model = load_model(path)
     assert type(model).__name__ == "SAC" and model.num_timesteps >= 128
