@@ -87,6 +87,7 @@ class KDELikelihood:
         self.data: list[np.ndarray] = []
         self.trees: list[cKDTree] = []
         self.n_classes = 0
+        self._log_norms: np.ndarray | None = None  # (K,) class normalisers, filled on first use
 
     @property
     def classes_(self) -> np.ndarray:
@@ -130,7 +131,7 @@ class KDELikelihood:
         self.bandwidth = self.factor * scott
         if cfg.method == "tree":
             self.trees = [cKDTree(z, leafsize=32, balanced_tree=False, compact_nodes=False) for z in self.data]
-        self._norm_cache = (None, None)  # refitted: normalisers change
+        self._log_norms = None  # refitted: normalisers change
         return self
 
     def _select(self, scott: float, Zv: np.ndarray, yv: np.ndarray, rng) -> float:
@@ -183,11 +184,10 @@ class KDELikelihood:
         return out + self._norms()
 
     def _norms(self) -> np.ndarray:
-        """``(K,)`` log normalisers of the class densities (computed once per fitted state)."""
-        key = (self.bandwidth, id(self.scaler), tuple(len(z) for z in self.data))
-        if getattr(self, "_norm_cache", (None, None))[0] != key:
-            self._norm_cache = (key, np.array([self._norm(c) for c in range(self.n_classes)]))
-        return self._norm_cache[1]
+        """``(K,)`` log normalisers of the class densities (computed once per fit / load)."""
+        if self._log_norms is None:
+            self._log_norms = np.array([self._norm(c) for c in range(self.n_classes)])
+        return self._log_norms
 
     def _tree_logsum(self, c: int, Z: np.ndarray, inv: float) -> np.ndarray:
         cfg = self.config
