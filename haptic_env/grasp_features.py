@@ -39,6 +39,11 @@ Degenerate grasps
     with ``strict=True`` a :class:`DegenerateGraspError` names the first bad grasp and why.
     Non-finite input is always an error.
 
+Speed
+    Batches of up to ``_COMPILED_MAX_ROWS`` grasps (an environment step scores one) run through the
+    numba kernels of :mod:`haptic_env._phi_kernels` (~8 us per grasp instead of ~0.5 ms of NumPy
+    call overhead); larger batches are vectorised here. Both paths give the same result.
+
 Scale (:func:`normalize_scale`)
     Contacts are divided by ``A = sqrt(total surface area of the grasp polyhedron)``; angles are
     unchanged and lengths become scale-free (Theorem 2).
@@ -71,6 +76,9 @@ DEGENERACY_REASONS = {0: "ok", 1: "coincident contacts", 2: "collinear contacts"
 
 _CHUNK_ELEMENTS = 1 << 18  # bound on B * T * n per chunk (cache-friendly; measured fastest)
 _MIN_CHUNK_ROWS = 1024  # but never fewer rows than this (Python overhead of the chain loop)
+#: Batches of at most this many grasps go through the compiled scalar kernels of
+#: :mod:`haptic_env._phi_kernels` (same algorithm; the NumPy path's fixed cost is ~0.5 ms per call).
+_COMPILED_MAX_ROWS = 64
 
 
 class DegenerateGraspError(ValueError):
@@ -301,19 +309,23 @@ def phi(contacts, normals=None, *, strict: bool = False, tol: float = DEFAULT_TO
         :class:`GraspFeatures` with ``q`` of shape ``(B, feature_dim(n, normals))`` (``(d,)`` etc.
         for a single grasp).
     """
-    P, N, single = _as_batch(contacts, normals, 3)
-    B, n, _ = P.shape
-    d = feature_dim(n, N is not None)
-    q = np.zeros((B, d))
-    valid = np.zeros(B, dtype=bool)
-    order = np.tile(np.arange(n), (B, 1))
-    reason = np.zeros(B, dtype=np.int8)
-    T = max(1, len(_topology(n)[0])) if n >= 3 else 1
-    step = max(_MIN_CHUNK_ROWS, _CHUNK_ELEMENTS // (T * n))
-    for lo in range(0, B, step):
-        sl = slice(lo, min(B, lo + step))
-        fn = _phi2 if n == 2 else _phi_chain
-        q[sl], valid[sl], order[sl], reason[sl] = fn(P[sl], None if N is None else N[sl], tol)
+    fast = _phi_compiled(contacts, normals, tol)
+    if fast is not None:
+        (q, valid, order, reason), single, P = fast
+    else:
+        P, N, single = _as_batch(contacts, normals, 3)
+        B, n, _ = P.shape
+        d = feature_dim(n, N is not None)
+        q = np.zeros((B, d))
+        valid = np.zeros(B, dtype=bool)
+        order = np.tile(np.arange(n), (B, 1))
+        reason = np.zeros(B, dtype=np.int8)
+        T = max(1, len(_topology(n)[0])) if n >= 3 else 1
+        step = max(_MIN_CHUNK_ROWS, _CHUNK_ELEMENTS // (T * n))
+        for lo in range(0, B, step):
+            sl = slice(lo, min(B, lo + step))
+            fn = _phi2 if n == 2 else _phi_chain
+            q[sl], valid[sl], order[sl], reason[sl] = fn(P[sl], None if N is None else N[sl], tol)
     if strict and not valid.all():
         i = int(np.flatnonzero(~valid)[0])
         raise DegenerateGraspError(
@@ -438,6 +450,55 @@ def _phi_chain(P, N, tol):
     return q, valid, order, reason
 
 
+def _small_batch(contacts, normals) -> tuple[np.ndarray, np.ndarray | None, bool] | None:
+    """``(P (B, n, 3), N, single)`` as contiguous float64 when the compiled path applies (``n >= 3``, ``B``
+    at most :data:`_COMPILED_MAX_ROWS`, matching shapes), else None (the NumPy path validates and raises)."""
+    P = np.ascontiguousarray(contacts, dtype=np.float64)
+    single = P.ndim == 2
+    if single:
+        P = P[None]
+    if P.ndim != 3 or P.shape[2] != 3 or P.shape[1] < 3 or P.shape[0] > _COMPILED_MAX_ROWS:
+        return None
+    N = None
+    if normals is not None:
+        N = np.ascontiguousarray(normals, dtype=np.float64)
+        if single:
+            N = N[None]
+        if N.shape != P.shape:
+            return None
+    return P, N, single
+
+
+@lru_cache(maxsize=None)
+def _kernels():
+    """The compiled kernels module (imported on first use: numba costs ~0.3 s to import)."""
+    from haptic_env import _phi_kernels
+
+    return _phi_kernels
+
+
+def _phi_compiled(contacts, normals, tol):
+    """:func:`phi` of a small batch through :func:`haptic_env._phi_kernels.phi_rows`, or None (use NumPy)."""
+    small = _small_batch(contacts, normals)
+    if small is None:
+        return None
+    P, N, single = small
+    B, n, _ = P.shape
+    tri, tri_edges, _, n_edges = _topology(n)
+    q = np.zeros((B, feature_dim(n, N is not None)))
+    order = np.empty((B, n), dtype=np.int64)
+    status = np.empty(B, dtype=np.int64)
+    k = _kernels()
+    if k.phi_rows(P, P if N is None else N, N is not None, tri, tri_edges, n_edges, tol, q, order, status):
+        return None  # bad input: the NumPy path raises the precise error
+    if status.min() == k.AMBIGUOUS:
+        back = np.flatnonzero(status == k.AMBIGUOUS)
+        Nb = None if N is None else N[back] / _norm(N[back])[..., None]
+        q[back], _, order[back], status[back] = _phi_chain(P[back], Nb, tol)
+    reason = status.astype(np.int8)
+    return (q, reason == 0, order, reason), single, P
+
+
 # ----------------------------------------------------------------------------------- planar phi
 def phi_planar(contacts, normals=None, *, strict: bool = False, tol: float = DEFAULT_TOL) -> GraspFeatures:
     """Planar sibling of :func:`phi` for ``(B, n, 2)`` contacts (``2n - 3`` values, ``3n - 3`` with normals)."""
@@ -510,19 +571,35 @@ def surface_area(contacts, *, tol: float = DEFAULT_TOL) -> np.ndarray:
     ``n = 2``: the squared distance (so that scaling divides it to 1); ``n = 3``: the triangle's
     area; ``n >= 4``: the area of the convex hull. Degenerate grasps get 0.
     """
+    small = _small_batch(contacts, None)
+    if small is not None:  # compiled kernel (NumPy for rows with planar hull faces, and to raise on bad input)
+        P, _, single = small
+        out, status = np.empty(len(P)), np.empty(len(P), dtype=np.int64)
+        k = _kernels()
+        if not k.surface_area_rows(P, _topology(P.shape[1])[0], tol, out, status):
+            back = np.flatnonzero(status == k.AMBIGUOUS)
+            if back.size:
+                out[back] = _surface_area_numpy(P[back], tol)
+                status[back] = 0
+            out = np.where(status == 0 if P.shape[1] > 3 else status < 2, out, 0.0)
+            return out[0] if single else out
     P, _, single = _as_batch(contacts, None, 3)
+    out = _surface_area_numpy(P, tol)
+    return out[0] if single else out
+
+
+def _surface_area_numpy(P: np.ndarray, tol: float) -> np.ndarray:
     B, n, _ = P.shape
     if n == 2:
-        out = np.sum((P[:, 1] - P[:, 0]) ** 2, -1)
-    else:
-        out = np.zeros(B)
-        T = len(_topology(n)[0])
-        step = max(_MIN_CHUNK_ROWS, _CHUNK_ELEMENTS // (T * n))
-        for lo in range(0, B, step):
-            area, hull, reason, _ = _hull_facets(P[lo : lo + step], tol)
-            ok = reason == 0 if n > 3 else reason < 2
-            out[lo : lo + step] = np.where(ok, np.where(hull, area, 0.0).sum(1), 0.0)
-    return out[0] if single else out
+        return np.sum((P[:, 1] - P[:, 0]) ** 2, -1)
+    out = np.zeros(B)
+    T = len(_topology(n)[0])
+    step = max(_MIN_CHUNK_ROWS, _CHUNK_ELEMENTS // (T * n))
+    for lo in range(0, B, step):
+        area, hull, reason, _ = _hull_facets(P[lo : lo + step], tol)
+        ok = reason == 0 if n > 3 else reason < 2
+        out[lo : lo + step] = np.where(ok, np.where(hull, area, 0.0).sum(1), 0.0)
+    return out
 
 
 def normalize_scale(contacts, *, tol: float = DEFAULT_TOL) -> tuple[np.ndarray, np.ndarray]:

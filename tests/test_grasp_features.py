@@ -247,3 +247,51 @@ def test_box_surface_grasps_are_order_and_frame_invariant(n):
     assert f.valid.mean() > 0.98
     np.testing.assert_array_equal(f.valid, g.valid)
     np.testing.assert_allclose(f.q, g.q, atol=1e-7)
+
+
+# --------------------------------------------------------------------- compiled small-batch path
+def _numpy_phi(monkeypatch, *args, **kw):
+    """``phi`` forced through the vectorised NumPy path (the compiled one serves batches <= 64)."""
+    import haptic_env.grasp_features as gf
+
+    with monkeypatch.context() as m:
+        m.setattr(gf, "_COMPILED_MAX_ROWS", 0)
+        return phi(*args, **kw), surface_area(args[0])
+
+
+@SETTINGS
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(3, 9), normals=st.booleans())
+def test_compiled_small_batches_match_numpy_path(seed, n, normals):
+    """Small batches (an env step) use the numba kernels: same q, order, validity and area as NumPy."""
+    P, N = random_grasp(seed, n, batch=12, normals=normals)
+    P[0, :, 2] = 0.0  # coplanar (n >= 4) or a flat-lying triangle (n = 3: still valid)
+    P[1, 1] = P[1, 0]  # coincident
+    P[2] = np.linspace(0, 1, n)[:, None] * [1.0, 2.0, 3.0]  # collinear
+    if n >= 4:  # a square of 4 contacts (n = 4: coplanar; n >= 5: a planar hull face, the Qhull fallback)
+        P[3, :4] = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
+        P[3, 4:, 2] = np.abs(P[3, 4:, 2]) + 0.5
+    with pytest.MonkeyPatch.context() as mp:
+        ref, ref_area = _numpy_phi(mp, P, N)
+    f = phi(P, N)
+    np.testing.assert_array_equal(f.valid, ref.valid)
+    np.testing.assert_array_equal(f.reason, ref.reason)
+    np.testing.assert_array_equal(f.order, ref.order)
+    np.testing.assert_allclose(f.q, ref.q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(surface_area(P), ref_area, rtol=1e-12, atol=1e-15)
+    for i in (0, 4):  # single grasps take the same path
+        g = phi(P[i], None if N is None else N[i])
+        np.testing.assert_allclose(g.q, ref.q[i], rtol=0, atol=1e-12)
+        assert g.valid == ref.valid[i]
+
+
+def test_compiled_path_raises_the_same_errors():
+    P = np.random.default_rng(0).normal(size=(2, 4, 3))
+    P[1, 2, 1] = np.inf
+    with pytest.raises(ValueError, match="grasp 1 are not finite"):
+        phi(P)
+    with pytest.raises(ValueError, match="grasp 1 are not finite"):
+        surface_area(P)
+    N = np.ones((2, 4, 3))
+    N[0, 3] = np.nan
+    with pytest.raises(ValueError, match="normal 3 of grasp 0 is zero or not finite"):
+        phi(P[:1].repeat(2, 0), N)

@@ -1,0 +1,351 @@
+r"""Compiled (numba) scalar kernels of :math:`\Phi_n` for one grasp at a time.
+
+:func:`haptic_env.grasp_features.phi` vectorises over a batch with NumPy, which costs ~0.5 ms of
+array-call overhead however small the batch. An environment step scores ONE grasp, so small batches
+go through these kernels instead: the same algorithm, written as scalar loops, with the same
+floating-point operations in the same order and the same tie-breaking (first maximum), so both
+paths agree to rounding (tested on random, degenerate and symmetric grasps in
+``tests/test_grasp_features.py``).
+
+Each kernel returns a status: ``0`` ok, ``1``/``2``/``3`` the degeneracy codes of
+:data:`haptic_env.grasp_features.DEGENERACY_REASONS`, or ``-1`` when a hull face holds four or more
+coplanar contacts: that face needs the canonical triangulation of
+``grasp_features._canonical_hull_triangles`` (Qhull), so the caller falls back to the NumPy path.
+
+Compiled on first use and cached on disk (numba ``cache=True``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+__all__ = ["phi_one", "phi_rows", "surface_area_one", "surface_area_rows", "AMBIGUOUS", "BAD_INPUT"]
+
+AMBIGUOUS = -1  #: a hull face with >= 4 coplanar contacts: use the NumPy path
+BAD_INPUT = -2  #: non-finite contacts, or a zero / non-finite normal: the NumPy path raises the error
+
+
+@njit(cache=True, inline="always")
+def _sub(P, i, j):
+    return P[i, 0] - P[j, 0], P[i, 1] - P[j, 1], P[i, 2] - P[j, 2]
+
+
+@njit(cache=True, inline="always")
+def _dist(P, i, j):
+    d0, d1, d2 = P[i, 0] - P[j, 0], P[i, 1] - P[j, 1], P[i, 2] - P[j, 2]
+    return math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+
+
+@njit(cache=True, inline="always")
+def _cross(u0, u1, u2, v0, v1, v2):
+    return u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+
+
+@njit(cache=True, inline="always")
+def _norm(u0, u1, u2):
+    return math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+
+
+@njit(cache=True, inline="always")
+def _angle(u0, u1, u2, v0, v1, v2):
+    c0, c1, c2 = _cross(u0, u1, u2, v0, v1, v2)
+    return math.atan2(_norm(c0, c1, c2), u0 * v0 + u1 * v1 + u2 * v2)
+
+
+@njit(cache=True)
+def _signed_dihedral(P, x, y, w, u):
+    """Signed angle about axis ``y - x`` from half-plane ``(x, y, w)`` to ``(x, y, u)`` (contact indices)."""
+    e0, e1, e2 = _sub(P, y, x)
+    n = _norm(e0, e1, e2)
+    if n > 0:
+        e0, e1, e2 = e0 / n, e1 / n, e2 / n
+    a0, a1, a2 = _sub(P, w, x)
+    b0, b1, b2 = _sub(P, u, x)
+    da = a0 * e0 + a1 * e1 + a2 * e2
+    db = b0 * e0 + b1 * e1 + b2 * e2
+    a0, a1, a2 = a0 - da * e0, a1 - da * e1, a2 - da * e2
+    b0, b1, b2 = b0 - db * e0, b1 - db * e1, b2 - db * e2
+    c0, c1, c2 = _cross(a0, a1, a2, b0, b1, b2)
+    ang = math.atan2(e0 * c0 + e1 * c1 + e2 * c2, a0 * b0 + a1 * b1 + a2 * b2)
+    if abs(ang) > math.pi - 1e-9:
+        return math.pi
+    return ang
+
+
+@njit(cache=True)
+def _hull(P, tri, tol, area, hull):
+    """Fill ``area (T,)`` and ``hull (T,)`` of one grasp; return its status (see module docs)."""
+    n = P.shape[0]
+    T = tri.shape[0]
+    dmin = np.inf
+    scale = 0.0
+    for i in range(n):
+        for j in range(i + 1, n):
+            d = _dist(P, i, j)
+            dmin = min(dmin, d)
+            scale = max(scale, d)
+    sc = max(scale, 1e-300)
+    status = 0
+    if dmin <= tol * sc or scale <= 1e-300:
+        status = 1
+    amax = -np.inf
+    for t in range(T):
+        a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
+        u0, u1, u2 = _sub(P, b, a)
+        v0, v1, v2 = _sub(P, c, a)
+        c0, c1, c2 = _cross(u0, u1, u2, v0, v1, v2)
+        area[t] = 0.5 * _norm(c0, c1, c2)
+        amax = max(amax, area[t])
+        hull[t] = True
+    s2 = sc * sc
+    if status == 0 and amax <= 0.5 * tol * s2:
+        status = 2
+    if n == 3:
+        return status
+    thr = tol * sc * sc * sc
+    any_side = False
+    ambiguous = False
+    for t in range(T):
+        a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
+        u0, u1, u2 = _sub(P, b, a)
+        v0, v1, v2 = _sub(P, c, a)
+        c0, c1, c2 = _cross(u0, u1, u2, v0, v1, v2)
+        off = c0 * P[a, 0] + c1 * P[a, 1] + c2 * P[a, 2]
+        pos = neg = onplane = False
+        for m in range(n):
+            if m == a or m == b or m == c:
+                continue
+            s = (c0 * P[m, 0] + c1 * P[m, 1] + c2 * P[m, 2]) - off
+            if s > thr:
+                pos = True
+            elif s < -thr:
+                neg = True
+            else:
+                onplane = True
+        any_side = any_side or pos or neg
+        proper = area[t] > 0.5 * tol * s2
+        hull[t] = proper and not (pos and neg)
+        if hull[t] and onplane:
+            ambiguous = True
+    if status == 0 and not any_side:
+        status = 3
+    if status == 0 and ambiguous:
+        status = -1
+    return status
+
+
+@njit(cache=True)
+def surface_area_one(P, tri, tol):
+    """``(area, status)`` of one grasp ``P (n, 3)``; ``tri`` are ``combinations(range(n), 3)``."""
+    T = tri.shape[0]
+    area = np.empty(T)
+    hull = np.empty(T, dtype=np.bool_)
+    status = _hull(P, tri, tol, area, hull)
+    total = 0.0
+    for t in range(T):
+        if hull[t]:
+            total += area[t]
+    return total, status
+
+
+@njit(cache=True)
+def phi_one(P, N, has_normals, tri, tri_edges, n_edges, tol, q, order):
+    """Chain of one grasp ``P (n, 3)`` (unit normals ``N`` if ``has_normals``) into ``q`` and ``order``.
+
+    ``q (d,)`` and ``order (n,)`` are written only when the status is 0 (ok).
+    """
+    n = P.shape[0]
+    T = tri.shape[0]
+    area = np.empty(T)
+    hull = np.empty(T, dtype=np.bool_)
+    status = _hull(P, tri, tol, area, hull)
+    if status != 0:
+        return status
+    # --- t1 and its longest edge ab
+    t1 = 0
+    best = -np.inf
+    for t in range(T):
+        v = area[t] if hull[t] else -1.0
+        if v > best:
+            best, t1 = v, t
+    p0, p1, p2 = tri[t1, 0], tri[t1, 1], tri[t1, 2]
+    L0 = _dist(P, p1, p2)
+    L1 = _dist(P, p0, p2)
+    L2 = _dist(P, p0, p1)
+    opp = 0
+    if L1 > L0:
+        opp = 1
+    if L2 > max(L0, L1):
+        opp = 2
+    ia, ib, ic = tri[t1, (opp + 1) % 3], tri[t1, (opp + 2) % 3], tri[t1, opp]
+    ba0, ba1, ba2 = _sub(P, ib, ia)
+    ca0, ca1, ca2 = _sub(P, ic, ia)
+    ab0, ab1, ab2 = _sub(P, ia, ib)
+    cb0, cb1, cb2 = _sub(P, ic, ib)
+    ang_a = _angle(ba0, ba1, ba2, ca0, ca1, ca2)
+    ang_b = _angle(ab0, ab1, ab2, cb0, cb1, cb2)
+    if ang_b > ang_a:
+        ia, ib = ib, ia
+        ang_a, ang_b = ang_b, ang_a
+    q[0] = _dist(P, ib, ia)
+    q[1] = ang_a
+    q[2] = ang_b
+    order[0], order[1], order[2] = ia, ib, ic
+    rank = np.full(n, n, dtype=np.int64)
+    rank[ia], rank[ib], rank[ic] = 0, 1, 2
+    visited = np.zeros(n, dtype=np.bool_)
+    visited[ia] = visited[ib] = visited[ic] = True
+    owner = np.full(n_edges, -1, dtype=np.int64)
+    for j in range(3):
+        owner[tri_edges[t1, j]] = t1
+    if n >= 4:
+        ba0, ba1, ba2 = _sub(P, ib, ia)
+        ab0, ab1, ab2 = _sub(P, ia, ib)
+        att_a = np.empty(n)
+        att_b = np.empty(n)
+        att_d = np.empty(n)
+        for m in range(n):
+            pa0, pa1, pa2 = _sub(P, m, ia)
+            pb0, pb1, pb2 = _sub(P, m, ib)
+            att_a[m] = _angle(ba0, ba1, ba2, pa0, pa1, pa2)
+            att_b[m] = _angle(ab0, ab1, ab2, pb0, pb1, pb2)
+            att_d[m] = _signed_dihedral(P, ia, ib, ic, m)
+        upos = np.empty(T, dtype=np.int64)
+        g_all = np.empty(T, dtype=np.int64)
+        for k in range(3, n):
+            f = -1
+            best = -np.inf
+            for t in range(T):
+                n_unv = 0
+                up = -1
+                for j in range(3):
+                    if not visited[tri[t, j]]:
+                        n_unv += 1
+                        if up < 0:
+                            up = j
+                if up < 0:
+                    up = 0
+                upos[t] = up
+                g_all[t] = owner[tri_edges[t, up]]
+                if hull[t] and n_unv == 1 and g_all[t] >= 0 and area[t] > best:
+                    best, f = area[t], t
+            base = 3 + 3 * (k - 3)
+            if f >= 0:
+                fu = upos[f]
+                u_new = tri[f, fu]
+                o1, o2 = tri[f, (fu + 1) % 3], tri[f, (fu + 2) % 3]
+                if rank[o2] < rank[o1]:
+                    x, y = o2, o1
+                else:
+                    x, y = o1, o2
+                g = g_all[f]
+                w = tri[g, 0]
+                for j in range(3):
+                    if tri[g, j] != x and tri[g, j] != y:
+                        w = tri[g, j]
+                        break
+                yx0, yx1, yx2 = _sub(P, y, x)
+                ux0, ux1, ux2 = _sub(P, u_new, x)
+                xy0, xy1, xy2 = _sub(P, x, y)
+                uy0, uy1, uy2 = _sub(P, u_new, y)
+                q[base] = _angle(yx0, yx1, yx2, ux0, ux1, ux2)
+                q[base + 1] = _angle(xy0, xy1, xy2, uy0, uy1, uy2)
+                q[base + 2] = _signed_dihedral(P, x, y, w, u_new)
+                for j in range(3):
+                    e = tri_edges[f, j]
+                    if owner[e] < 0:
+                        owner[e] = f
+            else:  # no hull facet reaches a new contact: attach to ab, largest angle at a first
+                u_new = -1
+                best = -np.inf
+                for m in range(n):
+                    if not visited[m] and (u_new < 0 or att_a[m] > best):
+                        best, u_new = att_a[m], m
+                q[base] = att_a[u_new]
+                q[base + 1] = att_b[u_new]
+                q[base + 2] = att_d[u_new]
+            order[k] = u_new
+            rank[u_new] = k
+            visited[u_new] = True
+    if has_normals:
+        ba0, ba1, ba2 = _sub(P, ib, ia)
+        ca0, ca1, ca2 = _sub(P, ic, ia)
+        m0, m1, m2 = _cross(ba0, ba1, ba2, ca0, ca1, ca2)
+        s = _norm(m0, m1, m2)
+        if s > 0:
+            m0, m1, m2 = m0 / s, m1 / s, m2 / s
+        if n == 3:
+            r0, r1, r2 = ba0, ba1, ba2
+        else:
+            da0, da1, da2 = _sub(P, order[3], ia)
+            r0, r1, r2 = _cross(ba0, ba1, ba2, da0, da1, da2)
+        s = _norm(r0, r1, r2)
+        if s > 0:
+            r0, r1, r2 = r0 / s, r1 / s, r2 / s
+        base = 3 * n - 6
+        for j in range(n):
+            o = order[j]
+            q[base + 2 * j] = _angle(N[o, 0], N[o, 1], N[o, 2], m0, m1, m2)
+            q[base + 2 * j + 1] = _angle(N[o, 0], N[o, 1], N[o, 2], r0, r1, r2)
+    return 0
+
+
+@njit(cache=True)
+def _bad_input(P, N, has_normals):
+    for i in range(P.shape[0]):
+        for j in range(3):
+            if not math.isfinite(P[i, j]):
+                return True
+    if has_normals:
+        for i in range(N.shape[0]):
+            s = N[i, 0] * N[i, 0] + N[i, 1] * N[i, 1] + N[i, 2] * N[i, 2]
+            if not (math.isfinite(s) and math.sqrt(s) > 1e-12):
+                return True
+    return False
+
+
+@njit(cache=True)
+def phi_rows(P, N, has_normals, tri, tri_edges, n_edges, tol, q, order, status):
+    """:func:`phi_one` over a batch ``P (B, n, 3)``; normals ``N (B, n, 3)`` are normalised here.
+
+    Fills ``q (B, d)`` (zero rows unless ok), ``order (B, n)`` and ``status (B,)``; returns True when
+    some row has :data:`BAD_INPUT` (the caller re-validates to raise a precise error).
+    """
+    B, n = P.shape[0], P.shape[1]
+    Nu = np.empty((n, 3))
+    bad = False
+    for i in range(B):
+        for j in range(n):
+            order[i, j] = j
+        if _bad_input(P[i], N[i], has_normals):
+            status[i] = BAD_INPUT
+            bad = True
+            continue
+        if has_normals:
+            for j in range(n):
+                s = math.sqrt(N[i, j, 0] * N[i, j, 0] + N[i, j, 1] * N[i, j, 1] + N[i, j, 2] * N[i, j, 2])
+                Nu[j, 0], Nu[j, 1], Nu[j, 2] = N[i, j, 0] / s, N[i, j, 1] / s, N[i, j, 2] / s
+        st = phi_one(P[i], Nu, has_normals, tri, tri_edges, n_edges, tol, q[i], order[i])
+        if st != 0:
+            q[i, :] = 0.0
+            for j in range(n):
+                order[i, j] = j
+        status[i] = st
+    return bad
+
+
+@njit(cache=True)
+def surface_area_rows(P, tri, tol, out, status):
+    """:func:`surface_area_one` over a batch ``P (B, n, 3)`` into ``out (B,)`` and ``status (B,)``."""
+    bad = False
+    for i in range(P.shape[0]):
+        if _bad_input(P[i], P[i], False):
+            status[i] = BAD_INPUT
+            out[i] = 0.0
+            bad = True
+            continue
+        out[i], status[i] = surface_area_one(P[i], tri, tol)
+    return bad
