@@ -75,6 +75,10 @@ class HapticRecogConfig:
     """Training grasps of the recogniser (``RecognizerConfig.source``) unless ``recognizer_kwargs`` sets its own
     config: "geometric" (the geometric hand's approach grasps, from the meshes alone: matches what the env's
     hand touches) or "surface" (random surface points, the paper's protocol)."""
+    kde_method: str = "pooled"
+    """How the belief update evaluates the per-object KDEs (``KDEConfig.method``) unless ``recognizer_kwargs``
+    sets its own: "pooled" (one neighbour search over all objects' training vectors: ~50 us per grasp),
+    "tree" (a search per object, as the recogniser analyses use: ~0.45 ms), or "dense" (exact, slow)."""
     recognizer_kwargs: Mapping[str, Any] = field(default_factory=dict)
     """Extra keyword arguments of :func:`haptic_env.recognizers.build_recognizer`, e.g.
     ``{"config": RecognizerConfig(grasps=DatasetConfig(grasps_per_object=5000))}``; ``config`` may also be a
@@ -138,7 +142,7 @@ def _recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
     turned into ``RecognizerConfig`` (so the command line can pass recogniser settings as JSON); without a
     config, or a JSON config whose ``grasps`` has no ``source``, the recogniser trains on
     ``config.recognizer_source`` grasps (with ``support`` from the backend's ``support`` setting, default
-    "table")."""
+    "table"), and its KDE is evaluated by ``config.kde_method`` unless the JSON ``kde`` names a method."""
     from haptic_env.dataset import DatasetConfig
     from haptic_env.recognizers import KDEConfig, MLPConfig, RecognizerConfig
 
@@ -155,8 +159,9 @@ def _recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
         rc["grasps"] = DatasetConfig(**grasps)
         if isinstance(rc.get("mlp"), Mapping):
             rc["mlp"] = MLPConfig(**rc["mlp"])
-        if isinstance(rc.get("kde"), Mapping):
-            rc["kde"] = KDEConfig(**rc["kde"])
+        kde = rc.get("kde", {})
+        if isinstance(kde, Mapping):
+            rc["kde"] = KDEConfig(**{"method": config.kde_method, **kde})
         kw["config"] = RecognizerConfig(**rc)
     return kw
 
@@ -284,6 +289,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     | scale_range        | None                    | (lo, hi) random scale                                      |
     | max_grasps         | 30                      | truncation and count normalisation                         |
     | recognizer_source  | "geometric"             | recogniser training grasps: "geometric" / "surface"        |
+    | kde_method         | "pooled"                | KDE evaluation: "pooled" (fast) / "tree" / "dense"         |
     | recognizer_kwargs  | {}                      | passed to ``build_recognizer``                             |
 
     The recogniser is built (or loaded from the cache, ``$HAPTIC_CACHE``) on the first ``reset`` and shared
