@@ -525,11 +525,12 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
             raise ValueError(f"action must be a numeric array of shape ({self.action_dim},), got {action!r}") from exc
         if a.shape != (self.action_dim,):
             raise ValueError(f"action must have shape ({self.action_dim},), got {a.shape}: {action!r}")
-        if not np.isfinite(a).all():
-            raise ValueError(f"action must be finite, got {a.tolist()}")
-        if np.any(np.abs(a) > 1.0 + 1e-6):
-            raise ValueError(f"action must lie in [-1, 1], got {a.tolist()}")
-        return np.clip(a, -1.0, 1.0)
+        values = a.tolist()
+        if not all(-1.0 - 1e-6 <= v <= 1.0 + 1e-6 for v in values):  # also False for NaN
+            if not all(math.isfinite(v) for v in values):
+                raise ValueError(f"action must be finite, got {values}")
+            raise ValueError(f"action must lie in [-1, 1], got {values}")
+        return np.minimum(np.maximum(a, -1.0), 1.0)
 
     def _normals_of(self, result) -> np.ndarray:
         N = result.normals if result.normals is not None else getattr(result, "gt_normals", None)

@@ -323,6 +323,18 @@ def test_recognizer_source_reaches_the_recognizer_config(env_config):
         env_config.replace(recognizer_source="photos")
 
 
+def test_kde_method_reaches_the_recognizer_config(env_config):
+    from haptic_env.env import _recognizer_kwargs
+
+    assert HapticRecogConfig().kde_method == "pooled"
+    assert _recognizer_kwargs(env_config)["config"].kde.method == env_config.kde_method
+    assert _recognizer_kwargs(env_config.replace(kde_method="tree"))["config"].kde.method == "tree"
+    own = env_config.replace(recognizer_kwargs={"config": {"kde": {"method": "dense", "factor": 0.5}}})
+    assert _recognizer_kwargs(own)["config"].kde.method == "dense"  # the JSON config's own method wins
+    with pytest.raises(ValueError, match="method"):
+        _recognizer_kwargs(env_config.replace(kde_method="fastest"))
+
+
 def test_mujoco_allegro_variant_runs_an_episode(env_config):
     """``HapticRecogMuJoCo-v0``: the Allegro hand grasps YCB objects in MuJoCo inside a full env loop."""
     from haptic_env.objects import data_dir

@@ -70,3 +70,36 @@ def test_kde_errors():
         kde.log_likelihood(np.zeros((1, 3)))
     with pytest.raises(ValueError, match="not finite"):
         kde.log_likelihood(np.array([[np.nan, 0.0]]))
+
+
+def test_pooled_matches_tree_and_dense():
+    """One search over all classes: the classes among the k nearest get the tree's sums; argmax as dense."""
+    rng = np.random.default_rng(5)
+    X, y = _blobs(rng)
+    q = X[rng.choice(len(X), 200)] + rng.normal(scale=0.3, size=(200, X.shape[1]))
+    exact = KDELikelihood(KDEConfig(factor=0.3, method="pooled", k=len(X), cutoff=100.0, eps=0.0)).fit(X, y)
+    assert np.allclose(exact.log_likelihood(q), exact.log_likelihood(q, method="dense"), atol=1e-8)
+    pooled = KDELikelihood(KDEConfig(factor=0.3, method="pooled", eps=0.0)).fit(X, y)
+    tree = KDELikelihood(KDEConfig(factor=0.3, method="tree", eps=0.0)).fit(X, y)
+    lp, lt, ld = pooled.log_likelihood(q), tree.log_likelihood(q), pooled.log_likelihood(q, method="dense")
+    assert np.mean(lp.argmax(1) == ld.argmax(1)) >= 0.95
+    best = np.arange(len(q)), lt.argmax(1)  # the nearest class is always among the pooled neighbours
+    assert np.allclose(lp[best], lt[best], atol=0.05)
+
+
+def test_pooled_floor_for_classes_beyond_the_k_nearest():
+    """A class with no vector among the k nearest gets the kernel at the k-th distance (its upper bound)."""
+    X = np.array([[0.0], [0.1], [0.2], [10.0], [50.0]])
+    y = np.array([0, 0, 0, 1, 2])
+    kde = KDELikelihood(KDEConfig(factor=1.0, method="pooled", k=3, eps=0.0)).fit(X, y)
+    Z = kde.scaler(np.array([[0.05]]))
+    ll = kde.log_likelihood(np.array([[0.05]]))
+    d3 = np.abs(kde.scaler(X[2:3]) - Z)[0, 0]  # third nearest: 0.2
+    inv = 0.5 / kde.bandwidth**2
+    norms = kde._norms()
+    assert ll[0, 1] == pytest.approx(-inv * d3**2 + norms[1])
+    assert ll[0, 2] == pytest.approx(-inv * d3**2 + norms[2])  # both far classes tie at the floor
+    near = np.abs(kde.scaler(X[:3]) - Z)[:, 0]
+    assert ll[0, 0] == pytest.approx(np.log(np.exp(-inv * near**2).sum()) + norms[0])
+    again = KDELikelihood.from_state(kde.config, kde.state())  # the pooled index is rebuilt on load
+    assert np.allclose(again.log_likelihood(np.array([[0.05]])), ll, atol=1e-6)

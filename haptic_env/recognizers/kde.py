@@ -196,7 +196,7 @@ class KDELikelihood:
             method = "dense"
         inv = 0.5 / self.bandwidth**2
         if method == "pooled":
-            return self._pooled_logsum(Z, inv) + self._norms()
+            return self._pooled_logsum(Z, inv)
         out = np.empty((len(Z), self.n_classes))
         for c in range(self.n_classes):
             if method == "tree":
@@ -233,7 +233,7 @@ class KDELikelihood:
         k = min(cfg.k, self.pooled.n)
         dist, idx = self.pooled.query(Z, k=k, eps=cfg.eps)
         dist, idx = dist.reshape(len(Z), k), idx.reshape(len(Z), k)
-        return _pooled_kernel_sums(dist, self.pooled_labels[idx], self.n_classes, inv, cfg.cutoff * self.bandwidth)
+        return _pooled_kernel_sums(dist, idx, self.pooled_labels, self._norms(), inv, cfg.cutoff * self.bandwidth)
 
     # ---------------------------------------------------------------------------- storage
     def state(self) -> dict[str, np.ndarray]:
@@ -264,9 +264,11 @@ def _tree(z: np.ndarray) -> cKDTree:
 
 
 @njit(cache=True)
-def _pooled_kernel_sums(dist, labels, n_classes, inv, radius):
-    """``(B, k)`` sorted neighbour distances and classes -> ``(B, K)`` log kernel sums ("pooled", see module docs)."""
+def _pooled_kernel_sums(dist, idx, labels, log_norms, inv, radius):
+    """``(B, k)`` sorted neighbour distances and indices, ``(N,)`` classes of the pooled vectors and ``(K,)``
+    class normalisers -> ``(B, K)`` log densities ("pooled", see module docs)."""
     B, k = dist.shape
+    n_classes = log_norms.shape[0]
     out = np.empty((B, n_classes))
     top = np.empty(n_classes)  # largest term within the radius (the first: distances are sorted)
     acc = np.empty(n_classes)  # sum of exp(term - top) within the radius
@@ -276,7 +278,7 @@ def _pooled_kernel_sums(dist, labels, n_classes, inv, radius):
         acc[:] = 0.0
         near[:] = np.nan
         for j in range(k):
-            c = labels[b, j]
+            c = labels[idx[b, j]]
             x = -inv * dist[b, j] * dist[b, j]
             if np.isnan(near[c]):
                 near[c] = x
@@ -287,11 +289,11 @@ def _pooled_kernel_sums(dist, labels, n_classes, inv, radius):
         floor = -inv * dist[b, k - 1] * dist[b, k - 1]
         for c in range(n_classes):
             if acc[c] > 0.0:
-                out[b, c] = top[c] + np.log(acc[c])
+                out[b, c] = top[c] + np.log(acc[c]) + log_norms[c]
             elif not np.isnan(near[c]):
-                out[b, c] = near[c]
+                out[b, c] = near[c] + log_norms[c]
             else:
-                out[b, c] = floor
+                out[b, c] = floor + log_norms[c]
     return out
 
 

@@ -36,7 +36,6 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 
 import numpy as np
-from scipy.special import logsumexp
 
 __all__ = ["BeliefUpdater", "IterativeClassification", "BayesianUpdater", "BCNP", "BCIP", "make_updater", "UPDATERS"]
 
@@ -47,6 +46,12 @@ def _check_threshold(threshold: float) -> float:
     if not (0.0 < threshold <= 1.0):
         raise ValueError(f"threshold (lambda_s) must be in (0, 1], got {threshold!r}")
     return float(threshold)
+
+
+def _logsumexp(v: np.ndarray) -> float:
+    """``log(sum(exp(v)))`` of a 1-D array with a finite maximum (scipy's costs ~0.1 ms of dispatch per call)."""
+    m = v.max()
+    return float(m + np.log(np.exp(v - m).sum()))
 
 
 def _rows(q) -> np.ndarray:
@@ -183,16 +188,19 @@ class BayesianUpdater(BeliefUpdater):
         L = np.asarray(log_lik, dtype=np.float64).reshape(-1, self.n_classes)
         if len(L) == 0:
             return
-        if np.isnan(L).any():
-            raise ValueError("log-likelihood contains NaN")
-        ll = L.sum(axis=0) if self.combine == "product" else L.mean(axis=0)
-        top = ll.max()
-        if not np.isfinite(top):  # every class impossible: no information
-            return
+        if len(L) == 1:
+            ll = L[0]
+        else:
+            ll = L.sum(axis=0) if self.combine == "product" else L.mean(axis=0)
+        top = ll.max()  # NaN if any entry is NaN
+        if not np.isfinite(top):
+            if np.isnan(L).any():
+                raise ValueError("log-likelihood contains NaN")
+            return  # every class impossible: no information
         if self.max_log_ratio is not None:
             ll = np.maximum(ll, top - self.max_log_ratio)
         post = self.log_belief + (ll - top)
-        self.log_belief = post - logsumexp(post)
+        self.log_belief = post - _logsumexp(post)
 
     def update_scores(self, log_lik=None, proba=None) -> np.ndarray:
         self.n_grasps += 1
@@ -231,7 +239,7 @@ class BCIP(BayesianUpdater):
         if len(P):
             p = np.maximum(P.mean(axis=0), self.eps)
             post = self.log_belief + np.log(p / p.sum())
-            self.log_belief = post - logsumexp(post)
+            self.log_belief = post - _logsumexp(post)
         return self.belief
 
     def update(self, q) -> np.ndarray:

@@ -13,6 +13,7 @@ model (the models are routed by feature dimension, see :class:`~haptic_env.recog
 
 from __future__ import annotations
 
+from functools import lru_cache
 from itertools import combinations
 from math import comb
 
@@ -32,7 +33,7 @@ def subsets(n: int, z: int, k: int | None = None, rng: np.random.Generator | Non
         raise ValueError(f"need 2 <= z <= n, got z={z}, n={n}")
     total = comb(n, z)
     if k is None or k >= total:
-        return np.array(list(combinations(range(n), z)), dtype=np.int64).reshape(-1, z)
+        return _all_subsets(n, z).copy()
     if k < 1:
         raise ValueError(f"k must be >= 1 or None, got {k}")
     if rng is None:
@@ -45,6 +46,13 @@ def subsets(n: int, z: int, k: int | None = None, rng: np.random.Generator | Non
     while len(seen) < k:
         seen.add(tuple(sorted(rng.choice(n, size=z, replace=False).tolist())))
     return np.array(sorted(seen), dtype=np.int64)
+
+
+@lru_cache(maxsize=None)
+def _all_subsets(n: int, z: int) -> np.ndarray:
+    out = np.array(list(combinations(range(n), z)), dtype=np.int64).reshape(-1, z)
+    out.flags.writeable = False
+    return out
 
 
 def grasp_vectors_for(contacts, normals=None, *, normalize: bool = False) -> tuple[np.ndarray, np.ndarray]:
@@ -85,9 +93,11 @@ def subset_vectors(contacts, normals=None, z: int | None = None, *, k: int | Non
     d = feature_dim(max(z, 2), N is not None)
     if n < z or z < 2:
         return np.zeros((0, d))
-    idx = subsets(n, z, k, rng)
-    Pz = P[idx]
-    Nz = None if N is None else N[idx]
+    if z == n:  # the whole grasp: one row (the common case: an env step)
+        Pz, Nz = P[None], None if N is None else N[None]
+    else:
+        idx = subsets(n, z, k, rng)
+        Pz, Nz = P[idx], None if N is None else N[idx]
     q, valid = grasp_vectors_for(Pz, Nz, normalize=normalize)
     return q[valid]
 
