@@ -463,7 +463,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         gain = self._gain(old, self._belief)
         terms = {"gain": gain, "grasp_cost": -float(self.config.grasp_cost)}
         reward = float(sum(terms.values()))
-        decided = bool(getattr(self._updater, "decided", self._belief.max() >= self.config.threshold))
+        decided = bool(self._updater.decided)
         terminated = decided
         truncated = (not terminated) and self._grasps >= self.config.max_grasps
         info = self._info(usable=usable, decided=decided)

@@ -79,8 +79,9 @@ def test_pooled_matches_tree_and_dense():
     q = X[rng.choice(len(X), 200)] + rng.normal(scale=0.3, size=(200, X.shape[1]))
     exact = KDELikelihood(KDEConfig(factor=0.3, method="pooled", k=len(X), cutoff=100.0, eps=0.0)).fit(X, y)
     assert np.allclose(exact.log_likelihood(q), exact.log_likelihood(q, method="dense"), atol=1e-8)
-    pooled = KDELikelihood(KDEConfig(factor=0.3, method="pooled", eps=0.0)).fit(X, y)
     tree = KDELikelihood(KDEConfig(factor=0.3, method="tree", eps=0.0)).fit(X, y)
+    pooled = tree.with_method("pooled")
+    assert pooled.config.method == "pooled" and pooled.bandwidth == tree.bandwidth
     lp, lt, ld = pooled.log_likelihood(q), tree.log_likelihood(q), pooled.log_likelihood(q, method="dense")
     assert np.mean(lp.argmax(1) == ld.argmax(1)) >= 0.95
     best = np.arange(len(q)), lt.argmax(1)  # the nearest class is always among the pooled neighbours

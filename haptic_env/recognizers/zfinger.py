@@ -111,8 +111,16 @@ class ZFingerUpdater:
             raise ValueError("ZFingerUpdater with random subsets (k) needs an rng")
         self.base, self.z, self.k, self.rng, self.normalize = base, z, k, rng, normalize
 
-    def __getattr__(self, name):  # belief, certainty, decided, prediction, n_grasps, n_classes, ...
+    def __getattr__(self, name):  # certainty, prediction, n_grasps, n_classes, ...
         return getattr(self.base, name)
+
+    @property
+    def belief(self) -> np.ndarray:  # explicit: read on every env step (__getattr__ is the slow path)
+        return self.base.belief
+
+    @property
+    def decided(self) -> bool:
+        return self.base.decided
 
     def reset(self, prior=None) -> np.ndarray:
         return self.base.reset(prior)
