@@ -539,7 +539,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--mlp-width", type=int, default=d.mlp.width)
     p.add_argument("--mlp-epochs", type=int, default=d.mlp.max_epochs)
     p.add_argument("--mlp-max-train", type=int, default=d.mlp.max_train)
-    p.add_argument("--kde-method", default=d.kde.method, choices=("tree", "dense", "subsample"))
+    p.add_argument("--kde-method", default=d.kde.method, choices=("tree", "pooled", "dense", "subsample"))
     p.add_argument("--seed", type=int, default=d.seed)
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=_run_cli)
