@@ -447,7 +447,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         result = self.backend.grasp(a, self._backend_rng)
         self._last_result = result
         self._grasps += 1
-        self._last_action = a.astype(np.float64)
+        self._last_action = a  # a fresh float64 array from _check_action
 
         touched = np.asarray(result.touched, dtype=bool).reshape(-1)
         contacts = np.asarray(result.contacts, dtype=np.float64)
@@ -557,7 +557,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
             return q_obs, None
         Q = self.recognizer.features(contacts, normals, touched=touched)
         if len(Q):
-            q_obs[: Q.shape[1]] = np.clip(Q[0], -self._q_bound, self._q_bound)
+            q_obs[: Q.shape[1]] = np.minimum(np.maximum(Q[0], -self._q_bound), self._q_bound)
         z = self.config.z_fingers
         if self.config.score_subsets and t >= z:
             Q = self.recognizer.features(contacts, normals, touched=touched, z=z)
@@ -603,12 +603,15 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         return b.copy()
 
     def _obs(self) -> np.ndarray:
-        return np.concatenate(
-            [
-                self._last_q, self._last_mask, [self._last_usable], self._belief, self._last_action,
-                [self._grasps / self.config.max_grasps],
-            ]
-        ).astype(np.float32)
+        sl = self.obs_slices
+        obs = np.empty(self.observation_space.shape, dtype=np.float32)
+        obs[sl["grasp"]] = self._last_q
+        obs[sl["contact_mask"]] = self._last_mask
+        obs[sl["usable"]] = self._last_usable
+        obs[sl["belief"]] = self._belief
+        obs[sl["prev_action"]] = self._last_action
+        obs[sl["grasp_count"]] = self._grasps / self.config.max_grasps
+        return obs
 
     def _info(self, *, usable: bool, decided: bool) -> dict[str, Any]:
         pred = int(np.argmax(self._belief))

@@ -38,10 +38,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from numba import njit
 from scipy.special import logsumexp
 from scipy.spatial import cKDTree
 
+from haptic_env.recognizers.knn import KDTree, pooled_log_density
 from haptic_env.recognizers.mlp import Standardizer, _check_xy
 
 __all__ = ["KDEConfig", "KDELikelihood", "scott_bandwidth"]
@@ -96,8 +96,8 @@ class KDELikelihood:
         self.scaler: Standardizer | None = None
         self.data: list[np.ndarray] = []
         self.trees: list[cKDTree] = []
-        self.pooled: cKDTree | None = None  # "pooled": one tree over all classes' vectors
-        self.pooled_labels: np.ndarray | None = None  # (N,) class of each pooled vector
+        self.pooled: KDTree | None = None  # "pooled": one compiled tree over all classes' vectors
+        self.pooled_labels: np.ndarray | None = None  # (N,) class of each pooled vector, in tree order
         self.n_classes = 0
         self._log_norms: np.ndarray | None = None  # (K,) class normalisers, filled on first use
 
@@ -162,8 +162,8 @@ class KDELikelihood:
         if self.config.method == "tree":
             self.trees = [_tree(z)[0] for z in self.data]
         elif self.config.method == "pooled":
-            self.pooled, order = _tree(np.concatenate(self.data))
-            self.pooled_labels = np.repeat(np.arange(self.n_classes), [len(z) for z in self.data])[order]
+            self.pooled = KDTree(np.concatenate(self.data), leafsize=_LEAFSIZE)
+            self.pooled_labels = np.repeat(np.arange(self.n_classes), [len(z) for z in self.data])[self.pooled.indices]
 
     def _select(self, scott: float, Zv: np.ndarray, yv: np.ndarray, rng) -> float:
         """Factor of the grid with the highest mean true-class validation log-likelihood (dense)."""
@@ -246,9 +246,8 @@ class KDELikelihood:
     def _pooled_logsum(self, Z: np.ndarray, inv: float) -> np.ndarray:
         cfg = self.config
         k = min(cfg.k, self.pooled.n)
-        dist, idx = self.pooled.query(Z, k=k, eps=cfg.eps)
-        dist, idx = dist.reshape(len(Z), k), idx.reshape(len(Z), k)
-        return _pooled_kernel_sums(dist, idx, self.pooled_labels, self._norms(), inv, cfg.cutoff * self.bandwidth)
+        return pooled_log_density(*self.pooled.arrays(), self.pooled_labels, Z, k, float(cfg.eps), self._norms(), inv,
+                                  cfg.cutoff * self.bandwidth)
 
     # ---------------------------------------------------------------------------- storage
     def state(self) -> dict[str, np.ndarray]:
@@ -286,40 +285,6 @@ def _tree(z: np.ndarray) -> tuple[cKDTree, np.ndarray]:
     per query on the 16 MB pooled set."""
     order = cKDTree(z, leafsize=_LEAFSIZE, balanced_tree=False, compact_nodes=False).indices
     return cKDTree(z[order], leafsize=_LEAFSIZE, balanced_tree=False, compact_nodes=False), order
-
-
-@njit(cache=True)
-def _pooled_kernel_sums(dist, idx, labels, log_norms, inv, radius):
-    """``(B, k)`` sorted neighbour distances and indices, ``(N,)`` classes of the pooled vectors and ``(K,)``
-    class normalisers -> ``(B, K)`` log densities ("pooled", see module docs)."""
-    B, k = dist.shape
-    n_classes = log_norms.shape[0]
-    out = np.empty((B, n_classes))
-    top = np.empty(n_classes)  # largest term within the radius (the first: distances are sorted)
-    acc = np.empty(n_classes)  # sum of exp(term - top) within the radius
-    near = np.empty(n_classes)  # the class's nearest term found (any distance)
-    for b in range(B):
-        top[:] = -np.inf
-        acc[:] = 0.0
-        near[:] = np.nan
-        for j in range(k):
-            c = labels[idx[b, j]]
-            x = -inv * dist[b, j] * dist[b, j]
-            if np.isnan(near[c]):
-                near[c] = x
-            if dist[b, j] <= radius:
-                if acc[c] == 0.0:
-                    top[c] = x
-                acc[c] += np.exp(x - top[c])
-        floor = -inv * dist[b, k - 1] * dist[b, k - 1]
-        for c in range(n_classes):
-            if acc[c] > 0.0:
-                out[b, c] = top[c] + np.log(acc[c]) + log_norms[c]
-            elif not np.isnan(near[c]):
-                out[b, c] = near[c] + log_norms[c]
-            else:
-                out[b, c] = floor + log_norms[c]
-    return out
 
 
 def _sqdist(A: np.ndarray, B: np.ndarray) -> np.ndarray:

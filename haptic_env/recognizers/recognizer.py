@@ -74,7 +74,8 @@ class ModelBank:
         return tuple(sorted(z for z, _, _ in self.entries.values()))
 
     def _get(self, Q: np.ndarray):
-        Q = np.atleast_2d(np.asarray(Q, dtype=np.float64))
+        if not (isinstance(Q, np.ndarray) and Q.ndim == 2 and Q.dtype == np.float64):
+            Q = np.atleast_2d(np.asarray(Q, dtype=np.float64))
         try:
             return Q, self.entries[Q.shape[1]]
         except KeyError:

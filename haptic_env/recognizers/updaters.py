@@ -33,9 +33,11 @@ A decision is made once ``certainty >= threshold`` (``lambda_s``, default 0.85).
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 
 import numpy as np
+from numba import njit
 
 __all__ = ["BeliefUpdater", "IterativeClassification", "BayesianUpdater", "BCNP", "BCIP", "make_updater", "UPDATERS"]
 
@@ -46,6 +48,40 @@ def _check_threshold(threshold: float) -> float:
     if not (0.0 < threshold <= 1.0):
         raise ValueError(f"threshold (lambda_s) must be in (0, 1], got {threshold!r}")
     return float(threshold)
+
+
+_OK, _NO_INFORMATION, _NAN = 0, 1, 2
+
+
+@njit(cache=True)
+def _bayes_step(log_belief, L, product, max_log_ratio):
+    """``log b + sum_rows L`` (or the row mean), shifted by its best class and renormalised in log space.
+
+    Returns ``(new log belief, status)``: ``_NAN`` if ``L`` holds a NaN, ``_NO_INFORMATION`` if every class
+    has log-likelihood -inf (the belief is returned unchanged), else ``_OK``. ``max_log_ratio``: a class's
+    log-likelihood is raised to at least ``best - max_log_ratio`` (``inf``: the plain rule).
+    """
+    m, K = L.shape
+    ll = np.zeros(K)
+    for r in range(m):
+        for c in range(K):
+            v = L[r, c]
+            if np.isnan(v):
+                return log_belief, _NAN
+            ll[c] += v
+    if not product:
+        ll /= m
+    top = ll.max()
+    if not np.isfinite(top):
+        return log_belief, _NO_INFORMATION
+    post = np.empty(K)
+    for c in range(K):
+        post[c] = log_belief[c] + (max(ll[c], top - max_log_ratio) - top)
+    mx = post.max()
+    total = 0.0
+    for c in range(K):
+        total += np.exp(post[c] - mx)
+    return post - (mx + np.log(total)), _OK
 
 
 def _logsumexp(v: np.ndarray) -> float:
@@ -184,23 +220,20 @@ class BayesianUpdater(BeliefUpdater):
     def belief(self) -> np.ndarray:
         return np.exp(self.log_belief)
 
+    @property
+    def certainty(self) -> float:
+        return math.exp(float(self.log_belief.max()))  # the belief is normalised: max b = exp(max log b)
+
     def _bayes(self, log_lik: np.ndarray) -> None:
         L = np.asarray(log_lik, dtype=np.float64).reshape(-1, self.n_classes)
         if len(L) == 0:
             return
-        if len(L) == 1:
-            ll = L[0]
-        else:
-            ll = L.sum(axis=0) if self.combine == "product" else L.mean(axis=0)
-        top = ll.max()  # NaN if any entry is NaN
-        if not np.isfinite(top):
-            if np.isnan(L).any():
-                raise ValueError("log-likelihood contains NaN")
-            return  # every class impossible: no information
-        if self.max_log_ratio is not None:
-            ll = np.maximum(ll, top - self.max_log_ratio)
-        post = self.log_belief + (ll - top)
-        self.log_belief = post - _logsumexp(post)
+        mlr = np.inf if self.max_log_ratio is None else float(self.max_log_ratio)
+        post, status = _bayes_step(self.log_belief, L, self.combine == "product", mlr)
+        if status == _NAN:
+            raise ValueError("log-likelihood contains NaN")
+        if status == _OK:  # else every class is impossible: no information, the belief stays
+            self.log_belief = post
 
     def update_scores(self, log_lik=None, proba=None) -> np.ndarray:
         self.n_grasps += 1

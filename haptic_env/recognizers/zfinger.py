@@ -61,6 +61,8 @@ def grasp_vectors_for(contacts, normals=None, *, normalize: bool = False) -> tup
     if normalize:
         P, _ = normalize_scale(P)
     f = phi(P, normals)
+    if f.q.ndim == 2:
+        return f.q, f.valid
     return np.atleast_2d(f.q), np.atleast_1d(f.valid)
 
 
@@ -86,8 +88,9 @@ def subset_vectors(contacts, normals=None, z: int | None = None, *, k: int | Non
         t = np.asarray(touched, dtype=bool)
         if t.shape != (len(P),):
             raise ValueError(f"touched must have shape ({len(P)},), got {t.shape}")
-        P = P[t]
-        N = None if N is None else N[t]
+        if not t.all():
+            P = P[t]
+            N = None if N is None else N[t]
     n = len(P)
     z = n if z is None else int(z)
     d = feature_dim(max(z, 2), N is not None)
@@ -99,7 +102,7 @@ def subset_vectors(contacts, normals=None, z: int | None = None, *, k: int | Non
         idx = subsets(n, z, k, rng)
         Pz, Nz = P[idx], None if N is None else N[idx]
     q, valid = grasp_vectors_for(Pz, Nz, normalize=normalize)
-    return q[valid]
+    return q if valid.all() else q[valid]
 
 
 class ZFingerUpdater:
