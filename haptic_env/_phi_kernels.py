@@ -308,22 +308,22 @@ def _bad_input(P, N, has_normals):
 
 
 @njit(cache=True)
-def phi_rows(P, N, has_normals, tri, tri_edges, n_edges, tol, q, order, status):
+def phi_rows(P, N, has_normals, tri, tri_edges, n_edges, tol, q, order, reason, valid):
     """:func:`phi_one` over a batch ``P (B, n, 3)``; normals ``N (B, n, 3)`` are normalised here.
 
-    Fills ``q (B, d)`` (zero rows unless ok), ``order (B, n)`` and ``status (B,)``; returns True when
-    some row has :data:`BAD_INPUT` (the caller re-validates to raise a precise error).
+    Fills ``q (B, d)`` (zero rows unless ok), ``order (B, n)``, ``reason (B,)`` int8 (the degeneracy code, or
+    :data:`AMBIGUOUS`) and ``valid (B,)``. Returns :data:`BAD_INPUT` when some row has non-finite contacts or
+    a bad normal (the caller re-validates to raise a precise error), else the number of :data:`AMBIGUOUS` rows.
     """
     B, n = P.shape[0], P.shape[1]
     Nu = np.empty((n, 3))
-    bad = False
+    n_ambiguous = 0
     for i in range(B):
         for j in range(n):
             order[i, j] = j
+        valid[i] = False
         if _bad_input(P[i], N[i], has_normals):
-            status[i] = BAD_INPUT
-            bad = True
-            continue
+            return BAD_INPUT
         if has_normals:
             for j in range(n):
                 s = math.sqrt(N[i, j, 0] * N[i, j, 0] + N[i, j, 1] * N[i, j, 1] + N[i, j, 2] * N[i, j, 2])
@@ -333,8 +333,11 @@ def phi_rows(P, N, has_normals, tri, tri_edges, n_edges, tol, q, order, status):
             q[i, :] = 0.0
             for j in range(n):
                 order[i, j] = j
-        status[i] = st
-    return bad
+        if st == AMBIGUOUS:
+            n_ambiguous += 1
+        reason[i] = st
+        valid[i] = st == 0
+    return n_ambiguous
 
 
 @njit(cache=True)

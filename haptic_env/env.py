@@ -526,11 +526,13 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         if a.shape != (self.action_dim,):
             raise ValueError(f"action must have shape ({self.action_dim},), got {a.shape}: {action!r}")
         values = a.tolist()
-        if not all(-1.0 - 1e-6 <= v <= 1.0 + 1e-6 for v in values):  # also False for NaN
+        lo, hi = min(values), max(values)
+        total = sum(values)  # NaN if any value is NaN (min/max may skip it)
+        if not (-1.0 - 1e-6 <= lo and hi <= 1.0 + 1e-6 and total == total):
             if not all(math.isfinite(v) for v in values):
                 raise ValueError(f"action must be finite, got {values}")
             raise ValueError(f"action must lie in [-1, 1], got {values}")
-        return np.minimum(np.maximum(a, -1.0), 1.0)
+        return a.clip(-1.0, 1.0) if (lo < -1.0 or hi > 1.0) else (a if a is not action else a.copy())
 
     def _normals_of(self, result) -> np.ndarray:
         N = result.normals if result.normals is not None else getattr(result, "gt_normals", None)
@@ -551,7 +553,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         (:mod:`agents.greedy`) use it to score them exactly as the env does.
         """
         n = self.config.n_fingers
-        t = int(touched.sum())
+        t = np.count_nonzero(touched)
         q_obs = np.zeros(self.feature_dim)
         if t < 2:
             return q_obs, None
@@ -597,7 +599,8 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         return _entropy(old) - _entropy(new)
 
     def _as_belief(self, b) -> np.ndarray:
-        b = np.asarray(b, dtype=np.float64).reshape(-1)
+        if not (isinstance(b, np.ndarray) and b.dtype == np.float64 and b.ndim == 1):
+            b = np.asarray(b, dtype=np.float64).reshape(-1)
         if b.shape != (self.n_classes,) or not np.isfinite(b).all():
             raise RuntimeError(f"belief updater returned an invalid belief {b!r} (expected {self.n_classes} finite values)")
         return b.copy()
@@ -614,7 +617,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         return obs
 
     def _info(self, *, usable: bool, decided: bool) -> dict[str, Any]:
-        pred = int(np.argmax(self._belief))
+        pred = int(self._belief.argmax())
         return {
             "true_object": self.object_names[self._target],
             "true_index": self._target,

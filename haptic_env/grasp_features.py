@@ -487,16 +487,17 @@ def _phi_compiled(contacts, normals, tol):
     tri, tri_edges, _, n_edges = _topology(n)
     q = np.zeros((B, feature_dim(n, N is not None)))
     order = np.empty((B, n), dtype=np.int64)
-    status = np.empty(B, dtype=np.int64)
+    reason = np.empty(B, dtype=np.int8)
+    valid = np.empty(B, dtype=bool)
     k = _kernels()
-    if k.phi_rows(P, P if N is None else N, N is not None, tri, tri_edges, n_edges, tol, q, order, status):
-        return None  # bad input: the NumPy path raises the precise error
-    if status.min() == k.AMBIGUOUS:
-        back = np.flatnonzero(status == k.AMBIGUOUS)
+    n_ambiguous = k.phi_rows(P, P if N is None else N, N is not None, tri, tri_edges, n_edges, tol, q, order, reason, valid)
+    if n_ambiguous == k.BAD_INPUT:
+        return None  # the NumPy path raises the precise error
+    if n_ambiguous:
+        back = np.flatnonzero(reason == k.AMBIGUOUS)
         Nb = None if N is None else N[back] / _norm(N[back])[..., None]
-        q[back], _, order[back], status[back] = _phi_chain(P[back], Nb, tol)
-    reason = status.astype(np.int8)
-    return (q, reason == 0, order, reason), single, P
+        q[back], valid[back], order[back], reason[back] = _phi_chain(P[back], Nb, tol)
+    return (q, valid, order, reason), single, P
 
 
 # ----------------------------------------------------------------------------------- planar phi

@@ -119,3 +119,16 @@ def test_bad_inputs_are_rejected():
         make_updater("bogus", classifier=m, likelihood=m)
     with pytest.raises(ValueError, match="needs a classifier"):
         make_updater("ic", likelihood=m)
+
+
+def test_bc_nan_raises_and_impossible_grasp_carries_no_information():
+    ll = np.array([[0.0, -1.0, -2.0], [np.nan, 0.0, 0.0], [-np.inf, -np.inf, -np.inf]])
+    u = BayesianUpdater(FixedModel(ll))
+    before = u.update([0.0]).copy()
+    with pytest.raises(ValueError, match="NaN"):
+        u.update([1.0])
+    np.testing.assert_allclose(u.belief, before)  # nothing half-applied
+    assert u.n_grasps == 1  # the failed update did not count
+    np.testing.assert_allclose(u.update([2.0]), before)  # every class impossible: belief unchanged
+    assert u.n_grasps == 2
+    assert u.certainty == pytest.approx(before.max())

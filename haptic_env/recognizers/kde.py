@@ -20,13 +20,14 @@ Evaluation (``KDEConfig.method``)
     measured cost of ~5-8 % one-shot argmax disagreement with the dense sum and no measurable loss
     of one-shot accuracy (``benchmarks/bench_recognizers.py``). When an object has no training
     vector within the cutoff, its nearest found vector alone is used (a lower bound of the sum).
-    ``"pooled"``: ONE :class:`~scipy.spatial.cKDTree` over the training vectors of all objects; a
+    ``"pooled"``: ONE k-d tree over the training vectors of all objects
+    (:class:`~haptic_env.recognizers.knn.KDTree`: compiled, float32, search and sums in one call); a
     single search finds the ``k`` nearest vectors of any object (same ``eps``). Each object's sum
     runs over its vectors among them within ``cutoff * h`` (none within the cutoff: its nearest one
     alone, as for ``"tree"``); an object with no vector among the ``k`` gets the kernel at the
     ``k``-th distance, an upper bound of its nearest term (its vectors are all at least that far,
     up to ``eps``). Far objects thus tie at a floor instead of being ranked by their own nearest
-    vector, which a per-object search finds only slowly (most of ``"tree"``'s cost). About 10x
+    vector, which a per-object search finds only slowly (most of ``"tree"``'s cost). About 10-20x
     faster than ``"tree"`` per grasp; the environment's belief update uses it. Agreement with the
     dense sum is measured in ``benchmarks/bench_recognizers.py``.
     ``"dense"``: the exact sum over all training vectors (reference; chunked numpy).

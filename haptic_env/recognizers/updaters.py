@@ -236,10 +236,10 @@ class BayesianUpdater(BeliefUpdater):
             self.log_belief = post
 
     def update_scores(self, log_lik=None, proba=None) -> np.ndarray:
-        self.n_grasps += 1
         if log_lik is None:
             raise ValueError("Bayesian updates need log-likelihoods (log_lik)")
-        self._bayes(log_lik)
+        self._bayes(log_lik)  # raises on NaN before anything changes
+        self.n_grasps += 1
         return self.belief
 
     def update(self, q) -> np.ndarray:
