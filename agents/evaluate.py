@@ -298,9 +298,10 @@ def plot_learning_curves(log_dirs: dict[str, str | Path], out: str | Path, windo
 
 
 # --------------------------------------------------------------------------------------- CLI
-def make_agent(spec: str, seed: int = 0):
+def make_agent(spec: str, seed: int = 0, stochastic: bool = False):
     """``random`` | ``greedy`` | ``greedy:<n_candidates>`` | ``<name>=<model.zip>`` (PPO/SAC from the file name
-    or ``ppo=...``/``sac=...``)."""
+    or ``ppo=...``/``sac=...``). ``stochastic``: SB3 agents sample their actions (named ``<name>-stochastic``)
+    instead of taking the mean action."""
     if spec == "random":
         from agents.random_policy import RandomAgent
 
@@ -318,7 +319,9 @@ def make_agent(spec: str, seed: int = 0):
 
         name, _, path = spec.partition("=") if "=" in spec else (Path(spec).stem, "", spec)
         algo = name.lower() if name.lower() in ("ppo", "sac") else None
-        return SB3Agent.from_path(path, algo=algo, name=name)
+        agent = SB3Agent.from_path(path, algo=algo, name=f"{name}-stochastic" if stochastic else name)
+        agent.deterministic = not stochastic
+        return agent
     raise ValueError(f"unknown agent spec {spec!r}; use random, greedy[:M], or NAME=path/to/model.zip")
 
 
@@ -329,6 +332,8 @@ def add_parser(subparsers) -> None:
                    help="random | greedy[:M] | NAME=model.zip (ppo=..., sac=...)")
     p.add_argument("--episodes", type=int, default=40, help="episodes per seed")
     p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
+    p.add_argument("--stochastic", action="store_true",
+                   help="SB3 agents sample actions from their policy (seeded per env seed) instead of the mean action")
     p.add_argument("--env-id", default="HapticRecog-v0")
     p.add_argument("--env-kwargs", default="{}", help="JSON dict of HapticRecogConfig fields")
     p.add_argument("--out", default="outputs/eval")
@@ -346,7 +351,7 @@ def _main(args) -> int:
         raise SystemExit(f"--env-kwargs must be a JSON object, got {args.env_kwargs!r}")
     config = HapticRecogConfig().replace(**kwargs)
     make_env = lambda: haptic_env.make(config, env_id=args.env_id)  # noqa: E731
-    agents = [make_agent(s) for s in args.agents]
+    agents = [make_agent(s, stochastic=args.stochastic) for s in args.agents]
     t0 = time.time()
     records = evaluate_agents(agents, make_env, args.episodes, args.seeds)
     paths = write_report(records, args.out, config.max_grasps,

@@ -352,3 +352,45 @@ def test_mujoco_allegro_variant_runs_an_episode(env_config):
         if terminated or truncated:
             break
     env.close()
+
+
+@pytest.mark.parametrize("updater", ["bc-np", "bc-ip"])
+def test_compiled_scorer_path_equals_the_general_path(env_config, updater):
+    """Complete grasps go through Recognizer.grasp_scorer (one compiled call): same observations, rewards, beliefs."""
+    cfg = env_config.replace(updater=updater, threshold=1.0, max_grasps=60)
+    fast, slow = HapticRecogEnv(cfg), HapticRecogEnv(cfg)
+    fast.reset(seed=3)
+    slow.reset(seed=3)
+    assert fast._scorer is not None
+    slow._scorer = None  # force grasp_rows + updater.update
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        a = rng.uniform(-1, 1, fast.action_dim).astype(np.float32)
+        of, rf, tf, uf, f = fast.step(a)
+        os_, rs, ts, us, s = slow.step(a)
+        np.testing.assert_allclose(of, os_, rtol=0, atol=1e-6)
+        np.testing.assert_allclose(f["belief"], s["belief"], rtol=1e-9, atol=1e-12)
+        assert (rf, tf, uf, f["usable"]) == pytest.approx((rs, ts, us, s["usable"]))
+
+
+def test_grasp_scorer_matches_features_and_kde(env_config):
+    from haptic_env.env import get_recognizer
+    from haptic_env.objects import load_object_set
+
+    rec = get_recognizer(load_object_set(env_config.objects), env_config)
+    scorer = rec.grasp_scorer()
+    kde = rec.models.model(4)[1]
+    rng = np.random.default_rng(1)
+    for _ in range(30):
+        P, N = rng.normal(size=(4, 3)) * 0.05, rng.normal(size=(4, 3))
+        q, ll = scorer(P, N)
+        Q = rec.features(P, N)
+        np.testing.assert_allclose(q, Q[0], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(ll, kde.log_likelihood(Q), rtol=1e-12, atol=1e-9)
+    flat = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.0]])
+    q, ll = scorer(flat, rng.normal(size=(4, 3)))
+    assert ll is None and not q.any()  # coplanar: no information
+    with pytest.raises(ValueError, match="not finite"):
+        scorer(np.full((4, 3), np.nan), rng.normal(size=(4, 3)))
+    with pytest.raises(ValueError, match="shape"):
+        scorer(P[:3], N[:3])

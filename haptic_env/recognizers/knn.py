@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["KDTree", "pooled_log_density"]
+__all__ = ["KDTree", "pooled_log_density", "log_density_row", "workspace"]
 
 
 class KDTree:
@@ -188,37 +188,44 @@ def pooled_log_density(data, start, end, left, right, lo, hi, labels, Z, k, eps,
     the ``k`` nearest within ``radius``; else its nearest found vector's kernel; else (no vector of the
     class among the ``k``) the kernel at the ``k``-th distance (see :mod:`haptic_env.recognizers.kde`).
     """
-    B = Z.shape[0]
-    K = log_norms.shape[0]
-    out = np.empty((B, K))
-    best_d2 = np.empty(k)
-    best_pos = np.empty(k, np.int64)
-    stack = np.empty(len(start) + 1, np.int64)
-    stack_d2 = np.empty(len(start) + 1)
-    top = np.empty(K)
-    acc = np.empty(K)
-    near = np.empty(K)
-    r2 = radius * radius
-    for b in range(B):
-        count = _knn_one(data, start, end, left, right, lo, hi, Z[b], k, eps, best_d2, best_pos, stack, stack_d2)
-        top[:] = -np.inf
-        acc[:] = 0.0
-        near[:] = np.nan
-        for j in range(count):
-            c = labels[best_pos[j]]
-            x = -inv * best_d2[j]
-            if np.isnan(near[c]):
-                near[c] = x
-            if best_d2[j] <= r2:
-                if acc[c] == 0.0:
-                    top[c] = x
-                acc[c] += np.exp(x - top[c])
-        floor = -inv * best_d2[count - 1]
-        for c in range(K):
-            if acc[c] > 0.0:
-                out[b, c] = top[c] + np.log(acc[c]) + log_norms[c]
-            elif not np.isnan(near[c]):
-                out[b, c] = near[c] + log_norms[c]
-            else:
-                out[b, c] = floor + log_norms[c]
+    out = np.empty((Z.shape[0], log_norms.shape[0]))
+    work = workspace(len(start), k, log_norms.shape[0])
+    for b in range(Z.shape[0]):
+        log_density_row(data, start, end, left, right, lo, hi, labels, Z[b], k, eps, log_norms, inv, radius, work,
+                        out[b])
     return out
+
+
+@njit(cache=True)
+def workspace(n_nodes, k, n_classes):
+    """Scratch arrays of :func:`log_density_row` (allocated once per call of the caller)."""
+    return (np.empty(k), np.empty(k, np.int64), np.empty(n_nodes + 1, np.int64), np.empty(n_nodes + 1),
+            np.empty(n_classes), np.empty(n_classes), np.empty(n_classes))
+
+
+@njit(cache=True)
+def log_density_row(data, start, end, left, right, lo, hi, labels, z, k, eps, log_norms, inv, radius, work, out):
+    """:func:`pooled_log_density` of one standardised query ``z (d,)`` into ``out (K,)``."""
+    best_d2, best_pos, stack, stack_d2, top, acc, near = work
+    count = _knn_one(data, start, end, left, right, lo, hi, z, k, eps, best_d2, best_pos, stack, stack_d2)
+    top[:] = -np.inf
+    acc[:] = 0.0
+    near[:] = np.nan
+    r2 = radius * radius
+    for j in range(count):
+        c = labels[best_pos[j]]
+        x = -inv * best_d2[j]
+        if np.isnan(near[c]):
+            near[c] = x
+        if best_d2[j] <= r2:
+            if acc[c] == 0.0:
+                top[c] = x
+            acc[c] += np.exp(x - top[c])
+    floor = -inv * best_d2[count - 1]
+    for c in range(log_norms.shape[0]):
+        if acc[c] > 0.0:
+            out[c] = top[c] + np.log(acc[c]) + log_norms[c]
+        elif not np.isnan(near[c]):
+            out[c] = near[c] + log_norms[c]
+        else:
+            out[c] = floor + log_norms[c]

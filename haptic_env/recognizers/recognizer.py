@@ -119,6 +119,19 @@ class Recognizer:
         return subset_vectors(contacts, normals if self.normals else None, z, k=k, rng=rng, touched=touched,
                               normalize=self.config.grasps.normalize_scale)
 
+    def grasp_scorer(self):
+        """:class:`~haptic_env.recognizers.scorer.GraspScorer` of complete ``n_fingers`` grasps (Phi and the KDE
+        log-likelihoods in one compiled call), or None if the KDE is not evaluated ``"pooled"`` or grasps are
+        scale-normalised (then use :meth:`features` and ``updater.update``)."""
+        if self.config.grasps.normalize_scale:
+            return None
+        if not hasattr(self, "_scorer"):
+            from haptic_env.recognizers.scorer import GraspScorer
+
+            kde = self.models.model(self.n_fingers)[1]
+            self._scorer = GraspScorer(self.n_fingers, self.normals, kde) if getattr(kde, "pooled", None) else None
+        return self._scorer
+
     def make_updater(self, kind: str = "bc-np", threshold: float = 0.85, z: int | None = None, *,
                      k: int | None = None, rng: np.random.Generator | None = None, **kw) -> ZFingerUpdater:
         """A belief updater over this recogniser's models.

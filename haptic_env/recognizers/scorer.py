@@ -1,0 +1,81 @@
+r"""One grasp to its KDE log-likelihoods in one compiled call: :math:`\log p(\Phi_n(P, N) \mid c)`.
+
+An environment step scores one complete grasp. Through the general path (``Recognizer.features`` ->
+``phi`` -> ``KDELikelihood.log_likelihood``) that is about ten Python calls and a dozen small NumPy
+arrays around two compiled kernels; :class:`GraspScorer` runs :math:`\Phi_n`, the standardisation and
+the pooled KDE search in one numba call instead (same kernels, same results: tested equal to the
+general path). It applies to a recogniser whose KDE uses ``method="pooled"`` and that does not
+scale-normalise grasps; :meth:`haptic_env.recognizers.Recognizer.grasp_scorer` returns None otherwise.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from haptic_env import _phi_kernels as phik
+from haptic_env.grasp_features import DEFAULT_TOL, _topology, feature_dim, phi
+from haptic_env.recognizers.knn import log_density_row, workspace
+
+__all__ = ["GraspScorer"]
+
+
+class GraspScorer:
+    """``scorer(contacts (n, 3), normals (n, 3) | None) -> (q (d,), log_lik (1, K) | None)``.
+
+    ``log_lik`` is None for a degenerate grasp (then ``q`` is all zeros, as :func:`phi` reports it).
+    """
+
+    def __init__(self, n_fingers: int, normals: bool, kde):
+        if kde.pooled is None:
+            raise ValueError("GraspScorer needs a KDE evaluated with method='pooled'")
+        d = feature_dim(n_fingers, normals)
+        if kde.n_features != d:
+            raise ValueError(f"the KDE has {kde.n_features} features, {n_fingers} fingers (normals={normals}) give {d}")
+        self.n_fingers, self.normals, self.kde = int(n_fingers), bool(normals), kde
+        tri, tri_edges, _, n_edges = _topology(self.n_fingers)
+        cfg = kde.config
+        self._phi_args = (tri, tri_edges, n_edges, DEFAULT_TOL)
+        self._kde_args = (kde.scaler.mean, kde.scaler.std, *kde.pooled.arrays(), kde.pooled_labels,
+                          min(cfg.k, kde.pooled.n), float(cfg.eps), kde._norms(), 0.5 / kde.bandwidth**2,
+                          cfg.cutoff * kde.bandwidth)
+        self._work = workspace(len(kde.pooled.start), min(cfg.k, kde.pooled.n), kde.n_classes)
+        self._d, self._K = d, kde.n_classes
+
+    def __call__(self, contacts, normals=None) -> tuple[np.ndarray, np.ndarray | None]:
+        P = np.ascontiguousarray(contacts, dtype=np.float64)
+        N = None if normals is None else np.ascontiguousarray(normals, dtype=np.float64)
+        if P.shape != (self.n_fingers, 3) or (N is None) == self.normals or (N is not None and N.shape != P.shape):
+            raise ValueError(f"GraspScorer takes contacts (and normals={self.normals}) of shape ({self.n_fingers}, 3), "
+                             f"got {P.shape}" + ("" if N is None else f" and {N.shape}"))
+        q = np.zeros(self._d)
+        out = np.empty((1, self._K))
+        status = _score(P, P if N is None else N, self.normals, *self._phi_args, *self._kde_args, self._work, q,
+                        np.empty(self.n_fingers, np.int64), out[0])
+        if status == 0:
+            return q, out
+        if status > 0:  # degenerate: no information
+            return np.zeros(self._d), None
+        # a planar hull face (Qhull's canonical triangulation) or bad input (raises): the general path
+        f = phi(P, N)
+        return (f.q, self.kde.log_likelihood(f.q)) if f.valid else (f.q, None)
+
+
+@njit(cache=True)
+def _score(P, N, has_normals, tri, tri_edges, n_edges, tol, mean, std, data, start, end, left, right, lo, hi, labels,
+           k, eps, log_norms, inv, radius, work, q, order, out):
+    """Phi of one grasp into ``q``, then its pooled-KDE log densities into ``out``; returns the Phi status."""
+    n = P.shape[0]
+    if phik._bad_input(P, N, has_normals):
+        return phik.BAD_INPUT
+    Nu = np.empty((n, 3))
+    if has_normals:
+        for j in range(n):
+            s = np.sqrt(N[j, 0] * N[j, 0] + N[j, 1] * N[j, 1] + N[j, 2] * N[j, 2])
+            Nu[j, 0], Nu[j, 1], Nu[j, 2] = N[j, 0] / s, N[j, 1] / s, N[j, 2] / s
+    status = phik.phi_one(P, Nu, has_normals, tri, tri_edges, n_edges, tol, q, order)
+    if status != 0:
+        return status
+    z = (q - mean) / std
+    log_density_row(data, start, end, left, right, lo, hi, labels, z, k, eps, log_norms, inv, radius, work, out)
+    return 0
