@@ -2,10 +2,11 @@ r"""A compiled (numba) k-d tree for the k-nearest-neighbour search of the pooled
 
 :class:`scipy.spatial.cKDTree` answers one query in ~15 us when its data sit in the caches, but an
 environment step interleaves the search with ray casting and Python, and there the same query costs
-40-55 us: most of it is cache misses on 16 MB of float64 vectors, plus the Python overhead of the
-call. :class:`KDTree` stores the vectors as float32 in tree order (every leaf one contiguous block,
-half the bytes), prunes with each node's bounding box, and runs the whole query, and the KDE's
-kernel sums, in one compiled call.
+40-55 us: most of it is cache misses, plus the Python overhead of the call. :class:`KDTree` keeps
+what a query touches small: the vectors as float32 in tree order (every leaf one contiguous block),
+and per node only its first child, leaf range, split dimension and split value (16 + 8 bytes). The
+search bounds a node by the distance to its region, updated incrementally along the splits (Arya &
+Mount), and the whole query, with the KDE's kernel sums, runs in one compiled call.
 
 Search semantics are those of ``cKDTree.query(x, k, eps)``: the ``j``-th neighbour returned is within
 ``(1 + eps)`` times the distance of the true ``j``-th nearest neighbour (``eps = 0``: exact). Distances
@@ -22,6 +23,8 @@ from numba import njit
 
 __all__ = ["KDTree", "pooled_log_density", "log_density_row", "workspace"]
 
+_LEFT, _START, _END, _DIM = 0, 1, 2, 3  # columns of KDTree.nodes; the right child is left + 1; leaves: left = -1
+
 
 class KDTree:
     """k-d tree over ``X (N, d)``; :meth:`query` mirrors ``cKDTree.query`` for 2-D queries."""
@@ -32,11 +35,12 @@ class KDTree:
             raise ValueError(f"KDTree needs a non-empty (N, d) array, got shape {X.shape}")
         if leafsize < 1:
             raise ValueError(f"leafsize must be >= 1, got {leafsize}")
-        order, start, end, left, right, lo, hi = _build(X, int(leafsize))
+        order, nodes, split, depth = _build(X, int(leafsize))
         self.indices = order  #: tree position -> row of X
         self.data = np.ascontiguousarray(X[order], dtype=np.float32)  #: vectors in tree order
-        self.start, self.end, self.left, self.right = start, end, left, right
-        self.lo, self.hi = lo.astype(np.float32), hi.astype(np.float32)  #: node bounding boxes
+        self.nodes = nodes  #: (n_nodes, 4) int32: first child (-1: leaf), leaf start, leaf end, split dimension
+        self.split = split  #: (n_nodes,) split values: left child <= split <= right child along the dimension
+        self.depth = int(depth)
         self.n, self.m = X.shape
 
     def query(self, Z: np.ndarray, k: int, eps: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -46,12 +50,12 @@ class KDTree:
             raise ValueError(f"queries must have shape (B, {self.m}), got {Z.shape}")
         if not 1 <= k <= self.n:
             raise ValueError(f"k must be in [1, {self.n}], got {k}")
-        d2, pos = _query(self.data, self.start, self.end, self.left, self.right, self.lo, self.hi, Z, int(k), float(eps))
+        d2, pos = _query(*self.arrays(), Z, int(k), float(eps))
         return np.sqrt(d2), self.indices[pos]
 
     def arrays(self) -> tuple:
-        """The compiled search's inputs, for callers that fuse the search into their own kernel."""
-        return self.data, self.start, self.end, self.left, self.right, self.lo, self.hi
+        """The compiled search's inputs ``(data, nodes, split)``, for callers that fuse the search into their kernel."""
+        return self.data, self.nodes, self.split
 
 
 @njit(cache=True)
@@ -59,38 +63,31 @@ def _build(X, leafsize):
     n, d = X.shape
     order = np.arange(n)
     cap = 2 * (n // max(1, leafsize // 2) + 1) + 1
-    start = np.empty(cap, np.int64)
-    end = np.empty(cap, np.int64)
-    left = np.full(cap, -1, np.int64)
-    right = np.full(cap, -1, np.int64)
-    lo = np.empty((cap, d))
-    hi = np.empty((cap, d))
+    nodes = np.full((cap, 4), -1, np.int32)
+    split = np.zeros(cap)
+    level = np.zeros(cap, np.int64)
     stack = np.empty(cap, np.int64)
-    start[0], end[0] = 0, n
-    n_nodes = 1
-    top = 0
+    nodes[0, _START], nodes[0, _END] = 0, n
+    n_nodes, top, depth = 1, 0, 0
     stack[0] = 0
+    lo = np.empty(d)
+    hi = np.empty(d)
     while top >= 0:
         node = stack[top]
         top -= 1
-        s, e = start[node], end[node]
-        for j in range(d):
-            lo[node, j] = np.inf
-            hi[node, j] = -np.inf
+        s, e = nodes[node, _START], nodes[node, _END]
+        depth = max(depth, level[node])
+        if e - s <= leafsize:
+            continue
+        lo[:] = np.inf
+        hi[:] = -np.inf
         for i in range(s, e):
             for j in range(d):
                 v = X[order[i], j]
-                if v < lo[node, j]:
-                    lo[node, j] = v
-                if v > hi[node, j]:
-                    hi[node, j] = v
-        if e - s <= leafsize:
-            continue
-        dim = 0
-        for j in range(1, d):
-            if hi[node, j] - lo[node, j] > hi[node, dim] - lo[node, dim]:
-                dim = j
-        if hi[node, dim] <= lo[node, dim]:  # all points equal: keep as a (large) leaf
+                lo[j] = min(lo[j], v)
+                hi[j] = max(hi[j], v)
+        dim = int(np.argmax(hi - lo))
+        if hi[dim] <= lo[dim]:  # all points equal: keep as a (large) leaf
             continue
         seg = order[s:e]
         keys = np.empty(e - s)
@@ -99,48 +96,42 @@ def _build(X, leafsize):
         srt = np.argsort(keys, kind="mergesort")
         order[s:e] = seg[srt]
         mid = s + (e - s) // 2
-        a, b = n_nodes, n_nodes + 1
+        a = n_nodes
         n_nodes += 2
-        start[a], end[a], start[b], end[b] = s, mid, mid, e
-        left[node], right[node] = a, b
-        stack[top + 1], stack[top + 2] = a, b
+        nodes[node, _LEFT], nodes[node, _DIM] = a, dim
+        split[node] = X[order[mid], dim]  # keys[:mid] <= split <= keys[mid:]
+        nodes[a, _START], nodes[a, _END], nodes[a + 1, _START], nodes[a + 1, _END] = s, mid, mid, e
+        level[a] = level[a + 1] = level[node] + 1
+        stack[top + 1], stack[top + 2] = a, a + 1
         top += 2
-    return order, start[:n_nodes].copy(), end[:n_nodes].copy(), left[:n_nodes].copy(), right[:n_nodes].copy(), \
-        lo[:n_nodes].copy(), hi[:n_nodes].copy()
-
-
-@njit(cache=True, inline="always")
-def _box_d2(z, lo, hi, node):
-    s = 0.0
-    for j in range(z.shape[0]):
-        v = z[j]
-        a = lo[node, j]
-        if v < a:
-            s += (a - v) * (a - v)
-        else:
-            b = hi[node, j]
-            if v > b:
-                s += (v - b) * (v - b)
-    return s
+    return order, nodes[:n_nodes].copy(), split[:n_nodes].copy(), depth
 
 
 @njit(cache=True)
-def _knn_one(data, start, end, left, right, lo, hi, z, k, eps, best_d2, best_pos, stack, stack_d2):
-    """k nearest tree positions of one query ``z`` into ``best_d2 / best_pos`` (ascending); returns the count."""
+def _knn_one(data, nodes, split, z, k, eps, best_d2, best_pos, stack, stack_d2, stack_off):
+    """k nearest tree positions of one query ``z`` into ``best_d2 / best_pos`` (ascending); returns the count.
+
+    Each stack entry holds a node, the squared distance ``rd`` from ``z`` to the node's region and the
+    per-dimension offsets ``off`` that make it up; the far child of a split differs from its parent in
+    one offset only, so ``rd`` is updated in O(1) and ``off`` copied (d floats, in L1).
+    """
     scale = 1.0 / ((1.0 + eps) * (1.0 + eps))
     d = z.shape[0]
     count = 0
     top = 0
     stack[0] = 0
-    stack_d2[0] = _box_d2(z, lo, hi, 0)
+    stack_d2[0] = 0.0
+    stack_off[0, :] = 0.0
     while top >= 0:
         node = stack[top]
-        nd2 = stack_d2[top]
-        top -= 1
-        if count == k and nd2 > best_d2[k - 1] * scale:
+        rd = stack_d2[top]
+        if count == k and rd > best_d2[k - 1] * scale:
+            top -= 1
             continue
-        if left[node] < 0:  # leaf: scan its contiguous block
-            for p in range(start[node], end[node]):
+        left = nodes[node, _LEFT]
+        if left < 0:  # leaf: scan its contiguous block
+            top -= 1
+            for p in range(nodes[node, _START], nodes[node, _END]):
                 s = 0.0
                 for j in range(d):
                     t = z[j] - data[p, j]
@@ -156,31 +147,35 @@ def _knn_one(data, start, end, left, right, lo, hi, z, k, eps, best_d2, best_pos
                     if count < k:
                         count += 1
             continue
-        a, b = left[node], right[node]
-        da, db = _box_d2(z, lo, hi, a), _box_d2(z, lo, hi, b)
-        if da > db:  # push the farther child first: the nearer one is searched next
-            a, b, da, db = b, a, db, da
+        dim = nodes[node, _DIM]
+        diff = z[dim] - split[node]
+        near, far = (left, left + 1) if diff < 0.0 else (left + 1, left)
+        # the far child replaces this entry; the near child goes on top (searched next) with this entry's off
+        old = stack_off[top, dim]
+        far_rd = rd - old * old + diff * diff
+        stack[top] = far
+        stack_d2[top] = far_rd
+        stack_off[top + 1, :] = stack_off[top, :]
+        stack_off[top, dim] = diff
         top += 1
-        stack[top], stack_d2[top] = b, db
-        top += 1
-        stack[top], stack_d2[top] = a, da
+        stack[top] = near
+        stack_d2[top] = rd
     return count
 
 
 @njit(cache=True)
-def _query(data, start, end, left, right, lo, hi, Z, k, eps):
+def _query(data, nodes, split, Z, k, eps):
     B = Z.shape[0]
     out_d2 = np.empty((B, k))
     out_pos = np.empty((B, k), np.int64)
-    stack = np.empty(len(start) + 1, np.int64)
-    stack_d2 = np.empty(len(start) + 1)
+    work = workspace(nodes, Z.shape[1], k, 1)
     for b in range(B):
-        _knn_one(data, start, end, left, right, lo, hi, Z[b], k, eps, out_d2[b], out_pos[b], stack, stack_d2)
+        _knn_one(data, nodes, split, Z[b], k, eps, out_d2[b], out_pos[b], work[2], work[3], work[4])
     return out_d2, out_pos
 
 
 @njit(cache=True)
-def pooled_log_density(data, start, end, left, right, lo, hi, labels, Z, k, eps, log_norms, inv, radius):
+def pooled_log_density(data, nodes, split, labels, Z, k, eps, log_norms, inv, radius):
     """The pooled KDE's ``(B, K)`` log densities of standardised queries ``Z (B, d)`` in one call.
 
     ``labels (N,)`` is the class of each vector in tree order; ``log_norms (K,)`` the class normalisers;
@@ -189,25 +184,26 @@ def pooled_log_density(data, start, end, left, right, lo, hi, labels, Z, k, eps,
     class among the ``k``) the kernel at the ``k``-th distance (see :mod:`haptic_env.recognizers.kde`).
     """
     out = np.empty((Z.shape[0], log_norms.shape[0]))
-    work = workspace(len(start), k, log_norms.shape[0])
+    work = workspace(nodes, Z.shape[1], k, log_norms.shape[0])
     for b in range(Z.shape[0]):
-        log_density_row(data, start, end, left, right, lo, hi, labels, Z[b], k, eps, log_norms, inv, radius, work,
-                        out[b])
+        log_density_row(data, nodes, split, labels, Z[b], k, eps, log_norms, inv, radius, work, out[b])
     return out
 
 
 @njit(cache=True)
-def workspace(n_nodes, k, n_classes):
-    """Scratch arrays of :func:`log_density_row` (allocated once per call of the caller)."""
-    return (np.empty(k), np.empty(k, np.int64), np.empty(n_nodes + 1, np.int64), np.empty(n_nodes + 1),
+def workspace(nodes, d, k, n_classes):
+    """Scratch arrays of :func:`log_density_row` (allocated once per caller; the stack holds at most
+    depth + 2 entries, and the depth of a median-split tree is below 64)."""
+    m = 66
+    return (np.empty(k), np.empty(k, np.int64), np.empty(m, np.int64), np.empty(m), np.empty((m, d)),
             np.empty(n_classes), np.empty(n_classes), np.empty(n_classes))
 
 
 @njit(cache=True)
-def log_density_row(data, start, end, left, right, lo, hi, labels, z, k, eps, log_norms, inv, radius, work, out):
+def log_density_row(data, nodes, split, labels, z, k, eps, log_norms, inv, radius, work, out):
     """:func:`pooled_log_density` of one standardised query ``z (d,)`` into ``out (K,)``."""
-    best_d2, best_pos, stack, stack_d2, top, acc, near = work
-    count = _knn_one(data, start, end, left, right, lo, hi, z, k, eps, best_d2, best_pos, stack, stack_d2)
+    best_d2, best_pos, stack, stack_d2, stack_off, top, acc, near = work
+    count = _knn_one(data, nodes, split, z, k, eps, best_d2, best_pos, stack, stack_d2, stack_off)
     top[:] = -np.inf
     acc[:] = 0.0
     near[:] = np.nan

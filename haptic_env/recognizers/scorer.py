@@ -39,7 +39,7 @@ class GraspScorer:
         self._kde_args = (kde.scaler.mean, kde.scaler.std, *kde.pooled.arrays(), kde.pooled_labels,
                           min(cfg.k, kde.pooled.n), float(cfg.eps), kde._norms(), 0.5 / kde.bandwidth**2,
                           cfg.cutoff * kde.bandwidth)
-        self._work = workspace(len(kde.pooled.start), min(cfg.k, kde.pooled.n), kde.n_classes)
+        self._work = workspace(kde.pooled.nodes, d, min(cfg.k, kde.pooled.n), kde.n_classes)
         self._d, self._K = d, kde.n_classes
 
     def __call__(self, contacts, normals=None) -> tuple[np.ndarray, np.ndarray | None]:
@@ -62,8 +62,8 @@ class GraspScorer:
 
 
 @njit(cache=True)
-def _score(P, N, has_normals, tri, tri_edges, n_edges, tol, mean, std, data, start, end, left, right, lo, hi, labels,
-           k, eps, log_norms, inv, radius, work, q, order, out):
+def _score(P, N, has_normals, tri, tri_edges, n_edges, tol, mean, std, data, nodes, split, labels, k, eps, log_norms,
+           inv, radius, work, q, order, out):
     """Phi of one grasp into ``q``, then its pooled-KDE log densities into ``out``; returns the Phi status."""
     n = P.shape[0]
     if phik._bad_input(P, N, has_normals):
@@ -77,5 +77,5 @@ def _score(P, N, has_normals, tri, tri_edges, n_edges, tol, mean, std, data, sta
     if status != 0:
         return status
     z = (q - mean) / std
-    log_density_row(data, start, end, left, right, lo, hi, labels, z, k, eps, log_norms, inv, radius, work, out)
+    log_density_row(data, nodes, split, labels, z, k, eps, log_norms, inv, radius, work, out)
     return 0

@@ -132,6 +132,10 @@ class ZFingerUpdater:
         """Sub-grasp vectors ``(m, d_z)`` of one grasp (already computed)."""
         return self.base.update(q)
 
+    def update_scores(self, log_lik=None, proba=None) -> np.ndarray:
+        """Precomputed scores of one grasp's rows (see ``BeliefUpdater.update_scores``)."""
+        return self.base.update_scores(log_lik=log_lik, proba=proba)
+
     def update_grasp(self, contacts, normals=None, touched=None) -> np.ndarray:
         """One grasp from raw contacts ``(n, 3)`` (+ inward normals) -> new belief ``(K,)``."""
         Q = subset_vectors(contacts, normals, self.z, k=self.k, rng=self.rng, touched=touched, normalize=self.normalize)
