@@ -1,0 +1,38 @@
+"""GraspScorer (Phi + pooled KDE in one compiled call) against phi + KDELikelihood."""
+
+import numpy as np
+import pytest
+
+from haptic_env.grasp_features import phi
+from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
+from haptic_env.recognizers.scorer import GraspScorer
+
+
+@pytest.mark.parametrize("n, normals", [(3, False), (4, False), (5, True)])
+def test_scorer_equals_phi_then_kde(n, normals):
+    rng = np.random.default_rng(n)
+    P = rng.normal(size=(3000, n, 3))
+    N = rng.normal(size=P.shape) if normals else None
+    f = phi(P, N)
+    y = (P[:, 0, 0] > 0).astype(int) + 2 * (P[:, 1, 1] > 0)
+    kde = KDELikelihood(KDEConfig(factor=0.5, method="pooled")).fit(f.q[f.valid], y[f.valid])
+    scorer = GraspScorer(n, normals, kde)
+    for i in range(40):
+        Pi = rng.normal(size=(n, 3))
+        if n == 5 and i % 10 == 0:  # a square hull face: the Qhull fallback of the general path
+            Pi[:4] = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
+            Pi[4, 2] = 0.7
+        Ni = rng.normal(size=(n, 3)) if normals else None
+        q, ll = scorer(Pi, Ni)
+        g = phi(Pi, Ni)
+        np.testing.assert_allclose(q, g.q, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(ll, kde.log_likelihood(g.q), rtol=1e-12, atol=1e-9)
+
+
+def test_scorer_needs_a_pooled_kde_of_the_right_dimension():
+    rng = np.random.default_rng(0)
+    X, y = rng.normal(size=(200, 6)), np.arange(200) % 2
+    with pytest.raises(ValueError, match="pooled"):
+        GraspScorer(4, False, KDELikelihood(KDEConfig(factor=1.0, method="tree")).fit(X, y))
+    with pytest.raises(ValueError, match="features"):
+        GraspScorer(4, True, KDELikelihood(KDEConfig(factor=1.0, method="pooled")).fit(X, y))
