@@ -130,6 +130,9 @@ def main(argv=None) -> None:
 
     # env and bare backend alternate block by block (one object each), so a drift in machine speed hits
     # both; the ratio of each repeat is taken and the median over repeats reported
+    for block in blocks:  # warm-up pass (untimed): caches, branch predictors, lazily built structures
+        run_env(block)
+        run_backend(block, np.random.default_rng(1))
     env_times, be_times, ratios, parts = [], [], [], []
     for r in range(args.repeats):
         t_step = t_grasp = t_reset = 0.0
