@@ -108,11 +108,18 @@ def feature_dim(n: int, normals: bool = False, dim: int = 3) -> int:
 
 
 # --------------------------------------------------------------------------------------- helpers
-def _as_batch(contacts, normals, dim: int) -> tuple[np.ndarray, np.ndarray | None, bool]:
-    P = np.asarray(contacts, dtype=np.float64)
+def _batched(contacts, normals) -> tuple[np.ndarray, np.ndarray | None, bool]:
+    """Contiguous float64 ``(P, N, single)``, a single grasp given a batch axis; no checks."""
+    P = np.ascontiguousarray(contacts, dtype=np.float64)
     single = P.ndim == 2
+    N = None if normals is None else np.ascontiguousarray(normals, dtype=np.float64)
     if single:
-        P = P[None]
+        P, N = P[None], None if N is None else N[None]
+    return P, N, single
+
+
+def _as_batch(contacts, normals, dim: int) -> tuple[np.ndarray, np.ndarray | None, bool]:
+    P, N, single = _batched(contacts, normals)
     if P.ndim != 3 or P.shape[-1] != dim:
         raise ValueError(f"contacts must have shape (B, n, {dim}) or (n, {dim}), got {np.shape(contacts)}")
     if P.shape[1] < 2:
@@ -121,11 +128,7 @@ def _as_batch(contacts, normals, dim: int) -> tuple[np.ndarray, np.ndarray | Non
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise ValueError(f"contacts of grasp {i} are not finite: {P[i].tolist()}")
-    N = None
-    if normals is not None:
-        N = np.asarray(normals, dtype=np.float64)
-        if single:
-            N = N[None]
+    if N is not None:
         if N.shape != P.shape:
             raise ValueError(f"normals must have the shape of contacts {P.shape}, got {np.shape(normals)}")
         norm = _norm(N)
@@ -453,19 +456,11 @@ def _phi_chain(P, N, tol):
 def _small_batch(contacts, normals) -> tuple[np.ndarray, np.ndarray | None, bool] | None:
     """``(P (B, n, 3), N, single)`` as contiguous float64 when the compiled path applies (``n >= 3``, ``B``
     at most :data:`_COMPILED_MAX_ROWS`, matching shapes), else None (the NumPy path validates and raises)."""
-    P = np.ascontiguousarray(contacts, dtype=np.float64)
-    single = P.ndim == 2
-    if single:
-        P = P[None]
+    P, N, single = _batched(contacts, normals)
     if P.ndim != 3 or P.shape[2] != 3 or P.shape[1] < 3 or P.shape[0] > _COMPILED_MAX_ROWS:
         return None
-    N = None
-    if normals is not None:
-        N = np.ascontiguousarray(normals, dtype=np.float64)
-        if single:
-            N = N[None]
-        if N.shape != P.shape:
-            return None
+    if N is not None and N.shape != P.shape:
+        return None
     return P, N, single
 
 
