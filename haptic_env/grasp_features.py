@@ -41,7 +41,7 @@ Degenerate grasps
 
 Speed
     Batches of up to ``_COMPILED_MAX_ROWS`` grasps (an environment step scores one) run through the
-    numba kernels of :mod:`haptic_env._phi_kernels` (~8 us per grasp instead of ~0.5 ms of NumPy
+    numba kernels of :mod:`haptic_env._phi_kernels` (~5 us per grasp instead of ~0.5 ms of NumPy
     call overhead); larger batches are vectorised here. Both paths give the same result.
 
 Scale (:func:`normalize_scale`)
