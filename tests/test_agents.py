@@ -96,6 +96,15 @@ def test_tiny_ppo_trains_saves_reloads_and_resumes(env_config, small_recognizer_
     obs, _ = env.reset(seed=0)
     a1, a2 = agent.act(obs, env), SB3Agent.from_path(path).act(obs, env)
     np.testing.assert_array_equal(a1, a2)
+    from agents.evaluate import make_agent
+
+    sampled = make_agent(f"ppo={path}", stochastic=True)  # evaluate --stochastic
+    assert sampled.name == "ppo-stochastic" and not sampled.deterministic
+    sampled.reset(env, seed=0)
+    s1 = sampled.act(obs, env)
+    sampled.reset(env, seed=0)
+    np.testing.assert_array_equal(s1, sampled.act(obs, env))  # seeded: repeatable
+    assert not np.array_equal(s1, a1)  # a sample, not the mean action
 
     path2 = train.main(args[:-2] + ["--resume", str(run / "checkpoints" / "ppo_128_steps.zip"),
                                     "--total-timesteps", "128", "--run-dir", str(tmp_path / "resumed"),
