@@ -456,10 +456,10 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         touched = np.asarray(result.touched, dtype=bool).reshape(-1)
         contacts = np.asarray(result.contacts, dtype=np.float64)
         normals = self._normals_of(result) if self.config.normals else None
-        if (self._scorer is not None and touched.all()
+        if (self._scorer is not None and np.count_nonzero(touched) == touched.size
                 and (self.config.updater == "bc-np" or self._updater.n_grasps > 0)):  # BC-IP: prior from the classifier
-            q, log_lik = self._scorer(contacts, normals)  # = grasp_rows + the likelihood of updater.update
-            q_obs = np.minimum(np.maximum(q, -self._q_bound), self._q_bound)
+            q_obs, log_lik = self._scorer(contacts, normals)  # = grasp_rows + the likelihood of updater.update
+            np.minimum(np.maximum(q_obs, -self._q_bound, out=q_obs), self._q_bound, out=q_obs)  # q_obs is fresh
             usable = log_lik is not None
             if usable:
                 self._belief = self._as_belief(self._updater.update_scores(log_lik=log_lik))
@@ -613,7 +613,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     def _as_belief(self, b) -> np.ndarray:
         if not (isinstance(b, np.ndarray) and b.dtype == np.float64 and b.ndim == 1):
             b = np.asarray(b, dtype=np.float64).reshape(-1)
-        if b.shape != (self.n_classes,) or not np.isfinite(b).all():
+        if b.shape != (self.n_classes,) or not math.isfinite(np.add.reduce(b)):  # NaN / inf propagate to the sum
             raise RuntimeError(f"belief updater returned an invalid belief {b!r} (expected {self.n_classes} finite values)")
         return b.copy()
 
@@ -630,13 +630,14 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
 
     def _info(self, *, usable: bool, decided: bool) -> dict[str, Any]:
         pred = int(self._belief.argmax())
+        certainty = float(self._belief[pred])
         return {
             "true_object": self.object_names[self._target],
             "true_index": self._target,
             "predicted": self.object_names[pred],
             "predicted_index": pred,
             "correct": pred == self._target,
-            "certainty": float(self._belief.max()),
+            "certainty": certainty,
             "decided": decided,
             "grasps": self._grasps,
             "usable": usable,
