@@ -22,7 +22,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["phi_one", "phi_rows", "surface_area_one", "surface_area_rows", "AMBIGUOUS", "BAD_INPUT"]
+__all__ = ["phi_one", "phi_checked", "phi_rows", "surface_area_one", "surface_area_rows", "AMBIGUOUS", "BAD_INPUT"]
 
 AMBIGUOUS = -1  #: a hull face with >= 4 coplanar contacts: use the NumPy path
 BAD_INPUT = -2  #: non-finite contacts, or a zero / non-finite normal: the NumPy path raises the error
@@ -308,6 +308,19 @@ def _bad_input(P, N, has_normals):
 
 
 @njit(cache=True)
+def phi_checked(P, N, has_normals, tri, tri_edges, n_edges, tol, q, order, Nu):
+    """:func:`phi_one` of one grasp from raw normals ``N (n, 3)``: :data:`BAD_INPUT` for non-finite contacts or
+    a zero / non-finite normal, else the normals are normalised into the scratch ``Nu (n, 3)`` first."""
+    if _bad_input(P, N, has_normals):
+        return BAD_INPUT
+    if has_normals:
+        for j in range(P.shape[0]):
+            s = math.sqrt(N[j, 0] * N[j, 0] + N[j, 1] * N[j, 1] + N[j, 2] * N[j, 2])
+            Nu[j, 0], Nu[j, 1], Nu[j, 2] = N[j, 0] / s, N[j, 1] / s, N[j, 2] / s
+    return phi_one(P, Nu, has_normals, tri, tri_edges, n_edges, tol, q, order)
+
+
+@njit(cache=True)
 def phi_rows(P, N, has_normals, tri, tri_edges, n_edges, tol, q, order, reason, valid):
     """:func:`phi_one` over a batch ``P (B, n, 3)``; normals ``N (B, n, 3)`` are normalised here.
 
@@ -322,13 +335,9 @@ def phi_rows(P, N, has_normals, tri, tri_edges, n_edges, tol, q, order, reason, 
         for j in range(n):
             order[i, j] = j
         valid[i] = False
-        if _bad_input(P[i], N[i], has_normals):
+        st = phi_checked(P[i], N[i], has_normals, tri, tri_edges, n_edges, tol, q[i], order[i], Nu)
+        if st == BAD_INPUT:
             return BAD_INPUT
-        if has_normals:
-            for j in range(n):
-                s = math.sqrt(N[i, j, 0] * N[i, j, 0] + N[i, j, 1] * N[i, j, 1] + N[i, j, 2] * N[i, j, 2])
-                Nu[j, 0], Nu[j, 1], Nu[j, 2] = N[i, j, 0] / s, N[i, j, 1] / s, N[i, j, 2] / s
-        st = phi_one(P[i], Nu, has_normals, tri, tri_edges, n_edges, tol, q[i], order[i])
         if st != 0:
             q[i, :] = 0.0
             for j in range(n):

@@ -35,12 +35,11 @@ class KDTree:
             raise ValueError(f"KDTree needs a non-empty (N, d) array, got shape {X.shape}")
         if leafsize < 1:
             raise ValueError(f"leafsize must be >= 1, got {leafsize}")
-        order, nodes, split, depth = _build(X, int(leafsize))
+        order, nodes, split = _build(X, int(leafsize))
         self.indices = order  #: tree position -> row of X
         self.data = np.ascontiguousarray(X[order], dtype=np.float32)  #: vectors in tree order
         self.nodes = nodes  #: (n_nodes, 4) int32: first child (-1: leaf), leaf start, leaf end, split dimension
         self.split = split  #: (n_nodes,) split values: left child <= split <= right child along the dimension
-        self.depth = int(depth)
         self.n, self.m = X.shape
 
     def query(self, Z: np.ndarray, k: int, eps: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -65,10 +64,9 @@ def _build(X, leafsize):
     cap = 2 * (n // max(1, leafsize // 2) + 1) + 1
     nodes = np.full((cap, 4), -1, np.int32)
     split = np.zeros(cap)
-    level = np.zeros(cap, np.int64)
     stack = np.empty(cap, np.int64)
     nodes[0, _START], nodes[0, _END] = 0, n
-    n_nodes, top, depth = 1, 0, 0
+    n_nodes, top = 1, 0
     stack[0] = 0
     lo = np.empty(d)
     hi = np.empty(d)
@@ -76,7 +74,6 @@ def _build(X, leafsize):
         node = stack[top]
         top -= 1
         s, e = nodes[node, _START], nodes[node, _END]
-        depth = max(depth, level[node])
         if e - s <= leafsize:
             continue
         lo[:] = np.inf
@@ -101,10 +98,9 @@ def _build(X, leafsize):
         nodes[node, _LEFT], nodes[node, _DIM] = a, dim
         split[node] = X[order[mid], dim]  # keys[:mid] <= split <= keys[mid:]
         nodes[a, _START], nodes[a, _END], nodes[a + 1, _START], nodes[a + 1, _END] = s, mid, mid, e
-        level[a] = level[a + 1] = level[node] + 1
         stack[top + 1], stack[top + 2] = a, a + 1
         top += 2
-    return order, nodes[:n_nodes].copy(), split[:n_nodes].copy(), depth
+    return order, nodes[:n_nodes].copy(), split[:n_nodes].copy()
 
 
 @njit(cache=True)

@@ -65,15 +65,7 @@ class GraspScorer:
 def _score(P, N, has_normals, tri, tri_edges, n_edges, tol, mean, std, data, nodes, split, labels, k, eps, log_norms,
            inv, radius, work, q, order, out):
     """Phi of one grasp into ``q``, then its pooled-KDE log densities into ``out``; returns the Phi status."""
-    n = P.shape[0]
-    if phik._bad_input(P, N, has_normals):
-        return phik.BAD_INPUT
-    Nu = np.empty((n, 3))
-    if has_normals:
-        for j in range(n):
-            s = np.sqrt(N[j, 0] * N[j, 0] + N[j, 1] * N[j, 1] + N[j, 2] * N[j, 2])
-            Nu[j, 0], Nu[j, 1], Nu[j, 2] = N[j, 0] / s, N[j, 1] / s, N[j, 2] / s
-    status = phik.phi_one(P, Nu, has_normals, tri, tri_edges, n_edges, tol, q, order)
+    status = phik.phi_checked(P, N, has_normals, tri, tri_edges, n_edges, tol, q, order, np.empty((P.shape[0], 3)))
     if status != 0:
         return status
     z = (q - mean) / std
