@@ -421,11 +421,15 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         self._backend_rng = np.random.Generator(np.random.PCG64(int(rng.integers(2**63))))
 
         obj = self.objects[self._target]
-        if self._scale != 1.0:
-            mesh = obj.mesh.copy()
-            mesh.apply_scale(self._scale)
-            obj = dataclasses.replace(obj, mesh=mesh)
-        self.backend.set_object(obj, self._pose.copy())
+        if self._scale != 1.0 and getattr(self.backend, "supports_scale", False):
+            # the backend scales the object as a transform: no per-episode mesh copy (nor a new ray-casting scene)
+            self.backend.set_object(obj, self._pose.copy(), scale=self._scale)
+        else:
+            if self._scale != 1.0:
+                mesh = obj.mesh.copy()
+                mesh.apply_scale(self._scale)
+                obj = dataclasses.replace(obj, mesh=mesh)
+            self.backend.set_object(obj, self._pose.copy())
 
         if self._updater is None:
             self._updater = self.recognizer.make_updater(kind=self.config.updater, threshold=self.config.threshold)

@@ -139,3 +139,55 @@ def test_full_grasps_span_a_polyhedron():
         full = b.touched.all(axis=1)
         assert full.mean() > 0.5, name
         assert phi(b.contacts[full], b.normals[full]).valid.mean() > 0.99, name
+
+
+@pytest.mark.parametrize("support", ["table", "floating"])
+@pytest.mark.parametrize("make_obj", [_box, _dumbbell])
+def test_scale_as_transform_matches_a_scaled_mesh_copy(make_obj, support):
+    """``set_object(obj, pose, scale=s)`` grasps exactly like the object with its mesh scaled by ``s``."""
+    obj, T = make_obj(), _pose()
+    s = 1.37
+    scaled = GraspObject(obj.name, obj.mesh.copy().apply_scale(s))
+    a_rng = np.random.default_rng(5)
+    actions = a_rng.uniform(-1, 1, (400, 4))
+    be1 = make_backend("geometric", 4, support=support)
+    be1.set_object(obj, T, scale=s)
+    be2 = make_backend("geometric", 4, support=support)
+    be2.set_object(scaled, T)
+    b1 = be1.grasp_batch(actions, np.random.default_rng(0))
+    b2 = be2.grasp_batch(actions, np.random.default_rng(0))
+    same = (b1.touched == b2.touched).all(axis=1)
+    assert same.mean() > 0.99  # float32 Embree may decide a ray grazing an edge differently
+    t = b1.touched & same[:, None]
+    np.testing.assert_allclose(b1.contacts[t], b2.contacts[t], atol=1e-9)
+    np.testing.assert_allclose(b1.normals[t], b2.normals[t], atol=1e-9)
+    assert be1.scale == s and be1._radius == pytest.approx(be2._radius)
+    assert be1.n_scenes == 1  # the unscaled mesh's scene
+    for bad in (0.0, -1.0, float("nan"), "big"):
+        with pytest.raises(ValueError, match="scale"):
+            be1.set_object(obj, T, scale=bad)
+
+
+def test_scene_cache_is_bounded_and_keyed_by_mesh():
+    """Scenes are reused per mesh and at most MAX_SCENES live: >1013 distinct meshes crashed Embree before."""
+    from haptic_env.grasping.geometric import MAX_SCENES
+
+    be = make_backend("geometric", 4)
+    obj = _box()
+    rng = np.random.default_rng(0)
+    for s in rng.uniform(0.8, 1.2, 50):  # one mesh, many scales and poses: one scene
+        be.set_object(obj, _pose(), scale=s)
+    assert be.n_scenes == 1
+    for i in range(1100):  # distinct meshes (e.g. scaled copies): bounded, no crash
+        be.set_object(GraspObject("b", obj.mesh.copy()), np.eye(4))
+        assert be.n_scenes <= MAX_SCENES
+    assert be.grasp(np.zeros(4), rng).touched.any()
+    mesh = obj.mesh.copy()
+    o = GraspObject("b", mesh)
+    be.set_object(o, np.eye(4))
+    r0 = be._radius
+    mesh.apply_scale(2.0)  # edited in place: the cached tables are rebuilt
+    be.set_object(o, np.eye(4))
+    assert be._radius == pytest.approx(2 * r0)
+    be.close()
+    assert be.n_scenes == 1 and be.grasp(np.zeros(4), rng).touched.any()

@@ -16,15 +16,20 @@ for Phi_n). Each fingertip stops at its first intersection with the mesh within 
 its start (default 2: it may sweep across the whole bounding sphere); a fingertip that passes the
 object without hitting (or, with ``support="table"``, would touch below the table top) reports no
 contact. Rays are cast in the object frame (the rays are transformed, not the mesh) with Embree
-when ``embreex`` is installed, else trimesh's triangle intersector.
+when ``embreex`` is installed, else trimesh's triangle intersector. A uniform object scale
+(``set_object(obj, pose, scale=s)``) is applied the same way, as a transform of the rays: the
+ray-casting scene of a mesh is built once and reused for every pose and scale, and at most
+:data:`MAX_SCENES` scenes are kept (least recently used first out), so a long run over randomly
+scaled objects holds a bounded number of Embree scenes.
 
 Fingertip order: fingers ``0..n-2`` then the thumb last (like the Allegro hand: ff, mf, rf, th).
 """
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import trimesh
@@ -40,7 +45,11 @@ from .base import (
     validate_pose,
 )
 
-__all__ = ["GeometricConfig", "GeometricBackend", "make_intersector"]
+__all__ = ["GeometricConfig", "GeometricBackend", "make_intersector", "MAX_SCENES"]
+
+#: Ray-casting scenes (one per distinct mesh) a :class:`GeometricBackend` keeps, least recently used
+#: evicted first. Embree crashes the process after ~1000 live scenes; object sets are far smaller.
+MAX_SCENES = 64
 
 
 @dataclass(frozen=True)
@@ -102,45 +111,102 @@ def finger_angles(spread: np.ndarray, n: int, min_spread: float) -> np.ndarray:
     return np.concatenate([fingers, np.zeros_like(s)], axis=-1)
 
 
+class _MeshScene(NamedTuple):
+    """A mesh's ray-casting scene and the geometry tables a grasp needs (object frame, unscaled)."""
+
+    mesh: trimesh.Trimesh
+    data_hash: int
+    intersector: Any
+    face_normals: np.ndarray
+    face_v0: np.ndarray
+    vertices: np.ndarray
+    centre: np.ndarray
+    radius: float
+
+
 class GeometricBackend:
     """Ray-casting grasps. ``set_object(obj, pose)`` first; then ``grasp`` / ``grasp_batch``."""
 
     action_dim = ACTION_DIM
+    #: ``set_object`` takes ``scale=`` (the env passes its random scale instead of a scaled mesh copy)
+    supports_scale = True
 
     def __init__(self, config: GeometricConfig | None = None) -> None:
         self.config = config or GeometricConfig()
         self.n_fingers = int(self.config.n_fingers)
         self._obj: Any = None
         self._last: tuple[np.ndarray, np.ndarray, GraspResult] | None = None
-        self._intersectors: dict[int, tuple[trimesh.Trimesh, Any]] = {}
+        self._scale = 1.0
+        # id(mesh) -> its scene and geometry tables (holding the mesh, so the id cannot be reused)
+        self._scenes: OrderedDict[int, _MeshScene] = OrderedDict()
 
     # ------------------------------------------------------------------ object
-    def set_object(self, obj: Any, pose: np.ndarray | None = None) -> None:
-        """``obj`` has ``.mesh`` (trimesh, metres, object frame); ``pose`` (4, 4) object-to-world."""
+    def set_object(self, obj: Any, pose: np.ndarray | None = None, scale: float = 1.0) -> None:
+        """``obj`` has ``.mesh`` (trimesh, metres, object frame); ``pose`` (4, 4) object-to-world; ``scale`` > 0
+        a uniform scale of the mesh about its frame origin (applied before the pose; the mesh is not copied)."""
         mesh = getattr(obj, "mesh", None)
         if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
             raise ValueError(f"object {getattr(obj, 'name', obj)!r} has no usable triangle mesh")
         T = validate_pose(pose)
+        try:
+            s = float(scale)
+        except (TypeError, ValueError):
+            raise ValueError(f"scale must be a positive number, got {scale!r}") from None
+        if not (np.isfinite(s) and s > 0.0):
+            raise ValueError(f"scale must be a positive finite number, got {scale!r}")
+        sc = self._scene_of(mesh)
         self._obj = obj
         self._mesh = mesh
         self._T = T
         self._R = T[:3, :3].copy()
         self._t = T[:3, 3].copy()
-        # one intersector (Embree scene) per mesh, built once: episodes revisit the same objects
+        self._scale = s
+        self._intersector = sc.intersector
+        self._face_normals = sc.face_normals
+        self._face_v0 = sc.face_v0
+        self._radius = s * sc.radius  # world units
+        self._centre = self._R @ (s * sc.centre) + self._t
+        self._table_z = float(((s * sc.vertices) @ self._R[2]).min() + self._t[2])
+        self._last = None
+
+    def _scene_of(self, mesh: trimesh.Trimesh) -> "_MeshScene":
+        """The cached scene of ``mesh`` (built on first use; the least recently used one is released when
+        more than :data:`MAX_SCENES` are held)."""
         key = id(mesh)
-        if key not in self._intersectors or self._intersectors[key][0] is not mesh:
-            self._intersectors[key] = (mesh, make_intersector(mesh))
-        self._intersector = self._intersectors[key][1]
-        self._face_normals = np.asarray(mesh.face_normals, dtype=np.float64)
-        self._face_v0 = np.asarray(mesh.triangles[:, 0, :], dtype=np.float64)
+        sc = self._scenes.get(key)
+        if sc is not None and sc.mesh is mesh and sc.data_hash == hash(mesh):  # hash: changes if edited in place
+            self._scenes.move_to_end(key)
+            return sc
         v = np.asarray(mesh.vertices, dtype=np.float64)
         c_obj = 0.5 * (v.min(axis=0) + v.max(axis=0))
         if mesh.is_volume and mesh.volume > 0:
             c_obj = np.asarray(mesh.center_mass, dtype=np.float64)
-        self._radius = float(np.linalg.norm(v - c_obj, axis=1).max())
-        self._centre = self._R @ c_obj + self._t
-        self._table_z = float((v @ self._R.T + self._t)[:, 2].min())
-        self._last = None
+        sc = _MeshScene(mesh=mesh, data_hash=hash(mesh), intersector=make_intersector(mesh),
+                        face_normals=np.asarray(mesh.face_normals, dtype=np.float64),
+                        face_v0=np.asarray(mesh.triangles[:, 0, :], dtype=np.float64),
+                        vertices=v, centre=c_obj, radius=float(np.linalg.norm(v - c_obj, axis=1).max()))
+        self._scenes[key] = sc
+        self._scenes.move_to_end(key)
+        while len(self._scenes) > MAX_SCENES:
+            self._scenes.popitem(last=False)  # dropping the last reference frees the Embree scene
+        return sc
+
+    @property
+    def n_scenes(self) -> int:
+        """Ray-casting scenes currently held (at most :data:`MAX_SCENES`)."""
+        return len(self._scenes)
+
+    @property
+    def scale(self) -> float:
+        """The current object's uniform scale."""
+        return self._scale
+
+    def close(self) -> None:
+        """Release every cached ray-casting scene but the current object's."""
+        cur = self._scenes.get(id(self._mesh)) if self._obj is not None else None
+        self._scenes.clear()
+        if cur is not None:
+            self._scenes[id(self._mesh)] = cur
 
     @property
     def object(self) -> Any:
@@ -185,8 +251,10 @@ class GeometricBackend:
         return self.grasp_batch(a[None], rng)[0]
 
     def _cast(self, o_w: np.ndarray, d_w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        R, t = self._R, self._t
-        o = (o_w - t) @ R  # R^T (o - t), row-wise
+        R, t, s = self._R, self._t, self._scale
+        o = (o_w - t) @ R  # R^T (o - t), row-wise: the scaled object's frame
+        if s != 1.0:
+            o /= s  # the unscaled mesh's frame (directions stay unit: distances shrink by 1 / s)
         d = d_w @ R
         m = o.shape[0]
         contacts = np.zeros((m, 3))
@@ -206,11 +274,11 @@ class GeometricBackend:
             tdist = np.einsum("ij,ij->i", self._face_v0[idx_tri] - o[idx_ray], fn) / safe
             locs = o[idx_ray] + tdist[:, None] * d[idx_ray]
             # stopped within the finger's reach (a finger sweeping past the object touched nothing)
-            reach = self.config.reach * self.config.margin * self._radius
+            reach = self.config.reach * self.config.margin * self._radius / s
             ok = (tdist >= 0.0) & (tdist <= reach + 1e-9) & (np.abs(dn) > 1e-12)
             # inward normal = face normal oriented along the finger's motion (robust to face winding)
             sign = np.where(dn >= 0.0, 1.0, -1.0)
-            pw = locs @ R.T + t
+            pw = (locs * s if s != 1.0 else locs) @ R.T + t
             nw = (sign[:, None] * fn) @ R.T
             if self.config.support == "table":
                 ok &= pw[:, 2] > self._table_z + self.config.table_clearance
@@ -248,7 +316,7 @@ class GeometricBackend:
         faces = np.asarray(self._mesh.faces)
         if len(faces) > 4000:  # keep rendering fast: a random subset of faces
             faces = faces[np.random.default_rng(0).choice(len(faces), 4000, replace=False)]
-        tri = (np.asarray(self._mesh.vertices)[faces] @ self._R.T) + self._t
+        tri = ((self._scale * np.asarray(self._mesh.vertices)[faces]) @ self._R.T) + self._t
         ax.add_collection3d(Poly3DCollection(tri, alpha=0.25, facecolor="tab:blue", edgecolor="none"))
         r = self._radius * self.config.margin
         lo, hi = self._centre - r, self._centre + r
