@@ -12,6 +12,7 @@ import haptic_env
 from agents.evaluate import evaluate_agents, plot_learning_curves, summarize, write_report
 from agents.greedy import GreedyInfoGainAgent, entropy_rows, predicted_beliefs
 from agents.random_policy import RandomAgent
+from haptic_env.env import get_recognizer
 
 
 def test_random_and_greedy_complete_episodes(env_config):
@@ -50,7 +51,7 @@ def test_greedy_prediction_matches_the_updater(env_config):
     u = copy.deepcopy(base.updater.base)
     np.testing.assert_allclose(pred[0], u.update(Q[:2]), rtol=1e-9, atol=1e-12)
     # a non-Bayesian updater (IC) goes through copies of its state; the original is untouched
-    ic = base.recognizer.make_updater("ic")
+    ic = get_recognizer(base.objects, base.config.replace(updater="ic")).make_updater("ic")  # the env built the KDE only
     ic.update(Q[0])
     before = ic.belief.copy()
     pred = predicted_beliefs(ic, Q[1:])

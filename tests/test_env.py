@@ -378,15 +378,17 @@ def test_grasp_scorer_matches_features_and_kde(env_config):
     from haptic_env.objects import load_object_set
 
     rec = get_recognizer(load_object_set(env_config.objects), env_config)
-    scorer = rec.grasp_scorer()
+    scorer, raw = rec.grasp_scorer(), rec.grasp_scorer(calibrated=False)
     kde = rec.models.model(4)[1]
+    assert kde.temperature != 1.0  # fitted on the validation grasps
     rng = np.random.default_rng(1)
     for _ in range(30):
         P, N = rng.normal(size=(4, 3)) * 0.05, rng.normal(size=(4, 3))
         q, ll = scorer(P, N)
         Q = rec.features(P, N)
         np.testing.assert_allclose(q, Q[0], rtol=0, atol=1e-12)
-        np.testing.assert_allclose(ll, kde.log_likelihood(Q), rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(raw(P, N)[1], kde.log_likelihood(Q), rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(ll, rec.models.log_likelihood(Q), rtol=1e-12, atol=1e-9)  # tempered: / T
     flat = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.0]])
     q, ll = scorer(flat, rng.normal(size=(4, 3)))
     assert ll is None and not q.any()  # coplanar: no information

@@ -36,7 +36,11 @@ def test_build_recognizer_caches_and_updates(cache):
     cfg = RecognizerConfig(grasps=DatasetConfig(grasps_per_object=300), mlp=MLPConfig(max_epochs=2, progress=False))
     rec = build_recognizer(objs, 4, True, z_values=(3,), config=cfg, progress=False)
     files = sorted(p.name for p in (cache / "recognizers").iterdir())
-    assert len(files) == 6  # mlp, kde, json for z = 3 and 4
+    assert len(files) == 8  # per z = 3 and 4: the mlp and the kde, each with its json
+    kde_only = build_recognizer(objs, 4, True, z_values=(3,), config=cfg, models=("kde",), progress=False)
+    assert kde_only.models.model(4)[0] is None and len(list((cache / "recognizers").iterdir())) == 8  # from the cache
+    with pytest.raises(ValueError, match="needs the \\['mlp'\\] model"):
+        kde_only.make_updater("ic")
     again = build_recognizer(objs, 4, True, z_values=(3,), config=cfg, progress=False)
     rng = np.random.default_rng(0)
     pts, nrm = objs[0].sample_surface(4, rng)

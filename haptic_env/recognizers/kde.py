@@ -42,6 +42,7 @@ import numpy as np
 from scipy.special import logsumexp
 from scipy.spatial import cKDTree
 
+from haptic_env.recognizers.calibration import fit_temperature
 from haptic_env.recognizers.knn import KDTree, pooled_log_density
 from haptic_env.recognizers.mlp import Standardizer, _check_xy
 
@@ -63,6 +64,8 @@ class KDEConfig:
     max_samples: int = 20_000  #: per object ("subsample")
     select_samples: int = 4_000  #: training vectors per object in the bandwidth-selection KDE
     n_select: int = 500  #: validation vectors per object used to choose the factor
+    calibrate: bool = True  #: fit a temperature on validation vectors (see :mod:`.calibration`)
+    n_calibrate: int = 1_000  #: validation vectors per object used to fit the temperature
     seed: int = 0
 
     def __post_init__(self):
@@ -75,6 +78,8 @@ class KDEConfig:
             raise ValueError(f"KDEConfig.factor must be positive and finite, got {self.factor!r}")
         if not self.factor_grid or min(self.factor_grid) <= 0:
             raise ValueError(f"KDEConfig.factor_grid must hold positive factors, got {self.factor_grid!r}")
+        if not (isinstance(self.n_calibrate, (int, np.integer)) and self.n_calibrate >= 1):
+            raise ValueError(f"KDEConfig.n_calibrate must be an int >= 1, got {self.n_calibrate!r}")
         if self.k < 1 or self.cutoff <= 0 or self.max_samples < 1 or self.eps < 0:
             raise ValueError(f"KDEConfig needs k >= 1, cutoff > 0, max_samples >= 1; got {self}")
 
@@ -92,6 +97,7 @@ class KDELikelihood:
     bandwidth: float = float("nan")  #: h in standardised units (after fit)
     factor: float = float("nan")  #: the chosen multiple of Scott's rule
     selection: dict = field(default_factory=dict)  #: factor -> mean validation log-likelihood
+    temperature: float = 1.0  #: calibration temperature T (fitted on validation vectors; 1: none)
 
     def __post_init__(self):
         self.scaler: Standardizer | None = None
@@ -115,7 +121,10 @@ class KDELikelihood:
         """Store the training vectors ``X (N, d)`` of each class ``y (N,)``; choose the bandwidth.
 
         With ``config.factor == "auto"`` a validation set is needed; without ``X_val`` a random
-        10 % of ``X`` is held out for the choice only (the KDE keeps all of ``X``).
+        10 % of ``X`` is held out for the choice only (the KDE keeps all of ``X``). With
+        ``config.calibrate`` and ``X_val`` given, :attr:`temperature` is fitted on at most
+        ``n_calibrate`` validation vectors per class (:func:`~.calibration.fit_temperature` of the
+        log-likelihoods evaluated by ``config.method``); without ``X_val`` it stays 1.
         """
         cfg = self.config
         X, y = _check_xy(X, y)
@@ -132,6 +141,7 @@ class KDELikelihood:
                          for z in self.data]
         n_mean = float(np.mean([len(z) for z in self.data]))
         scott = scott_bandwidth(int(n_mean), X.shape[1])
+        given_val = X_val is not None
         if cfg.factor == "auto":
             if X_val is None:
                 perm = rng.permutation(len(X))[: max(1, len(X) // 10)]
@@ -144,6 +154,13 @@ class KDELikelihood:
         self.bandwidth = self.factor * scott
         self._build_index()
         self._log_norms = None  # refitted: normalisers change
+        self.temperature = 1.0
+        if cfg.calibrate and given_val:
+            Xv, yv = _check_xy(X_val, y_val, X.shape[1], "X_val")
+            keep = np.concatenate([rng.permutation(np.flatnonzero(yv == c))[: cfg.n_calibrate]
+                                   for c in range(self.n_classes)])
+            if len(keep):
+                self.temperature = fit_temperature(self.log_likelihood(Xv[keep]), yv[keep])
         return self
 
     def with_method(self, method: str) -> KDELikelihood:
@@ -152,7 +169,8 @@ class KDELikelihood:
             raise ValueError(f"with_method: method must be 'tree', 'pooled' or 'dense', got {method!r}")
         if self.scaler is None:
             raise RuntimeError("KDELikelihood is not fitted; call fit() first")
-        other = KDELikelihood(replace(self.config, method=method), self.bandwidth, self.factor, dict(self.selection))
+        other = KDELikelihood(replace(self.config, method=method), self.bandwidth, self.factor, dict(self.selection),
+                              self.temperature)
         other.scaler, other.data, other.n_classes = self.scaler, self.data, self.n_classes
         other._build_index()
         return other
@@ -254,7 +272,8 @@ class KDELikelihood:
     def state(self) -> dict[str, np.ndarray]:
         """Arrays that reproduce this KDE (for :func:`haptic_env.cache.save_npz_atomic`)."""
         out = {"kde_mean": self.scaler.mean, "kde_std": self.scaler.std,
-               "kde_bandwidth": np.array(self.bandwidth), "kde_factor": np.array(self.factor)}
+               "kde_bandwidth": np.array(self.bandwidth), "kde_factor": np.array(self.factor),
+               "kde_temperature": np.array(self.temperature)}
         for c, z in enumerate(self.data):
             out[f"kde_data_{c}"] = z.astype(np.float32)
         return out
@@ -265,6 +284,7 @@ class KDELikelihood:
         kde.scaler = Standardizer(arrays["kde_mean"], arrays["kde_std"])
         kde.bandwidth = float(arrays["kde_bandwidth"])
         kde.factor = float(arrays["kde_factor"])
+        kde.temperature = float(arrays.get("kde_temperature", 1.0))
         c = 0
         while f"kde_data_{c}" in arrays:
             kde.data.append(arrays[f"kde_data_{c}"].astype(np.float64))

@@ -26,6 +26,7 @@ from torch import nn
 from tqdm.auto import tqdm
 
 from haptic_env.cache import CacheError, atomic_write
+from haptic_env.recognizers.calibration import fit_temperature
 
 __all__ = ["MLPConfig", "MLPClassifier", "FORMAT_VERSION", "set_torch_threads", "Standardizer"]
 
@@ -129,6 +130,7 @@ class MLPClassifier:
         self.scaler: Standardizer | None = None
         self.n_classes: int = 0
         self.history: dict[str, list[float]] = {}
+        self.temperature = 1.0  #: calibration temperature of the logits, fitted on the validation set by fit()
 
     @property
     def classes_(self) -> np.ndarray:
@@ -147,7 +149,9 @@ class MLPClassifier:
     def fit(self, X, y, X_val=None, y_val=None, *, n_classes: int | None = None) -> MLPClassifier:
         """Train on ``X (N, d)``, ``y (N,)`` (class indices); early stopping on ``(X_val, y_val)``.
 
-        Without an explicit validation set, ``config.val_fraction`` of ``X`` is held out.
+        Without an explicit validation set, ``config.val_fraction`` of ``X`` is held out. After training,
+        :attr:`temperature` is fitted on the validation logits (:func:`~.calibration.fit_temperature`);
+        ``predict_proba`` stays raw, :class:`~.recognizer.ModelBank` applies the temperature.
         """
         cfg = self.config
         set_torch_threads(cfg.threads)
@@ -212,6 +216,9 @@ class MLPClassifier:
         if best_state is not None:
             self.net.load_state_dict(best_state)
         self.net.eval()
+        with torch.no_grad():  # temperature scaling on the validation logits (calibration.fit_temperature)
+            logits = torch.cat([self.net(Xv[lo : lo + 65536]) for lo in range(0, len(Xv), 65536)])
+        self.temperature = fit_temperature(logits.double().numpy(), y_val)
         return self
 
     @torch.no_grad()
@@ -252,6 +259,7 @@ class MLPClassifier:
             "scaler_mean": torch.as_tensor(self.scaler.mean),
             "scaler_std": torch.as_tensor(self.scaler.std),
             "history": self.history,
+            "temperature": float(self.temperature),
         }
 
     @classmethod
@@ -272,6 +280,7 @@ class MLPClassifier:
             model.net.load_state_dict(blob["state_dict"])
             model.net.eval()
             model.history = blob.get("history", {})
+            model.temperature = float(blob.get("temperature", 1.0))
         except (KeyError, TypeError, RuntimeError, ValueError) as exc:
             raise CacheError(f"{where} is a corrupted MLPClassifier file ({exc}); delete it to retrain") from exc
         return model

@@ -5,8 +5,11 @@ it was built for (``n_fingers`` plus ``z_values`` for z-finger scoring and incom
 entries are routed by feature dimension, which is unique per ``z`` for a given ``normals``.
 
 Training data come from :func:`haptic_env.dataset.build_dataset`; trained models are cached under
-``cache_dir("recognizers")`` keyed by the object meshes, ``z``, ``normals`` and the
-:class:`RecognizerConfig` (atomic writes; an unreadable cache file is rebuilt with a warning).
+``cache_dir("recognizers")``, one file per model, keyed by the object meshes, ``z``, ``normals``, the
+training grasps and the model's config (atomic writes; an unreadable cache file is rebuilt with a
+warning). Only the models an updater needs have to be built (:func:`models_for`: BC-NP needs the
+KDE only). Every model carries a calibration temperature fitted on the validation grasps; the
+:class:`ModelBank` applies it unless asked for the raw scores.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.special import softmax
 
 from haptic_env.dataset import DatasetConfig
 from haptic_env.cache import CacheError, atomic_write, cache_dir, config_key, load_npz, save_npz_atomic
@@ -27,9 +31,9 @@ from haptic_env.recognizers.mlp import MLPClassifier, MLPConfig
 from haptic_env.recognizers.updaters import UPDATERS, make_updater
 from haptic_env.recognizers.zfinger import ZFingerUpdater, subset_vectors
 
-__all__ = ["RecognizerConfig", "ModelBank", "Recognizer", "build_recognizer", "RECOGNIZER_VERSION"]
+__all__ = ["RecognizerConfig", "ModelBank", "Recognizer", "build_recognizer", "models_for", "MODELS", "RECOGNIZER_VERSION"]
 
-RECOGNIZER_VERSION = 1
+RECOGNIZER_VERSION = 2  # 2: calibration temperatures; one cache file per model
 
 
 @dataclass(frozen=True)
@@ -54,20 +58,32 @@ class RecognizerConfig:
     def dataset_config(self, n_fingers: int, normals: bool, hand_fingers: int | None = None) -> DatasetConfig:
         """The training-grasp config of the ``n_fingers`` model."""
         g = self.grasps
-        hand = (g.hand_fingers or hand_fingers) if g.source == "geometric" else None
+        hand = (g.hand_fingers or hand_fingers) if g.source in ("geometric", "hand") else None
         return dataclasses.replace(g, n_fingers=n_fingers, normals=normals, hand_fingers=hand)
 
 
 @dataclass(eq=False)
 class ModelBank:
-    """Classifier + likelihood per finger count, dispatched by the feature dimension of ``Q``."""
+    """Classifier + likelihood per finger count, dispatched by the feature dimension of ``Q``.
+
+    With ``calibrated`` (the default) the scores are temperature-scaled by each model's fitted
+    ``temperature`` (:mod:`~haptic_env.recognizers.calibration`): ``log_likelihood`` returns
+    ``log p(q | c) / T_kde`` (a tempered likelihood) and ``predict_proba`` returns
+    ``softmax(log p_clf / T_clf)``. :meth:`with_calibration` gives the raw view (the paper's method).
+    A model that was not built (``models=`` of :func:`build_recognizer`) is ``None``.
+    """
 
     normals: bool
     n_classes: int
     entries: dict[int, tuple[int, object, KDELikelihood]] = field(default_factory=dict)  # d -> (z, clf, kde)
+    calibrated: bool = True
 
-    def add(self, z: int, classifier, kde: KDELikelihood) -> None:
+    def add(self, z: int, classifier, kde: KDELikelihood | None) -> None:
         self.entries[feature_dim(z, self.normals)] = (z, classifier, kde)
+
+    def with_calibration(self, calibrated: bool) -> ModelBank:
+        """The same models (shared, not copied), scored with or without the calibration temperatures."""
+        return self if bool(calibrated) == self.calibrated else dataclasses.replace(self, calibrated=bool(calibrated))
 
     @property
     def finger_counts(self) -> tuple[int, ...]:
@@ -88,13 +104,29 @@ class ModelBank:
         """``(classifier, kde)`` of the ``z``-finger model."""
         return self.entries[feature_dim(z, self.normals)][1:]
 
+    def temperature(self, z: int) -> dict[str, float]:
+        """The calibration temperatures of the ``z``-finger models: ``{"kde": T, "classifier": T}`` (1: none)."""
+        clf, kde = self.model(z)
+        return {"kde": float(getattr(kde, "temperature", 1.0)), "classifier": float(getattr(clf, "temperature", 1.0))}
+
     def predict_proba(self, Q) -> np.ndarray:
-        Q, (_, clf, _) = self._get(Q)
-        return clf.predict_proba(Q)
+        Q, (z, clf, _) = self._get(Q)
+        if clf is None:
+            raise ValueError(f"the {z}-finger classifier was not built (build_recognizer(models=...) without 'mlp'); "
+                             "IC and BC-IP need it")
+        T = float(getattr(clf, "temperature", 1.0)) if self.calibrated else 1.0
+        if T == 1.0:
+            return clf.predict_proba(Q)
+        L = clf.predict_log_proba(Q) if hasattr(clf, "predict_log_proba") else np.log(np.maximum(clf.predict_proba(Q), 1e-300))
+        return softmax(L / T, axis=1)
 
     def log_likelihood(self, Q) -> np.ndarray:
-        Q, (_, _, kde) = self._get(Q)
-        return kde.log_likelihood(Q)
+        Q, (z, _, kde) = self._get(Q)
+        if kde is None:
+            raise ValueError(f"the {z}-finger KDE was not built (build_recognizer(models=...) without 'kde'); "
+                             "BC-NP and BC-IP need it")
+        ll = kde.log_likelihood(Q)
+        return ll / kde.temperature if self.calibrated and kde.temperature != 1.0 else ll
 
 
 @dataclass(eq=False)
@@ -119,33 +151,44 @@ class Recognizer:
         return subset_vectors(contacts, normals if self.normals else None, z, k=k, rng=rng, touched=touched,
                               normalize=self.config.grasps.normalize_scale)
 
-    def grasp_scorer(self):
+    def grasp_scorer(self, calibrated: bool = True):
         """:class:`~haptic_env.recognizers.scorer.GraspScorer` of complete ``n_fingers`` grasps (Phi and the KDE
-        log-likelihoods in one compiled call), or None if the KDE is not evaluated ``"pooled"`` or grasps are
-        scale-normalised (then use :meth:`features` and ``updater.update``)."""
+        log-likelihoods in one compiled call; divided by the KDE's temperature when ``calibrated``), or None if
+        the KDE is not evaluated ``"pooled"`` or grasps are scale-normalised (then use :meth:`features` and
+        ``updater.update``)."""
         if self.config.grasps.normalize_scale:
             return None
-        if not hasattr(self, "_scorer"):
+        scorers = self.__dict__.setdefault("_scorers", {})
+        if calibrated not in scorers:
             from haptic_env.recognizers.scorer import GraspScorer
 
             kde = self.models.model(self.n_fingers)[1]
-            self._scorer = GraspScorer(self.n_fingers, self.normals, kde) if getattr(kde, "pooled", None) else None
-        return self._scorer
+            ok = kde is not None and getattr(kde, "pooled", None) is not None
+            scale = 1.0 / kde.temperature if ok and calibrated else 1.0
+            scorers[calibrated] = GraspScorer(self.n_fingers, self.normals, kde, scale=scale) if ok else None
+        return scorers[calibrated]
 
     def make_updater(self, kind: str = "bc-np", threshold: float = 0.85, z: int | None = None, *,
-                     k: int | None = None, rng: np.random.Generator | None = None, **kw) -> ZFingerUpdater:
+                     k: int | None = None, rng: np.random.Generator | None = None, calibrated: bool = True,
+                     **kw) -> ZFingerUpdater:
         """A belief updater over this recogniser's models.
 
         ``kind``: one of ``"bc-np" | "bc-ip" | "ic" | "ic-full"``. ``z``: score each grasp through its
         z-finger subsets (all, or ``k`` random ones drawn from ``rng``); ``None`` scores the touching
-        contacts as one grasp with the model of their count. The returned updater has
-        ``update(q)`` (grasp vectors) and ``update_grasp(contacts, normals, touched)`` (raw contacts).
+        contacts as one grasp with the model of their count. ``calibrated``: scores scaled by the
+        temperatures fitted on validation grasps (default); False: the paper's raw scores. The returned
+        updater has ``update(q)`` (grasp vectors) and ``update_grasp(contacts, normals, touched)`` (raw contacts).
         """
         if kind not in UPDATERS:
             raise ValueError(f"unknown updater kind {kind!r}; choose one of {UPDATERS}")
         if z is not None and z not in self.models.finger_counts:
             raise ValueError(f"no {z}-finger model; built finger counts: {self.models.finger_counts}")
-        base = make_updater(kind, classifier=self.models, likelihood=self.models, threshold=threshold,
+        missing = [m for m in models_for(kind) if any(e[1 if m == "mlp" else 2] is None for e in self.models.entries.values())]
+        if missing:
+            raise ValueError(f"updater {kind!r} needs the {missing} model(s), which this recogniser was built without "
+                             f"(build_recognizer(models={models_for(kind)!r}))")
+        models = self.models.with_calibration(calibrated)
+        base = make_updater(kind, classifier=models, likelihood=models, threshold=threshold,
                             n_classes=self.n_classes, **kw)
         return ZFingerUpdater(base, z, k=k, rng=rng, normalize=self.config.grasps.normalize_scale)
 
@@ -156,32 +199,44 @@ def _objects_key(objects) -> list:
     return [(o.name, np.asarray(o.mesh.vertices, dtype=np.float64), np.asarray(o.mesh.faces)) for o in objects]
 
 
-def _train_one(ds, z: int, cfg: RecognizerConfig, progress: bool):
-    k = len(ds.names)
-    clf = MLPClassifier(dataclasses.replace(cfg.mlp, progress=progress and cfg.mlp.progress))
-    clf.fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val, n_classes=k)
-    kde = KDELikelihood(cfg.kde).fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val, n_classes=k)
-    return clf, kde
+#: Models :func:`build_recognizer` can build: the classifier (IC, BC-IP's prior) and the KDE (BC-NP, BC-IP).
+MODELS = ("mlp", "kde")
+
+
+def models_for(updater: str) -> tuple[str, ...]:
+    """The models an updater kind needs: ``"bc-np"`` the KDE only, ``"ic"``/``"ic-full"`` the MLP, ``"bc-ip"`` both."""
+    if updater not in UPDATERS:
+        raise ValueError(f"unknown updater kind {updater!r}; choose one of {UPDATERS}")
+    return {"bc-np": ("kde",), "bc-ip": MODELS}.get(updater, ("mlp",))
 
 
 def build_recognizer(objects, n_fingers: int, normals: bool = True, *, z_values=(), config: RecognizerConfig | None = None,
-                     cache: bool = True, progress: bool = True, dataset_fn=None) -> Recognizer:
+                     models: tuple[str, ...] = MODELS, cache: bool = True, progress: bool = True,
+                     dataset_fn=None) -> Recognizer:
     """Train or load the models for ``objects`` (an ``ObjectSet``) and return a :class:`Recognizer`.
 
     Args:
         n_fingers: fingers of the hand (the main model).
         z_values: further finger counts to build models for (z-finger scoring, incomplete grasps).
         config: data and model settings (default :class:`RecognizerConfig`).
-        cache: load/save trained models under ``cache_dir("recognizers")``.
+        models: which of :data:`MODELS` to build (:func:`models_for` an updater); the others are None.
+        cache: load/save trained models under ``cache_dir("recognizers")``, one file per model (keyed by the
+            objects, ``z``, ``normals``, the training grasps and that model's config).
         dataset_fn: ``(objects, DatasetConfig) -> GraspDataset`` (default
             :func:`haptic_env.dataset.build_dataset`; tests inject synthetic data here).
     """
     config = config or RecognizerConfig()
     if n_fingers < 2:
         raise ValueError(f"n_fingers must be >= 2, got {n_fingers}")
+    models = tuple(models)
+    bad = [m for m in models if m not in MODELS]
+    if bad or not models:
+        raise ValueError(f"models must be a non-empty subset of {MODELS}, got {models!r}")
     zs = sorted({int(n_fingers), *map(int, z_values)})
     if zs[0] < 2 or zs[-1] > n_fingers:
         raise ValueError(f"z_values must lie in [2, n_fingers={n_fingers}], got {tuple(z_values)}")
+    if len(objects) < 2:
+        raise ValueError(f"a recogniser needs at least 2 objects to tell apart, got {len(objects)}")
     if dataset_fn is None:
         from haptic_env.dataset import build_dataset
 
@@ -191,42 +246,55 @@ def build_recognizer(objects, n_fingers: int, normals: bool = True, *, z_values=
     names = tuple(o.name for o in objects)
     bank = ModelBank(normals=bool(normals), n_classes=len(names))
     okey = config_key(_objects_key(objects)) if cache else ""
+    root = cache_dir("recognizers") if cache else None
     for z in zs:
-        key = config_key("recognizer", RECOGNIZER_VERSION, okey, z, bool(normals), config)
-        root = cache_dir("recognizers") if cache else None
-        loaded = None
-        if cache:
-            loaded = _load(root, key, config)
-        if loaded is None:
+        dcfg = config.dataset_config(z, bool(normals), hand_fingers=int(n_fingers))
+        key = config_key("recognizer", RECOGNIZER_VERSION, okey, z, bool(normals), dcfg)
+        built = {m: _load(root, f"{key}-{config_key(getattr(config, m))}", m, config) if cache else None
+                 for m in MODELS if m in models}
+        if any(v is None for v in built.values()):
             t0 = time.perf_counter()
-            ds = dataset_fn(objects, config.dataset_config(z, bool(normals), hand_fingers=int(n_fingers)))
+            ds = dataset_fn(objects, dcfg)
             if tuple(ds.names) != names:
                 raise ValueError(f"dataset names {tuple(ds.names)} differ from the object set's {names}")
-            clf, kde = _train_one(ds, z, config, progress)
-            if cache:
-                _save(root, key, clf, kde, {"names": list(names), "z": z, "normals": bool(normals),
-                                            "train_seconds": time.perf_counter() - t0})
-        else:
-            clf, kde = loaded
-        bank.add(z, clf, kde)
+            for m in [m for m, v in built.items() if v is None]:
+                built[m] = _train(m, ds, config, progress)
+                if cache:
+                    _save(root, f"{key}-{config_key(getattr(config, m))}", m, built[m],
+                          {"names": list(names), "z": z, "normals": bool(normals), "model": m,
+                           "train_seconds": time.perf_counter() - t0})
+        bank.add(z, built.get("mlp"), built.get("kde"))
     return Recognizer(names, int(n_fingers), bool(normals), config, bank)
 
 
-def _save(root, key, clf: MLPClassifier, kde: KDELikelihood, meta: dict) -> None:
-    clf.save(root / f"{key}_mlp.pt")
-    save_npz_atomic(root / f"{key}_kde.npz", **kde.state())
+def _train(model: str, ds, cfg: RecognizerConfig, progress: bool):
+    k = len(ds.names)
+    if model == "mlp":
+        clf = MLPClassifier(dataclasses.replace(cfg.mlp, progress=progress and cfg.mlp.progress))
+        return clf.fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val, n_classes=k)
+    return KDELikelihood(cfg.kde).fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val, n_classes=k)
+
+
+def _save(root, key: str, model: str, obj, meta: dict) -> None:
+    if model == "mlp":
+        obj.save(root / f"{key}_mlp.pt")
+    else:
+        save_npz_atomic(root / f"{key}_kde.npz", **obj.state())
     with atomic_write(root / f"{key}.json", "w") as fh:
         json.dump(meta, fh)
 
 
-def _load(root, key, config: RecognizerConfig):
-    files = [root / f"{key}_mlp.pt", root / f"{key}_kde.npz", root / f"{key}.json"]
-    if not all(f.exists() for f in files):
+def _load(root, key: str, model: str, config: RecognizerConfig):
+    """The cached ``model`` under ``key``, or None (missing, or unreadable: rebuilt with a warning)."""
+    path = root / (f"{key}_mlp.pt" if model == "mlp" else f"{key}_kde.npz")
+    meta = root / f"{key}.json"
+    if not (path.exists() and meta.exists()):
         return None
     try:
-        clf = MLPClassifier.load(files[0])
-        kde = KDELikelihood.from_state(config.kde, load_npz(files[1], ("kde_mean", "kde_std", "kde_bandwidth")))
-    except CacheError as exc:
-        warnings.warn(f"rebuilding recogniser models: {exc}", stacklevel=3)
+        json.loads(meta.read_text())
+        if model == "mlp":
+            return MLPClassifier.load(path)
+        return KDELikelihood.from_state(config.kde, load_npz(path, ("kde_mean", "kde_std", "kde_bandwidth")))
+    except (CacheError, ValueError, OSError) as exc:  # json.JSONDecodeError is a ValueError
+        warnings.warn(f"rebuilding recogniser model {path.name}: {exc}", stacklevel=3)
         return None
-    return clf, kde

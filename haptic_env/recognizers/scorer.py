@@ -24,9 +24,13 @@ class GraspScorer:
     """``scorer(contacts (n, 3), normals (n, 3) | None) -> (q (d,), log_lik (1, K) | None)``.
 
     ``log_lik`` is None for a degenerate grasp (then ``q`` is all zeros, as :func:`phi` reports it).
+    ``scale`` multiplies the log-likelihoods (``1 / T``: the KDE's calibration temperature).
     """
 
-    def __init__(self, n_fingers: int, normals: bool, kde):
+    def __init__(self, n_fingers: int, normals: bool, kde, scale: float = 1.0):
+        if not (np.isfinite(scale) and scale > 0):
+            raise ValueError(f"scale must be positive and finite, got {scale!r}")
+        self.scale = float(scale)
         if kde.pooled is None:
             raise ValueError("GraspScorer needs a KDE evaluated with method='pooled'")
         d = feature_dim(n_fingers, normals)
@@ -53,12 +57,14 @@ class GraspScorer:
         status = _score(P, P if N is None else N, self.normals, *self._phi_args, *self._kde_args, self._work, q,
                         np.empty(self.n_fingers, np.int64), out[0])
         if status == 0:
+            if self.scale != 1.0:
+                out *= self.scale
             return q, out
         if status > 0:  # degenerate: no information
             return np.zeros(self._d), None
         # a planar hull face (Qhull's canonical triangulation) or bad input (raises): the general path
         f = phi(P, N)
-        return (f.q, self.kde.log_likelihood(f.q)) if f.valid else (f.q, None)
+        return (f.q, self.scale * self.kde.log_likelihood(f.q)) if f.valid else (f.q, None)
 
 
 @njit(cache=True)

@@ -1,0 +1,73 @@
+"""Temperature scaling: recovers a known temperature, lowers the ECE, is stored with the models."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from haptic_env.recognizers import KDEConfig, KDELikelihood
+from haptic_env.recognizers.calibration import (
+    expected_calibration_error,
+    fit_temperature,
+    reliability,
+    tempered_nll,
+)
+from scipy.special import softmax
+
+
+def _calibrated_draws(rng, B=20_000, K=5):
+    """Scores z whose softmax IS the true class distribution, and labels drawn from it."""
+    z = rng.normal(0.0, 2.0, (B, K))
+    P = softmax(z, axis=1)
+    y = (P.cumsum(1) > rng.random((B, 1))).argmax(1)
+    return z, y
+
+
+def test_fit_temperature_recovers_the_over_confidence():
+    rng = np.random.default_rng(0)
+    z, y = _calibrated_draws(rng)
+    T = fit_temperature(3.0 * z, y)  # scores 3x too sharp
+    assert T == pytest.approx(3.0, rel=0.05)
+    assert tempered_nll(3.0 * z, y, T) < tempered_nll(3.0 * z, y, 1.0)
+    assert expected_calibration_error(softmax(z, axis=1), y) < 0.02
+    assert expected_calibration_error(softmax(3.0 * z, axis=1), y) > 0.1
+    assert expected_calibration_error(softmax(3.0 * z / T, axis=1), y) < 0.02
+
+
+def test_minus_inf_scores_and_degenerate_input():
+    S = np.array([[0.0, -np.inf, -1.0], [-np.inf, 0.0, -2.0]])
+    T = fit_temperature(S, np.array([0, 1]))
+    assert np.isfinite(T) and T > 0
+    assert fit_temperature(np.zeros((0, 3)), np.zeros(0, dtype=int)) == 1.0
+    with pytest.raises(ValueError, match="shape"):
+        fit_temperature(np.zeros(3), np.zeros(3, dtype=int))
+    with pytest.raises(ValueError, match="class indices"):
+        fit_temperature(np.zeros((2, 3)), np.array([0, 3]))
+    with pytest.raises(ValueError, match="NaN"):
+        fit_temperature(np.full((1, 2), np.nan), np.array([0]))
+    with pytest.raises(ValueError, match="bins"):
+        reliability(np.full((1, 2), 0.5), np.array([0]), bins=0)
+
+
+def test_reliability_bins_count_every_row():
+    rng = np.random.default_rng(1)
+    z, y = _calibrated_draws(rng, B=1000)
+    r = reliability(softmax(z, axis=1), y, bins=10)
+    assert r["count"].sum() == 1000 and r["edges"].shape == (11,)
+    ok = r["count"] > 0
+    assert np.all((r["confidence"][ok] >= r["edges"][:-1][ok]) & (r["confidence"][ok] <= r["edges"][1:][ok]))
+
+
+def test_kde_fits_and_stores_its_temperature():
+    rng = np.random.default_rng(2)
+    # two overlapping classes in 8 dimensions: a KDE on few points is over-confident (T > 1)
+    X = np.concatenate([rng.normal(0, 1, (400, 8)), rng.normal(0.5, 1, (400, 8))])
+    y = np.repeat([0, 1], 400)
+    Xv = np.concatenate([rng.normal(0, 1, (300, 8)), rng.normal(0.5, 1, (300, 8))])
+    yv = np.repeat([0, 1], 300)
+    kde = KDELikelihood(KDEConfig(method="dense")).fit(X, y, Xv, yv)
+    assert kde.temperature > 1.0
+    back = KDELikelihood.from_state(kde.config, kde.state())
+    assert back.temperature == kde.temperature
+    assert KDELikelihood(KDEConfig(method="dense", calibrate=False)).fit(X, y, Xv, yv).temperature == 1.0
+    assert KDELikelihood(KDEConfig(method="dense")).fit(X, y).temperature == 1.0  # no validation set: none
