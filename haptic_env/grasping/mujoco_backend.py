@@ -18,7 +18,11 @@ what a kinesthetic hand senses) or ``qfrc_constraint`` (``"constraint"``). With 
 (3m, nv) fingertip-site position Jacobians of the m touching fingers (``mj_jacSite``),
 ``tau = J_h^T f`` so ``f = (J_h^T)^+ tau`` (least squares) and each finger's inward normal estimate
 is ``-f_i / |f_i|`` (``f_i`` is the force the object exerts on finger i). Friction tilts the force
-inside the friction cone, so estimates are within about ``atan(mu)`` of the true normal.
+inside the friction cone, so estimates are within about ``atan(mu)`` of the true normal. Internal
+forces of equality constraints (coupled joints of under-actuated hands, closed gripper linkages) are
+solved for as extra unknowns; dofs at a joint limit are left out. A finger whose joints are all
+parallel (a planar finger without abduction) cannot sense the force component along its joint
+axes: its estimate is the normal projected into the finger's plane.
 
 Gravity is off (equivalent to a gravity-compensated hand; the object is fixed anyway). The hand
 only collides with the object (no self-collision, the table is a visual plane that restricts the
@@ -68,7 +72,7 @@ class MujocoConfig:
     max_steps: int | None = None  # closing steps at most (None: the hand's default, HandDescription.max_steps)
     min_steps: int = 40
     check_every: int = 10  # test for new tip contacts / rest every this many steps
-    squeeze: float = 0.15  # rad (or actuator units) past the contact configuration; 0: close fully
+    squeeze: float = 0.15  # rad past the contact configuration (x moment arm for tendons); 0: close fully
     rest_qvel: float = 0.05  # rad/s: fingers at rest below this
     joint_frictionloss: float | None = 0.0  # override the hand's dry joint friction (None: keep the model's)
     friction: float = 0.1  # sliding friction of object and hand geoms (normal error <~ atan(friction))
@@ -173,6 +177,13 @@ class GraspScene:
             if g.contype or g.conaffinity:
                 g.contype, g.conaffinity = HAND_BITS
                 g.friction = [friction, 0.005, 1e-4]
+        # the scene's options win on attach anyway (hand.option carries what the hand needs); copying
+        # them into the hand spec first avoids MuJoCo's "attach conflict" warning for hands whose MJCF
+        # sets its own <option> (e.g. the Aero hand's timestep/integrator/iterations)
+        for k in ("timestep", "integrator", "iterations", "ls_iterations", "cone", "impratio", "jacobian",
+                  "solver", "tolerance", "ls_tolerance", "noslip_iterations", "noslip_tolerance",
+                  "ccd_iterations", "ccd_tolerance", "disableflags", "enableflags", "gravity"):
+            setattr(hspec.option, k, getattr(spec.option, k))
         mount = spec.worldbody.add_body(name="mount", mocap=True)
         mount.add_frame().attach_body(hspec.body(hand.root), "hand/", "")
         self.spec = spec
@@ -216,16 +227,34 @@ class GraspScene:
                 if b not in shared:
                     body_finger[b] = i
         self._geom_finger = body_finger[m.geom_bodyid]  # finger of every geom (any link), -1 palm/none
-        self.act_finger = np.full(m.nu, -1)
-        self.act_joint = np.full(m.nu, -1)
+        # fingers each actuator moves: the dofs its transmission acts on (moment arms at qpos0; works
+        # for joint, fixed- and spatial-tendon actuators alike). act_fingers[a, i]: actuator a moves
+        # finger i; act_finger[a]: its finger when it moves exactly one, else -1 (none, or several as
+        # the single actuator of a parallel gripper). moment_scale[a] = max |d length / d q| (length
+        # units per radian), ctrl_per_length[a]: ctrl units per length unit (position-like actuators).
+        mujoco.mj_forward(m, self.data)
+        moment = np.zeros((m.nu, m.nv))
+        d0 = self.data
         for a in range(m.nu):
-            tid = m.actuator_trnid[a, 0]
-            if m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT:
-                self.act_joint[a] = tid
-                self.act_finger[a] = body_finger[m.jnt_bodyid[tid]]
-            elif m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_TENDON:
-                j = m.wrap_objid[m.tendon_adr[tid]]
-                self.act_finger[a] = body_finger[m.jnt_bodyid[j]]
+            adr, nnz = d0.moment_rowadr[a], d0.moment_rownnz[a]
+            moment[a, d0.moment_colind[adr: adr + nnz]] = d0.actuator_moment[adr: adr + nnz]
+        dof_finger = body_finger[m.dof_bodyid]
+        n_tips = len(hand.tips)
+        self.act_fingers = np.zeros((m.nu, n_tips), dtype=bool)
+        for a in range(m.nu):
+            f = dof_finger[np.abs(moment[a]) > 1e-9]
+            self.act_fingers[a, f[f >= 0]] = True
+        self.act_finger = np.where(self.act_fingers.sum(1) == 1, np.argmax(self.act_fingers, axis=1), -1)
+        self.act_joint = np.where(m.actuator_trntype == mujoco.mjtTrn.mjTRN_JOINT, m.actuator_trnid[:, 0], -1)
+        self.moment_scale = np.maximum(np.abs(moment).max(axis=1), 1e-12)
+        gain, b0, b1 = m.actuator_gainprm[:, 0], m.actuator_biasprm[:, 0], m.actuator_biasprm[:, 1]
+        position_like = ((m.actuator_gaintype == mujoco.mjtGain.mjGAIN_FIXED)
+                         & (m.actuator_biastype == mujoco.mjtBias.mjBIAS_AFFINE) & (gain > 0) & (b1 < 0))
+        safe_gain = np.where(position_like, gain, 1.0)
+        # equilibrium gain * ctrl + b0 + b1 * length = 0  ->  ctrl = ctrl_per_length * length + ctrl_offset
+        self.ctrl_per_length = np.where(position_like, -b1 / safe_gain, np.nan)
+        self.ctrl_offset = np.where(position_like, -b0 / safe_gain, np.nan)
+        mujoco.mj_resetData(m, self.data)
         self.step_time = 0.0  # seconds spent inside mj_step
         self.steps = 0
         self._renderer = None
@@ -268,16 +297,26 @@ class GraspScene:
         self.step_time += time.perf_counter() - t
         self.steps += n
 
-    def hold_fingers(self, fingers: np.ndarray, close_u: np.ndarray, squeeze: float) -> None:
-        """Stop closing the given fingers: targets = current actuator length + ``squeeze`` towards
-        the closing target (a light, constant squeeze instead of driving to full closure)."""
-        m, d = self.model, self.data
-        sel = np.isin(self.act_finger, fingers)
+    def hold_fingers(self, fingers: np.ndarray, close_u: np.ndarray, squeeze: float,
+                     held: np.ndarray | None = None) -> None:
+        """Stop closing the given fingers: targets = current actuator length + ``squeeze`` (rad, scaled
+        to the actuator's length units by its largest moment arm) towards the closing target (a light,
+        constant squeeze instead of driving to full closure). An actuator that moves several fingers
+        (a gripper's single motor) is held only once all of them are in ``fingers`` or ``held`` (bool
+        mask). Actuators that are not position-like keep closing."""
+        d = self.data
+        new = np.zeros(self.act_fingers.shape[1], dtype=bool)
+        new[np.asarray(fingers, dtype=np.int64)] = True
+        done = new if held is None else new | held
+        sel = (self.act_fingers[:, new].any(axis=1) & ~(self.act_fingers & ~done).any(axis=1)
+               & np.isfinite(self.ctrl_per_length))
         if not sel.any():
             return
+        k, c0 = self.ctrl_per_length[sel], self.ctrl_offset[sel]
         length = d.actuator_length[sel]
-        direction = np.sign(close_u[sel] - length)
-        d.ctrl[sel] = np.clip(length + squeeze * direction, self.ctrl_lo[sel], self.ctrl_hi[sel])
+        direction = np.sign((close_u[sel] - c0) / k - length)
+        target = length + squeeze * self.moment_scale[sel] * direction
+        d.ctrl[sel] = np.clip(k * target + c0, self.ctrl_lo[sel], self.ctrl_hi[sel])
 
     def tip_positions(self) -> np.ndarray:
         return self.data.site_xpos[self.site_ids].copy()
@@ -335,6 +374,24 @@ class GraspScene:
         lo, hi = m.jnt_range[lim, 0], m.jnt_range[lim, 1]
         out[m.jnt_dofadr[lim]] = (q <= lo + tol) | (q >= hi - tol)
         return out
+
+    def equality_jacobian(self) -> np.ndarray:
+        """(k, nv) Jacobian rows of the active equality constraints (coupled joints, closed linkages)
+        after ``mj_forward``. Their forces are internal to the hand and unknown to a torque sensor,
+        so the normal estimate solves for them alongside the fingertip forces."""
+        m, d = self.model, self.data
+        if d.nefc == 0:
+            return np.zeros((0, m.nv))
+        rows = np.flatnonzero(d.efc_type[: d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+        if len(rows) == 0:
+            return np.zeros((0, m.nv))
+        if mujoco.mj_isSparse(m):
+            J = np.zeros((d.nefc, m.nv))
+            mujoco.mju_sparse2dense(J, d.efc_J, d.efc_J_rownnz[: d.nefc], d.efc_J_rowadr[: d.nefc],
+                                    d.efc_J_colind)
+        else:
+            J = d.efc_J[: d.nefc * m.nv].reshape(d.nefc, m.nv)
+        return J[rows].copy()
 
     def site_jacobians(self, fingers: np.ndarray) -> np.ndarray:
         """(3 m, nv) stacked fingertip-site position Jacobians of the given fingers."""
@@ -499,7 +556,7 @@ class MujocoBackend:
             if cfg.squeeze > 0:  # a finger stops closing at its first fingertip contact
                 touched = sc.tip_contacts()[0] & ~held
                 if touched.any():
-                    sc.hold_fingers(np.flatnonzero(touched), close_u, cfg.squeeze)
+                    sc.hold_fingers(np.flatnonzero(touched), close_u, cfg.squeeze, held=held)
                     held |= touched
             if steps >= cfg.min_steps and np.max(np.abs(sc.data.qvel)) < cfg.rest_qvel:
                 break
@@ -520,8 +577,9 @@ class MujocoBackend:
             J = sc.site_jacobians(idx)  # (3m, nv)
             tau = sc.sensed_torque(cfg.torque_source)
             rows = ~sc.dofs_at_limit()  # a joint at its limit also carries an unknown limit reaction
-            f, *_ = np.linalg.lstsq(J.T[rows], tau[rows], rcond=None)
-            f = f.reshape(-1, 3)
+            A = np.concatenate([J.T, sc.equality_jacobian().T], axis=1)  # + unknown equality forces
+            x, *_ = np.linalg.lstsq(A[rows], tau[rows], rcond=None)
+            f = x[: J.shape[0]].reshape(-1, 3)
             norm = np.linalg.norm(f, axis=1, keepdims=True)
             est[idx] = -f / np.maximum(norm, 1e-12)
             weak = norm[:, 0] < 1e-9  # no force sensed: fall back to the site-to-contact direction
