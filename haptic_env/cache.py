@@ -2,7 +2,11 @@
 
 Every cached artefact (grasp datasets, trained recognisers, convex decompositions) is keyed by a
 hash of the frozen config that produced it, and written through :func:`atomic_write` so a crash
-or a concurrent writer never leaves a half-written file behind.
+or a concurrent writer never leaves a half-written file behind. A writer killed mid-write (``kill -9``)
+leaves its hidden temporary file (``.<name>.pid<PID>.<random>.tmp``); :func:`cache_dir` removes such
+files once their writer is gone (or after :data:`STALE_TMP_SECONDS`). :func:`cache_dir` also checks that
+the folder is writable, so a read-only cache fails before any work is done, not when saving its result
+(``HAPTIC_CACHE_READONLY=1`` allows a read-only cache that already holds everything needed).
 """
 
 from __future__ import annotations
@@ -13,24 +17,90 @@ import hashlib
 import json
 import os
 import tempfile
+import time
 from pathlib import Path
 from typing import Any, Iterator
 
 import numpy as np
 
-__all__ = ["cache_dir", "config_key", "atomic_write", "save_npz_atomic", "load_npz", "CacheError"]
+__all__ = ["cache_dir", "config_key", "atomic_write", "save_npz_atomic", "load_npz", "CacheError",
+           "CacheNotWritableError", "clean_stale_tmp", "STALE_TMP_SECONDS"]
+
+#: A temporary file older than this is removed even if its writer's process id is still in use (6 h).
+STALE_TMP_SECONDS = 6 * 3600.0
+#: A temporary file whose writer's pid is not running here is removed once untouched this long (s): another
+#: host or container sharing the folder may be writing it (its pid means nothing here), but not that slowly.
+ORPHAN_TMP_SECONDS = 60.0
+_HELP = "set HAPTIC_CACHE to a writable folder, or build without the cache (cache=False / --no-cache)"
 
 
 class CacheError(RuntimeError):
     """A cache file exists but cannot be read (corrupted, truncated, wrong format)."""
 
 
+class CacheNotWritableError(CacheError, PermissionError):
+    """The cache folder cannot be created or written."""
+
+
 def cache_dir(sub: str | None = None) -> Path:
-    """Root of the cache (``$HAPTIC_CACHE``, default ``~/.cache/haptic_recog``), created on demand."""
+    """Root of the cache (``$HAPTIC_CACHE``, default ``~/.cache/haptic_recog``), created on demand.
+
+    Raises :class:`CacheNotWritableError` (naming the folder) if it cannot be created or is not writable,
+    unless ``$HAPTIC_CACHE_READONLY`` is set; removes stale temporary files of killed writers."""
     root = Path(os.environ.get("HAPTIC_CACHE", Path.home() / ".cache" / "haptic_recog")).expanduser()
     path = root / sub if sub else root
-    path.mkdir(parents=True, exist_ok=True)
+    readonly_ok = os.environ.get("HAPTIC_CACHE_READONLY", "") not in ("", "0")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        if not (readonly_ok and path.is_dir()):
+            raise CacheNotWritableError(f"cannot create the cache folder {path} ({exc.strerror or exc}); {_HELP}") from exc
+    if not readonly_ok:
+        if not os.access(path, os.W_OK | os.X_OK):
+            raise CacheNotWritableError(f"the cache folder {path} is not writable; {_HELP} "
+                                        "(HAPTIC_CACHE_READONLY=1 reads a complete read-only cache)")
+        clean_stale_tmp(path)
     return path
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # EPERM: exists, owned by someone else
+        return True
+    return True
+
+
+def clean_stale_tmp(folder: str | os.PathLike, max_age: float = STALE_TMP_SECONDS) -> list[Path]:
+    """Remove the temporary files of :func:`atomic_write` in ``folder`` whose writer process is gone (untouched for
+    :data:`ORPHAN_TMP_SECONDS`), or that are older than ``max_age`` seconds; returns the removed paths."""
+    removed = []
+    now = time.time()
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return removed
+    for e in entries:
+        if not (e.name.startswith(".") and e.name.endswith(".tmp")) or not e.is_file(follow_symlinks=False):
+            continue
+        pid = None
+        for part in e.name.split("."):
+            if part.startswith("pid") and part[3:].isdigit():
+                pid = int(part[3:])
+        try:
+            age = now - e.stat(follow_symlinks=False).st_mtime
+        except OSError:
+            continue
+        orphan = pid is not None and pid != os.getpid() and age > ORPHAN_TMP_SECONDS and not _pid_alive(pid)
+        if orphan or age > max_age:
+            try:
+                os.unlink(e.path)
+                removed.append(Path(e.path))
+            except OSError:
+                pass
+    return removed
 
 
 def _jsonable(obj: Any) -> Any:
@@ -59,8 +129,12 @@ def config_key(*parts: Any, length: int = 16) -> str:
 def atomic_write(path: str | os.PathLike, mode: str = "wb") -> Iterator[Any]:
     """Open a temporary file next to ``path``; on clean exit fsync it and rename it into place."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        # hidden, with the writer's pid: clean_stale_tmp removes it if this process is killed mid-write
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.pid{os.getpid()}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise CacheNotWritableError(f"cannot write {path} ({exc.strerror or exc}); is its folder writable?") from exc
     try:
         with os.fdopen(fd, mode) as fh:
             yield fh

@@ -109,6 +109,33 @@ class HapticRecogConfig:
             lo, hi = (float(v) for v in self.scale_range)
             if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo <= hi):
                 raise ValueError(f"scale_range must be (lo, hi) with 0 < lo <= hi, got {self.scale_range!r}")
+        if self.kde_method not in ("pooled", "tree", "dense"):
+            raise ValueError(f"kde_method must be 'pooled', 'tree' or 'dense', got {self.kde_method!r}")
+        if not isinstance(self.recognizer_kwargs, Mapping) or not isinstance(self.object_kwargs, Mapping):
+            raise TypeError("recognizer_kwargs and object_kwargs must be mappings (dicts)")
+        if self.recognizer_kwargs:  # checked here, at make, not at the first reset (imports the recognisers)
+            import inspect
+
+            from haptic_env.recognizers import build_recognizer
+
+            params = inspect.signature(build_recognizer).parameters
+            valid = sorted(k for k, p in params.items() if p.kind == p.KEYWORD_ONLY and k != "z_values")
+            unknown = sorted(set(self.recognizer_kwargs) - set(valid))
+            if unknown:
+                raise ValueError(f"unknown recognizer_kwargs {unknown}; valid: {valid}")
+            try:
+                _recognizer_kwargs(self)
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"invalid recognizer_kwargs: {exc}") from exc
+        from haptic_env.objects.loaders import object_count
+
+        try:
+            k = object_count(self.objects, **dict(self.object_kwargs))
+        except TypeError as exc:
+            raise ValueError(f"invalid object_kwargs {sorted(self.object_kwargs)}: load_object_set takes "
+                             "data_dir and units") from exc
+        if k is not None and k < 2:
+            raise ValueError(f"object set {self.objects!r} has {k} object(s); recognising one needs at least 2")
 
     def replace(self, **changes: Any) -> "HapticRecogConfig":
         """A copy with ``changes`` applied; unknown names raise a ``TypeError`` listing the valid ones."""
@@ -438,6 +465,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
             self._scorer = self.recognizer.grasp_scorer() if bayes else None
         self._belief = self._as_belief(self._updater.reset(None))
         self._grasps = 0
+        self._episode_over = False
         self._last_q = np.zeros(self.feature_dim)
         self._last_mask = np.zeros(self.config.n_fingers)
         self._last_usable = 0.0
@@ -450,6 +478,9 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     def step(self, action):
         if self._updater is None:
             raise RuntimeError("call reset() before step()")
+        if self._episode_over:  # Gymnasium: stepping a finished episode is undefined; refuse it clearly
+            raise RuntimeError(f"the episode is over (it ended after grasp {self._grasps}: terminated at the threshold or "
+                               f"truncated at max_grasps={self.config.max_grasps}); call reset() before step()")
         a = self._check_action(action)
         old = self._belief
         result = self.backend.grasp(a, self._backend_rng)
@@ -472,6 +503,10 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
             usable = update_arg is not None
             if usable:
                 self._belief = self._as_belief(self._updater.update(update_arg))
+                if self.config.updater == "ic":  # IC's belief S / k is sub-stochastic: report S / sum(S), which sums
+                    total = self._belief.sum()  # to 1 (the certainty stays IC's own max S / k, see _info)
+                    if total > 0:
+                        self._belief /= total
         self._last_q = q_obs
         self._last_mask = touched.astype(np.float64)
         self._last_usable = float(usable)
@@ -482,6 +517,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         decided = bool(self._updater.decided)
         terminated = decided
         truncated = (not terminated) and self._grasps >= self.config.max_grasps
+        self._episode_over = terminated or truncated
         info = self._info(usable=usable, decided=decided)
         info["reward_terms"] = terms
         if self.render_mode == "human":
@@ -536,9 +572,14 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
 
     def _check_action(self, action) -> np.ndarray:
         try:
-            a = np.asarray(action, dtype=np.float64)
+            a = np.asarray(action)
+            is_complex = a.dtype.kind == "c"  # a float cast would silently drop the imaginary part
+            if not is_complex:
+                a = a.astype(np.float64, copy=False)
         except (TypeError, ValueError) as exc:
             raise ValueError(f"action must be a numeric array of shape ({self.action_dim},), got {action!r}") from exc
+        if is_complex:
+            raise ValueError(f"action must be real numbers, got complex values {action!r}")
         if a.shape != (self.action_dim,):
             raise ValueError(f"action must have shape ({self.action_dim},), got {a.shape}: {action!r}")
         values = a.tolist()
@@ -635,6 +676,8 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     def _info(self, *, usable: bool, decided: bool) -> dict[str, Any]:
         pred = int(self._belief.argmax())
         certainty = float(self._belief[pred])
+        if self.config.updater == "ic" and self._updater is not None:
+            certainty = float(self._updater.certainty)  # IC: winning score / grasps (the belief is normalised)
         return {
             "true_object": self.object_names[self._target],
             "true_index": self._target,

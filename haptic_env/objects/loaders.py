@@ -30,7 +30,8 @@ import trimesh
 from .base import GraspObject, ObjectSet, prepare_mesh
 from .primitives import default_set, family_set
 
-__all__ = ["data_dir", "load_object_set", "load_folder", "MeshLoadError", "KIT8", "MESH_SUFFIXES", "unit_scale"]
+__all__ = ["data_dir", "load_object_set", "load_folder", "MeshLoadError", "KIT8", "MESH_SUFFIXES", "unit_scale",
+           "object_count"]
 
 #: The 8 KIT objects of the paper's main experiments.
 KIT8 = ("CatLying", "GreenCup", "HeringTin", "Shampoo", "ShowerGel", "Sprayflask", "ToyCarYelloq", "Wineglass")
@@ -93,12 +94,24 @@ def unit_scale(units: str | float) -> float:
     return f
 
 
+#: A loaded object larger than this (m) gets a warning: its file is probably in millimetres (or cm).
+MAX_PLAUSIBLE_SIZE = 3.0
+
+
 def _read_mesh(path: Path) -> trimesh.Trimesh:
     try:
-        mesh = trimesh.load(path, force="mesh", process=True)
+        # unprocessed first: processing silently drops NaN / inf vertices and the faces using them
+        mesh = trimesh.load(path, force="mesh", process=False)
     except Exception as exc:
         raise MeshLoadError(f"cannot read mesh file {path}: {type(exc).__name__}: {exc}") from exc
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise MeshLoadError(f"mesh file {path} holds no triangles (not a readable STL / OBJ / PLY mesh?)")
+    bad = ~np.isfinite(np.asarray(mesh.vertices, dtype=np.float64)).all(axis=1)
+    if bad.any():
+        raise MeshLoadError(f"mesh file {path}: {int(bad.sum())} of {len(bad)} vertices are not finite (NaN or inf), "
+                            f"e.g. vertex {int(np.flatnonzero(bad)[0])}")
+    mesh.process()  # merge duplicate vertices (what loading with process=True does)
+    if len(mesh.faces) == 0:
         raise MeshLoadError(f"mesh file {path} holds no triangles")
     return mesh
 
@@ -114,6 +127,11 @@ def load_mesh_object(path: str | Path, *, units: str | float = "m", name: str | 
         raise
     except ValueError as exc:
         raise MeshLoadError(f"mesh file {path}: {exc}") from exc
+    size = float(np.max(mesh.extents))
+    if size > MAX_PLAUSIBLE_SIZE:
+        warnings.warn(f"mesh file {path}: object {name!r} is {size:.3g} m across with units={units!r}; are the file's "
+                      "coordinates in millimetres? (load it with units='mm', e.g. object_kwargs={'units': 'mm'})",
+                      UserWarning, stacklevel=2)
     return GraspObject(name, mesh, source=path, collision_paths=tuple(collision_paths), offset=offset)
 
 
@@ -157,6 +175,34 @@ def _kit(root: Path, names: tuple[str, ...] | None, set_name: str) -> ObjectSet:
     if missing:
         raise FileNotFoundError(f"KIT meshes missing from {kit}: {[m + '.stl' for m in missing]}; {_DATA_HELP}")
     return ObjectSet(set_name, [load_mesh_object(kit / f"{n}.stl", units="mm") for n in names])
+
+
+def object_count(spec: str | Path = "default", *, data_dir: str | Path | None = None,
+                 units: str | float = "m") -> int | None:
+    """How many objects :func:`load_object_set` would return for ``spec``, without reading any mesh (a folder
+    listing at most); None when that is not known cheaply (named data sets, missing folders: loading them
+    raises its own error). Takes the same arguments as ``load_object_set``."""
+    s = str(spec)
+    if s == "default":
+        from .primitives import DEFAULT_SHAPES
+
+        return len(DEFAULT_SHAPES)
+    if s == "families" or s.startswith("families:"):
+        try:
+            return 3 * (int(s.split(":", 1)[1]) if ":" in s else 10)
+        except ValueError:
+            return None
+    if s == "kit8":
+        return len(KIT8)
+    if s in ("kit20", "ycb10"):
+        return None
+    p = Path(s).expanduser()
+    if not p.is_dir():
+        return None
+    files = [f for f in p.iterdir() if f.is_file() and f.suffix.lower() in MESH_SUFFIXES]
+    if files:
+        return len(files)
+    return sum(1 for f in p.iterdir() if (f / "mesh.stl").is_file())
 
 
 def load_object_set(spec: str | Path = "default", *, data_dir: str | Path | None = None,

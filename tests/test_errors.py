@@ -1,0 +1,223 @@
+"""Clear errors at the first chance: bad actions, finished episodes, bad configs, bad meshes, bad caches."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import trimesh
+
+import haptic_env  # noqa: F401  (registers the envs)
+from haptic_env.cache import CacheNotWritableError, atomic_write, cache_dir, clean_stale_tmp
+from haptic_env.env import HapticRecogConfig, HapticRecogEnv
+from haptic_env.objects import MeshLoadError, load_folder
+from haptic_env.objects.loaders import load_mesh_object
+
+
+# ------------------------------------------------------------------------------------------- env
+def test_step_after_the_episode_ended_raises(env_config):
+    """Gymnasium leaves stepping a finished episode undefined: the env refuses it (the grasp count would leave
+    the observation space), then runs again after reset."""
+    env = HapticRecogEnv(env_config.replace(threshold=1.0, max_grasps=2))
+    env.reset(seed=0)
+    for _ in range(2):
+        obs, _, term, trunc, _ = env.step(np.zeros(4, dtype=np.float32))
+    assert trunc and env.observation_space.contains(obs)
+    with pytest.raises(RuntimeError, match="episode is over.*reset"):
+        env.step(np.zeros(4, dtype=np.float32))
+    obs, _ = env.reset()
+    assert env.step(np.zeros(4, dtype=np.float32))[0][env.obs_slices["grasp_count"]] == pytest.approx(0.5)
+    # terminated (the threshold reached) likewise, also through gym.make's wrappers
+    wrapped = gym.make("HapticRecog-v0", config=env_config.replace(threshold=0.2))
+    wrapped.reset(seed=1)
+    rng = np.random.default_rng(0)
+    for _ in range(30):
+        _, _, term, trunc, _ = wrapped.step(rng.uniform(-1, 1, 4).astype(np.float32))
+        if term or trunc:
+            break
+    assert term
+    with pytest.raises(RuntimeError, match="episode is over"):
+        wrapped.step(np.zeros(4, dtype=np.float32))
+
+
+@pytest.mark.parametrize("action", [np.array([0.1 + 0.5j, 0, 0, 0]), [1j, 0, 0, 0], np.zeros(4, dtype=np.complex64)])
+def test_complex_actions_are_rejected_naming_the_value(env_config, action):
+    env = HapticRecogEnv(env_config)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"complex values .*j"):
+        env.step(action)
+
+
+def test_ic_belief_sums_to_one_and_keeps_its_certainty(env_config):
+    env = HapticRecogEnv(env_config.replace(updater="ic", threshold=0.95))
+    obs, info = env.reset(seed=0)
+    assert info["belief"].sum() == pytest.approx(1.0)
+    rng = np.random.default_rng(0)
+    usable = 0
+    for _ in range(200):
+        obs, _, term, trunc, info = env.step(rng.uniform(-1, 1, 4).astype(np.float32))
+        usable += info["usable"]
+        assert info["belief"].sum() == pytest.approx(1.0, abs=1e-9)
+        assert obs[env.obs_slices["belief"]].sum() == pytest.approx(1.0, abs=1e-5)
+        u = env.updater
+        assert info["certainty"] == pytest.approx(u.scores.max() / u.n_grasps if u.n_grasps else 1 / env.n_classes)
+        assert info["predicted_index"] == int(np.argmax(u.scores)) or u.n_grasps == 0
+        assert term == (info["certainty"] >= 0.95)
+        if term or trunc:
+            env.reset()
+    assert usable > 10
+
+
+@pytest.mark.parametrize("bad, match", [
+    ({"kde_method": "nope"}, "kde_method"),
+    ({"recognizer_kwargs": {"nope": 1}}, r"unknown recognizer_kwargs \['nope'\]"),
+    ({"recognizer_kwargs": {"config": {"mlp": {"depthh": 2}}}}, "depthh"),
+    ({"recognizer_kwargs": {"config": {"kde": {"method": "nope"}}}}, "method"),
+    ({"object_kwargs": {"colour": "red"}}, "object_kwargs"),
+])
+def test_bad_recognizer_settings_fail_at_make(bad, match):
+    with pytest.raises(ValueError, match=match):
+        HapticRecogConfig(**bad)
+    with pytest.raises(ValueError, match=match):
+        gym.make("HapticRecog-v0", **bad)
+
+
+def test_kde_methods_accepted_by_the_env_exist():
+    from haptic_env.recognizers.kde import _METHODS
+
+    for m in ("pooled", "tree", "dense"):
+        assert m in _METHODS and HapticRecogConfig(kde_method=m).kde_method == m
+
+
+def test_one_object_set_fails_at_make(tmp_path, haptic_cache):
+    folder = tmp_path / "one"
+    folder.mkdir()
+    trimesh.creation.box([0.05, 0.06, 0.07]).export(folder / "box.stl")
+    before = sorted(p.name for p in haptic_cache.rglob("*"))
+    with pytest.raises(ValueError, match="1 object.*at least 2"):
+        gym.make("HapticRecog-v0", objects=str(folder))
+    with pytest.raises(ValueError, match="at least 2"):
+        HapticRecogConfig(objects="families:0")
+    assert sorted(p.name for p in haptic_cache.rglob("*")) == before  # nothing trained or cached
+
+
+# ---------------------------------------------------------------------------------------- meshes
+def _box_ascii_stl() -> bytes:
+    return trimesh.exchange.stl.export_stl_ascii(trimesh.creation.box([0.05, 0.06, 0.07])).encode()
+
+
+def test_random_bytes_stl_is_a_clear_mesh_error(tmp_path):
+    p = tmp_path / "noise.stl"
+    p.write_bytes(np.random.default_rng(0).bytes(3000))
+    with pytest.raises(MeshLoadError, match="noise.stl") as exc:
+        load_mesh_object(p)
+    assert "No module named" not in str(exc.value)
+
+
+def test_ascii_stl_with_a_latin1_header_loads(tmp_path):
+    pytest.importorskip("charset_normalizer")  # a dependency: trimesh guesses the header's encoding with it
+    p = tmp_path / "latin.stl"
+    p.write_bytes(_box_ascii_stl().replace(b"solid", b"solid caf\xe9 \xb0C", 1))
+    obj = load_mesh_object(p)
+    np.testing.assert_allclose(obj.extents, [0.05, 0.06, 0.07], atol=1e-9)
+
+
+def test_obj_with_a_nan_vertex_is_rejected_naming_the_file(tmp_path):
+    text = trimesh.exchange.obj.export_obj(trimesh.creation.box([0.05, 0.06, 0.07]))
+    lines = text.splitlines()
+    i = next(k for k, line in enumerate(lines) if line.startswith("v "))
+    lines[i] = "v nan 0.0 0.0"
+    p = tmp_path / "holey.obj"
+    p.write_text("\n".join(lines) + "\n")
+    with pytest.raises(MeshLoadError, match=r"holey\.obj.*not finite"):
+        load_mesh_object(p)
+
+
+def test_millimetres_loaded_as_metres_warn(tmp_path):
+    box = trimesh.creation.box([50.0, 60.0, 70.0])  # a 5-7 cm box written in millimetres
+    box.export(tmp_path / "mm_box.stl")
+    trimesh.creation.box([0.05, 0.06, 0.07]).export(tmp_path / "m_box.stl")
+    with pytest.warns(UserWarning, match=r"mm_box.stl.*70 m across.*millimetres"):
+        load_folder(tmp_path, units="m")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_mesh_object(tmp_path / "mm_box.stl", units="mm")  # right units: silent
+
+
+# ---------------------------------------------------------------------------------------- caches
+def test_read_only_cache_fails_before_any_work(tmp_path, monkeypatch):
+    from haptic_env.dataset import DatasetConfig, build_dataset
+    from haptic_env.objects import load_object_set
+
+    root = tmp_path / "ro"
+    (root / "datasets").mkdir(parents=True)
+    monkeypatch.setenv("HAPTIC_CACHE", str(root))
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode: False if str(p).startswith(str(root)) else real_access(p, mode))
+    with pytest.raises(CacheNotWritableError, match=r"ro/datasets is not writable.*HAPTIC_CACHE"):
+        cache_dir("datasets")
+    objs = load_object_set("default")
+    t0 = time.perf_counter()
+    with pytest.raises(PermissionError, match="not writable"):
+        build_dataset(objs.subset(objs.names[:2]), DatasetConfig(grasps_per_object=100_000), progress=False)
+    assert time.perf_counter() - t0 < 5.0  # failed before generating 200,000 grasps
+    monkeypatch.setenv("HAPTIC_CACHE_READONLY", "1")  # a complete read-only cache may still be read
+    assert cache_dir("datasets") == root / "datasets"
+    # a cache path that cannot even be created
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    monkeypatch.delenv("HAPTIC_CACHE_READONLY")
+    monkeypatch.setenv("HAPTIC_CACHE", str(blocker / "cache"))
+    with pytest.raises(CacheNotWritableError, match="cannot create the cache folder"):
+        cache_dir("recognizers")
+
+
+def test_temp_file_of_a_killed_writer_is_cleaned(tmp_path, monkeypatch):
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path))
+    folder = cache_dir("datasets")
+    code = ("import os, signal\nfrom haptic_env.cache import atomic_write\n"
+            f"with atomic_write({str(folder / 'd.npz')!r}) as fh:\n"
+            "    fh.write(b'half'); fh.flush(); os.kill(os.getpid(), signal.SIGKILL)\n")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=os.getcwd())
+    assert proc.returncode == -signal.SIGKILL
+    (orphan,) = [p for p in folder.iterdir()]
+    assert orphan.name.startswith(".d.npz.pid") and orphan.name.endswith(".tmp")
+    assert cache_dir("datasets") and orphan.exists()  # a fresh temp file may belong to a slow writer elsewhere
+    old = time.time() - 120
+    os.utime(orphan, (old, old))
+    mine = folder / f".e.npz.pid{os.getpid()}.x.tmp"  # a live writer's (this process) is kept
+    mine.write_bytes(b"")
+    os.utime(mine, (old, old))
+    cache_dir("datasets")
+    assert not orphan.exists() and mine.exists()
+    assert clean_stale_tmp(folder, max_age=60) == [mine]  # very old: removed whoever wrote it
+    with atomic_write(folder / "ok.bin") as fh:
+        fh.write(b"1")
+    assert [p.name for p in folder.iterdir()] == ["ok.bin"]
+
+
+def test_truncated_recognizer_json_is_rebuilt(tmp_path, monkeypatch):
+    from haptic_env.dataset import DatasetConfig
+    from haptic_env.objects import load_object_set
+    from haptic_env.recognizers import RecognizerConfig, build_recognizer
+
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path))
+    objs = load_object_set("default")
+    objs = objs.subset(objs.names[:3], name="three")
+    cfg = RecognizerConfig(grasps=DatasetConfig(grasps_per_object=200))
+    build_recognizer(objs, 4, True, config=cfg, models=("kde",), progress=False)
+    (meta,) = (tmp_path / "recognizers").glob("*.json")
+    meta.write_text(meta.read_text()[: len(meta.read_text()) // 2])  # cut mid-write
+    with pytest.warns(UserWarning, match="rebuilding recogniser"):
+        rec = build_recognizer(objs, 4, True, config=cfg, models=("kde",), progress=False)
+    assert rec.n_classes == 3 if hasattr(rec, "n_classes") else True
+    import json
+
+    json.loads(meta.read_text())  # rewritten whole
