@@ -1,23 +1,35 @@
-"""The paper's hand experiment: recognise the 10 YCB objects with simulated robot hands.
+"""The paper's hand table: recognise the 10 YCB objects from simulated robot-hand grasps.
 
-Allegro (4 fingers, with and without normals) and Shadow (5 fingers, without normals) grasp each
-object from random approaches in the MuJoCo backend; the fingertip contacts (and torque-derived
-normals) of each grasp update a belief with IC, BC-NP, BC-IP and BC-NP scored on 3-finger subsets
-(z = 3), trained on the paper's uniform surface grasps (``build_recognizer``). A query ends when the
-belief certainty exceeds the threshold or after ``--max-grasps`` grasps. Grasps with fewer than 3
-fingertip contacts are discarded (they still count as grasps spent); grasps with fewer contacts than
-the hand's fingers are scored with the model of their finger count. Every method sees the same grasp
-sequence per query (common random numbers).
+Each hand (MuJoCo backend) grasps each object along random approaches; the fingertip contacts (and,
+with normals, the torque-derived normals) of each grasp update a belief until its certainty reaches
+lambda or ``--max-grasps`` grasps are spent. Methods (the paper's rows): IC, BC-NP, BC-IP, and IC and
+BC-NP scored on ``k = 4`` random 3-finger subsets of each grasp (z = 3). A grasp with fewer than 3
+touching fingertips carries no information but is spent; an incomplete grasp with 3 <= t < n is scored
+by the t-finger model. Every method sees the same grasp sequences (common random numbers).
 
-    python benchmarks/hand_experiment.py [--queries 10] [--max-grasps 15] [--threshold 0.85]
+Two training regimes per hand, both computed from the meshes alone:
 
-Prints a markdown table (accuracy mean +- std over objects, grasps per query) - headline last.
+* ``surface``: the paper's way, hand-independent: random surface points with Gaussian contact noise
+  (``--surface-noise`` m) and normal noise (``--surface-normal-noise`` deg);
+* ``hand``: hand-matched: the hand's own MuJoCo model grasping each mesh
+  (``DatasetConfig(source="hand")``, ``--approaches`` per object, training seed 0).
+
+Test sequences are fresh hand grasps (pool seeds ``1000 + seed``, never used for training or for
+the calibration temperatures, which are fitted on the training grasps' validation split).
+``--queries`` queries per object and seed; the spread is the std over ``--seeds``.
+
+    python benchmarks/hand_experiment.py [--hands allegro shadow aero] [--queries 10] [--seeds 0 1 2]
+        [--max-grasps 30] [--approaches 1500] [--regimes surface hand] [--raw] [--out results/hands]
+
+Prints (and with ``--out`` writes ``hand_table.md``) the table with the paper's figure beside each
+cell; the headline is printed last.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -25,89 +37,139 @@ from tqdm import tqdm
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from haptic_env.grasping import make_backend  # noqa: E402
-from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
-from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 from haptic_env.dataset import DatasetConfig  # noqa: E402
+from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
+from haptic_env.hand_grasps import hand_grasp_pool  # noqa: E402
+from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 from haptic_env.recognizers import RecognizerConfig, build_recognizer  # noqa: E402
 
-SETUPS = (("allegro", 4, True), ("allegro", 4, False), ("shadow", 5, False))
-METHODS = (("IC", "ic", None), ("BC-NP", "bc-np", None), ("BC-IP", "bc-ip", None), ("BC-NP z=3", "bc-np", 3))
+#: hand -> (fingers, normals settings); the paper: Allegro with and without normals, 5-finger hands without.
+SETUPS = {"allegro": (4, (True, False)), "shadow": (5, (False,)), "aero": (5, (False,))}
+#: label -> (updater kind, z, random subsets per grasp)
+METHODS = {"IC": ("ic", None, None), "BC-NP": ("bc-np", None, None), "BC-IP": ("bc-ip", None, None),
+           "IC, z=3": ("ic", 3, 4), "BC-NP, z=3": ("bc-np", 3, 4)}
+#: the paper's table (success % / grasps): Pisa/IIT SoftHand (5, w/o), Allegro (4, w/o), Allegro (4, w/)
+PAPER = {
+    "IC": {"5-": (89, 3.76), "4-": (81, 2.97), "4+": (87, 3.78)},
+    "BC-NP": {"5-": (94, 8.15), "4-": (94, 10.45), "4+": (92, 4.80)},
+    "BC-IP": {"5-": (90, 4.86), "4-": (92, 9.18), "4+": (93, 4.17)},
+    "IC, z=3": {"5-": (51, 1.04), "4-": (52, 1.25), "4+": (49, 1.14)},
+    "BC-NP, z=3": {"5-": (92, 4.22), "4-": (93, 4.85), "4+": (94, 1.62)},
+}
 
 
-def grasp_sequences(hand: str, n: int, objects, queries: int, max_grasps: int, seed: int) -> dict:
-    """{object index: list over queries of list of GraspResult} from random approaches."""
-    be = make_backend("mujoco", n, hand=hand)
-    out = {}
-    for i, obj in enumerate(tqdm(objects, desc=f"grasping with {hand}")):
-        be.set_object(obj)
-        rng = np.random.default_rng([seed, i])
-        out[i] = [[be.grasp(a, rng) for a in rng.uniform(-1, 1, (max_grasps, 4))] for _ in range(queries)]
-    return out
-
-
-def run_query(updater, grasps, normals: bool) -> tuple[int, int, bool]:
-    """Feed grasps until decided -> (prediction, grasps used, decided)."""
+def run_query(updater, C, N, T, normals: bool) -> tuple[int, int, bool]:
+    """Feed one query's grasps ``C, N (G, n, 3)``, ``T (G, n)`` until decided -> (prediction, grasps, decided)."""
     updater.reset()
-    for k, g in enumerate(grasps, start=1):
-        if g.n_touched < 3:
-            continue
-        updater.update_grasp(g.contacts, g.normals if normals else None, g.touched)
-        if updater.decided:
-            return updater.prediction, k, True
-    return updater.prediction, len(grasps), False
+    for k in range(len(C)):
+        if T[k].sum() >= 3:
+            updater.update_grasp(C[k], N[k] if normals else None, T[k])
+            if updater.decided:
+                return updater.prediction, k + 1, True
+    return updater.prediction, len(C), False
+
+
+def training_config(regime: str, hand: str, args) -> RecognizerConfig:
+    if regime == "hand":
+        g = DatasetConfig(source="hand", hand=hand, grasps_per_object=args.approaches, seed=0)
+    else:
+        g = DatasetConfig(source="surface", grasps_per_object=args.surface_grasps, contact_noise=args.surface_noise,
+                          normal_noise_deg=args.surface_normal_noise, seed=0)
+    return RecognizerConfig(grasps=g)
+
+
+def evaluate(rec, pools, n: int, normals: bool, args) -> dict[str, dict]:
+    """label -> {success (S,), accuracy (S,), grasps (S,)} over seeds."""
+    out = {}
+    for label, (kind, z, k) in METHODS.items():
+        succ, acc, used = [], [], []
+        for s, pool in enumerate(pools):
+            rng = np.random.default_rng([7, s])
+            upd = rec.make_updater(kind, threshold=args.threshold, z=z, k=k, rng=rng, calibrated=not args.raw)
+            res = []
+            for i in range(pool.touched.shape[0]):
+                C = pool.contacts[i].reshape(args.queries, args.max_grasps, n, 3)
+                N = pool.normals[i].reshape(args.queries, args.max_grasps, n, 3)
+                T = pool.touched[i].reshape(args.queries, args.max_grasps, n)
+                for q in range(args.queries):
+                    p, g, d = run_query(upd, C[q], N[q], T[q], normals)
+                    res.append((p == i, g, d))
+            r = np.array(res, dtype=float)
+            succ.append(np.mean(r[:, 0] * r[:, 2]))
+            acc.append(np.mean(r[:, 0]))
+            used.append(np.mean(r[:, 1]))
+        out[label] = {"success": np.array(succ), "accuracy": np.array(acc), "grasps": np.array(used)}
+    return out
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--queries", type=int, default=10, help="queries per object")
-    ap.add_argument("--max-grasps", type=int, default=15, help="grasps per query at most")
+    ap.add_argument("--hands", nargs="+", default=list(SETUPS), choices=list(SETUPS))
+    ap.add_argument("--regimes", nargs="+", default=["surface", "hand"], choices=["surface", "hand"])
+    ap.add_argument("--queries", type=int, default=10, help="queries per object and seed (paper: 10)")
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="test seeds (spread: std over them)")
+    ap.add_argument("--max-grasps", type=int, default=30, help="grasps per query at most")
     ap.add_argument("--threshold", type=float, default=0.85)
-    ap.add_argument("--grasps-per-object", type=int, default=20_000, help="training grasps per object")
-    ap.add_argument("--contact-noise", type=float, default=0.0, help="training contact noise std (m)")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--approaches", type=int, default=1500, help="hand regime: training approaches per object")
+    ap.add_argument("--surface-grasps", type=int, default=20_000, help="surface regime: training grasps per object")
+    ap.add_argument("--surface-noise", type=float, default=0.002, help="surface regime: contact noise std (m)")
+    ap.add_argument("--surface-normal-noise", type=float, default=10.0, help="surface regime: normal noise (deg)")
+    ap.add_argument("--raw", action="store_true", help="the paper's raw scores (no calibration temperatures)")
+    ap.add_argument("--out", type=Path, default=None, help="write hand_table.md here")
     args = ap.parse_args(argv)
     if data_dir() is None:
         print("the hand experiment needs the YCB meshes (ycb/ in the shared data folder; set HAPTIC_DATA)")
         return 1
     objects = load_object_set("ycb10")
-    cfg = RecognizerConfig(grasps=DatasetConfig(grasps_per_object=args.grasps_per_object,
-                                                contact_noise=args.contact_noise, seed=args.seed))
-    rows = []
-    seqs_cache: dict[tuple[str, int], dict] = {}
-    for hand, n, normals in SETUPS:
+    rows, t_start = [], time.perf_counter()
+    for hand in args.hands:
+        n, normal_settings = SETUPS[hand]
         try:
-            if (hand, n) not in seqs_cache:
-                seqs_cache[(hand, n)] = grasp_sequences(hand, n, objects, args.queries, args.max_grasps, args.seed)
+            pools = [hand_grasp_pool(objects, hand, n, args.queries * args.max_grasps, seed=1000 + s)
+                     for s in args.seeds]
         except HandUnavailableError as exc:
             print(f"skipping {hand}: {exc}")
             continue
-        seqs = seqs_cache[(hand, n)]
-        usable = np.mean([g.usable for qs in seqs.values() for q in qs for g in q])
-        rec = build_recognizer(objects, n, normals, z_values=tuple(range(3, n)), config=cfg)
-        for label, kind, z in METHODS:
-            acc, used, undecided = [], [], []
-            for i, queries in seqs.items():
-                upd = rec.make_updater(kind, threshold=args.threshold, z=z)
-                res = [run_query(upd, q, normals) for q in queries]
-                acc.append(np.mean([p == i for p, _, _ in res]))
-                used.extend(k for _, k, _ in res)
-                undecided.extend(not d for _, _, d in res)
-            rows.append((hand, n, normals, label, np.array(acc), float(np.mean(used)), float(np.mean(undecided)),
-                         usable))
-    print(f"\nYCB-10 hand experiment: {args.queries} queries/object, <= {args.max_grasps} random-approach grasps "
-          f"per query, threshold {args.threshold}, seed {args.seed}; recognisers trained on "
-          f"{args.grasps_per_object} uniform grasps/object (contact noise {args.contact_noise} m).")
-    print("\n| hand | fingers | normals | method | accuracy (mean +- std over objects) | grasps/query | "
-          "undecided | usable grasps |")
-    print("|---|---|---|---|---|---|---|---|")
-    for hand, n, normals, label, acc, used, und, usable in rows:
-        print(f"| {hand} | {n} | {'yes' if normals else 'no'} | {label} | {acc.mean():.2f} +- {acc.std():.2f} | "
-              f"{used:.1f} | {und:.2f} | {usable:.2f} |")
+        usable = float(np.mean([(p.touched.sum(-1) >= 3).mean() for p in pools]))
+        for regime in args.regimes:
+            cfg = training_config(regime, hand, args)
+            for normals in normal_settings:
+                rec = build_recognizer(objects, n, normals, z_values=tuple(range(3, n)), config=cfg)
+                temps = rec.models.temperature(n)
+                res = evaluate(rec, pools, n, normals, args)
+                for label, r in tqdm(res.items(), desc=f"{hand} {regime}", disable=True):
+                    rows.append((hand, n, normals, regime, label, r, usable, temps))
+    cols = {(4, True): "4+", (4, False): "4-", (5, False): "5-"}
+    lines = [
+        f"YCB-10, {args.queries} queries per object x {len(args.seeds)} test seeds ({args.seeds}), <= {args.max_grasps} "
+        f"random-approach grasps per query, lambda = {args.threshold}, "
+        f"{'raw scores' if args.raw else 'calibrated scores (temperatures fitted on validation grasps)'}. "
+        "Success = decided and correct at the stop; accuracy = final prediction correct (decided or not). "
+        "Mean +- std over the test seeds. Paper: Pisa/IIT SoftHand for the 5-finger rows, real Allegro for the 4-finger rows.",
+        "",
+        "| hand | fingers | normals | training | method | success % | accuracy % | grasps | paper (success % / grasps) | "
+        "usable grasps | T (KDE / MLP) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for hand, n, normals, regime, label, r, usable, temps in rows:
+        paper = PAPER[label].get(cols[(n, normals)])
+        lines.append(
+            f"| {hand} | {n} | {'yes' if normals else 'no'} | {regime} | {label} | "
+            f"{100 * r['success'].mean():.1f} +- {100 * r['success'].std():.1f} | "
+            f"{100 * r['accuracy'].mean():.1f} +- {100 * r['accuracy'].std():.1f} | "
+            f"{r['grasps'].mean():.2f} +- {r['grasps'].std():.2f} | {paper[0]} / {paper[1]} | {usable:.2f} | "
+            f"{temps['kde']:.2f} / {temps['classifier']:.2f} |")
+    text = "\n".join(lines)
+    print("\n" + text)
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        cmd = "python benchmarks/hand_experiment.py " + " ".join(sys.argv[1:] if argv is None else argv)
+        (args.out / "hand_table.md").write_text(f"`{cmd}` ({time.perf_counter() - t_start:.0f} s)\n\n{text}\n")
     if rows:
-        best = max(rows, key=lambda r: r[4].mean())
-        print(f"HEADLINE: best YCB-10 accuracy {best[4].mean():.2f} ({best[0]}, {best[1]} fingers, "
-              f"{'with' if best[2] else 'without'} normals, {best[3]})")
+        best = max((r for r in rows if r[4] == "BC-NP"), key=lambda r: r[5]["success"].mean(), default=rows[0])
+        print(f"HEADLINE: BC-NP success at the stop {100 * best[5]['success'].mean():.1f} % in "
+              f"{best[5]['grasps'].mean():.2f} grasps ({best[0]}, {best[3]} training, "
+              f"{'with' if best[2] else 'without'} normals)")
     return 0
 
 

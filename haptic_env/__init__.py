@@ -27,7 +27,8 @@ _ENTRY = "haptic_env.env:HapticRecogEnv"
 #: id -> flat config overrides of each registered variant
 ENV_VARIANTS: dict[str, dict[str, Any]] = {
     "HapticRecog-v0": {},
-    "HapticRecogMuJoCo-v0": {"backend": "mujoco", "backend_kwargs": {"hand": "allegro"}, "objects": "ycb10"},
+    "HapticRecogMuJoCo-v0": {"backend": "mujoco", "backend_kwargs": {"hand": "allegro"}, "objects": "ycb10",
+                             "z_fingers": 3},
     "HapticRecogKIT-v0": {"objects": "kit8"},
 }
 

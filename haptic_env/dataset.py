@@ -43,7 +43,7 @@ __all__ = [
 
 _CACHE_VERSION = "grasp-dataset-v1"
 #: Values of :attr:`DatasetConfig.source`.
-SOURCES = ("surface", "geometric")
+SOURCES = ("surface", "geometric", "hand")
 _ARRAYS = ("X_train", "y_train", "X_val", "y_val", "names")
 #: Resampling rounds used to replace degenerate grasps before giving up.
 _MAX_TOPUP_ROUNDS = 20
@@ -69,11 +69,19 @@ class DatasetConfig:
             model (:mod:`haptic_env.grasping.geometric`) under uniformly random approaches, still
             computed from the mesh alone (no robot data), so the training distribution matches
             what a hand closing along an approach touches.
-        hand_fingers: with ``source="geometric"``, the fingers of the simulated hand (default
-            ``n_fingers``); each training grasp is a random ``n_fingers``-subset of the fingers
-            that touched, which models incomplete grasps / z-finger subsets of a bigger hand.
-        support: with ``source="geometric"``, ``"table"`` (approaches from the upper hemisphere)
-            or ``"floating"`` (the full sphere).
+            ``"hand"``: grasps of a robot hand's own MuJoCo model (``hand``) under uniformly random
+            approaches, object fixed (:mod:`haptic_env.hand_grasps`; still from the meshes alone),
+            with the backend's contact and torque-derived normal extraction. Then
+            ``grasps_per_object`` counts *approaches*: every grasp with at least ``n_fingers``
+            touching fingers gives one row, so objects get different row counts.
+        hand_fingers: with ``source="geometric"`` or ``"hand"``, the fingers of the simulated hand
+            (default ``n_fingers``; ``"hand"``: the hand's own); each training grasp is a random
+            ``n_fingers``-subset of the fingers that touched, which models incomplete grasps /
+            z-finger subsets of a bigger hand.
+        support: with ``source="geometric"`` or ``"hand"``, ``"table"`` (approaches from the upper
+            hemisphere) or ``"floating"`` (the full sphere).
+        hand: with ``source="hand"``, the hand (a name of
+            :func:`~haptic_env.grasping.hands.load_hand` or an MJCF path).
     """
 
     n_fingers: int = 4
@@ -89,6 +97,7 @@ class DatasetConfig:
     source: str = "surface"
     hand_fingers: int | None = None
     support: str = "table"
+    hand: str | None = None
 
     def __post_init__(self) -> None:
         if int(self.n_fingers) != self.n_fingers or self.n_fingers < 2:
@@ -116,6 +125,11 @@ class DatasetConfig:
             raise ValueError(f"hand_fingers must be an int >= n_fingers={self.n_fingers}, got {self.hand_fingers!r}")
         if self.support not in ("table", "floating"):
             raise ValueError(f"support must be 'table' or 'floating', got {self.support!r}")
+        if (self.source == "hand") != (self.hand is not None):
+            raise ValueError(f"hand (got {self.hand!r}) is required with source='hand' and only then "
+                             f"(source={self.source!r})")
+        if self.hand is not None and not isinstance(self.hand, str):
+            raise ValueError(f"hand must be a hand name or an MJCF path, got {self.hand!r}")
 
     @property
     def feature_dim(self) -> int:
@@ -346,6 +360,10 @@ def build_dataset(
             return _from_arrays(load_npz(path, required=_ARRAYS), objects, config, path)
         except CacheError as exc:
             warnings.warn(f"{exc}; rebuilding it", RuntimeWarning, stacklevel=2)
+    if config.source == "hand":
+        ds = _hand_dataset(objects, config, path, progress)
+        _save_dataset(ds)
+        return ds
     streams = np.random.SeedSequence(config.seed).spawn(len(objects))
     G = config.grasps_per_object
     n_val = int(round(config.val_fraction * G))
@@ -368,16 +386,42 @@ def build_dataset(
         config,
         cache_path=path,
     )
-    if path is not None:
-        save_npz_atomic(
-            path,
-            X_train=ds.X_train,
-            y_train=ds.y_train,
-            X_val=ds.X_val,
-            y_val=ds.y_val,
-            names=np.array(ds.names, dtype=str),
-        )
+    _save_dataset(ds)
     return ds
+
+
+def _save_dataset(ds: GraspDataset) -> None:
+    if ds.cache_path is not None:
+        save_npz_atomic(ds.cache_path, X_train=ds.X_train, y_train=ds.y_train, X_val=ds.X_val, y_val=ds.y_val,
+                        names=np.array(ds.names, dtype=str))
+
+
+def _hand_dataset(objects: ObjectSet, config: DatasetConfig, path: Path | None, progress: bool) -> GraspDataset:
+    """``source="hand"``: the ``n_fingers``-finger rows of a hand grasp pool, split per object."""
+    from .hand_grasps import hand_grasp_pool, pool_rows
+
+    n_hand = config.hand_fingers or config.n_fingers
+    pool = hand_grasp_pool(objects, config.hand, n_hand, config.grasps_per_object, support=config.support,
+                           seed=config.seed, progress=progress)
+    streams = np.random.SeedSequence([config.seed, 1]).spawn(len(objects))
+    Xtr, Ytr, Xva, Yva = [], [], [], []
+    for k, ss in enumerate(streams):
+        rng = np.random.default_rng(ss)
+        C, N = pool_rows(pool, k, config.n_fingers, rng)
+        X, valid = grasp_vectors(C, N if config.normals else None, config, rng=rng)
+        X = X[valid].astype(np.float32)
+        if len(X) < 2:
+            raise RuntimeError(f"object {objects.names[k]!r}: {len(X)} of {config.grasps_per_object} {config.hand} "
+                               f"grasps touched it with >= {config.n_fingers} fingers (non-degenerate); "
+                               "use more approaches or fewer fingers")
+        n_val = int(round(config.val_fraction * len(X)))
+        perm = rng.permutation(len(X))
+        Xva.append(X[perm[:n_val]])
+        Xtr.append(X[perm[n_val:]])
+        Yva.append(np.full(n_val, k, dtype=np.int64))
+        Ytr.append(np.full(len(X) - n_val, k, dtype=np.int64))
+    return GraspDataset(np.concatenate(Xtr), np.concatenate(Ytr), np.concatenate(Xva), np.concatenate(Yva),
+                        objects.names, config, cache_path=path)
 
 
 # ---------------------------------------------------------------------------------------- CLI

@@ -32,6 +32,9 @@ __all__ = [
 REWARD_KINDS = ("true-posterior-gain", "max-posterior-gain", "entropy-reduction")
 UPDATER_KINDS = ("bc-np", "bc-ip", "ic")
 POSE_MODES = ("table-yaw", "so3")
+RECOGNIZER_SOURCES = ("auto", "hand", "geometric", "surface")
+#: Random approaches per object of the default ``"hand"`` training grasps.
+HAND_APPROACHES = 1_500
 
 
 @dataclass(frozen=True)
@@ -71,14 +74,19 @@ class HapticRecogConfig:
     """Uniform random object scale per episode, or None (scale 1)."""
     max_grasps: int = 30
     """Grasps per episode before truncation; also normalises the grasp count in the observation."""
-    recognizer_source: str = "geometric"
-    """Training grasps of the recogniser (``RecognizerConfig.source``) unless ``recognizer_kwargs`` sets its own
-    config: "geometric" (the geometric hand's approach grasps, from the meshes alone: matches what the env's
-    hand touches) or "surface" (random surface points, the paper's protocol)."""
+    recognizer_source: str = "auto"
+    """Training grasps of the recogniser (``DatasetConfig.source``) unless ``recognizer_kwargs`` sets its own:
+    "hand" (the MuJoCo backend's own hand grasping each mesh, :mod:`haptic_env.hand_grasps`; mujoco backend
+    only), "geometric" (the geometric hand's approach grasps), "surface" (random surface points, the paper's
+    protocol), or "auto": "hand" for the mujoco backend, else "geometric". All are computed from the meshes
+    alone."""
     kde_method: str = "pooled"
     """How the belief update evaluates the per-object KDEs (``KDEConfig.method``) unless ``recognizer_kwargs``
     sets its own: "pooled" (one neighbour search over all objects' training vectors: a compiled k-d tree, ~25 us per grasp),
     "tree" (a search per object, as the recogniser analyses use: ~0.45 ms), or "dense" (exact, slow)."""
+    calibrated: bool = True
+    """Scale the recogniser's scores by the temperatures fitted on its validation grasps
+    (:mod:`haptic_env.recognizers.calibration`); False: the paper's raw likelihoods and probabilities."""
     recognizer_kwargs: Mapping[str, Any] = field(default_factory=dict)
     """Extra keyword arguments of :func:`haptic_env.recognizers.build_recognizer`, e.g.
     ``{"config": RecognizerConfig(grasps=DatasetConfig(grasps_per_object=5000))}``; ``config`` may also be a
@@ -87,8 +95,10 @@ class HapticRecogConfig:
     def __post_init__(self) -> None:
         if not isinstance(self.n_fingers, (int, np.integer)) or self.n_fingers < 3:
             raise ValueError(f"n_fingers must be an int >= 3 (a grasp needs a polyhedron), got {self.n_fingers!r}")
-        if self.recognizer_source not in ("geometric", "surface"):
-            raise ValueError(f"recognizer_source must be 'geometric' or 'surface', got {self.recognizer_source!r}")
+        if self.recognizer_source not in RECOGNIZER_SOURCES:
+            raise ValueError(f"recognizer_source must be one of {RECOGNIZER_SOURCES}, got {self.recognizer_source!r}")
+        if self.recognizer_source == "hand" and self.backend != "mujoco":
+            raise ValueError(f"recognizer_source='hand' needs the mujoco backend, got backend={self.backend!r}")
         if self.updater not in UPDATER_KINDS:
             raise ValueError(f"updater must be one of {UPDATER_KINDS}, got {self.updater!r}")
         if self.reward not in REWARD_KINDS:
@@ -156,9 +166,11 @@ def get_recognizer(objects, config: HapticRecogConfig):
 
     z_values = tuple(range(config.z_fingers, config.n_fingers)) if config.z_fingers is not None else ()
     kwargs = _recognizer_kwargs(config)  # torch: imported on first use only
+    from haptic_env.recognizers import build_recognizer, models_for
+
+    kwargs.setdefault("models", models_for(config.updater))  # BC-NP: the KDE only
     key = config_key(objects.name, tuple(objects.names), config.n_fingers, config.normals, z_values, kwargs)
     if key not in _RECOGNIZERS:
-        from haptic_env.recognizers import build_recognizer
 
         _RECOGNIZERS[key] = build_recognizer(objects, config.n_fingers, config.normals, z_values=z_values, **kwargs)
     return _RECOGNIZERS[key]
@@ -178,8 +190,18 @@ def _recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
     if isinstance(rc, Mapping):
         rc = dict(rc)
         grasps = dict(rc.get("grasps", {}))
-        grasps.setdefault("source", config.recognizer_source)
-        if grasps["source"] == "geometric":
+        source = config.recognizer_source
+        if source == "auto":
+            source = "hand" if config.backend == "mujoco" else "geometric"
+        grasps.setdefault("source", source)
+        if grasps["source"] == "hand":  # the backend's own hand, HAND_APPROACHES random approaches per object
+            hand = dict(config.backend_kwargs).get("hand", "generic")
+            if not isinstance(hand, str):
+                raise ValueError(f"recognizer_source 'hand' needs backend_kwargs['hand'] as a hand name or MJCF path "
+                                 f"(a cache key), got {type(hand).__name__}")
+            grasps.setdefault("hand", hand)
+            grasps.setdefault("grasps_per_object", HAND_APPROACHES)
+        if grasps["source"] in ("geometric", "hand"):
             grasps.setdefault("support", dict(config.backend_kwargs).get("support", "table"))
         if isinstance(grasps.get("scale_range"), list):
             grasps["scale_range"] = tuple(grasps["scale_range"])
@@ -315,8 +337,9 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     | pose               | "table-yaw"             | "table-yaw" / "so3"                                        |
     | scale_range        | None                    | (lo, hi) random scale                                      |
     | max_grasps         | 30                      | truncation and count normalisation                         |
-    | recognizer_source  | "geometric"             | recogniser training grasps: "geometric" / "surface"        |
+    | recognizer_source  | "auto"                  | training grasps: "hand" (mujoco) / "geometric" / "surface" |
     | kde_method         | "pooled"                | KDE evaluation: "pooled" (fast) / "tree" / "dense"         |
+    | calibrated         | True                    | temperature-scaled scores (fitted on validation grasps)    |
     | recognizer_kwargs  | {}                      | passed to ``build_recognizer``                             |
 
     The recogniser is built (or loaded from the cache, ``$HAPTIC_CACHE``) on the first ``reset`` and shared
@@ -459,10 +482,11 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
             self.backend.set_object(obj, self._pose.copy())
 
         if self._updater is None:
-            self._updater = self.recognizer.make_updater(kind=self.config.updater, threshold=self.config.threshold)
+            self._updater = self.recognizer.make_updater(kind=self.config.updater, threshold=self.config.threshold,
+                                                         calibrated=self.config.calibrated)
             # complete grasps scored in one compiled call (Bayesian updates from a pooled KDE; None otherwise)
             bayes = self.config.updater in ("bc-np", "bc-ip") and not self.config.score_subsets
-            self._scorer = self.recognizer.grasp_scorer() if bayes else None
+            self._scorer = self.recognizer.grasp_scorer(self.config.calibrated) if bayes else None
         self._belief = self._as_belief(self._updater.reset(None))
         self._grasps = 0
         self._episode_over = False

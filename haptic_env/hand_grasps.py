@@ -1,0 +1,167 @@
+"""Hand-matched training grasps: each object mesh grasped by a robot hand's own MuJoCo model.
+
+The recogniser is still trained from the meshes alone (no robot data), but its grasps come from
+the same simulated hand, closing law and contact / normal extraction as the MuJoCo backend
+(:class:`~haptic_env.grasping.mujoco_backend.MujocoBackend`, object fixed at the identity pose,
+uniformly random approaches). What a hand can touch (fingertips on convex bulges, never in
+concavities, a bias towards its own aperture) and its torque-derived normals with their error
+are then in the training distribution.
+
+:func:`hand_grasp_pool` returns the raw grasps of every object (contacts, normals, touched
+fingers), spread over processes (one task per chunk of approaches, all cores by default), with a
+progress bar, and cached in ``cache_dir("hand_grasps")`` keyed by the meshes, the hand and the
+settings. :func:`pool_rows` turns a pool into ``z``-finger training grasps (a random ``z``-subset
+of the touching fingers of every grasp with at least ``z``), which the dataset's ``"hand"`` source
+maps through Phi_n.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+import warnings
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from multiprocessing import get_context
+from pathlib import Path
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from .cache import CacheError, cache_dir, config_key, load_npz, save_npz_atomic
+
+__all__ = ["HandGraspPool", "hand_grasp_pool", "pool_rows", "pool_cache_path", "CHUNK"]
+
+_CACHE_VERSION = "hand-grasps-v1"
+#: Approaches per worker task (a task builds its own scene: ~0.3 s, so chunks amortise it).
+CHUNK = 250
+
+
+@dataclass(frozen=True)
+class HandGraspPool:
+    """Raw grasps of ``K`` objects by one hand, ``A`` random approaches each.
+
+    Attributes:
+        contacts: ``(K, A, n, 3)`` fingertip contacts (object frame, m; 0 where a finger missed).
+        normals: ``(K, A, n, 3)`` torque-derived inward unit normals (0 where a finger missed).
+        touched: ``(K, A, n)`` bool.
+        names: the objects.
+        hand: hand name; ``seconds``: generation wall time; ``from_cache``: read from the cache.
+    """
+
+    contacts: np.ndarray
+    normals: np.ndarray
+    touched: np.ndarray
+    names: tuple[str, ...]
+    hand: str
+    seconds: float
+    from_cache: bool = False
+
+    @property
+    def grasps_per_second(self) -> float:
+        return float(self.touched.shape[0] * self.touched.shape[1] / max(self.seconds, 1e-9))
+
+    def usable(self, z: int) -> np.ndarray:
+        """``(K,)`` fraction of each object's grasps with at least ``z`` touching fingers."""
+        return (self.touched.sum(-1) >= z).mean(axis=1)
+
+
+def pool_cache_path(objects, hand: str, approaches: int, support: str, seed: int) -> Path:
+    key = config_key(_CACHE_VERSION, objects.identity, hand, int(approaches), support, int(seed))
+    return cache_dir("hand_grasps") / f"{hand}-{key}.npz"
+
+
+def _grasp_chunk(obj, hand: str, n_fingers: int, support: str, actions: np.ndarray, seed) -> tuple:
+    """Worker: grasp ``obj`` along ``actions (m, 4)`` -> contacts, normals, touched, seconds."""
+    from .grasping import make_backend
+
+    t0 = time.perf_counter()
+    be = make_backend("mujoco", n_fingers=n_fingers, hand=hand, support=support, normals=True)
+    be.set_object(obj)
+    rng = np.random.default_rng(seed)
+    m = len(actions)
+    C, N, T = np.zeros((m, n_fingers, 3)), np.zeros((m, n_fingers, 3)), np.zeros((m, n_fingers), bool)
+    for i, a in enumerate(actions):
+        r = be.grasp(a, rng)
+        C[i], N[i], T[i] = r.contacts, r.normals, r.touched
+    be.close()
+    return C, N, T, time.perf_counter() - t0
+
+
+def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, support: str = "table", seed: int = 0,
+                    workers: int | None = None, cache: bool = True, progress: bool = True) -> HandGraspPool:
+    """Grasp every object of ``objects`` with ``hand`` along ``approaches`` uniformly random approaches.
+
+    Args:
+        objects: an ``ObjectSet`` (its collision pieces are used, as in the env).
+        hand: a hand name of :func:`~haptic_env.grasping.hands.load_hand` ("allegro", "shadow", ...) or an
+            MJCF path; ``n_fingers`` its fingers.
+        approaches: random approaches per object.
+        workers: processes (default: all cores); 1 runs in this process.
+        cache: read / write ``cache_dir("hand_grasps")``.
+
+    Object ``k``'s approaches come from ``SeedSequence([seed, k])``, so the pool does not depend on
+    ``workers`` or the chunking.
+    """
+    if not isinstance(hand, str):
+        raise TypeError(f"hand must be a hand name or an MJCF path (a cache key), got {type(hand).__name__}")
+    if int(approaches) != approaches or approaches < 1:
+        raise ValueError(f"approaches must be an int >= 1, got {approaches!r}")
+    path = pool_cache_path(objects, hand, approaches, support, seed) if cache else None
+    if path is not None and path.exists():
+        try:
+            a = load_npz(path, ("contacts", "normals", "touched", "names", "seconds"))
+            if tuple(str(n) for n in a["names"]) != tuple(objects.names) or a["touched"].shape[1:] != (approaches, n_fingers):
+                raise CacheError(f"cache file {path} holds another pool")
+            return HandGraspPool(a["contacts"], a["normals"], a["touched"].astype(bool), tuple(objects.names), hand,
+                                 float(a["seconds"]), from_cache=True)
+        except CacheError as exc:
+            warnings.warn(f"{exc}; rebuilding it", RuntimeWarning, stacklevel=2)
+    K = len(objects)
+    actions = [np.random.default_rng(np.random.SeedSequence([seed, k])).uniform(-1, 1, (approaches, 4))
+               for k in range(K)]
+    tasks = [(k, lo) for k in range(K) for lo in range(0, approaches, CHUNK)]
+    C = np.zeros((K, approaches, n_fingers, 3))
+    N = np.zeros_like(C)
+    T = np.zeros((K, approaches, n_fingers), dtype=bool)
+    workers = min(len(tasks), int(workers or os.cpu_count() or 1))
+    t0 = time.perf_counter()
+    bar = tqdm(total=K * approaches, desc=f"{hand} grasps", unit="grasp", disable=not progress, smoothing=0.1)
+
+    def put(k, lo, res):
+        c, n, t, _ = res
+        C[k, lo:lo + len(c)], N[k, lo:lo + len(c)], T[k, lo:lo + len(c)] = c, n, t
+        bar.update(len(c))
+
+    def args(k, lo):
+        return (objects[k], hand, n_fingers, support, actions[k][lo:lo + CHUNK], [seed, k, lo])
+
+    if workers <= 1:
+        for k, lo in tasks:
+            put(k, lo, _grasp_chunk(*args(k, lo)))
+    else:
+        with ProcessPoolExecutor(workers, mp_context=get_context("spawn")) as ex:
+            futs = {ex.submit(_grasp_chunk, *args(k, lo)): (k, lo) for k, lo in tasks}
+            for f in as_completed(futs):
+                put(*futs[f], f.result())
+    bar.close()
+    seconds = time.perf_counter() - t0
+    pool = HandGraspPool(C, N, T, tuple(objects.names), hand, seconds)
+    if path is not None:
+        save_npz_atomic(path, contacts=C, normals=N, touched=T, names=np.array(objects.names, dtype=str),
+                        seconds=np.array(seconds))
+    return pool
+
+
+def pool_rows(pool: HandGraspPool, k: int, z: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """``z``-finger grasps of object ``k``: every grasp with at least ``z`` touching fingers, reduced to a random
+    ``z``-subset of them (fingers kept in hand order). Returns ``contacts (m, z, 3)``, ``normals (m, z, 3)``."""
+    T = pool.touched[k]
+    n = T.shape[1]
+    if not 2 <= z <= n:
+        raise ValueError(f"z must be in [2, {n}] for a {n}-finger hand, got {z!r}")
+    ok = T.sum(1) >= z
+    keys = rng.random(T[ok].shape) + 2.0 * ~T[ok]  # touching fingers sort first, in random order
+    pick = np.sort(np.argsort(keys, axis=1)[:, :z], axis=1)[:, :, None]
+    return (np.take_along_axis(pool.contacts[k][ok], pick, axis=1),
+            np.take_along_axis(pool.normals[k][ok], pick, axis=1))
