@@ -7,6 +7,9 @@
 * :func:`allegro_hand` / :func:`shadow_hand` - the Wonik Allegro (4 fingers) and Shadow E3M5
   (5 fingers) hands of MuJoCo Menagerie via the ``mujoco-menagerie`` package. Offline they load
   from ``$MENAGERIE_ROOT``; when that is unset and ``<data_dir>/menagerie`` exists it is used.
+* :func:`aero_hand` - the TetherIA Aero Hand Open (5 tendon-driven fingers, 16 joints, 7 actuators:
+  under-actuated like the Pisa/IIT SoftHand) and :func:`robotiq_hand` - the Robotiq 2F-85 parallel
+  gripper (2 fingers, 1 actuator: the n = 2 case), from the same menagerie.
 * :func:`mjcf_hand` - any MJCF hand given its file and fingertip body names.
 
 Fingertip sites (the kinesthetic contact points) are added with MjSpec: at the centre of the
@@ -29,12 +32,14 @@ __all__ = [
     "generic_hand",
     "allegro_hand",
     "shadow_hand",
+    "aero_hand",
+    "robotiq_hand",
     "mjcf_hand",
     "load_hand",
     "HANDS",
 ]
 
-HANDS = ("generic", "allegro", "shadow")
+HANDS = ("generic", "allegro", "shadow", "aero", "robotiq")
 
 
 class HandUnavailableError(RuntimeError):
@@ -67,6 +72,7 @@ class HandDescription:
     thumb_axis: np.ndarray | None = None
     option: dict[str, object] = field(default_factory=dict)  # e.g. {"cone": elliptic}
     max_steps: int = 200  # closing steps (timestep 2 ms) after which the fingers have settled
+    standoff: float = 0.02  # m: back-off from the closest collision-free pre-grasp pose before closing
 
     @property
     def n_fingers(self) -> int:
@@ -203,6 +209,66 @@ def shadow_hand(side: str = "right") -> HandDescription:
                            option={"cone": mujoco.mjtCone.mjCONE_ELLIPTIC, "impratio": 10.0}, max_steps=150)
 
 
+def aero_hand(side: str = "right") -> HandDescription:
+    """TetherIA Aero Hand Open (5 fingers: index, middle, ring, pinky, thumb; 16 joints, 7 actuators).
+
+    Under-actuated like the Pisa/IIT SoftHand: one tendon flexes each finger (its PIP and DIP joints
+    coupled by an equality, return springs as spring tendons); the thumb has an abduction motor
+    (opposition) and two flexion tendons. Tendons close by shortening: the bottom of their ctrlrange
+    closes, the top opens (straight). Open pose: fingers straight, thumb abducted flat beside the
+    index finger (abduction 0; an opposed thumb would block the approach). Closing synergy: the thumb
+    swings into full opposition while the thumb tendons shorten most of their range and the finger
+    tendons about half of theirs (full flexion wraps the fingers so other links touch first).
+    Approach axis: the fingers' flexion direction at the open pose (the palm normal), in the frame of
+    ``tetheria_mount``. The planar fingers have no abduction joint, so their torque-derived normals
+    miss the component along the joint axes (see :mod:`~haptic_env.grasping.mujoco_backend`). The
+    thumb is slow to settle: up to 400 closing steps."""
+    if side not in ("right", "left"):
+        raise ValueError(f"side must be 'right' or 'left', got {side!r}")
+    spec = _menagerie_spec("tetheria_aero_hand_open", f"{side}_hand")
+    p = side
+    fingers = ("index", "middle", "ring", "pinky")
+    # tendon ctrlranges: fingers [0.05852, 0.110387], th1 [0.026152, 0.038389], th2 [0.081568, 0.112138] m
+    open_ctrl = {f"{p}_{f}_A_tendon": 0.110387 for f in fingers}
+    open_ctrl.update({f"{p}_thumb_A_cmc_abd": 0.0, f"{p}_th1_A_tendon": 0.038389, f"{p}_th2_A_tendon": 0.112138})
+    close = {f"{p}_{f}_A_tendon": 0.08 for f in fingers}
+    close.update({f"{p}_thumb_A_cmc_abd": 1.75, f"{p}_th1_A_tendon": 0.03, f"{p}_th2_A_tendon": 0.09})
+    return HandDescription(name=f"aero_{side}", spec=spec, root="tetheria_mount",
+                           tips=tuple(f"{p}_{f}_distal_link" for f in (*fingers, "thumb")),
+                           open_ctrl=open_ctrl, close_ctrl=close,
+                           approach_axis=np.array([0.285, 0.0, 0.958]),  # palm normal (mirror-symmetric in y)
+                           option={"cone": mujoco.mjtCone.mjCONE_ELLIPTIC, "impratio": 10.0}, max_steps=400)
+
+
+def robotiq_hand() -> HandDescription:
+    """Robotiq 2F-85 parallel gripper (2 fingers: right pad, left pad as the "thumb"; 1 actuator).
+
+    One motor (``fingers_actuator``, ctrl 0 = open .. 255 = closed, force limited to 5 N) drives both
+    4-bar linkages through a tendon that splits its force equally; each finger adapts through its
+    spring link. Fingertips: the pads, sites at the centre of the pad blocks (radius = half their
+    thickness, so ``site + r * normal`` lies on the pad face). Approach axis: the gripper's +z (base
+    towards the pinch point); thumb axis calibrated (towards the left pad).
+
+    Two hand-specific choices, both because the object is fixed and the mount rigid: the equality
+    that mirrors the left driver onto the right one is removed, so a pad that touches first stops
+    while the other closes on (what the gripper or arm being pushed sideways to centre the object
+    would give; with the coupling one pad touching first stalls both), and there is no standoff
+    (the pinch point starts where the approach first becomes collision-free: objects narrower than
+    the 85 mm opening then sit between the pad faces instead of 2 cm short of them). The n = 2
+    case: a grasp is usable when both pads touch (``GraspResult.info["usable"]``)."""
+    spec = _menagerie_spec("robotiq_2f85", "2f85")
+    for eq in list(spec.equalities):
+        if eq.type == mujoco.mjtEq.mjEQ_JOINT:  # right_driver_joint == left_driver_joint
+            spec.delete(eq)
+    pad_centre = np.array([0.0, -0.0026, 0.01875])  # pad_box1 + pad_box2: z 0 .. 0.0375, y -0.0066 .. 0.0014
+    return HandDescription(name="robotiq_2f85", spec=spec, root="base_mount", tips=("right_pad", "left_pad"),
+                           tip_sites=((pad_centre, 0.004), (pad_centre, 0.004)),
+                           open_ctrl={"fingers_actuator": 0.0}, close_ctrl={"fingers_actuator": 255.0},
+                           approach_axis=np.array([0.0, 0.0, 1.0]),
+                           option={"cone": mujoco.mjtCone.mjCONE_ELLIPTIC, "impratio": 10.0}, max_steps=300,
+                           standoff=0.0)
+
+
 def mjcf_hand(path: str | Path, tips: tuple[str, ...] | list[str], *, root: str | None = None,
               open_ctrl: dict[str, float] | None = None, close_ctrl: dict[str, float] | None = None,
               spread: dict[str, tuple[float, float]] | None = None) -> HandDescription:
@@ -231,8 +297,9 @@ def mjcf_hand(path: str | Path, tips: tuple[str, ...] | list[str], *, root: str 
 
 
 def load_hand(hand: str | HandDescription, n_fingers: int = 4, **kw) -> HandDescription:
-    """``"generic"`` (n fingers), ``"allegro"`` (4), ``"shadow"`` (5), a HandDescription, or an MJCF path
-    (then ``tips=`` is required)."""
+    """``"generic"`` (n fingers), ``"allegro"`` (4), ``"shadow"`` (5), ``"aero"`` (5), ``"robotiq"`` (2),
+    a HandDescription, or an MJCF path (then ``tips=`` is required). ``_right``/``_left`` suffixes pick
+    the side of the Allegro, Shadow and Aero hands."""
     if isinstance(hand, HandDescription):
         desc = hand
     elif hand == "generic":
@@ -241,6 +308,10 @@ def load_hand(hand: str | HandDescription, n_fingers: int = 4, **kw) -> HandDesc
         desc = allegro_hand("left" if hand.endswith("left") else "right")
     elif hand in ("shadow", "shadow_right", "shadow_left"):
         desc = shadow_hand("left" if hand.endswith("left") else "right")
+    elif hand in ("aero", "aero_right", "aero_left"):
+        desc = aero_hand("left" if hand.endswith("left") else "right")
+    elif hand == "robotiq":
+        desc = robotiq_hand()
     elif str(hand).endswith(".xml"):
         if "tips" not in kw:
             raise ValueError(f"MJCF hand {hand!r} needs tips=(fingertip body names, thumb last)")

@@ -77,7 +77,7 @@ class MujocoConfig:
     joint_frictionloss: float | None = 0.0  # override the hand's dry joint friction (None: keep the model's)
     friction: float = 0.1  # sliding friction of object and hand geoms (normal error <~ atan(friction))
     march_step: float = 0.01  # m: pre-grasp placement search step along the approach
-    standoff: float = 0.02  # m: extra back-off after the closest collision-free pre-grasp pose
+    standoff: float | None = None  # m: back-off after the closest collision-free pre-grasp pose (None: the hand's)
     contact_noise: float = 0.0  # std (m) on reported contacts
     normal_noise_deg: float = 0.0
     collision: CollisionConfig = CollisionConfig()
@@ -226,6 +226,18 @@ class GraspScene:
             for b in c:
                 if b not in shared:
                     body_finger[b] = i
+        # closed linkages (a gripper's driver and coupler bars) belong to the finger they connect to
+        for e in range(m.neq):
+            if int(m.eq_type[e]) not in (int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_WELD)) or \
+                    int(m.eq_objtype[e]) != int(mujoco.mjtObj.mjOBJ_BODY):
+                continue
+            for a_, b_ in ((m.eq_obj1id[e], m.eq_obj2id[e]), (m.eq_obj2id[e], m.eq_obj1id[e])):
+                x = int(b_)
+                if body_finger[a_] < 0:
+                    continue
+                while x != 0 and x not in shared and body_finger[x] < 0:
+                    body_finger[x] = body_finger[a_]
+                    x = int(m.body_parentid[x])
         self._geom_finger = body_finger[m.geom_bodyid]  # finger of every geom (any link), -1 palm/none
         # fingers each actuator moves: the dofs its transmission acts on (moment arms at qpos0; works
         # for joint, fixed- and spatial-tendon actuators alike). act_fingers[a, i]: actuator a moves
@@ -543,7 +555,8 @@ class MujocoBackend:
                     lo = mid
             s = hi
         if free:
-            sc.set_mount(self._centre + (s + cfg.standoff) * u - R @ g, R)
+            standoff = self.hand.standoff if cfg.standoff is None else cfg.standoff
+            sc.set_mount(self._centre + (s + standoff) * u - R @ g, R)
         sc.data.ctrl[:] = close_u
         mujoco.mj_forward(sc.model, sc.data)
         steps = 0
@@ -603,6 +616,8 @@ class MujocoBackend:
         return GraspResult(contacts=contacts, normals=est if cfg.normals else None, touched=touched,
                            joint_pos=hand_q, gt_normals=gt_n,
                            info={"steps": steps, "gt_contacts": gt_pts, "tip_sites": sites,
+                                 # >= 3 fingertips touch (both for a 2-finger gripper)
+                                 "usable": bool(len(idx) >= min(3, nf)),
                                  # fingers touching with other links too: their torque normal is biased
                                  "link_contact": sc.finger_link_contacts(exclude_tip=True)})
 
