@@ -1,8 +1,9 @@
 """Grasp backends: speed (grasps/s, ratio to a raw baseline measured in the same run) and quality
-(fraction of random approaches giving a usable grasp, >= 3 fingertip contacts; agreement of the
+(fraction of random approaches giving a usable grasp, >= 3 fingertip contacts, both pads for the
+2-finger gripper; agreement of the
 torque-derived normals with MuJoCo's contact normals) per backend and hand on kit8 and ycb10.
 
-    python benchmarks/bench_grasping.py [--approaches 20] [--hands generic,allegro,shadow] [--quick]
+    python benchmarks/bench_grasping.py [--approaches 20] [--hands generic,allegro,shadow,aero,robotiq] [--quick]
 
 Baselines: geometric = Embree ray casting of the same rays alone (``scene.run``); mujoco = the raw
 ``mj_step`` time of the steps the backend takes. Usable fractions are averaged over objects
@@ -25,7 +26,7 @@ from haptic_env.grasping import make_backend  # noqa: E402
 from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 
-N_FINGERS = {"generic": 4, "allegro": 4, "shadow": 5}
+N_FINGERS = {"generic": 4, "allegro": 4, "shadow": 5, "aero": 5, "robotiq": 2}
 
 
 def _sets(quick: bool):
@@ -70,7 +71,7 @@ def usable_fraction(backend: str, objects, n_approaches: int, seed: int, **cfg) 
         if backend == "mujoco":
             be.reset_timing()
             res = [be.grasp(a, rng) for a in acts]
-            fracs.append(np.mean([r.usable for r in res]))
+            fracs.append(np.mean([r.info["usable"] for r in res]))  # >= min(3, n) fingertips
             tm = be.timing
             times.append(tm["time_per_grasp"])
             ratios.append(tm["ratio"])
@@ -91,7 +92,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--approaches", type=int, default=20, help="random approaches per object (mujoco)")
     ap.add_argument("--geo-approaches", type=int, default=500, help="random approaches per object (geometric)")
-    ap.add_argument("--hands", default="generic,allegro,shadow")
+    ap.add_argument("--hands", default="generic,allegro,shadow,aero,robotiq")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--quick", action="store_true", help="3 objects per set")
     args = ap.parse_args(argv)
@@ -146,7 +147,7 @@ def main(argv=None) -> int:
         cells = [f"{r[s].mean():.2f} +- {r[s].std():.2f}" for s in names]
         print(f"| {r['backend']} | {r['hand']} | {r['n']} | {gps} | {ratio} | " + " | ".join(cells) + f" | {err} |")
     n_obj = {s: len(v) for s, v in sets.items()}
-    print(f"\nusable = fraction of random approaches with >= 3 fingertip contacts; mean +- std over objects "
+    print(f"\nusable = fraction of random approaches with >= 3 fingertip contacts (2 for the gripper); mean +- std over objects "
           f"{n_obj}; {args.approaches} approaches/object (mujoco), {args.geo_approaches} (geometric/uniform); "
           f"seed {args.seed}.")
     allegro = [r for r in rows if r["hand"] == "allegro"]

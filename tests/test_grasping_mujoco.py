@@ -1,7 +1,8 @@
 """MuJoCo backend checks. Angle bound: at equilibrium a fingertip-only contact force lies inside the
 friction cone (atan(0.1) = 5.7 deg with the default friction); with settling error we require >= 90%
 of touching fingertips of the generic hand within 15 deg of MuJoCo's contact normal (measured: median
-~4, 90th percentile ~8 deg), and a median below 20 deg for the Allegro / Shadow hands."""
+~4, 90th percentile ~8 deg), and a median below 20 deg for the Allegro / Shadow / Aero hands (30 deg for the Robotiq
+gripper, whose flat pads and loaded joint limits leave the contact wrench under-determined)."""
 
 import numpy as np
 import pytest
@@ -97,7 +98,7 @@ def test_render_offscreen(generic):
     assert img.shape == (64, 96, 3) and img.dtype == np.uint8 and img.std() > 0
 
 
-@pytest.mark.parametrize("hand, n", [("allegro", 4), ("shadow", 5)])
+@pytest.mark.parametrize("hand, n", [("allegro", 4), ("shadow", 5), ("aero", 5)])
 def test_menagerie_hands(hand, n):
     try:
         be = make_backend("mujoco", n, hand=hand)
@@ -110,6 +111,51 @@ def test_menagerie_hands(hand, n):
     assert sum(r.n_touched for r in res) > 0
     ang = _angles(res)
     assert np.median(ang) < MENAGERIE_MEDIAN_DEG
+
+
+def _menagerie_backend(hand, n, **cfg):
+    try:
+        return make_backend("mujoco", n, hand=hand, **cfg)
+    except HandUnavailableError as exc:
+        pytest.skip(f"{hand} hand unavailable (menagerie data absent, no download): {exc}")
+
+
+def test_aero_tendon_actuators_map_to_their_fingers():
+    """Spatial-tendon actuators (first wrap object a site) map to the finger whose joints they move;
+    the under-actuated hand closes on a cylinder with most fingertips."""
+    be = _menagerie_backend("aero", 5)
+    be.set_object(_cyl())
+    sc = be.scene
+    idx = sc.act_index
+    for i, f in enumerate(("index", "middle", "ring", "pinky")):
+        assert sc.act_finger[idx[f"right_{f}_A_tendon"]] == i
+    for a in ("right_thumb_A_cmc_abd", "right_th1_A_tendon", "right_th2_A_tendon"):
+        assert sc.act_finger[idx[a]] == 4
+    assert sc.moment_scale[idx["right_index_A_tendon"]] < 0.05  # metres of tendon per radian
+    rng = np.random.default_rng(0)
+    res = [be.grasp(a, rng) for a in rng.uniform(-1, 1, (6, 4))]
+    assert all(r.joint_pos.shape == (16,) and r.normals.shape == (5, 3) for r in res)
+    assert np.mean([r.usable and r.info["usable"] for r in res]) >= 0.5
+
+
+def test_two_finger_gripper():
+    """Robotiq 2F-85: n = 2, one motor for both fingers, usable = both pads touch."""
+    be = _menagerie_backend("robotiq", 2)
+    be.set_object(_cyl())  # 70 mm across: fits the 85 mm opening
+    sc = be.scene
+    assert sc.act_fingers.shape == (1, 2) and sc.act_fingers.all() and sc.act_finger[0] == -1
+    rng = np.random.default_rng(0)
+    res = [be.grasp(a, rng) for a in rng.uniform(-1, 1, (10, 4))]
+    for r in res:
+        assert r.contacts.shape == (2, 3) and r.normals.shape == (2, 3) and r.touched.shape == (2,)
+        assert r.info["usable"] == bool(r.touched.all())
+        assert np.all(r.contacts[~r.touched] == 0)
+        assert np.allclose(np.linalg.norm(r.normals[r.touched], axis=1), 1.0)
+    both = [r for r in res if r.info["usable"]]
+    assert len(both) >= 4
+    gap = [np.linalg.norm(r.contacts[0] - r.contacts[1]) for r in both]
+    assert np.all((np.array(gap) > 0.03) & (np.array(gap) < 0.09)), gap  # a grasp vector: the pad distance
+    assert np.median(_angles(res)) < 30.0
 
 
 def test_wrong_finger_count_for_hand():
