@@ -66,8 +66,8 @@ class HandGraspPool:
         return (self.touched.sum(-1) >= z).mean(axis=1)
 
 
-def pool_cache_path(objects, hand: str, approaches: int, support: str, seed: int) -> Path:
-    key = config_key(_CACHE_VERSION, objects.identity, hand, int(approaches), support, int(seed))
+def pool_cache_path(objects, hand: str, n_fingers: int, approaches: int, support: str, seed: int) -> Path:
+    key = config_key(_CACHE_VERSION, objects.identity, hand, int(n_fingers), int(approaches), support, int(seed))
     return cache_dir("hand_grasps") / f"{hand}-{key}.npz"
 
 
@@ -107,7 +107,7 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
         raise TypeError(f"hand must be a hand name or an MJCF path (a cache key), got {type(hand).__name__}")
     if int(approaches) != approaches or approaches < 1:
         raise ValueError(f"approaches must be an int >= 1, got {approaches!r}")
-    path = pool_cache_path(objects, hand, approaches, support, seed) if cache else None
+    path = pool_cache_path(objects, hand, n_fingers, approaches, support, seed) if cache else None
     if path is not None and path.exists():
         try:
             a = load_npz(path, ("contacts", "normals", "touched", "names", "seconds"))
