@@ -61,8 +61,20 @@ class Args:
     verbose: int = 0
 
 
-def parse_args(argv: list[str] | None = None) -> Args:
+ALGOS = ("ppo", "sac")
+
+
+def _parser() -> argparse.ArgumentParser:
+    from haptic_env.cli import float_in, int_in
+
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    # value checks at parse time: a bad value is a one-line usage error, before any run file is written
+    checked = {"algo": dict(choices=ALGOS), "vec": dict(choices=("subproc", "dummy")),
+               "total_timesteps": dict(type=int_in(1)), "n_envs": dict(type=int_in(1)),
+               "checkpoint_freq": dict(type=int_in(1)), "max_minutes": dict(type=float_in(0.0)),
+               "torch_threads": dict(type=int_in(1)), "n_fingers": dict(type=int_in(3, 20)),
+               "max_grasps": dict(type=int_in(1)), "grasp_cost": dict(type=float_in(0.0)),
+               "seed": dict(type=int_in(0))}
     for f in dataclasses.fields(Args):
         if f.name.startswith("_"):
             continue
@@ -71,9 +83,33 @@ def parse_args(argv: list[str] | None = None) -> Args:
             parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=f.default)
         else:
             typ = {"int": int, "float": float, "str": str}.get(str(f.type), str)
-            parser.add_argument(flag, type=typ, default=f.default)
-    ns = parser.parse_args(argv)
-    return Args(**vars(ns))
+            parser.add_argument(flag, **{"type": typ, **checked.get(f.name, {})}, default=f.default)
+    return parser
+
+
+def parse_args(argv: list[str] | None = None) -> Args:
+    """The flags as :class:`Args`; bad values (unknown algorithm, zero steps or envs, JSON that is not an object,
+    env settings ``HapticRecogConfig`` rejects, a missing ``--resume`` file) exit with a one-line usage error."""
+    parser = _parser()
+    args = Args(**vars(parser.parse_args(argv)))
+    for flag, text in (("--env-kwargs", args.env_kwargs), ("--hyperparams", args.hyperparams)):
+        try:
+            value = json.loads(text)
+        except json.JSONDecodeError as exc:
+            parser.error(f"argument {flag}: not valid JSON ({exc.msg}): {text!r}")
+        if not isinstance(value, dict):
+            parser.error(f"argument {flag}: expected a JSON object ({{...}}), got {text!r}")
+    try:
+        env_config(args)
+    except (TypeError, ValueError, FileNotFoundError) as exc:
+        parser.error(f"env settings: {exc}")
+    if args.resume and not Path(args.resume).is_file():
+        parser.error(f"argument --resume: checkpoint {args.resume} does not exist")
+    from haptic_env import ENV_VARIANTS
+
+    if args.env_id not in ENV_VARIANTS:
+        parser.error(f"argument --env-id: unknown env {args.env_id!r}; choose from {list(ENV_VARIANTS)}")
+    return args
 
 
 def env_config(args: Args):

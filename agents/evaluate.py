@@ -326,16 +326,19 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False):
 
 
 def add_parser(subparsers) -> None:
+    from haptic_env import ENV_VARIANTS
+    from haptic_env.cli import int_in, json_object
+
     p = subparsers.add_parser("evaluate", help="evaluate agents on HapticRecog (table + plots)",
                               description=__doc__.split("\n\n")[0])
     p.add_argument("--agents", nargs="+", default=["random", "greedy"],
                    help="random | greedy[:M] | NAME=model.zip (ppo=..., sac=...)")
-    p.add_argument("--episodes", type=int, default=40, help="episodes per seed")
-    p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
+    p.add_argument("--episodes", type=int_in(1), default=40, help="episodes per seed")
+    p.add_argument("--seeds", type=int_in(0), nargs="+", default=[0, 1, 2, 3, 4])
     p.add_argument("--stochastic", action="store_true",
                    help="SB3 agents sample actions from their policy (seeded per env seed) instead of the mean action")
-    p.add_argument("--env-id", default="HapticRecog-v0")
-    p.add_argument("--env-kwargs", default="{}", help="JSON dict of HapticRecogConfig fields")
+    p.add_argument("--env-id", default="HapticRecog-v0", choices=list(ENV_VARIANTS))
+    p.add_argument("--env-kwargs", type=json_object, default={}, help="JSON dict of HapticRecogConfig fields")
     p.add_argument("--out", default="outputs/eval")
     p.add_argument("--learning-curves", nargs="*", default=[], metavar="NAME=LOG_DIR",
                    help="training log dirs (agents/sb3 layout) to plot learning curves from")
@@ -344,21 +347,40 @@ def add_parser(subparsers) -> None:
 
 def _main(args) -> int:
     import haptic_env
+    from haptic_env.cli import UsageError
     from haptic_env.env import HapticRecogConfig
 
-    kwargs = json.loads(args.env_kwargs)
-    if not isinstance(kwargs, dict):
-        raise SystemExit(f"--env-kwargs must be a JSON object, got {args.env_kwargs!r}")
-    config = HapticRecogConfig().replace(**kwargs)
+    kwargs = args.env_kwargs if isinstance(args.env_kwargs, dict) else json.loads(args.env_kwargs)
+    try:
+        config = HapticRecogConfig().replace(**kwargs)
+    except (TypeError, ValueError, FileNotFoundError) as exc:
+        raise UsageError(f"--env-kwargs: {exc}") from exc
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out {out} is a file; give a folder for the report")
+    curves = {}
+    for spec in args.learning_curves:
+        name, _, path = spec.partition("=") if "=" in spec else (Path(spec).name, "", spec)
+        if not Path(path).is_dir():
+            raise UsageError(f"--learning-curves {spec}: {path} is not a folder")
+        curves[name] = path
+    agents = []
+    for spec in args.agents:
+        if "=" in spec or spec.endswith(".zip"):
+            path = spec.partition("=")[2] if "=" in spec else spec
+            if not Path(path).is_file():
+                raise UsageError(f"--agents {spec}: model file {path} does not exist")
+        try:
+            agents.append(make_agent(spec, stochastic=args.stochastic))
+        except ValueError as exc:
+            raise UsageError(f"--agents: {exc}") from exc
     make_env = lambda: haptic_env.make(config, env_id=args.env_id)  # noqa: E731
-    agents = [make_agent(s, stochastic=args.stochastic) for s in args.agents]
     t0 = time.time()
     records = evaluate_agents(agents, make_env, args.episodes, args.seeds)
     paths = write_report(records, args.out, config.max_grasps,
                          extra=f"env `{args.env_id}`, config overrides `{kwargs}`; {args.episodes} episodes x seeds "
                                f"{args.seeds}; {time.time() - t0:.0f} s.")
-    if args.learning_curves:
-        dirs = dict(s.partition("=")[::2] if "=" in s else (Path(s).name, s) for s in args.learning_curves)
-        plot_learning_curves(dirs, Path(args.out) / "learning_curves.png")
+    if curves:
+        plot_learning_curves(curves, Path(args.out) / "learning_curves.png")
     print(paths["md"].read_text())
     return 0

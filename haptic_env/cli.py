@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import json
 import sys
 
 # name -> module that defines add_parser(subparsers) and sets func on its parser
@@ -18,18 +19,78 @@ SUBCOMMANDS: dict[str, str] = {
 }
 
 
+class UsageError(ValueError):
+    """A bad command-line value found after parsing: :func:`main` reports it as a one-line usage error."""
+
+
+def int_in(lo: int, hi: int | None = None):
+    """argparse ``type``: an integer in ``[lo, hi]`` (a bad value is a one-line error naming the flag)."""
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if v < lo or (hi is not None and v > hi):
+            rng = f"in [{lo}, {hi}]" if hi is not None else f">= {lo}"
+            raise argparse.ArgumentTypeError(f"must be {rng}, got {v}")
+        return v
+
+    return parse
+
+
+def float_in(lo: float | None = None, hi: float | None = None, *, lo_open: bool = False, hi_open: bool = False):
+    """argparse ``type``: a finite float in ``[lo, hi]`` (``lo_open`` / ``hi_open``: that end excluded)."""
+
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        bad = v != v or v in (float("inf"), float("-inf"))
+        bad |= lo is not None and (v < lo or (lo_open and v == lo))
+        bad |= hi is not None and (v > hi or (hi_open and v == hi))
+        if bad:
+            left = "(" if lo_open else "["
+            right = ")" if hi_open else "]"
+            raise argparse.ArgumentTypeError(f"must be a finite number in {left}{lo if lo is not None else '-inf'}, "
+                                             f"{hi if hi is not None else 'inf'}{right}, got {text}")
+        return v
+
+    return parse
+
+
+def json_object(text: str) -> dict:
+    """argparse ``type``: a JSON object (``{"key": value, ...}``)."""
+    try:
+        v = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise argparse.ArgumentTypeError(f"not valid JSON ({exc.msg} at character {exc.pos}): {text!r}; "
+                                         "expected an object such as '{\"grasp_cost\": 0.02}'") from None
+    if not isinstance(v, dict):
+        raise argparse.ArgumentTypeError(f"expected a JSON object ({{...}}), got {text!r}")
+    return v
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="haptic-recog", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
-    for module in SUBCOMMANDS.values():
+    for name, module in SUBCOMMANDS.items():
         importlib.import_module(module).add_parser(sub)
+        if name in sub.choices:  # so main can report a sub-command's UsageError against its own usage
+            sub.choices[name].set_defaults(_cli_parser=sub.choices[name])
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    return int(args.func(args) or 0)
+    from haptic_env import cli  # under ``python -m haptic_env.cli`` this module is __main__, a second copy
+
+    try:
+        return int(args.func(args) or 0)
+    except (UsageError, cli.UsageError) as exc:
+        getattr(args, "_cli_parser", parser).error(str(exc))  # prints usage + one error line, exits 2
 
 
 if __name__ == "__main__":

@@ -432,20 +432,24 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--objects", default="default",
                    help="default | families[:N] | kit8 | kit20 | ycb10 | a folder of STL/OBJ/PLY (default: default)")
     p.add_argument("--units", default="m", help="units of a folder's mesh files: m, cm, mm or metres per unit")
-    p.add_argument("--fingers", type=int, default=4, help="contacts per grasp (default 4)")
+    from haptic_env.cli import float_in, int_in
+
+    p.add_argument("--fingers", type=int_in(2, 20), default=4, help="contacts per grasp, 2..20 (default 4)")
     p.add_argument("--no-normals", action="store_true", help="grasp vectors without contact normals")
-    p.add_argument("--grasps", type=int, default=20_000, help="grasps per object (default 20000)")
-    p.add_argument("--noise", type=float, default=0.0, help="contact noise std in metres (default 0)")
-    p.add_argument("--normal-noise", type=float, default=0.0, help="normal tilt noise std in degrees (default 0)")
+    p.add_argument("--grasps", type=int_in(1), default=20_000, help="grasps per object (default 20000)")
+    p.add_argument("--noise", type=float_in(0.0), default=0.0, help="contact noise std in metres (default 0)")
+    p.add_argument("--normal-noise", type=float_in(0.0), default=0.0,
+                   help="normal tilt noise std in degrees (default 0)")
     p.add_argument("--normalize-scale", action="store_true", help="scale-normalise every grasp (Theorem 2)")
-    p.add_argument("--scale-range", type=float, nargs=2, metavar=("LO", "HI"), default=None,
+    p.add_argument("--scale-range", type=float_in(0.0, lo_open=True), nargs=2, metavar=("LO", "HI"), default=None,
                    help="random per-grasp object scale U(LO, HI)")
     p.add_argument("--sampling", choices=SAMPLING_METHODS, default="area", help="surface sampling (default area)")
-    p.add_argument("--val-fraction", type=float, default=0.2, help="validation fraction (default 0.2)")
+    p.add_argument("--val-fraction", type=float_in(0.0, 1.0, hi_open=True), default=0.2,
+                   help="validation fraction in [0, 1) (default 0.2)")
     p.add_argument("--source", choices=SOURCES, default="surface",
                    help="surface: n random surface points (paper); geometric: random approaches of the "
                         "geometric hand model (default surface)")
-    p.add_argument("--hand-fingers", type=int, default=None,
+    p.add_argument("--hand-fingers", type=int_in(2, 20), default=None,
                    help="geometric source: fingers of the simulated hand (default --fingers)")
     p.add_argument("--support", choices=("table", "floating"), default="table",
                    help="geometric source: approaches from the upper hemisphere (table) or the sphere")
@@ -458,9 +462,26 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def _run_cli(args: argparse.Namespace) -> int:
+    from haptic_env.cli import UsageError
+
     t0 = time.perf_counter()
-    objects = load_object_set(args.objects, units=args.units)
-    config = DatasetConfig(
+    if args.out is not None and args.out.is_dir():  # checked before the work, not when saving its result
+        raise UsageError(f"--out {args.out} is a folder; give a file name such as {args.out / 'grasps.npz'}")
+    try:
+        objects = load_object_set(args.objects, units=args.units)
+        config = _cli_config(args)
+    except (ValueError, TypeError, FileNotFoundError) as exc:  # bad --objects / --units / value combinations
+        raise UsageError(str(exc)) from exc
+    ds = build_dataset(objects, config, cache=not args.no_cache, progress=not args.quiet)
+    if args.out is not None:
+        save_npz_atomic(args.out, X_train=ds.X_train, y_train=ds.y_train, X_val=ds.X_val, y_val=ds.y_val,
+                        names=np.array(ds.names, dtype=str))
+    _print_summary(args, objects, config, ds, time.perf_counter() - t0)
+    return 0
+
+
+def _cli_config(args: argparse.Namespace) -> DatasetConfig:
+    return DatasetConfig(
         n_fingers=args.fingers,
         normals=not args.no_normals,
         grasps_per_object=args.grasps,
@@ -475,11 +496,9 @@ def _run_cli(args: argparse.Namespace) -> int:
         hand_fingers=args.hand_fingers,
         support=args.support,
     )
-    ds = build_dataset(objects, config, cache=not args.no_cache, progress=not args.quiet)
-    if args.out is not None:
-        save_npz_atomic(args.out, X_train=ds.X_train, y_train=ds.y_train, X_val=ds.X_val, y_val=ds.y_val,
-                        names=np.array(ds.names, dtype=str))
-    dt = time.perf_counter() - t0
+
+
+def _print_summary(args: argparse.Namespace, objects, config: DatasetConfig, ds, dt: float) -> None:
     print(f"objects: {objects.name} ({len(objects)})  fingers: {config.n_fingers}  normals: {config.normals}  "
           f"d = {ds.feature_dim}")
     print(f"X_train {ds.X_train.shape}  X_val {ds.X_val.shape}")
@@ -491,4 +510,3 @@ def _run_cli(args: argparse.Namespace) -> int:
     if args.out is not None:
         print(f"written: {args.out}")
     print(f"seconds: {dt:.2f}")
-    return 0

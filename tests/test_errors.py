@@ -221,3 +221,62 @@ def test_truncated_recognizer_json_is_rebuilt(tmp_path, monkeypatch):
     import json
 
     json.loads(meta.read_text())  # rewritten whole
+
+
+# ------------------------------------------------------------------------------------------- CLI
+@pytest.mark.parametrize("argv, match", [
+    (["dataset", "--fingers", "50"], "argument --fingers: must be in [2, 20], got 50"),
+    (["dataset", "--grasps", "0"], "argument --grasps: must be >= 1"),
+    (["dataset", "--val-fraction", "1.5"], "argument --val-fraction"),
+    (["dataset", "--noise", "nan"], "argument --noise"),
+    (["dataset", "--objects", "/no/such/folder"], "unknown object set '/no/such/folder'"),
+    (["evaluate", "--env-kwargs", "notjson"], "argument --env-kwargs: not valid JSON"),
+    (["evaluate", "--env-kwargs", "[1, 2]"], "argument --env-kwargs: expected a JSON object"),
+    (["evaluate", "--env-kwargs", '{"nope": 1}'], r"--env-kwargs: unknown HapticRecogConfig field\(s\) \['nope'\]"),
+    (["evaluate", "--env-kwargs", '{"kde_method": "nope"}'], "--env-kwargs: kde_method"),
+    (["evaluate", "--agents", "robot"], "--agents: unknown agent spec 'robot'"),
+    (["evaluate", "--agents", "ppo=/no/model.zip"], "model file /no/model.zip does not exist"),
+    (["evaluate", "--episodes", "0"], "argument --episodes: must be >= 1"),
+    (["evaluate", "--env-id", "Nope-v0"], "argument --env-id: invalid choice"),
+])
+def test_cli_bad_values_are_one_line_usage_errors(argv, match, capsys):
+    import re
+
+    from haptic_env.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith(f"haptic-recog {argv[0]}: error: ") and re.search(match if "\\" in match or "(" in match
+                                                                             else re.escape(match), last), err
+
+
+def test_dataset_out_folder_fails_before_the_work(tmp_path, capsys):
+    from haptic_env.cli import main
+
+    t0 = time.perf_counter()
+    with pytest.raises(SystemExit):
+        main(["dataset", "--grasps", "1000000", "--out", str(tmp_path), "--no-cache", "--quiet"])
+    assert time.perf_counter() - t0 < 5.0
+    assert "is a folder" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["--algo", "nope"], "argument --algo: invalid choice: 'nope'"),
+    (["--total-timesteps", "0"], "argument --total-timesteps: must be >= 1, got 0"),
+    (["--n-envs", "0"], "argument --n-envs: must be >= 1, got 0"),
+    (["--env-kwargs", "notjson"], "argument --env-kwargs: not valid JSON"),
+    (["--hyperparams", "[]"], "argument --hyperparams: expected a JSON object"),
+    (["--env-kwargs", '{"reward": "money"}'], "env settings: reward must be one of"),
+    (["--resume", "/no/ckpt.zip"], "argument --resume: checkpoint /no/ckpt.zip does not exist"),
+])
+def test_train_bad_flags_fail_at_once_without_run_files(argv, match, tmp_path):
+    run_dir = tmp_path / "run"
+    proc = subprocess.run([sys.executable, "train.py", *argv, "--run-dir", str(run_dir)], capture_output=True,
+                          text=True, timeout=120, cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr and match in proc.stderr.strip().splitlines()[-1], proc.stderr
+    assert not run_dir.exists()
