@@ -4,7 +4,10 @@
 
 =========================  ==========================================================================
 ``HapticRecog-v0``         geometric backend, default embedded object set, 4 fingers + normals, BC-NP
-``HapticRecogMuJoCo-v0``   MuJoCo backend with the Allegro hand, YCB-10 objects (needs shared data)
+``HapticRecogMuJoCo-v0``   MuJoCo backend, Allegro hand (4 fingers + normals), YCB-10 (needs shared data)
+``HapticRecogShadow-v0``   MuJoCo, Shadow hand (5 fingers, no normals), YCB-10
+``HapticRecogAero-v0``     MuJoCo, TetherIA Aero Hand Open (5 tendon-driven fingers, 7 actuators; no normals)
+``HapticRecogRobotiq-v0``  MuJoCo, Robotiq 2F-85 gripper (2 fingers: q = contact distance + normal angles)
 ``HapticRecogKIT-v0``      geometric backend, KIT-8 objects (``make`` raises if the data is absent)
 =========================  ==========================================================================
 
@@ -29,6 +32,12 @@ ENV_VARIANTS: dict[str, dict[str, Any]] = {
     "HapticRecog-v0": {},
     "HapticRecogMuJoCo-v0": {"backend": "mujoco", "backend_kwargs": {"hand": "allegro"}, "objects": "ycb10",
                              "z_fingers": 3},
+    "HapticRecogShadow-v0": {"backend": "mujoco", "backend_kwargs": {"hand": "shadow"}, "objects": "ycb10",
+                             "n_fingers": 5, "normals": False, "z_fingers": 3},
+    "HapticRecogAero-v0": {"backend": "mujoco", "backend_kwargs": {"hand": "aero"}, "objects": "ycb10",
+                           "n_fingers": 5, "normals": False, "z_fingers": 3},
+    "HapticRecogRobotiq-v0": {"backend": "mujoco", "backend_kwargs": {"hand": "robotiq"}, "objects": "ycb10",
+                              "n_fingers": 2},
     "HapticRecogKIT-v0": {"objects": "kit8"},
 }
 

@@ -93,8 +93,9 @@ class HapticRecogConfig:
     JSON-style dict (``{"grasps": {"grasps_per_object": 5000}, "mlp": {"max_epochs": 5}}``)."""
 
     def __post_init__(self) -> None:
-        if not isinstance(self.n_fingers, (int, np.integer)) or self.n_fingers < 3:
-            raise ValueError(f"n_fingers must be an int >= 3 (a grasp needs a polyhedron), got {self.n_fingers!r}")
+        if not isinstance(self.n_fingers, (int, np.integer)) or self.n_fingers < 2:
+            raise ValueError(f"n_fingers must be an int >= 2 (2: a gripper, q is the contact distance), "
+                             f"got {self.n_fingers!r}")
         if self.recognizer_source not in RECOGNIZER_SOURCES:
             raise ValueError(f"recognizer_source must be one of {RECOGNIZER_SOURCES}, got {self.recognizer_source!r}")
         if self.recognizer_source == "hand" and self.backend != "mujoco":
@@ -326,7 +327,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     | object_kwargs      | {}                      | ``data_dir``, ``units`` for ``load_object_set``            |
     | backend            | "geometric"             | "geometric" / "uniform" / "mujoco"                         |
     | backend_kwargs     | {}                      | passed to ``make_backend``                                 |
-    | n_fingers          | 4                       | fingers (>= 3)                                             |
+    | n_fingers          | 4                       | fingers (>= 2)                                             |
     | normals            | True                    | contact normals in :math:`\Phi`                            |
     | updater            | "bc-np"                 | "bc-np" / "bc-ip" / "ic"                                   |
     | z_fingers          | None                    | sub-grasp model for incomplete grasps                      |

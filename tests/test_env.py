@@ -38,7 +38,8 @@ def test_import_is_cheap_and_registers_ids():
             "assert 'torch' not in sys.modules and 'mujoco' not in sys.modules, sorted(sys.modules); "
             "ids = [i for i in gym.registry if i.startswith('HapticRecog')]; print(sorted(ids))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    for env_id in ("HapticRecog-v0", "HapticRecogMuJoCo-v0", "HapticRecogKIT-v0"):
+    for env_id in ("HapticRecog-v0", "HapticRecogMuJoCo-v0", "HapticRecogShadow-v0", "HapticRecogAero-v0",
+                   "HapticRecogRobotiq-v0", "HapticRecogKIT-v0"):
         assert env_id in out
     assert gym.spec("HapticRecog-v0").max_episode_steps == HapticRecogConfig().max_grasps
 
@@ -107,7 +108,7 @@ def test_invalid_actions_raise(env_config, action, match):
 
 
 def test_bad_config_and_options_raise(env_config):
-    for bad in ({"reward": "bogus"}, {"updater": "xx"}, {"threshold": 1.5}, {"n_fingers": 2},
+    for bad in ({"reward": "bogus"}, {"updater": "xx"}, {"threshold": 1.5}, {"n_fingers": 1},
                 {"grasp_cost": -1.0}, {"pose": "upside-down"}, {"scale_range": (2.0, 1.0)}, {"z_fingers": 4}):
         with pytest.raises(ValueError, match=str(next(iter(bad)))):
             env_config.replace(**bad)
@@ -335,20 +336,32 @@ def test_kde_method_reaches_the_recognizer_config(env_config):
         _recognizer_kwargs(env_config.replace(kde_method="fastest"))
 
 
-def test_mujoco_allegro_variant_runs_an_episode(env_config):
-    """``HapticRecogMuJoCo-v0``: the Allegro hand grasps YCB objects in MuJoCo inside a full env loop."""
+HAND_ENVS = {"HapticRecogMuJoCo-v0": 4, "HapticRecogShadow-v0": 5, "HapticRecogAero-v0": 5, "HapticRecogRobotiq-v0": 2}
+
+
+@pytest.mark.parametrize("env_id", list(HAND_ENVS))
+def test_mujoco_hand_variants_run_an_episode(env_id):
+    """Every registered hand grasps YCB objects in MuJoCo inside a full env loop, with a recogniser trained on that
+    hand's own grasps of the meshes (``recognizer_source="auto"`` -> "hand"; few approaches to stay fast)."""
     from haptic_env.objects import data_dir
 
     if data_dir() is None:
-        pytest.skip("needs the shared data (ycb/ meshes and menagerie/wonik_allegro): set HAPTIC_DATA")
-    env = haptic_env.make(env_config, env_id="HapticRecogMuJoCo-v0")
+        pytest.skip("needs the shared data (ycb/ meshes and the menagerie hands): set HAPTIC_DATA")
+    # the Allegro's own grasps (few approaches, to stay fast); the 5-finger hands rarely touch the plate with all five
+    # fingers, so a fast recogniser for them trains on surface grasps (the hand source itself: tests/test_hand_grasps.py)
+    grasps = {"grasps_per_object": 40} if env_id == "HapticRecogMuJoCo-v0" else {"grasps_per_object": 300,
+                                                                               "source": "surface"}
+    env = haptic_env.make(env_id=env_id, recognizer_kwargs={"config": {"grasps": grasps}, "progress": False})
     obs, info = env.reset(seed=0)
-    assert env.unwrapped.config.backend == "mujoco" and len(env.unwrapped.objects) == 10
+    base = env.unwrapped
+    assert base.config.backend == "mujoco" and len(base.objects) == 10
+    assert base.recognizer.config.grasps.source == grasps.get("source", "hand")
+    assert base.recognizer.models.model(HAND_ENVS[env_id])[0] is None  # BC-NP: no classifier trained
     for _ in range(3):
         obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
         assert env.observation_space.contains(obs)
         assert np.isclose(sum(info["reward_terms"].values()), reward)
-        assert info["touched"].shape == (4,)
+        assert info["touched"].shape == (HAND_ENVS[env_id],)
         if terminated or truncated:
             break
     env.close()

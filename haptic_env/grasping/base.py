@@ -79,8 +79,9 @@ class GraspResult:
 
     @property
     def usable(self) -> bool:
-        """At least 3 fingers touched (a grasp the Phi_n features accept)."""
-        return self.n_touched >= 3
+        """At least ``min(3, n)`` fingers touched (a grasp the Phi_n features accept: a polyhedron, or the
+        distance of a 2-finger gripper)."""
+        return self.n_touched >= min(3, len(self.touched))
 
 
 @dataclass(frozen=True)
@@ -110,8 +111,8 @@ class GraspBatch:
 
     @property
     def usable(self) -> np.ndarray:
-        """(B,) bool: at least 3 fingers touched."""
-        return self.touched.sum(axis=1) >= 3
+        """(B,) bool: at least ``min(3, n)`` fingers touched."""
+        return self.touched.sum(axis=1) >= min(3, self.touched.shape[1])
 
     @classmethod
     def stack(cls, results: list[GraspResult]) -> "GraspBatch":

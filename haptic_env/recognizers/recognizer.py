@@ -156,7 +156,7 @@ class Recognizer:
         log-likelihoods in one compiled call; divided by the KDE's temperature when ``calibrated``), or None if
         the KDE is not evaluated ``"pooled"`` or grasps are scale-normalised (then use :meth:`features` and
         ``updater.update``)."""
-        if self.config.grasps.normalize_scale:
+        if self.config.grasps.normalize_scale or self.n_fingers < 3:  # the compiled Phi kernels need a polyhedron
             return None
         scorers = self.__dict__.setdefault("_scorers", {})
         if calibrated not in scorers:
