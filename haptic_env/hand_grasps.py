@@ -22,7 +22,7 @@ import time
 import warnings
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
-from multiprocessing import get_context
+from multiprocessing import get_all_start_methods, get_context
 from pathlib import Path
 
 import numpy as np
@@ -140,7 +140,10 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
         for k, lo in tasks:
             put(k, lo, _grasp_chunk(*args(k, lo)))
     else:
-        with ProcessPoolExecutor(workers, mp_context=get_context("spawn")) as ex:
+        # fork (Linux): workers need not re-import the caller's script, which "spawn" does (a script without a
+        # __main__ guard would then run again in every worker); the workers use MuJoCo and numpy only
+        ctx = get_context("fork" if "fork" in get_all_start_methods() else "spawn")
+        with ProcessPoolExecutor(workers, mp_context=ctx) as ex:
             futs = {ex.submit(_grasp_chunk, *args(k, lo)): (k, lo) for k, lo in tasks}
             for f in as_completed(futs):
                 put(*futs[f], f.result())
