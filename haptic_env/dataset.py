@@ -448,11 +448,14 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="validation fraction in [0, 1) (default 0.2)")
     p.add_argument("--source", choices=SOURCES, default="surface",
                    help="surface: n random surface points (paper); geometric: random approaches of the "
-                        "geometric hand model (default surface)")
+                        "geometric hand model; hand: random approaches of a robot hand's MuJoCo model (--hand; "
+                        "--grasps then counts approaches per object) (default surface)")
+    p.add_argument("--hand", default=None,
+                   help="hand source: allegro | shadow | aero | robotiq | generic | an MJCF path")
     p.add_argument("--hand-fingers", type=int_in(2, 20), default=None,
-                   help="geometric source: fingers of the simulated hand (default --fingers)")
+                   help="geometric / hand source: fingers of the simulated hand (default --fingers)")
     p.add_argument("--support", choices=("table", "floating"), default="table",
-                   help="geometric source: approaches from the upper hemisphere (table) or the sphere")
+                   help="geometric / hand source: approaches from the upper hemisphere (table) or the sphere")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=Path, default=None, help="also write the dataset to this .npz")
     p.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
@@ -495,6 +498,7 @@ def _cli_config(args: argparse.Namespace) -> DatasetConfig:
         source=args.source,
         hand_fingers=args.hand_fingers,
         support=args.support,
+        hand=args.hand,
     )
 
 
@@ -505,6 +509,13 @@ def _print_summary(args: argparse.Namespace, objects, config: DatasetConfig, ds,
     width = max(len(n) for n in ds.names)
     for name, (tr, va) in ds.counts().items():
         print(f"  {name:<{width}}  train {tr:>7}  val {va:>7}")
+    if config.source == "hand" and not args.no_cache:  # the pool is cached: reading it back gives its build time
+        from .hand_grasps import hand_grasp_pool
+
+        pool = hand_grasp_pool(objects, config.hand, config.hand_fingers or config.n_fingers, config.grasps_per_object,
+                               support=config.support, seed=config.seed, progress=False)
+        print(f"hand grasps ({config.hand}): {pool.touched.shape[1]} approaches x {len(objects)} objects built in "
+              f"{pool.seconds:.1f} s ({pool.grasps_per_second:.0f} grasps/s on all cores)")
     src = "hit" if ds.from_cache else ("written" if ds.cache_path else "disabled")
     print(f"cache: {ds.cache_path if ds.cache_path else '-'} ({src})")
     if args.out is not None:

@@ -34,7 +34,7 @@ UPDATER_KINDS = ("bc-np", "bc-ip", "ic")
 POSE_MODES = ("table-yaw", "so3")
 RECOGNIZER_SOURCES = ("auto", "hand", "geometric", "surface")
 #: Random approaches per object of the default ``"hand"`` training grasps.
-HAND_APPROACHES = 1_500
+HAND_APPROACHES = 3_000
 
 
 @dataclass(frozen=True)
