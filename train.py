@@ -1,11 +1,20 @@
 """Train PPO or SAC on HapticRecog (CleanRL-style: one readable file, explicit seeding).
 
     python train.py --algo ppo --total-timesteps 200000 --n-envs 2 --grasp-cost 0.02 --run-dir runs/ppo
-    python train.py --algo ppo --resume runs/ppo/checkpoints/ppo_100000_steps.zip --total-timesteps 100000
+    python train.py --algo ppo --total-timesteps 200000 --n-envs 2 --grasp-cost 0.02 --run-dir runs/ppo --resume runs/ppo
 
 Every field of :class:`Args` is a command-line flag (``--field-name``). The run directory gets
 ``args.json``, ``monitor/*.monitor.csv`` (one per env), ``tb/`` (TensorBoard), ``checkpoints/`` and
-``<algo>_final.zip``. Evaluate the result with the ``evaluate`` sub-command::
+``<algo>_final.zip``.
+
+Nothing is lost: Ctrl-C / SIGINT or SIGTERM (a second one stops at once) or a dead env worker stop learning,
+save a checkpoint (SAC: with its replay buffer) and exit with one line naming it (exit status 130 / 143 / 1).
+``--resume`` (a checkpoint, or the run directory: its latest checkpoint) continues the step counter up to
+``--total-timesteps`` in all, in the same TensorBoard run; the Monitor CSVs of each resumed segment go to new
+files ``monitor/<rank>.part<k>.monitor.csv`` and its flags to ``args.part<k>.json`` (every earlier file and line
+is kept; the learning-curve reader merges the segments by wall time). PPO drops an unfinished rollout (its
+steps are not counted), so the resumed run ends at the same step count as an uninterrupted one.
+Evaluate the result with the ``evaluate`` sub-command::
 
     python -m haptic_env.cli evaluate --agents random greedy ppo=runs/ppo/ppo_final.zip \\
         --env-kwargs '{"grasp_cost": 0.02}' --learning-curves ppo=runs/ppo --out outputs/eval
@@ -18,6 +27,7 @@ import dataclasses
 import json
 import os
 import random
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,7 +53,8 @@ class Args:
     max_minutes: float = 0.0
     """stop learning after this many wall-clock minutes (0 = no limit); the model is saved either way"""
     resume: str = ""
-    """checkpoint .zip to continue from ("" = fresh model)"""
+    """checkpoint .zip, or a run directory (its latest checkpoint), to continue from ("" = fresh model);
+    training goes on up to --total-timesteps in all"""
     torch_threads: int = 1
     # env (HapticRecogConfig fields)
     reward: str = "true-posterior-gain"
@@ -103,8 +114,20 @@ def parse_args(argv: list[str] | None = None) -> Args:
         env_config(args)
     except (TypeError, ValueError, FileNotFoundError) as exc:
         parser.error(f"env settings: {exc}")
-    if args.resume and not Path(args.resume).is_file():
-        parser.error(f"argument --resume: checkpoint {args.resume} does not exist")
+    if args.resume:
+        from agents.sb3 import latest_checkpoint
+
+        resume = Path(args.resume)
+        if resume.is_dir():
+            found = latest_checkpoint(resume, args.algo)
+            if found is None:
+                parser.error(f"argument --resume: no {args.algo}_<steps>_steps.zip checkpoint in {resume}")
+            args = dataclasses.replace(args, resume=str(found))
+        elif not resume.is_file():
+            parser.error(f"argument --resume: checkpoint {args.resume} does not exist")
+        other = next((a for a in ALGOS if a != args.algo and Path(args.resume).name.startswith(a + "_")), None)
+        if other is not None:
+            parser.error(f"argument --resume: {args.resume} is a {other} checkpoint, not {args.algo} (pass --algo {other})")
     from haptic_env import ENV_VARIANTS
 
     if args.env_id not in ENV_VARIANTS:
@@ -122,6 +145,19 @@ def env_config(args: Args):
     ).replace(**extra)
 
 
+def _next_part(run_dir: Path) -> int:
+    """The first run segment ``k`` whose files (``args.json`` + ``monitor/<rank>.monitor.csv`` for ``k = 1``,
+    ``args.part<k>.json`` + ``monitor/<rank>.part<k>.monitor.csv`` after) do not exist yet."""
+    k = 1
+    while True:
+        suffix = "" if k == 1 else f".part{k}"
+        monitors = [p for p in (run_dir / "monitor").glob(f"*{suffix}.monitor.csv")
+                    if k > 1 or ".part" not in p.name]
+        if not (run_dir / f"args{suffix}.json").exists() and not monitors:
+            return k
+        k += 1
+
+
 def main(argv: list[str] | None = None) -> Path:
     args = parse_args(argv)
     import torch
@@ -137,28 +173,38 @@ def main(argv: list[str] | None = None) -> Path:
     run_dir = Path(args.run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     config = env_config(args)
-    (run_dir / "args.json").write_text(json.dumps(
+    part = _next_part(run_dir) if args.resume else 1  # a resumed run keeps the earlier args and Monitor files
+    suffix = "" if part == 1 else f".part{part}"
+    (run_dir / f"args{suffix}.json").write_text(json.dumps(
         {**{k: v for k, v in dataclasses.asdict(args).items() if not k.startswith("_")},
          "env_config": {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(config).items()}},
         indent=2, default=str))
 
     t0 = time.time()
     venv = sb3.make_vec_env(config, n_envs=args.n_envs, seed=args.seed, log_dir=run_dir, vec=args.vec,
-                            env_id=args.env_id)
+                            env_id=args.env_id, monitor_suffix=suffix)
     torch.set_num_threads(args.torch_threads)  # again: building a recogniser (MLP fit) may have changed it
     print(f"[train] {args.algo} on {args.env_id} ({args.n_envs} envs, {venv.observation_space.shape[0]}-dim obs, "
           f"{venv.action_space.shape[0]}-dim action); envs ready in {time.time() - t0:.1f} s", flush=True)
     t0 = time.time()
-    model, path = sb3.train(
-        args.algo, venv, args.total_timesteps, run_dir, seed=args.seed, checkpoint_freq=args.checkpoint_freq,
-        resume=args.resume or None, progress_bar=args.progress_bar, verbose=args.verbose,
-        max_minutes=args.max_minutes or None,
-        **json.loads(args.hyperparams),
-    )
-    venv.close()
+    try:
+        model, path = sb3.train(
+            args.algo, venv, args.total_timesteps, run_dir, seed=args.seed, checkpoint_freq=args.checkpoint_freq,
+            resume=args.resume or None, progress_bar=args.progress_bar, verbose=args.verbose,
+            max_minutes=args.max_minutes or None,
+            **json.loads(args.hyperparams),
+        )
+    except sb3.TrainingInterrupted as exc:
+        sb3.close_vec_env(venv)
+        extra = " (+ replay buffer)" if sb3.checkpoint_extras(exc.path).get("replay_buffer") else ""
+        print(f"[train] {exc.reason} at {exc.num_timesteps} steps; saved {exc.path}{extra}; "
+              f"continue with the same flags plus --resume {run_dir}", file=sys.stderr, flush=True)
+        raise SystemExit(exc.exit_code) from None
+    sb3.close_vec_env(venv)
     dt = time.time() - t0
     steps = int(model.num_timesteps)
-    print(f"[train] {steps} steps in {dt / 60:.1f} min ({steps / dt:.0f} steps/s); "
+    new = steps - int(getattr(model, "_num_timesteps_at_start", 0)) if args.resume else steps
+    print(f"[train] {steps} steps ({new} in this run) in {dt / 60:.1f} min ({new / dt:.0f} steps/s); "
           f"saved {path}", flush=True)
     return path
 

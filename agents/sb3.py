@@ -4,20 +4,27 @@
   ``Monitor`` writing ``<log_dir>/monitor/<rank>.monitor.csv`` (with the episode's ``correct`` and
   ``grasps``), seeded ``seed + rank``.
 * :func:`build_model` — PPO or SAC with TensorBoard logs under ``<log_dir>/tb``.
-* :func:`train` — learn with a ``CheckpointCallback`` (``<log_dir>/checkpoints/<algo>_<steps>_steps.zip``),
-  optionally resuming from a checkpoint (its step counter continues), and save ``<log_dir>/<algo>_final.zip``.
+* :func:`train` — learn with checkpoints (``<log_dir>/checkpoints/<algo>_<steps>_steps.zip``, SAC also
+  ``<algo>_replay_buffer_<steps>_steps.pkl``), optionally resuming from a checkpoint (its step counter
+  continues up to ``total_timesteps``), and save ``<log_dir>/<algo>_final.zip``. SIGINT / SIGTERM or a dead
+  env worker stop learning, save a checkpoint and raise :class:`TrainingInterrupted`.
+* :func:`latest_checkpoint` — the checkpoint with the most steps in a run directory.
 * :class:`SB3Agent` — a trained model as an :class:`agents.base.Agent` for :mod:`agents.evaluate`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
+import re
+import time
 from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
-__all__ = ["ALGOS", "DEFAULT_HYPERPARAMS", "make_vec_env", "build_model", "load_model", "train", "SB3Agent"]
+__all__ = ["ALGOS", "DEFAULT_HYPERPARAMS", "make_vec_env", "build_model", "load_model", "train", "SB3Agent",
+           "TrainingInterrupted", "latest_checkpoint", "checkpoint_extras", "close_vec_env"]
 
 ALGOS = ("ppo", "sac")
 
@@ -39,22 +46,32 @@ def _algo_class(algo: str):
     return {"ppo": PPO, "sac": SAC}[algo]
 
 
-def _env_fn(config, rank: int, monitor_dir: str | None, env_id: str) -> Callable[[], Any]:
+def _env_fn(config, rank: int, monitor_dir: str | None, env_id: str, monitor_suffix: str = "",
+            worker: bool = False) -> Callable[[], Any]:
     def _init():
         os.environ.setdefault("OMP_NUM_THREADS", "1")
+        if worker:
+            # Ctrl-C reaches every process of the group: the workers keep serving so that the main process
+            # can stop at the next step, save and close them (SIGTERM keeps its default: multiprocessing's
+            # exit handler terminates the workers with it)
+            import signal
+
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
         import haptic_env
         from stable_baselines3.common.monitor import Monitor
 
         env = haptic_env.make(config, env_id=env_id)
-        path = os.path.join(monitor_dir, str(rank)) if monitor_dir else None
+        path = os.path.join(monitor_dir, f"{rank}{monitor_suffix}") if monitor_dir else None
         return Monitor(env, filename=path, info_keywords=("correct", "grasps"))
 
     return _init
 
 
 def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.PathLike | None = None,
-                 vec: str = "subproc", env_id: str = "HapticRecog-v0"):
-    """``n_envs`` monitored copies of the env. ``vec="subproc"`` runs each in its own process."""
+                 vec: str = "subproc", env_id: str = "HapticRecog-v0", monitor_suffix: str = ""):
+    """``n_envs`` monitored copies of the env. ``vec="subproc"`` runs each in its own process (which ignores
+    SIGINT, so that Ctrl-C reaches only the main process's handler). ``monitor_suffix`` names the Monitor files
+    ``<rank><suffix>.monitor.csv`` (a resumed run writes a new segment, e.g. ``.part2``, keeping the old ones)."""
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
     from haptic_env.env import HapticRecogConfig, get_recognizer
@@ -73,8 +90,9 @@ def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.
         probe = haptic_env.make(config, env_id=env_id).unwrapped
         get_recognizer(probe.objects, probe.config)
         probe.close()
-    fns = [_env_fn(config, i, monitor_dir, env_id) for i in range(n_envs)]
-    venv = SubprocVecEnv(fns) if vec == "subproc" and n_envs > 1 else DummyVecEnv(fns)
+    subproc = vec == "subproc" and n_envs > 1
+    fns = [_env_fn(config, i, monitor_dir, env_id, monitor_suffix, worker=subproc) for i in range(n_envs)]
+    venv = SubprocVecEnv(fns) if subproc else DummyVecEnv(fns)
     venv.seed(seed)
     venv.action_space.seed(seed)
     return venv
@@ -102,55 +120,221 @@ def load_model(path: str | os.PathLike, algo: str | None = None, env=None):
     return _algo_class(algo).load(str(path), env=env, device="cpu")
 
 
-def _time_limit_callback(max_minutes: float):
-    from stable_baselines3.common.callbacks import BaseCallback
+#: ``<algo>_<steps>_steps.zip``: how SB3's ``CheckpointCallback`` (and :func:`train`) name checkpoints
+_CHECKPOINT = re.compile(r"^(?P<algo>[a-z0-9]+)_(?P<steps>\d+)_steps\.zip$")
 
-    class TimeLimit(BaseCallback):
-        """Stop learning after ``max_minutes`` of wall-clock time (the model is then saved as usual)."""
+
+def latest_checkpoint(run_dir: str | os.PathLike, algo: str | None = None) -> Path | None:
+    """The ``<algo>_<steps>_steps.zip`` with the most steps in ``<run_dir>/checkpoints`` (or in ``run_dir``
+    itself when it has no ``checkpoints`` folder); ``None`` when there is none."""
+    run_dir = Path(run_dir)
+    folder = run_dir / "checkpoints" if (run_dir / "checkpoints").is_dir() else run_dir
+    found = []
+    for p in folder.glob("*_steps.zip"):
+        m = _CHECKPOINT.match(p.name)
+        if m and m["algo"] in ALGOS and (algo is None or m["algo"] == algo.lower()):
+            found.append((int(m["steps"]), p))
+    return max(found)[1] if found else None
+
+
+def checkpoint_extras(path: str | os.PathLike) -> dict[str, Path]:
+    """The files saved with checkpoint ``path`` that exist: ``"replay_buffer"`` (SAC) and ``"vecnormalize"``
+    (``<algo>_replay_buffer_<steps>_steps.pkl`` as ``CheckpointCallback`` names them, or the older
+    ``<checkpoint>_replay_buffer.pkl``)."""
+    path = Path(path)
+    m = _CHECKPOINT.match(path.name)
+    out = {}
+    for kind in ("replay_buffer", "vecnormalize"):
+        cands = [path.with_name(f"{m['algo']}_{kind}_{m['steps']}_steps.pkl")] if m else []
+        cands.append(Path(str(path).removesuffix(".zip") + f"_{kind}.pkl"))
+        hit = next((c for c in cands if c.exists()), None)
+        if hit is not None:
+            out[kind] = hit
+    return out
+
+
+class TrainingInterrupted(Exception):
+    """Learning stopped early (a signal, a dead env worker); the state was saved to ``path`` first."""
+
+    def __init__(self, reason: str, path: Path, num_timesteps: int, exit_code: int):
+        super().__init__(f"{reason}: saved {path} at {num_timesteps} steps")
+        self.reason, self.path, self.num_timesteps, self.exit_code = reason, path, num_timesteps, exit_code
+
+
+def _run_guard(save_path: Path, algo: str, checkpoint_freq: int, max_minutes: float | None):
+    from stable_baselines3.common.callbacks import CheckpointCallback
+
+    class RunGuard(CheckpointCallback):
+        """Checkpoints and clean stops at *consistent* points only, where the model has learned from every
+        counted step: the start of a rollout (PPO: after the update on the previous rollout; SAC: after the
+        gradient step on the last stored transition) and the end of learning.
+
+        * a checkpoint whenever ``num_timesteps`` passed a multiple of ``checkpoint_freq`` (env steps summed
+          over the envs, whatever step the run resumed from), with the SAC replay buffer and any
+          ``VecNormalize`` statistics, named as SB3's ``CheckpointCallback`` names them;
+        * :meth:`request_stop` (a signal handler) or the ``max_minutes`` deadline: the next env step returns
+          ``False`` and ``num_timesteps`` is rewound to the last consistent point (the unfinished rollout is
+          dropped), so a run resumed from the saved state counts every step it learned from exactly once.
+        """
+
+        def __init__(self) -> None:
+            super().__init__(save_freq=checkpoint_freq, save_path=str(save_path), name_prefix=algo,
+                             save_replay_buffer=True, save_vecnormalize=True)
+            self.stop_reason: str | None = None
+            self.signum: int | None = None
+            self.stopped = False  # learn() was stopped early (not: reached total_timesteps)
+            self._safe: int | None = None
+            self._saved_at = -1
+
+        def request_stop(self, reason: str, signum: int | None = None) -> None:
+            if self.stop_reason is None:
+                self.stop_reason, self.signum = reason, signum
 
         def _on_training_start(self) -> None:
-            import time
+            self._deadline = time.monotonic() + 60.0 * max_minutes if max_minutes else None
+            self._safe = self.model.num_timesteps
+            self._next = (self._safe // self.save_freq + 1) * self.save_freq
 
-            self._deadline = time.monotonic() + 60.0 * max_minutes
+        def _on_rollout_start(self) -> None:
+            self._safe = self.model.num_timesteps
+            if self._safe >= self._next:
+                self.save()
+                self._next = (self._safe // self.save_freq + 1) * self.save_freq
 
         def _on_step(self) -> bool:
-            import time
+            if self.stop_reason is None and self._deadline is not None and time.monotonic() >= self._deadline:
+                self.request_stop("time limit")
+            if self.stop_reason is not None:
+                self.stopped = True
+                self.rewind()
+                return False
+            return True
 
-            return time.monotonic() < self._deadline
+        def _on_training_end(self) -> None:
+            if not self.stopped:
+                self._on_rollout_start()  # the last update is done
 
-    return TimeLimit()
+        def rewind(self) -> None:
+            """Back to the last consistent step count (after an early stop or an exception in learn())."""
+            if self._safe is not None:
+                self.model.num_timesteps = self._safe
+
+        def save(self) -> Path:
+            """Save the model (and replay buffer / VecNormalize) as ``<algo>_<num_timesteps>_steps.zip``."""
+            self.num_timesteps = self.model.num_timesteps  # the file names use it
+            path = Path(self._checkpoint_path(extension="zip"))
+            if self._saved_at != self.num_timesteps:
+                self.model.save(path)
+                if getattr(self.model, "replay_buffer", None) is not None:
+                    self.model.save_replay_buffer(self._checkpoint_path("replay_buffer_", extension="pkl"))
+                if self.model.get_vec_normalize_env() is not None:
+                    self.model.get_vec_normalize_env().save(self._checkpoint_path("vecnormalize_", extension="pkl"))
+                self._saved_at = self.num_timesteps
+            return path
+
+    return RunGuard()
+
+
+@contextlib.contextmanager
+def _stop_on_signals(guard):
+    """SIGINT / SIGTERM ask ``guard`` to stop at the next env step; a second one raises KeyboardInterrupt."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():  # handlers only work there
+        yield
+        return
+
+    def handler(signum, frame):
+        if guard.stop_reason is not None and guard.signum is not None:
+            raise KeyboardInterrupt
+        guard.request_stop(signal.Signals(signum).name, signum)
+
+    old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
+def close_vec_env(venv) -> None:
+    """``venv.close()``; when that fails (a worker died) terminate the other workers (SIGKILL after 5 s)
+    and close the pipes."""
+    try:
+        venv.close()
+    except (EOFError, OSError):
+        for p in getattr(venv, "processes", []):
+            if p.is_alive():
+                p.terminate()
+            p.join(timeout=5)
+            if p.is_alive():
+                p.kill()
+                p.join(timeout=5)
+        for remote in getattr(venv, "remotes", []):
+            with contextlib.suppress(OSError):
+                remote.close()
+        venv.closed = True
 
 
 def train(algo: str, venv, total_timesteps: int, log_dir: str | os.PathLike, *, seed: int = 0,
           checkpoint_freq: int = 10_000, resume: str | os.PathLike | None = None, progress_bar: bool = False,
           verbose: int = 0, max_minutes: float | None = None, **hyperparams: Any):
-    """Train (or resume) and save ``<log_dir>/<algo>_final.zip``; returns ``(model, path)``.
+    """Train (or resume) up to ``total_timesteps`` and save ``<log_dir>/<algo>_final.zip``; returns
+    ``(model, path)``.
 
-    ``checkpoint_freq`` is in env steps summed over the envs; with ``resume`` the model (and, for SAC, its
-    replay buffer if ``<checkpoint>_replay_buffer.pkl`` exists) continues from the checkpoint's step count.
-    ``max_minutes`` stops learning early after that much wall-clock time.
+    ``checkpoint_freq`` is in env steps summed over the envs. With ``resume`` (a checkpoint ``.zip``) the model,
+    its SAC replay buffer and any ``VecNormalize`` statistics saved with it (:func:`checkpoint_extras`) are
+    loaded and learning continues from the checkpoint's step count (``reset_num_timesteps=False``: the same
+    TensorBoard run folder, ``num_timesteps`` goes on) until ``total_timesteps`` in all, so an interrupted run
+    resumed with the same settings ends at the same step count. ``max_minutes`` stops learning early after that
+    much wall-clock time (a checkpoint and the final model are saved). SIGINT / SIGTERM (a second one: at once)
+    or a dead ``SubprocVecEnv`` worker (``EOFError``, ``BrokenPipeError``, ``ConnectionResetError``) stop
+    learning, save a checkpoint (see ``RunGuard`` in :func:`_run_guard`) and raise :class:`TrainingInterrupted`
+    naming it; closing ``venv`` is left to the caller (:func:`close_vec_env`).
     """
-    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
-
     log_dir = Path(log_dir)
     log_dir.mkdir(parents=True, exist_ok=True)
+    algo = algo.lower()
     if resume is not None:
+        extras = checkpoint_extras(resume)
+        if "vecnormalize" in extras:
+            from stable_baselines3.common.vec_env import VecNormalize
+
+            venv = VecNormalize.load(str(extras["vecnormalize"]), venv)
         model = load_model(resume, algo, env=venv)
         model.tensorboard_log = str(log_dir / "tb")
-        buf = Path(str(resume).removesuffix(".zip") + "_replay_buffer.pkl")
-        if algo.lower() == "sac" and buf.exists():
-            model.load_replay_buffer(str(buf))
+        if "replay_buffer" in extras and hasattr(model, "load_replay_buffer"):
+            model.load_replay_buffer(str(extras["replay_buffer"]))
     else:
         model = build_model(algo, venv, seed=seed, log_dir=log_dir, verbose=verbose, **hyperparams)
-    ckpt = CheckpointCallback(
-        save_freq=max(1, checkpoint_freq // venv.num_envs), save_path=str(log_dir / "checkpoints"),
-        name_prefix=algo.lower(), save_replay_buffer=algo.lower() == "sac",
-    )
-    callbacks = [ckpt] + ([_time_limit_callback(max_minutes)] if max_minutes else [])
-    model.learn(total_timesteps=total_timesteps, callback=CallbackList(callbacks), reset_num_timesteps=resume is None,
-                tb_log_name=algo.lower(), progress_bar=progress_bar)
-    path = log_dir / f"{algo.lower()}_final.zip"
-    model.save(str(path))
+    guard = _run_guard(log_dir / "checkpoints", algo, checkpoint_freq, max_minutes)
+    failure = None  # (reason, exit code) of an exception that ended learn()
+    with _stop_on_signals(guard):  # also covers the final save: a signal then lets it finish
+        remaining = total_timesteps - model.num_timesteps
+        model._num_timesteps_at_start = model.num_timesteps  # learn() sets it too; kept when it has nothing to do
+        if remaining > 0:
+            try:
+                model.learn(total_timesteps=remaining, callback=guard, reset_num_timesteps=resume is None,
+                            tb_log_name=algo, progress_bar=progress_bar)
+            except (EOFError, BrokenPipeError, ConnectionResetError) as exc:
+                by = f"stopped by {guard.stop_reason}; " if guard.signum is not None else ""
+                failure = (f"{by}an env worker died ({type(exc).__name__})",
+                           128 + guard.signum if guard.signum is not None else 1)
+            except KeyboardInterrupt:
+                failure = (f"{guard.stop_reason or 'SIGINT'} (twice: stopped at once)",
+                           128 + (guard.signum or 2))
+            finally:
+                with contextlib.suppress(Exception):
+                    model.logger.close()  # flush the TensorBoard events
+        if failure is not None or (guard.stopped and guard.signum is not None):
+            guard.rewind()
+            reason, code = failure or (f"stopped by {guard.stop_reason}", 128 + guard.signum)
+            raise TrainingInterrupted(reason, guard.save(), int(model.num_timesteps), code)
+        if guard.stopped:  # time limit: a checkpoint to resume from, and the final model
+            guard.save()
+        path = log_dir / f"{algo}_final.zip"
+        model.save(str(path))
     return model, path
 
 

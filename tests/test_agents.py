@@ -108,7 +108,7 @@ def test_tiny_ppo_trains_saves_reloads_and_resumes(env_config, small_recognizer_
     assert not np.array_equal(s1, a1)  # a sample, not the mean action
 
     path2 = train.main(args[:-2] + ["--resume", str(run / "checkpoints" / "ppo_128_steps.zip"),
-                                    "--total-timesteps", "128", "--run-dir", str(tmp_path / "resumed"),
+                                    "--total-timesteps", "256", "--run-dir", str(tmp_path / "resumed"),
                                     "--hyperparams", json.dumps({"n_steps": 64, "batch_size": 32})])
     assert load_model(path2).num_timesteps >= 256
 

@@ -1,0 +1,190 @@
+"""Training loses nothing: a real tiny ``train.py`` run stopped mid-way (SIGTERM, Ctrl-C to the process group,
+a killed env worker) saves a checkpoint and exits with one line naming it; ``--resume <run dir>`` with the
+same flags ends at the same step count and keeps every earlier file (checkpoints, Monitor CSVs, TensorBoard
+events, args) byte for byte."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _args(algo: str, total: int, run: Path, recognizer_kwargs: dict, hyperparams: dict, n_envs: int = 1,
+          vec: str = "dummy") -> list[str]:
+    return ["--algo", algo, "--total-timesteps", str(total), "--n-envs", str(n_envs), "--vec", vec,
+            "--run-dir", str(run), "--checkpoint-freq", "128", "--max-grasps", "10",
+            "--env-kwargs", json.dumps({"recognizer_kwargs": recognizer_kwargs}),
+            "--hyperparams", json.dumps(hyperparams)]
+
+
+def _start(args: list[str], new_session: bool = False) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "train.py", *args], cwd=ROOT, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=new_session)
+
+
+def _finish(proc: subprocess.Popen, timeout: float = 240) -> tuple[int, str, str]:
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out, err = proc.communicate()
+        pytest.fail(f"train.py did not exit in {timeout} s:\n{out}\n{err}")
+    return proc.returncode, out, err
+
+
+def _wait_for(path: Path, proc: subprocess.Popen, timeout: float = 180) -> None:
+    t0 = time.monotonic()
+    while not path.exists():
+        if proc.poll() is not None:
+            rc, out, err = _finish(proc)
+            pytest.fail(f"train.py exited ({rc}) before {path.name} appeared:\n{out}\n{err}")
+        if time.monotonic() - t0 > timeout:
+            proc.kill()
+            pytest.fail(f"no {path.name} after {timeout} s")
+        time.sleep(0.02)
+
+
+def _snapshot(run: Path) -> dict[str, str]:
+    return {str(p.relative_to(run)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(run.rglob("*")) if p.is_file()}
+
+
+def _saved_checkpoint(err: str, run: Path, algo: str) -> Path:
+    """The checkpoint the one-line stop message names (the message is the last stderr line)."""
+    line = err.strip().splitlines()[-1]
+    assert line.startswith("[train] ") and f"--resume {run}" in line, err
+    path = Path(line.split("saved ", 1)[1].split(";")[0].split(" (+")[0])
+    assert path.parent == run / "checkpoints" and path.name.startswith(f"{algo}_") and path.exists(), line
+    return path
+
+
+def _steps(checkpoint: Path) -> int:
+    return int(checkpoint.name.split("_")[-2])
+
+
+def _resume_and_check(args: list[str], run: Path, algo: str, total: int, before: dict[str, str]) -> None:
+    """Resume with the same flags plus ``--resume <run dir>``: ends at ``total`` steps, every earlier file
+    kept unchanged, the new Monitor segment read after the old one."""
+    from agents.evaluate import read_monitor
+    from agents.sb3 import load_model
+
+    rc, out, err = _finish(_start(args + ["--resume", str(run)]))
+    assert rc == 0, f"{out}\n{err}"
+    assert load_model(run / f"{algo}_final.zip").num_timesteps == total
+    after = _snapshot(run)
+    lost = {k for k in before if after.get(k) != before[k]}
+    assert not lost, f"changed or removed by the resumed run: {sorted(lost)}"
+    assert (run / "args.part2.json").exists()
+    assert json.loads((run / "args.json").read_text())["resume"] == ""
+    parts = sorted((run / "monitor").glob("*.part2.monitor.csv"))
+    assert parts, sorted(after)
+    rows = sum(len(f.read_text().splitlines()) - 2 for f in (run / "monitor").glob("*.monitor.csv"))
+    data = read_monitor(run / "monitor")
+    assert len(data["l"]) == rows and rows > 0 and (sorted(data["t"]) == data["t"]).all()
+    events = sorted((run / "tb").rglob("events.out.tfevents*"))
+    assert len(events) >= 2 and len({e.parent for e in events}) == 1  # the same TensorBoard run continues
+
+
+def test_sigterm_stops_saves_and_resume_ends_at_the_same_step(env_config, small_recognizer_kwargs, tmp_path,
+                                                                   capsys):
+    """PPO, one in-process env: SIGTERM mid-run -> exit 143, one line naming the checkpoint, which sits at a
+    rollout boundary (the unfinished rollout is dropped); the resumed run ends at exactly 1536 steps."""
+    run = tmp_path / "ppo"
+    args = _args("ppo", 1536, run, small_recognizer_kwargs, {"n_steps": 64, "batch_size": 32, "n_epochs": 2})
+    proc = _start(args)
+    _wait_for(run / "checkpoints" / "ppo_256_steps.zip", proc)
+    proc.send_signal(signal.SIGTERM)
+    rc, out, err = _finish(proc)
+    assert rc == 128 + signal.SIGTERM, f"{out}\n{err}"
+    assert "stopped by SIGTERM" in err.strip().splitlines()[-1]
+    ckpt = _saved_checkpoint(err, run, "ppo")
+    assert 256 <= _steps(ckpt) < 1536 and _steps(ckpt) % 64 == 0
+    assert "Traceback" not in err
+    _resume_and_check(args, run, "ppo", 1536, _snapshot(run))
+    # resuming a finished run is a no-op that still ends cleanly (in-process: quicker)
+    import train
+
+    assert train.main(args + ["--resume", str(run)]) == run / "ppo_final.zip"
+    assert "1536 steps (0 in this run)" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_ctrl_c_to_the_process_group_saves_sac_with_its_replay_buffer(env_config, small_recognizer_kwargs,
+                                                                      tmp_path):
+    """SAC, two SubprocVecEnv workers, SIGINT to the whole process group (what Ctrl-C in a terminal does): the
+    workers ignore it, the main process saves model + replay buffer and exits 130; the resumed run loads the
+    buffer (its fill level matches the step count) and ends at 512 steps."""
+    from stable_baselines3.common.save_util import load_from_pkl
+
+    run = tmp_path / "sac"
+    args = _args("sac", 512, run, small_recognizer_kwargs,
+                 {"learning_starts": 32, "batch_size": 32, "buffer_size": 1000}, n_envs=2, vec="subproc")
+    proc = _start(args, new_session=True)
+    _wait_for(run / "checkpoints" / "sac_128_steps.zip", proc)
+    time.sleep(0.2)
+    os.killpg(proc.pid, signal.SIGINT)
+    rc, out, err = _finish(proc)
+    assert rc == 128 + signal.SIGINT, f"{out}\n{err}"
+    line = err.strip().splitlines()[-1]
+    assert "stopped by SIGINT" in line and "(+ replay buffer)" in line, err
+    assert "Traceback" not in err
+    ckpt = _saved_checkpoint(err, run, "sac")
+    n = _steps(ckpt)
+    assert 128 <= n < 512
+    buf = load_from_pkl(run / "checkpoints" / f"sac_replay_buffer_{n}_steps.pkl")
+    assert buf.pos == n // 2  # every counted step is stored (2 envs)
+    _resume_and_check(args, run, "sac", 512, _snapshot(run))
+    buf = load_from_pkl(run / "checkpoints" / "sac_replay_buffer_384_steps.pkl")
+    assert buf.pos == 384 // 2  # the resumed run started from the saved buffer
+
+
+def _workers(pid: int) -> list[int]:
+    """The SubprocVecEnv workers under ``pid``: the children of its multiprocessing forkserver."""
+    def children(p: int) -> list[int]:
+        out = []
+        for task in Path(f"/proc/{p}/task").glob("*"):
+            try:
+                out += [int(c) for c in (task / "children").read_text().split()]
+            except OSError:
+                pass
+        return out
+
+    def cmdline(p: int) -> str:
+        try:
+            return Path(f"/proc/{p}/cmdline").read_bytes().decode(errors="replace")
+        except OSError:
+            return ""
+
+    servers = [c for c in children(pid) if "forkserver" in cmdline(c)]
+    return [w for s in servers for w in children(s)]
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs Linux /proc to find the workers")
+def test_a_dead_worker_saves_and_resume_completes(env_config, small_recognizer_kwargs, tmp_path):
+    """PPO, two SubprocVecEnv workers, one killed (SIGKILL) mid-run: the main process saves, names the file,
+    exits 1 without hanging; the resumed run ends at 1024 steps with every earlier file kept."""
+    run = tmp_path / "ppo"
+    args = _args("ppo", 1024, run, small_recognizer_kwargs, {"n_steps": 32, "batch_size": 32, "n_epochs": 2},
+                 n_envs=2, vec="subproc")
+    proc = _start(args)
+    _wait_for(run / "checkpoints" / "ppo_128_steps.zip", proc)
+    workers = _workers(proc.pid)
+    assert len(workers) == 2, workers
+    os.kill(workers[0], signal.SIGKILL)
+    rc, out, err = _finish(proc, timeout=60)
+    assert rc == 1, f"{out}\n{err}"
+    assert "an env worker died" in err.strip().splitlines()[-1], err
+    ckpt = _saved_checkpoint(err, run, "ppo")
+    assert 128 <= _steps(ckpt) < 1024 and _steps(ckpt) % 64 == 0
+    _resume_and_check(args, run, "ppo", 1024, _snapshot(run))
