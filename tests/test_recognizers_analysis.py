@@ -67,3 +67,51 @@ def test_simulate_trials_counts_and_success():
     zero = res["truth"] == 0
     assert np.all(res["grasps"][zero] == 1) and np.all(res["success"][zero])
     assert np.all(res["grasps"][~zero] == 5)
+
+
+def test_analysis_calibration_experiment(tmp_path, cache):
+    out = tmp_path / "out"
+    rc = main(["analysis", "--out", str(out), "--experiments", "2,7", "--grasps-per-object", "200",
+               "--test-grasps", "20", "--trials", "10", "--fingers", "4", "--calib-fingers", "4",
+               "--calib-fingers-no-normals", "3", "--lambdas", "0.6,0.85", "--mlp-epochs", "1", "--raw", "--quiet"])
+    assert rc == 0
+    text = (out / "results.md").read_text()
+    assert "haptic-recog analysis --objects default" in text and "--raw" in text  # the command at the top
+    assert "## 2. Sequential recognition at lambda = 0.85 (normals: True; raw scores (paper))" in text
+    assert "## 7. Calibration" in text
+    for model in ("BC (KDE)", "MLP"):
+        assert f"| 4 | yes | {model} |" in text and f"| 3 | no | {model} |" in text
+    for kind in ("ic", "bc-np", "bc-ip"):
+        for scores in ("raw", "calibrated"):
+            assert f"| 4 | yes | {kind} | {scores} |" in text
+    for cell in ("n4_normals", "n3_no_normals"):
+        assert (out / f"reliability_{cell}.png").stat().st_size > 1000
+        assert (out / f"lambda_sweep_{cell}.png").stat().st_size > 1000
+
+
+def test_calibration_lowers_ece_of_overconfident_scores():
+    from haptic_env.recognizers.analysis import calibration_summary, oneshot_posterior
+    from haptic_env.recognizers.calibration import fit_temperature
+
+    rng = np.random.default_rng(0)
+    K, B = 5, 4000
+    y = rng.integers(0, K, size=B)
+    logits = rng.normal(size=(B, K))
+    logits[np.arange(B), y] += 1.0  # honest logits: softmax(logits) is roughly calibrated
+    over = 6.0 * logits  # an over-confident model: the same ranking, far sharper posteriors
+    over[:3, 1] = -np.inf  # a ruled-out class is allowed
+    val, test = slice(0, B // 2), slice(B // 2, B)
+    T = fit_temperature(over[val], y[val])
+    assert T > 3
+    raw = calibration_summary(oneshot_posterior(over[test]), y[test])
+    cal = calibration_summary(oneshot_posterior(over[test] / T), y[test])
+    assert raw["accuracy"] == cal["accuracy"]
+    assert cal["ece"] < 0.05 < raw["ece"] and cal["nll"] < raw["nll"]
+    assert np.allclose(oneshot_posterior(np.full((2, 3), -np.inf)), 1 / 3)  # no information: uniform
+
+
+def test_simulate_trials_reports_decided():
+    LL = [np.log([[0.99, 0.01]] * 5), np.log([[0.5, 0.5]] * 5)]
+    res = simulate_trials(LL, [np.exp(x) for x in LL], "bc-np", trials=40, max_grasps=5, threshold=0.85,
+                          rng=np.random.default_rng(0))
+    assert np.array_equal(res["decided"], res["truth"] == 0)

@@ -10,7 +10,14 @@ Experiments (``--experiments 1,2,...``; all by default):
 4. scaled objects (random scale in [0.1, 5]) with and without scale normalisation;
 5. geometry recognition: train on boxes / elliptic cylinders / ellipsoids, classify held-out
    family members and the objects of ``--objects`` into the three families;
-6. success rate vs number of grasps (threshold disregarded).
+6. success rate vs number of grasps (threshold disregarded);
+7. calibration: on fresh test grasps, the expected calibration error (ECE) of the one-shot posteriors
+   of BC (softmax of the KDE log-likelihoods) and of the MLP, raw and temperature-scaled, with
+   reliability diagrams; success at the stop and mean grasps vs lambda for IC, BC-NP and BC-IP, raw
+   and calibrated (``--calib-fingers``, ``--calib-fingers-no-normals``, ``--lambdas``).
+
+Experiments 2-7 score grasps with the calibration temperatures fitted on validation grasps
+(:mod:`~haptic_env.recognizers.calibration`; ``--raw``: the paper's raw scores).
 
 Protocol: models train on :func:`~haptic_env.dataset.build_dataset` data (seed ``--seed``); test
 grasps are fresh samples from another seed (``seed + 7919``), never training data. A trial picks an
@@ -32,10 +39,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from scipy.special import softmax
 from tqdm.auto import tqdm
 
 from haptic_env.dataset import DatasetConfig, build_dataset, sample_grasps
 from haptic_env.recognizers.baselines import CLASSIFIERS, make_classifier
+from haptic_env.recognizers.calibration import _finite_rows, expected_calibration_error, reliability
 from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
 from haptic_env.recognizers.mlp import MLPClassifier, MLPConfig
 from haptic_env.recognizers.recognizer import RecognizerConfig, build_recognizer
@@ -60,7 +69,7 @@ class AnalysisConfig:
     objects: str = "default"
     data_dir: str | None = None
     units: str = "m"
-    experiments: tuple[int, ...] = (1, 2, 3, 4, 5, 6)
+    experiments: tuple[int, ...] = (1, 2, 3, 4, 5, 6, 7)
     grasps_per_object: int = 10_000
     test_grasps: int = 400  #: fresh test grasps per object
     trials: int = 200
@@ -75,6 +84,11 @@ class AnalysisConfig:
     scale_range: tuple[float, float] = (0.1, 5.0)
     family_members: int = 10
     normals: bool = True  #: experiments 2-6
+    calibrated: bool = True  #: experiments 2-6 use the validation-fitted temperatures (False: the paper's raw scores)
+    calib_fingers: tuple[int, ...] = (3, 4, 5, 8)  #: experiment 7, with normals
+    calib_fingers_no_normals: tuple[int, ...] = (4,)  #: experiment 7, without normals
+    lambdas: tuple[float, ...] = (0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95)  #: experiment 7
+    ece_bins: int = 10  #: experiment 7
     seed: int = 0
     mlp: MLPConfig = field(default_factory=lambda: MLPConfig(max_epochs=20, patience=3, max_train=100_000))
     kde: KDEConfig = field(default_factory=KDEConfig)
@@ -95,8 +109,9 @@ def simulate_trials(log_lik: list[np.ndarray], proba: list[np.ndarray], kind: st
         fixed_steps: disregard the threshold and run ``max_grasps`` grasps (experiment 6).
 
     Returns:
-        dict with ``success (T,) bool``, ``grasps (T,) int``, ``truth``, ``pred`` and, when
-        ``fixed_steps``, ``correct_at (T, max_grasps) bool`` (prediction right after m grasps).
+        dict with ``success (T,) bool`` (prediction right at the stop), ``decided (T,) bool`` (certainty
+        reached the threshold), ``grasps (T,) int``, ``truth``, ``pred`` and, when ``fixed_steps``,
+        ``correct_at (T, max_grasps) bool`` (prediction right after m grasps).
     """
     n_obj = len(log_lik)
     K = (log_lik[0] if log_lik[0] is not None and len(log_lik[0]) else proba[0]).shape[1]  # classes
@@ -104,6 +119,7 @@ def simulate_trials(log_lik: list[np.ndarray], proba: list[np.ndarray], kind: st
     truth = rng.integers(0, n_obj, size=trials)  # object index (= class unless classes are families)
     pred = np.zeros(trials, dtype=np.int64)
     used = np.zeros(trials, dtype=np.int64)
+    decided = np.zeros(trials, dtype=bool)
     correct_at = np.zeros((trials, max_grasps), dtype=bool) if fixed_steps else None
     for t, o in enumerate(truth):
         G = len(log_lik[o])
@@ -117,7 +133,8 @@ def simulate_trials(log_lik: list[np.ndarray], proba: list[np.ndarray], kind: st
                 break
         pred[t] = u.prediction
         used[t] = u.n_grasps
-    out = {"success": pred == truth, "grasps": used, "truth": truth, "pred": pred}
+        decided[t] = u.decided
+    out = {"success": pred == truth, "decided": decided, "grasps": used, "truth": truth, "pred": pred}
     if fixed_steps:
         out["correct_at"] = correct_at
     return out
@@ -143,6 +160,15 @@ def _test_pool(objects, n: int, normals: bool, cfg: AnalysisConfig, **dkw):
                        seed=cfg.seed + TEST_SEED_OFFSET, **dkw)
     ds = build_dataset(objects, dc, progress=False)
     return [ds.X_train[ds.y_train == k].astype(np.float64) for k in range(len(objects))]
+
+
+def _scores_label(cfg: AnalysisConfig) -> str:
+    return "calibrated scores" if cfg.calibrated else "raw scores (paper)"
+
+
+def _bank(rec, cfg: AnalysisConfig):
+    """The recogniser's :class:`~haptic_env.recognizers.recognizer.ModelBank`, calibrated or raw per ``cfg.calibrated``."""
+    return rec.models.with_calibration(cfg.calibrated)
 
 
 def _scores(models, pool):
@@ -225,15 +251,16 @@ def exp1(objects, cfg, rep, rng):
 
 
 def exp2(objects, cfg, rep, rng, plt):
-    rep.h(f"2. Sequential recognition at lambda = {cfg.threshold} (normals: {cfg.normals})")
+    rep.h(f"2. Sequential recognition at lambda = {cfg.threshold} (normals: {cfg.normals}; {_scores_label(cfg)})")
     rows = []
     curves = {}
     K = len(objects)
     for n in tqdm(cfg.fingers, desc="exp2 fingers", disable=not cfg.progress):
         rec = build_recognizer(objects, n, cfg.normals, config=cfg.recognizer_config(), progress=False)
-        LL, PR = _scores(rec.models, _test_pool(objects, n, cfg.normals, cfg))
+        LL, PR = _scores(_bank(rec, cfg), _test_pool(objects, n, cfg.normals, cfg))
         oneshot = np.mean(np.concatenate([p.argmax(1) == k for k, p in enumerate(PR)]))
-        row = [n, f"{100 * oneshot:.1f}"]
+        T = rec.models.temperature(n)
+        row = [n, f"{100 * oneshot:.1f}", f"{T['kde']:.2f}", f"{T['classifier']:.2f}"]
         for kind in KINDS:
             res = simulate_trials(LL, PR, kind, trials=cfg.trials, max_grasps=cfg.max_grasps, threshold=cfg.threshold, rng=rng)
             sr, se, gm, gs = _summ(res)
@@ -243,12 +270,13 @@ def exp2(objects, cfg, rep, rng, plt):
                 _plot_confusion(plt, _confusion(res["truth"], res["pred"], K), objects.names,
                                 f"{kind}, n=4, lambda={cfg.threshold}", rep.out / f"confusion_n4_{kind}.png")
         rows.append(row)
-    hdr = ["n", "MLP one-shot %"]
+    hdr = ["n", "MLP one-shot %", "T KDE", "T MLP"]
     for kind in KINDS:
         hdr += [f"{kind} success %", f"{kind} grasps"]
     rep.table(hdr, rows)
     rep.p(f"{cfg.trials} trials per cell, at most {cfg.max_grasps} grasps; success ± binomial std; grasps mean ± std. "
-          "Confusion matrices for n = 4: `confusion_n4_<kind>.png`.")
+          "T: the calibration temperatures fitted on validation grasps (" +
+          ("applied" if cfg.calibrated else "not applied: `--raw`") + "). Confusion matrices for n = 4: `confusion_n4_<kind>.png`.")
     if plt is not None and curves:
         fig, ax = plt.subplots(1, 2, figsize=(10, 4))
         for kind, pts in curves.items():
@@ -323,7 +351,7 @@ def _subset_scores(models, C, N, z, k_sub, rng):
 
 
 def exp3(objects, cfg, rep, rng):
-    rep.h(f"3. z-finger scoring and incomplete grasps (lambda = {cfg.threshold}, normals: {cfg.normals})")
+    rep.h(f"3. z-finger scoring and incomplete grasps (lambda = {cfg.threshold}, normals: {cfg.normals}; {_scores_label(cfg)})")
     zs = (3, 4)
     rows = []
     recs = {z: build_recognizer(objects, z, cfg.normals, config=cfg.recognizer_config(), progress=False) for z in zs}
@@ -336,7 +364,7 @@ def exp3(objects, cfg, rep, rng):
                 srng = np.random.default_rng([cfg.seed, n, z])
                 LL, PR = [], []
                 for C, N in raw:
-                    ll, pr = _subset_scores(recs[z].models, C, N, z, k_sub, srng)
+                    ll, pr = _subset_scores(_bank(recs[z], cfg), C, N, z, k_sub, srng)
                     LL.append(ll)
                     PR.append(pr)
                 row = [n, z, "all" if k_sub is None else f"k={k_sub}"]
@@ -353,7 +381,7 @@ def exp3(objects, cfg, rep, rng):
     pn = dict(cfg.incomplete_pn)
     zlist = sorted(pn)
     recs_inc = {z: build_recognizer(objects, z, cfg.normals, config=cfg.recognizer_config(), progress=False) for z in zlist}
-    pools = {z: _scores(recs_inc[z].models, _test_pool(objects, z, cfg.normals, cfg)) for z in zlist}
+    pools = {z: _scores(_bank(recs_inc[z], cfg), _test_pool(objects, z, cfg.normals, cfg)) for z in zlist}
     p = np.array([pn[z] for z in zlist]) / sum(pn.values())
     rows = []
     for kind in ("ic", "bc-np", "bc-ip"):
@@ -380,12 +408,12 @@ def exp3(objects, cfg, rep, rng):
 
 
 def exp4(objects, cfg, rep, rng):
-    rep.h(f"4. Scaled objects (scale ~ U{cfg.scale_range} per grasp, n = 4, normals: {cfg.normals})")
+    rep.h(f"4. Scaled objects (scale ~ U{cfg.scale_range} per grasp, n = 4, normals: {cfg.normals}; {_scores_label(cfg)})")
     rows = []
     for norm in (False, True):
         kw = {"scale_range": cfg.scale_range, "normalize_scale": norm}
         rec = build_recognizer(objects, 4, cfg.normals, config=cfg.recognizer_config(**kw), progress=False)
-        LL, PR = _scores(rec.models, _test_pool(objects, 4, cfg.normals, cfg, **kw))
+        LL, PR = _scores(_bank(rec, cfg), _test_pool(objects, 4, cfg.normals, cfg, **kw))
         oneshot = np.mean(np.concatenate([p.argmax(1) == k for k, p in enumerate(PR)]))
         row = ["yes" if norm else "no", f"{100 * oneshot:.1f}"]
         for kind in ("ic", "bc-np", "bc-ip"):
@@ -448,9 +476,9 @@ def exp5(objects, cfg, rep, rng):
 
 
 def exp6(objects, cfg, rep, rng, plt):
-    rep.h(f"6. Success rate vs number of grasps (threshold disregarded; n = 4, normals: {cfg.normals})")
+    rep.h(f"6. Success rate vs number of grasps (threshold disregarded; n = 4, normals: {cfg.normals}; {_scores_label(cfg)})")
     rec = build_recognizer(objects, 4, cfg.normals, config=cfg.recognizer_config(), progress=False)
-    LL, PR = _scores(rec.models, _test_pool(objects, 4, cfg.normals, cfg))
+    LL, PR = _scores(_bank(rec, cfg), _test_pool(objects, 4, cfg.normals, cfg))
     M = min(cfg.max_grasps, 15)
     curves = {}
     for kind in KINDS:
@@ -468,8 +496,153 @@ def exp6(objects, cfg, rep, rng, plt):
         plt.close(fig)
 
 
-def run_analysis(cfg: AnalysisConfig, out: str | Path) -> Path:
-    """Run the selected experiments; write ``out/results.md`` and PNG plots. Returns the report path."""
+# ------------------------------------------------------------------------------- calibration
+CALIB_KINDS = ("ic", "bc-np", "bc-ip")
+
+
+def oneshot_posterior(scores) -> np.ndarray:
+    """Row-wise softmax of class scores ``(B, K)`` (BC's one-shot posterior under a uniform prior when the
+    scores are KDE log-likelihoods). ``-inf`` allowed; a row with no finite score is uniform (the updater
+    leaves its belief unchanged)."""
+    return softmax(_finite_rows(np.asarray(scores, dtype=np.float64)), axis=1)
+
+
+def calibration_summary(proba, y, bins: int = 10) -> dict[str, float]:
+    """Accuracy, ECE (``bins`` equal-width bins), NLL of the true class and mean confidence of ``proba (B, K)``."""
+    P = np.asarray(proba, dtype=np.float64)
+    y = np.asarray(y, dtype=np.int64)
+    return {"accuracy": float(np.mean(P.argmax(1) == y)), "ece": expected_calibration_error(P, y, bins),
+            "nll": float(-np.log(np.maximum(P[np.arange(len(y)), y], 1e-300)).mean()),
+            "confidence": float(P.max(1).mean())}
+
+
+def _cell_name(n: int, normals: bool) -> str:
+    return f"n{n}_{'normals' if normals else 'no_normals'}"
+
+
+def _plot_reliability(plt, curves: dict, bins: int, title: str, path: Path) -> None:
+    """``curves[model][variant] = (proba, y, T)``: one panel per model, raw and calibrated on it."""
+    fig, axes = plt.subplots(1, len(curves), figsize=(5 * len(curves), 4.3), squeeze=False)
+    for ax, (model, variants) in zip(axes[0], curves.items()):
+        ax.plot([0, 1], [0, 1], color="0.6", lw=1, ls=":", label="perfect calibration")
+        for (variant, (P, y, T)), style in zip(variants.items(), ("s--", "o-")):
+            r = reliability(P, y, bins)
+            ok = r["count"] > 0
+            ece = expected_calibration_error(P, y, bins)
+            lab = f"{variant} (T = {T:.2f}): ECE {ece:.3f}" if variant != "raw" else f"raw: ECE {ece:.3f}"
+            ax.plot(r["confidence"][ok], r["accuracy"][ok], style, label=lab)
+            centres = 0.5 * (r["edges"][1:] + r["edges"][:-1])
+            ax.bar(centres, r["count"] / r["count"].sum(), width=1.0 / bins, alpha=0.12,
+                   color=ax.lines[-1].get_color(), zorder=0)
+        ax.set(xlim=(0, 1), ylim=(0, 1), xlabel="confidence (max posterior)", ylabel="accuracy",
+               title=f"{model} one-shot, {title}")
+        ax.legend(fontsize=8, loc="upper left")
+    fig.text(0.99, 0.01, "bars: fraction of test grasps per confidence bin", ha="right", fontsize=7, color="0.4")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _plot_lambda_sweep(plt, sweep: dict, lambdas, title: str, path: Path) -> None:
+    """``sweep[(kind, variant)] = list over lambdas of (decided & correct %, grasps)``."""
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.3))
+    lam = np.asarray(lambdas)
+    ax[0].plot([lam.min(), 1.0], [100 * lam.min(), 100.0], color="0.5", ls=":", label="success = lambda")
+    colors = {}
+    for (kind, variant), pts in sweep.items():
+        pts = np.asarray(pts)
+        style = "o-" if variant == "calibrated" else "s--"
+        kw = {"color": colors[kind]} if kind in colors else {}
+        (line,) = ax[0].plot(lam, pts[:, 0], style, label=f"{kind} {variant}", **kw)
+        colors.setdefault(kind, line.get_color())
+        ax[1].plot(lam, pts[:, 1], style, color=colors[kind], label=f"{kind} {variant}")
+    ax[0].set(xlabel="lambda (decision threshold)", ylabel="success at the stop % (decided and correct)",
+              title=f"success vs lambda, {title}")
+    ax[1].set(xlabel="lambda (decision threshold)", ylabel="mean grasps", yscale="log", title=f"grasps vs lambda, {title}")
+    ax[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def exp7(objects, cfg, rep, rng, plt):
+    """Calibration shown on fresh test grasps: one-shot ECE raw vs calibrated, reliability diagrams, and
+    success at the stop vs lambda for IC / BC-NP / BC-IP with and without the temperatures."""
+    rep.h("7. Calibration of the posteriors on fresh test grasps (raw vs temperature-scaled)")
+    cells = [(n, True) for n in cfg.calib_fingers] + [(n, False) for n in cfg.calib_fingers_no_normals]
+    ece_rows, stop_rows, sweeps = [], [], {}
+    for n, normals in tqdm(cells, desc="exp7 cells", disable=not cfg.progress):
+        rec = build_recognizer(objects, n, normals, config=cfg.recognizer_config(), progress=False)
+        T = rec.models.temperature(n)
+        pool = _test_pool(objects, n, normals, cfg)
+        y = np.concatenate([np.full(len(p), k) for k, p in enumerate(pool)])
+        scores = {v: _scores(rec.models.with_calibration(v == "calibrated"), pool) for v in ("raw", "calibrated")}
+        curves = {}
+        for model, Tm in (("BC (KDE)", T["kde"]), ("MLP", T["classifier"])):
+            row = [n, "yes" if normals else "no", model, f"{Tm:.2f}"]
+            for v in ("raw", "calibrated"):
+                LL, PR = scores[v]
+                P = oneshot_posterior(np.concatenate(LL)) if model.startswith("BC") else np.concatenate(PR)
+                s = calibration_summary(P, y, cfg.ece_bins)
+                if v == "raw":
+                    row.append(f"{100 * s['accuracy']:.1f}")
+                row += [f"{s['ece']:.3f}", f"{s['nll']:.3f}", f"{100 * s['confidence']:.1f}"]
+                curves.setdefault(model, {})[v] = (P, y, Tm)
+            ece_rows.append(row)
+        title = f"n = {n}, {'with' if normals else 'without'} normals"
+        if plt is not None:
+            _plot_reliability(plt, curves, cfg.ece_bins, title, rep.out / f"reliability_{_cell_name(n, normals)}.png")
+        sweep = {}
+        for kind in CALIB_KINDS:
+            for v in ("raw", "calibrated"):
+                LL, PR = scores[v]
+                pts = []
+                for lam in cfg.lambdas:
+                    # one trial rng per cell: every updater, lambda and raw/calibrated sees the same objects and
+                    # grasp sequences (paired comparisons, smooth curves)
+                    trng = np.random.default_rng([cfg.seed, n, int(normals)])
+                    res = simulate_trials(LL, PR, kind, trials=cfg.trials, max_grasps=cfg.max_grasps, threshold=lam,
+                                          rng=trng)
+                    dc = res["success"] & res["decided"]
+                    pts.append((100 * dc.mean(), float(res["grasps"].mean()), 100 * res["success"].mean(),
+                                float(res["grasps"].std())))
+                sweep[(kind, v)] = pts
+        sweeps[(n, normals)] = sweep
+        if plt is not None:
+            _plot_lambda_sweep(plt, {k: [p[:2] for p in v] for k, v in sweep.items()}, cfg.lambdas, title,
+                               rep.out / f"lambda_sweep_{_cell_name(n, normals)}.png")
+        li = int(np.argmin(np.abs(np.asarray(cfg.lambdas) - cfg.threshold)))
+        for kind in CALIB_KINDS:
+            r, c = sweep[(kind, "raw")][li], sweep[(kind, "calibrated")][li]
+            stop_rows.append([n, "yes" if normals else "no", kind, f"{r[2]:.1f}", f"{r[0]:.1f}", _fmt(r[1], r[3], 2),
+                              f"{c[2]:.1f}", f"{c[0]:.1f}", _fmt(c[1], c[3], 2)])
+    rep.p(f"Test grasps: {cfg.test_grasps} fresh grasps per object (seed {cfg.seed + TEST_SEED_OFFSET}), never used to "
+          f"fit T (T is fitted on the training data's validation split). One-shot posterior: BC = softmax of the KDE "
+          f"log-likelihoods (/ T), MLP = softmax(logits / T). ECE over {cfg.ece_bins} equal-width confidence bins; NLL "
+          "of the true class; conf = mean max posterior. Accuracy does not depend on T. Reliability diagrams: "
+          "`reliability_<cell>.png`.")
+    rep.table(["n", "normals", "model", "T", "accuracy %", "ECE raw", "NLL raw", "conf raw %", "ECE cal", "NLL cal",
+               "conf cal %"], ece_rows)
+    lam0 = cfg.lambdas[int(np.argmin(np.abs(np.asarray(cfg.lambdas) - cfg.threshold)))]
+    rep.p(f"Sequential recognition at lambda = {lam0}: success = correct at the stop; d&c = decided (certainty "
+          f">= lambda within {cfg.max_grasps} grasps) and correct; grasps mean ± std. {cfg.trials} trials per cell, "
+          "the same objects and grasp sequences for every updater, lambda, raw and calibrated (paired).")
+    rep.table(["n", "normals", "updater", "raw success %", "raw d&c %", "raw grasps", "cal success %", "cal d&c %",
+               "cal grasps"], stop_rows)
+    rep.p("Success at the stop (decided and correct, %) / mean grasps vs lambda; plots `lambda_sweep_<cell>.png` "
+          "(solid: calibrated, dashed: raw, dotted: success = lambda).")
+    hdr = ["n", "normals", "updater", "scores", *[f"λ={lam:g}" for lam in cfg.lambdas]]
+    rows = []
+    for (n, normals), sweep in sweeps.items():
+        for (kind, v), pts in sweep.items():
+            rows.append([n, "yes" if normals else "no", kind, v, *[f"{p[0]:.1f} / {p[1]:.2f}" for p in pts]])
+    rep.table(hdr, rows)
+
+
+def run_analysis(cfg: AnalysisConfig, out: str | Path, command: str | None = None) -> Path:
+    """Run the selected experiments; write ``out/results.md`` and PNG plots. Returns the report path.
+
+    ``command``: the command line that ran it, written at the top of the report."""
     from haptic_env.objects import load_object_set
 
     out = Path(out)
@@ -483,14 +656,18 @@ def run_analysis(cfg: AnalysisConfig, out: str | Path) -> Path:
         plt = None
     objects = load_object_set(cfg.objects, data_dir=cfg.data_dir, units=cfg.units)
     rep = Report(out)
-    rep.lines = [f"# Recognition analysis: `{cfg.objects}` ({len(objects)} objects: {', '.join(objects.names)})", "",
-                 f"seed {cfg.seed}; {cfg.grasps_per_object} training grasps per object; {cfg.test_grasps} fresh test "
-                 f"grasps per object; {cfg.trials} trials; max {cfg.max_grasps} grasps; MLP {cfg.mlp.depth}x{cfg.mlp.width}; "
-                 f"KDE {cfg.kde.method} (k={cfg.kde.k}, cutoff {cfg.kde.cutoff} h, factor {cfg.kde.factor})."]
+    rep.lines = [f"# Recognition analysis: `{cfg.objects}` ({len(objects)} objects: {', '.join(objects.names)})", ""]
+    if command:
+        rep.lines += ["```", command, "```", ""]
+    rep.lines += [f"{_scores_label(cfg)} in experiments 2-6; seed {cfg.seed}; {cfg.grasps_per_object} training grasps "
+                  f"per object; {cfg.test_grasps} fresh test grasps per object; {cfg.trials} trials; max {cfg.max_grasps} "
+                  f"grasps; MLP {cfg.mlp.depth}x{cfg.mlp.width}; "
+                  f"KDE {cfg.kde.method} (k={cfg.kde.k}, cutoff {cfg.kde.cutoff} h, factor {cfg.kde.factor})."]
     rng = np.random.default_rng(cfg.seed)
     steps = {1: lambda: exp1(objects, cfg, rep, rng), 2: lambda: exp2(objects, cfg, rep, rng, plt),
              3: lambda: exp3(objects, cfg, rep, rng), 4: lambda: exp4(objects, cfg, rep, rng),
-             5: lambda: exp5(objects, cfg, rep, rng), 6: lambda: exp6(objects, cfg, rep, rng, plt)}
+             5: lambda: exp5(objects, cfg, rep, rng), 6: lambda: exp6(objects, cfg, rep, rng, plt),
+             7: lambda: exp7(objects, cfg, rep, rng, plt)}
     for e in cfg.experiments:
         if e not in steps:
             raise ValueError(f"unknown experiment {e}; choose from {sorted(steps)}")
@@ -514,6 +691,38 @@ def _ints(text: str) -> tuple[int, ...]:
     return tuple(out)
 
 
+def _lambdas(text: str) -> tuple[float, ...]:
+    from haptic_env.cli import UsageError
+
+    try:
+        out = tuple(float(x) for x in text.split(",") if x.strip())
+    except ValueError:
+        raise UsageError(f"--lambdas: expected comma-separated numbers, got {text!r}") from None
+    if not out or any(not 0 < x <= 1 for x in out):
+        raise UsageError(f"--lambdas: thresholds must be in (0, 1], got {text!r}")
+    return out
+
+
+def _equivalent_command(args) -> str:
+    """The ``haptic-recog analysis`` command line with every setting spelled out (defaults included)."""
+    import shlex
+
+    parser = getattr(args, "_cli_parser", None)
+    if parser is None:
+        return ""
+    words = ["haptic-recog", "analysis"]
+    for action in parser._actions:
+        if not action.option_strings or action.dest == "help":
+            continue
+        v = getattr(args, action.dest, None)
+        flag = action.option_strings[-1]
+        if isinstance(action, argparse._StoreTrueAction):
+            words += [flag] if v else []
+        elif v is not None:
+            words += [flag, str(v)]
+    return shlex.join(words)
+
+
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Register the ``analysis`` sub-command."""
     d = AnalysisConfig()
@@ -523,7 +732,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--data-dir", default=None, help="shared data folder (default: $HAPTIC_DATA or ../shared/data)")
     p.add_argument("--units", default="m", help="units of a folder's meshes")
     p.add_argument("--out", required=True, help="output folder for results.md and PNG plots")
-    p.add_argument("--experiments", default="1,2,3,4,5,6", help="comma list / ranges of 1..6 (default all)")
+    p.add_argument("--experiments", default="1,2,3,4,5,6,7", help="comma list / ranges of 1..7 (default all)")
     p.add_argument("--grasps-per-object", type=int, default=d.grasps_per_object, help="training grasps per object (paper: 200000)")
     p.add_argument("--test-grasps", type=int, default=d.test_grasps, help="fresh test grasps per object")
     p.add_argument("--trials", type=int, default=d.trials, help="trials per cell (paper: 1000)")
@@ -535,6 +744,13 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--baseline-max-train", type=int, default=d.baseline_max_train)
     p.add_argument("--zfinger-hands", default="5,6,8", help="experiment 3 hand sizes n")
     p.add_argument("--no-normals", action="store_true", help="experiments 2-6 without normals")
+    p.add_argument("--raw", action="store_true",
+                   help="experiments 2-6 on the raw scores (the paper's method), without the calibration temperatures")
+    p.add_argument("--calib-fingers", default=",".join(map(str, d.calib_fingers)),
+                   help="experiment 7: finger counts with normals")
+    p.add_argument("--calib-fingers-no-normals", default=",".join(map(str, d.calib_fingers_no_normals)),
+                   help="experiment 7: finger counts without normals (empty: none)")
+    p.add_argument("--lambdas", default=",".join(f"{x:g}" for x in d.lambdas), help="experiment 7: thresholds swept")
     p.add_argument("--mlp-depth", type=int, default=d.mlp.depth)
     p.add_argument("--mlp-width", type=int, default=d.mlp.width)
     p.add_argument("--mlp-epochs", type=int, default=d.mlp.max_epochs)
@@ -553,7 +769,9 @@ def _run_cli(args) -> int:
         max_grasps=args.max_grasps, threshold=args.threshold, fingers=_ints(args.fingers),
         oneshot_fingers=_ints(args.oneshot_fingers),
         classifiers=tuple(c for c in args.classifiers.split(",") if c), baseline_max_train=args.baseline_max_train,
-        zfinger_hands=_ints(args.zfinger_hands), normals=not args.no_normals, seed=args.seed,
+        zfinger_hands=_ints(args.zfinger_hands), normals=not args.no_normals, calibrated=not args.raw,
+        calib_fingers=_ints(args.calib_fingers), calib_fingers_no_normals=_ints(args.calib_fingers_no_normals),
+        lambdas=_lambdas(args.lambdas), seed=args.seed,
         mlp=MLPConfig(depth=args.mlp_depth, width=args.mlp_width, max_epochs=args.mlp_epochs, patience=3,
                       max_train=args.mlp_max_train, seed=args.seed),
         kde=KDEConfig(method=args.kde_method, seed=args.seed), progress=not args.quiet,
@@ -561,7 +779,7 @@ def _run_cli(args) -> int:
     for c in cfg.classifiers:
         if c not in CLASSIFIERS:
             raise SystemExit(f"unknown classifier {c!r}; choose from {CLASSIFIERS}")
-    path = run_analysis(cfg, args.out)
+    path = run_analysis(cfg, args.out, command=_equivalent_command(args))
     print(path.read_text())
     print(f"wrote {path}")
     return 0
