@@ -298,10 +298,15 @@ def train(algo: str, venv, total_timesteps: int, log_dir: str | os.PathLike, *, 
     algo = algo.lower()
     if resume is not None:
         extras = checkpoint_extras(resume)
-        if "vecnormalize" in extras:
+        if "vecnormalize" in extras:  # the saved statistics, into the caller's VecNormalize or a new one
             from stable_baselines3.common.vec_env import VecNormalize
 
-            venv = VecNormalize.load(str(extras["vecnormalize"]), venv)
+            inner = venv.venv if isinstance(venv, VecNormalize) else venv
+            loaded = VecNormalize.load(str(extras["vecnormalize"]), inner)
+            if isinstance(venv, VecNormalize):
+                venv.obs_rms, venv.ret_rms = loaded.obs_rms, loaded.ret_rms
+            else:
+                venv = loaded
         model = load_model(resume, algo, env=venv)
         model.tensorboard_log = str(log_dir / "tb")
         if "replay_buffer" in extras and hasattr(model, "load_replay_buffer"):

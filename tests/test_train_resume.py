@@ -188,3 +188,31 @@ def test_a_dead_worker_saves_and_resume_completes(env_config, small_recognizer_k
     ckpt = _saved_checkpoint(err, run, "ppo")
     assert 128 <= _steps(ckpt) < 1024 and _steps(ckpt) % 64 == 0
     _resume_and_check(args, run, "ppo", 1024, _snapshot(run))
+
+
+def test_vecnormalize_stats_are_checkpointed_and_resumed(env_config, tmp_path):
+    """A ``VecNormalize`` run (in-process): every checkpoint has its statistics, and resuming into the caller's
+    fresh ``VecNormalize`` continues them instead of starting over; ``latest_checkpoint`` picks the most steps."""
+    from stable_baselines3.common.save_util import load_from_pkl
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from agents import sb3
+
+    def venv():
+        return VecNormalize(sb3.make_vec_env(env_config.replace(max_grasps=10), n_envs=1, vec="dummy"))
+
+    hp = {"n_steps": 32, "batch_size": 32, "n_epochs": 1}
+    v = venv()
+    model, _ = sb3.train("ppo", v, 128, tmp_path, checkpoint_freq=64, **hp)
+    v.close()
+    ckpt = sb3.latest_checkpoint(tmp_path, "ppo")
+    assert ckpt.name == "ppo_128_steps.zip" and sb3.latest_checkpoint(tmp_path, "sac") is None
+    extras = sb3.checkpoint_extras(ckpt)
+    assert set(extras) == {"vecnormalize"} and extras["vecnormalize"].name == "ppo_vecnormalize_128_steps.pkl"
+    saved = load_from_pkl(extras["vecnormalize"]).obs_rms.count
+    v = venv()
+    model, _ = sb3.train("ppo", v, 192, tmp_path, checkpoint_freq=64, resume=ckpt, **hp)
+    v.close()
+    assert model.num_timesteps == 192
+    assert v.obs_rms.count >= saved + 64  # continued from the saved statistics
+    assert load_from_pkl(tmp_path / "checkpoints" / "ppo_vecnormalize_192_steps.pkl").obs_rms.count >= saved + 64
