@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import os
 import time
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any
 
@@ -55,6 +56,8 @@ from .hands import HandDescription, load_hand
 
 __all__ = ["MujocoConfig", "GraspScene", "MujocoBackend", "quat_from_matrix"]
 
+#: Compiled scenes (one per object mesh) a backend keeps; a reset with a known object only moves it.
+MAX_SCENES = 16
 HAND_BITS = (1, 2)  # (contype, conaffinity) of hand geoms: collide with the object only
 OBJ_BITS = (2, 1)
 
@@ -194,6 +197,7 @@ class GraspScene:
         self.tip_body_ids = np.array([m.body(f"hand/{t}").id for t in hand.tips])
         self.obj_geom_ids = np.array([m.geom(n).id for n in self.object_geom_names], dtype=np.int64)
         self.obj_body_id = m.body("object").id
+        self._table_geom = m.geom("table").id if table_z is not None else -1
         # which tip body each body's geoms count for (only the tip body itself)
         self._geom_tip = np.full(m.ngeom, -1)
         for i, b in enumerate(self.tip_body_ids):
@@ -277,6 +281,15 @@ class GraspScene:
         for k, v in values.items():
             u[self.act_index[k]] = v
         return np.clip(u, self.ctrl_lo, self.ctrl_hi)
+
+    def place_object(self, pose: np.ndarray, table_z: float | None) -> None:
+        """Move the (static) object body to ``pose`` and the visual table plane to ``table_z``, without
+        recompiling: the model's body pose is read by the next kinematics pass."""
+        m = self.model
+        m.body_pos[self.obj_body_id] = pose[:3, 3]
+        m.body_quat[self.obj_body_id] = quat_from_matrix(pose[:3, :3])
+        if self._table_geom >= 0 and table_z is not None:
+            m.geom_pos[self._table_geom, 2] = table_z - 1e-4
 
     def reset(self, ctrl: np.ndarray) -> None:
         """Zero state, joints set to the actuator targets where an actuator drives one joint directly."""
@@ -452,6 +465,7 @@ class MujocoBackend:
         self.hand = load_hand(self.config.hand, self.config.n_fingers, **dict(self.config.hand_kwargs))
         self.n_fingers = self.hand.n_fingers
         self.scene: GraspScene | None = None
+        self._scenes: OrderedDict[tuple[str, str], GraspScene] = OrderedDict()  # LRU, at most MAX_SCENES
         self._calibrated: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self.grasp_time = 0.0
         self.n_grasps = 0
@@ -466,11 +480,18 @@ class MujocoBackend:
         self._centre = T[:3, :3] @ c_obj + T[:3, 3]
         self._radius = float(np.linalg.norm(vw - self._centre, axis=1).max())
         table_z = float(vw[:, 2].min()) if self.config.support == "table" else None
-        pieces = convex_pieces(obj, self.config.collision)
-        if self.scene is not None:
-            self.scene.close()
-        self.scene = GraspScene(self.hand, pieces, T, table_z=table_z, timestep=self.config.timestep,
-                                friction=self.config.friction, joint_frictionloss=self.config.joint_frictionloss)
+        key = (obj.name, obj.mesh_hash)  # one compiled scene per mesh; a new pose only moves the object body
+        scene = self._scenes.pop(key, None)
+        if scene is None:
+            pieces = convex_pieces(obj, self.config.collision)
+            scene = GraspScene(self.hand, pieces, T, table_z=table_z, timestep=self.config.timestep,
+                               friction=self.config.friction, joint_frictionloss=self.config.joint_frictionloss)
+            while len(self._scenes) >= MAX_SCENES:  # least recently used first
+                self._scenes.popitem(last=False)[1].close()
+        else:
+            scene.place_object(T, table_z)
+        self._scenes[key] = scene
+        self.scene = scene
         self.obj = obj
         self._hull_vw = np.asarray(mesh.convex_hull.vertices) @ T[:3, :3].T + T[:3, 3]
         if self._calibrated is None:
@@ -645,5 +666,8 @@ class MujocoBackend:
         return sc.render(width, height, self._centre, 4.0 * max(self._radius, 0.05))
 
     def close(self) -> None:
+        for scene in self._scenes.values():
+            scene.close()
+        self._scenes.clear()
         if self.scene is not None:
             self.scene.close()
