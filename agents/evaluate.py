@@ -352,7 +352,7 @@ def _main(args) -> int:
 
     kwargs = args.env_kwargs if isinstance(args.env_kwargs, dict) else json.loads(args.env_kwargs)
     try:
-        config = HapticRecogConfig().replace(**kwargs)
+        config = HapticRecogConfig().replace(**{**haptic_env.ENV_VARIANTS.get(args.env_id, {}), **kwargs})
     except (TypeError, ValueError, FileNotFoundError) as exc:
         raise UsageError(f"--env-kwargs: {exc}") from exc
     out = Path(args.out)
@@ -374,7 +374,7 @@ def _main(args) -> int:
             agents.append(make_agent(spec, stochastic=args.stochastic))
         except ValueError as exc:
             raise UsageError(f"--agents: {exc}") from exc
-    make_env = lambda: haptic_env.make(config, env_id=args.env_id)  # noqa: E731
+    make_env = lambda: haptic_env.make(env_id=args.env_id, **kwargs)  # noqa: E731  (overrides the variant's fields)
     t0 = time.time()
     records = evaluate_agents(agents, make_env, args.episodes, args.seeds)
     paths = write_report(records, args.out, config.max_grasps,
