@@ -181,7 +181,8 @@ def _family_mesh(family: str, s: np.ndarray) -> trimesh.Trimesh:
     return _refine(m)
 
 
-def family_set(n_per_family: int, rng: np.random.Generator, families=FAMILIES) -> ObjectSet:
+def family_set(n_per_family: int, rng: np.random.Generator, families=FAMILIES,
+               scale_range: tuple[float, float] = FAMILY_SCALE_RANGE) -> ObjectSet:
     """The paper's geometry families: boxes, elliptic cylinders and ellipsoids.
 
     Each member has per-axis scale factors drawn uniformly from ``FAMILY_SCALE_RANGE`` about the
@@ -192,10 +193,13 @@ def family_set(n_per_family: int, rng: np.random.Generator, families=FAMILIES) -
         n_per_family: members per family (>= 1).
         rng: generator for the scale factors.
         families: subset/order of :data:`FAMILIES`.
+        scale_range: ``(lo, hi)`` of the per-axis scale factors (``lo == hi``: cube, round cylinder, sphere).
     """
     if int(n_per_family) < 1:
         raise ValueError(f"n_per_family must be >= 1, got {n_per_family}")
-    lo, hi = FAMILY_SCALE_RANGE
+    lo, hi = (float(v) for v in scale_range)
+    if not 0 < lo <= hi:
+        raise ValueError(f"scale_range must be (lo, hi) with 0 < lo <= hi, got {scale_range!r}")
     objs = []
     for fam in families:
         for i in range(int(n_per_family)):
