@@ -1,0 +1,142 @@
+"""Geometry families (issue 6, item 4): why 4-finger grasps without normals barely tell the families apart.
+
+Trains on ``family_set`` members (boxes, elliptic cylinders, ellipsoids) and measures, on VALIDATION data
+only (held-back grasps of the training members and new members drawn from a validation seed):
+
+* one-shot family accuracy of the KDE (one KDE per family), the MLP and a random forest;
+* the family vote after m grasps of one object (BC-NP: summed KDE log-likelihoods; "member" BC-NP: a
+  posterior over the training *members*, summed per family, so all grasps of an object must come from
+  ONE member shape -- the aspect ratio is shared between grasps instead of re-drawn per grasp);
+
+for a sweep of generator aspect spreads (per-axis scale range), with/without scale normalisation and
+with/without normals.
+
+Run (one process, nice)::
+
+    OMP_NUM_THREADS=1 nice -n 10 python benchmarks/geometry_families.py --sweep spread
+    OMP_NUM_THREADS=1 nice -n 10 python benchmarks/geometry_families.py --sweep norm
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+from scipy.special import logsumexp
+
+from haptic_env.dataset import DatasetConfig, build_dataset
+from haptic_env.objects import FAMILIES, family_set
+from haptic_env.recognizers.baselines import make_classifier
+from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
+from haptic_env.recognizers.mlp import MLPClassifier, MLPConfig
+
+VAL_MEMBER_SEED = 1000  # new members for validation (the analysis' test members use seed + 7919)
+
+
+def fam_labels(objs) -> np.ndarray:
+    idx = {f: i for i, f in enumerate(FAMILIES)}
+    return np.array([idx[objs.families[n]] for n in objs.names])
+
+
+def pool(objs, G, normals, normalize, seed):
+    ds = build_dataset(objs, DatasetConfig(n_fingers=4, normals=normals, grasps_per_object=G, normalize_scale=normalize,
+                                           val_fraction=0.0, seed=seed), progress=False)
+    return [ds.X_train[ds.y_train == k].astype(np.float64) for k in range(len(objs))]
+
+
+def member_family_ll(LLm, fam_m, T=1.0):
+    """(m, M) member log-likelihoods of m grasps of ONE object -> (3,) family log-likelihood of the
+    whole sequence under "the object is one member of the family" (uniform over members)."""
+    s = LLm.sum(0) / T
+    return np.array([logsumexp(s[fam_m == f]) - np.log((fam_m == f).sum()) for f in range(len(FAMILIES))])
+
+
+def votes(score_fn, P, fam_true, ms, trials, rng):
+    """Accuracy of the family argmax after m grasps, for m in ms; P: per object pools."""
+    out = {}
+    for m in ms:
+        ok = []
+        for _ in range(trials):
+            o = rng.integers(len(P))
+            rows = rng.choice(len(P[o]), size=m, replace=False)
+            ok.append(np.argmax(score_fn(o, rows)) == fam_true[o])
+        out[m] = 100 * np.mean(ok)
+    return out
+
+
+def run_cell(lo, hi, normals, normalize, members, G, seed, ms, trials, models):
+    t0 = time.time()
+    tr = family_set(members, np.random.default_rng(seed), scale_range=(lo, hi))
+    va = family_set(max(3, members // 2), np.random.default_rng(seed + VAL_MEMBER_SEED), scale_range=(lo, hi))
+    ds = build_dataset(tr, DatasetConfig(n_fingers=4, normals=normals, grasps_per_object=G, normalize_scale=normalize,
+                                         seed=seed), progress=False)
+    fm = fam_labels(tr)
+    ytr, yva = fm[ds.y_train], fm[ds.y_val]
+    held = [ds.X_val[ds.y_val == k].astype(np.float64) for k in range(len(tr))]  # held-back grasps, training members
+    new = pool(va, max(200, G // 5), normals, normalize, seed + VAL_MEMBER_SEED)  # new members
+    fnew = fam_labels(va)
+    rng = np.random.default_rng(seed + 1)
+    row = {"spread": f"{lo:g}-{hi:g}", "normals": normals, "norm": normalize}
+    kde = KDELikelihood(KDEConfig()).fit(ds.X_train, ytr, ds.X_val, yva, n_classes=3)
+    row["kde_1_held"] = 100 * np.mean(kde.log_likelihood(ds.X_val).argmax(1) == yva)
+    LLn = [kde.log_likelihood(X) for X in new]
+    row["kde_1_new"] = 100 * np.mean(np.concatenate([L.argmax(1) == fnew[k] for k, L in enumerate(LLn)]))
+    for m, a in votes(lambda o, r: LLn[o][r].sum(0), LLn, fnew, ms, trials, rng).items():
+        row[f"bcnp_{m}_new"] = a
+    if "member" in models:
+        kdem = KDELikelihood(KDEConfig()).fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val, n_classes=len(tr))
+        LLm = [kdem.log_likelihood(X) for X in new]
+        row["mem_1_new"] = 100 * np.mean(np.concatenate(
+            [np.array([member_family_ll(L[i:i + 1], fm).argmax() for i in range(len(L))]) == fnew[k] for k, L in enumerate(LLm)]))
+        for m, a in votes(lambda o, r: member_family_ll(LLm[o][r], fm, kdem.temperature), LLm, fnew, ms, trials, rng).items():
+            row[f"mem_{m}_new"] = a
+    if "mlp" in models:
+        mlp = MLPClassifier(MLPConfig(max_epochs=20, patience=3, progress=False)).fit(ds.X_train, ytr, ds.X_val, yva, n_classes=3)
+        row["mlp_1_held"] = 100 * mlp.score(ds.X_val, yva)
+        row["mlp_1_new"] = 100 * np.mean(np.concatenate([mlp.predict(X) == fnew[k] for k, X in enumerate(new)]))
+        LP = [np.log(np.maximum(mlp.predict_proba(X), 1e-12)) for X in new]  # votes: summed log-posteriors
+        for m, a in votes(lambda o, r: LP[o][r].sum(0), LP, fnew, ms, trials, rng).items():
+            row[f"mlpvote_{m}_new"] = a
+    if "rf" in models:
+        rf = make_classifier("random-forest", n_jobs=1, max_train=50_000).fit(ds.X_train, ytr)
+        row["rf_1_held"] = 100 * np.mean(rf.predict_proba(ds.X_val).argmax(1) == yva)
+        row["rf_1_new"] = 100 * np.mean(np.concatenate([rf.predict_proba(X).argmax(1) == fnew[k] for k, X in enumerate(new)]))
+    row["s"] = time.time() - t0
+    del held
+    return row
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--sweep", choices=("spread", "norm", "members", "one"), default="spread")
+    p.add_argument("--members", type=int, default=10)
+    p.add_argument("--grasps", type=int, default=3000, help="grasps per training member (20 %% held back)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--trials", type=int, default=300)
+    p.add_argument("--ms", default="1,3,5,10,30")
+    p.add_argument("--models", default="member,mlp,rf")
+    p.add_argument("--lo", type=float, default=0.5)
+    p.add_argument("--hi", type=float, default=1.5)
+    a = p.parse_args(argv)
+    ms = tuple(int(v) for v in a.ms.split(","))
+    models = set(a.models.split(","))
+    if a.sweep == "spread":
+        cells = [(lo, hi, False, True) for lo, hi in ((1, 1), (0.9, 1.1), (0.75, 1.25), (0.5, 1.5))]
+    elif a.sweep == "norm":
+        cells = [(a.lo, a.hi, nrm, nz) for nrm in (False, True) for nz in (True, False)]
+    elif a.sweep == "members":
+        cells = [(a.lo, a.hi, False, True)]
+    else:
+        cells = [(a.lo, a.hi, False, True)]
+    rows = [run_cell(lo, hi, nrm, nz, a.members, a.grasps, a.seed, ms, a.trials, models) for lo, hi, nrm, nz in cells]
+    keys = list(dict.fromkeys(k for r in rows for k in r))
+    print("| " + " | ".join(keys) + " |")
+    print("|" + "---|" * len(keys))
+    for r in rows:
+        print("| " + " | ".join(f"{r[k]:.1f}" if isinstance(r.get(k), float) else str(r.get(k, "")) for k in keys) + " |",
+              flush=True)
+
+
+if __name__ == "__main__":
+    main()
