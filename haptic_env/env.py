@@ -93,6 +93,9 @@ class HapticRecogConfig:
     JSON-style dict (``{"grasps": {"grasps_per_object": 5000}, "mlp": {"max_epochs": 5}}``)."""
 
     def __post_init__(self) -> None:
+        for name in ("normals", "score_subsets", "calibrated"):  # bool("no") is True: take real booleans only
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise TypeError(f"{name} must be True or False, got {getattr(self, name)!r}")
         if not isinstance(self.n_fingers, (int, np.integer)) or self.n_fingers < 2:
             raise ValueError(f"n_fingers must be an int >= 2 (2: a gripper, q is the contact distance), "
                              f"got {self.n_fingers!r}")
@@ -108,22 +111,28 @@ class HapticRecogConfig:
             raise ValueError(f"pose must be one of {POSE_MODES}, got {self.pose!r}")
         if not (isinstance(self.threshold, (int, float)) and 0.0 < self.threshold <= 1.0):
             raise ValueError(f"threshold must be in (0, 1], got {self.threshold!r}")
-        if not (math.isfinite(self.grasp_cost) and self.grasp_cost >= 0.0):
+        if not (isinstance(self.grasp_cost, (int, float, np.integer, np.floating))
+                and math.isfinite(self.grasp_cost) and self.grasp_cost >= 0.0):
             raise ValueError(f"grasp_cost must be a finite number >= 0, got {self.grasp_cost!r}")
         if not isinstance(self.max_grasps, (int, np.integer)) or self.max_grasps < 1:
             raise ValueError(f"max_grasps must be an int >= 1, got {self.max_grasps!r}")
-        if self.z_fingers is not None and not (2 <= self.z_fingers < self.n_fingers):
+        if self.z_fingers is not None and not (isinstance(self.z_fingers, (int, np.integer))
+                                               and 2 <= self.z_fingers < self.n_fingers):
             raise ValueError(f"z_fingers must be None or in [2, n_fingers={self.n_fingers}), got {self.z_fingers!r}")
         if self.score_subsets and self.z_fingers is None:
             raise ValueError("score_subsets=True needs z_fingers (the subset size)")
         if self.scale_range is not None:
-            lo, hi = (float(v) for v in self.scale_range)
+            try:
+                lo, hi = (float(v) for v in self.scale_range)
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"scale_range must be (lo, hi) with 0 < lo <= hi, got {self.scale_range!r}") from exc
             if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo <= hi):
                 raise ValueError(f"scale_range must be (lo, hi) with 0 < lo <= hi, got {self.scale_range!r}")
         if self.kde_method not in ("pooled", "tree", "dense"):
             raise ValueError(f"kde_method must be 'pooled', 'tree' or 'dense', got {self.kde_method!r}")
-        if not isinstance(self.recognizer_kwargs, Mapping) or not isinstance(self.object_kwargs, Mapping):
-            raise TypeError("recognizer_kwargs and object_kwargs must be mappings (dicts)")
+        for name in ("recognizer_kwargs", "object_kwargs", "backend_kwargs"):
+            if not isinstance(getattr(self, name), Mapping):
+                raise TypeError(f"{name} must be a mapping (dict), got {getattr(self, name)!r}")
         if self.recognizer_kwargs:  # checked here, at make, not at the first reset (imports the recognisers)
             import inspect
 
@@ -137,7 +146,8 @@ class HapticRecogConfig:
             try:
                 _recognizer_kwargs(self)
             except (TypeError, ValueError) as exc:
-                raise ValueError(f"invalid recognizer_kwargs: {exc}") from exc
+                raise ValueError(f"invalid recognizer_kwargs (or backend_kwargs 'support' / 'hand', which its "
+                                 f"training grasps take): {exc}") from exc
         from haptic_env.objects.loaders import object_count
 
         try:
@@ -372,7 +382,11 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
 
         self.objects = load_object_set(config.objects, **dict(config.object_kwargs))
         self.object_names: tuple[str, ...] = tuple(self.objects.names)
-        self.backend = make_backend(config.backend, n_fingers=config.n_fingers, **dict(config.backend_kwargs))
+        try:
+            self.backend = make_backend(config.backend, n_fingers=config.n_fingers, **dict(config.backend_kwargs))
+        except TypeError as exc:  # an unknown or non-string key of backend_kwargs
+            raise TypeError(f"invalid backend_kwargs {dict(config.backend_kwargs)!r} for backend {config.backend!r}: "
+                            f"{exc}") from exc
         if int(self.backend.n_fingers) != config.n_fingers:
             raise ValueError(f"backend {config.backend!r} has {self.backend.n_fingers} fingers, config asks {config.n_fingers}")
 
@@ -601,7 +615,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
             is_complex = a.dtype.kind == "c"  # a float cast would silently drop the imaginary part
             if not is_complex:
                 a = a.astype(np.float64, copy=False)
-        except (TypeError, ValueError) as exc:
+        except (TypeError, ValueError, OverflowError) as exc:  # OverflowError: a Python int beyond float range
             raise ValueError(f"action must be a numeric array of shape ({self.action_dim},), got {action!r}") from exc
         if is_complex:
             raise ValueError(f"action must be real numbers, got complex values {action!r}")
