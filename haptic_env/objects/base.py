@@ -42,8 +42,9 @@ def prepare_mesh(mesh: trimesh.Trimesh, name: str, scale: float = 1.0) -> tuple[
         m.apply_scale(scale)
     m.remove_unreferenced_vertices()
     # Outward winding: a (nearly) closed mesh with consistent winding has positive signed volume.
-    if m.is_winding_consistent and m.volume < 0:
-        m.invert()
+    with np.errstate(divide="ignore", invalid="ignore"):  # a flat mesh has volume 0 (its centre of mass: 0 / 0)
+        if m.is_winding_consistent and m.volume < 0:
+            m.invert()
     offset = -m.bounds.mean(axis=0)
     m.apply_translation(offset)
     return m, offset

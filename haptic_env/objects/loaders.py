@@ -96,6 +96,8 @@ def unit_scale(units: str | float) -> float:
 
 #: A loaded object larger than this (m) gets a warning: its file is probably in millimetres (or cm).
 MAX_PLAUSIBLE_SIZE = 3.0
+#: A file coordinate beyond this (in the file's units) is rejected: no real object file holds one.
+MAX_FILE_COORDINATE = 1e9
 
 
 def _read_mesh(path: Path) -> trimesh.Trimesh:
@@ -110,6 +112,14 @@ def _read_mesh(path: Path) -> trimesh.Trimesh:
     if bad.any():
         raise MeshLoadError(f"mesh file {path}: {int(bad.sum())} of {len(bad)} vertices are not finite (NaN or inf), "
                             f"e.g. vertex {int(np.flatnonzero(bad)[0])}")
+    reach = float(np.abs(mesh.vertices).max())
+    if reach > MAX_FILE_COORDINATE:  # trimesh's vertex merging casts coordinates * 1e8 to int64: they would overflow
+        raise MeshLoadError(f"mesh file {path}: a vertex coordinate is {reach:.3g} file units, beyond "
+                            f"{MAX_FILE_COORDINATE:.0e} (a corrupted file?)")
+    faces = np.asarray(mesh.faces)
+    if faces.min() < 0 or faces.max() >= len(bad):  # a corrupted face list (trimesh does not check it)
+        raise MeshLoadError(f"mesh file {path}: faces reference vertices outside [0, {len(bad)}), e.g. "
+                            f"{int(faces.max() if faces.max() >= len(bad) else faces.min())}")
     mesh.process()  # merge duplicate vertices (what loading with process=True does)
     if len(mesh.faces) == 0:
         raise MeshLoadError(f"mesh file {path} holds no triangles")
@@ -127,6 +137,10 @@ def load_mesh_object(path: str | Path, *, units: str | float = "m", name: str | 
         raise
     except ValueError as exc:
         raise MeshLoadError(f"mesh file {path}: {exc}") from exc
+    area = float(mesh.area)
+    if not (np.isfinite(area) and area > 0.0):  # every face degenerate, or coordinates so large the area overflows
+        raise MeshLoadError(f"mesh file {path}: surface area {area} m^2 with units={units!r} (all faces degenerate, "
+                            "or coordinates out of range); nothing to grasp")
     size = float(np.max(mesh.extents))
     if size > MAX_PLAUSIBLE_SIZE:
         warnings.warn(f"mesh file {path}: object {name!r} is {size:.3g} m across with units={units!r}; are the file's "
