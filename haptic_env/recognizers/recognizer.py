@@ -291,10 +291,18 @@ def _load(root, key: str, model: str, config: RecognizerConfig):
     if not (path.exists() and meta.exists()):
         return None
     try:
-        json.loads(meta.read_text())
+        info = json.loads(meta.read_text())
+        names = info.get("names") if isinstance(info, dict) else None
+        if not isinstance(names, list):
+            raise CacheError(f"{meta} lacks the list of object names")
         if model == "mlp":
-            return MLPClassifier.load(path)
-        return KDELikelihood.from_state(config.kde, load_npz(path, ("kde_mean", "kde_std", "kde_bandwidth")))
+            loaded = MLPClassifier.load(path)
+        else:  # every class's data: a file missing one would load as a KDE of fewer objects
+            required = ("kde_mean", "kde_std", "kde_bandwidth", "kde_factor", *(f"kde_data_{c}" for c in range(len(names))))
+            loaded = KDELikelihood.from_state(config.kde, load_npz(path, required))
+        if loaded.n_classes != len(names):
+            raise CacheError(f"{path} holds {loaded.n_classes} classes, {meta.name} names {len(names)} objects")
+        return loaded
     except (CacheError, ValueError, OSError) as exc:  # json.JSONDecodeError is a ValueError
         warnings.warn(f"rebuilding recogniser model {path.name}: {exc}", stacklevel=3)
         return None
