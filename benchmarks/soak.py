@@ -42,9 +42,10 @@ OPTION_VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
     "z_fingers=3": ("HapticRecog-v0", {"z_fingers": 3}),
     "updater=ic": ("HapticRecog-v0", {"updater": "ic"}),
     "updater=bc-ip": ("HapticRecog-v0", {"updater": "bc-ip"}),
+    "mujoco scale_range": ("HapticRecogMuJoCo-v0", {"scale_range": (0.8, 1.2)}),
 }
-#: registered envs that need the shared data folder
-NEEDS_DATA = ("HapticRecogMuJoCo-v0", "HapticRecogKIT-v0")
+#: object sets that live in the shared data folder (a variant using one, or a MuJoCo hand, needs it)
+DATA_SETS = ("kit8", "kit20", "ycb10")
 
 
 def variants() -> dict[str, tuple[str, dict[str, Any]]]:
@@ -74,8 +75,11 @@ def rss_mb() -> float:
 
 def skip_reason(name: str) -> str | None:
     """Why ``name`` cannot run here (None: it can)."""
-    env_id, _ = variants()[name]
-    if env_id in NEEDS_DATA:
+    from haptic_env import ENV_VARIANTS
+
+    env_id, kw = variants()[name]
+    fields = {**ENV_VARIANTS[env_id], **kw}
+    if fields.get("backend") == "mujoco" or fields.get("objects") in DATA_SETS:
         from haptic_env.objects import data_dir
 
         if data_dir() is None:

@@ -209,3 +209,22 @@ def test_a_known_object_in_a_new_pose_moves_instead_of_recompiling():
         np.testing.assert_allclose(r1.contacts, r2.contacts, atol=1e-9)
     moved.close()
     fresh.close()
+
+
+def test_scale_without_a_mesh_copy_matches_a_scaled_object():
+    """``set_object(obj, pose, scale=s)`` (the env's ``scale_range``) grasps like an object whose mesh was scaled."""
+    cyl = _cyl()
+    big_mesh = cyl.mesh.copy()
+    big_mesh.apply_scale(1.3)
+    scaled = make_backend("mujoco", 4, hand="generic")
+    scaled.set_object(cyl, np.eye(4), scale=1.3)
+    copied = make_backend("mujoco", 4, hand="generic")
+    copied.set_object(GraspObject("cyl_big", big_mesh), np.eye(4))
+    for a in np.random.default_rng(4).uniform(-1, 1, (4, 4)):
+        r1, r2 = scaled.grasp(a, np.random.default_rng(0)), copied.grasp(a, np.random.default_rng(0))
+        np.testing.assert_array_equal(r1.touched, r2.touched)
+        np.testing.assert_allclose(r1.contacts, r2.contacts, atol=1e-6)
+    with pytest.raises(ValueError, match="scale"):
+        scaled.set_object(cyl, np.eye(4), scale=0.0)
+    scaled.close()
+    copied.close()

@@ -282,6 +282,24 @@ class GraspScene:
             u[self.act_index[k]] = v
         return np.clip(u, self.ctrl_lo, self.ctrl_hi)
 
+    def scale_object(self, scale: float) -> None:
+        """Scale the object's collision meshes uniformly about the object body's origin, in the compiled model
+        (vertices in each mesh's frame, the mesh frames' offsets, the broad-phase bounds), without recompiling."""
+        m = self.model
+        if not hasattr(self, "_unscaled"):
+            mids = m.geom_dataid[self.obj_geom_ids]
+            verts = [slice(m.mesh_vertadr[i], m.mesh_vertadr[i] + m.mesh_vertnum[i]) for i in mids]
+            self._unscaled = (verts, [m.mesh_vert[v].copy() for v in verts], m.geom_pos[self.obj_geom_ids].copy(),
+                              m.geom_rbound[self.obj_geom_ids].copy(), m.geom_aabb[self.obj_geom_ids].copy(), 1.0)
+        verts, vert0, pos0, rb0, aabb0, current = self._unscaled
+        if scale == current:
+            return
+        for v, v0 in zip(verts, vert0):
+            m.mesh_vert[v] = scale * v0
+        g = self.obj_geom_ids
+        m.geom_pos[g], m.geom_rbound[g], m.geom_aabb[g] = scale * pos0, scale * rb0, scale * aabb0
+        self._unscaled = (*self._unscaled[:5], scale)
+
     def place_object(self, pose: np.ndarray, table_z: float | None) -> None:
         """Move the (static) object body to ``pose`` and the visual table plane to ``table_z``, without
         recompiling: the model's body pose is read by the next kinematics pass."""
@@ -471,29 +489,35 @@ class MujocoBackend:
         self.n_grasps = 0
 
     # ------------------------------------------------------------------ scene
-    def set_object(self, obj: Any, pose: np.ndarray | None = None) -> None:
+    #: ``set_object(..., scale=s)`` scales the object about its origin without a mesh copy (the env's ``scale_range``)
+    supports_scale = True
+
+    def set_object(self, obj: Any, pose: np.ndarray | None = None, scale: float = 1.0) -> None:
         T = validate_pose(pose)
+        scale = float(scale)
+        if not (np.isfinite(scale) and scale > 0):
+            raise ValueError(f"scale must be a positive finite number, got {scale!r}")
         mesh = obj.mesh
-        v = np.asarray(mesh.vertices, dtype=np.float64)
+        v = scale * np.asarray(mesh.vertices, dtype=np.float64)
         vw = v @ T[:3, :3].T + T[:3, 3]
         c_obj = 0.5 * (v.min(0) + v.max(0))
         self._centre = T[:3, :3] @ c_obj + T[:3, 3]
         self._radius = float(np.linalg.norm(vw - self._centre, axis=1).max())
         table_z = float(vw[:, 2].min()) if self.config.support == "table" else None
-        key = (obj.name, obj.mesh_hash)  # one compiled scene per mesh; a new pose only moves the object body
+        key = (obj.name, obj.mesh_hash)  # one compiled scene per mesh: a new pose or scale only edits the model
         scene = self._scenes.pop(key, None)
         if scene is None:
-            pieces = convex_pieces(obj, self.config.collision)
+            pieces = convex_pieces(obj, self.config.collision)  # of the unscaled mesh: cached once per mesh
             scene = GraspScene(self.hand, pieces, T, table_z=table_z, timestep=self.config.timestep,
                                friction=self.config.friction, joint_frictionloss=self.config.joint_frictionloss)
             while len(self._scenes) >= MAX_SCENES:  # least recently used first
                 self._scenes.popitem(last=False)[1].close()
-        else:
-            scene.place_object(T, table_z)
+        scene.scale_object(scale)
+        scene.place_object(T, table_z)
         self._scenes[key] = scene
         self.scene = scene
         self.obj = obj
-        self._hull_vw = np.asarray(mesh.convex_hull.vertices) @ T[:3, :3].T + T[:3, 3]
+        self._hull_vw = scale * np.asarray(mesh.convex_hull.vertices) @ T[:3, :3].T + T[:3, 3]
         if self._calibrated is None:
             self._calibrated = self._calibrate()
 
