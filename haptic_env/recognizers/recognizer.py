@@ -15,6 +15,7 @@ KDE only). Every model carries a calibration temperature fitted on the validatio
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import time
 import warnings
@@ -276,12 +277,14 @@ def _train(model: str, ds, cfg: RecognizerConfig, progress: bool):
 
 
 def _save(root, key: str, model: str, obj, meta: dict) -> None:
+    path = root / (f"{key}_mlp.pt" if model == "mlp" else f"{key}_kde.npz")
     if model == "mlp":
-        obj.save(root / f"{key}_mlp.pt")
+        obj.save(path)
     else:
-        save_npz_atomic(root / f"{key}_kde.npz", **obj.state())
+        save_npz_atomic(path, **obj.state())
+    # the model file's digest: a flipped weight byte still loads (torch does not check its zip CRCs)
     with atomic_write(root / f"{key}.json", "w") as fh:
-        json.dump(meta, fh)
+        json.dump({**meta, "sha256": hashlib.sha256(path.read_bytes()).hexdigest()}, fh)
 
 
 def _load(root, key: str, model: str, config: RecognizerConfig):
@@ -295,6 +298,8 @@ def _load(root, key: str, model: str, config: RecognizerConfig):
         names = info.get("names") if isinstance(info, dict) else None
         if not isinstance(names, list):
             raise CacheError(f"{meta} lacks the list of object names")
+        if info.get("sha256") != hashlib.sha256(path.read_bytes()).hexdigest():
+            raise CacheError(f"{path} does not match the digest in {meta.name} (damaged or replaced)")
         if model == "mlp":
             loaded = MLPClassifier.load(path)
         else:  # every class's data: a file missing one would load as a KDE of fewer objects
