@@ -131,6 +131,15 @@ class DatasetConfig:
         if self.hand is not None and not isinstance(self.hand, str):
             raise ValueError(f"hand must be a hand name or an MJCF path, got {self.hand!r}")
 
+    def source_key(self) -> str:
+        """The identity of the grasp source beyond this config: the hand's physics for ``source="hand"``
+        (:func:`~haptic_env.hand_grasps.hand_physics_key`), else empty. Part of every cache key built on it."""
+        if self.source != "hand":
+            return ""
+        from .hand_grasps import hand_physics_key
+
+        return hand_physics_key(self.hand, self.hand_fingers or self.n_fingers)
+
     @property
     def feature_dim(self) -> int:
         """Length ``d`` of a grasp vector."""
@@ -311,7 +320,7 @@ def _safe_name(name: str) -> str:
 
 def dataset_cache_path(objects: ObjectSet, config: DatasetConfig) -> Path:
     """Where :func:`build_dataset` caches the dataset of ``objects`` under ``config``."""
-    key = config_key(_CACHE_VERSION, objects.identity, config)
+    key = config_key(_CACHE_VERSION, objects.identity, config, *filter(None, [config.source_key()]))
     return cache_dir("datasets") / f"{_safe_name(objects.name)}-{key}.npz"
 
 

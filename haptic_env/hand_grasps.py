@@ -30,9 +30,9 @@ from tqdm.auto import tqdm
 
 from .cache import CacheError, cache_dir, config_key, load_npz, save_npz_atomic
 
-__all__ = ["HandGraspPool", "hand_grasp_pool", "pool_rows", "pool_cache_path", "CHUNK"]
+__all__ = ["HandGraspPool", "hand_grasp_pool", "pool_rows", "pool_cache_path", "hand_physics_key", "CHUNK"]
 
-_CACHE_VERSION = "hand-grasps-v1"
+_CACHE_VERSION = "hand-grasps-v2"  # v2: the key holds the hand's physics (hand_physics_key)
 #: Approaches per worker task (a task builds its own scene: ~0.3 s, so chunks amortise it).
 CHUNK = 250
 
@@ -66,8 +66,24 @@ class HandGraspPool:
         return (self.touched.sum(-1) >= z).mean(axis=1)
 
 
+def hand_physics_key(hand: str, n_fingers: int) -> str:
+    """What a hand's grasps depend on besides the meshes and approaches: its MJCF (as compiled by MjSpec),
+    closing law, physics options and the backend's defaults. A change to any of them gives a new key,
+    so cached pools, datasets and recognisers of the old physics are not reused."""
+    import dataclasses
+
+    from .grasping.hands import load_hand
+    from .grasping.mujoco_backend import MujocoConfig
+
+    h = load_hand(hand, int(n_fingers))
+    fields = {f.name: getattr(h, f.name) for f in dataclasses.fields(h) if f.name != "spec"}
+    fields["option"] = {k: int(v) if hasattr(v, "value") else v for k, v in h.option.items()}
+    return config_key(h.spec.to_xml(), fields, MujocoConfig(n_fingers=int(n_fingers), hand=hand))
+
+
 def pool_cache_path(objects, hand: str, n_fingers: int, approaches: int, support: str, seed: int) -> Path:
-    key = config_key(_CACHE_VERSION, objects.identity, hand, int(n_fingers), int(approaches), support, int(seed))
+    key = config_key(_CACHE_VERSION, objects.identity, hand, int(n_fingers), int(approaches), support, int(seed),
+                     hand_physics_key(hand, n_fingers))
     return cache_dir("hand_grasps") / f"{hand}-{key}.npz"
 
 

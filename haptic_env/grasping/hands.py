@@ -71,7 +71,8 @@ class HandDescription:
     approach_axis: np.ndarray | None = None
     thumb_axis: np.ndarray | None = None
     option: dict[str, object] = field(default_factory=dict)  # e.g. {"cone": elliptic}
-    max_steps: int = 200  # closing steps (timestep 2 ms) after which the fingers have settled
+    timestep: float = 0.002  # s: the hand's physics step (``MujocoConfig.timestep=None`` uses it)
+    max_steps: int = 200  # closing steps (of ``timestep``) after which the fingers have settled
     standoff: float = 0.02  # m: back-off from the closest collision-free pre-grasp pose before closing
 
     @property
@@ -191,7 +192,11 @@ def _act(names: list[str], finger: str, k: int) -> str:
 
 
 def shadow_hand(side: str = "right") -> HandDescription:
-    """Shadow E3M5 (5 fingers: ff, mf, rf, lf, thumb; 20 actuators, coupled distal joints)."""
+    """Shadow E3M5 (5 fingers: ff, mf, rf, lf, thumb; 20 actuators, coupled distal joints).
+
+    Physics: pyramidal friction cones and a 4 ms step (0.3 s of closing), 2.2x the grasps/s of elliptic
+    cones at 2 ms with the same usable rate, contact error (median 2.4 vs 2.7 mm) and torque-normal error
+    (median 7.3 vs 7.4 deg) on ycb10 (the Aero hand likewise: 1.7x)."""
     if side not in ("right", "left"):
         raise ValueError(f"side must be 'right' or 'left', got {side!r}")
     p = "rh" if side == "right" else "lh"
@@ -206,7 +211,8 @@ def shadow_hand(side: str = "right") -> HandDescription:
                            tips=tuple(f"{p}_{f}distal" for f in ("ff", "mf", "rf", "lf", "th")),
                            open_ctrl=open_ctrl, close_ctrl=close, spread=spread,
                            approach_axis=np.array([0.0, 0.0, 1.0]),  # palm normal in the mount frame
-                           option={"cone": mujoco.mjtCone.mjCONE_ELLIPTIC, "impratio": 10.0}, max_steps=150)
+                           option={"cone": mujoco.mjtCone.mjCONE_PYRAMIDAL, "impratio": 10.0},
+                           timestep=0.004, max_steps=75)
 
 
 def aero_hand(side: str = "right") -> HandDescription:
@@ -222,7 +228,7 @@ def aero_hand(side: str = "right") -> HandDescription:
     Approach axis: the fingers' flexion direction at the open pose (the palm normal), in the frame of
     ``tetheria_mount``. The planar fingers have no abduction joint, so their torque-derived normals
     miss the component along the joint axes (see :mod:`~haptic_env.grasping.mujoco_backend`). The
-    thumb is slow to settle: up to 400 closing steps."""
+    thumb is slow to settle: up to 0.8 s of closing (200 steps of 4 ms)."""
     if side not in ("right", "left"):
         raise ValueError(f"side must be 'right' or 'left', got {side!r}")
     spec = _menagerie_spec("tetheria_aero_hand_open", f"{side}_hand")
@@ -237,7 +243,8 @@ def aero_hand(side: str = "right") -> HandDescription:
                            tips=tuple(f"{p}_{f}_distal_link" for f in (*fingers, "thumb")),
                            open_ctrl=open_ctrl, close_ctrl=close,
                            approach_axis=np.array([0.285, 0.0, 0.958]),  # palm normal (mirror-symmetric in y)
-                           option={"cone": mujoco.mjtCone.mjCONE_ELLIPTIC, "impratio": 10.0}, max_steps=400)
+                           option={"cone": mujoco.mjtCone.mjCONE_PYRAMIDAL, "impratio": 10.0},
+                           timestep=0.004, max_steps=200)
 
 
 def robotiq_hand() -> HandDescription:

@@ -71,7 +71,7 @@ class MujocoConfig:
     normals: bool = True  # report torque-derived normals
     torque_source: str = "actuator"  # "actuator" | "constraint"
     contact_point: str = "surface"  # "surface": site + r * normal estimate; "site": fingertip site centre
-    timestep: float = 0.002
+    timestep: float | None = None  # s (None: the hand's own, HandDescription.timestep)
     max_steps: int | None = None  # closing steps at most (None: the hand's default, HandDescription.max_steps)
     min_steps: int = 40
     check_every: int = 10  # test for new tip contacts / rest every this many steps
@@ -94,6 +94,8 @@ class MujocoConfig:
             raise ValueError(f"contact_point must be 'surface' or 'site', got {self.contact_point!r}")
         for name in ("timestep", "march_step", "rest_qvel"):
             v = getattr(self, name)
+            if v is None and name == "timestep":
+                continue
             if not np.isfinite(v) or v <= 0:
                 raise ValueError(f"{name} must be > 0, got {v!r}")
         if not (1 <= self.min_steps <= (self.max_steps or self.min_steps) and self.check_every >= 1):
@@ -508,7 +510,7 @@ class MujocoBackend:
         scene = self._scenes.pop(key, None)
         if scene is None:
             pieces = convex_pieces(obj, self.config.collision)  # of the unscaled mesh: cached once per mesh
-            scene = GraspScene(self.hand, pieces, T, table_z=table_z, timestep=self.config.timestep,
+            scene = GraspScene(self.hand, pieces, T, table_z=table_z, timestep=self.config.timestep or self.hand.timestep,
                                friction=self.config.friction, joint_frictionloss=self.config.joint_frictionloss)
             while len(self._scenes) >= MAX_SCENES:  # least recently used first
                 self._scenes.popitem(last=False)[1].close()

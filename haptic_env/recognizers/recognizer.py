@@ -250,7 +250,7 @@ def build_recognizer(objects, n_fingers: int, normals: bool = True, *, z_values=
     root = cache_dir("recognizers") if cache else None
     for z in zs:
         dcfg = config.dataset_config(z, bool(normals), hand_fingers=int(n_fingers))
-        key = config_key("recognizer", RECOGNIZER_VERSION, okey, z, bool(normals), dcfg)
+        key = config_key("recognizer", RECOGNIZER_VERSION, okey, z, bool(normals), dcfg, *filter(None, [dcfg.source_key()]))
         built = {m: _load(root, f"{key}-{config_key(getattr(config, m))}", m, config) if cache else None
                  for m in MODELS if m in models}
         if any(v is None for v in built.values()):
