@@ -249,24 +249,26 @@ def validate_pose(pose: Any) -> np.ndarray:
 BACKENDS = ("geometric", "uniform", "mujoco")
 
 
-def make_backend(name: str = "geometric", n_fingers: int = 4, **cfg: Any) -> GraspBackend:
+def make_backend(name: str = "geometric", n_fingers: int | None = None, **cfg: Any) -> GraspBackend:
     """Build a backend by name: ``"geometric"`` | ``"uniform"`` | ``"mujoco"``.
 
     ``cfg`` are the fields of that backend's config dataclass (:class:`GeometricConfig`,
     :class:`UniformConfig`, :class:`MujocoConfig`); unknown keys raise TypeError naming them.
     For ``"mujoco"``, ``hand="generic"|"allegro"|"shadow"|"<path to .xml>"`` picks the hand; the
-    Allegro hand has 4 fingers, Shadow 5 (``n_fingers`` must agree).
+    Allegro hand has 4 fingers, Shadow 5 (``n_fingers`` must agree); any other MJCF file or MuJoCo
+    Menagerie name is described automatically (:mod:`.auto_hand`). ``n_fingers=None``: 4, or for
+    ``"mujoco"`` the hand's own count.
     """
     if name == "geometric":
         from .geometric import GeometricBackend, GeometricConfig
 
-        return GeometricBackend(GeometricConfig(n_fingers=n_fingers, **cfg))
+        return GeometricBackend(GeometricConfig(n_fingers=4 if n_fingers is None else n_fingers, **cfg))
     if name == "uniform":
         from .uniform import UniformBackend, UniformConfig
 
-        return UniformBackend(UniformConfig(n_fingers=n_fingers, **cfg))
+        return UniformBackend(UniformConfig(n_fingers=4 if n_fingers is None else n_fingers, **cfg))
     if name == "mujoco":
         from .mujoco_backend import MujocoBackend, MujocoConfig
 
-        return MujocoBackend(MujocoConfig(n_fingers=n_fingers, **cfg))
+        return MujocoBackend(MujocoConfig(n_fingers=n_fingers, **cfg))  # None: the hand's own count
     raise ValueError(f"unknown grasp backend {name!r}; choose one of {BACKENDS}")

@@ -10,7 +10,8 @@
 * :func:`aero_hand` - the TetherIA Aero Hand Open (5 tendon-driven fingers, 16 joints, 7 actuators:
   under-actuated like the Pisa/IIT SoftHand) and :func:`robotiq_hand` - the Robotiq 2F-85 parallel
   gripper (2 fingers, 1 actuator: the n = 2 case), from the same menagerie.
-* :func:`mjcf_hand` - any MJCF hand given its file and fingertip body names.
+* :func:`mjcf_hand` - any MJCF hand (a file or a Menagerie name): fingertips, closing synergy, approach
+  axis and physics options found automatically (:mod:`.auto_hand`), or given by hand.
 
 Fingertip sites (the kinesthetic contact points) are added with MjSpec: at the centre of the
 distal end cap of the fingertip body's collision geometry (auto-detected), radius = that cap's
@@ -276,41 +277,49 @@ def robotiq_hand() -> HandDescription:
                            standoff=0.0)
 
 
-def mjcf_hand(path: str | Path, tips: tuple[str, ...] | list[str], *, root: str | None = None,
+def mjcf_hand(path: str | Path, tips: tuple[str, ...] | list[str] | None = None, *, root: str | None = None,
               open_ctrl: dict[str, float] | None = None, close_ctrl: dict[str, float] | None = None,
               spread: dict[str, tuple[float, float]] | None = None) -> HandDescription:
-    """Any MJCF hand: ``tips`` are its fingertip bodies (thumb last). Without ``close_ctrl`` every
-    actuator closes to the top of its ctrlrange (open: 0 clipped to the range)."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"MJCF hand file {path} does not exist")
-    spec = mujoco.MjSpec.from_file(str(path))
+    """Any MJCF hand (a file or a MuJoCo Menagerie name): ``tips`` are its fingertip bodies (thumb last;
+    None: detected). Without ``close_ctrl`` the fingertips, closing synergy, approach axis and physics
+    options are found automatically (:func:`~.auto_hand.auto_hand`); ``open_ctrl``/``spread`` override
+    its open pose / add spread actuators. With ``close_ctrl`` the hand is used as given (several
+    top-level bodies are still wrapped into one root, its own ``<option>`` cone/impratio/noslip kept)."""
+    from .auto_hand import auto_hand, hand_options, load_mjcf, single_root
+
+    if close_ctrl is None:
+        desc = auto_hand(path, tips)
+        if open_ctrl:
+            desc.open_ctrl = {**desc.open_ctrl, **open_ctrl}
+        desc.spread = dict(spread or {})
+        return desc
+    if tips is None:
+        raise ValueError(f"MJCF hand {path}: close_ctrl= given by hand needs tips= (fingertip body names, thumb last)")
+    spec, name, src = load_mjcf(path)
+    spec, auto_root, _ = single_root(spec)
     names = [spec.bodies[i].name for i in range(len(spec.bodies))]
     missing = [t for t in tips if t not in names]
     if missing:
-        raise ValueError(f"fingertip bodies {missing} not in {path} (bodies: {names})")
+        raise ValueError(f"fingertip bodies {missing} not in {src} (bodies: {names})")
     if root is None:
-        first = spec.worldbody.first_body()
-        if first is None:
-            raise ValueError(f"{path} has no body under <worldbody>")
-        root = first.name
-    if close_ctrl is None:
-        close_ctrl = {}
-        for i in range(len(spec.actuators)):
-            a = spec.actuators[i]
-            close_ctrl[a.name] = float(a.ctrlrange[1]) if a.ctrlrange[1] > a.ctrlrange[0] else 0.0
-    return HandDescription(name=path.stem, spec=spec, root=root, tips=tuple(tips), open_ctrl=open_ctrl or {},
-                           close_ctrl=close_ctrl, spread=spread or {})
+        root = auto_root
+    elif root not in names:
+        raise ValueError(f"root body {root!r} not in {src} (bodies: {names})")
+    option, timestep = hand_options(spec)
+    return HandDescription(name=name, spec=spec, root=root, tips=tuple(tips), open_ctrl=open_ctrl or {},
+                           close_ctrl=close_ctrl, spread=spread or {}, option=option, timestep=timestep)
 
 
-def load_hand(hand: str | HandDescription, n_fingers: int = 4, **kw) -> HandDescription:
+def load_hand(hand: str | Path | HandDescription, n_fingers: int | None = 4, **kw) -> HandDescription:
     """``"generic"`` (n fingers), ``"allegro"`` (4), ``"shadow"`` (5), ``"aero"`` (5), ``"robotiq"`` (2),
-    a HandDescription, or an MJCF path (then ``tips=`` is required). ``_right``/``_left`` suffixes pick
-    the side of the Allegro, Shadow and Aero hands."""
+    a HandDescription, an MJCF path or a MuJoCo Menagerie name (``robot`` or ``robot/entry``): those go
+    through :func:`mjcf_hand` (``tips=`` optional: detected when absent, with the closing synergy found
+    automatically). ``_right``/``_left`` suffixes pick the side of the Allegro, Shadow and Aero hands.
+    ``n_fingers=None``: the hand's own count (4 for ``"generic"``)."""
     if isinstance(hand, HandDescription):
         desc = hand
     elif hand == "generic":
-        desc = generic_hand(n_fingers, **kw)
+        desc = generic_hand(4 if n_fingers is None else n_fingers, **kw)
     elif hand in ("allegro", "allegro_right", "allegro_left"):
         desc = allegro_hand("left" if hand.endswith("left") else "right")
     elif hand in ("shadow", "shadow_right", "shadow_left"):
@@ -319,12 +328,11 @@ def load_hand(hand: str | HandDescription, n_fingers: int = 4, **kw) -> HandDesc
         desc = aero_hand("left" if hand.endswith("left") else "right")
     elif hand == "robotiq":
         desc = robotiq_hand()
-    elif str(hand).endswith(".xml"):
-        if "tips" not in kw:
-            raise ValueError(f"MJCF hand {hand!r} needs tips=(fingertip body names, thumb last)")
-        desc = mjcf_hand(hand, **kw)
+    elif isinstance(hand, (str, Path)) and str(hand):
+        desc = mjcf_hand(hand, **kw)  # a file or a Menagerie name; ValueError naming it when it is neither
     else:
-        raise ValueError(f"unknown hand {hand!r}; use one of {HANDS}, an MJCF .xml path or a HandDescription")
-    if desc.n_fingers != n_fingers:
+        raise ValueError(f"unknown hand {hand!r}; use one of {HANDS}, an MJCF .xml path, a MuJoCo Menagerie name "
+                         "or a HandDescription")
+    if n_fingers is not None and desc.n_fingers != n_fingers:
         raise ValueError(f"hand {desc.name!r} has {desc.n_fingers} fingers but n_fingers={n_fingers}")
     return desc

@@ -64,8 +64,8 @@ OBJ_BITS = (2, 1)
 
 @dataclass(frozen=True)
 class MujocoConfig:
-    n_fingers: int = 4
-    hand: Any = "generic"  # "generic" | "allegro" | "shadow" | path to an MJCF .xml | HandDescription
+    n_fingers: int | None = 4  # None: the hand's own count (4 for "generic")
+    hand: Any = "generic"  # "generic" | "allegro" | ... | MJCF .xml path | Menagerie name | HandDescription
     hand_kwargs: tuple[tuple[str, Any], ...] = ()  # e.g. (("tips", ("a", "b", "c")),) for an MJCF hand
     support: str = "table"  # "table" | "floating" (see base.decode_approach)
     normals: bool = True  # report torque-derived normals

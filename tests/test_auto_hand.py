@@ -1,0 +1,206 @@
+"""Any MJCF hand through the automatic path: ``make_backend("mujoco", hand=<file>)`` with nothing else.
+
+Every hand below - test hands built here with MjSpec (fingers as sibling roots of the palm, finger rotation
+joints, tendon- and equality-coupled under-actuated fingers), the generic 3-6-finger hands written to MJCF,
+and the Menagerie hands where the shared data is present - goes through the same test with no per-hand code.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+import mujoco
+from haptic_env.grasping import make_backend
+from haptic_env.grasping.auto_hand import ROOT_NAME, auto_hand, report
+from haptic_env.grasping.hands import HandUnavailableError, generic_hand
+from haptic_env.objects import GraspObject
+
+HINGE = mujoco.mjtJoint.mjJNT_HINGE
+
+
+def _cyl():
+    return GraspObject("cyl", trimesh.creation.cylinder(0.035, 0.12, sections=48))
+
+
+def _finger(parent, f: str, pos, angle: float, *, rotation: bool = False, lengths=(0.05, 0.04, 0.03)):
+    """A finger at ``pos`` leaning at ``angle`` around z: optional rotation joint about its own axis, 3 flexion
+    joints closing toward the z axis, a sphere tip. Returns the joint names (rotation first)."""
+    q = [np.cos(angle / 2), 0, 0, np.sin(angle / 2)]
+    base = parent.add_body(name=f"{f}_base", pos=pos, quat=q)
+    joints = []
+    if rotation:
+        base.add_joint(name=f"{f}_rot", type=HINGE, axis=[0, 0, 1], range=[-0.8, 0.8], damping=0.05, armature=0.002)
+        joints.append(f"{f}_rot")
+    base.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.008, 0, 0], contype=0, conaffinity=0, density=800)
+    body = base
+    for k, L in enumerate(lengths):
+        body = body.add_body(name=f"{f}_l{k}", pos=[0, 0, 0 if k == 0 else lengths[k - 1]])
+        body.add_joint(name=f"{f}_j{k}", type=HINGE, axis=[0, -1, 0], range=[-0.3, 1.5], damping=0.05, armature=0.002)
+        body.add_geom(type=mujoco.mjtGeom.mjGEOM_CAPSULE, fromto=[0, 0, 0, 0, 0, L], size=[0.008, 0, 0], density=800)
+        joints.append(f"{f}_j{k}")
+    tip = body.add_body(name=f"{f}_tip", pos=[0, 0, lengths[-1]])
+    tip.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.01, 0, 0], density=800)
+    return joints
+
+
+def sibling_roots_hand() -> mujoco.MjSpec:
+    """3 fingers whose bases are siblings of the palm under <worldbody> (no common root body)."""
+    spec = mujoco.MjSpec()
+    spec.compiler.degree = False
+    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    spec.option.impratio = 5.0
+    palm = spec.worldbody.add_body(name="palm")
+    palm.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[0.045, 0.01, 0], pos=[0, 0, -0.01], density=500)
+    for i, a in enumerate([np.pi - 0.9, np.pi + 0.9, 0.0]):
+        for j in _finger(spec.worldbody, f"f{i}", [0.034 * np.cos(a), 0.034 * np.sin(a), 0], a):
+            spec.add_actuator(name=f"a_{j}", target=j, trntype=mujoco.mjtTrn.mjTRN_JOINT,
+                              ctrlrange=[-0.3, 1.5]).set_to_position(kp=1.0)
+    return spec
+
+
+def rotation_joint_hand() -> mujoco.MjSpec:
+    """3 fingers in a row opposite a thumb, each with a rotation joint about its own axis (symmetric range)."""
+    spec = mujoco.MjSpec()
+    spec.compiler.degree = False
+    palm = spec.worldbody.add_body(name="palm")
+    palm.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.045, 0.045, 0.01], pos=[0, 0, -0.01], density=500)
+    spots = [(-0.034, -0.025, np.pi), (-0.034, 0.0, np.pi), (-0.034, 0.025, np.pi), (0.034, 0.0, 0.0)]
+    for i, (x, y, a) in enumerate(spots):
+        for j in _finger(palm, f"f{i}", [x, y, 0], a, rotation=True):
+            lo, hi = (-0.8, 0.8) if j.endswith("rot") else (-0.3, 1.5)
+            spec.add_actuator(name=f"a_{j}", target=j, trntype=mujoco.mjtTrn.mjTRN_JOINT,
+                              ctrlrange=[lo, hi]).set_to_position(kp=1.0)
+    return spec
+
+
+def coupled_hand() -> mujoco.MjSpec:
+    """Under-actuated: 3 fingers with 3 joints each, one actuator per finger on a fixed tendon over its proximal and
+    middle joints, the distal joint coupled to the middle one by a joint equality (3 actuators, 9 joints)."""
+    spec = mujoco.MjSpec()
+    spec.compiler.degree = False
+    palm = spec.worldbody.add_body(name="palm")
+    palm.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[0.06, 0.01, 0], pos=[0, 0, -0.01], density=500)
+    for i, a in enumerate([np.pi - 0.9, np.pi + 0.9, 0.0]):
+        j0, j1, j2 = _finger(palm, f"f{i}", [0.05 * np.cos(a), 0.05 * np.sin(a), 0], a)
+        t = spec.add_tendon(name=f"f{i}_tendon")
+        t.wrap_joint(j0, 1.0)
+        t.wrap_joint(j1, 1.0)
+        spec.add_equality(type=mujoco.mjtEq.mjEQ_JOINT, name1=j2, name2=j1, objtype=mujoco.mjtObj.mjOBJ_JOINT,
+                          data=[0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0])
+        spec.add_actuator(name=f"a_f{i}", target=f"f{i}_tendon", trntype=mujoco.mjtTrn.mjTRN_TENDON,
+                          ctrlrange=[-0.6, 3.0]).set_to_position(kp=1.0)
+    return spec
+
+
+SPEC_HANDS = {"sibling_roots3": (sibling_roots_hand, 3), "rotation4": (rotation_joint_hand, 4),
+              "coupled3": (coupled_hand, 3)}
+for _n in (3, 4, 5, 6):
+    SPEC_HANDS[f"generic{_n}"] = ((lambda n=_n: generic_hand(n).spec), _n)
+MENAGERIE = {"wonik_allegro/right_hand": 4, "shadow_hand/right_hand": 5, "tetheria_aero_hand_open/right_hand": 5,
+             "robotiq_2f85": 2}
+
+
+def _write(tmp_path, name: str, spec: mujoco.MjSpec) -> str:
+    path = tmp_path / f"{name}.xml"
+    path.write_text(spec.to_xml())
+    return str(path)
+
+
+def _check_hand(hand: str, n: int, n_grasps: int, min_usable: float) -> None:
+    """The same check for every hand: detected fingertips, a closing synergy, grasps with fingertip contacts."""
+    be = make_backend("mujoco", hand=hand)  # nothing else: no tips, no n_fingers, no closing targets
+    rep = report(be.hand)
+    assert rep is not None and len(rep.tips) == n == be.n_fingers, rep
+    assert rep.closing and set(rep.closing) | set(rep.held) == set(rep.neutral)  # every actuator: closes or held
+    be.set_object(_cyl())
+    rng = np.random.default_rng(0)
+    res = [be.grasp(a, rng) for a in rng.uniform(-1, 1, (n_grasps, 4))]
+    assert all(r.contacts.shape == (n, 3) and r.normals.shape == (n, 3) for r in res)
+    usable = np.mean([r.info["usable"] for r in res])
+    assert usable >= min_usable, (usable, str(rep))
+    be.close()
+
+
+@pytest.mark.parametrize("name", list(SPEC_HANDS))
+def test_spec_hands_through_the_automatic_path(name, tmp_path):
+    build, n = SPEC_HANDS[name]
+    _check_hand(_write(tmp_path, name, build()), n, n_grasps=8, min_usable=0.25)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(MENAGERIE))
+def test_menagerie_hands_through_the_automatic_path(name):
+    try:
+        auto_hand(name)
+    except HandUnavailableError as exc:
+        pytest.skip(f"Menagerie hand {name} unavailable (shared data absent: set MENAGERIE_ROOT/HAPTIC_DATA): {exc}")
+    _check_hand(name, MENAGERIE[name], n_grasps=8, min_usable=0.25)
+
+
+def test_sibling_roots_are_wrapped_and_options_kept(tmp_path):
+    path = _write(tmp_path, "claw", sibling_roots_hand())
+    desc = auto_hand(path, cache=False)
+    rep = report(desc)
+    assert desc.root == ROOT_NAME and set(rep.wrapped_roots) == {"palm", "f0_base", "f1_base", "f2_base"}
+    assert desc.option == {"cone": mujoco.mjtCone.mjCONE_ELLIPTIC, "impratio": 5.0}
+    be = make_backend("mujoco", hand=path)
+    be.set_object(_cyl())
+    m = be.scene.model
+    assert m.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC and m.opt.impratio == 5.0  # applied to the scene
+
+
+def test_synergy_holds_rotation_and_closes_coupled_fingers(tmp_path):
+    rot = report(auto_hand(_write(tmp_path, "rot", rotation_joint_hand()), cache=False))
+    assert all(a.endswith("rot") for a in rot.held) and len(rot.held) == 4, rot.held
+    assert all(rot.closing[f"a_f{i}_j{k}"] == 1.5 for i in range(4) for k in range(3))
+    assert rot.tips[-1] == "f3_tip"  # the lone finger opposite the others is the thumb
+    assert np.allclose(rot.approach_axis, [0, 0, 1], atol=0.35), rot.approach_axis
+    cp = report(auto_hand(_write(tmp_path, "cp", coupled_hand()), cache=False))
+    assert cp.closing == {f"a_f{i}": 3.0 for i in range(3)} and not cp.held
+
+
+def test_given_tips_and_cache(tmp_path):
+    path = _write(tmp_path, "g4", generic_hand(4).spec)
+    tips = ("f0_tip", "f1_tip", "f2_tip", "f3_tip")
+    d1 = make_backend("mujoco", 4, hand=path, hand_kwargs=(("tips", tips),)).hand
+    assert d1.tips == tips and report(d1).tips_given
+    d2 = auto_hand(path, tips)  # from the cache: same result
+    assert d2.close_ctrl == d1.close_ctrl and np.allclose(d2.approach_axis, d1.approach_axis)
+
+
+def _spec_without(kind: str) -> mujoco.MjSpec:
+    spec = sibling_roots_hand()
+    if kind == "actuators":
+        for a in list(spec.actuators):
+            spec.delete(a)
+    elif kind == "range":
+        spec.actuators[1].ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+    elif kind == "tips":
+        for g in spec.geoms:
+            if g.parent.name != "palm":
+                g.contype = g.conaffinity = 0
+    return spec
+
+
+@pytest.mark.parametrize("kind, match", [("actuators", "no actuators"), ("range", "no ctrlrange"),
+                                         ("tips", "no fingertips found")])
+def test_clear_errors_name_what_is_missing(kind, match, tmp_path):
+    path = _write(tmp_path, kind, _spec_without(kind))
+    with pytest.raises(ValueError, match=match):
+        make_backend("mujoco", hand=path)
+
+
+def test_bad_names_give_clear_errors(tmp_path):
+    path = _write(tmp_path, "claw", sibling_roots_hand())
+    with pytest.raises(ValueError, match="fingertip bodies"):
+        make_backend("mujoco", hand=path, hand_kwargs=(("tips", ("nope", "f1_tip")),))
+    with pytest.raises(FileNotFoundError):
+        make_backend("mujoco", hand=str(tmp_path / "missing.xml"))
+    bad = tmp_path / "broken.xml"
+    bad.write_text("<mujoco><worldbody><body></mujoco>")
+    with pytest.raises(ValueError, match="cannot parse"):
+        make_backend("mujoco", hand=str(bad))
+    with pytest.raises(ValueError, match="unknown hand"):
+        make_backend("mujoco", hand="no_such_robot_anywhere")
