@@ -14,7 +14,7 @@ import sys
 # name -> module that defines add_parser(subparsers) and sets func on its parser
 SUBCOMMANDS: dict[str, str] = {
     "dataset": "haptic_env.dataset",
-    "analysis": "haptic_env.recognizers.analysis",
+    "analysis": "haptic_env.experiments.cli",
     "evaluate": "agents.evaluate",
 }
 

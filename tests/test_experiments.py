@@ -1,4 +1,5 @@
-"""build_recognizer + the analysis CLI on a tiny configuration (default objects, generated in code)."""
+"""The paper's experiments (haptic_env/experiments): the analysis CLI on a tiny configuration (default objects, generated
+in code), the trial runner, calibration summaries; and build_recognizer, which they train through."""
 
 import numpy as np
 import pytest
@@ -6,7 +7,7 @@ import pytest
 from haptic_env.cli import main
 from haptic_env.dataset import DatasetConfig
 from haptic_env.recognizers import MLPConfig, RecognizerConfig, build_recognizer
-from haptic_env.recognizers.analysis import simulate_trials
+from haptic_env.experiments import simulate_trials
 
 
 @pytest.fixture
@@ -90,7 +91,7 @@ def test_analysis_calibration_experiment(tmp_path, cache):
 
 
 def test_calibration_lowers_ece_of_overconfident_scores():
-    from haptic_env.recognizers.analysis import calibration_summary, oneshot_posterior
+    from haptic_env.experiments import calibration_summary, oneshot_posterior
     from haptic_env.recognizers.calibration import fit_temperature
 
     rng = np.random.default_rng(0)
@@ -115,3 +116,45 @@ def test_simulate_trials_reports_decided():
     res = simulate_trials(LL, [np.exp(x) for x in LL], "bc-np", trials=40, max_grasps=5, threshold=0.85,
                           rng=np.random.default_rng(0))
     assert np.array_equal(res["decided"], res["truth"] == 0)
+
+
+def _incomplete_reference(pools, p, kind, trials, max_grasps, threshold, rng):
+    """Experiment 3's incomplete-grasp loop as first written (before the shared trial runner): the oracle of
+    the rng draws (one object per trial, then per grasp a finger count and a row, only until the decision)."""
+    from haptic_env.recognizers.updaters import make_updater
+
+    class C:
+        n_classes = len(next(iter(pools.values()))[0])
+
+    zlist = sorted(pools)
+    u = make_updater(kind, classifier=C(), likelihood=C(), threshold=threshold)
+    succ, used = [], []
+    for _t in range(trials):
+        o = int(rng.integers(C.n_classes))
+        u.reset()
+        for _g in range(max_grasps):
+            LL, PR = pools[zlist[rng.choice(len(zlist), p=p)]]
+            i = int(rng.integers(len(LL[o])))
+            u.update_scores(log_lik=LL[o][i : i + 1], proba=PR[o][i : i + 1])
+            if u.decided:
+                break
+        succ.append(u.prediction == o)
+        used.append(u.n_grasps)
+    return np.array(succ), np.array(used)
+
+
+@pytest.mark.parametrize("kind", ["ic", "bc-np", "bc-ip"])
+def test_incomplete_trials_draw_like_the_reference_loop(kind):
+    from haptic_env.experiments import incomplete_trials
+
+    g = np.random.default_rng(1)
+    K = 4
+    pools = {}
+    for z, G in ((3, 7), (4, 11)):
+        LL = [g.normal(size=(G, K)) * 1.5 for _ in range(K)]
+        pools[z] = (LL, [np.exp(x) / np.exp(x).sum(1, keepdims=True) for x in LL])
+    p = np.array([0.4, 0.6])
+    got = incomplete_trials(pools, p, kind, trials=50, max_grasps=6, threshold=0.8, rng=np.random.default_rng(3))
+    succ, used = _incomplete_reference(pools, p, kind, 50, 6, 0.8, np.random.default_rng(3))
+    assert np.array_equal(got["success"], succ) and np.array_equal(got["grasps"], used)
+    assert 1 < used.mean() < 6  # some trials stop early, some run out

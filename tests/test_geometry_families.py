@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from haptic_env.objects import FAMILIES, family_set
-from haptic_env.recognizers.analysis import EXPECTED_FAMILY, _family_trials, family_temperatures
+from haptic_env.experiments import EXPECTED_FAMILY, family_temperatures, family_trials
 
 
 def test_family_set_scale_range():
@@ -33,10 +33,10 @@ def test_family_trials_votes_and_decisions():
     LL = np.tile([[-3.0, 0.0, -3.0]], (G, 1))  # every grasp favours class 1 strongly
     PR = np.tile([[0.02, 0.96, 0.02]], (G, 1))
     for kind in ("ic", "bc-np"):
-        votes, decided, used = _family_trials(LL, PR, kind, trials=10, max_grasps=30, threshold=0.85, rng=rng)
+        votes, decided, used = family_trials(LL, PR, kind, trials=10, max_grasps=30, threshold=0.85, rng=rng)
         assert votes.tolist() == [0, 10, 0] and decided == 10 and used.max() <= 2
     flat = np.zeros((G, 3))  # no information: never decided, all 30 grasps used
-    votes, decided, used = _family_trials(flat, np.full((G, 3), 1 / 3), "bc-np", trials=5, max_grasps=30,
+    votes, decided, used = family_trials(flat, np.full((G, 3), 1 / 3), "bc-np", trials=5, max_grasps=30,
                                           threshold=0.85, rng=rng)
     assert votes.sum() == 5 and decided == 0 and (used == 30).all()
 

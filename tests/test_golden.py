@@ -48,7 +48,7 @@ def _scores(config) -> dict[str, np.ndarray]:
     calibrated, and a simulated trial run (the analyses' trial runner) over them."""
     from haptic_env.env import get_recognizer
     from haptic_env.objects import load_object_set
-    from haptic_env.recognizers.analysis import simulate_trials
+    from haptic_env.experiments import simulate_trials
 
     objects = load_object_set(config.objects)
     rec = get_recognizer(objects, config.replace(updater="bc-ip"))  # both models

@@ -1,0 +1,114 @@
+"""Experiment 7: calibration of the posteriors on fresh test grasps.
+
+Per cell (``cfg.calib_fingers`` with normals, ``cfg.calib_fingers_no_normals`` without): the one-shot
+expected calibration error (ECE), NLL and confidence of BC (softmax of the KDE log-likelihoods) and of the
+MLP, raw and temperature-scaled, with reliability diagrams (``reliability_<cell>.png``); success at the stop
+and mean grasps vs lambda for IC, BC-NP and BC-IP, raw and calibrated (``lambda_sweep_<cell>.png``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import softmax
+from tqdm.auto import tqdm
+
+from haptic_env.experiments.config import MAIN_KINDS, TEST_SEED_OFFSET, AnalysisConfig
+from haptic_env.experiments.fresh_grasps import fresh_pool, pool_scores
+from haptic_env.experiments.plots import plot_lambda_sweep, plot_reliability
+from haptic_env.experiments.report import Report, mean_std
+from haptic_env.experiments.trials import simulate_trials
+from haptic_env.recognizers.calibration import _finite_rows, expected_calibration_error
+from haptic_env.recognizers.recognizer import build_recognizer
+
+__all__ = ["run", "oneshot_posterior", "calibration_summary", "cell_name"]
+
+
+def oneshot_posterior(scores) -> np.ndarray:
+    """Row-wise softmax of class scores ``(B, K)`` (BC's one-shot posterior under a uniform prior when the
+    scores are KDE log-likelihoods). ``-inf`` allowed; a row with no finite score is uniform (the updater
+    leaves its belief unchanged)."""
+    return softmax(_finite_rows(np.asarray(scores, dtype=np.float64)), axis=1)
+
+
+def calibration_summary(proba, y, bins: int = 10) -> dict[str, float]:
+    """Accuracy, ECE (``bins`` equal-width bins), NLL of the true class and mean confidence of ``proba (B, K)``."""
+    P = np.asarray(proba, dtype=np.float64)
+    y = np.asarray(y, dtype=np.int64)
+    return {"accuracy": float(np.mean(P.argmax(1) == y)), "ece": expected_calibration_error(P, y, bins),
+            "nll": float(-np.log(np.maximum(P[np.arange(len(y)), y], 1e-300)).mean()),
+            "confidence": float(P.max(1).mean())}
+
+
+def cell_name(n: int, normals: bool) -> str:
+    """The file-name part of a cell's plots: ``n4_normals``, ``n3_no_normals``."""
+    return f"n{n}_{'normals' if normals else 'no_normals'}"
+
+
+def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> None:
+    rep.h("7. Calibration of the posteriors on fresh test grasps (raw vs temperature-scaled)")
+    cells = [(n, True) for n in cfg.calib_fingers] + [(n, False) for n in cfg.calib_fingers_no_normals]
+    ece_rows, stop_rows, sweeps = [], [], {}
+    for n, normals in tqdm(cells, desc="exp7 cells", disable=not cfg.progress):
+        rec = build_recognizer(objects, n, normals, config=cfg.recognizer_config(), progress=False)
+        T = rec.models.temperature(n)
+        pool = fresh_pool(objects, n, normals, cfg)
+        y = np.concatenate([np.full(len(p), k) for k, p in enumerate(pool)])
+        scores = {v: pool_scores(rec.models.with_calibration(v == "calibrated"), pool) for v in ("raw", "calibrated")}
+        curves = {}
+        for model, Tm in (("BC (KDE)", T["kde"]), ("MLP", T["classifier"])):
+            row = [n, "yes" if normals else "no", model, f"{Tm:.2f}"]
+            for v in ("raw", "calibrated"):
+                LL, PR = scores[v]
+                P = oneshot_posterior(np.concatenate(LL)) if model.startswith("BC") else np.concatenate(PR)
+                s = calibration_summary(P, y, cfg.ece_bins)
+                if v == "raw":
+                    row.append(f"{100 * s['accuracy']:.1f}")
+                row += [f"{s['ece']:.3f}", f"{s['nll']:.3f}", f"{100 * s['confidence']:.1f}"]
+                curves.setdefault(model, {})[v] = (P, y, Tm)
+            ece_rows.append(row)
+        title = f"n = {n}, {'with' if normals else 'without'} normals"
+        plot_reliability(curves, cfg.ece_bins, title, rep.out / f"reliability_{cell_name(n, normals)}.png")
+        sweep = {}
+        for kind in MAIN_KINDS:
+            for v in ("raw", "calibrated"):
+                LL, PR = scores[v]
+                pts = []
+                for lam in cfg.lambdas:
+                    # one trial rng per cell: every updater, lambda and raw/calibrated sees the same objects and
+                    # grasp sequences (paired comparisons, smooth curves)
+                    trng = np.random.default_rng([cfg.seed, n, int(normals)])
+                    res = simulate_trials(LL, PR, kind, trials=cfg.trials, max_grasps=cfg.max_grasps, threshold=lam,
+                                          rng=trng)
+                    dc = res["success"] & res["decided"]
+                    pts.append((100 * dc.mean(), float(res["grasps"].mean()), 100 * res["success"].mean(),
+                                float(res["grasps"].std())))
+                sweep[(kind, v)] = pts
+        sweeps[(n, normals)] = sweep
+        plot_lambda_sweep({k: [p[:2] for p in v] for k, v in sweep.items()}, cfg.lambdas, title,
+                          rep.out / f"lambda_sweep_{cell_name(n, normals)}.png")
+        li = int(np.argmin(np.abs(np.asarray(cfg.lambdas) - cfg.threshold)))
+        for kind in MAIN_KINDS:
+            r, c = sweep[(kind, "raw")][li], sweep[(kind, "calibrated")][li]
+            stop_rows.append([n, "yes" if normals else "no", kind, f"{r[2]:.1f}", f"{r[0]:.1f}", mean_std(r[1], r[3], 2),
+                              f"{c[2]:.1f}", f"{c[0]:.1f}", mean_std(c[1], c[3], 2)])
+    rep.p(f"Test grasps: {cfg.test_grasps} fresh grasps per object (seed {cfg.seed + TEST_SEED_OFFSET}), never used to "
+          f"fit T (T is fitted on the training data's validation split). One-shot posterior: BC = softmax of the KDE "
+          f"log-likelihoods (/ T), MLP = softmax(logits / T). ECE over {cfg.ece_bins} equal-width confidence bins; NLL "
+          "of the true class; conf = mean max posterior. Accuracy does not depend on T. Reliability diagrams: "
+          "`reliability_<cell>.png`.")
+    rep.table(["n", "normals", "model", "T", "accuracy %", "ECE raw", "NLL raw", "conf raw %", "ECE cal", "NLL cal",
+               "conf cal %"], ece_rows)
+    lam0 = cfg.lambdas[int(np.argmin(np.abs(np.asarray(cfg.lambdas) - cfg.threshold)))]
+    rep.p(f"Sequential recognition at lambda = {lam0}: success = correct at the stop; d&c = decided (certainty "
+          f">= lambda within {cfg.max_grasps} grasps) and correct; grasps mean ± std. {cfg.trials} trials per cell, "
+          "the same objects and grasp sequences for every updater, lambda, raw and calibrated (paired).")
+    rep.table(["n", "normals", "updater", "raw success %", "raw d&c %", "raw grasps", "cal success %", "cal d&c %",
+               "cal grasps"], stop_rows)
+    rep.p("Success at the stop (decided and correct, %) / mean grasps vs lambda; plots `lambda_sweep_<cell>.png` "
+          "(solid: calibrated, dashed: raw, dotted: success = lambda).")
+    hdr = ["n", "normals", "updater", "scores", *[f"λ={lam:g}" for lam in cfg.lambdas]]
+    rows = []
+    for (n, normals), sweep in sweeps.items():
+        for (kind, v), pts in sweep.items():
+            rows.append([n, "yes" if normals else "no", kind, v, *[f"{p[0]:.1f} / {p[1]:.2f}" for p in pts]])
+    rep.table(hdr, rows)

@@ -1,0 +1,126 @@
+"""``haptic-recog analysis``: the paper's recognition analysis on any object set (the flags of
+:class:`~haptic_env.experiments.config.AnalysisConfig`)."""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+
+from haptic_env.experiments.config import AnalysisConfig
+
+__all__ = ["add_parser"]
+
+
+def _ints(text: str) -> tuple[int, ...]:
+    """``"2-4,7"`` -> ``(2, 3, 4, 7)``."""
+    out = []
+    for part in text.split(","):
+        if "-" in part:
+            a, b = part.split("-")
+            out += list(range(int(a), int(b) + 1))
+        elif part:
+            out.append(int(part))
+    return tuple(out)
+
+
+def _lambdas(text: str) -> tuple[float, ...]:
+    from haptic_env.cli import UsageError
+
+    try:
+        out = tuple(float(x) for x in text.split(",") if x.strip())
+    except ValueError:
+        raise UsageError(f"--lambdas: expected comma-separated numbers, got {text!r}") from None
+    if not out or any(not 0 < x <= 1 for x in out):
+        raise UsageError(f"--lambdas: thresholds must be in (0, 1], got {text!r}")
+    return out
+
+
+def _equivalent_command(args) -> str:
+    """The ``haptic-recog analysis`` command line with every setting spelled out (defaults included)."""
+    parser = getattr(args, "_cli_parser", None)
+    if parser is None:
+        return ""
+    words = ["haptic-recog", "analysis"]
+    for action in parser._actions:
+        if not action.option_strings or action.dest == "help":
+            continue
+        v = getattr(args, action.dest, None)
+        flag = action.option_strings[-1]
+        if isinstance(action, argparse._StoreTrueAction):
+            words += [flag] if v else []
+        elif v is not None:
+            words += [flag, str(v)]
+    return shlex.join(words)
+
+
+def add_parser(subparsers) -> argparse.ArgumentParser:
+    """Register the ``analysis`` sub-command."""
+    import haptic_env.experiments as experiments
+
+    d = AnalysisConfig()
+    p = subparsers.add_parser("analysis", help="reproduce the paper's recognition analysis on an object set",
+                              description=experiments.__doc__.splitlines()[0])
+    p.add_argument("--objects", default=d.objects, help="default | families[:N] | kit8 | kit20 | ycb10 | folder")
+    p.add_argument("--data-dir", default=None, help="shared data folder (default: $HAPTIC_DATA or ../shared/data)")
+    p.add_argument("--units", default="m", help="units of a folder's meshes")
+    p.add_argument("--out", required=True, help="output folder for results.md and PNG plots")
+    p.add_argument("--experiments", default="1,2,3,4,5,6,7", help="comma list / ranges of 1..7 (default all)")
+    p.add_argument("--grasps-per-object", type=int, default=d.grasps_per_object, help="training grasps per object (paper: 200000)")
+    p.add_argument("--test-grasps", type=int, default=d.test_grasps, help="fresh test grasps per object")
+    p.add_argument("--trials", type=int, default=d.trials, help="trials per cell (paper: 1000)")
+    p.add_argument("--max-grasps", type=int, default=d.max_grasps)
+    p.add_argument("--threshold", type=float, default=d.threshold, help="lambda_s")
+    p.add_argument("--fingers", default="2-10", help="finger counts of experiment 2 (e.g. 2-10 or 3,4,5)")
+    p.add_argument("--oneshot-fingers", default="3,4,5", help="finger counts of experiment 1")
+    p.add_argument("--classifiers", default=",".join(d.classifiers), help="experiment 1 classifiers")
+    p.add_argument("--baseline-max-train", type=int, default=d.baseline_max_train)
+    p.add_argument("--zfinger-hands", default="5,6,8", help="experiment 3 hand sizes n")
+    p.add_argument("--no-normals", action="store_true", help="experiments 2-6 without normals")
+    p.add_argument("--raw", action="store_true",
+                   help="experiments 2-6 on the raw scores (the paper's method), without the calibration temperatures")
+    p.add_argument("--calib-fingers", default=",".join(map(str, d.calib_fingers)),
+                   help="experiment 7: finger counts with normals")
+    p.add_argument("--calib-fingers-no-normals", default=",".join(map(str, d.calib_fingers_no_normals)),
+                   help="experiment 7: finger counts without normals (empty: none)")
+    p.add_argument("--lambdas", default=",".join(f"{x:g}" for x in d.lambdas), help="experiment 7: thresholds swept")
+    p.add_argument("--mlp-depth", type=int, default=d.mlp.depth)
+    p.add_argument("--mlp-width", type=int, default=d.mlp.width)
+    p.add_argument("--mlp-epochs", type=int, default=d.mlp.max_epochs)
+    p.add_argument("--mlp-max-train", type=int, default=d.mlp.max_train)
+    p.add_argument("--kde-method", default=d.kde.method, choices=("tree", "pooled", "dense", "subsample"))
+    p.add_argument("--seed", type=int, default=d.seed)
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.set_defaults(func=_run_cli)
+    return p
+
+
+def _run_cli(args) -> int:
+    from haptic_env.cli import UsageError
+    from haptic_env.experiments.analysis import EXPERIMENTS, run_analysis
+    from haptic_env.recognizers.baselines import CLASSIFIERS
+    from haptic_env.recognizers.kde import KDEConfig
+    from haptic_env.recognizers.mlp import MLPConfig
+
+    cfg = AnalysisConfig(
+        objects=args.objects, data_dir=args.data_dir, units=args.units, experiments=_ints(args.experiments),
+        grasps_per_object=args.grasps_per_object, test_grasps=args.test_grasps, trials=args.trials,
+        max_grasps=args.max_grasps, threshold=args.threshold, fingers=_ints(args.fingers),
+        oneshot_fingers=_ints(args.oneshot_fingers),
+        classifiers=tuple(c for c in args.classifiers.split(",") if c), baseline_max_train=args.baseline_max_train,
+        zfinger_hands=_ints(args.zfinger_hands), normals=not args.no_normals, calibrated=not args.raw,
+        calib_fingers=_ints(args.calib_fingers), calib_fingers_no_normals=_ints(args.calib_fingers_no_normals),
+        lambdas=_lambdas(args.lambdas), seed=args.seed,
+        mlp=MLPConfig(depth=args.mlp_depth, width=args.mlp_width, max_epochs=args.mlp_epochs, patience=3,
+                      max_train=args.mlp_max_train, seed=args.seed),
+        kde=KDEConfig(method=args.kde_method, seed=args.seed), progress=not args.quiet,
+    )
+    for c in cfg.classifiers:
+        if c not in CLASSIFIERS:
+            raise SystemExit(f"unknown classifier {c!r}; choose from {CLASSIFIERS}")
+    bad = [e for e in cfg.experiments if e not in EXPERIMENTS]
+    if bad:
+        raise UsageError(f"--experiments: unknown experiment(s) {bad}; choose from {sorted(EXPERIMENTS)}")
+    path = run_analysis(cfg, args.out, command=_equivalent_command(args))
+    print(path.read_text())
+    print(f"wrote {path}")
+    return 0

@@ -1,0 +1,45 @@
+"""The markdown report of the analysis (``results.md``): headings, paragraphs, tables."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = ["Report", "mean_std"]
+
+
+class Report:
+    """Markdown lines written to ``out/results.md`` (rewritten after each experiment, so a long run shows
+    what it has finished). ``out`` is also where experiments put their plots."""
+
+    def __init__(self, out: Path):
+        self.out = Path(out)
+        self.lines: list[str] = []
+
+    def h(self, text: str) -> None:
+        """A ``##`` heading."""
+        self.lines += ["", f"## {text}", ""]
+
+    def p(self, text: str) -> None:
+        """A paragraph."""
+        self.lines += [text, ""]
+
+    def table(self, header, rows) -> None:
+        """A table: ``header`` cells and rows of cells (``str()`` of each)."""
+        self.lines.append("| " + " | ".join(header) + " |")
+        self.lines.append("|" + "|".join("---" for _ in header) + "|")
+        for r in rows:
+            self.lines.append("| " + " | ".join(str(c) for c in r) + " |")
+        self.lines.append("")
+
+    @property
+    def path(self) -> Path:
+        return self.out / "results.md"
+
+    def write(self) -> Path:
+        self.path.write_text("\n".join(self.lines) + "\n")
+        return self.path
+
+
+def mean_std(m: float, s: float, digits: int = 1) -> str:
+    """``"m ± s"`` with ``digits`` decimals."""
+    return f"{m:.{digits}f} ± {s:.{digits}f}"

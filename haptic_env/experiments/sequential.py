@@ -1,0 +1,49 @@
+"""Experiment 2: sequential recognition at ``lambda = cfg.threshold`` for each finger count ``cfg.fingers``:
+success and grasps of IC, IC-full, BC-NP and BC-IP, the calibration temperatures, and confusion matrices
+for n = 4 (``confusion_n4_<kind>.png``) and ``sequential_vs_fingers.png``."""
+
+from __future__ import annotations
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from haptic_env.experiments.config import KINDS, AnalysisConfig
+from haptic_env.experiments.fresh_grasps import fresh_pool, pool_scores, scored_models
+from haptic_env.experiments.plots import plot_confusion, plot_sequential_vs_fingers
+from haptic_env.experiments.report import Report, mean_std
+from haptic_env.experiments.trials import confusion, simulate_trials, summarize
+from haptic_env.recognizers.recognizer import build_recognizer
+
+__all__ = ["run"]
+
+
+def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> None:
+    rep.h(f"2. Sequential recognition at lambda = {cfg.threshold} (normals: {cfg.normals}; {cfg.scores_label})")
+    rows = []
+    curves = {}
+    K = len(objects)
+    for n in tqdm(cfg.fingers, desc="exp2 fingers", disable=not cfg.progress):
+        rec = build_recognizer(objects, n, cfg.normals, config=cfg.recognizer_config(), progress=False)
+        LL, PR = pool_scores(scored_models(rec, cfg), fresh_pool(objects, n, cfg.normals, cfg))
+        oneshot = np.mean(np.concatenate([p.argmax(1) == k for k, p in enumerate(PR)]))
+        T = rec.models.temperature(n)
+        row = [n, f"{100 * oneshot:.1f}", f"{T['kde']:.2f}", f"{T['classifier']:.2f}"]
+        for kind in KINDS:
+            res = simulate_trials(LL, PR, kind, trials=cfg.trials, max_grasps=cfg.max_grasps, threshold=cfg.threshold,
+                                  rng=rng)
+            sr, se, gm, gs = summarize(res)
+            row += [f"{sr:.1f} ± {se:.1f}", mean_std(gm, gs, 2)]
+            curves.setdefault(kind, []).append((n, sr, gm))
+            if n == 4:
+                plot_confusion(confusion(res["truth"], res["pred"], K), objects.names,
+                               f"{kind}, n=4, lambda={cfg.threshold}", rep.out / f"confusion_n4_{kind}.png")
+        rows.append(row)
+    hdr = ["n", "MLP one-shot %", "T KDE", "T MLP"]
+    for kind in KINDS:
+        hdr += [f"{kind} success %", f"{kind} grasps"]
+    rep.table(hdr, rows)
+    rep.p(f"{cfg.trials} trials per cell, at most {cfg.max_grasps} grasps; success ± binomial std; grasps mean ± std. "
+          "T: the calibration temperatures fitted on validation grasps (" +
+          ("applied" if cfg.calibrated else "not applied: `--raw`") + "). Confusion matrices for n = 4: `confusion_n4_<kind>.png`.")
+    if curves:
+        plot_sequential_vs_fingers(curves, rep.out / "sequential_vs_fingers.png")
