@@ -136,7 +136,8 @@ def test_menagerie_hands_through_the_automatic_path(name):
         auto_hand(name)
     except HandUnavailableError as exc:
         pytest.skip(f"Menagerie hand {name} unavailable (shared data absent: set MENAGERIE_ROOT/HAPTIC_DATA): {exc}")
-    _check_hand(name, MENAGERIE[name], n_grasps=8, min_usable=0.25)
+    # a smoke bar: the usable rates on ycb10 (0.3-0.8 for these files) are measured by benchmarks/hand_auto.py
+    _check_hand(name, MENAGERIE[name], n_grasps=16, min_usable=0.1)
 
 
 def test_sibling_roots_are_wrapped_and_options_kept(tmp_path):

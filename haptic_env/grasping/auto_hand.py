@@ -52,7 +52,7 @@ __all__ = ["auto_hand", "AutoHandReport", "report", "find_fingertips", "load_mjc
 log = logging.getLogger(__name__)
 
 #: Bumped whenever the probe's rules change (invalidates cached synergies).
-AUTO_VERSION = 4
+AUTO_VERSION = 5
 #: s: the coarsest physics step the grasp scene keeps from a hand's own ``<option timestep>``.
 MAX_TIMESTEP = 0.004
 ROOT_NAME = "auto_hand_root"
@@ -403,7 +403,7 @@ def _synergy(spec: mujoco.MjSpec, tips: list[str], timestep: float, order_thumb:
     # behind the palm; the object sits where the tips converge on the way)
     spread = np.array([np.linalg.norm(Q - Q.mean(0), axis=1).mean() for Q in path])
     ext = P0.mean(0) - c  # the open fingers' reach from the palm: frames that have curled back behind it don't count
-    front = np.array([(Q.mean(0) - c) @ ext for Q in path]) > 0.25 * (ext @ ext)
+    front = np.array([(Q.mean(0) - c) @ ext for Q in path]) > 0.0
     cand = np.flatnonzero(front) if front.any() else np.arange(len(path))
     half = cand[spread[cand] <= 0.5 * spread[0]]
     k_half = int(half[0]) if len(half) else int(cand[np.argmin(spread[cand])])
