@@ -1,16 +1,15 @@
-r"""Compiled (numba) scalar kernels of :math:`\Phi_n` for one grasp at a time.
+r"""Compiled (numba) scalar kernels of :math:`\Phi_n` and of the surface area, one grasp at a time.
 
-:func:`haptic_env.grasp_features.phi` vectorises over a batch with NumPy, which costs ~0.5 ms of
-array-call overhead however small the batch. An environment step scores ONE grasp, so small batches
-go through these kernels instead: the same algorithm, written as scalar loops, with the same
-floating-point operations in the same order and the same tie-breaking (first maximum), so both
-paths agree to rounding (tested on random, degenerate and symmetric grasps in
-``tests/test_grasp_features.py``).
+The production implementation: :func:`haptic_env.grasp_features.phi` and
+:func:`~haptic_env.grasp_features.surface_area` call :func:`phi_rows` / :func:`surface_area_rows` at every
+batch size. The vectorised NumPy implementation of the same algorithm (same floating-point operations in
+the same order, same tie-breaking: first maximum) is kept only as a test oracle, ``tests/phi_numpy.py``;
+both agree to rounding (tested on random, degenerate and symmetric grasps in ``tests/test_grasp_features.py``).
 
 Each kernel returns a status: ``0`` ok, ``1``/``2``/``3`` the degeneracy codes of
-:data:`haptic_env.grasp_features.DEGENERACY_REASONS`, or ``-1`` when a hull face holds four or more
-coplanar contacts: that face needs the canonical triangulation of
-``grasp_features._canonical_hull_triangles`` (Qhull), so the caller falls back to the NumPy path.
+:data:`haptic_env.grasp_features.DEGENERACY_REASONS`, or ``-1`` (:data:`AMBIGUOUS`) when a hull face holds
+four or more coplanar contacts: that face needs the canonical triangulation of
+``grasp_features._canonical_hull_triangles`` (Qhull), after which the caller runs :func:`phi_on_hull`.
 
 Compiled on first use and cached on disk (numba ``cache=True``).
 """
@@ -22,10 +21,10 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["phi_one", "phi_checked", "phi_rows", "surface_area_one", "surface_area_rows", "AMBIGUOUS", "BAD_INPUT"]
+__all__ = ["phi_one", "phi_checked", "phi_on_hull", "phi_rows", "surface_area_one", "surface_area_rows", "AMBIGUOUS", "BAD_INPUT"]
 
-AMBIGUOUS = -1  #: a hull face with >= 4 coplanar contacts: use the NumPy path
-BAD_INPUT = -2  #: non-finite contacts, or a zero / non-finite normal: the NumPy path raises the error
+AMBIGUOUS = -1  #: a hull face with >= 4 coplanar contacts: triangulate it canonically, then phi_on_hull
+BAD_INPUT = -2  #: non-finite contacts, or a zero / non-finite normal: the caller raises the error
 
 
 @njit(cache=True, inline="always")
@@ -157,13 +156,43 @@ def phi_one(P, N, has_normals, tri, tri_edges, n_edges, tol, q, order):
 
     ``q (d,)`` and ``order (n,)`` are written only when the status is 0 (ok).
     """
-    n = P.shape[0]
     T = tri.shape[0]
     area = np.empty(T)
     hull = np.empty(T, dtype=np.bool_)
     status = _hull(P, tri, tol, area, hull)
     if status != 0:
         return status
+    return _chain(P, N, has_normals, tri, tri_edges, n_edges, area, hull, q, order)
+
+
+@njit(cache=True)
+def _facet_areas(P, tri, area):
+    """``area (T,)`` of the candidate triangles ``tri`` of one grasp (the formula of :func:`_hull`)."""
+    for t in range(tri.shape[0]):
+        a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
+        u0, u1, u2 = _sub(P, b, a)
+        v0, v1, v2 = _sub(P, c, a)
+        c0, c1, c2 = _cross(u0, u1, u2, v0, v1, v2)
+        area[t] = 0.5 * _norm(c0, c1, c2)
+
+
+@njit(cache=True)
+def phi_on_hull(P, N, has_normals, tri, tri_edges, n_edges, hull, q, order, Nu):
+    """:func:`phi_checked` of one grasp whose hull facets are given, ``hull (T,)`` over ``tri``: the caller's
+    canonical triangulation of a grasp with a planar hull face of >= 4 contacts (:data:`AMBIGUOUS`)."""
+    if _bad_input(P, N, has_normals):
+        return BAD_INPUT
+    _unit_normals(P.shape[0], N, has_normals, Nu)
+    area = np.empty(tri.shape[0])
+    _facet_areas(P, tri, area)
+    return _chain(P, Nu, has_normals, tri, tri_edges, n_edges, area, hull, q, order)
+
+
+@njit(cache=True)
+def _chain(P, N, has_normals, tri, tri_edges, n_edges, area, hull, q, order):
+    """The chain of one non-degenerate grasp over its hull facets ``hull`` (areas ``area``): fills ``q``, ``order``."""
+    n = P.shape[0]
+    T = tri.shape[0]
     # --- t1 and its longest edge ab
     t1 = 0
     best = -np.inf
@@ -313,11 +342,16 @@ def phi_checked(P, N, has_normals, tri, tri_edges, n_edges, tol, q, order, Nu):
     a zero / non-finite normal, else the normals are normalised into the scratch ``Nu (n, 3)`` first."""
     if _bad_input(P, N, has_normals):
         return BAD_INPUT
+    _unit_normals(P.shape[0], N, has_normals, Nu)
+    return phi_one(P, Nu, has_normals, tri, tri_edges, n_edges, tol, q, order)
+
+
+@njit(cache=True)
+def _unit_normals(n, N, has_normals, Nu):
     if has_normals:
-        for j in range(P.shape[0]):
+        for j in range(n):
             s = math.sqrt(N[j, 0] * N[j, 0] + N[j, 1] * N[j, 1] + N[j, 2] * N[j, 2])
             Nu[j, 0], Nu[j, 1], Nu[j, 2] = N[j, 0] / s, N[j, 1] / s, N[j, 2] / s
-    return phi_one(P, Nu, has_normals, tri, tri_edges, n_edges, tol, q, order)
 
 
 @njit(cache=True)

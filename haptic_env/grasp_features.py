@@ -1,6 +1,6 @@
 r"""The grasp parameterisation :math:`\Phi_n` and scale normalisation.
 
-Pure, vectorised NumPy functions over batches of grasps. A grasp is ``n`` fingertip contact
+Pure functions over batches of grasps. A grasp is ``n`` fingertip contact
 points ``contacts`` of shape ``(B, n, 3)`` (or ``(n, 3)`` for a single grasp) and, optionally,
 unit contact normals of the same shape. :func:`phi` maps it to a vector ``q`` that is invariant to
 rigid motions of the grasp (Theorem 1 of Sintov & Ben-David) and to the order of the fingers.
@@ -39,10 +39,13 @@ Degenerate grasps
     with ``strict=True`` a :class:`DegenerateGraspError` names the first bad grasp and why.
     Non-finite input is always an error.
 
-Speed
-    Batches of up to ``_COMPILED_MAX_ROWS`` grasps (an environment step scores one) run through the
-    numba kernels of :mod:`haptic_env._phi_kernels` (~5 us per grasp instead of ~0.5 ms of NumPy
-    call overhead); larger batches are vectorised here. Both paths give the same result.
+Implementation
+    The chain of ``n >= 3`` contacts and the surface area run in the compiled (numba) kernels of
+    :mod:`haptic_env._phi_kernels`, one grasp at a time, at every batch size; this module validates
+    the input, raises the errors and triangulates planar hull faces of >= 4 contacts (Qhull,
+    :func:`_canonical_hull_triangles`) for the kernels. ``n = 2`` and planar grasps are NumPy. The
+    vectorised NumPy chain that served large batches before is a test oracle now
+    (``tests/phi_numpy.py``; ``benchmarks/bench_phi.py`` compares the two).
 
 Scale (:func:`normalize_scale`)
     Contacts are divided by ``A = sqrt(total surface area of the grasp polyhedron)``; angles are
@@ -74,11 +77,6 @@ DEFAULT_TOL = 1e-7
 #: Codes of :attr:`GraspFeatures.reason`.
 DEGENERACY_REASONS = {0: "ok", 1: "coincident contacts", 2: "collinear contacts", 3: "coplanar contacts"}
 
-_CHUNK_ELEMENTS = 1 << 18  # bound on B * T * n per chunk (cache-friendly; measured fastest)
-_MIN_CHUNK_ROWS = 1024  # but never fewer rows than this (Python overhead of the chain loop)
-#: Batches of at most this many grasps go through the compiled scalar kernels of
-#: :mod:`haptic_env._phi_kernels` (same algorithm; the NumPy path's fixed cost is ~0.5 ms per call).
-_COMPILED_MAX_ROWS = 64
 
 
 class DegenerateGraspError(ValueError):
@@ -173,23 +171,6 @@ def _angle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.arctan2(cr, _dot(u, v))
 
 
-def _signed_dihedral(x, y, w, u) -> np.ndarray:
-    """Signed angle about axis ``y - x`` from half-plane ``(x, y, w)`` to half-plane ``(x, y, u)``."""
-    e = _unit(y - x)
-    u1 = w - x
-    u2 = u - x
-    u1 = u1 - _dot(u1, e)[..., None] * e
-    u2 = u2 - _dot(u2, e)[..., None] * e
-    ang = np.arctan2(_dot(e, _cross(u1, u2)), _dot(u1, u2))
-    # a flat (coplanar) pair of facets is +-pi up to rounding: report it as +pi
-    return np.where(np.abs(ang) > np.pi - 1e-9, np.pi, ang)
-
-
-def _take(P: np.ndarray, idx: np.ndarray) -> np.ndarray:
-    """``P[b, idx[b]]`` for ``P`` of shape (B, n, k) and ``idx`` (B,) -> (B, k)."""
-    return P[np.arange(P.shape[0]), idx]
-
-
 @lru_cache(maxsize=None)
 def _topology(n: int):
     """Static index tables: triangles (T,3), their edges (T,3) and a (n,n,n) triangle lookup."""
@@ -203,55 +184,6 @@ def _topology(n: int):
         for p in ((i, j, k), (i, k, j), (j, i, k), (j, k, i), (k, i, j), (k, j, i)):
             lut[p] = t
     return tri, tri_edges, lut, len(edges)
-
-
-def _hull_facets(P: np.ndarray, tol: float):
-    """Candidate triangles of each grasp, which of them are hull facets, and degeneracy codes.
-
-    Returns ``area (B,T)``, ``hull (B,T)`` bool, ``reason (B,)`` int8 and ``scale (B,)``.
-    Where near-coplanar points make the facet test ambiguous the hull comes from Qhull
-    (triangulated), so every grasp gets a proper triangulated surface.
-    """
-    B, n, _ = P.shape
-    tri, _, lut, _ = _topology(n)
-    iu = np.triu_indices(n, 1)
-    dist = _norm(P[:, iu[0]] - P[:, iu[1]])  # (B, n(n-1)/2)
-    scale = dist.max(axis=1)
-    reason = np.zeros(B, dtype=np.int8)
-    reason[dist.min(axis=1) <= tol * np.maximum(scale, 1e-300)] = 1
-    reason[scale <= 1e-300] = 1
-    a, b, c = P[:, tri[:, 0]], P[:, tri[:, 1]], P[:, tri[:, 2]]
-    cr = _cross(b - a, c - a)
-    area = 0.5 * _norm(cr)
-    s2 = np.maximum(scale, 1e-300) ** 2
-    flat = area.max(axis=1) <= 0.5 * tol * s2
-    reason[(reason == 0) & flat] = 2
-    if n == 3:
-        return area, np.ones_like(area, dtype=bool), reason, scale
-    # signed volumes of every other contact against every triangle's plane: (B, T, n)
-    s = np.matmul(cr, P.transpose(0, 2, 1)) - _dot(cr, a)[..., None]
-    own = np.zeros((len(tri), n), dtype=bool)
-    own[np.arange(len(tri))[:, None], tri] = True
-    s = s[:, ~own].reshape(B, len(tri), n - 3)  # each triangle against the other contacts only
-    thr = tol * np.maximum(scale, 1e-300)[:, None, None] ** 3
-    pos = (s > thr).any(-1)
-    neg = (s < -thr).any(-1)
-    onplane = (np.abs(s) <= thr).any(-1)  # another contact on the triangle's plane
-    planar = ~(pos | neg).any(-1)
-    reason[(reason == 0) & planar] = 3
-    proper = area > 0.5 * tol * s2[:, None]
-    hull = proper & ~(pos & neg)
-    # ambiguous: a hull candidate with another contact on its plane (a planar face of >= 4
-    # contacts has several triangulations): triangulate those faces canonically instead
-    ambiguous = (hull & onplane).any(-1) & (reason == 0)
-    for i in np.flatnonzero(ambiguous):
-        tris = _canonical_hull_triangles(P[i], tol)
-        if tris is None:  # pragma: no cover - qhull failure on an input already near-flat
-            reason[i] = 3
-            continue
-        hull[i] = False
-        hull[i, lut[tris[:, 0], tris[:, 1], tris[:, 2]]] = True
-    return area, hull, reason, scale
 
 
 def _canonical_hull_triangles(pts: np.ndarray, tol: float) -> np.ndarray | None:
@@ -312,23 +244,12 @@ def phi(contacts, normals=None, *, strict: bool = False, tol: float = DEFAULT_TO
         :class:`GraspFeatures` with ``q`` of shape ``(B, feature_dim(n, normals))`` (``(d,)`` etc.
         for a single grasp).
     """
-    fast = _phi_compiled(contacts, normals, tol)
-    if fast is not None:
-        (q, valid, order, reason), single, P = fast
-    else:
+    P, N, single = _batched(contacts, normals)
+    if _compiled_shapes(P, N):
+        q, valid, order, reason = _phi_rows(P, N, tol)
+    else:  # n = 2, or bad shapes (_as_batch raises)
         P, N, single = _as_batch(contacts, normals, 3)
-        B, n, _ = P.shape
-        d = feature_dim(n, N is not None)
-        q = np.zeros((B, d))
-        valid = np.zeros(B, dtype=bool)
-        order = np.tile(np.arange(n), (B, 1))
-        reason = np.zeros(B, dtype=np.int8)
-        T = max(1, len(_topology(n)[0])) if n >= 3 else 1
-        step = max(_MIN_CHUNK_ROWS, _CHUNK_ELEMENTS // (T * n))
-        for lo in range(0, B, step):
-            sl = slice(lo, min(B, lo + step))
-            fn = _phi2 if n == 2 else _phi_chain
-            q[sl], valid[sl], order[sl], reason[sl] = fn(P[sl], None if N is None else N[sl], tol)
+        q, valid, order, reason = _phi2(P, N, tol)
     if strict and not valid.all():
         i = int(np.flatnonzero(~valid)[0])
         raise DegenerateGraspError(
@@ -363,105 +284,10 @@ def _phi2(P, N, tol):
     return q, valid, order, reason
 
 
-def _phi_chain(P, N, tol):
-    B, n, _ = P.shape
-    tri, tri_edges, _, n_edges = _topology(n)
-    area, hull, reason, _ = _hull_facets(P, tol)
-    valid = reason == 0
-    rows = np.arange(B)
-    # --- t1 and its longest edge ab
-    t1 = np.argmax(np.where(hull, area, -1.0), axis=1)
-    v = tri[t1]  # (B, 3) contact indices
-    pts = P[rows[:, None], v]  # (B, 3, 3)
-    # edge lengths opposite each position: edge (1,2), (0,2), (0,1)
-    L = _norm(pts[:, [1, 0, 0]] - pts[:, [2, 2, 1]])
-    opp = np.argmax(L, axis=1)  # position of c (opposite the longest edge)
-    cpos = opp
-    apos = (opp + 1) % 3
-    bpos = (opp + 2) % 3
-    ia, ib, ic = v[rows, apos], v[rows, bpos], v[rows, cpos]
-    A, Bp, C = _take(P, ia), _take(P, ib), _take(P, ic)
-    ang_a = _angle(Bp - A, C - A)
-    ang_b = _angle(A - Bp, C - Bp)
-    swap = ang_b > ang_a
-    ia, ib = np.where(swap, ib, ia), np.where(swap, ia, ib)
-    A, Bp = np.where(swap[:, None], Bp, A), np.where(swap[:, None], A, Bp)
-    ang_a, ang_b = np.maximum(ang_a, ang_b), np.minimum(ang_a, ang_b)
-    shape_vals = [_norm(Bp - A), ang_a, ang_b]
-
-    order = np.empty((B, n), dtype=np.int64)
-    order[:, 0], order[:, 1], order[:, 2] = ia, ib, ic
-    rank = np.full((B, n), n, dtype=np.int64)
-    rank[rows, ia], rank[rows, ib], rank[rows, ic] = 0, 1, 2
-    visited = np.zeros((B, n), dtype=bool)
-    visited[rows, ia] = visited[rows, ib] = visited[rows, ic] = True
-    owner = np.full((B, n_edges), -1, dtype=np.int64)  # first visited facet on each edge
-    owner[rows[:, None], tri_edges[t1]] = t1[:, None]
-
-    if n >= 4:
-        # virtual attachment of every contact to ab of t1, for contacts inside the hull
-        att_a = _angle(Bp[:, None] - A[:, None], P - A[:, None])
-        att_b = _angle(A[:, None] - Bp[:, None], P - Bp[:, None])
-        att_d = _signed_dihedral(A[:, None], Bp[:, None], C[:, None], P)
-        for k in range(3, n):
-            unv = ~visited[:, tri]  # (B, T, 3)
-            n_unv = unv.sum(-1)
-            upos = np.argmax(unv, axis=-1)  # position of the (first) unvisited vertex
-            shared = tri_edges[np.arange(len(tri))[None], upos]  # (B, T) edge opposite it
-            g_all = np.take_along_axis(owner, shared, axis=1)  # (B, T)
-            cand = hull & (n_unv == 1) & (g_all >= 0)
-            has = cand.any(axis=1)
-            f = np.argmax(np.where(cand, area, -1.0), axis=1)
-            fv = tri[f]  # (B, 3)
-            fu = upos[rows, f]
-            u_new = fv[rows, fu]
-            others = np.stack([fv[rows, (fu + 1) % 3], fv[rows, (fu + 2) % 3]], axis=1)
-            early = rank[rows[:, None], others].argmin(axis=1)
-            x = others[rows, early]
-            y = others[rows, 1 - early]
-            g = g_all[rows, f]
-            gv = tri[np.maximum(g, 0)]
-            w = gv[rows, np.argmax((gv != x[:, None]) & (gv != y[:, None]), axis=1)]
-            X, Y, U, W = _take(P, x), _take(P, y), _take(P, u_new), _take(P, w)
-            vals = np.stack([_angle(Y - X, U - X), _angle(X - Y, U - Y), _signed_dihedral(X, Y, W, U)], 1)
-            # contacts no hull facet reaches: attach to ab, largest angle at a first
-            u_att = np.argmax(np.where(visited, -np.inf, att_a), axis=1)
-            vals_att = np.stack([att_a[rows, u_att], att_b[rows, u_att], att_d[rows, u_att]], 1)
-            u_new = np.where(has, u_new, u_att)
-            vals = np.where(has[:, None], vals, vals_att)
-            shape_vals.extend(vals.T)
-            order[:, k] = u_new
-            rank[rows, u_new] = k
-            visited[rows, u_new] = True
-            fe = tri_edges[f]
-            cur = owner[rows[:, None], fe]
-            owner[rows[:, None], fe] = np.where((cur < 0) & has[:, None], f[:, None], cur)
-    parts = [np.stack(shape_vals, axis=1)]
-    if N is not None:
-        N1 = _unit(_cross(Bp - A, C - A))
-        if n == 3:
-            N2 = _unit(Bp - A)
-        else:
-            N2 = _unit(_cross(Bp - A, _take(P, order[:, 3]) - A))
-        No = N[rows[:, None], order]  # (B, n, 3) in chain order
-        ang1 = _angle(No, N1[:, None])
-        ang2 = _angle(No, N2[:, None])
-        parts.append(np.stack([ang1, ang2], axis=-1).reshape(B, 2 * n))
-    q = np.concatenate(parts, axis=1)
-    q = np.where(valid[:, None], q, 0.0)
-    order = np.where(valid[:, None], order, np.arange(n)[None])
-    return q, valid, order, reason
-
-
-def _small_batch(contacts, normals) -> tuple[np.ndarray, np.ndarray | None, bool] | None:
-    """``(P (B, n, 3), N, single)`` as contiguous float64 when the compiled path applies (``n >= 3``, ``B``
-    at most :data:`_COMPILED_MAX_ROWS`, matching shapes), else None (the NumPy path validates and raises)."""
-    P, N, single = _batched(contacts, normals)
-    if P.ndim != 3 or P.shape[2] != 3 or P.shape[1] < 3 or P.shape[0] > _COMPILED_MAX_ROWS:
-        return None
-    if N is not None and N.shape != P.shape:
-        return None
-    return P, N, single
+def _compiled_shapes(P: np.ndarray, N: np.ndarray | None) -> bool:
+    """Whether the compiled kernels take this batch: ``(B, n, 3)`` contacts with ``n >= 3`` and normals of the
+    same shape (else :func:`_as_batch` raises, or ``n = 2`` goes to :func:`_phi2`)."""
+    return P.ndim == 3 and P.shape[2] == 3 and P.shape[1] >= 3 and (N is None or N.shape == P.shape)
 
 
 @lru_cache(maxsize=None)
@@ -472,12 +298,27 @@ def _kernels():
     return _phi_kernels
 
 
-def _phi_compiled(contacts, normals, tol):
-    """:func:`phi` of a small batch through :func:`haptic_env._phi_kernels.phi_rows`, or None (use NumPy)."""
-    small = _small_batch(contacts, normals)
-    if small is None:
+def _raise_bad_input(P: np.ndarray, N: np.ndarray | None) -> None:
+    """The precise error of a batch the kernels rejected (non-finite contacts, a zero or non-finite normal)."""
+    _as_batch(P, N, 3)
+    raise ValueError("contacts or normals are not finite")  # pragma: no cover - _as_batch names the grasp
+
+
+def _canonical_hull(P: np.ndarray, tol: float) -> np.ndarray | None:
+    """``hull (T,)`` over :func:`_topology` ``(n)``'s triangles of one grasp with a planar hull face of >= 4
+    contacts (:data:`haptic_env._phi_kernels.AMBIGUOUS`), from :func:`_canonical_hull_triangles`; None if
+    Qhull fails (a grasp already near-flat: coplanar)."""
+    tri, _, lut, _ = _topology(P.shape[0])
+    tris = _canonical_hull_triangles(P, tol)
+    if tris is None:  # pragma: no cover - qhull failure on an input already near-flat
         return None
-    P, N, single = small
+    hull = np.zeros(len(tri), dtype=bool)
+    hull[lut[tris[:, 0], tris[:, 1], tris[:, 2]]] = True
+    return hull
+
+
+def _phi_rows(P: np.ndarray, N: np.ndarray | None, tol: float):
+    """``(q, valid, order, reason)`` of a batch ``P (B, n, 3)``, ``n >= 3``, through the compiled kernels."""
     B, n, _ = P.shape
     tri, tri_edges, _, n_edges = _topology(n)
     q = np.zeros((B, feature_dim(n, N is not None)))
@@ -485,14 +326,21 @@ def _phi_compiled(contacts, normals, tol):
     reason = np.empty(B, dtype=np.int8)
     valid = np.empty(B, dtype=bool)
     k = _kernels()
-    n_ambiguous = k.phi_rows(P, P if N is None else N, N is not None, tri, tri_edges, n_edges, tol, q, order, reason, valid)
+    has_normals = N is not None
+    N = P if N is None else N
+    n_ambiguous = k.phi_rows(P, N, has_normals, tri, tri_edges, n_edges, tol, q, order, reason, valid)
     if n_ambiguous == k.BAD_INPUT:
-        return None  # the NumPy path raises the precise error
-    if n_ambiguous:
-        back = np.flatnonzero(reason == k.AMBIGUOUS)
-        Nb = None if N is None else N[back] / _norm(N[back])[..., None]
-        q[back], valid[back], order[back], reason[back] = _phi_chain(P[back], Nb, tol)
-    return (q, valid, order, reason), single, P
+        _raise_bad_input(P, N if has_normals else None)
+    if n_ambiguous:  # planar hull faces of >= 4 contacts: the chain over their canonical triangulation
+        Nu = np.empty((n, 3))
+        for i in np.flatnonzero(reason == k.AMBIGUOUS):
+            hull = _canonical_hull(P[i], tol)
+            if hull is None:  # pragma: no cover
+                reason[i] = 3
+                continue
+            k.phi_on_hull(P[i], N[i], has_normals, tri, tri_edges, n_edges, hull, q[i], order[i], Nu)
+            reason[i], valid[i] = 0, True
+    return q, valid, order, reason
 
 
 # ----------------------------------------------------------------------------------- planar phi
@@ -567,35 +415,27 @@ def surface_area(contacts, *, tol: float = DEFAULT_TOL) -> np.ndarray:
     ``n = 2``: the squared distance (so that scaling divides it to 1); ``n = 3``: the triangle's
     area; ``n >= 4``: the area of the convex hull. Degenerate grasps get 0.
     """
-    small = _small_batch(contacts, None)
-    if small is not None:  # compiled kernel (NumPy for rows with planar hull faces, and to raise on bad input)
-        P, _, single = small
-        out, status = np.empty(len(P)), np.empty(len(P), dtype=np.int64)
-        k = _kernels()
-        if not k.surface_area_rows(P, _topology(P.shape[1])[0], tol, out, status):
-            back = np.flatnonzero(status == k.AMBIGUOUS)
-            if back.size:
-                out[back] = _surface_area_numpy(P[back], tol)
-                status[back] = 0
-            out = np.where(status == 0 if P.shape[1] > 3 else status < 2, out, 0.0)
-            return out[0] if single else out
-    P, _, single = _as_batch(contacts, None, 3)
-    out = _surface_area_numpy(P, tol)
-    return out[0] if single else out
-
-
-def _surface_area_numpy(P: np.ndarray, tol: float) -> np.ndarray:
+    P, _, single = _batched(contacts, None)
+    if not _compiled_shapes(P, None):  # n = 2, or bad shapes (_as_batch raises)
+        P, _, single = _as_batch(contacts, None, 3)
+        out = np.sum((P[:, 1] - P[:, 0]) ** 2, -1)
+        return out[0] if single else out
     B, n, _ = P.shape
-    if n == 2:
-        return np.sum((P[:, 1] - P[:, 0]) ** 2, -1)
-    out = np.zeros(B)
-    T = len(_topology(n)[0])
-    step = max(_MIN_CHUNK_ROWS, _CHUNK_ELEMENTS // (T * n))
-    for lo in range(0, B, step):
-        area, hull, reason, _ = _hull_facets(P[lo : lo + step], tol)
-        ok = reason == 0 if n > 3 else reason < 2
-        out[lo : lo + step] = np.where(ok, np.where(hull, area, 0.0).sum(1), 0.0)
-    return out
+    tri = _topology(n)[0]
+    out, status = np.empty(B), np.empty(B, dtype=np.int64)
+    k = _kernels()
+    if k.surface_area_rows(P, tri, tol, out, status):
+        _raise_bad_input(P, None)
+    for i in np.flatnonzero(status == k.AMBIGUOUS):  # planar hull faces: their canonical triangulation
+        hull = _canonical_hull(P[i], tol)
+        if hull is None:  # pragma: no cover
+            status[i] = 3
+            continue
+        a, b, c = P[i, tri[:, 0]], P[i, tri[:, 1]], P[i, tri[:, 2]]
+        out[i] = np.where(hull, 0.5 * _norm(_cross(b - a, c - a)), 0.0).sum()
+        status[i] = 0
+    out = np.where(status == 0 if n > 3 else status < 2, out, 0.0)
+    return out[0] if single else out
 
 
 def normalize_scale(contacts, *, tol: float = DEFAULT_TOL) -> tuple[np.ndarray, np.ndarray]:

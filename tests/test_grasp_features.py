@@ -249,39 +249,33 @@ def test_box_surface_grasps_are_order_and_frame_invariant(n):
     np.testing.assert_allclose(f.q, g.q, atol=1e-7)
 
 
-# --------------------------------------------------------------------- compiled small-batch path
-def _numpy_phi(monkeypatch, *args, **kw):
-    """``phi`` forced through the vectorised NumPy path (the compiled one serves batches <= 64)."""
-    import haptic_env.grasp_features as gf
-
-    with monkeypatch.context() as m:
-        m.setattr(gf, "_COMPILED_MAX_ROWS", 0)
-        return phi(*args, **kw), surface_area(args[0])
-
-
+# ------------------------------------------------------------- compiled path vs the NumPy oracle
 @SETTINGS
-@given(seed=st.integers(0, 2**32 - 1), n=st.integers(3, 9), normals=st.booleans())
-def test_compiled_small_batches_match_numpy_path(seed, n, normals):
-    """Small batches (an env step) use the numba kernels: same q, order, validity and area as NumPy."""
-    P, N = random_grasp(seed, n, batch=12, normals=normals)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(3, 9), normals=st.booleans(), batch=st.sampled_from([12, 200]))
+def test_compiled_path_matches_the_numpy_oracle(seed, n, normals, batch):
+    """phi and surface_area (the numba kernels at every batch size) give the q, order, validity and area of the
+    vectorised NumPy implementation (tests/phi_numpy.py), on random, degenerate and planar-faced grasps."""
+    from tests.phi_numpy import phi_numpy, surface_area_numpy
+
+    P, N = random_grasp(seed, n, batch=batch, normals=normals)
     P[0, :, 2] = 0.0  # coplanar (n >= 4) or a flat-lying triangle (n = 3: still valid)
     P[1, 1] = P[1, 0]  # coincident
     P[2] = np.linspace(0, 1, n)[:, None] * [1.0, 2.0, 3.0]  # collinear
-    if n >= 4:  # a square of 4 contacts (n = 4: coplanar; n >= 5: a planar hull face, the Qhull fallback)
+    if n >= 4:  # a square of 4 contacts (n = 4: coplanar; n >= 5: a planar hull face, the Qhull triangulation)
         P[3, :4] = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
         P[3, 4:, 2] = np.abs(P[3, 4:, 2]) + 0.5
-    with pytest.MonkeyPatch.context() as mp:
-        ref, ref_area = _numpy_phi(mp, P, N)
+    q, valid, order, reason = phi_numpy(P, N)
     f = phi(P, N)
-    np.testing.assert_array_equal(f.valid, ref.valid)
-    np.testing.assert_array_equal(f.reason, ref.reason)
-    np.testing.assert_array_equal(f.order, ref.order)
-    np.testing.assert_allclose(f.q, ref.q, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(surface_area(P), ref_area, rtol=1e-12, atol=1e-15)
-    for i in (0, 4):  # single grasps take the same path
+    np.testing.assert_array_equal(f.valid, valid)
+    np.testing.assert_array_equal(f.reason, reason)
+    np.testing.assert_array_equal(f.order, order)
+    np.testing.assert_allclose(f.q, q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(surface_area(P), surface_area_numpy(P), rtol=1e-12, atol=1e-15)
+    for i in (0, 3, 4):  # single grasps take the same path
         g = phi(P[i], None if N is None else N[i])
-        np.testing.assert_allclose(g.q, ref.q[i], rtol=0, atol=1e-12)
-        assert g.valid == ref.valid[i]
+        np.testing.assert_allclose(g.q, q[i], rtol=0, atol=1e-12)
+        assert g.valid == valid[i]
+        np.testing.assert_allclose(surface_area(P[i]), surface_area_numpy(P[i]), rtol=1e-12, atol=1e-15)
 
 
 def test_compiled_path_raises_the_same_errors():
