@@ -13,8 +13,14 @@ prediction at the stop is the true object (``correct``). The summary reports, pe
 * ``fewer_than_random``: relative reduction of mean grasps vs the ``random`` agent, with a bootstrap CI;
 * the success-vs-grasps curve: fraction of episodes decided **and** correct within ``g`` grasps.
 
-Outputs in ``--out``: ``results.md`` (markdown table), ``results.json``, ``episodes.csv``,
-``success_vs_grasps.png``, ``grasps_boxplot.png`` and, with ``--learning-curves``, ``learning_curves.png``.
+These CIs are percentile bootstraps by :func:`scipy.stats.bootstrap`. The RL aggregates come from ``rliable``
+(:func:`rl_aggregates`): the IQM of the grasps at the stop and the success at the stop with stratified bootstrap
+CIs (episodes resampled within each env seed), the probability of improvement of each agent over random, and
+the performance profile (fraction decided and correct within ``tau`` grasps, with its CI band).
+
+Outputs in ``--out``: ``results.md`` (markdown tables), ``results.json``, ``episodes.csv``,
+``success_vs_grasps.png``, ``grasps_boxplot.png``, ``performance_profile.png`` and, with ``--learning-curves``,
+``learning_curves.png``.
 
 Command line (a sub-command of ``python -m haptic_env.cli``)::
 
@@ -27,6 +33,7 @@ from __future__ import annotations
 import csv
 import json
 import time
+import warnings
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
@@ -40,6 +47,8 @@ __all__ = [
     "summarize",
     "success_curve",
     "bootstrap_ci",
+    "score_matrix",
+    "rl_aggregates",
     "write_report",
     "plot_learning_curves",
     "read_monitor",
@@ -107,28 +116,39 @@ def evaluate_agents(agents: Sequence[Any], make_env: Callable[[], Any], n_episod
 # ------------------------------------------------------------------------------------ stats
 def bootstrap_ci(x: np.ndarray, stat: Callable[[np.ndarray], float] = np.mean, n_boot: int = 2000,
                  alpha: float = 0.05, seed: int = 0) -> tuple[float, float]:
-    """Percentile bootstrap ``(lo, hi)`` of ``stat`` over the entries of ``x``."""
+    """Percentile bootstrap ``(lo, hi)`` of ``stat`` over the entries of ``x`` (:func:`scipy.stats.bootstrap`;
+    ``stat`` is called with ``axis=`` when it is ``np.mean`` or ``np.median``)."""
+    from scipy.stats import bootstrap
+
     x = np.asarray(x, dtype=np.float64)
     if x.size == 0:
         return (float("nan"), float("nan"))
-    rng = np.random.default_rng(seed)
-    idx = rng.integers(0, x.size, size=(n_boot, x.size))
-    if stat is np.mean:
-        vals = x[idx].mean(axis=1)
-    elif stat is np.median:
-        vals = np.median(x[idx], axis=1)
-    else:
-        vals = np.array([stat(x[i]) for i in idx])
-    return float(np.quantile(vals, alpha / 2)), float(np.quantile(vals, 1 - alpha / 2))
+    if x.size == 1 or np.all(x == x[0]):  # no spread: every resample gives the same value
+        v = float(stat(x))
+        return (v, v)
+    vectorized = stat is np.mean or stat is np.median
+    res = bootstrap((x,), stat, n_resamples=n_boot, confidence_level=1 - alpha, method="percentile",
+                    vectorized=vectorized, rng=np.random.default_rng(seed))
+    ci = res.confidence_interval
+    return float(ci.low), float(ci.high)
 
 
 def _ratio_ci(a: np.ndarray, b: np.ndarray, n_boot: int = 2000, seed: int = 1) -> tuple[float, float, float]:
-    """``1 - mean(a) / mean(b)`` and its percentile bootstrap CI (a and b resampled independently)."""
-    rng = np.random.default_rng(seed)
-    ia = rng.integers(0, a.size, size=(n_boot, a.size))
-    ib = rng.integers(0, b.size, size=(n_boot, b.size))
-    vals = 1.0 - a[ia].mean(axis=1) / b[ib].mean(axis=1)
-    return float(1.0 - a.mean() / b.mean()), float(np.quantile(vals, 0.025)), float(np.quantile(vals, 0.975))
+    """``1 - mean(a) / mean(b)`` and its percentile bootstrap CI (:func:`scipy.stats.bootstrap`, a and b resampled
+    independently)."""
+    from scipy.stats import bootstrap
+
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    value = float(1.0 - a.mean() / b.mean())
+    if (a.size < 2 or np.all(a == a[0])) and (b.size < 2 or np.all(b == b[0])):
+        return value, value, value
+
+    def fewer(x, y, axis=-1):
+        return 1.0 - x.mean(axis=axis) / y.mean(axis=axis)
+
+    res = bootstrap((a, b), fewer, n_resamples=n_boot, method="percentile", vectorized=True, paired=False,
+                    rng=np.random.default_rng(seed))
+    return value, float(res.confidence_interval.low), float(res.confidence_interval.high)
 
 
 def success_curve(records: Sequence[EpisodeRecord], max_grasps: int) -> np.ndarray:
@@ -166,6 +186,90 @@ def summarize(records: Sequence[EpisodeRecord], baseline: str = "random") -> lis
     return rows
 
 
+# ----------------------------------------------------------------------------- RL aggregates
+def score_matrix(records: Sequence[EpisodeRecord], agent: str, value: Callable[[EpisodeRecord], float]) -> np.ndarray:
+    """``(episodes per seed, seeds)`` matrix of ``value(record)`` of one agent, in rliable's ``(runs, tasks)``
+    layout: the env seeds are the strata (every agent sees the same objects and poses per seed), the episodes
+    of a seed its runs. Seeds with more episodes than the others are cut to the smallest count."""
+    by_seed: dict[int, list[EpisodeRecord]] = {}
+    for r in records:
+        if r.agent == agent:
+            by_seed.setdefault(r.seed, []).append(r)
+    if not by_seed:
+        raise ValueError(f"no episodes of agent {agent!r}")
+    cols = [sorted(by_seed[s], key=lambda r: r.episode) for s in sorted(by_seed)]
+    E = min(len(c) for c in cols)
+    return np.array([[value(c[e]) for c in cols] for e in range(E)], dtype=np.float64)
+
+
+def _grasps_to_success(r: EpisodeRecord) -> float:
+    return float(r.grasps) if (r.decided and r.correct) else np.inf
+
+
+def rl_aggregates(records: Sequence[EpisodeRecord], max_grasps: int, baseline: str = "random", reps: int = 2000,
+                  seed: int = 0) -> dict[str, Any]:
+    """rliable aggregates of each agent (Agarwal et al. 2021), with 95% stratified bootstrap CIs (``reps``
+    resamples of the episodes within each env seed; :func:`score_matrix`):
+
+    * ``grasps_iqm``: interquartile mean of the grasps at the stop (robust to the episodes censored at
+      ``max_grasps``);
+    * ``success_iqm_seeds``: IQM over the env seeds of the success rate at the stop (the IQM of a 0/1 outcome
+      per episode would be 0 or 1 whenever success is below 25 % or above 75 %), and ``success``, the mean
+      over episodes;
+    * ``p_fewer_grasps``: probability of improvement over ``baseline``: P(an episode of the agent stops after
+      fewer grasps than an episode of the baseline on the same seed), ties counted half; ``p_success``: the same
+      for correct at the stop;
+    * ``profile``: the performance profile, the fraction of episodes decided and correct within ``tau`` grasps
+      for ``tau = 1..max_grasps``, with its CI band.
+    """
+    from rliable import library as rly
+    from rliable import metrics
+
+    names = list(dict.fromkeys(r.agent for r in records))
+    grasps = {n: score_matrix(records, n, lambda r: r.grasps) for n in names}
+    correct = {n: score_matrix(records, n, lambda r: float(r.correct)) for n in names}
+    to_success = {n: score_matrix(records, n, _grasps_to_success) for n in names}
+    tau = np.arange(1, max_grasps + 1)
+    def est(scores, fn, k):
+        with warnings.catch_warnings():  # rliable hands arch a RandomState through arch's deprecated keyword
+            warnings.filterwarnings("ignore", category=FutureWarning, module=r"arch\.")
+            return rly.get_interval_estimates(scores, fn, reps=reps, random_state=np.random.RandomState(seed + k))
+
+    g_iqm, g_ci = est(grasps, lambda x: np.array([metrics.aggregate_iqm(x)]), 0)
+    s_mean, s_ci = est(correct, lambda x: np.array([metrics.aggregate_mean(x)]), 1)
+    # per-seed success rates: one run per seed, one task
+    seed_rates = {n: correct[n].mean(axis=0, keepdims=True).T for n in names}
+    s_iqm, s_iqm_ci = est(seed_rates, lambda x: np.array([metrics.aggregate_iqm(x)]), 2)
+    prof, prof_ci = est(to_success, lambda x: np.array([np.mean(x <= t) for t in tau]), 3)
+    out: dict[str, Any] = {"reps": reps, "tau": tau.tolist(), "agents": {}}
+    for n in names:
+        row = {"grasps_iqm": float(g_iqm[n][0]), "grasps_iqm_ci": tuple(map(float, g_ci[n][:, 0])),
+               "success": float(s_mean[n][0]), "success_ci": tuple(map(float, s_ci[n][:, 0])),
+               "success_iqm_seeds": float(s_iqm[n][0]), "success_iqm_seeds_ci": tuple(map(float, s_iqm_ci[n][:, 0])),
+               "profile": prof[n].tolist(), "profile_ci": prof_ci[n].tolist()}
+        if n != baseline and baseline in grasps:
+            pairs = {"grasps": {n: [-grasps[n], -grasps[baseline]]}, "success": {n: [correct[n], correct[baseline]]}}
+            for key, k in (("grasps", 4), ("success", 5)):
+                p, ci = est(pairs[key], metrics.probability_of_improvement, k)
+                row[f"p_{'fewer_grasps' if key == 'grasps' else 'success'}"] = float(np.ravel(p[n])[0])
+                row[f"p_{'fewer_grasps' if key == 'grasps' else 'success'}_ci"] = tuple(map(float, np.ravel(ci[n])))
+        out["agents"][n] = row
+    return out
+
+
+def rl_markdown_table(agg: dict[str, Any], baseline: str = "random") -> str:
+    head = (f"| agent | IQM grasps at the stop [95% CI] | success at the stop [95% CI] | IQM over seeds of success "
+            f"[95% CI] | P(fewer grasps than {baseline}) [95% CI] | P(success improves on {baseline}) [95% CI] |")
+    lines = [head, "|" + "---|" * 6]
+    for n, r in agg["agents"].items():
+        pg = _fmt_ci(r["p_fewer_grasps"], r["p_fewer_grasps_ci"]) if "p_fewer_grasps" in r else "—"
+        ps = _fmt_ci(r["p_success"], r["p_success_ci"]) if "p_success" in r else "—"
+        lines.append(f"| {n} | {_fmt_ci(r['grasps_iqm'], r['grasps_iqm_ci'])} "
+                     f"| {_fmt_ci(r['success'], r['success_ci'], pct=True)} "
+                     f"| {_fmt_ci(r['success_iqm_seeds'], r['success_iqm_seeds_ci'], pct=True)} | {pg} | {ps} |")
+    return "\n".join(lines)
+
+
 def _fmt_ci(v, ci, pct=False):
     if pct:
         return f"{100 * v:.1f}% [{100 * ci[0]:.1f}, {100 * ci[1]:.1f}]"
@@ -197,12 +301,21 @@ def write_report(records: Sequence[EpisodeRecord], out: str | Path, max_grasps: 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     rows = summarize(records)
+    agg = rl_aggregates(records, max_grasps)
     paths = {"md": out / "results.md", "json": out / "results.json", "csv": out / "episodes.csv",
-             "curve": out / "success_vs_grasps.png", "box": out / "grasps_boxplot.png"}
-    paths["md"].write_text(f"# {title}\n\n{extra}\n\n{markdown_table(rows)}\n")
+             "curve": out / "success_vs_grasps.png", "box": out / "grasps_boxplot.png",
+             "profile": out / "performance_profile.png"}
+    paths["md"].write_text(
+        f"# {title}\n\n{extra}\n\n{markdown_table(rows)}\n\n"
+        f"## RL aggregates (rliable)\n\n{rl_markdown_table(agg)}\n\n"
+        f"95% stratified bootstrap CIs ({agg['reps']} resamples of the episodes within each env seed). IQM: "
+        "interquartile mean. Success at the stop is a 0/1 outcome per episode, so its IQM is taken over the seeds' "
+        "success rates. P(...): probability of improvement over random (an episode of the agent against an "
+        "episode of random on the same seed, ties counted half). Performance profile (`performance_profile.png`): "
+        "the fraction of episodes decided and correct within tau grasps.\n")
     curves = {r["agent"]: success_curve([e for e in records if e.agent == r["agent"]], max_grasps).tolist()
               for r in rows}
-    paths["json"].write_text(json.dumps({"summary": rows, "success_vs_grasps": curves}, indent=2))
+    paths["json"].write_text(json.dumps({"summary": rows, "success_vs_grasps": curves, "rliable": agg}, indent=2))
     with open(paths["csv"], "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(asdict(records[0]).keys()))
         w.writeheader()
@@ -231,6 +344,20 @@ def write_report(records: Sequence[EpisodeRecord], out: str | Path, max_grasps: 
     ax.grid(alpha=0.3, axis="y")
     fig.tight_layout()
     fig.savefig(paths["box"], dpi=120)
+    plt.close(fig)
+
+    from rliable import plot_utils
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    tau = np.asarray(agg["tau"])
+    plot_utils.plot_performance_profiles(
+        {n: np.asarray(r["profile"]) for n, r in agg["agents"].items()}, tau,
+        performance_profile_cis={n: np.asarray(r["profile_ci"]) for n, r in agg["agents"].items()}, ax=ax,
+        xlabel=r"grasps $\tau$", ylabel=r"fraction decided and correct within $\tau$")
+    ax.legend(loc="lower right")
+    ax.set_title("performance profile (95% stratified bootstrap CIs)")
+    fig.tight_layout()
+    fig.savefig(paths["profile"], dpi=120)
     plt.close(fig)
     return paths
 

@@ -148,6 +148,32 @@ def test_evaluate_writes_table_and_plots(env_config, tmp_path):
     assert lo <= rows[0]["grasps_mean"] <= hi
     data = json.loads(paths["json"].read_text())
     assert len(data["success_vs_grasps"]["random"]) == 8
+    assert "## RL aggregates (rliable)" in md and paths["profile"].stat().st_size > 1000
+    agg = data["rliable"]["agents"]
+    assert agg["random2"]["p_fewer_grasps"] == pytest.approx(0.5) and agg["random2"]["p_success"] == pytest.approx(0.5)
+    assert "p_fewer_grasps" not in agg["random"]  # the baseline itself
+    lo, hi = agg["random"]["grasps_iqm_ci"]
+    assert lo <= agg["random"]["grasps_iqm"] <= hi
+    assert len(agg["random"]["profile"]) == 8 and np.all(np.diff(agg["random"]["profile"]) >= 0)
+
+
+def test_rl_aggregates_on_known_episodes():
+    from agents.evaluate import EpisodeRecord, bootstrap_ci, rl_aggregates, score_matrix
+
+    def rec(agent, seed, ep, grasps, correct):
+        return EpisodeRecord(agent, seed, ep, "box", grasps, correct, correct, 0.9, 0.0)
+
+    recs = [rec("random", s, e, 10, e % 2 == 0) for s in range(3) for e in range(8)]
+    recs += [rec("fast", s, e, 2, True) for s in range(3) for e in range(8)]
+    assert score_matrix(recs, "fast", lambda r: r.grasps).shape == (8, 3)  # (episodes, seeds)
+    agg = rl_aggregates(recs, max_grasps=10, reps=200)["agents"]
+    assert agg["fast"]["grasps_iqm"] == 2 and agg["fast"]["grasps_iqm_ci"] == (2, 2)
+    assert agg["fast"]["p_fewer_grasps"] == 1.0  # every episode of fast beats every episode of random
+    assert agg["fast"]["p_success"] == pytest.approx(0.75)  # P(1 > Y) + P(1 = Y) / 2 with P(Y = 1) = 0.5
+    assert agg["random"]["success"] == pytest.approx(0.5) and agg["fast"]["profile"][1] == 1.0
+    assert agg["random"]["profile"][8] == 0 and agg["random"]["profile"][9] == pytest.approx(0.5)
+    lo, hi = bootstrap_ci(np.r_[np.zeros(50), np.ones(50)])
+    assert 0.35 < lo < 0.5 < hi < 0.65
 
 
 def test_cli_evaluate_is_registered():
