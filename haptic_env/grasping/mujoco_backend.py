@@ -73,8 +73,8 @@ class MujocoConfig:
     contact_point: str = "surface"  # "surface": site + r * normal estimate; "site": fingertip site centre
     timestep: float | None = None  # s (None: the hand's own, HandDescription.timestep)
     max_steps: int | None = None  # closing steps at most (None: the hand's default, HandDescription.max_steps)
-    min_steps: int = 40
-    check_every: int = 10  # test for new tip contacts / rest every this many steps
+    min_time: float = 0.08  # s of closing before the rest test may end a grasp
+    check_interval: float = 0.02  # s: test for new tip contacts / rest this often (rounded to whole steps)
     squeeze: float = 0.15  # rad past the contact configuration (x moment arm for tendons); 0: close fully
     rest_qvel: float = 0.05  # rad/s: fingers at rest below this
     joint_frictionloss: float | None = 0.0  # override the hand's dry joint friction (None: keep the model's)
@@ -92,15 +92,14 @@ class MujocoConfig:
             raise ValueError(f"torque_source must be 'actuator' or 'constraint', got {self.torque_source!r}")
         if self.contact_point not in ("surface", "site"):
             raise ValueError(f"contact_point must be 'surface' or 'site', got {self.contact_point!r}")
-        for name in ("timestep", "march_step", "rest_qvel"):
+        for name in ("timestep", "march_step", "rest_qvel", "min_time", "check_interval"):
             v = getattr(self, name)
             if v is None and name == "timestep":
                 continue
             if not np.isfinite(v) or v <= 0:
                 raise ValueError(f"{name} must be > 0, got {v!r}")
-        if not (1 <= self.min_steps <= (self.max_steps or self.min_steps) and self.check_every >= 1):
-            raise ValueError(f"need 1 <= min_steps ({self.min_steps}) <= max_steps ({self.max_steps}), "
-                             f"check_every >= 1 ({self.check_every})")
+        if self.max_steps is not None and (int(self.max_steps) != self.max_steps or self.max_steps < 1):
+            raise ValueError(f"max_steps must be an int >= 1 or None, got {self.max_steps!r}")
 
 
 def quat_from_matrix(R: np.ndarray) -> np.ndarray:
@@ -609,8 +608,10 @@ class MujocoBackend:
         steps = 0
         held = np.zeros(self.n_fingers, dtype=bool)
         max_steps = cfg.max_steps or self.hand.max_steps
+        dt = sc.model.opt.timestep
+        check_every, min_steps = max(1, round(cfg.check_interval / dt)), round(cfg.min_time / dt)
         while steps < max_steps:
-            k = min(cfg.check_every, max_steps - steps)
+            k = min(check_every, max_steps - steps)
             sc.step(k)
             steps += k
             if cfg.squeeze > 0:  # a finger stops closing at its first fingertip contact
@@ -618,7 +619,7 @@ class MujocoBackend:
                 if touched.any():
                     sc.hold_fingers(np.flatnonzero(touched), close_u, cfg.squeeze, held=held)
                     held |= touched
-            if steps >= cfg.min_steps and np.max(np.abs(sc.data.qvel)) < cfg.rest_qvel:
+            if steps >= min_steps and np.max(np.abs(sc.data.qvel)) < cfg.rest_qvel:
                 break
         res = self._read(rng, steps)
         self.grasp_time += time.perf_counter() - t0
