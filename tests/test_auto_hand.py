@@ -24,14 +24,17 @@ def _cyl():
     return GraspObject("cyl", trimesh.creation.cylinder(0.035, 0.12, sections=48))
 
 
-def _finger(parent, f: str, pos, angle: float, *, rotation: bool = False, lengths=(0.05, 0.04, 0.03)):
-    """A finger at ``pos`` leaning at ``angle`` around z: optional rotation joint about its own axis, 3 flexion
-    joints closing toward the z axis, a sphere tip. Returns the joint names (rotation first)."""
-    q = [np.cos(angle / 2), 0, 0, np.sin(angle / 2)]
+def _finger(parent, f: str, pos, angle: float, *, rotation: bool = False, lengths=(0.05, 0.04, 0.03),
+            rot_range=(-0.8, 0.8), quat=None):
+    """A finger at ``pos`` leaning at ``angle`` around z (or turned by ``quat``): optional rotation joint about
+    its own axis, 3 flexion joints closing toward the z axis, a sphere tip. Returns the joint names (rotation
+    first)."""
+    q = [np.cos(angle / 2), 0, 0, np.sin(angle / 2)] if quat is None else quat
     base = parent.add_body(name=f"{f}_base", pos=pos, quat=q)
     joints = []
     if rotation:
-        base.add_joint(name=f"{f}_rot", type=HINGE, axis=[0, 0, 1], range=[-0.8, 0.8], damping=0.05, armature=0.002)
+        base.add_joint(name=f"{f}_rot", type=HINGE, axis=[0, 0, 1], range=list(rot_range), damping=0.05,
+                       armature=0.002)
         joints.append(f"{f}_rot")
     base.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.008, 0, 0], contype=0, conaffinity=0, density=800)
     body = base
@@ -94,8 +97,74 @@ def coupled_hand() -> mujoco.MjSpec:
     return spec
 
 
+def _position(spec, joint: str, lo: float, hi: float, name: str | None = None) -> None:
+    spec.add_actuator(name=name or f"a_{joint}", target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT,
+                      ctrlrange=[lo, hi]).set_to_position(kp=1.0)
+
+
+def opposable_thumb_hand() -> mujoco.MjSpec:
+    """3 fingers in a row; the thumb opposite them flexes sideways at neutral, and only its opposition joint
+    (range [0, 1.6] about its own axis, neutral 0) turns it toward the fingers - a joint that barely moves the
+    straight thumb's tip at neutral (an Allegro thumb's)."""
+    spec = mujoco.MjSpec()
+    spec.compiler.degree = False
+    palm = spec.worldbody.add_body(name="palm")
+    palm.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.045, 0.045, 0.01], pos=[0, 0, -0.01], density=500)
+    for i, y in enumerate((-0.025, 0.0, 0.025)):
+        for j in _finger(palm, f"f{i}", [-0.034, y, 0], np.pi):
+            _position(spec, j, -0.3, 1.5)
+    for j in _finger(palm, "th", [0.034, 0.0, 0], -np.pi / 2, rotation=True, rot_range=(0.0, 1.6)):
+        _position(spec, j, *((0.0, 1.6) if j.endswith("rot") else (-0.3, 1.5)))
+    return spec
+
+
+def flat_hand() -> mujoco.MjSpec:
+    """Fingers that lie in the palm plane (along +x) and curl toward its normal +z, the thumb set back on the
+    palm (an Allegro's layout): at half closure their tips are still far out along +x."""
+    spec = mujoco.MjSpec()
+    spec.compiler.degree = False
+    palm = spec.worldbody.add_body(name="palm")
+    palm.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.045, 0.05, 0.01], pos=[-0.04, 0, -0.01], density=500)
+    along_x = [np.cos(np.pi / 4), 0, np.sin(np.pi / 4), 0]  # the finger's +z along +x: flexion toward +z
+    for i, (x, y) in enumerate(((0.0, -0.03), (0.0, 0.0), (0.0, 0.03), (-0.06, -0.05))):
+        for j in _finger(palm, f"f{i}", [x, y, 0], 0.0, quat=along_x):
+            _position(spec, j, -0.3, 1.5)
+    return spec
+
+
+def gripper(mirror_only: bool = False) -> mujoco.MjSpec:
+    """A 2-finger gripper with pad tips (thin boxes) on slide joints; one motor on a tendon over both slides and
+    a joint equality mirroring them (``mirror_only``: the motor drives the right slide only, the equality
+    carries the left finger's only drive)."""
+    spec = mujoco.MjSpec()
+    spec.compiler.degree = False
+    base = spec.worldbody.add_body(name="base")
+    base.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.05, 0.02, 0.02], pos=[0, 0, -0.02], density=500)
+    for side, sgn in (("right", 1.0), ("left", -1.0)):
+        finger = base.add_body(name=f"{side}_finger", pos=[sgn * 0.045, 0, 0])
+        finger.add_joint(name=f"{side}_slide", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[-sgn, 0, 0],
+                         range=[0, 0.04], damping=1.0, armature=0.01)
+        finger.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.004, 0.01, 0.03], pos=[0, 0, 0.03], density=800,
+                        contype=0, conaffinity=0)
+        pad = finger.add_body(name=f"{side}_pad", pos=[-sgn * 0.006, 0, 0.045])
+        pad.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.002, 0.01, 0.015], density=800)
+    spec.add_equality(type=mujoco.mjtEq.mjEQ_JOINT, name1="left_slide", name2="right_slide",
+                      objtype=mujoco.mjtObj.mjOBJ_JOINT, data=[0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0])
+    if mirror_only:
+        spec.add_actuator(name="motor", target="right_slide", trntype=mujoco.mjtTrn.mjTRN_JOINT,
+                          ctrlrange=[0, 0.04]).set_to_position(kp=50.0)
+    else:
+        t = spec.add_tendon(name="split")
+        t.wrap_joint("right_slide", 0.5)
+        t.wrap_joint("left_slide", 0.5)
+        spec.add_actuator(name="motor", target="split", trntype=mujoco.mjtTrn.mjTRN_TENDON,
+                          ctrlrange=[0, 0.04]).set_to_position(kp=50.0)
+    return spec
+
+
 SPEC_HANDS = {"sibling_roots3": (sibling_roots_hand, 3), "rotation4": (rotation_joint_hand, 4),
-              "coupled3": (coupled_hand, 3)}
+              "coupled3": (coupled_hand, 3), "opposable4": (opposable_thumb_hand, 4), "flat4": (flat_hand, 4),
+              "gripper2": (gripper, 2)}
 for _n in (3, 4, 5, 6):
     SPEC_HANDS[f"generic{_n}"] = ((lambda n=_n: generic_hand(n).spec), _n)
 MENAGERIE = {"wonik_allegro/right_hand": 4, "shadow_hand/right_hand": 5, "tetheria_aero_hand_open/right_hand": 5,
@@ -136,7 +205,7 @@ def test_menagerie_hands_through_the_automatic_path(name):
         auto_hand(name)
     except HandUnavailableError as exc:
         pytest.skip(f"Menagerie hand {name} unavailable (shared data absent: set MENAGERIE_ROOT/HAPTIC_DATA): {exc}")
-    # a smoke bar: the usable rates on ycb10 (0.3-0.8 for these files) are measured by benchmarks/hand_auto.py
+    # a smoke bar: the usable rates on ycb10 (0.63-0.85 for these files) are measured by benchmarks/hand_auto.py
     _check_hand(name, MENAGERIE[name], n_grasps=16, min_usable=0.1)
 
 
@@ -205,3 +274,33 @@ def test_bad_names_give_clear_errors(tmp_path):
         make_backend("mujoco", hand=str(bad))
     with pytest.raises(ValueError, match="unknown hand"):
         make_backend("mujoco", hand="no_such_robot_anywhere")
+
+
+def test_later_pass_closes_a_joint_that_acts_only_once_half_closed(tmp_path):
+    rep = report(auto_hand(_write(tmp_path, "opp", opposable_thumb_hand()), cache=False))
+    assert rep.closing["a_th_rot"] == 1.6, str(rep)  # barely moves the straight thumb: held by the first pass
+    assert rep.tips[-1] == "th_tip"
+
+
+def test_approach_axis_leans_to_the_palm_normal(tmp_path):
+    rep = report(auto_hand(_write(tmp_path, "flat", flat_hand()), cache=False))
+    tilt = np.degrees(np.arccos(np.clip(np.dot(rep.approach_axis, [0, 0, 1]), -1, 1)))
+    assert tilt < 30, (tilt, rep.approach_axis)
+
+
+def test_pads_and_finger_couplings(tmp_path):
+    desc = auto_hand(_write(tmp_path, "grip", gripper()), cache=False)
+    rep = report(desc)
+    assert set(rep.tips) == {"right_pad", "left_pad"}
+    assert len(rep.relaxed) == 1 and "left_slide = right_slide" in rep.relaxed[0], rep.relaxed
+    assert not [e for e in desc.spec.equalities if e.type == mujoco.mjtEq.mjEQ_JOINT]
+    for pos, r in desc.tip_sites:  # a pad: its site at the plate's centre, radius half its thickness
+        assert np.allclose(pos, 0, atol=1e-9) and np.isclose(r, 0.002)
+    assert rep.standoff_trial == {} or rep.standoff in [float(k) for k in rep.standoff_trial] or \
+        any(np.isclose(rep.standoff, float(k), atol=1e-4) for k in rep.standoff_trial)
+    # the equality carries the left finger's only drive: kept
+    kept = auto_hand(_write(tmp_path, "grip1", gripper(mirror_only=True)), cache=False)
+    assert report(kept).relaxed == () and [e for e in kept.spec.equalities if e.type == mujoco.mjtEq.mjEQ_JOINT]
+    # round tips keep the distal cap (the generic hand's spheres: their centres)
+    g = auto_hand(_write(tmp_path, "g3", generic_hand(3).spec), cache=False)
+    assert all(np.allclose(p, 0, atol=1e-9) and np.isclose(r, 0.01) for p, r in g.tip_sites)

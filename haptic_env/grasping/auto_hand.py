@@ -12,20 +12,35 @@ name or an ``MjSpec`` into a :class:`~.hands.HandDescription` with nothing else 
   joint; leaves of closed linkages (bodies in a ``connect``/``weld`` equality, e.g. a gripper's coupler
   bars) are dropped, and one tip is kept per finger (the farthest from the palm). The thumb is the tip
   whose name says so (``th``/``thumb``), else the one whose closing motion most opposes the others';
-  it goes last.
+  it goes last. Fingertip sites: a *pad* (collision geometry shaped like a plate, a gripper's finger pad)
+  at the plate's centre, any other tip at the centre of its distal end cap (:func:`tip_site`).
+* **Finger couplings.** A joint equality that ties joints of two different fingers (a parallel gripper's
+  mirrored drivers) is removed when every finger it ties is still driven by an actuator without it:
+  the object is fixed and the mount rigid, so such a coupling makes the pad that touches first stall the
+  other (:func:`relax_finger_couplings`; the report's ``relaxed``).
 * **Closing synergy**, probed in simulation on the hand alone (no gravity, no contacts, the same
   integrator and step as the grasp scene). Every actuator starts at its *neutral* control (the one that
   holds the hand at ``qpos0``, clipped to the range) and is driven alone to each end of its
   ``ctrlrange``; the end where the fingertips move toward the palm and toward each other is its
   closing target. Actuators held at neutral: those that move the whole hand (a wrist: they act on a
   joint above the palm), those that barely move a fingertip, and those whose two ends move the tips
-  alike (a finger spread or rotation). Tendon- and equality-coupled under-actuated fingers close the
-  same way (the probe is a simulation, not a joint-by-joint rule). Open pose: every closing actuator
-  :data:`OPEN_BACK` of its closing stroke back past neutral (within its range).
-* **Approach axis**: from the palm centre (its collision geometry's centroid) to the centroid of the
-  fingertips when the synergy has first brought them halfway together (their mean distance from their
-  centroid halved; else closest together), among the frames still in front of the palm (a full curl
-  may end behind it); the closing time sets ``max_steps``.
+  alike (a finger spread or rotation). Those held because they barely moved a tip or moved the tips away
+  are probed again, with the same rules, from the synergy's half-closed pose (:data:`HALF` of the way from
+  neutral to the closing targets), repeated while one joins: a thumb joint that only acts once the thumb
+  is rotated into opposition, or an opposition that only helps once the fingers are flexed. Tendon- and
+  equality-coupled under-actuated fingers close the same way (the probe is a simulation, not a
+  joint-by-joint rule). Open pose: every closing actuator :data:`OPEN_BACK` of its closing stroke back
+  past neutral (within its range).
+* **Approach axis**: the bisector of two estimates of where the object sits. (1) From the palm centre (its
+  collision geometry's centroid) to the centroid of the fingertips when the synergy has first brought them
+  halfway together (their mean distance from their centroid halved; else closest together), among the
+  frames still in front of the palm (a full curl may end behind it): it leans toward long fingers that lie
+  in the palm plane (their tips are still far out at half closure). (2) That direction without its
+  components in the palm plane, the plane of the fingers' base-joint anchors (a line for a 2-finger
+  gripper): it leans toward a thumb set below the palm. The closing time sets ``max_steps``.
+* **Standoff** (back-off before closing): the tips' forward reach along the approach on their way
+  together (at most :data:`MAX_STANDOFF`); when it is not 0, a short trial on four primitive objects
+  (:func:`standoff_trial`) picks it, half of it or 0 by the usable rate (ties: the larger).
 
 The result is cached per hand (SHA-256 of the hand's MJCF as MjSpec writes it, the tips asked for and
 the step) in ``<cache>/auto_hands/``. ``report(desc)`` (also logged at INFO) says what was chosen.
@@ -47,12 +62,13 @@ import numpy as np
 from .hands import HandDescription, HandUnavailableError, _menagerie_spec
 
 __all__ = ["auto_hand", "AutoHandReport", "report", "find_fingertips", "load_mjcf", "single_root",
-           "hand_options", "AUTO_VERSION", "MAX_TIMESTEP", "ROOT_NAME"]
+           "hand_options", "tip_site", "relax_finger_couplings", "standoff_trial", "AUTO_VERSION", "MAX_TIMESTEP",
+           "ROOT_NAME"]
 
 log = logging.getLogger(__name__)
 
 #: Bumped whenever the probe's rules change (invalidates cached synergies).
-AUTO_VERSION = 5
+AUTO_VERSION = 8
 #: s: the coarsest physics step the grasp scene keeps from a hand's own ``<option timestep>``.
 MAX_TIMESTEP = 0.004
 ROOT_NAME = "auto_hand_root"
@@ -62,6 +78,18 @@ OPTION_KEYS = ("cone", "impratio", "noslip_iterations", "noslip_tolerance")
 OPEN_BACK = 0.25
 #: m: the largest back-off before closing (HandDescription.standoff)
 MAX_STANDOFF = 0.02
+#: Probe thresholds (tip motion summed over the tips, in units of the tips' mean distance from the palm centre):
+#: an actuator that moves them less is "barely moving"; one whose two ends move them within ALIKE of each other
+#: is a spread/rotation; one must bring them toward the palm and each other by more than MIN_SCORE to close.
+MIN_MOTION, ALIKE, MIN_SCORE = 0.05, 0.8, 0.05
+#: Principal directions of the fingers' base anchors above this fraction of the largest span the palm plane.
+PLANE_SV = 0.25
+#: Random approaches per test object in the standoff trial (:func:`standoff_trial`).
+TRIAL_APPROACHES = 8
+#: Later probe passes start from this fraction of the way from neutral to the synergy's closing targets.
+HALF = 0.5
+#: A fingertip whose collision geometry's thinnest side is under this fraction of its middle one is a pad.
+PLATE_RATIO = 0.5
 _THUMB = re.compile(r"(^|[^a-z])(th|thumb|pollex)", re.IGNORECASE)
 
 
@@ -77,7 +105,10 @@ class AutoHandReport:
     open_ctrl      actuator -> control of the open (pre-grasp) pose
     approach_axis  (3,) palm centre -> closed fingertips, in the mount frame
     wrapped_roots  top-level bodies wrapped into one root (empty: the hand had one)
+    relaxed        joint equalities between two fingers that were removed (:func:`relax_finger_couplings`)
     option         physics options taken from the hand's MJCF; ``timestep`` the scene's step (s)
+    standoff       back-off before closing (m); ``standoff_trial``: candidate (m, "%.4f") -> usable rate in
+                   :func:`standoff_trial` (empty when the tips do not reach forward: standoff 0)
     """
 
     source: str
@@ -89,17 +120,24 @@ class AutoHandReport:
     open_ctrl: dict[str, float]
     approach_axis: tuple[float, float, float]
     wrapped_roots: tuple[str, ...]
+    relaxed: tuple[str, ...]
     option: dict[str, float]
     timestep: float
     max_steps: int
     standoff: float
+    standoff_trial: dict[str, float]
 
     def __str__(self) -> str:
         held = ", ".join(f"{k} ({v})" for k, v in self.held.items()) or "none"
         wrap = f"; wrapped roots {list(self.wrapped_roots)} into {ROOT_NAME!r}" if self.wrapped_roots else ""
+        if self.relaxed:
+            wrap += f"; finger couplings relaxed: {list(self.relaxed)}"
+        trial = ", ".join(f"{float(k) * 1e3:.1f} mm: {v:.2f}" for k, v in self.standoff_trial.items())
+        trial = f" (trial usable {trial})" if trial else ""
         return (f"auto hand {self.source}: fingertips {list(self.tips)} ({'given' if self.tips_given else 'detected'}, "
                 f"thumb last){wrap}; closing {self.closing}; held at neutral: {held}; approach axis "
-                f"{np.round(self.approach_axis, 3).tolist()}; step {self.timestep * 1e3:g} ms x {self.max_steps}, standoff {self.standoff * 1e3:.0f} mm; "
+                f"{np.round(self.approach_axis, 3).tolist()}; step {self.timestep * 1e3:g} ms x {self.max_steps}, "
+                f"standoff {self.standoff * 1e3:.0f} mm{trial}; "
                 f"options from the MJCF {self.option}")
 
 
@@ -237,13 +275,98 @@ def find_fingertips(m: mujoco.MjModel, root: int) -> list[int]:
     return [b for b in kept if b in best.values()]
 
 
+def _compile(spec: mujoco.MjSpec) -> mujoco.MjModel:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # "empty prefix may prevent saving" (a wrapped hand)
+        return spec.compile()
+
+
+def tip_site(m: mujoco.MjModel, b: int) -> tuple[np.ndarray, float]:
+    """Fingertip site ``(pos in the body frame, radius)`` of tip body ``b``: a *pad* - collision geometry
+    whose bounding box (body frame) is a plate, its thinnest side under :data:`PLATE_RATIO` of the middle
+    one (a gripper's finger pad) - gets its site at the plate's centre, radius half its thickness (a pad
+    touches anywhere on its face: the grasp centre is between the pad centres, not their far ends); any
+    other tip the centre of the distal end cap of its geometry (``_tip_site_auto``)."""
+    from .mujoco_backend import _tip_site_auto
+
+    pts = []
+    signs = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T
+    for g in np.flatnonzero((m.geom_bodyid == b) & ((m.geom_contype != 0) | (m.geom_conaffinity != 0))):
+        R = np.zeros(9)
+        mujoco.mju_quat2Mat(R, m.geom_quat[g])
+        pts.append((m.geom_aabb[g, :3] + signs * m.geom_aabb[g, 3:]) @ R.reshape(3, 3).T + m.geom_pos[g])
+    if pts:
+        pts = np.concatenate(pts)
+        lo, hi = pts.min(0), pts.max(0)
+        ext = np.sort(hi - lo)
+        if ext[0] < PLATE_RATIO * ext[1]:
+            return 0.5 * (lo + hi), float(0.5 * ext[0])
+    return _tip_site_auto(m, b)
+
+
+def _finger_of_bodies(m: mujoco.MjModel, tip_ids) -> np.ndarray:
+    """(nbody,) finger index of every body (-1: the palm and above, or none): the tips' chains below the bodies
+    they share, plus closed linkages (``connect``/``weld`` equalities) joined to a finger (as the grasp scene)."""
+    chains = [_ancestors(m, int(b)) for b in tip_ids]
+    shared = set.intersection(*(set(c) for c in chains)) if chains else set()
+    finger = np.full(m.nbody, -1)
+    for i, c in enumerate(chains):
+        for b in c:
+            if b not in shared:
+                finger[b] = i
+    for e in range(m.neq):
+        if int(m.eq_type[e]) not in (int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_WELD)) or \
+                int(m.eq_objtype[e]) != int(mujoco.mjtObj.mjOBJ_BODY):
+            continue
+        for a_, b_ in ((m.eq_obj1id[e], m.eq_obj2id[e]), (m.eq_obj2id[e], m.eq_obj1id[e])):
+            x = int(b_)
+            if finger[a_] < 0:
+                continue
+            while x != 0 and x not in shared and finger[x] < 0:
+                finger[x] = finger[a_]
+                x = int(m.body_parentid[x])
+    return finger
+
+
+def relax_finger_couplings(spec: mujoco.MjSpec, tips: list[str]) -> list[str]:
+    """Delete the joint equalities that tie joints of two *different* fingers (a parallel gripper's
+    mirrored drivers) when every finger they tie is still driven by an actuator without them. The grasp
+    holds the object fixed and the mount rigid, so such a coupling makes the pad that touches first stall
+    the other one (a real gripper or arm would be pushed sideways and centre the object); without it
+    each finger closes on until its own tip touches. Couplings inside one finger (under-actuated
+    phalanges) and those that carry a finger's only drive are kept. Returns what was relaxed."""
+    m = _compile(spec)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    tip_ids = [m.body(t).id for t in tips]
+    finger = _finger_of_bodies(m, tip_ids)
+    dof_finger = finger[m.dof_bodyid]
+    driven = np.zeros(len(tips), dtype=bool)
+    for a in range(m.nu):
+        adr, nnz = d.moment_rowadr[a], d.moment_rownnz[a]
+        cols = d.moment_colind[adr: adr + nnz][np.abs(d.actuator_moment[adr: adr + nnz]) > 1e-9]
+        f = dof_finger[cols]
+        driven[f[f >= 0]] = True
+    relaxed, drop = [], []
+    for e in range(m.neq):
+        if int(m.eq_type[e]) != int(mujoco.mjtEq.mjEQ_JOINT) or m.eq_obj2id[e] < 0:
+            continue
+        j1, j2 = int(m.eq_obj1id[e]), int(m.eq_obj2id[e])
+        f1, f2 = int(finger[m.jnt_bodyid[j1]]), int(finger[m.jnt_bodyid[j2]])
+        if f1 >= 0 and f2 >= 0 and f1 != f2 and driven[f1] and driven[f2]:
+            drop.append(e)
+            relaxed.append(f"{m.joint(j1).name} = {m.joint(j2).name} (fingers {tips[f1]}, {tips[f2]})")
+    eqs = list(spec.equalities)
+    for e in drop:
+        spec.delete(eqs[e])
+    return relaxed
+
+
 # ------------------------------------------------------------------------------------ probing
 class _Probe:
     """The hand alone in a zero-gravity, contact-free model: settle under a control vector, read the tips."""
 
     def __init__(self, spec: mujoco.MjSpec, tips: list[str], timestep: float) -> None:
-        from .mujoco_backend import _tip_site_auto
-
         s = spec.copy()
         s.option.timestep = timestep
         s.option.gravity = [0.0, 0.0, 0.0]
@@ -254,7 +377,7 @@ class _Probe:
         self.m = m = s.compile()
         self.d = mujoco.MjData(m)
         self.tip_ids = np.array([m.body(t).id for t in tips])
-        self.tip_local = np.array([_tip_site_auto(m, int(b))[0] for b in self.tip_ids])
+        self.tip_local = np.array([tip_site(m, int(b))[0] for b in self.tip_ids])
         self.steps = 0
 
     def tips(self) -> np.ndarray:
@@ -311,6 +434,28 @@ def _neutral(m: mujoco.MjModel, d: mujoco.MjData) -> np.ndarray:
     return np.clip(u, m.actuator_ctrlrange[:, 0], m.actuator_ctrlrange[:, 1])
 
 
+def _palm_normal(m: mujoco.MjModel, d: mujoco.MjData, tip_ids, shared: set[int], axis: np.ndarray) -> np.ndarray:
+    """``axis`` without its components in the palm plane, normalised: the plane spanned by the well-defined
+    principal directions (singular value over :data:`PLANE_SV` of the largest) of the fingers' base-joint
+    anchors at ``qpos0`` (a line for a 2-finger gripper: only that direction is removed). ``axis`` itself
+    when it lies (nearly) in that plane."""
+    mujoco.mj_resetData(m, d)
+    mujoco.mj_forward(m, d)
+    bases = []
+    for t in tip_ids:
+        chain = [b for b in _ancestors(m, int(t)) if b not in shared][::-1]  # palm side first
+        jb = [b for b in chain if m.body_jntnum[b] > 0]
+        if jb:
+            bases.append(d.xanchor[m.body_jntadr[jb[0]]].copy())
+    if len(bases) < 2:
+        return axis
+    B = np.array(bases)
+    _, S, Vt = np.linalg.svd(B - B.mean(0))
+    V = Vt[: len(S)][S > PLANE_SV * S[0]] if S[0] > 1e-9 else np.zeros((0, 3))
+    p = axis - V.T @ (V @ axis)
+    return p / np.linalg.norm(p) if np.linalg.norm(p) > 0.2 else axis
+
+
 def _synergy(spec: mujoco.MjSpec, tips: list[str], timestep: float, order_thumb: bool) -> dict:
     """Probe every actuator (see the module docstring); returns the synergy, tip order and approach axis."""
     pr = _Probe(spec, tips, timestep)
@@ -324,7 +469,6 @@ def _synergy(spec: mujoco.MjSpec, tips: list[str], timestep: float, order_thumb:
     scale = float(np.mean(np.linalg.norm(P0 - c, axis=1)))
     if not scale > 0:
         raise ValueError(f"hand {spec.modelname!r}: its fingertips {tips} sit at the palm centre")
-    others = np.array([(P0.sum(0) - P0[i]) / max(n - 1, 1) for i in range(n)])
     # dofs above the fingers (a wrist): moved by an actuator, they move the whole hand
     moment = np.zeros((m.nu, m.nv))
     mujoco.mj_resetData(m, d)
@@ -333,36 +477,47 @@ def _synergy(spec: mujoco.MjSpec, tips: list[str], timestep: float, order_thumb:
         adr, nnz = d.moment_rowadr[a], d.moment_rownnz[a]
         moment[a, d.moment_colind[adr: adr + nnz]] = d.actuator_moment[adr: adr + nnz]
     shared_dof = np.isin(m.dof_bodyid, list(shared))
-    closing, held, one_sided = {}, {}, []
-    for a in range(m.nu):
-        if np.any(np.abs(moment[a, shared_dof]) > 1e-9):
-            held[names[a]] = "moves the whole hand"
-            continue
+    def classify(a: int, base: np.ndarray, Pb: np.ndarray) -> tuple[str, int]:
+        """Drive actuator ``a`` alone from ``base`` (tips at ``Pb``) to each end of its range:
+        ("close", end) / ("barely", -1) / ("alike", -1) / ("away", -1)."""
+        ob = np.array([(Pb.sum(0) - Pb[i]) / max(n - 1, 1) for i in range(n)])
         score, motion, palm_in = [], [], []
         for end in m.actuator_ctrlrange[a]:
-            u = u0.copy()
+            u = base.copy()
             u[a] = end
             P, _ = pr.settle(u)
-            toward_palm = np.linalg.norm(P0 - c, axis=1) - np.linalg.norm(P - c, axis=1)
-            toward_others = np.linalg.norm(P0 - others, axis=1) - np.linalg.norm(P - others, axis=1)
+            toward_palm = np.linalg.norm(Pb - c, axis=1) - np.linalg.norm(P - c, axis=1)
+            toward_others = np.linalg.norm(Pb - ob, axis=1) - np.linalg.norm(P - ob, axis=1)
             palm_in.append(toward_palm.sum() / scale)
             # toward the others counts only when it helps: an unopposed thumb in the palm plane would make
             # every finger's flexion look like moving away from it
             score.append((toward_palm + np.maximum(toward_others, 0.0)).sum() / scale)
-            motion.append(np.linalg.norm(P - P0, axis=1).sum() / scale)
+            motion.append(np.linalg.norm(P - Pb, axis=1).sum() / scale)
         best = int(np.argmax(score))
-        far = int(np.argmax(motion))
         log.debug("probe %s: ends %s score %s motion %s toward palm %s", names[a], m.actuator_ctrlrange[a],
                   np.round(score, 3), np.round(motion, 3), np.round(palm_in, 3))
-        if max(motion) < 0.05:
-            held[names[a]] = "barely moves a fingertip"
-        elif min(motion) > 0.8 * max(motion):
-            held[names[a]] = "both ends move the fingertips alike (spread / rotation)"
-        elif score[best] <= 0.05:
-            held[names[a]] = "moves the fingertips away from the palm at both ends"
-            one_sided.append((a, far))
-        else:
+        if max(motion) < MIN_MOTION:
+            return "barely", -1
+        if min(motion) > ALIKE * max(motion):
+            return "alike", -1
+        if score[best] <= MIN_SCORE:
+            return "away", -1
+        return "close", best
+
+    why = {"barely": "barely moves a fingertip", "alike": "both ends move the fingertips alike (spread / rotation)",
+           "away": "moves the fingertips away from the palm at both ends"}
+    closing, held, again = {}, {}, []
+    for a in range(m.nu):
+        if np.any(np.abs(moment[a, shared_dof]) > 1e-9):
+            held[names[a]] = "moves the whole hand"
+            continue
+        kind, best = classify(a, u0, P0)
+        if kind == "close":
             closing[names[a]] = float(m.actuator_ctrlrange[a, best])
+        else:
+            held[names[a]] = why[kind]
+            if kind != "alike":
+                again.append(a)
     if not closing:
         raise ValueError(f"hand {spec.modelname!r}: no actuator moves the fingertips {tips} toward the palm and "
                          f"each other (held: {held}); give close_ctrl= by hand")
@@ -373,19 +528,27 @@ def _synergy(spec: mujoco.MjSpec, tips: list[str], timestep: float, order_thumb:
             u[names.index(k)] = v
         return u
 
-    # second pass: a one-sided actuator that moves its tips toward the others' closed tips (a thumb's opposition)
-    u_close = close_vector()
-    Pc, _ = pr.settle(u_close, t_max=3.0, rest_qvel=0.05)
-    oc = np.array([(Pc.sum(0) - Pc[i]) / max(n - 1, 1) for i in range(n)])
-    for a, far in one_sided:
-        u = u_close.copy()
-        u[a] = m.actuator_ctrlrange[a, far]
-        P, _ = pr.settle(u, t_max=3.0, rest_qvel=0.05)
-        gain = (np.linalg.norm(Pc - oc, axis=1) - np.linalg.norm(P - oc, axis=1)).sum() / scale
-        log.debug("probe %s (fingers closed): toward the other tips %.3f", names[a], gain)
-        if gain > 0.05:
-            closing[names[a]] = float(m.actuator_ctrlrange[a, far])
-            del held[names[a]]
+    # later passes: an actuator that barely moved a tip, or moved them away, from the neutral pose is probed
+    # again from the half-closed pose of the synergy so far (a thumb's flexion that only acts once the thumb
+    # is rotated into opposition; its opposition once the fingers are flexed); repeated while one joins
+    for _ in range(3):
+        if not again:
+            break
+        base = u0 + HALF * (close_vector() - u0)
+        Pb, _ = pr.settle(base, t_max=3.0, rest_qvel=0.05)
+        rest = []
+        for a in again:
+            kind, best = classify(a, base, Pb)
+            if kind == "close":
+                closing[names[a]] = float(m.actuator_ctrlrange[a, best])
+                del held[names[a]]
+            elif kind == "alike":
+                held[names[a]] = why[kind] + " once half closed"
+            else:
+                rest.append(a)
+        if len(rest) == len(again):
+            break
+        again = rest
     u_close = close_vector()
     path = [P0]
     Pc, t_close = pr.settle(u_close, t_max=3.0, rest_qvel=0.05, path=path)
@@ -410,6 +573,12 @@ def _synergy(spec: mujoco.MjSpec, tips: list[str], timestep: float, order_thumb:
     axis = path[k_half].mean(0) - c
     if np.linalg.norm(axis) < 1e-6:
         raise ValueError(f"hand {spec.modelname!r}: the closed fingertips meet at the palm centre; no approach axis")
+    axis = axis / np.linalg.norm(axis)
+    # ... leans toward long fingers (their tips are still far out at half closure); its part normal to the
+    # palm plane (the plane of the fingers' base joints) leans toward a thumb set below the palm; the approach
+    # axis is the bisector of the two
+    normal = _palm_normal(m, d, pr.tip_ids, shared, axis)
+    axis = axis + normal
     axis = axis / np.linalg.norm(axis)
     # standoff: how far the tips reach forward (along the approach) on their way together, at most 2 cm
     fwd = max(float(np.max((Q - path[0]) @ axis)) for Q in path[: k_half + 1])
@@ -447,7 +616,7 @@ def auto_hand(source: str | Path | mujoco.MjSpec, tips: tuple[str, ...] | list[s
     spec, root, wrapped = single_root(spec)
     option, timestep = hand_options(spec)
     try:
-        m = spec.compile()
+        m = _compile(spec)
     except Exception as exc:
         raise ValueError(f"cannot compile the MJCF hand {src}: {exc}") from exc
     _check_actuators(m, name)
@@ -470,6 +639,7 @@ def auto_hand(source: str | Path | mujoco.MjSpec, tips: tuple[str, ...] | list[s
             raise ValueError(f"no fingertips found in {src}: need >= 2 bodies with collision geometry that move on "
                              f"joints below the palm (found {[bodies[b] for b in found]}); pass tips=(names)")
         tips = [bodies[b] for b in found]
+    relaxed = relax_finger_couplings(spec, tips)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         xml = spec.to_xml()
@@ -486,24 +656,69 @@ def auto_hand(source: str | Path | mujoco.MjSpec, tips: tuple[str, ...] | list[s
                 res = None  # unreadable: probe again and overwrite
     if res is None:
         res = _synergy(spec, tips, timestep, order_thumb=not tips_given)
+        if res["standoff"] > 0:  # back off by the tips' forward reach, half of it, or not at all: a short trial
+            desc = _describe(spec, name, src, root, wrapped, option, timestep, res, tips_given=tips_given,
+                             relaxed=relaxed, quiet=True)
+            cands = [res["standoff"], 0.5 * res["standoff"], 0.0]
+            rates = standoff_trial(desc, cands)
+            res["standoff_trial"] = {f"{c:.4f}": float(r) for c, r in zip(cands, rates)}
+            res["standoff"] = float(cands[int(np.argmax(rates))])  # ties: the larger back-off
         if path is not None:
             from ..cache import atomic_write
 
             with atomic_write(path, "w") as fh:
                 json.dump(res, fh, indent=1)
-    return _describe(spec, name, src, root, wrapped, option, timestep, res, tips_given=tips_given)
+    return _describe(spec, name, src, root, wrapped, option, timestep, res, tips_given=tips_given, relaxed=relaxed)
 
 
-def _describe(spec, name, src, root, wrapped, option, timestep, res, *, tips_given: bool) -> HandDescription:
-    desc = HandDescription(name=name, spec=spec, root=root, tips=tuple(res["tips"]), open_ctrl=dict(res["open"]),
+def standoff_trial(desc: HandDescription, candidates: list[float]) -> np.ndarray:
+    """Usable rate of ``desc`` with each standoff in ``candidates`` over :data:`TRIAL_APPROACHES` random
+    approaches to each of four primitive test objects (a cylinder, a box, a ball, a bar; on a table),
+    the same approaches for every candidate."""
+    from dataclasses import replace
+
+    import trimesh
+
+    from ..objects import GraspObject
+    from .mujoco_backend import MujocoBackend, MujocoConfig
+
+    objs = [GraspObject("trial_cylinder", trimesh.creation.cylinder(0.035, 0.12, sections=32)),
+            GraspObject("trial_box", trimesh.creation.box([0.05, 0.08, 0.12])),
+            GraspObject("trial_ball", trimesh.creation.icosphere(2, 0.035)),
+            GraspObject("trial_bar", trimesh.creation.box([0.025, 0.025, 0.15]))]
+    be = MujocoBackend(MujocoConfig(hand=desc, n_fingers=None))
+    rates = np.zeros(len(candidates))
+    try:
+        for i, obj in enumerate(objs):
+            be.set_object(obj)
+            actions = np.random.default_rng(i).uniform(-1, 1, (TRIAL_APPROACHES, 4))
+            for k, st in enumerate(candidates):
+                be.config = replace(be.config, standoff=float(st))
+                rng = np.random.default_rng(i)
+                rates[k] += np.mean([be.grasp(a, rng).info["usable"] for a in actions])
+    finally:
+        be.close()
+    log.debug("standoff trial %s: usable %s", np.round(candidates, 4), np.round(rates / len(objs), 3))
+    return rates / len(objs)
+
+
+def _describe(spec, name, src, root, wrapped, option, timestep, res, *, tips_given: bool,
+              relaxed: list[str], quiet: bool = False) -> HandDescription:
+    m = _compile(spec)
+    sites = tuple(tip_site(m, m.body(t).id) for t in res["tips"])
+    desc = HandDescription(name=name, spec=spec, root=root, tips=tuple(res["tips"]), tip_sites=sites,
+                           open_ctrl=dict(res["open"]),
                            close_ctrl=dict(res["closing"]), approach_axis=np.array(res["approach_axis"]),
                            option=dict(option), timestep=timestep, max_steps=int(res["max_steps"]),
                            standoff=float(res["standoff"]))
     desc.auto = AutoHandReport(source=src, tips=desc.tips, tips_given=tips_given, closing=desc.close_ctrl,
                                held=dict(res["held"]), neutral=dict(res["neutral"]), open_ctrl=desc.open_ctrl,
                                approach_axis=tuple(res["approach_axis"]), wrapped_roots=wrapped,
+                               relaxed=tuple(relaxed),
                                option={k: (int(v) if hasattr(v, "value") else v) for k, v in option.items()},
-                               timestep=timestep, max_steps=desc.max_steps, standoff=desc.standoff)
-    log.info("%s", desc.auto)
+                               timestep=timestep, max_steps=desc.max_steps, standoff=desc.standoff,
+                               standoff_trial=dict(res.get("standoff_trial", {})))
+    if not quiet:
+        log.info("%s", desc.auto)
     return desc
 
