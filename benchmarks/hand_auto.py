@@ -10,7 +10,7 @@ files (``generic_hand(n).spec.to_xml()``, no tips, no closing targets). With the
 descriptions for comparison (``--no-named`` leaves them out). Usable: >= 3 fingertip contacts (both pads
 for the 2-finger gripper), mean +- std over the 10 objects; normal error: angle between the torque-derived
 and MuJoCo's contact normal over every touching fingertip (median / 90th percentile); grasps/s: one core,
-backend time per grasp (the probe, once per hand and cached, is timed separately).
+backend time per grasp (the probe and standoff trial, once per hand and cached, are timed separately).
 """
 
 from __future__ import annotations
