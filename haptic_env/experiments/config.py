@@ -11,13 +11,14 @@ from haptic_env.recognizers.baselines import CLASSIFIERS
 from haptic_env.recognizers.kde import KDEConfig
 from haptic_env.recognizers.mlp import MLPConfig
 from haptic_env.recognizers.recognizer import RecognizerConfig
+from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS
 
 __all__ = ["AnalysisConfig", "TEST_SEED_OFFSET", "KINDS", "MAIN_KINDS", "PAPER"]
 
 #: Test grasps are fresh samples from seed ``seed + TEST_SEED_OFFSET``, never training data.
 TEST_SEED_OFFSET = 7919
-#: The updaters of experiments 2 and 6.
-KINDS = ("ic", "ic-full", "bc-np", "bc-ip")
+#: The updaters of experiments 2 and 6: every kind.
+KINDS = UPDATERS
 #: IC, BC-NP and BC-IP: the updaters of experiments 3, 4 and 7.
 MAIN_KINDS = ("ic", "bc-np", "bc-ip")
 
@@ -40,7 +41,7 @@ class AnalysisConfig:
     test_grasps: int = 400  #: fresh test grasps per object
     trials: int = 200
     max_grasps: int = 30
-    threshold: float = 0.85
+    threshold: float = DEFAULT_THRESHOLD
     fingers: tuple[int, ...] = (2, 3, 4, 5, 6, 7, 8, 9, 10)  #: experiment 2
     oneshot_fingers: tuple[int, ...] = (3, 4, 5)  #: experiment 1
     classifiers: tuple[str, ...] = CLASSIFIERS

@@ -1,28 +1,38 @@
 """Object recognisers: MLP / scikit-learn classifiers, KDE likelihoods and belief updaters.
 
-See :func:`build_recognizer` for the entry point used by the Gymnasium environment.
+See :func:`build_recognizer` for the entry point used by the Gymnasium environment. The names below are
+imported on first use: ``import haptic_env.recognizers.kde`` (or ``.updaters``) does not load torch, which
+only the MLP needs.
 """
 
-from haptic_env.recognizers.baselines import CLASSIFIERS, Classifier, SklearnClassifier, make_classifier
-from haptic_env.recognizers.kde import KDEConfig, KDELikelihood, scott_bandwidth
-from haptic_env.recognizers.mlp import MLPClassifier, MLPConfig
-from haptic_env.recognizers.calibration import expected_calibration_error, fit_temperature, reliability
-from haptic_env.recognizers.recognizer import MODELS, ModelBank, Recognizer, RecognizerConfig, build_recognizer, models_for
-from haptic_env.recognizers.updaters import (
-    BCIP,
-    BCNP,
-    UPDATERS,
-    BayesianUpdater,
-    BeliefUpdater,
-    IterativeClassification,
-    make_updater,
-)
-from haptic_env.recognizers.zfinger import ZFingerUpdater, sample_finger_counts, subset_vectors, subsets
+from __future__ import annotations
 
-__all__ = [
-    "CLASSIFIERS", "Classifier", "SklearnClassifier", "make_classifier", "KDEConfig", "KDELikelihood",
-    "scott_bandwidth", "MLPClassifier", "MLPConfig", "ModelBank", "Recognizer", "RecognizerConfig",
-    "build_recognizer", "models_for", "MODELS", "fit_temperature", "expected_calibration_error", "reliability",
-    "BCIP", "BCNP", "UPDATERS", "BayesianUpdater", "BeliefUpdater",
-    "IterativeClassification", "make_updater", "ZFingerUpdater", "sample_finger_counts", "subset_vectors", "subsets",
-]
+import importlib
+
+#: name -> the submodule that defines it
+_EXPORTS = {
+    **dict.fromkeys(("CLASSIFIERS", "Classifier", "SklearnClassifier", "make_classifier"), "baselines"),
+    **dict.fromkeys(("KDEConfig", "KDELikelihood", "scott_bandwidth"), "kde"),
+    **dict.fromkeys(("MLPClassifier", "MLPConfig"), "mlp"),
+    **dict.fromkeys(("expected_calibration_error", "fit_temperature", "reliability"), "calibration"),
+    **dict.fromkeys(("MODELS", "ModelBank", "Recognizer", "RecognizerConfig", "build_recognizer", "models_for"),
+                    "recognizer"),
+    **dict.fromkeys(("BCIP", "BCNP", "UPDATERS", "DEFAULT_THRESHOLD", "BayesianUpdater", "BeliefUpdater",
+                     "IterativeClassification", "make_updater", "bayes_steps"), "updaters"),
+    **dict.fromkeys(("ZFingerUpdater", "sample_finger_counts", "subset_vectors", "subsets"), "zfinger"),
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

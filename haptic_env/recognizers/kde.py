@@ -44,7 +44,8 @@ from scipy.spatial import cKDTree
 
 from haptic_env.recognizers.calibration import fit_temperature
 from haptic_env.recognizers.knn import KDTree, pooled_log_density
-from haptic_env.recognizers.mlp import Standardizer, _check_xy
+from haptic_env.recognizers.preprocess import Standardizer
+from haptic_env.recognizers.preprocess import check_xy as _check_xy
 
 __all__ = ["KDEConfig", "KDELikelihood", "scott_bandwidth"]
 

@@ -27,6 +27,8 @@ from tqdm.auto import tqdm
 
 from haptic_env.cache import CacheError, atomic_write
 from haptic_env.recognizers.calibration import fit_temperature
+from haptic_env.recognizers.preprocess import Standardizer
+from haptic_env.recognizers.preprocess import check_xy as _check_xy
 
 __all__ = ["MLPConfig", "MLPClassifier", "FORMAT_VERSION", "set_torch_threads", "Standardizer"]
 
@@ -72,42 +74,6 @@ class MLPConfig:
             raise ValueError(f"MLPConfig.lr must be positive and finite, got {self.lr!r}")
         if not 0.0 < self.val_fraction < 1.0:
             raise ValueError(f"MLPConfig.val_fraction must be in (0, 1), got {self.val_fraction!r}")
-
-
-@dataclass(frozen=True)
-class Standardizer:
-    """Per-feature ``(x - mean) / std``; constant features get std 1."""
-
-    mean: np.ndarray  #: (d,)
-    std: np.ndarray  #: (d,)
-
-    @classmethod
-    def fit(cls, X: np.ndarray) -> Standardizer:
-        X = np.asarray(X, dtype=np.float64)
-        std = X.std(axis=0)
-        return cls(X.mean(axis=0), np.where(std > 1e-12, std, 1.0))
-
-    def __call__(self, X: np.ndarray) -> np.ndarray:
-        return (np.asarray(X, dtype=np.float64) - self.mean) / self.std
-
-
-def _check_xy(X, y=None, d: int | None = None, what: str = "X"):
-    X = np.asarray(X)
-    if X.ndim != 2:
-        raise ValueError(f"{what} must have shape (B, d), got {X.shape}")
-    if d is not None and X.shape[1] != d:
-        raise ValueError(f"{what} has {X.shape[1]} features, the model expects {d}")
-    if not np.isfinite(X).all():
-        i = int(np.flatnonzero(~np.isfinite(X).all(axis=1))[0])
-        raise ValueError(f"{what} row {i} is not finite: {X[i].tolist()}")
-    if y is None:
-        return X
-    y = np.asarray(y)
-    if y.shape != (X.shape[0],):
-        raise ValueError(f"labels must have shape ({X.shape[0]},), got {y.shape}")
-    if not np.issubdtype(y.dtype, np.integer) or (y < 0).any():
-        raise ValueError("labels must be non-negative integers (class indices)")
-    return X, y.astype(np.int64)
 
 
 def _network(d: int, k: int, depth: int, width: int) -> nn.Sequential:

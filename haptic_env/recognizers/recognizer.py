@@ -29,7 +29,7 @@ from haptic_env.cache import CacheError, atomic_write, cache_dir, config_key, lo
 from haptic_env.grasp_features import feature_dim
 from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
 from haptic_env.recognizers.mlp import MLPClassifier, MLPConfig
-from haptic_env.recognizers.updaters import UPDATERS, make_updater
+from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS, make_updater
 from haptic_env.recognizers.zfinger import ZFingerUpdater, subset_vectors
 
 __all__ = ["RecognizerConfig", "ModelBank", "Recognizer", "build_recognizer", "models_for", "MODELS", "RECOGNIZER_VERSION"]
@@ -169,7 +169,7 @@ class Recognizer:
             scorers[calibrated] = GraspScorer(self.n_fingers, self.normals, kde, scale=scale) if ok else None
         return scorers[calibrated]
 
-    def make_updater(self, kind: str = "bc-np", threshold: float = 0.85, z: int | None = None, *,
+    def make_updater(self, kind: str = "bc-np", threshold: float = DEFAULT_THRESHOLD, z: int | None = None, *,
                      k: int | None = None, rng: np.random.Generator | None = None, calibrated: bool = True,
                      **kw) -> ZFingerUpdater:
         """A belief updater over this recogniser's models.

@@ -28,20 +28,29 @@ BC-IP — informative prior
     The first grasp's classifier probabilities (clipped at ``eps``) form the prior; later grasps
     are KDE likelihood updates as in BC-NP.
 
-A decision is made once ``certainty >= threshold`` (``lambda_s``, default 0.85).
+A decision is made once ``certainty >= threshold`` (``lambda_s``, default :data:`DEFAULT_THRESHOLD`).
+
+:meth:`BeliefUpdater.predict` gives the beliefs after one more grasp for ``G`` candidate grasps at once
+without changing the updater (Bayesian updaters: one batched kernel, :func:`bayes_steps`, which also updates
+``B`` independent log beliefs at once).
 """
 
 from __future__ import annotations
 
+import copy
 import math
 from abc import ABC, abstractmethod
 
 import numpy as np
 from numba import njit
 
-__all__ = ["BeliefUpdater", "IterativeClassification", "BayesianUpdater", "BCNP", "BCIP", "make_updater", "UPDATERS"]
+__all__ = ["BeliefUpdater", "IterativeClassification", "BayesianUpdater", "BCNP", "BCIP", "make_updater", "UPDATERS",
+           "DEFAULT_THRESHOLD", "bayes_steps"]
 
+#: Every belief-updater kind (the env, the recogniser and the experiments take these names).
 UPDATERS = ("ic", "ic-full", "bc-np", "bc-ip")
+#: The certainty ``lambda_s`` at which a recogniser decides (the paper's 0.85); the one default of every threshold.
+DEFAULT_THRESHOLD = 0.85
 
 
 def _check_threshold(threshold: float) -> float:
@@ -84,10 +93,53 @@ def _bayes_step(log_belief, L, product, max_log_ratio):
     return post - (mx + np.log(total)), _OK
 
 
+@njit(cache=True)
+def _bayes_steps(log_beliefs, L, starts, product, max_log_ratio, out, status):
+    """:func:`_bayes_step` of ``B`` beliefs at once: belief ``b`` takes the rows ``starts[b]:starts[b + 1]`` of ``L``."""
+    for b in range(log_beliefs.shape[0]):
+        post, s = _bayes_step(log_beliefs[b], L[starts[b]:starts[b + 1]], product, max_log_ratio)
+        out[b] = post
+        status[b] = s
+
+
+def bayes_steps(log_beliefs, log_lik, starts, *, combine: str = "product", max_log_ratio: float | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """One Bayes step for each of ``B`` log beliefs ``(B, K)`` (the rule of :class:`BayesianUpdater`).
+
+    Belief ``b`` is updated by the score rows ``log_lik[starts[b]:starts[b + 1]]`` (``starts (B + 1,)``,
+    ascending; an empty range leaves it unchanged). Returns the new log beliefs ``(B, K)`` and a boolean
+    ``(B,)``: True where the belief was updated, False where every class had log-likelihood -inf (no
+    information: that belief is returned unchanged). NaN scores raise ``ValueError``.
+    """
+    logb = np.ascontiguousarray(log_beliefs, dtype=np.float64)
+    L = np.ascontiguousarray(log_lik, dtype=np.float64).reshape(-1, logb.shape[1])
+    starts = np.ascontiguousarray(starts, dtype=np.int64)
+    if logb.ndim != 2 or starts.shape != (len(logb) + 1,) or starts[0] != 0 or starts[-1] != len(L) or \
+            (np.diff(starts) < 0).any():
+        raise ValueError(f"bayes_steps: starts must rise from 0 to {len(L)} with {len(logb) + 1} entries, got {starts}")
+    out = np.empty_like(logb)
+    status = np.empty(len(logb), dtype=np.int64)
+    mlr = np.inf if max_log_ratio is None else float(max_log_ratio)
+    _bayes_steps(logb, L, starts, combine == "product", mlr, out, status)
+    if (status == _NAN).any():
+        raise ValueError("log-likelihood contains NaN")
+    empty = starts[1:] == starts[:-1]
+    out[empty] = logb[empty]
+    return out, (status == _OK) & ~empty
+
+
 def _logsumexp(v: np.ndarray) -> float:
     """``log(sum(exp(v)))`` of a 1-D array with a finite maximum (scipy's costs ~0.1 ms of dispatch per call)."""
     m = v.max()
     return float(m + np.log(np.exp(v - m).sum()))
+
+
+def _grouped(Q, starts) -> tuple[np.ndarray, np.ndarray]:
+    Q = _rows(Q)
+    starts = np.arange(len(Q) + 1) if starts is None else np.asarray(starts, dtype=np.int64)
+    if starts.ndim != 1 or len(starts) < 1 or starts[0] != 0 or starts[-1] != len(Q) or (np.diff(starts) < 0).any():
+        raise ValueError(f"starts must rise from 0 to {len(Q)}, got {starts}")
+    return Q, starts
 
 
 def _rows(q) -> np.ndarray:
@@ -104,7 +156,7 @@ class BeliefUpdater(ABC):
 
     kind: str = ""
 
-    def __init__(self, n_classes: int, threshold: float = 0.85):
+    def __init__(self, n_classes: int, threshold: float = DEFAULT_THRESHOLD):
         if n_classes < 2:
             raise ValueError(f"an updater needs at least 2 classes, got {n_classes}")
         self.n_classes = int(n_classes)
@@ -136,6 +188,23 @@ class BeliefUpdater(ABC):
     @abstractmethod
     def belief(self) -> np.ndarray: ...
 
+    def predict(self, Q, starts=None) -> np.ndarray:
+        """Beliefs ``(G, K)`` after ONE more grasp, for each of ``G`` candidate grasps; the updater is unchanged.
+
+        ``Q (R, d)`` holds the score rows of the grasps, grasp ``g`` owning ``Q[starts[g]:starts[g + 1]]``
+        (``starts (G + 1,)``; default: one row per grasp). Exactly what :meth:`update` would give; here through
+        a copy of the state per grasp (Bayesian updaters override it with one batched call).
+        """
+        Q, starts = _grouped(Q, starts)
+        out = np.empty((len(starts) - 1, self.n_classes))
+        for g in range(len(out)):
+            u = copy.copy(self)  # shallow: share the models, copy the mutable state arrays
+            for name, value in vars(u).items():
+                if isinstance(value, np.ndarray):
+                    setattr(u, name, value.copy())
+            out[g] = u.update(Q[starts[g]:starts[g + 1]])
+        return out
+
     @property
     def certainty(self) -> float:
         return float(self.belief.max())
@@ -152,7 +221,7 @@ class BeliefUpdater(ABC):
 class IterativeClassification(BeliefUpdater):
     """IC (``full=False``, paper Algorithm 1) and its full-accumulation variant (``full=True``)."""
 
-    def __init__(self, classifier, threshold: float = 0.85, *, full: bool = False, n_classes: int | None = None):
+    def __init__(self, classifier, threshold: float = DEFAULT_THRESHOLD, *, full: bool = False, n_classes: int | None = None):
         self.classifier = classifier
         self.full = bool(full)
         self.kind = "ic-full" if full else "ic"
@@ -195,7 +264,7 @@ class BayesianUpdater(BeliefUpdater):
 
     kind = "bc-np"
 
-    def __init__(self, likelihood, threshold: float = 0.85, *, combine: str = "product",
+    def __init__(self, likelihood, threshold: float = DEFAULT_THRESHOLD, *, combine: str = "product",
                  max_log_ratio: float | None = None, n_classes: int | None = None):
         """``likelihood`` has ``log_likelihood(Q (m, d)) -> (m, K)``.
 
@@ -247,6 +316,15 @@ class BayesianUpdater(BeliefUpdater):
         Q = _rows(q)
         return self.update_scores(log_lik=self.likelihood.log_likelihood(Q) if len(Q) else np.zeros((0, self.n_classes)))
 
+    def predict(self, Q, starts=None) -> np.ndarray:
+        """:meth:`BeliefUpdater.predict` in one likelihood call and one batched Bayes step (:func:`bayes_steps`)."""
+        Q, starts = _grouped(Q, starts)
+        G = len(starts) - 1
+        L = self.likelihood.log_likelihood(Q) if len(Q) else np.zeros((0, self.n_classes))
+        post, _ = bayes_steps(np.broadcast_to(self.log_belief, (G, self.n_classes)), L, starts, combine=self.combine,
+                              max_log_ratio=self.max_log_ratio)
+        return np.exp(post)
+
 
 BCNP = BayesianUpdater
 
@@ -256,7 +334,7 @@ class BCIP(BayesianUpdater):
 
     kind = "bc-ip"
 
-    def __init__(self, classifier, likelihood, threshold: float = 0.85, *, eps: float = 1e-4, **kw):
+    def __init__(self, classifier, likelihood, threshold: float = DEFAULT_THRESHOLD, *, eps: float = 1e-4, **kw):
         if not 0 < eps < 1:
             raise ValueError(f"eps must be in (0, 1), got {eps!r}")
         self.classifier = classifier
@@ -284,8 +362,13 @@ class BCIP(BayesianUpdater):
             return self.update_scores(proba=self.classifier.predict_proba(Q))
         return self.update_scores(log_lik=self.likelihood.log_likelihood(Q))
 
+    def predict(self, Q, starts=None) -> np.ndarray:
+        if self.n_grasps == 0:  # the first grasp sets the classifier prior: not a Bayes step
+            return BeliefUpdater.predict(self, Q, starts)
+        return super().predict(Q, starts)
 
-def make_updater(kind: str, *, classifier=None, likelihood=None, threshold: float = 0.85, **kw) -> BeliefUpdater:
+
+def make_updater(kind: str, *, classifier=None, likelihood=None, threshold: float = DEFAULT_THRESHOLD, **kw) -> BeliefUpdater:
     """An updater by name (:data:`UPDATERS`), given the models it needs."""
     if kind not in UPDATERS:
         raise ValueError(f"unknown updater kind {kind!r}; choose one of {UPDATERS}")

@@ -115,6 +115,8 @@ class ZFingerUpdater:
         self.base, self.z, self.k, self.rng, self.normalize = base, z, k, rng, normalize
 
     def __getattr__(self, name):  # certainty, prediction, n_grasps, n_classes, ...
+        if name == "base":  # not set yet (copy / pickle build the object before its __dict__)
+            raise AttributeError(name)
         return getattr(self.base, name)
 
     @property

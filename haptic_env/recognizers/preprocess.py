@@ -1,0 +1,48 @@
+"""Torch-free helpers shared by the models: feature standardisation and input checks.
+
+(The KDE imports these; keeping them out of :mod:`.mlp` keeps ``import haptic_env.recognizers.kde`` free of torch.)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Standardizer", "check_xy"]
+
+
+@dataclass(frozen=True)
+class Standardizer:
+    """Per-feature ``(x - mean) / std``; constant features get std 1."""
+
+    mean: np.ndarray  #: (d,)
+    std: np.ndarray  #: (d,)
+
+    @classmethod
+    def fit(cls, X: np.ndarray) -> Standardizer:
+        X = np.asarray(X, dtype=np.float64)
+        std = X.std(axis=0)
+        return cls(X.mean(axis=0), np.where(std > 1e-12, std, 1.0))
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        return (np.asarray(X, dtype=np.float64) - self.mean) / self.std
+
+
+def check_xy(X, y=None, d: int | None = None, what: str = "X"):
+    X = np.asarray(X)
+    if X.ndim != 2:
+        raise ValueError(f"{what} must have shape (B, d), got {X.shape}")
+    if d is not None and X.shape[1] != d:
+        raise ValueError(f"{what} has {X.shape[1]} features, the model expects {d}")
+    if not np.isfinite(X).all():
+        i = int(np.flatnonzero(~np.isfinite(X).all(axis=1))[0])
+        raise ValueError(f"{what} row {i} is not finite: {X[i].tolist()}")
+    if y is None:
+        return X
+    y = np.asarray(y)
+    if y.shape != (X.shape[0],):
+        raise ValueError(f"labels must have shape ({X.shape[0]},), got {y.shape}")
+    if not np.issubdtype(y.dtype, np.integer) or (y < 0).any():
+        raise ValueError("labels must be non-negative integers (class indices)")
+    return X, y.astype(np.int64)
