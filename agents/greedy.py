@@ -8,7 +8,8 @@ the expected entropy of the belief after grasping with it,
 where :math:`q_{k,s}(a)` is the grasp vector obtained by *simulating* approach ``a`` on object ``k`` with the
 geometric backend (``S`` samples, 1 by default since the geometric backend is deterministic without sensing
 noise), :math:`\bar b` is the current belief restricted to the objects with :math:`b_k \ge` ``min_weight``
-(renormalised), and the posterior is computed exactly as the env's updater would compute it. It plays the
+(renormalised), and the posterior is computed exactly as the env's belief would compute it
+(:meth:`haptic_env.belief.Belief.predict_grasps`, batched, without changing the env's belief). It plays the
 candidate with the lowest expected entropy (the largest expected entropy reduction).
 
 Approximations (documented, deliberate):
@@ -19,20 +20,17 @@ Approximations (documented, deliberate):
 * the per-episode random scale (``scale_range``) is ignored (hypotheses at scale 1);
 * the simulation always uses the geometric backend, even when the env uses another backend (the mujoco
   hand's contacts differ from the simulated ones);
-* simulated grasps are scored exactly as the env scores real ones (:meth:`HapticRecogEnv.grasp_rows`:
+* simulated grasps are scored exactly as the env scores real ones (:meth:`haptic_env.belief.Belief.rows_batch`:
   incomplete/degenerate grasps carry no information unless the env has ``z_fingers`` models).
 """
 
 from __future__ import annotations
 
-import copy
 from typing import Any
 
 import numpy as np
-from scipy.special import logsumexp
 
-
-__all__ = ["GreedyInfoGainAgent", "predicted_beliefs", "predicted_beliefs_rows", "entropy_rows"]
+__all__ = ["GreedyInfoGainAgent", "entropy_rows"]
 
 
 def entropy_rows(P: np.ndarray) -> np.ndarray:
@@ -41,59 +39,6 @@ def entropy_rows(P: np.ndarray) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         t = np.where(P > 0, P * np.log(np.where(P > 0, P, 1.0)), 0.0)
     return -t.sum(axis=-1)
-
-
-def predicted_beliefs(updater, Q: np.ndarray, groups: np.ndarray | None = None) -> np.ndarray:
-    """Beliefs ``(G, K)`` the updater would hold after ONE more grasp, for each of ``G`` candidate grasps.
-
-    ``Q (R, d)`` are score rows; ``groups (R,)`` (sorted, ``0..G-1``) says which grasp each row belongs to
-    (several rows per grasp for z-subset scoring; default: one row per grasp). The updater is not modified.
-    Bayesian updaters (BC-NP, and BC-IP after its first grasp) are computed with ONE batched likelihood call;
-    any other updater through a copy per grasp.
-    """
-    Q = np.asarray(Q, dtype=np.float64)
-    groups = np.arange(len(Q)) if groups is None else np.asarray(groups)
-    G = int(groups.max()) + 1 if len(groups) else 0
-    if G == 0:
-        return np.zeros((0, updater.n_classes))
-    bayes = hasattr(updater, "likelihood") and hasattr(updater, "log_belief")
-    if bayes and not (getattr(updater, "kind", "") == "bc-ip" and updater.n_grasps == 0):
-        L = np.asarray(updater.likelihood.log_likelihood(Q), dtype=np.float64)  # (R, K)
-        combine = getattr(updater, "combine", "product")
-        starts = np.flatnonzero(np.r_[True, groups[1:] != groups[:-1]])
-        ll = np.add.reduceat(L, starts, axis=0)  # (G, K) product of the rows' likelihoods
-        if combine == "mean":
-            ll = ll / np.diff(np.r_[starts, len(groups)])[:, None]
-        top = ll.max(axis=1, keepdims=True)
-        ok = np.isfinite(top[:, 0])
-        mlr = getattr(updater, "max_log_ratio", None)
-        if mlr is not None:
-            ll = np.maximum(ll, top - mlr)
-        step = np.where(ok[:, None], ll - np.where(ok[:, None], top, 0.0), 0.0)
-        post = updater.log_belief[None, :] + step
-        return np.exp(post - logsumexp(post, axis=1, keepdims=True))
-    base = getattr(updater, "base", updater)
-    out = np.empty((G, updater.n_classes))
-    for g in range(G):
-        u = copy.copy(base)  # shallow copy; copy the mutable state arrays, share the models
-        for name, value in vars(u).items():
-            if isinstance(value, np.ndarray):
-                setattr(u, name, value.copy())
-        out[g] = u.update(Q[groups == g])
-    return out
-
-
-def predicted_beliefs_rows(updater, rows: list[np.ndarray]) -> np.ndarray:
-    """:func:`predicted_beliefs` for ``G`` grasps given as a list of score rows ``(m_g, d_g)`` (the row width
-    may differ between grasps, e.g. 3- and 4-finger models): one batched call per width."""
-    out = np.zeros((len(rows), updater.n_classes))
-    dims = np.array([r.shape[1] for r in rows])
-    for d in np.unique(dims):
-        idx = np.flatnonzero(dims == d)
-        Q = np.concatenate([rows[i] for i in idx])
-        groups = np.repeat(np.arange(idx.size), [len(rows[i]) for i in idx])
-        out[idx] = predicted_beliefs(updater, Q, groups)
-    return out
 
 
 class GreedyInfoGainAgent:
@@ -143,8 +88,8 @@ class GreedyInfoGainAgent:
         space = env.action_space
         M, S = self.n_candidates, self.n_samples
         cands = self._rng.uniform(space.low, space.high, size=(M,) + space.shape)
-        updater = base.updater
-        b = np.asarray(updater.belief, dtype=np.float64)
+        belief = base.belief_state  # the env's Belief: predictions only, its state is not changed
+        b = np.asarray(belief.probs, dtype=np.float64)
         H0 = float(entropy_rows(b[None])[0])
         active = np.flatnonzero(b >= self.min_weight)
         if active.size == 0:
@@ -159,10 +104,10 @@ class GreedyInfoGainAgent:
             normals = None
             if base.config.normals:
                 normals = res.normals if res.normals is not None else res.gt_normals
-            rows, scored = base.grasp_rows_batch(contacts, normals, touched)  # scored as the env would
+            posteriors, scored = belief.predict_grasps(contacts, normals, touched)  # scored as the env would
             H = np.full(M * S, H0)
             if scored.size:
-                H[scored] = entropy_rows(predicted_beliefs_rows(updater, rows))
+                H[scored] = entropy_rows(posteriors)
             expected += wk * H.reshape(M, S).mean(axis=1)
         self.last_scores = expected
         return cands[int(np.argmin(expected))].astype(space.dtype)

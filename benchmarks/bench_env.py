@@ -119,7 +119,8 @@ def main(argv=None) -> None:
 
         undo = [timed(env.backend, "grasp", "grasp"), timed(env.recognizer, "features", "features"),
                 timed(env.updater, "update", "update"), timed(env.updater.base, "update_scores", "update")]
-        scorer = env._scorer
+        belief = env.belief_state  # instrumented: its compiled scorer is timed as "features"
+        scorer = belief._scorer
         if scorer is not None:
             def timed_scorer(*a):
                 t = time.perf_counter()
@@ -128,8 +129,8 @@ def main(argv=None) -> None:
                 finally:
                     spent["features"] += time.perf_counter() - t
 
-            env._scorer = timed_scorer
-            undo.append(lambda: setattr(env, "_scorer", scorer))
+            belief._scorer = timed_scorer
+            undo.append(lambda: setattr(belief, "_scorer", scorer))
         try:
             t_step = sum(run_env(block)[0] for block in blocks)
         finally:

@@ -23,9 +23,6 @@ from gymnasium.envs.registration import register, registry
 
 __version__ = "0.1.0"
 
-#: Grasps per episode of the registered envs (``max_episode_steps``; = ``HapticRecogConfig.max_grasps``).
-MAX_GRASPS = 30
-
 _ENTRY = "haptic_env.env:HapticRecogEnv"
 #: id -> flat config overrides of each registered variant
 ENV_VARIANTS: dict[str, dict[str, Any]] = {
@@ -41,20 +38,14 @@ ENV_VARIANTS: dict[str, dict[str, Any]] = {
     "HapticRecogKIT-v0": {"objects": "kit8"},
 }
 
+# no max_episode_steps: the env truncates itself after config.max_grasps grasps (the one source of the episode length)
 for _id, _kwargs in ENV_VARIANTS.items():
     if _id not in registry:
-        register(id=_id, entry_point=_ENTRY, max_episode_steps=MAX_GRASPS, kwargs=dict(_kwargs))
+        register(id=_id, entry_point=_ENTRY, kwargs=dict(_kwargs))
 
 
 def make(config=None, env_id: str = "HapticRecog-v0", **kwargs):
-    """``gymnasium.make(env_id, config=config, **kwargs)`` with ``max_episode_steps`` set to the config's
-    ``max_grasps`` (so a non-default ``max_grasps`` is honoured by the ``TimeLimit`` wrapper)."""
+    """``gymnasium.make(env_id, config=config, **kwargs)``: the env truncates itself after ``config.max_grasps``."""
     import gymnasium as gym
 
-    from haptic_env.env import HapticRecogConfig
-
-    base = config if config is not None else HapticRecogConfig()
-    fields = {k: v for k, v in {**ENV_VARIANTS[env_id], **kwargs}.items() if k in HapticRecogConfig.__dataclass_fields__}
-    max_grasps = base.replace(**fields).max_grasps
-    kwargs.setdefault("max_episode_steps", max_grasps)
     return gym.make(env_id, config=config, **kwargs)

@@ -10,9 +10,9 @@ import pytest
 
 import haptic_env
 from agents.evaluate import evaluate_agents, plot_learning_curves, summarize, write_report
-from agents.greedy import GreedyInfoGainAgent, entropy_rows, predicted_beliefs
+from agents.greedy import GreedyInfoGainAgent, entropy_rows
 from agents.random_policy import RandomAgent
-from haptic_env.env import get_recognizer
+from haptic_env.belief import Belief, get_recognizer
 
 
 def test_random_and_greedy_complete_episodes(env_config):
@@ -29,6 +29,7 @@ def test_random_and_greedy_complete_episodes(env_config):
 
 
 def test_greedy_prediction_matches_the_updater(env_config):
+    """Belief.predict (what greedy scores candidates with) equals really updating a copy of the belief."""
     env = haptic_env.make(env_config)
     env.reset(seed=0)
     base = env.unwrapped
@@ -37,27 +38,28 @@ def test_greedy_prediction_matches_the_updater(env_config):
     while len(Q) < 3:  # a few scored grasp vectors of this object
         _, _, term, trunc, info = env.step(rng.uniform(-1, 1, 4).astype(np.float32))
         if info["usable"]:  # complete grasp: the observed grasp vector is the scored one
-            Q.append(base._last_q.copy())
+            Q.append(base.task.last_q.copy())
         if term or trunc:
             env.reset()
     Q = np.stack(Q)
-    pred = predicted_beliefs(base.updater, Q)
+    belief = base.belief_state
+    before = belief.probs.copy()
+    pred = belief.predict([q[None] for q in Q])
     for q, p in zip(Q, pred):
-        u = copy.deepcopy(base.updater.base)  # reference: really update a copy
-        np.testing.assert_allclose(p, u.update(q), rtol=1e-9, atol=1e-12)
+        u = copy.deepcopy(belief)  # reference: really update a copy
+        np.testing.assert_allclose(p, u.update_rows(q), rtol=1e-12, atol=1e-15)
     assert np.all(entropy_rows(pred) >= 0)
     # several rows per grasp (z-subset scoring): rows 0-1 are one grasp, row 2 another
-    pred = predicted_beliefs(base.updater, Q, groups=np.array([0, 0, 1]))
-    u = copy.deepcopy(base.updater.base)
-    np.testing.assert_allclose(pred[0], u.update(Q[:2]), rtol=1e-9, atol=1e-12)
+    pred = belief.predict([Q[:2], Q[2:]])
+    np.testing.assert_allclose(pred[0], copy.deepcopy(belief).update_rows(Q[:2]), rtol=1e-12, atol=1e-15)
+    np.testing.assert_array_equal(belief.probs, before)
     # a non-Bayesian updater (IC) goes through copies of its state; the original is untouched
-    ic = get_recognizer(base.objects, base.config.replace(updater="ic")).make_updater("ic")  # the env built the KDE only
-    ic.update(Q[0])
-    before = ic.belief.copy()
-    pred = predicted_beliefs(ic, Q[1:])
-    u = copy.deepcopy(ic.base)
-    np.testing.assert_allclose(pred[0], u.update(Q[1]), rtol=1e-12)
-    np.testing.assert_array_equal(ic.belief, before)
+    ic = Belief(get_recognizer(base.objects, base.config.replace(updater="ic")), "ic")  # the env built the KDE only
+    ic.update_rows(Q[0])
+    before = ic.probs.copy()
+    pred = ic.predict([q[None] for q in Q[1:]])
+    np.testing.assert_allclose(pred[0], copy.deepcopy(ic).update_rows(Q[1]), rtol=1e-12)
+    np.testing.assert_array_equal(ic.probs, before)
 
 
 def test_greedy_picks_the_lowest_expected_entropy(env_config):
@@ -75,7 +77,7 @@ def _train_args(algo: str, steps: int, run, recognizer_kwargs: dict, hyperparams
     """``train.py`` arguments of a tiny run (one dummy-vec env, 10-grasp episodes, small recogniser);
     the hyper-parameters come last so a test can replace them."""
     return ["--algo", algo, "--total-timesteps", str(steps), "--n-envs", "1", "--vec", "dummy",
-            "--run-dir", str(run), "--checkpoint-freq", "128", "--max-grasps", "10",
+            "--run-dir", str(run), "--checkpoint-freq", "128", "--env.max-grasps", "10",
             "--env-kwargs", json.dumps({"recognizer_kwargs": recognizer_kwargs}),
             "--hyperparams", json.dumps(hyperparams)]
 

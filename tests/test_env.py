@@ -41,15 +41,32 @@ def test_import_is_cheap_and_registers_ids():
     for env_id in ("HapticRecog-v0", "HapticRecogMuJoCo-v0", "HapticRecogShadow-v0", "HapticRecogAero-v0",
                    "HapticRecogRobotiq-v0", "HapticRecogKIT-v0"):
         assert env_id in out
-    assert gym.spec("HapticRecog-v0").max_episode_steps == HapticRecogConfig().max_grasps
+    assert gym.spec("HapticRecog-v0").max_episode_steps is None  # the env truncates itself: max_grasps is the one source
+
+
+def _has_display() -> bool:
+    import matplotlib
+    import matplotlib.pyplot  # noqa: F401  (picks an interactive backend when there is a display)
+
+    return matplotlib.get_backend().lower() not in ("agg", "pdf", "ps", "svg", "cairo", "template", "pgf")
 
 
 def test_gymnasium_check_env(env_config):
     from gymnasium.utils.env_checker import check_env
 
     env = _make(env_config)
-    check_env(env.unwrapped, skip_render_check=False)
+    # the render check makes a "human" env too, which needs a display (headless: see the test below)
+    check_env(env.unwrapped, skip_render_check=not _has_display())
     env.close()
+
+
+def test_human_render_without_a_display_is_a_clear_error(env_config):
+    """render_mode="human" opens a window; without one (a non-interactive matplotlib backend) make raises at once
+    instead of drawing every step into nothing."""
+    if _has_display():
+        pytest.skip("a display is available: human rendering opens a window")
+    with pytest.raises(RuntimeError, match="render_mode='human' needs a display"):
+        _make(env_config, render_mode="human")
 
 
 def test_sb3_check_env(env_config):
@@ -169,14 +186,14 @@ def test_terminates_at_threshold_and_truncates(env_config):
         n_terminated += term
         env.reset()
     assert n_terminated > 0, "no episode reached a certainty of 0.5 in 60 grasps"
-    # threshold 1 is rarely reached: the TimeLimit (and the env itself) truncate at max_grasps
+    # threshold 1 is rarely reached: the env truncates itself at max_grasps (no TimeLimit wrapper)
     env = haptic_env.make(env_config.replace(threshold=1.0, max_grasps=4))
     env.reset(seed=0)
     truncated_once = False
     for _ in range(20):
         for i in range(4):
             _, _, term, trunc, info = env.step(rng.uniform(-1, 1, 4).astype(np.float32))
-            assert trunc == (i == 3) and info["grasps"] == i + 1  # (TimeLimit truncates even when term)
+            assert trunc == (i == 3 and not term) and info["grasps"] == i + 1
             if term or trunc:
                 break
         truncated_once |= trunc and not term
@@ -309,7 +326,7 @@ def test_grasp_rows_batch_matches_grasp_rows(env_config, z):
 
 
 def test_recognizer_source_reaches_the_recognizer_config(env_config):
-    from haptic_env.env import _recognizer_kwargs
+    from haptic_env.config import recognizer_kwargs as _recognizer_kwargs
     from haptic_env.dataset import DatasetConfig
     from haptic_env.recognizers import RecognizerConfig
 
@@ -325,7 +342,7 @@ def test_recognizer_source_reaches_the_recognizer_config(env_config):
 
 
 def test_kde_method_reaches_the_recognizer_config(env_config):
-    from haptic_env.env import _recognizer_kwargs
+    from haptic_env.config import recognizer_kwargs as _recognizer_kwargs
 
     assert HapticRecogConfig().kde_method == "pooled"
     assert _recognizer_kwargs(env_config)["config"].kde.method == env_config.kde_method
@@ -374,8 +391,8 @@ def test_compiled_scorer_path_equals_the_general_path(env_config, updater):
     fast, slow = HapticRecogEnv(cfg), HapticRecogEnv(cfg)
     fast.reset(seed=3)
     slow.reset(seed=3)
-    assert fast._scorer is not None
-    slow._scorer = None  # force grasp_rows + updater.update
+    assert fast.belief_state.compiled and fast.belief_state._scorer is not None
+    slow.belief_state.compiled = False  # force Belief.rows + updater.update
     rng = np.random.default_rng(0)
     for _ in range(50):
         a = rng.uniform(-1, 1, fast.action_dim).astype(np.float32)

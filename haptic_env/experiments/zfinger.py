@@ -8,7 +8,8 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from haptic_env.experiments.config import MAIN_KINDS, TEST_SEED_OFFSET, AnalysisConfig
-from haptic_env.experiments.fresh_grasps import contact_pool, fresh_pool, pool_scores, scored_models, subset_scores
+from haptic_env.belief import Belief
+from haptic_env.experiments.fresh_grasps import contact_pool, fresh_pool, pool_scores, scored_models
 from haptic_env.experiments.report import Report, mean_std
 from haptic_env.experiments.trials import incomplete_trials, simulate_trials, summarize
 from haptic_env.recognizers.recognizer import build_recognizer
@@ -25,6 +26,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     rows = []
     recs = {z: build_recognizer(objects, z, cfg.normals, config=cfg.recognizer_config(), progress=False)
             for z in SUBSET_SIZES}
+    beliefs = {z: Belief(rec, calibrated=cfg.calibrated) for z, rec in recs.items()}  # their subset scoring
     for n in tqdm(cfg.zfinger_hands, desc="exp3 hands", disable=not cfg.progress):
         raw = contact_pool(objects, n, cfg.normals, max(50, cfg.test_grasps // 2), cfg.seed + TEST_SEED_OFFSET + n)
         for z in SUBSET_SIZES:
@@ -34,7 +36,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
                 srng = np.random.default_rng([cfg.seed, n, z])
                 LL, PR = [], []
                 for C, N in raw:
-                    ll, pr = subset_scores(scored_models(recs[z], cfg), C, N, z, k_sub, srng)
+                    ll, pr, _ = beliefs[z].subset_scores(C, N, z, k_sub, srng)
                     LL.append(ll)
                     PR.append(pr)
                 row = [n, z, "all" if k_sub is None else f"k={k_sub}"]

@@ -1,0 +1,312 @@
+r"""The belief over the ``K`` objects: grasp :math:`\to q = \Phi_n \to` likelihood :math:`\to` posterior.
+
+:class:`Belief` is the one owner of that chain. The env, the greedy agent and the experiments use only its
+public API:
+
+=================================  ===================================================================
+``reset(prior)``                   forget all grasps (returns the prior)
+``update(contacts, normals, t)``   one real grasp -> ``(q, usable)``; the posterior moves if usable
+``update_rows(Q)``                 one grasp given as its score rows ``(m, d)`` (precomputed vectors)
+``rows(contacts, normals, t)``     the grasp vector and score rows of one grasp (no state change)
+``rows_batch(C, N, T)``            the same for ``B`` grasps ``(B, n, 3)``: vectorised for complete grasps
+``predict(rows)``                  the posteriors after one more grasp for ``G`` candidates (no change)
+``predict_grasps(C, N, T)``        ``rows_batch`` + ``predict``: what ``B`` simulated grasps would do
+``scores(Q)``                      the models' ``(log_lik, proba)`` of score rows
+``subset_scores(C, N, z, k, rng)`` batched z-subset scoring of ``G`` grasps (paper, Algorithms 3 and 4)
+``probs`` / ``certainty`` /        the posterior ``(K,)``, its certainty, whether it decided, the grasps
+``decided`` / ``n_grasps``         that updated it
+=================================  ===================================================================
+
+Which grasps update the belief: a grasp with all ``n`` fingers touching, scored by the ``n``-finger model; with
+``z_fingers`` also an incomplete grasp of ``t >= z`` touching fingers, by the ``t``-finger model; with
+``score_subsets`` every grasp of ``t >= z`` touching fingers through its ``z``-subsets by the ``z``-finger model.
+Fewer than two touching fingers, or degenerate contacts (coplanar, ...), carry no information.
+
+Complete grasps of a Bayesian updater over a pooled KDE take a compiled path (:class:`GraspScorer`: Phi and the
+KDE search in one call; ``compiled=False`` forces the general path, which gives the same result).
+
+The maths of the posterior step live in :mod:`haptic_env.recognizers.updaters` (IC, BC-NP, BC-IP), whose
+:func:`~haptic_env.recognizers.updaters.bayes_steps` updates ``B`` log beliefs ``(B, K)`` in one call:
+:meth:`predict` uses it for ``G`` candidate grasps, and a vector env can use it with :meth:`rows_batch` for
+``B`` episodes at once.
+
+The recognisers themselves are built (or loaded from the cache) once per process per configuration
+(:func:`get_recognizer`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from haptic_env.grasp_features import feature_dim
+from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS
+
+if TYPE_CHECKING:
+    from haptic_env.config import HapticRecogConfig
+
+__all__ = ["Belief", "get_recognizer"]
+
+_RECOGNIZERS: dict[str, Any] = {}
+
+
+def get_recognizer(objects, config: HapticRecogConfig):
+    """The recogniser for ``objects`` and ``config`` (built/cached on disk once, then memoised per process)."""
+    from haptic_env.cache import config_key
+    from haptic_env.config import recognizer_kwargs
+
+    z_values = tuple(range(config.z_fingers, config.n_fingers)) if config.z_fingers is not None else ()
+    kwargs = recognizer_kwargs(config)  # torch: imported on first use only
+    from haptic_env.recognizers import build_recognizer, models_for
+
+    kwargs.setdefault("models", models_for(config.updater))  # BC-NP: the KDE only
+    key = config_key(objects.name, tuple(objects.names), config.n_fingers, config.normals, z_values, kwargs)
+    if key not in _RECOGNIZERS:
+        _RECOGNIZERS[key] = build_recognizer(objects, config.n_fingers, config.normals, z_values=z_values, **kwargs)
+    return _RECOGNIZERS[key]
+
+
+class Belief:
+    """The posterior over a recogniser's objects and everything that moves it (see the module docstring).
+
+    Args:
+        recognizer: a :class:`~haptic_env.recognizers.Recognizer`.
+        kind: the updater, one of :data:`~haptic_env.recognizers.UPDATERS`.
+        threshold: the certainty at which the belief has decided.
+        calibrated: temperature-scaled scores (False: the paper's raw ones).
+        z_fingers: also score incomplete grasps of ``t >= z_fingers`` touching fingers (the recogniser needs
+            those models); None: complete grasps only.
+        score_subsets: score every grasp through its ``z_fingers``-subsets.
+    """
+
+    def __init__(self, recognizer, kind: str = "bc-np", threshold: float = DEFAULT_THRESHOLD, *,
+                 calibrated: bool = True, z_fingers: int | None = None, score_subsets: bool = False):
+        if kind not in UPDATERS:
+            raise ValueError(f"unknown updater kind {kind!r}; choose one of {UPDATERS}")
+        if score_subsets and z_fingers is None:
+            raise ValueError("score_subsets=True needs z_fingers (the subset size)")
+        self.recognizer = recognizer
+        self.kind = kind
+        self.z_fingers = z_fingers
+        self.score_subsets = bool(score_subsets)
+        self.n_fingers = int(recognizer.n_fingers)
+        self.n_classes = int(recognizer.n_classes)
+        self.feature_dim = feature_dim(self.n_fingers, recognizer.normals)
+        self.models = recognizer.models.with_calibration(calibrated)
+        #: the posterior maths (read-only use: :mod:`haptic_env.recognizers.updaters`)
+        self.updater = recognizer.make_updater(kind=kind, threshold=threshold, calibrated=calibrated)
+        bayes = kind in ("bc-np", "bc-ip") and not self.score_subsets
+        self._scorer = recognizer.grasp_scorer(calibrated) if bayes else None
+        #: use the compiled scorer for complete grasps where it applies (False: the general path, same result)
+        self.compiled = True
+        self._normalize = bool(getattr(getattr(recognizer, "config", None), "grasps", None)
+                               and recognizer.config.grasps.normalize_scale)
+        self.reset()
+
+    @classmethod
+    def from_config(cls, objects, config: HapticRecogConfig) -> Belief:
+        """The belief of an env config over ``objects`` (its recogniser from :func:`get_recognizer`)."""
+        return cls(get_recognizer(objects, config), config.updater, config.threshold, calibrated=config.calibrated,
+                   z_fingers=config.z_fingers, score_subsets=config.score_subsets)
+
+    # ------------------------------------------------------------------------------------- state
+    @property
+    def probs(self) -> np.ndarray:
+        """The posterior ``(K,)`` (read-only; IC's sub-stochastic ``S / k`` is reported as ``S / sum S``)."""
+        return self._probs
+
+    @property
+    def certainty(self) -> float:
+        """Max of the posterior; IC: its own ``max S / k`` (the winning score per grasp)."""
+        if self.kind == "ic":
+            return float(self.updater.certainty)
+        return float(self._probs[int(self._probs.argmax())])
+
+    @property
+    def decided(self) -> bool:
+        return bool(self.updater.decided)
+
+    @property
+    def prediction(self) -> int:
+        return int(self._probs.argmax())
+
+    @property
+    def n_grasps(self) -> int:
+        """Grasps that updated the belief since the last reset."""
+        return int(self.updater.n_grasps)
+
+    @property
+    def threshold(self) -> float:
+        return float(self.updater.threshold)
+
+    def reset(self, prior=None) -> np.ndarray:
+        """Forget all grasps; returns the prior ``(K,)`` (uniform by default)."""
+        self._probs = self._checked(self.updater.reset(prior))
+        return self._probs
+
+    def _set(self, b) -> None:
+        b = self._checked(b)
+        if self.kind == "ic":  # IC's belief S / k is sub-stochastic: report S / sum(S), which sums to 1
+            total = b.sum()
+            if total > 0:
+                b /= total
+        b.flags.writeable = False
+        self._probs = b
+
+    def _checked(self, b) -> np.ndarray:
+        if not (isinstance(b, np.ndarray) and b.dtype == np.float64 and b.ndim == 1):
+            b = np.asarray(b, dtype=np.float64).reshape(-1)
+        if b.shape != (self.n_classes,) or not math.isfinite(np.add.reduce(b)):  # NaN / inf propagate to the sum
+            raise RuntimeError(f"belief updater returned an invalid belief {b!r} (expected {self.n_classes} finite values)")
+        return b.copy()
+
+    # ------------------------------------------------------------------------------------ grasps
+    def update(self, contacts, normals, touched) -> tuple[np.ndarray, bool]:
+        """One grasp: ``contacts``/``normals`` ``(n, 3)`` (normals None without them), ``touched (n,)``.
+
+        Returns ``(q, usable)``: the grasp vector of the touching contacts zero-padded to ``(d,)`` (a fresh array;
+        all 0 with fewer than two touching) and whether the grasp updated the belief."""
+        touched = np.asarray(touched, dtype=bool).reshape(-1)
+        if (self._scorer is not None and self.compiled and np.count_nonzero(touched) == touched.size
+                and (self.kind == "bc-np" or self.updater.n_grasps > 0)):  # BC-IP: its prior from the classifier
+            q, log_lik = self._scorer(contacts, normals)  # = rows + the likelihood of updater.update
+            if log_lik is None:
+                return q, False
+            self._set(self.updater.update_scores(log_lik=log_lik))
+            return q, True
+        q, Q = self.rows(contacts, normals, touched)
+        if Q is None:
+            return q, False
+        self._set(self.updater.update(Q))
+        return q, True
+
+    def update_rows(self, Q) -> np.ndarray:
+        """One grasp given as its score rows ``(m, d)`` (or one vector ``(d,)``); returns the posterior."""
+        self._set(self.updater.update(Q))
+        return self._probs
+
+    def rows(self, contacts, normals, touched) -> tuple[np.ndarray, np.ndarray | None]:
+        """The grasp vector ``q (d,)`` of one grasp's touching contacts (zero-padded) and the rows ``Q (m, d_z)`` that
+        score it, or None (no information). Both come from ``Recognizer.features`` (a recogniser trained
+        scale-normalised sees normalised vectors): the touching contacts as one grasp, or their ``z``-subsets
+        with ``score_subsets``."""
+        touched = np.asarray(touched, dtype=bool).reshape(-1)
+        t = np.count_nonzero(touched)
+        q = np.zeros(self.feature_dim)
+        if t < 2:
+            return q, None
+        Q = self.recognizer.features(contacts, normals, touched=touched)
+        if len(Q):
+            q[: Q.shape[1]] = Q[0]
+        z = self.z_fingers
+        if self.score_subsets and t >= z:
+            Q = self.recognizer.features(contacts, normals, touched=touched, z=z)
+            return q, (Q if len(Q) else None)
+        scored = t == self.n_fingers or (z is not None and t >= z)
+        return q, (Q if scored and len(Q) else None)
+
+    def rows_batch(self, contacts, normals, touched) -> tuple[list[np.ndarray], np.ndarray]:
+        """:meth:`rows` for ``B`` grasps ``(B, n, 3)`` / ``(B, n)``: ``(rows, scored)`` with ``scored (G,)`` the batch
+        indices of the grasps that would update the belief and ``rows[g] (m_g, d_g)`` the score rows of grasp
+        ``scored[g]``. Vectorised when only complete grasps are scored by one model (the default)."""
+        contacts = np.asarray(contacts, dtype=np.float64)
+        touched = np.asarray(touched, dtype=bool)
+        if self.z_fingers is None and not self._normalize:
+            from haptic_env.recognizers.zfinger import grasp_vectors_for
+
+            full = np.flatnonzero(touched.all(axis=1))
+            if full.size == 0:
+                return [], full
+            if self.recognizer.normals and normals is None:
+                raise ValueError("this recogniser was trained with normals; pass the contact normals")
+            N = np.asarray(normals, dtype=np.float64)[full] if self.recognizer.normals else None
+            q, valid = grasp_vectors_for(contacts[full], N)
+            return list(q[valid][:, None, :]), full[valid]
+        rows, scored = [], []
+        for i in range(len(contacts)):
+            _, Q = self.rows(contacts[i], None if normals is None else normals[i], touched[i])
+            if Q is not None:
+                rows.append(Q)
+                scored.append(i)
+        return rows, np.asarray(scored, dtype=np.int64)
+
+    # ------------------------------------------------------------------------------- prediction
+    def predict(self, rows: list[np.ndarray]) -> np.ndarray:
+        """The posteriors ``(G, K)`` after ONE more grasp, for ``G`` candidate grasps given by their score rows
+        ``rows[g] (m_g, d_g)`` (widths may differ: one batched call per width); the belief is unchanged.
+        Exactly what :meth:`update_rows` would give (reported as :attr:`probs` is)."""
+        out = np.zeros((len(rows), self.n_classes))
+        if not rows:
+            return out
+        dims = np.array([r.shape[1] for r in rows])
+        for d in np.unique(dims):
+            idx = np.flatnonzero(dims == d)
+            Q = np.concatenate([rows[i] for i in idx])
+            starts = np.concatenate([[0], np.cumsum([len(rows[i]) for i in idx])])
+            out[idx] = self.updater.predict(Q, starts)
+        if self.kind == "ic":
+            total = out.sum(axis=1, keepdims=True)
+            out = np.divide(out, total, out=out, where=total > 0)
+        return out
+
+    def predict_grasps(self, contacts, normals, touched) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`predict` of ``B`` grasps ``(B, n, 3)``: ``(posteriors (G, K), scored (G,))``, the grasps that
+        would update the belief (see :meth:`rows_batch`)."""
+        rows, scored = self.rows_batch(contacts, normals, touched)
+        return self.predict(rows), scored
+
+    # ----------------------------------------------------------------------------------- scores
+    def scores(self, Q) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """The models' scores of score rows ``Q (m, d)``: ``(log_lik (m, K), proba (m, K))``, None for a model the
+        recogniser was built without."""
+        Q = np.atleast_2d(np.asarray(Q, dtype=np.float64))
+        entry = self.models.entries.get(Q.shape[1])
+        if entry is None:
+            self.models.log_likelihood(Q)  # raises, naming the finger counts this recogniser has
+        _, clf, kde = entry
+        return (self.models.log_likelihood(Q) if kde is not None else None,
+                self.models.predict_proba(Q) if clf is not None else None)
+
+    def subset_scores(self, contacts, normals, z: int, k: int | None = None, rng: np.random.Generator | None = None
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """z-subset scores of ``G`` grasps ``contacts (G, n, 3)`` (paper, Algorithms 3 and 4), batched.
+
+        Per grasp: every z-subset of its contacts (``k=None``), or ``k`` distinct random ones drawn from ``rng``
+        (an independent random order per grasp), mapped to ``Phi_z`` and scored by the ``z``-finger models;
+        degenerate subsets are left out. Returns ``(log_lik (G', K), proba (G', K), kept (G',))``: the summed
+        log-likelihoods (the product of the likelihoods) and mean probabilities of each grasp with at least one
+        valid subset, and those grasps' indices. A model the recogniser was built without scores zeros."""
+        from itertools import combinations
+
+        from haptic_env.recognizers.zfinger import grasp_vectors_for
+
+        C = np.asarray(contacts, dtype=np.float64)
+        G, n, _ = C.shape
+        allsub = np.array(list(combinations(range(n), z)))
+        if k is None or k >= len(allsub):
+            pick = np.broadcast_to(np.arange(len(allsub)), (G, len(allsub)))
+        else:
+            pick = np.argsort(rng.random((G, len(allsub))), axis=1)[:, :k]
+        idx = allsub[pick]  # (G, m, z)
+        at = np.arange(G)[:, None, None]
+        Pz = C[at, idx].reshape(-1, z, 3)
+        Nz = None if normals is None else np.asarray(normals, dtype=np.float64)[at, idx].reshape(-1, z, 3)
+        q, valid = grasp_vectors_for(Pz, Nz, normalize=self._normalize)
+        m = idx.shape[1]
+        K = self.n_classes
+        ll = np.zeros((G * m, K))
+        pr = np.zeros((G * m, K))
+        if valid.any():
+            L, P = self.scores(q[valid])
+            if L is not None:
+                ll[valid] = L
+            if P is not None:
+                pr[valid] = P
+        v = valid.reshape(G, m)
+        cnt = v.sum(1)
+        keep = cnt > 0
+        ll = ll.reshape(G, m, K).sum(1)
+        pr = pr.reshape(G, m, K).sum(1) / np.maximum(cnt, 1)[:, None]
+        return ll[keep], pr[keep], np.flatnonzero(keep)

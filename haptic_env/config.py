@@ -1,0 +1,202 @@
+"""Every setting of the env in one frozen dataclass, :class:`HapticRecogConfig`: defaults, validation, and the
+JSON-style recogniser settings it carries (:func:`recognizer_kwargs`).
+
+Each field's docstring is its documentation: ``train.py --help`` shows them (``--env.grasp-cost`` etc.).
+Defaults that other modules share come from their owners: the threshold and the updater kinds from
+:mod:`haptic_env.recognizers.updaters`, the reward kinds from :mod:`haptic_env.task`, the pose modes from
+:mod:`haptic_env.scene`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS
+from haptic_env.scene import POSE_MODES
+from haptic_env.task import REWARD_KINDS
+
+__all__ = ["HapticRecogConfig", "recognizer_kwargs", "RECOGNIZER_SOURCES", "HAND_APPROACHES", "KDE_METHODS"]
+
+RECOGNIZER_SOURCES = ("auto", "hand", "geometric", "surface")
+#: How the env's belief update may evaluate the KDE (``KDEConfig.method``).
+KDE_METHODS = ("pooled", "tree", "dense")
+#: Random approaches per object of the default ``"hand"`` training grasps.
+HAND_APPROACHES = 3_000
+
+
+@dataclass(frozen=True)
+class HapticRecogConfig:
+    """Every setting of :class:`HapticRecogEnv` (see the env docstring, section *Arguments*)."""
+
+    objects: str = "default"
+    """Object-set spec for :func:`haptic_env.objects.load_object_set` ("default", "families", "kit8", "ycb10", a folder)."""
+    object_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    """Extra keyword arguments of ``load_object_set`` (``data_dir``, ``units``)."""
+    backend: str = "geometric"
+    """Grasp backend for :func:`haptic_env.grasping.make_backend`: "geometric" | "uniform" | "mujoco"."""
+    backend_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    """Extra keyword arguments of ``make_backend`` (e.g. ``hand="allegro"`` for mujoco)."""
+    n_fingers: int = 4
+    """Fingers of the hand (>= 2; 2: a gripper, q is the contact distance); the backend must have as many."""
+    normals: bool = True
+    """Use contact normals in the grasp vector (``5n - 6`` values instead of ``3n - 6``)."""
+    updater: str = "bc-np"
+    """Belief update, one of ``haptic_env.recognizers.UPDATERS``: "bc-np" | "bc-ip" | "ic" | "ic-full"
+    (``Recognizer.make_updater(kind=...)``)."""
+    z_fingers: int | None = None
+    """If set (``2 <= z < n_fingers``), the recogniser also gets models for ``z .. n_fingers - 1`` fingers and an
+    incomplete grasp with ``t >= z`` touching fingers updates the belief through the ``t``-finger model (its
+    touching contacts as one grasp); None: only complete grasps (all ``n`` fingers touching) are scored."""
+    score_subsets: bool = False
+    """z-finger scoring (paper, Alg. 3): score every grasp with ``t >= z_fingers`` touching fingers through all
+    its ``z_fingers``-subsets of contacts with the ``z``-finger model (likelihoods multiplied), instead of the
+    ``t``-finger model. Needs ``z_fingers``."""
+    threshold: float = DEFAULT_THRESHOLD
+    """Certainty :math:`\\lambda` at which the episode terminates (the recogniser has decided)."""
+    reward: str = "true-posterior-gain"
+    """"true-posterior-gain" | "max-posterior-gain" | "entropy-reduction"."""
+    grasp_cost: float = 0.0
+    """Subtracted from the reward at every grasp (usable or not)."""
+    pose: str = "table-yaw"
+    """"table-yaw": uniform yaw about the world z axis; "so3": uniform random rotation."""
+    scale_range: tuple[float, float] | None = None
+    """Uniform random object scale per episode, or None (scale 1)."""
+    max_grasps: int = 30
+    """Grasps per episode before truncation (the env truncates itself: the one source of the episode length; the
+    registered envs have no ``max_episode_steps``); also normalises the grasp count in the observation."""
+    recognizer_source: str = "auto"
+    """Training grasps of the recogniser (``DatasetConfig.source``) unless ``recognizer_kwargs`` sets its own:
+    "hand" (the MuJoCo backend's own hand grasping each mesh, :mod:`haptic_env.hand_grasps`; mujoco backend
+    only), "geometric" (the geometric hand's approach grasps), "surface" (random surface points, the paper's
+    protocol), or "auto": "hand" for the mujoco backend, else "geometric". All are computed from the meshes
+    alone."""
+    kde_method: str = "pooled"
+    """How the belief update evaluates the per-object KDEs (``KDEConfig.method``) unless ``recognizer_kwargs``
+    sets its own: "pooled" (one neighbour search over all objects' training vectors: a compiled k-d tree, ~25 us per grasp),
+    "tree" (a search per object, as the recogniser analyses use: ~0.45 ms), or "dense" (exact, slow)."""
+    calibrated: bool = True
+    """Scale the recogniser's scores by the temperatures fitted on its validation grasps
+    (:mod:`haptic_env.recognizers.calibration`); False: the paper's raw likelihoods and probabilities."""
+    recognizer_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    """Extra keyword arguments of :func:`haptic_env.recognizers.build_recognizer`, e.g.
+    ``{"config": RecognizerConfig(grasps=DatasetConfig(grasps_per_object=5000))}``; ``config`` may also be a
+    JSON-style dict (``{"grasps": {"grasps_per_object": 5000}, "mlp": {"max_epochs": 5}}``)."""
+
+    def __post_init__(self) -> None:
+        for name in ("normals", "score_subsets", "calibrated"):  # bool("no") is True: take real booleans only
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise TypeError(f"{name} must be True or False, got {getattr(self, name)!r}")
+        if not isinstance(self.n_fingers, (int, np.integer)) or self.n_fingers < 2:
+            raise ValueError(f"n_fingers must be an int >= 2 (2: a gripper, q is the contact distance), "
+                             f"got {self.n_fingers!r}")
+        if self.recognizer_source not in RECOGNIZER_SOURCES:
+            raise ValueError(f"recognizer_source must be one of {RECOGNIZER_SOURCES}, got {self.recognizer_source!r}")
+        if self.recognizer_source == "hand" and self.backend != "mujoco":
+            raise ValueError(f"recognizer_source='hand' needs the mujoco backend, got backend={self.backend!r}")
+        if self.updater not in UPDATERS:
+            raise ValueError(f"updater must be one of {UPDATERS}, got {self.updater!r}")
+        if self.reward not in REWARD_KINDS:
+            raise ValueError(f"reward must be one of {REWARD_KINDS}, got {self.reward!r}")
+        if self.pose not in POSE_MODES:
+            raise ValueError(f"pose must be one of {POSE_MODES}, got {self.pose!r}")
+        if not (isinstance(self.threshold, (int, float)) and 0.0 < self.threshold <= 1.0):
+            raise ValueError(f"threshold must be in (0, 1], got {self.threshold!r}")
+        if not (isinstance(self.grasp_cost, (int, float, np.integer, np.floating))
+                and math.isfinite(self.grasp_cost) and self.grasp_cost >= 0.0):
+            raise ValueError(f"grasp_cost must be a finite number >= 0, got {self.grasp_cost!r}")
+        if not isinstance(self.max_grasps, (int, np.integer)) or self.max_grasps < 1:
+            raise ValueError(f"max_grasps must be an int >= 1, got {self.max_grasps!r}")
+        if self.z_fingers is not None and not (isinstance(self.z_fingers, (int, np.integer))
+                                               and 2 <= self.z_fingers < self.n_fingers):
+            raise ValueError(f"z_fingers must be None or in [2, n_fingers={self.n_fingers}), got {self.z_fingers!r}")
+        if self.score_subsets and self.z_fingers is None:
+            raise ValueError("score_subsets=True needs z_fingers (the subset size)")
+        if self.scale_range is not None:
+            try:
+                lo, hi = (float(v) for v in self.scale_range)
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"scale_range must be (lo, hi) with 0 < lo <= hi, got {self.scale_range!r}") from exc
+            if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo <= hi):
+                raise ValueError(f"scale_range must be (lo, hi) with 0 < lo <= hi, got {self.scale_range!r}")
+        if self.kde_method not in KDE_METHODS:
+            raise ValueError(f"kde_method must be 'pooled', 'tree' or 'dense', got {self.kde_method!r}")
+        for name in ("recognizer_kwargs", "object_kwargs", "backend_kwargs"):
+            if not isinstance(getattr(self, name), Mapping):
+                raise TypeError(f"{name} must be a mapping (dict), got {getattr(self, name)!r}")
+        if self.recognizer_kwargs:  # checked here, at make, not at the first reset (imports the recognisers)
+            import inspect
+
+            from haptic_env.recognizers import build_recognizer
+
+            params = inspect.signature(build_recognizer).parameters
+            valid = sorted(k for k, p in params.items() if p.kind == p.KEYWORD_ONLY and k != "z_values")
+            unknown = sorted(set(self.recognizer_kwargs) - set(valid))
+            if unknown:
+                raise ValueError(f"unknown recognizer_kwargs {unknown}; valid: {valid}")
+            try:
+                recognizer_kwargs(self)
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"invalid recognizer_kwargs (or backend_kwargs 'support' / 'hand', which its "
+                                 f"training grasps take): {exc}") from exc
+        from haptic_env.objects.loaders import object_count
+
+        try:
+            k = object_count(self.objects, **dict(self.object_kwargs))
+        except TypeError as exc:
+            raise ValueError(f"invalid object_kwargs {sorted(self.object_kwargs)}: load_object_set takes "
+                             "data_dir and units") from exc
+        if k is not None and k < 2:
+            raise ValueError(f"object set {self.objects!r} has {k} object(s); recognising one needs at least 2")
+
+    def replace(self, **changes: Any) -> "HapticRecogConfig":
+        """A copy with ``changes`` applied; unknown names raise a ``TypeError`` listing the valid ones."""
+        names = {f.name for f in dataclasses.fields(self)}
+        unknown = sorted(set(changes) - names)
+        if unknown:
+            raise TypeError(f"unknown HapticRecogConfig field(s) {unknown}; valid: {sorted(names)}")
+        return dataclasses.replace(self, **changes)
+
+
+def recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
+    """``recognizer_kwargs`` with a JSON-style ``{"config": {"grasps": {...}, "mlp": {...}, "kde": {...}}}``
+    turned into ``RecognizerConfig`` (so the command line can pass recogniser settings as JSON); without a
+    config, or a JSON config whose ``grasps`` has no ``source``, the recogniser trains on
+    ``config.recognizer_source`` grasps (with ``support`` from the backend's ``support`` setting, default
+    "table"), and its KDE is evaluated by ``config.kde_method`` unless the JSON ``kde`` names a method."""
+    from haptic_env.dataset import DatasetConfig
+    from haptic_env.recognizers import KDEConfig, MLPConfig, RecognizerConfig
+
+    kw = dict(config.recognizer_kwargs)
+    rc = kw.get("config", {})
+    if isinstance(rc, Mapping):
+        rc = dict(rc)
+        grasps = dict(rc.get("grasps", {}))
+        source = config.recognizer_source
+        if source == "auto":
+            source = "hand" if config.backend == "mujoco" else "geometric"
+        grasps.setdefault("source", source)
+        if grasps["source"] == "hand":  # the backend's own hand, HAND_APPROACHES random approaches per object
+            hand = dict(config.backend_kwargs).get("hand", "generic")
+            if not isinstance(hand, str):
+                raise ValueError(f"recognizer_source 'hand' needs backend_kwargs['hand'] as a hand name or MJCF path "
+                                 f"(a cache key), got {type(hand).__name__}")
+            grasps.setdefault("hand", hand)
+            grasps.setdefault("grasps_per_object", HAND_APPROACHES)
+        if grasps["source"] in ("geometric", "hand"):
+            grasps.setdefault("support", dict(config.backend_kwargs).get("support", "table"))
+        if isinstance(grasps.get("scale_range"), list):
+            grasps["scale_range"] = tuple(grasps["scale_range"])
+        rc["grasps"] = DatasetConfig(**grasps)
+        if isinstance(rc.get("mlp"), Mapping):
+            rc["mlp"] = MLPConfig(**rc["mlp"])
+        kde = rc.get("kde", {})
+        if isinstance(kde, Mapping):
+            rc["kde"] = KDEConfig(**{"method": config.kde_method, **kde})
+        kw["config"] = RecognizerConfig(**rc)
+    return kw

@@ -1,0 +1,129 @@
+"""The scene of an episode: the object set, the grasp backend, and the object's identity, pose and scale.
+
+:class:`Scene` is the env's physical world (dm_control's *physics*): it loads the objects and the backend of a
+:class:`~haptic_env.config.HapticRecogConfig`, places a drawn object in a random pose (:func:`random_pose`) and
+scale at every reset, grasps it and renders it. It knows nothing of beliefs or rewards.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from haptic_env.config import HapticRecogConfig
+
+__all__ = ["Scene", "POSE_MODES", "random_pose"]
+
+#: "table-yaw": a uniform yaw about the world z axis; "so3": a uniform random rotation.
+POSE_MODES = ("table-yaw", "so3")
+
+
+def random_pose(rng: np.random.Generator, mode: str) -> np.ndarray:
+    """A ``(4, 4)`` rigid pose: uniform yaw about z ("table-yaw") or uniform over SO(3) ("so3"); no translation.
+
+    "so3" is :meth:`scipy.spatial.transform.Rotation.random` (four standard normals from ``rng``)."""
+    T = np.eye(4)
+    if mode == "table-yaw":
+        a = rng.uniform(0.0, 2.0 * np.pi)
+        c, s = np.cos(a), np.sin(a)
+        T[:2, :2] = [[c, -s], [s, c]]
+    elif mode == "so3":
+        from scipy.spatial.transform import Rotation
+
+        T[:3, :3] = Rotation.random(rng=rng).as_matrix()
+    else:
+        raise ValueError(f"pose mode must be one of {POSE_MODES}, got {mode!r}")
+    return T
+
+
+class Scene:
+    """Objects + backend of ``config``, and the episode's object index, pose, scale and backend generator."""
+
+    def __init__(self, config: HapticRecogConfig):
+        from haptic_env.grasping import make_backend
+        from haptic_env.objects import load_object_set
+
+        self.config = config
+        self.objects = load_object_set(config.objects, **dict(config.object_kwargs))
+        self.names: tuple[str, ...] = tuple(self.objects.names)
+        try:
+            self.backend = make_backend(config.backend, n_fingers=config.n_fingers, **dict(config.backend_kwargs))
+        except TypeError as exc:  # an unknown or non-string key of backend_kwargs
+            raise TypeError(f"invalid backend_kwargs {dict(config.backend_kwargs)!r} for backend {config.backend!r}: "
+                            f"{exc}") from exc
+        if int(self.backend.n_fingers) != config.n_fingers:
+            raise ValueError(f"backend {config.backend!r} has {self.backend.n_fingers} fingers, config asks {config.n_fingers}")
+        self.action_dim = int(self.backend.action_dim)
+        #: the largest object diameter at the largest scale (bounds the lengths in a grasp vector)
+        scale_hi = config.scale_range[1] if config.scale_range is not None else 1.0
+        self.diameter = max(2.0 * float(np.linalg.norm(np.asarray(o.mesh.vertices), axis=1).max())
+                            for o in self.objects) * scale_hi
+        self.target = 0
+        self.pose = np.eye(4)
+        self.scale = 1.0
+        self.rng: np.random.Generator | None = None  # the backend's generator this episode
+
+    @property
+    def n_classes(self) -> int:
+        return len(self.objects)
+
+    def resolve(self, which) -> int:
+        """The index of an object given by name or index (``reset(options={"object": ...})``)."""
+        if isinstance(which, (int, np.integer)) and not isinstance(which, bool):
+            if not 0 <= int(which) < self.n_classes:
+                raise ValueError(f"options['object'] index {which} out of range [0, {self.n_classes})")
+            return int(which)
+        if isinstance(which, str):
+            if which not in self.names:
+                raise ValueError(f"options['object'] {which!r} is not in the object set {list(self.names)}")
+            return self.names.index(which)
+        raise ValueError(f"options['object'] must be an object name or index, got {which!r}")
+
+    def reset(self, rng: np.random.Generator, which=None) -> None:
+        """Draw (from ``rng``, in this order) the object unless ``which`` names it, its pose, its scale and the
+        backend's generator of the episode, and place the object in the backend."""
+        self.target = self.resolve(which) if which is not None else int(rng.integers(self.n_classes))
+        self.pose = random_pose(rng, self.config.pose)
+        if self.config.scale_range is not None:
+            lo, hi = self.config.scale_range
+            self.scale = float(rng.uniform(lo, hi))
+        else:
+            self.scale = 1.0
+        # child generator for the backend, derived from the env's np_random: same seed -> same episode
+        self.rng = np.random.Generator(np.random.PCG64(int(rng.integers(2**63))))
+        obj = self.objects[self.target]
+        if self.scale != 1.0 and getattr(self.backend, "supports_scale", False):
+            # the backend scales the object as a transform: no per-episode mesh copy (nor a new ray-casting scene)
+            self.backend.set_object(obj, self.pose.copy(), scale=self.scale)
+        else:
+            if self.scale != 1.0:
+                mesh = obj.mesh.copy()
+                mesh.apply_scale(self.scale)
+                obj = dataclasses.replace(obj, mesh=mesh)
+            self.backend.set_object(obj, self.pose.copy())
+
+    def grasp(self, action: np.ndarray) -> tuple[Any, np.ndarray, np.ndarray | None, np.ndarray]:
+        """Grasp with ``action``: ``(result, contacts (n, 3), normals (n, 3) or None, touched (n,) bool)``; the
+        normals only when ``config.normals`` (sensed, or the backend's ground truth when it senses none)."""
+        result = self.backend.grasp(action, self.rng)
+        touched = np.asarray(result.touched, dtype=bool).reshape(-1)
+        contacts = np.asarray(result.contacts, dtype=np.float64)
+        normals = None
+        if self.config.normals:
+            normals = result.normals if result.normals is not None else getattr(result, "gt_normals", None)
+            if normals is None:
+                raise ValueError(f"config.normals=True but backend {self.config.backend!r} senses no contact normals; "
+                                 "use normals=False")
+            normals = np.asarray(normals, dtype=np.float64)
+        return result, contacts, normals, touched
+
+    def render(self) -> np.ndarray:
+        return np.asarray(self.backend.render())
+
+    def close(self) -> None:
+        close = getattr(self.backend, "close", None)
+        if callable(close):
+            close()

@@ -1,0 +1,123 @@
+r"""The recognition task: observation layout, reward kinds, termination and truncation, and ``info``.
+
+:class:`Task` is dm_control's *task*: given what the scene and the belief did in a step, it says what the agent
+observes, what it earns and whether the episode is over. It holds the observation's memory of the latest grasp
+(its grasp vector, touched fingers, usability and action) and nothing else.
+
+Rewards (``reward = gain - grasp_cost``; :data:`REWARD_KINDS`):
+
+- ``"true-posterior-gain"``: :math:`b_t[k^*] - b_{t-1}[k^*]`, the gain in the posterior of the true object;
+- ``"max-posterior-gain"``: :math:`\max b_t - \max b_{t-1}` (no ground truth needed);
+- ``"entropy-reduction"``: :math:`H(b_{t-1}) - H(b_t)` in nats.
+
+Termination: the belief has decided (its certainty reached the threshold). Truncation: ``max_grasps`` grasps,
+the one source of the episode length (the registered envs set no ``max_episode_steps``).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from gymnasium import spaces
+
+if TYPE_CHECKING:
+    from haptic_env.config import HapticRecogConfig
+
+__all__ = ["Task", "REWARD_KINDS", "entropy"]
+
+REWARD_KINDS = ("true-posterior-gain", "max-posterior-gain", "entropy-reduction")
+
+
+def entropy(p: np.ndarray) -> float:
+    """Shannon entropy (nats) of a probability vector."""
+    p = np.asarray(p, dtype=np.float64)
+    nz = p[p > 0]
+    return float(-(nz * np.log(nz)).sum())
+
+
+class Task:
+    """Observation space and vector, reward, truncation and ``info`` of ``config``'s recognition task."""
+
+    def __init__(self, config: HapticRecogConfig, n_classes: int, feature_dim: int, action_dim: int, q_bound: float):
+        self.config = config
+        n, K, d, A = config.n_fingers, n_classes, feature_dim, action_dim
+        #: grasp vectors hold angles (rad, |.| <= pi) and lengths (m, <= the largest object diameter)
+        self.q_bound = float(q_bound)
+        self.observation_structure = {
+            "grasp": d, "contact_mask": n, "usable": 1, "belief": K, "prev_action": A, "grasp_count": 1,
+        }
+        bounds = {
+            "grasp": (-self.q_bound, self.q_bound), "contact_mask": (0, 1), "usable": (0, 1), "belief": (0, 1),
+            "prev_action": (-1, 1), "grasp_count": (0, 1),
+        }
+        self.obs_slices: dict[str, slice] = {}
+        lows, highs, start = [], [], 0
+        for name, size in self.observation_structure.items():
+            self.obs_slices[name] = slice(start, start + size)
+            start += size
+            lows.append(np.full(size, bounds[name][0], np.float32))
+            highs.append(np.full(size, bounds[name][1], np.float32))
+        self.observation_space = spaces.Box(np.concatenate(lows), np.concatenate(highs), dtype=np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (A,), dtype=np.float32)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the latest grasp (all zeros before the first grasp)."""
+        sizes = self.observation_structure
+        self.last_q = np.zeros(sizes["grasp"])
+        self.last_mask = np.zeros(sizes["contact_mask"])
+        self.last_usable = 0.0
+        self.last_action = np.zeros(sizes["prev_action"])
+
+    def record(self, q: np.ndarray, touched: np.ndarray, usable: bool, action: np.ndarray) -> None:
+        """The latest grasp: its grasp vector ``q (d,)`` (a fresh array: clipped to the observation bounds in place),
+        touched fingers, whether it updated the belief, and its action."""
+        np.minimum(np.maximum(q, -self.q_bound, out=q), self.q_bound, out=q)
+        self.last_q = q
+        self.last_mask = touched.astype(np.float64)
+        self.last_usable = float(usable)
+        self.last_action = action
+
+    def reward(self, old: np.ndarray, new: np.ndarray, target: int) -> tuple[float, dict[str, float]]:
+        """``(reward, terms)`` of a step from belief ``old`` to ``new``; the terms sum exactly to the reward."""
+        kind = self.config.reward
+        if kind == "true-posterior-gain":
+            gain = float(new[target] - old[target])
+        elif kind == "max-posterior-gain":
+            gain = float(new.max() - old.max())
+        else:
+            gain = entropy(old) - entropy(new)
+        terms = {"gain": gain, "grasp_cost": -float(self.config.grasp_cost)}
+        return float(sum(terms.values())), terms
+
+    def truncated(self, grasps: int, terminated: bool) -> bool:
+        return (not terminated) and grasps >= self.config.max_grasps
+
+    def observation(self, belief: np.ndarray, grasps: int) -> np.ndarray:
+        sl = self.obs_slices
+        obs = np.empty(self.observation_space.shape, dtype=np.float32)
+        obs[sl["grasp"]] = self.last_q
+        obs[sl["contact_mask"]] = self.last_mask
+        obs[sl["usable"]] = self.last_usable
+        obs[sl["belief"]] = belief
+        obs[sl["prev_action"]] = self.last_action
+        obs[sl["grasp_count"]] = grasps / self.config.max_grasps
+        return obs
+
+    def info(self, names, target: int, belief: np.ndarray, certainty: float, *, grasps: int, usable: bool,
+             decided: bool) -> dict[str, Any]:
+        pred = int(belief.argmax())
+        return {
+            "true_object": names[target],
+            "true_index": target,
+            "predicted": names[pred],
+            "predicted_index": pred,
+            "correct": pred == target,
+            "certainty": certainty,
+            "decided": decided,
+            "grasps": grasps,
+            "usable": usable,
+            "belief": belief.copy(),
+            "touched": self.last_mask.astype(bool),
+        }

@@ -1,0 +1,93 @@
+"""Belief: the one owner of grasp -> Phi_n -> likelihood -> posterior (single, batched, z-subsets, predictions)."""
+
+from __future__ import annotations
+
+import copy
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from haptic_env.belief import Belief, get_recognizer
+from haptic_env.recognizers.updaters import BayesianUpdater, bayes_steps
+
+
+class _Fixed:
+    def __init__(self, k):
+        self.n_classes = k
+
+    def log_likelihood(self, Q):
+        return np.asarray(Q, dtype=np.float64)
+
+
+def test_bayes_steps_updates_many_beliefs_as_one_updater_each():
+    """B log beliefs at once (a vector env's step) = B separate updaters, including no-information rows."""
+    rng = np.random.default_rng(0)
+    B, K = 6, 4
+    updaters = [BayesianUpdater(_Fixed(K)) for _ in range(B)]
+    for u in updaters:
+        u.update(rng.normal(size=(2, K)))  # different beliefs
+    rows = [rng.normal(size=(m, K)) for m in (1, 3, 0, 2, 1, 1)]
+    rows[4] = np.full((1, K), -np.inf)  # every class impossible: no information
+    starts = np.concatenate([[0], np.cumsum([len(r) for r in rows])])
+    new, updated = bayes_steps(np.stack([u.log_belief for u in updaters]), np.concatenate(rows), starts)
+    for b, (u, r) in enumerate(zip(updaters, rows)):
+        u.update_scores(log_lik=r)
+        np.testing.assert_array_equal(new[b], u.log_belief)
+    assert updated.tolist() == [True, True, False, True, False, True]
+    with pytest.raises(ValueError, match="NaN"):
+        bayes_steps(new[:1], np.full((1, K), np.nan), [0, 1])
+
+
+@pytest.fixture(scope="module")
+def recognizer(env_config):
+    from haptic_env.objects import load_object_set
+
+    return get_recognizer(load_object_set(env_config.objects), env_config.replace(z_fingers=3, updater="bc-ip"))
+
+
+@pytest.mark.parametrize("kind", ["bc-np", "bc-ip", "ic", "ic-full"])
+def test_predict_grasps_equals_updating_a_copy(recognizer, kind):
+    from haptic_env.grasping import make_backend
+
+    belief = Belief(recognizer, kind, z_fingers=3)
+    backend = make_backend("geometric", n_fingers=4)
+    from haptic_env.objects import load_object_set
+
+    backend.set_object(load_object_set("default")[0], np.eye(4))
+    res = backend.grasp_batch(np.random.default_rng(1).uniform(-1, 1, (24, 4)), np.random.default_rng(2))
+    for _ in range(2):  # before and after a first grasp (BC-IP's classifier prior, then Bayes steps)
+        before = belief.probs.copy()
+        post, scored = belief.predict_grasps(res.contacts, res.normals, res.touched)
+        assert scored.size > 0 and np.array_equal(belief.probs, before)
+        for p, i in zip(post, scored):
+            ref = copy.deepcopy(belief)
+            q, usable = ref.update(res.contacts[i], res.normals[i], res.touched[i])
+            assert usable
+            np.testing.assert_allclose(p, ref.probs, rtol=1e-9, atol=1e-12)
+        belief.update(res.contacts[scored[0]], res.normals[scored[0]], res.touched[scored[0]])
+
+
+def test_subset_scores_are_the_rows_of_each_grasps_subsets(recognizer):
+    from itertools import combinations
+
+    belief = Belief(recognizer, "bc-ip", z_fingers=3)
+    rng = np.random.default_rng(3)
+    C, N = rng.normal(size=(5, 4, 3)) * 0.05, rng.normal(size=(5, 4, 3))
+    ll, pr, kept = belief.subset_scores(C, N, 3)
+    assert kept.tolist() == list(range(5))
+    for g in range(5):
+        Q = np.concatenate([recognizer.features(C[g][list(s)], N[g][list(s)]) for s in combinations(range(4), 3)])
+        L, P = belief.scores(Q)
+        np.testing.assert_allclose(ll[g], L.sum(0), rtol=1e-10)
+        np.testing.assert_allclose(pr[g], P.mean(0), rtol=1e-10)
+    ll2, _, _ = belief.subset_scores(C, N, 3, k=2, rng=np.random.default_rng(0))
+    assert ll2.shape == ll.shape
+
+
+def test_importing_the_kde_or_the_updaters_does_not_load_torch():
+    for module in ("haptic_env.recognizers.kde", "haptic_env.recognizers.updaters", "haptic_env.belief",
+                   "haptic_env.env"):
+        code = f"import sys, {module}; assert 'torch' not in sys.modules, '{module} loaded torch'"
+        subprocess.run([sys.executable, "-c", code], check=True)
