@@ -1,10 +1,13 @@
 """Train PPO or SAC on HapticRecog (CleanRL-style: one readable file, explicit seeding).
 
-    python train.py --algo ppo --total-timesteps 200000 --n-envs 2 --grasp-cost 0.02 --run-dir runs/ppo
-    python train.py --algo ppo --total-timesteps 200000 --n-envs 2 --grasp-cost 0.02 --run-dir runs/ppo --resume runs/ppo
+    python train.py --algo ppo --total-timesteps 200000 --n-envs 2 --env.grasp-cost 0.02 --run-dir runs/ppo
+    python train.py --algo ppo --total-timesteps 200000 --n-envs 2 --env.grasp-cost 0.02 --run-dir runs/ppo --resume runs/ppo
 
-Every field of :class:`Args` is a command-line flag (``--field-name``). The run directory gets
-``args.json``, ``monitor/*.monitor.csv`` (one per env), ``tb/`` (TensorBoard), ``checkpoints/`` and
+The command line is :class:`Args` through ``tyro`` (``--help`` shows each field's docstring): the run's own
+settings (``--algo``, ``--total-timesteps``, ...) and every env setting as ``--env.<field>`` (a nested
+:class:`~haptic_env.config.HapticRecogConfig`: the env's own defaults, e.g. ``--env.grasp-cost 0.02``,
+``--env.max-grasps 10``); ``--env-kwargs`` takes the mapping fields (``recognizer_kwargs`` etc.) as JSON. The run
+directory gets ``args.json``, ``monitor/*.monitor.csv`` (one per env), ``tb/`` (TensorBoard), ``checkpoints/`` and
 ``<algo>_final.zip``.
 
 Nothing is lost: Ctrl-C / SIGINT or SIGTERM (a second one stops at once) or a dead env worker stop learning,
@@ -22,98 +25,96 @@ Evaluate the result with the ``evaluate`` sub-command::
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import os
 import random
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")  # before numpy/torch: one thread per env process
 
 import numpy as np
 
-
-@dataclass(frozen=True)
-class Args:
-    algo: str = "ppo"
-    """ppo | sac"""
-    env_id: str = "HapticRecog-v0"
-    total_timesteps: int = 200_000
-    """env steps (grasps) summed over the envs"""
-    n_envs: int = 2
-    vec: str = "subproc"
-    """subproc | dummy"""
-    seed: int = 0
-    run_dir: str = "runs/ppo"
-    checkpoint_freq: int = 20_000
-    max_minutes: float = 0.0
-    """stop learning after this many wall-clock minutes (0 = no limit); the model is saved either way"""
-    resume: str = ""
-    """checkpoint .zip, or a run directory (its latest checkpoint), to continue from ("" = fresh model);
-    training goes on up to --total-timesteps in all"""
-    torch_threads: int = 1
-    # env (HapticRecogConfig fields)
-    reward: str = "true-posterior-gain"
-    grasp_cost: float = 0.02
-    updater: str = "bc-np"
-    n_fingers: int = 4
-    normals: bool = True
-    objects: str = "default"
-    max_grasps: int = 30
-    env_kwargs: str = "{}"
-    """JSON dict of further HapticRecogConfig fields"""
-    # algorithm hyper-parameters (JSON dict, merged into agents.sb3.DEFAULT_HYPERPARAMS[algo])
-    hyperparams: str = "{}"
-    progress_bar: bool = False
-    verbose: int = 0
-
+from haptic_env.config import HapticRecogConfig
 
 ALGOS = ("ppo", "sac")
 
 
-def _parser() -> argparse.ArgumentParser:
-    from haptic_env.cli import float_in, int_in
+@dataclass(frozen=True)
+class Args:
+    algo: Literal["ppo", "sac"] = "ppo"
+    """The RL algorithm (stable-baselines3)."""
+    env_id: str = "HapticRecog-v0"
+    """A registered env id (``haptic_env.ENV_VARIANTS``); ``--env.*`` settings apply on top of its variant."""
+    total_timesteps: int = 200_000
+    """Env steps (grasps) summed over the envs, in all (a resumed run goes on up to this count)."""
+    n_envs: int = 2
+    """Parallel envs."""
+    vec: Literal["subproc", "dummy"] = "subproc"
+    """Vector env: one process per env ("subproc") or all in this process ("dummy")."""
+    seed: int = 0
+    """Seeds python, numpy, torch and the envs (env ``rank`` gets ``seed + rank``)."""
+    run_dir: str = "runs/ppo"
+    """Where the run's files go."""
+    checkpoint_freq: int = 20_000
+    """Save a checkpoint every this many steps (summed over the envs)."""
+    max_minutes: float = 0.0
+    """Stop learning after this many wall-clock minutes (0 = no limit); the model is saved either way."""
+    resume: str = ""
+    """Checkpoint .zip, or a run directory (its latest checkpoint), to continue from ("" = fresh model)."""
+    torch_threads: int = 1
+    """Torch intra-op threads of the learner."""
+    env: HapticRecogConfig = field(default_factory=HapticRecogConfig)
+    """The env's settings (:class:`haptic_env.config.HapticRecogConfig`)."""
+    env_kwargs: str = "{}"
+    """JSON dict of further HapticRecogConfig fields, applied on top of ``--env.*`` (for the mapping fields:
+    recognizer_kwargs, backend_kwargs, object_kwargs)."""
+    hyperparams: str = "{}"
+    """JSON dict of algorithm hyper-parameters, merged into ``agents.sb3.DEFAULT_HYPERPARAMS[algo]``."""
+    progress_bar: bool = False
+    """Show SB3's progress bar."""
+    verbose: int = 0
+    """SB3 verbosity."""
 
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    # value checks at parse time: a bad value is a one-line usage error, before any run file is written
-    checked = {"algo": dict(choices=ALGOS), "vec": dict(choices=("subproc", "dummy")),
-               "total_timesteps": dict(type=int_in(1)), "n_envs": dict(type=int_in(1)),
-               "checkpoint_freq": dict(type=int_in(1)), "max_minutes": dict(type=float_in(0.0)),
-               "torch_threads": dict(type=int_in(1)), "n_fingers": dict(type=int_in(3, 20)),
-               "max_grasps": dict(type=int_in(1)), "grasp_cost": dict(type=float_in(0.0)),
-               "seed": dict(type=int_in(0))}
-    for f in dataclasses.fields(Args):
-        if f.name.startswith("_"):
-            continue
-        flag = "--" + f.name.replace("_", "-")
-        if f.type in ("bool", bool):
-            parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=f.default)
-        else:
-            typ = {"int": int, "float": float, "str": str}.get(str(f.type), str)
-            parser.add_argument(flag, **{"type": typ, **checked.get(f.name, {})}, default=f.default)
-    return parser
+
+#: (field, minimum) of the run settings checked at parse time
+_MINIMUM = {"total_timesteps": 1, "n_envs": 1, "checkpoint_freq": 1, "max_minutes": 0.0, "torch_threads": 1, "seed": 0}
+
+
+def _usage_error(message: str):
+    """A one-line usage error (exit status 2) before any run file is written."""
+    print(f"usage: train.py [-h] [OPTIONS]\ntrain.py: error: {message}", file=sys.stderr, flush=True)
+    raise SystemExit(2)
 
 
 def parse_args(argv: list[str] | None = None) -> Args:
     """The flags as :class:`Args`; bad values (unknown algorithm, zero steps or envs, JSON that is not an object,
     env settings ``HapticRecogConfig`` rejects, a missing ``--resume`` file) exit with a one-line usage error."""
-    parser = _parser()
-    args = Args(**vars(parser.parse_args(argv)))
+    import tyro
+
+    try:
+        args = tyro.cli(Args, args=argv, description=__doc__.splitlines()[0])
+    except (TypeError, ValueError, FileNotFoundError) as exc:  # HapticRecogConfig's validation of --env.*
+        _usage_error(f"env settings: {exc}")
+    for name, lo in _MINIMUM.items():
+        value = getattr(args, name)
+        if value < lo:
+            _usage_error(f"argument --{name.replace('_', '-')}: must be >= {lo}, got {value}")
     for flag, text in (("--env-kwargs", args.env_kwargs), ("--hyperparams", args.hyperparams)):
         try:
             value = json.loads(text)
         except json.JSONDecodeError as exc:
-            parser.error(f"argument {flag}: not valid JSON ({exc.msg}): {text!r}")
+            _usage_error(f"argument {flag}: not valid JSON ({exc.msg}): {text!r}")
         if not isinstance(value, dict):
-            parser.error(f"argument {flag}: expected a JSON object ({{...}}), got {text!r}")
+            _usage_error(f"argument {flag}: expected a JSON object ({{...}}), got {text!r}")
     try:
         env_config(args)
     except (TypeError, ValueError, FileNotFoundError) as exc:
-        parser.error(f"env settings: {exc}")
+        _usage_error(f"env settings: {exc}")
     if args.resume:
         from agents.sb3 import latest_checkpoint
 
@@ -121,28 +122,23 @@ def parse_args(argv: list[str] | None = None) -> Args:
         if resume.is_dir():
             found = latest_checkpoint(resume, args.algo)
             if found is None:
-                parser.error(f"argument --resume: no {args.algo}_<steps>_steps.zip checkpoint in {resume}")
+                _usage_error(f"argument --resume: no {args.algo}_<steps>_steps.zip checkpoint in {resume}")
             args = dataclasses.replace(args, resume=str(found))
         elif not resume.is_file():
-            parser.error(f"argument --resume: checkpoint {args.resume} does not exist")
+            _usage_error(f"argument --resume: checkpoint {args.resume} does not exist")
         other = next((a for a in ALGOS if a != args.algo and Path(args.resume).name.startswith(a + "_")), None)
         if other is not None:
-            parser.error(f"argument --resume: {args.resume} is a {other} checkpoint, not {args.algo} (pass --algo {other})")
+            _usage_error(f"argument --resume: {args.resume} is a {other} checkpoint, not {args.algo} (pass --algo {other})")
     from haptic_env import ENV_VARIANTS
 
     if args.env_id not in ENV_VARIANTS:
-        parser.error(f"argument --env-id: unknown env {args.env_id!r}; choose from {list(ENV_VARIANTS)}")
+        _usage_error(f"argument --env-id: unknown env {args.env_id!r}; choose from {list(ENV_VARIANTS)}")
     return args
 
 
-def env_config(args: Args):
-    from haptic_env.env import HapticRecogConfig
-
-    extra = json.loads(args.env_kwargs)
-    return HapticRecogConfig(
-        reward=args.reward, grasp_cost=args.grasp_cost, updater=args.updater, n_fingers=args.n_fingers,
-        normals=args.normals, objects=args.objects, max_grasps=args.max_grasps,
-    ).replace(**extra)
+def env_config(args: Args) -> HapticRecogConfig:
+    """``--env.*`` with ``--env-kwargs`` on top."""
+    return args.env.replace(**json.loads(args.env_kwargs))
 
 
 def _next_part(run_dir: Path) -> int:
@@ -176,7 +172,7 @@ def main(argv: list[str] | None = None) -> Path:
     part = _next_part(run_dir) if args.resume else 1  # a resumed run keeps the earlier args and Monitor files
     suffix = "" if part == 1 else f".part{part}"
     (run_dir / f"args{suffix}.json").write_text(json.dumps(
-        {**{k: v for k, v in dataclasses.asdict(args).items() if not k.startswith("_")},
+        {**{f.name: getattr(args, f.name) for f in dataclasses.fields(args) if f.name != "env"},
          "env_config": {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(config).items()}},
         indent=2, default=str))
 

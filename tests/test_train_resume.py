@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def _args(algo: str, total: int, run: Path, recognizer_kwargs: dict, hyperparams: dict, n_envs: int = 1,
           vec: str = "dummy") -> list[str]:
     return ["--algo", algo, "--total-timesteps", str(total), "--n-envs", str(n_envs), "--vec", vec,
-            "--run-dir", str(run), "--checkpoint-freq", "128", "--max-grasps", "10",
+            "--run-dir", str(run), "--checkpoint-freq", "128", "--env.max-grasps", "10",
             "--env-kwargs", json.dumps({"recognizer_kwargs": recognizer_kwargs}),
             "--hyperparams", json.dumps(hyperparams)]
 
