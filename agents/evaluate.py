@@ -293,10 +293,7 @@ def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
 def write_report(records: Sequence[EpisodeRecord], out: str | Path, max_grasps: int,
                  title: str = "HapticRecog evaluation", extra: str = "") -> dict[str, Path]:
     """Write results.md / results.json / episodes.csv and the PNG plots; returns their paths."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # no pyplot: no global backend switch, no window
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -322,7 +319,8 @@ def write_report(records: Sequence[EpisodeRecord], out: str | Path, max_grasps: 
         for r in records:
             w.writerow(asdict(r))
 
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig = Figure(figsize=(6, 4))
+    ax = fig.subplots()
     g = np.arange(1, max_grasps + 1)
     for name, c in curves.items():
         ax.step(g, c, where="post", label=name)
@@ -334,9 +332,9 @@ def write_report(records: Sequence[EpisodeRecord], out: str | Path, max_grasps: 
     ax.set_title("success vs grasps")
     fig.tight_layout()
     fig.savefig(paths["curve"], dpi=120)
-    plt.close(fig)
 
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig = Figure(figsize=(6, 4))
+    ax = fig.subplots()
     names = [r["agent"] for r in rows]
     ax.boxplot([[e.grasps for e in records if e.agent == n] for n in names], showmeans=True)
     ax.set_xticks(range(1, len(names) + 1), names)
@@ -344,11 +342,11 @@ def write_report(records: Sequence[EpisodeRecord], out: str | Path, max_grasps: 
     ax.grid(alpha=0.3, axis="y")
     fig.tight_layout()
     fig.savefig(paths["box"], dpi=120)
-    plt.close(fig)
 
     from rliable import plot_utils
 
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig = Figure(figsize=(6, 4))
+    ax = fig.subplots()
     tau = np.asarray(agg["tau"])
     plot_utils.plot_performance_profiles(
         {n: np.asarray(r["profile"]) for n, r in agg["agents"].items()}, tau,
@@ -358,7 +356,6 @@ def write_report(records: Sequence[EpisodeRecord], out: str | Path, max_grasps: 
     ax.set_title("performance profile (95% stratified bootstrap CIs)")
     fig.tight_layout()
     fig.savefig(paths["profile"], dpi=120)
-    plt.close(fig)
     return paths
 
 
@@ -397,12 +394,10 @@ def _rolling_mean(x: np.ndarray, window: int) -> np.ndarray:
 def plot_learning_curves(log_dirs: dict[str, str | Path], out: str | Path, window: int = 200) -> Path:
     """Episode length (= grasps), return and success vs env steps from the ``Monitor`` CSVs of each run
     (``<log_dir>/monitor/*.monitor.csv``, as written by :func:`agents.sb3.make_vec_env`)."""
-    import matplotlib
+    from matplotlib.figure import Figure  # no pyplot: no global backend switch, no window
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
+    fig = Figure(figsize=(13, 3.8))
+    axes = fig.subplots(1, 3)
     for name, d in log_dirs.items():
         d = Path(d)
         mon = d / "monitor" if (d / "monitor").is_dir() else d
@@ -420,7 +415,6 @@ def plot_learning_curves(log_dirs: dict[str, str | Path], out: str | Path, windo
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=120)
-    plt.close(fig)
     return out
 
 

@@ -83,6 +83,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    import os
+
+    if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
+        os.environ["MUJOCO_GL"] = "egl"  # the application's choice (before mujoco is imported): headless rendering
     parser = build_parser()
     args = parser.parse_args(argv)
     from haptic_env import cli  # under ``python -m haptic_env.cli`` this module is __main__, a second copy

@@ -7,6 +7,11 @@ import os
 import pytest
 from hypothesis import settings
 
+# mujoco picks its OpenGL platform when first imported: headless tests render offscreen through EGL (the library
+# itself leaves the process environment alone)
+if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
+    os.environ["MUJOCO_GL"] = "egl"
+
 # CI runs the property tests with a fixed example sequence (reproducible, never flaky); locally
 # hypothesis explores new examples on every run.
 settings.register_profile("ci", derandomize=True, deadline=None, print_blob=True)

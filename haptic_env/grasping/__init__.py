@@ -4,14 +4,7 @@
 approach (action) layout and :class:`GraspResult`.
 """
 
-import os as _os
-
-# mujoco picks its OpenGL backend when it is first imported: default to EGL offscreen rendering on
-# headless machines, only when the user chose nothing.
-if "MUJOCO_GL" not in _os.environ and not _os.environ.get("DISPLAY"):
-    _os.environ["MUJOCO_GL"] = "egl"
-
-from .base import (  # noqa: E402
+from .base import (
     ACTION_DIM,
     ACTION_NAMES,
     BACKENDS,

@@ -303,10 +303,7 @@ class GeometricBackend:
     def render(self, width: int = 480, height: int = 480) -> np.ndarray:
         """(H, W, 3) uint8 matplotlib picture: mesh, last grasp's finger rays, contacts and normals."""
         self._require_object()
-        import matplotlib
-
-        matplotlib.use("Agg", force=False)
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.backends.backend_agg import FigureCanvasAgg  # an off-screen canvas: no global backend switch
         from matplotlib.figure import Figure
         from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 

@@ -449,15 +449,13 @@ class GraspScene:
         if self._renderer is None or (self._renderer.width, self._renderer.height) != (width, height):
             if self._renderer is not None:
                 self._renderer.close()
-            if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
-                # headless: EGL offscreen (read by mujoco when the first GL context is made)
-                os.environ["MUJOCO_GL"] = "egl"
             try:
                 self._renderer = mujoco.Renderer(self.model, height=height, width=width)
             except Exception as exc:  # no usable GL platform (mujoco.FatalError, ImportError, ...)
                 raise RuntimeError(
                     f"no OpenGL backend for offscreen rendering (MUJOCO_GL={os.environ.get('MUJOCO_GL')!r}: "
-                    f"{exc}). Set MUJOCO_GL=egl (libegl1) or osmesa (libosmesa6) before importing mujoco."
+                    f"{exc}). Headless: set MUJOCO_GL=egl (libegl1) or osmesa (libosmesa6) before importing mujoco "
+                    "(the library leaves the process environment alone; haptic-recog and the tests set egl)."
                 ) from exc
         cam = mujoco.MjvCamera()
         cam.lookat[:] = lookat
