@@ -15,7 +15,8 @@ Two training regimes per hand, both computed from the meshes alone:
   (``DatasetConfig(source="hand")``, ``--approaches`` per object, training seed 0).
 
 Test sequences are fresh hand grasps (pool seeds ``1000 + seed``, never used for training or for
-the calibration temperatures, which are fitted on the training grasps' validation split).
+the calibration temperatures, which are fitted on the training grasps' validation split);
+``--split validation`` draws them from pool seeds ``500 + seed`` instead, for choosing settings.
 ``--queries`` queries per object and seed; the spread is the std over ``--seeds``.
 
     python benchmarks/hand_experiment.py [--hands allegro shadow aero] [--queries 10] [--seeds 0 1 2]
@@ -81,7 +82,8 @@ def training_config(regime: str, hand: str, args) -> RecognizerConfig:
 def evaluate(rec, pools, n: int, normals: bool, args) -> dict[str, dict]:
     """label -> {success (S,), accuracy (S,), grasps (S,)} over seeds."""
     out = {}
-    for label, (kind, z, k) in METHODS.items():
+    for label in args.methods:
+        kind, z, k = METHODS[label]
         succ, acc, used = [], [], []
         for s, pool in enumerate(pools):
             rng = np.random.default_rng([7, s])
@@ -104,10 +106,15 @@ def evaluate(rec, pools, n: int, normals: bool, args) -> dict[str, dict]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--hands", nargs="+", default=list(SETUPS), choices=list(SETUPS))
+    ap.add_argument("--hands", nargs="+", default=list(SETUPS),
+                    help=f"hands of {list(SETUPS)}; NAME=MODEL grasps with another model of that hand, e.g. "
+                         "shadow=shadow_hand/right_hand (the automatic path of the Menagerie file)")
     ap.add_argument("--regimes", nargs="+", default=["surface", "hand"], choices=["surface", "hand"])
     ap.add_argument("--queries", type=int, default=10, help="queries per object and seed (paper: 10)")
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="test seeds (spread: std over them)")
+    ap.add_argument("--split", choices=["test", "validation"], default="test",
+                    help="query pools: test (seeds 1000 + s, for reporting) or validation (500 + s, for tuning)")
+    ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
     ap.add_argument("--max-grasps", type=int, default=30, help="grasps per query at most")
     ap.add_argument("--threshold", type=float, default=0.85)
     ap.add_argument("--approaches", type=int, default=3000, help="hand regime: training approaches per object")
@@ -122,10 +129,15 @@ def main(argv=None) -> int:
         return 1
     objects = load_object_set("ycb10")
     rows, t_start = [], time.perf_counter()
-    for hand in args.hands:
-        n, normal_settings = SETUPS[hand]
+    for spec in args.hands:
+        name, _, hand = spec.partition("=")
+        hand = hand or name
+        if name not in SETUPS:
+            ap.error(f"--hands: unknown hand {name!r}; choose from {list(SETUPS)}")
+        n, normal_settings = SETUPS[name]
         try:
-            pools = [hand_grasp_pool(objects, hand, n, args.queries * args.max_grasps, seed=1000 + s)
+            base = 1000 if args.split == "test" else 500
+            pools = [hand_grasp_pool(objects, hand, n, args.queries * args.max_grasps, seed=base + s)
                      for s in args.seeds]
         except HandUnavailableError as exc:
             print(f"skipping {hand}: {exc}")
@@ -141,7 +153,7 @@ def main(argv=None) -> int:
                     rows.append((hand, n, normals, regime, label, r, usable, temps))
     cols = {(4, True): "4+", (4, False): "4-", (5, False): "5-"}
     lines = [
-        f"YCB-10, {args.queries} queries per object x {len(args.seeds)} test seeds ({args.seeds}), <= {args.max_grasps} "
+        f"YCB-10, {args.queries} queries per object x {len(args.seeds)} {args.split} seeds ({args.seeds}), <= {args.max_grasps} "
         f"random-approach grasps per query, lambda = {args.threshold}, "
         f"{'raw scores' if args.raw else 'calibrated scores (temperatures fitted on validation grasps)'}. "
         "Success = decided and correct at the stop; accuracy = final prediction correct (decided or not). "
