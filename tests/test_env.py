@@ -270,7 +270,9 @@ def test_render_rgb_array(env_config):
 def test_subproc_vec_env(env_config):
     from stable_baselines3.common.vec_env import SubprocVecEnv
 
-    venv = SubprocVecEnv([lambda: haptic_env.make(env_config) for _ in range(2)], start_method="fork")
+    # forkserver, SB3's default (as train.py uses): a plain fork after this process has cast rays can copy
+    # a lock held by Embree's TBB worker threads into the child, which then hangs (seen in a full run)
+    venv = SubprocVecEnv([lambda: haptic_env.make(env_config) for _ in range(2)], start_method="forkserver")
     try:
         venv.seed(0)
         obs = venv.reset()
