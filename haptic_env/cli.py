@@ -16,6 +16,7 @@ SUBCOMMANDS: dict[str, str] = {
     "dataset": "haptic_env.dataset",
     "analysis": "haptic_env.experiments.cli",
     "evaluate": "agents.evaluate",
+    "sweep": "haptic_env.sweep.cli",
 }
 
 

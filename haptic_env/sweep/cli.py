@@ -1,0 +1,86 @@
+"""``haptic-recog sweep SPEC``: run a sweep spec's jobs on Ray (local by default, ``--address`` joins a
+cluster), skip the finished ones, retry and report the failed ones, and write the sweep's report.
+
+    haptic-recog sweep sweeps/easy.toml                      # local Ray, all cores
+    haptic-recog sweep sweeps/easy.toml --num-cpus 2 --out outputs/sweeps/easy
+    ray start --head --port 6379 && haptic-recog sweep sweeps/easy.toml --address 127.0.0.1:6379
+    haptic-recog sweep sweeps/easy.toml --dry-run            # list the jobs and their state
+    haptic-recog sweep sweeps/easy.toml --report-only        # the report from the run folders on disk
+
+Exit status 0 when every job is done, 1 when a job failed (after its retries; the report lists it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+__all__ = ["add_parser"]
+
+
+def add_parser(subparsers) -> argparse.ArgumentParser:
+    from haptic_env.cli import int_in
+
+    from .spec import KINDS
+
+    p = subparsers.add_parser("sweep", help="run a sweep spec (train/evaluate/dataset/analysis jobs) on Ray",
+                              description=__doc__.splitlines()[0], formatter_class=argparse.RawDescriptionHelpFormatter,
+                              epilog="\n".join(__doc__.split("\n")[3:]))
+    p.add_argument("spec", type=Path, help="TOML sweep spec (see haptic_env/sweep/spec.py; examples in sweeps/)")
+    p.add_argument("--out", type=Path, default=None, help="sweep folder (default: the spec's out, else "
+                   "outputs/sweeps/<name>)")
+    p.add_argument("--address", default=None, help="join this Ray cluster (HOST:PORT or 'auto'); default: start "
+                   "a local one")
+    p.add_argument("--num-cpus", type=int_in(1), default=None, help="CPUs of the local Ray (default: all cores)")
+    p.add_argument("--max-retries", type=int_in(0), default=None, help="retries of a failed job (default: the "
+                   "spec's max_retries, else 2)")
+    p.add_argument("--only", nargs="+", choices=KINDS, default=None, help="run only these job kinds (and what "
+                   "they need)")
+    p.add_argument("--dry-run", action="store_true", help="list the jobs and whether they are done; run nothing")
+    p.add_argument("--report-only", action="store_true", help="write the report from the run folders; run nothing")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_main)
+    return p
+
+
+def _main(args) -> int:
+    from haptic_env.cli import UsageError
+
+    from .jobs import is_done
+    from .report import write_sweep_report
+    from .runner import SweepResult, ray_available, run_sweep, write_status
+    from .spec import SpecError, load_spec
+
+    if not args.spec.is_file():
+        raise UsageError(f"spec {args.spec} does not exist")
+    try:
+        spec = load_spec(args.spec)
+    except SpecError as exc:
+        raise UsageError(str(exc)) from exc
+    out = (args.out or spec.default_out()).resolve()
+    kinds = set(args.only) if args.only else None
+    if args.dry_run:
+        for j in spec.jobs:
+            state = "done" if is_done(j.run_dir(out)) else "todo"
+            needs = ", ".join(j.deps) if len(j.deps) <= 2 else f"{j.deps[0]} and {len(j.deps) - 1} more"
+            print(f"{state:5} {j.id}  (cpus {j.cpus:g}{', needs ' + needs if j.deps else ''})")
+        print(f"{len(spec.jobs)} jobs; sweep folder {out}")
+        return 0
+    if args.report_only:
+        result = SweepResult(out=out, skipped=[j.id for j in spec.jobs if is_done(j.run_dir(out))])
+    else:
+        if not ray_available():
+            raise UsageError("the sweep runs on Ray, which is not installed: pip install 'haptic-recog[sweep]' "
+                             "(or pip install 'ray>=2.40')")
+        result = run_sweep(spec, out, address=args.address, num_cpus=args.num_cpus, max_retries=args.max_retries,
+                           kinds=kinds, progress=not args.quiet)
+    write_status(result, spec)
+    report = write_sweep_report(spec, result, command=["haptic-recog", "sweep", *sys.argv[2:]]
+                                if sys.argv[1:2] == ["sweep"] else None)
+    n_new = len(result.done) - len(result.skipped)
+    print(f"[sweep] {spec.name}: {n_new} job(s) done in this run, {len(result.skipped)} skipped (done before), "
+          f"{len(result.failed)} failed; {result.seconds / 60:.1f} min; report: {report}", flush=True)
+    for jid, err in result.failed.items():
+        print(f"[sweep] FAILED {jid}: {err.splitlines()[-1] if err else ''}", file=sys.stderr)
+    return 1 if result.failed else 0

@@ -1,0 +1,190 @@
+"""The sweep's one aggregate report: ``<sweep>/report.md`` and its PNGs, from the run folders on disk.
+
+Per env of the RL part, the episodes of every agent's evaluate jobs go through
+:func:`agents.evaluate.write_report` (``report/<env>/``: results.md, results.json, episodes.csv, the success
+curve, the box plot and rliable's performance profile); its ``rliable`` section (:func:`agents.evaluate.
+rl_aggregates`: IQM of the grasps at the stop and success at the stop with stratified bootstrap CIs, probability
+of improvement over random) becomes the env's table in ``report.md`` and one row of ``leaderboard.png`` (IQM
+grasps, success, P(fewer grasps than random), with their 95% CIs).
+
+Strata and runs: the env seeds are rliable's tasks (every agent sees the same objects and poses per env seed),
+the episodes of all agent seeds (training seeds) on an env seed its runs.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import shlex
+from pathlib import Path
+from typing import Any
+
+from .jobs import attempts, is_done, read_done
+from .runner import SweepResult
+from .spec import SweepSpec
+
+__all__ = ["write_sweep_report", "load_records"]
+
+
+def load_records(spec: SweepSpec, out: Path, env: str) -> list:
+    """The :class:`~agents.evaluate.EpisodeRecord` of every finished evaluate job of ``env``; episode indices
+    are offset per agent seed so that all seeds' episodes of one env seed are that stratum's runs."""
+    from agents.evaluate import EpisodeRecord
+
+    records = []
+    for j in spec.jobs:
+        if j.kind != "evaluate" or j.params["env"] != env or not is_done(j.run_dir(out)):
+            continue
+        seeds = sorted({x.params["seed"] for x in spec.jobs if x.kind == "evaluate" and x.params["env"] == env
+                        and x.params["agent"] == j.params["agent"]})
+        offset = seeds.index(j.params["seed"]) * j.params["episodes"]
+        with open(j.run_dir(out) / "episodes.csv", newline="") as fh:
+            for row in csv.DictReader(fh):
+                records.append(EpisodeRecord(
+                    agent=row["agent"], seed=int(row["seed"]), episode=int(row["episode"]) + offset,
+                    object=row["object"], grasps=int(row["grasps"]), decided=row["decided"] == "True",
+                    correct=row["correct"] == "True", certainty=float(row["certainty"]), ret=float(row["ret"])))
+    return records
+
+
+def _max_grasps(env_id: str, kwargs: dict[str, Any]) -> int:
+    import haptic_env
+    from haptic_env.config import HapticRecogConfig
+
+    return HapticRecogConfig().replace(**{**haptic_env.ENV_VARIANTS[env_id], **kwargs}).max_grasps
+
+
+def _leaderboard_png(aggs: dict[str, dict[str, Any]], path: Path) -> Path:
+    from matplotlib.figure import Figure
+
+    envs = list(aggs)
+    fig = Figure(figsize=(13, 0.6 + 2.2 * len(envs)))
+    axes = fig.subplots(len(envs), 3, squeeze=False)
+    cols = [("grasps_iqm", "IQM grasps at the stop", 1.0), ("success", "success at the stop", 100.0),
+            ("p_fewer_grasps", "P(fewer grasps than random)", 1.0)]
+    for r, env in enumerate(envs):
+        agents = list(aggs[env]["agents"].items())
+        for c, (key, title, scale) in enumerate(cols):
+            ax = axes[r][c]
+            names, vals, lo, hi = [], [], [], []
+            for name, row in agents:
+                if key not in row:
+                    continue
+                v, (a, b) = row[key], row[f"{key}_ci"]
+                names.append(name)
+                vals.append(scale * v)
+                lo.append(scale * (v - a))
+                hi.append(scale * (b - v))
+            y = range(len(names))
+            ax.barh(list(y), vals, xerr=[lo, hi], color=[f"C{i}" for i in y], alpha=0.75, capsize=3)
+            ax.set_yticks(list(y), names)
+            ax.invert_yaxis()
+            if key == "p_fewer_grasps":
+                ax.axvline(0.5, color="k", lw=0.8, ls="--")
+                ax.set_xlim(0, 1)
+            ax.grid(alpha=0.3, axis="x")
+            ax.set_title(f"{env}: {title}" + (" (%)" if scale == 100.0 else ""), fontsize=9)
+    fig.suptitle("sweep leaderboard (95% stratified bootstrap CIs)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    return path
+
+
+def _jobs_table(spec: SweepSpec, result: SweepResult) -> str:
+    lines = ["| kind | jobs | done (this run) | done before (skipped) | failed | not run | retried |", "|" + "---|" * 7]
+    for kind in dict.fromkeys(j.kind for j in spec.jobs):
+        js = [j for j in spec.jobs if j.kind == kind]
+        n_run = sum(j.id in result.done and j.id not in result.skipped for j in js)
+        n_skip = sum(j.id in result.skipped for j in js)
+        n_fail = sum(j.id in result.failed for j in js)
+        retried = sum(len(attempts(j.run_dir(result.out))) > 1 for j in js)
+        lines.append(f"| {kind} | {len(js)} | {n_run} | {n_skip} | {n_fail} | {len(js) - n_run - n_skip - n_fail} "
+                     f"| {retried} |")
+    return "\n".join(lines)
+
+
+def write_sweep_report(spec: SweepSpec, result: SweepResult, command: list[str] | None = None) -> Path:
+    """Write ``<sweep>/report.md`` (+ ``leaderboard.png`` and ``report/<env>/``) from the run folders."""
+    from agents.evaluate import rl_markdown_table, write_report
+
+    out = result.out
+    lines = [f"# Sweep `{spec.name}`", ""]
+    if spec.description:
+        lines += [spec.description, ""]
+    if command:
+        lines += ["Command:", "", "```", shlex.join(command), "```", ""]
+    lines += [f"Spec: `{spec.source}`; sweep folder: `{out}`; this run: {result.seconds / 60:.1f} min.", "",
+              "## Jobs", "", _jobs_table(spec, result), ""]
+    if result.failed:
+        lines += ["### Failed jobs", "", "Each was retried (Ray `max_retries`) and still failed; re-run the sweep to "
+                  "try them again (finished jobs are skipped).", ""]
+        for jid, err in result.failed.items():
+            a = attempts(spec.by_id()[jid].run_dir(out))
+            lines += [f"- `{jid}` ({len(a)} attempt(s)):", "", "  ```", *["  " + ln for ln in err.splitlines()[-8:]],
+                      "  ```"]
+        lines.append("")
+    retried = [(j, attempts(j.run_dir(out))) for j in spec.jobs]
+    retried = [(j, a) for j, a in retried if len(a) > 1]
+    if retried:
+        lines += ["### Retried jobs", ""]
+        for j, a in retried:
+            errs = "; ".join(x.get("error", "worker died") .splitlines()[0] if x.get("error") else
+                             ("worker died / stopped" if "outcome" not in x else x["outcome"]) for x in a[:-1])
+            state = "done" if is_done(j.run_dir(out)) else "failed"
+            lines.append(f"- `{j.id}`: {len(a)} attempts, {state}; earlier attempts: {errs}")
+        lines.append("")
+
+    aggs: dict[str, dict[str, Any]] = {}
+    for env, (env_id, kwargs) in spec.envs.items():
+        records = load_records(spec, out, env)
+        if not records:
+            continue
+        agents = list(dict.fromkeys(r.agent for r in records))
+        if "random" in agents:  # the baseline first: the tables read as "vs random"
+            agents.remove("random")
+            agents.insert(0, "random")
+            records = sorted(records, key=lambda r: agents.index(r.agent))
+        env_out = out / "report" / env
+        jobs = [j for j in spec.jobs if j.kind == "evaluate" and j.params["env"] == env]
+        p = jobs[0].params
+        seeds = {a: sorted({j.params["seed"] for j in jobs if j.params["agent"] == a and is_done(j.run_dir(out))})
+                 for a in agents}
+        extra = (f"env `{env_id}` with `{kwargs}`; {p['episodes']} episodes x env seeds {p['env_seeds']} per agent "
+                 f"seed; agent seeds: " + ", ".join(f"{a} {s}" for a, s in seeds.items()) + ".")
+        write_report(records, env_out, _max_grasps(env_id, kwargs), title=f"Sweep {spec.name}: {env}", extra=extra)
+        agg = json.loads((env_out / "results.json").read_text())["rliable"]
+        aggs[env] = agg
+        rel = env_out.relative_to(out)
+        lines += [f"## {env}", "", extra, "", rl_markdown_table(agg), "",
+                  f"![performance profile]({rel}/performance_profile.png) "
+                  f"![success vs grasps]({rel}/success_vs_grasps.png)", "",
+                  f"Full tables (mean grasps, median, fewer than random): [{rel}/results.md]({rel}/results.md).", ""]
+    if aggs:
+        _leaderboard_png(aggs, out / "leaderboard.png")
+        lines[lines.index("## Jobs")] = ("![leaderboard](leaderboard.png)\n\nIQM: interquartile mean of the grasps at "
+                                          "the stop; success at the stop (mean over episodes); P: probability of "
+                                          "improvement over random; 95% stratified bootstrap CIs "
+                                          f"({next(iter(aggs.values()))['reps']} resamples; strata = env "
+                                          "seeds).\n\n## Jobs")
+
+    ds = [j for j in spec.jobs if j.kind == "dataset" and is_done(j.run_dir(out))]
+    if ds:
+        lines += ["## Datasets (shared cache)", "", "| objects | fingers | normals | train | val | built in | cache file |",
+                  "|" + "---|" * 7]
+        for j in ds:
+            d = read_done(j.run_dir(out))
+            c = j.params["config"]
+            how = "cache hit" if d["from_cache"] else f"{d['build_seconds']:.1f} s"
+            lines.append(f"| {j.params['objects']} | {c['n_fingers']} | {c['normals']} | {d['train']} | {d['val']} "
+                         f"| {how} | `{Path(d['cache']).name}` |")
+        lines.append("")
+    an = [j for j in spec.jobs if j.kind == "analysis" and is_done(j.run_dir(out))]
+    if an:
+        lines += ["## Analysis", ""]
+        for j in an:
+            rel = (j.run_dir(out) / "analysis" / "results.md").relative_to(out)
+            lines.append(f"- {j.params['objects']}: [{rel}]({rel})")
+        lines.append("")
+    path = out / "report.md"
+    path.write_text("\n".join(lines).rstrip() + "\n")
+    return path

@@ -1,0 +1,311 @@
+"""Sweep specs: a TOML file (``tomllib``) expanded into :class:`Job` objects.
+
+A spec declares envs, agents and seeds (one train job per trained agent x env x seed, one evaluate job per
+agent x env x seed), and dataset, analysis and command jobs::
+
+    name = "easy"                          # the sweep folder defaults to outputs/sweeps/<name>
+    seeds = [0, 1, 2]                      # agent seeds (training seeds of PPO/SAC; RandomAgent's seed)
+    max_retries = 2                        # Ray retries of a failed job (exceptions and dead workers)
+    env_kwargs = { grasp_cost = 0.02 }     # HapticRecogConfig fields of every env (under each env's kwargs)
+
+    [[env]]                                # or: env_ids = ["HapticRecog-v0", "HapticRecogKIT-v0"]
+    name = "kit20"                         # folder-safe label (default: the id)
+    id = "HapticRecog-v0"                  # a registered env id (haptic_env.ENV_VARIANTS)
+    kwargs = { objects = "kit20" }         # must not change a field the id's variant sets
+
+    [[agent]]
+    name = "greedy"                        # random | greedy | greedy:M (spec = ... to rename)
+    [[agent]]
+    name = "ppo"
+    algo = "ppo"                           # a trained agent: train.py, then evaluation of <algo>_final.zip
+    total_timesteps = 200000               # + n_envs, vec, checkpoint_freq, hyperparams, cpus, max_minutes
+
+    [evaluate]
+    episodes = 40                          # episodes per env seed
+    env_seeds = [1000, 1001, 1002]         # every agent sees the same objects and poses per env seed
+
+    [[dataset]]                            # build_dataset through the shared cache; lists are grid axes
+    objects = ["kit8", "kit20"]
+    fingers = [2, 3, 4, 5]
+    normals = [true, false]
+    grasps_per_object = 200000             # + any other DatasetConfig field (source, contact_noise, ...)
+
+    [[analysis]]                           # haptic-recog analysis, one job per object set, after its datasets
+    objects = ["kit8"]
+    flags = { experiments = "2", fingers = "3,4", trials = 100 }
+
+    [[command]]                            # any command, run in its job folder
+    name = "hello"
+    run = ["python", "-c", "print('hello')"]
+
+Every job has a key, the hash of its settings: its run folder ends with it, so a changed setting gets a new
+folder and a finished job with the same settings is skipped.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+import tomllib
+from dataclasses import dataclass, field
+from itertools import product
+from pathlib import Path
+from typing import Any
+
+__all__ = ["Job", "SweepSpec", "SpecError", "load_spec", "parse_spec", "KINDS"]
+
+KINDS = ("dataset", "analysis", "train", "evaluate", "command")
+
+_TOP = {"name", "description", "out", "seeds", "max_retries", "env_kwargs", "env", "env_ids", "agent", "evaluate",
+        "dataset", "analysis", "command"}
+_ENV = {"name", "id", "kwargs"}
+_TRAINED = {"name", "algo", "total_timesteps", "n_envs", "vec", "checkpoint_freq", "hyperparams", "cpus",
+            "max_minutes", "seeds"}
+_BASELINE = {"name", "spec", "seeds"}
+_EVALUATE = {"episodes", "env_seeds", "cpus"}
+_DATASET_KEYS = {"objects", "fingers", "normals", "cpus", "name"}
+_ANALYSIS = {"objects", "flags", "cpus", "name"}
+_COMMAND = {"name", "run", "cpus", "env"}
+
+
+class SpecError(ValueError):
+    """A sweep spec that cannot be expanded (unknown key, bad value); the message names the spec entry."""
+
+
+def _key(*parts: Any) -> str:
+    return hashlib.sha256(json.dumps(parts, sort_keys=True, default=str).encode()).hexdigest()[:10]
+
+
+def _safe(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.=:-]+", "_", str(text)).replace(":", "-")[:60] or "x"
+
+
+@dataclass(frozen=True)
+class Job:
+    """One unit of work: ``kind`` (one of :data:`KINDS`), its JSON-able ``params``, the ids of the jobs it needs
+    (``deps``), and the CPUs it asks of Ray. ``id`` is ``<kind>/<label>-<key>``, also its folder under
+    ``<sweep>/runs``."""
+
+    kind: str
+    label: str
+    params: dict[str, Any]
+    deps: tuple[str, ...] = ()
+    cpus: float = 1.0
+
+    @property
+    def key(self) -> str:
+        return _key(self.kind, self.params, self.deps)
+
+    @property
+    def id(self) -> str:
+        return f"{self.kind}/{self.label}-{self.key}"
+
+    def run_dir(self, out: str | Path) -> Path:
+        return Path(out) / "runs" / self.id
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": self.kind, "label": self.label, "params": self.params, "deps": list(self.deps),
+                "cpus": self.cpus, "id": self.id, "key": self.key}
+
+
+@dataclass
+class SweepSpec:
+    name: str
+    description: str = ""
+    out: str | None = None
+    max_retries: int = 2
+    jobs: list[Job] = field(default_factory=list)
+    #: env label -> (env id, merged kwargs) of the RL part
+    envs: dict[str, tuple[str, dict[str, Any]]] = field(default_factory=dict)
+    source: str = ""
+
+    def default_out(self) -> Path:
+        return Path(self.out) if self.out else Path("outputs") / "sweeps" / _safe(self.name)
+
+    def by_id(self) -> dict[str, Job]:
+        return {j.id: j for j in self.jobs}
+
+
+def _check_keys(table: dict, allowed: set, where: str) -> None:
+    if not isinstance(table, dict):
+        raise SpecError(f"{where}: expected a table, got {table!r}")
+    bad = sorted(set(table) - allowed)
+    if bad:
+        raise SpecError(f"{where}: unknown key(s) {bad}; allowed: {sorted(allowed)}")
+
+
+def _as_list(v: Any) -> list:
+    return list(v) if isinstance(v, (list, tuple)) else [v]
+
+
+def _int(v: Any, where: str, lo: int = 0) -> int:
+    if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+        raise SpecError(f"{where}: expected an integer >= {lo}, got {v!r}")
+    return v
+
+
+def _envs(doc: dict) -> dict[str, tuple[str, dict[str, Any]]]:
+    from haptic_env import ENV_VARIANTS
+    from haptic_env.config import HapticRecogConfig
+
+    common = doc.get("env_kwargs", {})
+    if not isinstance(common, dict):
+        raise SpecError(f"env_kwargs: expected a table, got {common!r}")
+    tables = list(doc.get("env", []))
+    tables += [{"id": i} for i in _as_list(doc.get("env_ids", []))]
+    out: dict[str, tuple[str, dict[str, Any]]] = {}
+    for i, t in enumerate(tables):
+        where = f"env[{i}]"
+        _check_keys(t, _ENV, where)
+        env_id = t.get("id", "HapticRecog-v0")
+        if env_id not in ENV_VARIANTS:
+            raise SpecError(f"{where}: unknown env id {env_id!r}; choose from {list(ENV_VARIANTS)}")
+        kwargs = {**common, **t.get("kwargs", {})}
+        clash = sorted(k for k in kwargs if k in ENV_VARIANTS[env_id] and kwargs[k] != ENV_VARIANTS[env_id][k])
+        if clash:  # training applies the variant over --env-kwargs, evaluation the kwargs over the variant
+            raise SpecError(f"{where}: kwargs {clash} change what {env_id} sets ({ENV_VARIANTS[env_id]}); "
+                            "use id = \"HapticRecog-v0\" with the full kwargs instead")
+        try:
+            HapticRecogConfig().replace(**{**ENV_VARIANTS[env_id], **kwargs})
+        except (TypeError, ValueError) as exc:
+            raise SpecError(f"{where} ({env_id}): {exc}") from None
+        label = _safe(t.get("name", env_id))
+        if label in out:
+            raise SpecError(f"{where}: env name {label!r} used twice")
+        out[label] = (env_id, kwargs)
+    return out
+
+
+def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
+    agents = doc.get("agent", [])
+    if agents and not envs:
+        raise SpecError("[[agent]] given without any env ([[env]] or env_ids)")
+    ev = doc.get("evaluate", {})
+    _check_keys(ev, _EVALUATE, "evaluate")
+    episodes = _int(ev.get("episodes", 20), "evaluate.episodes", 1)
+    env_seeds = [_int(s, "evaluate.env_seeds") for s in _as_list(ev.get("env_seeds", [1000, 1001, 1002]))]
+    eval_cpus = float(ev.get("cpus", 1))
+    jobs: list[Job] = []
+    names = set()
+    for i, a in enumerate(agents):
+        where = f"agent[{i}]"
+        if "name" not in a:
+            raise SpecError(f"{where}: needs a name")
+        name = _safe(a["name"])
+        if name in names:
+            raise SpecError(f"{where}: agent name {name!r} used twice")
+        names.add(name)
+        trained = "algo" in a
+        _check_keys(a, _TRAINED if trained else _BASELINE, where)
+        a_seeds = [_int(s, f"{where}.seeds") for s in _as_list(a.get("seeds", seeds))]
+        if trained and a["algo"] not in ("ppo", "sac"):
+            raise SpecError(f"{where}: algo must be 'ppo' or 'sac', got {a['algo']!r}")
+        if not trained:
+            spec = a.get("spec", a["name"])
+            if not (spec in ("random", "greedy") or re.fullmatch(r"greedy:\d+", spec) or spec.endswith(".zip")):
+                raise SpecError(f"{where}: a baseline agent is random, greedy or greedy:M (or a model .zip via "
+                                f"spec), got {spec!r}; give algo = \"ppo\"/\"sac\" for a trained agent")
+        for env, s in product(envs, a_seeds):
+            env_id, kwargs = envs[env]
+            deps: tuple[str, ...] = ()
+            if trained:
+                n_envs = _int(a.get("n_envs", 1), f"{where}.n_envs", 1)
+                train = Job("train", f"{env}/{name}/seed{s}", {
+                    "algo": a["algo"], "env_id": env_id, "env_kwargs": kwargs, "seed": s,
+                    "total_timesteps": _int(a.get("total_timesteps", 200_000), f"{where}.total_timesteps", 1),
+                    "n_envs": n_envs, "vec": a.get("vec", "dummy" if n_envs == 1 else "subproc"),
+                    "checkpoint_freq": _int(a.get("checkpoint_freq", 20_000), f"{where}.checkpoint_freq", 1),
+                    "max_minutes": float(a.get("max_minutes", 0.0)), "hyperparams": a.get("hyperparams", {}),
+                }, cpus=float(a.get("cpus", n_envs)))
+                jobs.append(train)
+                deps = (train.id,)
+                spec = f"{a['algo']}_final.zip"  # in the train job's folder (resolved by the evaluate job)
+            jobs.append(Job("evaluate", f"{env}/{name}/seed{s}", {
+                "agent": name, "spec": spec, "trained": trained, "env": env, "env_id": env_id, "env_kwargs": kwargs,
+                "seed": s, "episodes": episodes, "env_seeds": env_seeds}, deps=deps, cpus=eval_cpus))
+    return jobs
+
+
+def _dataset_jobs(doc: dict) -> list[Job]:
+    from haptic_env.dataset import DatasetConfig
+
+    fields = set(DatasetConfig.__dataclass_fields__) - {"n_fingers", "normals"}
+    jobs = []
+    for i, t in enumerate(doc.get("dataset", [])):
+        where = f"dataset[{i}]"
+        _check_keys(t, _DATASET_KEYS | fields, where)
+        rest = {k: v for k, v in t.items() if k in fields}
+        for objects, n, normals in product(_as_list(t.get("objects", "default")), _as_list(t.get("fingers", 4)),
+                                           _as_list(t.get("normals", True))):
+            cfg = {**rest, "n_fingers": n, "normals": bool(normals)}
+            try:
+                DatasetConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in cfg.items()})
+            except (TypeError, ValueError) as exc:
+                raise SpecError(f"{where}: {exc}") from None
+            label = f"{_safe(objects)}/n{n}-{'normals' if normals else 'no-normals'}"
+            jobs.append(Job("dataset", label, {"objects": objects, "config": cfg}, cpus=float(t.get("cpus", 1))))
+    return jobs
+
+
+def _analysis_jobs(doc: dict, datasets: list[Job]) -> list[Job]:
+    """One job per object set; it waits for the spec's dataset jobs of that set (the analysis then reads their
+    grasps from the cache instead of generating them a second time)."""
+    jobs = []
+    for i, t in enumerate(doc.get("analysis", [])):
+        where = f"analysis[{i}]"
+        _check_keys(t, _ANALYSIS, where)
+        flags = t.get("flags", {})
+        if not isinstance(flags, dict) or "out" in flags or "objects" in flags:
+            raise SpecError(f"{where}: flags must be a table of `haptic-recog analysis` flags other than "
+                            f"--out and --objects, got {flags!r}")
+        for objects in _as_list(t.get("objects", "default")):
+            label = _safe(t.get("name", objects)) + ("" if "name" not in t else f"/{_safe(objects)}")
+            deps = tuple(d.id for d in datasets if d.params["objects"] == objects)
+            jobs.append(Job("analysis", label, {"objects": objects, "flags": flags}, deps=deps,
+                            cpus=float(t.get("cpus", 1))))
+    return jobs
+
+
+def _command_jobs(doc: dict) -> list[Job]:
+    jobs = []
+    for i, t in enumerate(doc.get("command", [])):
+        where = f"command[{i}]"
+        _check_keys(t, _COMMAND, where)
+        if "name" not in t or "run" not in t:
+            raise SpecError(f"{where}: needs name and run")
+        run = t["run"]
+        if not (isinstance(run, str) or (isinstance(run, list) and all(isinstance(w, str) for w in run))):
+            raise SpecError(f"{where}: run must be a string or a list of strings")
+        jobs.append(Job("command", _safe(t["name"]), {"run": run, "env": t.get("env", {})},
+                        cpus=float(t.get("cpus", 1))))
+    return jobs
+
+
+def parse_spec(doc: dict[str, Any], source: str = "") -> SweepSpec:
+    """A parsed TOML document as a :class:`SweepSpec` with its jobs expanded (raises :class:`SpecError`)."""
+    _check_keys(doc, _TOP, "spec")
+    if "name" not in doc:
+        raise SpecError("spec: needs a name")
+    seeds = [_int(s, "seeds") for s in _as_list(doc.get("seeds", [0]))]
+    envs = _envs(doc)
+    datasets = _dataset_jobs(doc)
+    jobs = datasets + _analysis_jobs(doc, datasets) + _rl_jobs(doc, envs, seeds) + _command_jobs(doc)
+    ids = [j.id for j in jobs]
+    dup = sorted({i for i in ids if ids.count(i) > 1})
+    if dup:
+        raise SpecError(f"spec: the same job twice: {dup}")
+    if not jobs:
+        raise SpecError("spec: no jobs (give [[agent]] with envs, [[dataset]], [[analysis]] or [[command]])")
+    return SweepSpec(name=str(doc["name"]), description=str(doc.get("description", "")), out=doc.get("out"),
+                     max_retries=_int(doc.get("max_retries", 2), "max_retries"), jobs=jobs, envs=envs, source=source)
+
+
+def load_spec(path: str | Path) -> SweepSpec:
+    """Read and expand a TOML spec file."""
+    path = Path(path)
+    try:
+        doc = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise SpecError(f"{path}: not valid TOML: {exc}") from None
+    return parse_spec(doc, source=str(path))

@@ -1,0 +1,320 @@
+"""``haptic-recog sweep``: spec expansion, and real sweeps on a local Ray with 2 CPUs (the smoke spec: random vs
+greedy on the default env with a tiny recogniser): the report files, skip-on-rerun, a job that fails once
+(retried, done), a job that always fails (retried, reported, exit status 1), a killed worker (retried, done).
+Slow: a PPO job whose train.py is killed mid-run (the retry resumes from its checkpoint) and a two-node
+``ray start`` cluster on 127.0.0.1."""
+
+from __future__ import annotations
+
+import copy
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from haptic_env.sweep import SpecError, parse_spec
+
+ROOT = Path(__file__).resolve().parents[1]
+SMOKE = ROOT / "sweeps" / "smoke.toml"
+
+
+def _smoke_doc() -> dict:
+    return tomllib.loads(SMOKE.read_text())
+
+
+def _cmd(code: str) -> list[str]:
+    return [sys.executable, "-c", code]
+
+
+# ------------------------------------------------------------------------------------------ specs
+def test_shipped_specs_expand():
+    from haptic_env.sweep import load_spec
+
+    n = {p.stem: len(load_spec(p).jobs) for p in sorted((ROOT / "sweeps").glob("*.toml"))}
+    assert n["smoke"] == 2
+    assert n["easy"] == 3 * (2 + 2 * 2)  # seeds x (random, greedy, PPO train+eval, SAC train+eval)
+    assert n["objects"] == 2 * n["easy"] and n["hands"] == 4 * n["easy"] and n["geometry"] == n["easy"]
+    assert n["paper_data"] == 2 * 9 * 2 + 2
+
+
+def test_grid_expansion_keys_and_dependencies():
+    doc = {"name": "g", "seeds": [0, 1], "env_ids": ["HapticRecog-v0", "HapticRecogKIT-v0"],
+           "agent": [{"name": "random"}, {"name": "ppo", "algo": "ppo", "total_timesteps": 1000}],
+           "dataset": [{"objects": ["default"], "fingers": [3, 4], "normals": [True, False], "grasps_per_object": 50}],
+           "analysis": [{"objects": "default", "flags": {"experiments": "2"}}]}
+    spec = parse_spec(doc)
+    kinds = [j.kind for j in spec.jobs]
+    assert kinds.count("train") == 4 and kinds.count("evaluate") == 8 and kinds.count("dataset") == 4
+    by_id = spec.by_id()
+    for j in spec.jobs:
+        for d in j.deps:
+            assert d in by_id
+        if j.kind == "evaluate" and j.params["trained"]:
+            assert by_id[j.deps[0]].kind == "train" and by_id[j.deps[0]].params["seed"] == j.params["seed"]
+        if j.kind == "analysis":
+            assert len(j.deps) == 4
+    # the key is the settings' hash: stable, and a changed setting is another job (another folder)
+    assert [j.id for j in parse_spec(copy.deepcopy(doc)).jobs] == [j.id for j in spec.jobs]
+    doc["agent"][1]["total_timesteps"] = 2000
+    changed = {j.id for j in parse_spec(doc).jobs} - {j.id for j in spec.jobs}
+    assert {i.split("/")[0] for i in changed} == {"train", "evaluate"} and len(changed) == 8
+
+
+@pytest.mark.parametrize("doc, match", [
+    ({"name": "x"}, "no jobs"),
+    ({"name": "x", "bogus": 1, "env_ids": ["HapticRecog-v0"], "agent": [{"name": "random"}]}, "unknown key"),
+    ({"name": "x", "env_ids": ["Nope-v0"], "agent": [{"name": "random"}]}, "unknown env id"),
+    ({"name": "x", "env": [{"id": "HapticRecogKIT-v0", "kwargs": {"objects": "kit20"}}], "agent": [{"name": "random"}]},
+     "change what HapticRecogKIT-v0 sets"),
+    ({"name": "x", "env_ids": ["HapticRecog-v0"], "env_kwargs": {"max_grasps": 0}, "agent": [{"name": "random"}]},
+     "max_grasps"),
+    ({"name": "x", "env_ids": ["HapticRecog-v0"], "agent": [{"name": "ppo", "algo": "dqn"}]}, "algo"),
+    ({"name": "x", "env_ids": ["HapticRecog-v0"], "agent": [{"name": "typo"}]}, "baseline agent"),
+    ({"name": "x", "agent": [{"name": "random"}]}, "without any env"),
+    ({"name": "x", "dataset": [{"fingers": [1]}]}, "n_fingers"),
+])
+def test_bad_specs_are_one_line_errors(doc, match):
+    with pytest.raises(SpecError, match=match):
+        parse_spec(doc)
+
+
+def test_cli_dry_run_and_bad_spec(tmp_path, capsys):
+    from haptic_env.cli import main
+
+    assert main(["sweep", str(SMOKE), "--dry-run", "--out", str(tmp_path)]) == 0
+    assert "todo  evaluate/default/greedy/seed0-" in capsys.readouterr().out
+    bad = tmp_path / "bad.toml"
+    bad.write_text("name = 'x'\nseeds = 'zero'\n")
+    with pytest.raises(SystemExit) as exc:
+        main(["sweep", str(bad)])
+    assert exc.value.code == 2
+    assert "seeds" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------------------------------ Ray
+@pytest.fixture(scope="module")
+def local_ray(haptic_cache, env_config, small_recognizer_kwargs):
+    """A local Ray with 2 CPUs; the smoke spec's recogniser is the session's small one, already in the cache."""
+    ray = pytest.importorskip("ray", reason="the sweep runs on Ray: pip install 'haptic-recog[sweep]'")
+    assert _smoke_doc()["env_kwargs"]["recognizer_kwargs"] == small_recognizer_kwargs
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False,
+             runtime_env={"env_vars": {"HAPTIC_CACHE": str(haptic_cache)}})
+    yield ray
+    ray.shutdown()
+
+
+def test_smoke_sweep_report_rerun_and_retries(local_ray, tmp_path, capsys, monkeypatch):
+    """Random vs greedy + a job that fails once + one that always fails, twice over (the second run skips)."""
+    import functools
+
+    import agents.evaluate
+
+    # rliable's bootstrap takes ~10 s at its 2000 resamples even on 4 episodes: 100 here
+    monkeypatch.setattr(agents.evaluate, "rl_aggregates", functools.partial(agents.evaluate.rl_aggregates, reps=100))
+    from haptic_env.cli import main
+    from haptic_env.sweep.jobs import attempts
+    from haptic_env.sweep.report import write_sweep_report
+    from haptic_env.sweep.runner import run_sweep, write_status
+
+    doc = _smoke_doc()
+    doc["command"] = [
+        {"name": "flaky", "run": _cmd("import os, sys; sys.exit(3 if os.environ['SWEEP_ATTEMPT'] == '1' else 0)")},
+        {"name": "broken", "run": _cmd("import sys; print('boom'); sys.exit(7)")},
+    ]
+    spec = parse_spec(doc, source="smoke + commands")
+    out = tmp_path / "sweep"
+    res = run_sweep(spec, out, max_retries=1, progress=False)
+    ids = {j.label: j.id for j in spec.jobs}
+    dirs = {j.label: j.run_dir(out) for j in spec.jobs}
+    assert set(res.failed) == {ids["broken"]} and "status 7" in res.failed[ids["broken"]]
+    assert set(res.done) == {ids[k] for k in ("default/random/seed0", "default/greedy/seed0", "flaky")}
+    assert len(attempts(dirs["flaky"])) == 2 and len(attempts(dirs["broken"])) == 2  # 1 + max_retries
+    assert "error" in attempts(dirs["flaky"])[0] and "error" not in attempts(dirs["flaky"])[1]
+    write_status(res, spec)
+    report = write_sweep_report(spec, res)
+    text = report.read_text()
+    for f in ("leaderboard.png", "report/default/performance_profile.png", "report/default/results.md",
+              "report/default/success_vs_grasps.png", "status.json"):
+        assert (out / f).is_file() and (out / f).stat().st_size > 0, f
+    assert "IQM grasps at the stop" in text and "P(fewer grasps than random)" in text
+    assert "### Failed jobs" in text and ids["broken"] in text and "### Retried jobs" in text
+    agg = json.loads((out / "report/default/results.json").read_text())["rliable"]["agents"]
+    assert set(agg) == {"random", "greedy"} and "p_fewer_grasps" in agg["greedy"]
+    episodes = (dirs["default/greedy/seed0"] / "episodes.csv").read_text().splitlines()
+    assert len(episodes) == 1 + 2  # header + 2 episodes x 1 env seed
+    status = {r["id"]: r for r in json.loads((out / "status.json").read_text())["jobs"]}
+    assert status[ids["broken"]]["state"] == "failed" and status[ids["broken"]]["attempts"] == 2
+
+    # the same sweep again through the CLI: the finished jobs are skipped, the failed one is tried again
+    spec_file = tmp_path / "spec.toml"
+    spec_file.write_text(_toml(doc))
+    capsys.readouterr()
+    rc = main(["sweep", str(spec_file), "--out", str(out), "--max-retries", "0", "--quiet"])
+    assert rc == 1
+    assert "3 skipped" in capsys.readouterr().out
+    assert len(attempts(dirs["default/greedy/seed0"])) == 1 and len(attempts(dirs["flaky"])) == 2
+    assert len(attempts(dirs["broken"])) == 3
+
+
+def test_killed_worker_is_retried(local_ray, tmp_path):
+    """SIGKILL the Ray worker running a job: Ray retries it (max_retries) and the sweep completes."""
+    from haptic_env.sweep.jobs import attempts, is_done
+    from haptic_env.sweep.runner import run_sweep
+
+    code = "import os, time; time.sleep(60 if os.environ['SWEEP_ATTEMPT'] == '1' else 0)"
+    spec = parse_spec({"name": "kill", "command": [{"name": "sleeper", "run": _cmd(code)}]})
+    out = tmp_path / "sweep"
+    run_dir = spec.jobs[0].run_dir(out)
+    killed = []
+
+    def killer():
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 60:
+            a = attempts(run_dir)
+            if a and (run_dir / "command.log").is_file():
+                time.sleep(0.5)
+                os.kill(a[0]["pid"], signal.SIGKILL)
+                killed.append(a[0]["pid"])
+                return
+            time.sleep(0.1)
+
+    th = threading.Thread(target=killer)
+    th.start()
+    t0 = time.monotonic()
+    res = run_sweep(spec, out, max_retries=2, progress=False)
+    th.join()
+    assert killed and res.ok and is_done(run_dir)
+    a = attempts(run_dir)
+    assert len(a) == 2 and a[0]["pid"] != a[1]["pid"] and "outcome" not in a[0]  # the killed attempt never ended
+    assert time.monotonic() - t0 < 50  # the first attempt's `sleep 60` died with its worker
+
+
+def _toml(doc: dict) -> str:
+    """A minimal TOML writer for the test specs (tables of scalars, lists, inline tables)."""
+    def val(v):
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, (int, float)):
+            return repr(v)
+        if isinstance(v, str):
+            return json.dumps(v)
+        if isinstance(v, list):
+            return "[" + ", ".join(val(x) for x in v) + "]"
+        return "{ " + ", ".join(f"{k} = {val(x)}" for k, x in v.items()) + " }"
+
+    lines, arrays = [], []
+    for k, v in doc.items():
+        if isinstance(v, list) and v and isinstance(v[0], dict):
+            arrays.append((k, v))
+        elif isinstance(v, dict) and k != "env_kwargs":
+            arrays.append((k, v))
+        else:
+            lines.append(f"{k} = {val(v)}")
+    for k, v in arrays:
+        for t in (v if isinstance(v, list) else [v]):
+            lines += [f"[[{k}]]" if isinstance(v, list) else f"[{k}]", *(f"{a} = {val(b)}" for a, b in t.items())]
+    return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------------------------------------ slow
+@pytest.mark.slow
+def test_killed_training_resumes_from_checkpoint(tmp_path, haptic_cache):
+    """A 2,048-step PPO job whose train.py is SIGKILLed after its first checkpoint: the retry resumes from it
+    (--resume), the evaluation of the final model follows, and the report has PPO against random."""
+    pytest.importorskip("ray", reason="the sweep runs on Ray: pip install 'haptic-recog[sweep]'")
+    from haptic_env.sweep.jobs import attempts, read_done
+
+    doc = _smoke_doc()
+    doc["agent"] = [{"name": "random"}, {"name": "ppo", "algo": "ppo", "total_timesteps": 2048,
+                                         "checkpoint_freq": 256,
+                                         "hyperparams": {"n_steps": 128, "batch_size": 64, "n_epochs": 2}}]
+    spec_file = tmp_path / "spec.toml"
+    spec_file.write_text(_toml(doc))
+    spec = parse_spec(doc)
+    out = tmp_path / "sweep"
+    train = next(j for j in spec.jobs if j.kind == "train").run_dir(out)
+    proc = subprocess.Popen([sys.executable, "-m", "haptic_env.cli", "sweep", str(spec_file), "--out", str(out),
+                             "--num-cpus", "2", "--quiet"], cwd=ROOT, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+    t0 = time.monotonic()
+    while not list(train.glob("checkpoints/ppo_*_steps.zip")):
+        assert proc.poll() is None and time.monotonic() - t0 < 240, "no checkpoint"
+        time.sleep(0.2)
+    pid = int((train / "train.pid").read_text())
+    os.kill(pid, signal.SIGKILL)
+    stdout, _ = proc.communicate(timeout=400)
+    assert proc.returncode == 0, stdout[-3000:]
+    a = attempts(train)
+    assert len(a) == 2 and "status -9" in a[0]["error"]
+    assert read_done(train)["resumed_from"] is not None
+    assert (train / "args.part2.json").is_file()  # train.py's own record of the resumed segment
+    text = (out / "report.md").read_text()
+    assert "| ppo |" in text and "| random |" in text
+
+
+@pytest.mark.slow
+def test_two_node_cluster(tmp_path, haptic_cache):
+    """``ray start --head`` on 127.0.0.1 plus a second ``ray start --address``: the smoke sweep (+ two 3 s jobs
+    that need a CPU each at the same time, so they run on both nodes) completes through ``--address``."""
+    pytest.importorskip("ray", reason="the sweep runs on Ray: pip install 'haptic-recog[sweep]'")
+    from haptic_env.sweep.jobs import attempts
+
+    import socket
+
+    with socket.socket() as s:  # a free port below Ray's worker port range (10002-19999)
+        for port in range(6400, 9000):
+            try:
+                s.bind(("127.0.0.1", port))
+                break
+            except OSError:
+                continue
+    ray_exe = str(Path(sys.executable).with_name("ray"))
+    env = {**os.environ, "RAY_AUTH_MODE": "token", "HAPTIC_CACHE": str(haptic_cache)}
+    temp = tmp_path / "ray"
+    nodes: list[subprocess.Popen] = []
+
+    def start(args: list[str], log: Path) -> None:
+        p = subprocess.Popen([ray_exe, "start", *args, "--num-cpus", "1", "--object-store-memory", "100000000",
+                              "--block"], stdout=open(log, "w"), stderr=subprocess.STDOUT, env=env,
+                             start_new_session=True)
+        nodes.append(p)
+        t0 = time.monotonic()
+        while "Ray runtime started" not in log.read_text(errors="replace"):
+            assert p.poll() is None, log.read_text()[-2000:]
+            assert time.monotonic() - t0 < 120, "ray start timed out"
+            time.sleep(0.5)
+
+    doc = _smoke_doc()
+    code = "import time; time.sleep(3)"
+    doc["command"] = [{"name": f"sleep{i}", "run": _cmd(code)} for i in range(2)]
+    spec_file = tmp_path / "spec.toml"
+    spec_file.write_text(_toml(doc))
+    out = tmp_path / "sweep"
+    try:
+        start(["--head", "--port", str(port), "--include-dashboard=false", "--temp-dir", str(temp)],
+              tmp_path / "head.log")
+        start(["--address", f"127.0.0.1:{port}"], tmp_path / "worker.log")
+        r = subprocess.run([sys.executable, "-m", "haptic_env.cli", "sweep", str(spec_file), "--out", str(out),
+                            "--address", f"127.0.0.1:{port}", "--quiet"], cwd=ROOT, env=env, capture_output=True,
+                           text=True, timeout=400)
+        assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
+    finally:
+        for p in nodes:
+            os.killpg(p.pid, signal.SIGTERM)
+        for p in nodes:
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                os.killpg(p.pid, signal.SIGKILL)
+                p.wait()
+    spec = parse_spec(doc)
+    node_ids = {attempts(j.run_dir(out))[0]["node"] for j in spec.jobs if j.kind == "command"}
+    assert len(node_ids) == 2, node_ids
+    assert (out / "report.md").is_file() and (out / "leaderboard.png").is_file()
