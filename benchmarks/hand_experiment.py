@@ -43,6 +43,7 @@ from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
 from haptic_env.hand_grasps import hand_grasp_pool  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 from haptic_env.recognizers import RecognizerConfig, build_recognizer  # noqa: E402
+from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD  # noqa: E402
 
 #: hand -> (fingers, normals settings); the paper: Allegro with and without normals, 5-finger hands without.
 SETUPS = {"allegro": (4, (True, False)), "shadow": (5, (False,)), "aero": (5, (False,))}
@@ -116,7 +117,7 @@ def main(argv=None) -> int:
                     help="query pools: test (seeds 1000 + s, for reporting) or validation (500 + s, for tuning)")
     ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
     ap.add_argument("--max-grasps", type=int, default=30, help="grasps per query at most")
-    ap.add_argument("--threshold", type=float, default=0.85)
+    ap.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD, help="certainty threshold lambda")
     ap.add_argument("--approaches", type=int, default=3000, help="hand regime: training approaches per object")
     ap.add_argument("--surface-grasps", type=int, default=20_000, help="surface regime: training grasps per object")
     ap.add_argument("--surface-noise", type=float, default=0.0, help="surface regime: contact noise std (m)")
