@@ -224,6 +224,13 @@ def _toml(doc: dict) -> str:
 
 
 # ------------------------------------------------------------------------------------------ slow
+def _killpg(pgid: int, sig: int) -> None:
+    try:
+        os.killpg(pgid, sig)
+    except ProcessLookupError:
+        pass
+
+
 @pytest.mark.slow
 def test_killed_training_resumes_from_checkpoint(tmp_path, haptic_cache):
     """A 2,048-step PPO job whose train.py is SIGKILLed after its first checkpoint: the retry resumes from it
@@ -277,7 +284,10 @@ def test_two_node_cluster(tmp_path, haptic_cache):
                 continue
     ray_exe = str(Path(sys.executable).with_name("ray"))
     env = {**os.environ, "RAY_AUTH_MODE": "token", "HAPTIC_CACHE": str(haptic_cache)}
-    temp = tmp_path / "ray"
+    import shutil
+    import tempfile
+
+    temp = Path(tempfile.mkdtemp(prefix="ray", dir="/tmp"))  # Ray's socket paths must stay under 107 bytes
     nodes: list[subprocess.Popen] = []
 
     def start(args: list[str], log: Path) -> None:
@@ -305,15 +315,17 @@ def test_two_node_cluster(tmp_path, haptic_cache):
                             "--address", f"127.0.0.1:{port}", "--quiet"], cwd=ROOT, env=env, capture_output=True,
                            text=True, timeout=400)
         assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
-    finally:
+    finally:  # the nodes' process groups (ray start --block, its GCS, raylet and workers), by their ids
         for p in nodes:
-            os.killpg(p.pid, signal.SIGTERM)
+            _killpg(p.pid, signal.SIGTERM)
         for p in nodes:
             try:
                 p.wait(timeout=10)
             except subprocess.TimeoutExpired:
-                os.killpg(p.pid, signal.SIGKILL)
-                p.wait()
+                pass
+            _killpg(p.pid, signal.SIGKILL)
+            p.wait()
+        shutil.rmtree(temp, ignore_errors=True)
     spec = parse_spec(doc)
     node_ids = {attempts(j.run_dir(out))[0]["node"] for j in spec.jobs if j.kind == "command"}
     assert len(node_ids) == 2, node_ids

@@ -244,6 +244,7 @@ def _dataset_jobs(doc: dict) -> list[Job]:
             except (TypeError, ValueError) as exc:
                 raise SpecError(f"{where}: {exc}") from None
             label = f"{_safe(objects)}/n{n}-{'normals' if normals else 'no-normals'}"
+            label = f"{_safe(t['name'])}/{label}" if "name" in t else label
             jobs.append(Job("dataset", label, {"objects": objects, "config": cfg}, cpus=float(t.get("cpus", 1))))
     return jobs
 

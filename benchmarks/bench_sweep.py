@@ -1,0 +1,73 @@
+"""Sweep speed-up: 4 independent jobs one after another (in this process, no Ray) against the same 4 jobs as a
+sweep on a local Ray with ``--num-cpus`` CPUs (Ray's start-up included), in one run. Target (issue 14): the
+sweep takes <= 0.6x the sequential time on a 2-core machine.
+
+The jobs are dataset jobs (``build_dataset`` of the default set, ``--fingers`` contacts, ``--grasps`` grasps
+per object, seeds 0..3): CPU-bound, single-threaded, equal in size. Each mode writes into its own fresh
+``$HAPTIC_CACHE`` (so both compute everything)::
+
+    python benchmarks/bench_sweep.py                    # 4 jobs x 100,000 grasps per object, 2 CPUs
+    python benchmarks/bench_sweep.py --grasps 20000 --jobs 4 --num-cpus 2 --out docs/results/sweep/bench.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+
+def main(argv: list[str] | None = None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--jobs", type=int, default=4)
+    ap.add_argument("--grasps", type=int, default=100_000, help="grasps per object of each dataset job")
+    ap.add_argument("--fingers", type=int, default=4)
+    ap.add_argument("--num-cpus", type=int, default=2)
+    ap.add_argument("--out", type=Path, default=None, help="also write the numbers to this JSON file")
+    args = ap.parse_args(argv)
+
+    from haptic_env.sweep import parse_spec
+    from haptic_env.sweep.runner import run_jobs_inline, run_sweep
+
+    spec = parse_spec({"name": "bench", "max_retries": 0, "dataset": [
+        {"objects": "default", "fingers": args.fingers, "grasps_per_object": args.grasps, "seed": s, "name": f"s{s}"}
+        for s in range(args.jobs)]})
+    tmp = Path(tempfile.mkdtemp(prefix="bench_sweep_"))
+    times = {}
+    try:
+        for mode in ("sequential", "sweep"):
+            os.environ["HAPTIC_CACHE"] = str(tmp / f"cache_{mode}")
+            t0 = time.perf_counter()
+            if mode == "sequential":
+                res = run_jobs_inline(spec, tmp / mode)
+            else:
+                res = run_sweep(spec, tmp / mode, num_cpus=args.num_cpus, progress=False)
+            times[mode] = time.perf_counter() - t0
+            assert res.ok and len(res.done) == args.jobs, res.failed
+            job_s = sorted(d["seconds"] for d in res.done.values())
+            print(f"{mode:10s} {times[mode]:7.1f} s  (jobs {', '.join(f'{s:.1f}' for s in job_s)} s)", flush=True)
+            times[f"{mode}_jobs"] = job_s
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    ratio = times["sweep"] / times["sequential"]
+    out = {"jobs": args.jobs, "grasps_per_object": args.grasps, "fingers": args.fingers, "num_cpus": args.num_cpus,
+           "cores": os.cpu_count(), "platform": platform.platform(), **times, "ratio": ratio,
+           "target": 0.6, "met": ratio <= 0.6}
+    print(f"sweep / sequential = {ratio:.2f} (target <= 0.6: {'met' if ratio <= 0.6 else 'missed'})")
+    if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(json.dumps(out, indent=2))
+    return out
+
+
+if __name__ == "__main__":
+    main()
