@@ -42,7 +42,7 @@ def main(argv: list[str] | None = None) -> dict:
         {"objects": "default", "fingers": args.fingers, "grasps_per_object": args.grasps, "seed": s, "name": f"s{s}"}
         for s in range(args.jobs)]})
     tmp = Path(tempfile.mkdtemp(prefix="bench_sweep_"))
-    times = {}
+    times: dict = {"load_before": os.getloadavg()}  # other processes on the machine take CPU time from both modes
     try:
         for mode in ("sequential", "sweep"):
             os.environ["HAPTIC_CACHE"] = str(tmp / f"cache_{mode}")
@@ -58,7 +58,9 @@ def main(argv: list[str] | None = None) -> dict:
             times[f"{mode}_jobs"] = job_s
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+    times["load_after"] = os.getloadavg()
     ratio = times["sweep"] / times["sequential"]
+    print(f"load average (1, 5, 15 min) before {times['load_before']}, after {times['load_after']}")
     out = {"jobs": args.jobs, "grasps_per_object": args.grasps, "fingers": args.fingers, "num_cpus": args.num_cpus,
            "cores": os.cpu_count(), "platform": platform.platform(), **times, "ratio": ratio,
            "target": 0.6, "met": ratio <= 0.6}

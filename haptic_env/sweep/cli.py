@@ -47,7 +47,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def _main(args) -> int:
     from haptic_env.cli import UsageError
 
-    from .jobs import is_done
+    from .jobs import is_done, read_done
     from .report import write_sweep_report
     from .runner import SweepResult, ray_available, run_sweep, write_status
     from .spec import SpecError, load_spec
@@ -68,7 +68,8 @@ def _main(args) -> int:
         print(f"{len(spec.jobs)} jobs; sweep folder {out}")
         return 0
     if args.report_only:
-        result = SweepResult(out=out, skipped=[j.id for j in spec.jobs if is_done(j.run_dir(out))])
+        done = [j for j in spec.jobs if is_done(j.run_dir(out))]
+        result = SweepResult(out=out, skipped=[j.id for j in done], done={j.id: read_done(j.run_dir(out)) for j in done})
     else:
         if not ray_available():
             raise UsageError("the sweep runs on Ray, which is not installed: pip install 'haptic-recog[sweep]' "

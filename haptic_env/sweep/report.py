@@ -76,7 +76,8 @@ def _leaderboard_png(aggs: dict[str, dict[str, Any]], path: Path) -> Path:
                 lo.append(scale * (v - a))
                 hi.append(scale * (b - v))
             y = range(len(names))
-            ax.barh(list(y), vals, xerr=[lo, hi], color=[f"C{i}" for i in y], alpha=0.75, capsize=3)
+            order = [a for a, _ in agents]  # one colour per agent in every panel
+            ax.barh(list(y), vals, xerr=[lo, hi], color=[f"C{order.index(n)}" for n in names], alpha=0.75, capsize=3)
             ax.set_yticks(list(y), names)
             ax.invert_yaxis()
             if key == "p_fewer_grasps":
