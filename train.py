@@ -54,8 +54,9 @@ class Args:
     """Env steps (grasps) summed over the envs, in all (a resumed run goes on up to this count)."""
     n_envs: int = 2
     """Parallel envs."""
-    vec: Literal["subproc", "dummy"] = "subproc"
-    """Vector env: one process per env ("subproc") or all in this process ("dummy")."""
+    vec: Literal["subproc", "dummy", "native"] = "subproc"
+    """Vector env: one process per env ("subproc"), all in this process ("dummy"), or the native vector env
+    (haptic_env.vector_env: all envs stepped in one batched call, geometric backend; "native")."""
     seed: int = 0
     """Seeds python, numpy, torch and the envs (env ``rank`` gets ``seed + rank``)."""
     run_dir: str = "runs/ppo"

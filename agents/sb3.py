@@ -1,6 +1,7 @@
 """Stable-Baselines3 PPO / SAC on :class:`haptic_env.env.HapticRecogEnv`.
 
-* :func:`make_vec_env` — ``n_envs`` copies (``SubprocVecEnv`` or ``DummyVecEnv``), each wrapped in a
+* :func:`make_vec_env` — ``n_envs`` copies (``SubprocVecEnv`` or ``DummyVecEnv``; ``vec="native"``: the native
+  vector env through :class:`agents.native_vec.NativeVecEnv`, one process), each wrapped in a
   ``Monitor`` writing ``<log_dir>/monitor/<rank>.monitor.csv`` (with the episode's ``correct`` and
   ``grasps``), seeded ``seed + rank``.
 * :func:`build_model` — PPO or SAC with TensorBoard logs under ``<log_dir>/tb``.
@@ -76,13 +77,22 @@ def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.
 
     from haptic_env.env import HapticRecogConfig, get_recognizer
 
-    if vec not in ("subproc", "dummy"):
-        raise ValueError(f"vec must be 'subproc' or 'dummy', got {vec!r}")
+    if vec not in ("subproc", "dummy", "native"):
+        raise ValueError(f"vec must be 'subproc', 'dummy' or 'native', got {vec!r}")
     config = config or HapticRecogConfig()
     monitor_dir = None
     if log_dir is not None:
         monitor_dir = str(Path(log_dir) / "monitor")
         Path(monitor_dir).mkdir(parents=True, exist_ok=True)
+    if vec == "native":  # the native vector env (haptic_env.vector_env) through a thin VecEnv adapter
+        from agents.native_vec import NativeVecEnv
+        from haptic_env.vector_env import make_vector_env
+
+        venv = NativeVecEnv(make_vector_env(n_envs, config, env_id=env_id, autoreset_mode="same_step"),
+                            monitor_dir=monitor_dir, monitor_suffix=monitor_suffix, env_id=env_id)
+        venv.seed(seed)
+        venv.action_space.seed(seed)
+        return venv
     if vec == "subproc":
         # build (or load) the recogniser once here so the workers only read the cache
         import haptic_env

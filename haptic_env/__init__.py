@@ -38,10 +38,15 @@ ENV_VARIANTS: dict[str, dict[str, Any]] = {
     "HapticRecogKIT-v0": {"objects": "kit8"},
 }
 
+#: the native vector env (:mod:`haptic_env.vector_env`) of the geometric variants:
+#: ``gym.make_vec(id, num_envs, vectorization_mode="vector_entry_point")`` (also make_vec's default for them)
+_VECTOR_ENTRY = "haptic_env.vector_env:HapticRecogVectorEnv"
+
 # no max_episode_steps: the env truncates itself after config.max_grasps grasps (the one source of the episode length)
 for _id, _kwargs in ENV_VARIANTS.items():
     if _id not in registry:
-        register(id=_id, entry_point=_ENTRY, kwargs=dict(_kwargs))
+        register(id=_id, entry_point=_ENTRY, kwargs=dict(_kwargs),
+                 vector_entry_point=_VECTOR_ENTRY if _kwargs.get("backend", "geometric") == "geometric" else None)
 
 
 def make(config=None, env_id: str = "HapticRecog-v0", **kwargs):

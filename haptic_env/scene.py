@@ -82,18 +82,25 @@ class Scene:
             return self.names.index(which)
         raise ValueError(f"options['object'] must be an object name or index, got {which!r}")
 
-    def reset(self, rng: np.random.Generator, which=None) -> None:
-        """Draw (from ``rng``, in this order) the object unless ``which`` names it, its pose, its scale and the
-        backend's generator of the episode, and place the object in the backend."""
-        self.target = self.resolve(which) if which is not None else int(rng.integers(self.n_classes))
-        self.pose = random_pose(rng, self.config.pose)
+    def draw(self, rng: np.random.Generator, which=None) -> tuple[int, np.ndarray, float, int]:
+        """An episode's ``(object index, pose, scale, seed of the backend's generator)`` drawn from ``rng`` in this
+        order (the object unless ``which`` names it); :meth:`reset` and the vector env's sub-envs both draw
+        through it."""
+        target = self.resolve(which) if which is not None else int(rng.integers(self.n_classes))
+        pose = random_pose(rng, self.config.pose)
         if self.config.scale_range is not None:
             lo, hi = self.config.scale_range
-            self.scale = float(rng.uniform(lo, hi))
+            scale = float(rng.uniform(lo, hi))
         else:
-            self.scale = 1.0
+            scale = 1.0
         # child generator for the backend, derived from the env's np_random: same seed -> same episode
-        self.rng = np.random.Generator(np.random.PCG64(int(rng.integers(2**63))))
+        return target, pose, scale, int(rng.integers(2**63))
+
+    def reset(self, rng: np.random.Generator, which=None) -> None:
+        """Draw (from ``rng``, :meth:`draw`) the object unless ``which`` names it, its pose, its scale and the
+        backend's generator of the episode, and place the object in the backend."""
+        self.target, self.pose, self.scale, seed = self.draw(rng, which)
+        self.rng = np.random.Generator(np.random.PCG64(seed))
         obj = self.objects[self.target]
         if self.scale != 1.0 and getattr(self.backend, "supports_scale", False):
             # the backend scales the object as a transform: no per-episode mesh copy (nor a new ray-casting scene)

@@ -45,7 +45,7 @@ from .base import (
     validate_pose,
 )
 
-__all__ = ["GeometricConfig", "GeometricBackend", "make_intersector", "MAX_SCENES"]
+__all__ = ["GeometricConfig", "GeometricBackend", "make_intersector", "MAX_SCENES", "PlacedObjects"]
 
 #: Ray-casting scenes (one per distinct mesh) a :class:`GeometricBackend` keeps, least recently used
 #: evicted first. Embree crashes the process after ~1000 live scenes; object sets are far smaller.
@@ -125,7 +125,8 @@ class _MeshScene(NamedTuple):
 
 
 class GeometricBackend:
-    """Ray-casting grasps. ``set_object(obj, pose)`` first; then ``grasp`` / ``grasp_batch``."""
+    """Ray-casting grasps. ``set_object(obj, pose)`` first; then ``grasp`` / ``grasp_batch``; or
+    ``grasp_placed`` for ``B`` grasps of ``B`` differently placed objects (a vector env's episodes) at once."""
 
     action_dim = ACTION_DIM
     #: ``set_object`` takes ``scale=`` (the env passes its random scale instead of a scaled mesh copy)
@@ -250,6 +251,96 @@ class GeometricBackend:
         a = validate_action(action, self.action_dim)
         return self.grasp_batch(a[None], rng)[0]
 
+    def placed_objects(self, objects, size: int) -> "PlacedObjects":
+        """``size`` slots for objects of ``objects`` (each with ``.mesh``) placed independently, for
+        :meth:`grasp_placed` (a vector env's episodes): ``placed.place(b, k, pose, scale)`` puts object ``k`` in
+        slot ``b`` as ``set_object(objects[k], pose, scale)`` would."""
+        return PlacedObjects([self._scene_of(o.mesh) for o in objects], size)
+
+    def grasp_placed(self, actions: np.ndarray, placed: "PlacedObjects", rows=None, rngs=None) -> GraspBatch:
+        """``B`` grasps at once, grasp ``j`` of the object in slot ``rows[j]`` of ``placed`` (default: slot ``j``)
+        with action ``actions[j]``; ``rngs[j]`` draws its noise (needed only with contact or normal noise). One
+        Embree call per distinct object among the slots.
+
+        Grasp ``j`` equals ``set_object`` to that slot's object, pose and scale followed by
+        ``grasp(actions[j], rngs[j])``, bit for bit (``tests/test_vector_env.py``). The current object and
+        ``render`` are left alone."""
+        a = validate_actions(actions, self.action_dim)
+        B, n, cfg = a.shape[0], self.n_fingers, self.config
+        rows = np.arange(B) if rows is None else np.asarray(rows, dtype=np.int64)
+        if rows.shape != (B,):
+            raise ValueError(f"grasp_placed: {B} actions but {rows.shape} rows")
+        if (placed.index[rows] < 0).any():
+            raise RuntimeError("grasp_placed: a slot has no object placed (PlacedObjects.place first)")
+        # rays exactly as rays(), with each grasp's own centre and start radius
+        ap = decode_approach(a, cfg.support)
+        frame = approach_frame(ap)
+        ang = finger_angles(ap.spread, n, cfg.min_spread)
+        e1, e2 = frame[:, None, :, 0], frame[:, None, :, 1]
+        radial = np.cos(ang)[..., None] * e1 + np.sin(ang)[..., None] * e2
+        beta = np.deg2rad(np.r_[np.asarray(cfg.curl_deg[: n - 1]), cfg.curl_deg[-1]])
+        e3 = frame[:, None, :, 2]
+        d_w = -np.cos(beta)[:, None] * radial + np.sin(beta)[:, None] * e3  # (B, n, 3)
+        R, t, scale, radius = placed.R[rows], placed.t[rows], placed.scale[rows], placed.radius[rows]
+        R0 = cfg.margin * radius
+        o_w = placed.centre[rows][:, None, :] - R0[:, None, None] * d_w
+        # _cast, per grasp: the rays in the unscaled object frame (batched matmul: one (n, 3) @ (3, 3) per grasp)
+        o = np.matmul(o_w - t[:, None, :], R)
+        o /= scale[:, None, None]
+        d = np.matmul(d_w, R)
+        o, d = o.reshape(-1, 3), d.reshape(-1, 3)
+        kind = np.repeat(placed.index[rows], n)  # object of each ray
+        order = np.argsort(kind, kind="stable")  # rays grouped by object: one contiguous block each
+        o_s, d_s, kind_s = o[order], d[order], kind[order]
+        bounds = np.flatnonzero(np.diff(kind_s)) + 1
+        tri_s = np.empty(B * n, dtype=np.int64)
+        for lo, hi in zip(np.r_[0, bounds].tolist(), np.r_[bounds, B * n].tolist()):  # one Embree call per object
+            k = int(kind_s[lo])
+            scene = placed.embree[k]
+            if scene is not None:
+                hit = np.asarray(scene.run(o_s[lo:hi], d_s[lo:hi]), dtype=np.int64)
+            else:
+                hit = np.asarray(placed.scenes[k].intersector.intersects_first(o_s[lo:hi], d_s[lo:hi]), dtype=np.int64)
+            tri_s[lo:hi] = np.where(hit >= 0, hit + placed.face_offset[k], -1)  # global triangle ids
+        tri = np.empty(B * n, dtype=np.int64)
+        tri[order] = tri_s
+        contacts = np.zeros((B * n, 3))
+        normals = np.zeros((B * n, 3))
+        touched = np.zeros(B * n, dtype=bool)
+        idx_ray = np.flatnonzero(tri >= 0)
+        if len(idx_ray):  # the hit maths of _cast on all rays at once (row-wise: the same bits per ray)
+            idx_tri = tri[idx_ray]
+            fn = placed.face_normals[idx_tri]
+            dn = np.einsum("ij,ij->i", fn, d[idx_ray])
+            safe = np.where(np.abs(dn) > 1e-12, dn, 1e-12)
+            tdist = np.einsum("ij,ij->i", placed.face_v0[idx_tri] - o[idx_ray], fn) / safe
+            locs = o[idx_ray] + tdist[:, None] * d[idx_ray]
+            g = idx_ray // n  # grasp of each hit
+            reach = cfg.reach * cfg.margin * radius / scale
+            ok = (tdist >= 0.0) & (tdist <= reach[g] + 1e-9) & (np.abs(dn) > 1e-12)
+            sign = np.where(dn >= 0.0, 1.0, -1.0)
+            # to the world frame: one (m_b, 3) @ (3, 3) per grasp, m_b = n rows (misses are zero rows)
+            L = np.zeros((B * n, 3))
+            L[idx_ray] = locs
+            Nf = np.zeros((B * n, 3))
+            Nf[idx_ray] = sign[:, None] * fn
+            RT = R.transpose(0, 2, 1)
+            pw = (np.matmul(L.reshape(B, n, 3) * scale[:, None, None], RT) + t[:, None, :]).reshape(-1, 3)[idx_ray]
+            nw = np.matmul(Nf.reshape(B, n, 3), RT).reshape(-1, 3)[idx_ray]
+            if cfg.support == "table":
+                ok &= pw[:, 2] > placed.table_z[rows][g] + cfg.table_clearance
+            r = idx_ray[ok]
+            contacts[r], normals[r], touched[r] = pw[ok], nw[ok], True
+        contacts, normals, touched = contacts.reshape(B, n, 3), normals.reshape(B, n, 3), touched.reshape(B, n)
+        if cfg.contact_noise > 0 or (cfg.normal_noise_deg > 0 and cfg.normals):
+            if rngs is None or len(rngs) != B:
+                raise ValueError("grasp_placed with contact or normal noise needs one generator per grasp (rngs)")
+            for b in range(B):  # each grasp draws from its own generator, as grasp() would
+                c, nn = self._noise(contacts[b:b + 1], normals[b:b + 1], touched[b:b + 1], rngs[b])
+                contacts[b], normals[b] = c[0], nn[0]
+        return GraspBatch(contacts=contacts, normals=normals if cfg.normals else None, touched=touched,
+                          joint_pos=np.zeros((B, 0)))
+
     def _cast(self, o_w: np.ndarray, d_w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         R, t, s = self._R, self._t, self._scale
         o = (o_w - t) @ R  # R^T (o - t), row-wise: the scaled object's frame
@@ -333,3 +424,44 @@ class GeometricBackend:
         fig.canvas.draw()
         img = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
         return img
+
+
+class PlacedObjects:
+    """``size`` slots, each holding one object of a set in its own pose and scale, as arrays (what
+    :meth:`GeometricBackend.grasp_placed` reads); built by :meth:`GeometricBackend.placed_objects`. The objects'
+    face tables are concatenated once (``face_offset[k]``: object ``k``'s first face)."""
+
+    def __init__(self, scenes: list[_MeshScene], size: int):
+        self.scenes = scenes  # holding them keeps their Embree scenes alive
+        #: each object's Embree scene (None: trimesh's intersector), looked up once (the intersector re-hashes
+        #: the mesh at every lookup)
+        self.embree = [getattr(sc.intersector, "_scene", None) for sc in scenes]
+        #: lowest vertex z of each object (the table height of an unscaled object whose pose keeps z upright)
+        self._zmin = [float(sc.vertices[:, 2].min()) for sc in scenes]
+        self.face_offset = np.concatenate([[0], np.cumsum([len(sc.face_normals) for sc in scenes])[:-1]]).astype(np.int64)
+        self.face_normals = np.concatenate([sc.face_normals for sc in scenes])
+        self.face_v0 = np.concatenate([sc.face_v0 for sc in scenes])
+        self.index = np.full(size, -1, dtype=np.int64)  # object of each slot (-1: empty)
+        self.R = np.tile(np.eye(3), (size, 1, 1))
+        self.t = np.zeros((size, 3))
+        self.scale = np.ones(size)
+        self.centre = np.zeros((size, 3))
+        self.radius = np.zeros(size)
+        self.table_z = np.zeros(size)
+
+    def place(self, b: int, k: int, pose: np.ndarray, scale: float = 1.0) -> None:
+        """Object ``k`` in slot ``b`` with a rigid ``pose (4, 4)`` (not re-validated) and a positive ``scale``:
+        the numbers of ``GeometricBackend.set_object`` (same expressions, same bits)."""
+        sc = self.scenes[k]
+        T = np.asarray(pose, dtype=np.float64)
+        R = T[:3, :3].copy()
+        t = T[:3, 3].copy()
+        s = float(scale)
+        self.index[b] = k
+        self.R[b], self.t[b], self.scale[b] = R, t, s
+        self.radius[b] = s * sc.radius
+        self.centre[b] = R @ (s * sc.centre) + t
+        if s == 1.0 and R[2, 0] == 0.0 and R[2, 1] == 0.0 and R[2, 2] == 1.0:  # a yaw: the same number, exactly
+            self.table_z[b] = float(self._zmin[k] + t[2])
+        else:
+            self.table_z[b] = float(((s * sc.vertices) @ R[2]).min() + t[2])

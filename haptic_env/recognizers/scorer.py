@@ -67,6 +67,44 @@ class GraspScorer:
         return (f.q, self.scale * self.kde.log_likelihood(f.q)) if f.valid else (f.q, None)
 
 
+    def batch(self, contacts, normals=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`__call__` of ``B`` complete grasps ``(B, n, 3)`` in one compiled call (a vector env's step):
+        ``(q (B, d), log_lik (B, K), scored (B,) bool)``; rows of unscored (degenerate) grasps have ``q = 0`` and
+        undefined ``log_lik``. Row ``b`` equals ``self(contacts[b], normals[b])`` bit for bit."""
+        P = np.ascontiguousarray(contacts, dtype=np.float64)
+        N = None if normals is None else np.ascontiguousarray(normals, dtype=np.float64)
+        B = P.shape[0] if P.ndim == 3 else -1
+        if P.shape != (B, self.n_fingers, 3) or (N is None) == self.normals or (N is not None and N.shape != P.shape):
+            raise ValueError(f"GraspScorer.batch takes contacts (and normals={self.normals}) of shape "
+                             f"(B, {self.n_fingers}, 3), got {P.shape}" + ("" if N is None else f" and {N.shape}"))
+        q = np.zeros((B, self._d))
+        out = np.empty((B, self._K))
+        status = np.empty(B, np.int64)
+        _score_batch(P, P if N is None else N, self.normals, *self._phi_args, *self._kde_args, self._work, q, out,
+                     status)
+        if self.scale != 1.0:
+            out *= self.scale
+        scored = status == 0
+        for b in np.flatnonzero(status < 0):  # a planar hull face or bad input: the general path, as __call__
+            f = phi(P[b], None if N is None else N[b])
+            q[b] = f.q
+            if f.valid:
+                out[b] = self.scale * self.kde.log_likelihood(f.q)[0]
+                scored[b] = True
+        q[status > 0] = 0.0
+        return q, out, scored
+
+
+@njit(cache=True)
+def _score_batch(P, N, has_normals, tri, tri_edges, n_edges, tol, mean, std, data, nodes, split, labels, k, eps,
+                 log_norms, inv, radius, work, q, out, status):
+    """:func:`_score` of ``B`` grasps (the same kernels, one row at a time)."""
+    order = np.empty(P.shape[1], np.int64)
+    for b in range(P.shape[0]):
+        status[b] = _score(P[b], N[b], has_normals, tri, tri_edges, n_edges, tol, mean, std, data, nodes, split,
+                           labels, k, eps, log_norms, inv, radius, work, q[b], order, out[b])
+
+
 @njit(cache=True)
 def _score(P, N, has_normals, tri, tri_edges, n_edges, tol, mean, std, data, nodes, split, labels, k, eps, log_norms,
            inv, radius, work, q, order, out):
