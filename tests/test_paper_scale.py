@@ -1,0 +1,80 @@
+"""benchmarks/paper_scale.py on a tiny grid: cells are written, the report is made, a re-run skips finished cells."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import pytest
+
+
+@pytest.fixture(scope="module")
+def paper_scale():
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "paper_scale.py"
+    spec = importlib.util.spec_from_file_location("paper_scale_bench", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+TINY = ["--objects", "default", "--fingers", "3", "--normals", "yes", "--nets", "default", "--max-epochs", "1",
+        "--test-grasps", "40", "--threads", "1", "--quiet"]
+
+
+def test_tiny_grid_and_resume(paper_scale, tmp_path, capsys):
+    out = tmp_path / "ps"
+    assert paper_scale.main([*TINY, "--out", str(out), "--grasps", "300"]) == 0
+    cells = sorted((out / "cells").glob("*.json"))
+    assert [p.name.rsplit("-", 1)[0] for p in cells] == ["n3-w-g300-knn", "n3-w-g300-mlp-default"]
+    res = json.loads((out / "cells" / cells[1].name).read_text())
+    assert 0.0 <= res["accuracy"] <= 1.0 and res["epochs"] == 1 and res["train_rows"] > 0 and res["seconds"] > 0
+    assert res["val_rows"] > 0 and abs(res["val_rows"] / (res["train_rows"] + res["val_rows"]) - 0.15) < 0.02
+    report = (out / "results.md").read_text()
+    assert "--grasps 300" in report and "| 3 | yes | MLP 3x256 |" in report and "86.0" in report  # paper's NN cell
+    assert (out / "accuracy_vs_grasps.png").stat().st_size > 0
+    assert len(json.loads((out / "results.json").read_text())["cells"]) == 2
+    stamps = {p.name: p.stat().st_mtime_ns for p in cells}
+    capsys.readouterr()
+
+    # same grid again: nothing runs, no cell file is rewritten
+    assert paper_scale.main([*TINY, "--out", str(out), "--grasps", "300"]) == 0
+    assert "2 cells, 2 done, 0 to run" in capsys.readouterr().out
+    assert {p.name: p.stat().st_mtime_ns for p in (out / "cells").glob("*.json")} == stamps
+
+    # a bigger grid runs only the new cells; notes.md is appended to the report
+    (out / "notes.md").write_text("## Summary\nhand-written")
+    assert paper_scale.main([*TINY, "--out", str(out), "--grasps", "300,400"]) == 0
+    assert "4 cells, 2 done, 2 to run" in capsys.readouterr().out
+    assert {p.name: p.stat().st_mtime_ns for p in cells} == stamps
+    report = (out / "results.md").read_text()
+    assert "400/obj" in report and report.rstrip().endswith("hand-written")
+    assert report.count("python benchmarks/paper_scale.py") == 3  # every command that ran cells
+
+
+def test_interrupt_keeps_finished_cells(paper_scale, tmp_path, monkeypatch):
+    out = tmp_path / "ps"
+    real = paper_scale.run_cell
+    calls = []
+
+    def flaky(cell, data, args):
+        calls.append(cell)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(cell, data, args)
+
+    monkeypatch.setattr(paper_scale, "run_cell", flaky)
+    assert paper_scale.main([*TINY, "--out", str(out), "--grasps", "300", "--no-knn", "--nets", "default"]
+                            + ["--grasps", "300,400"]) == 130
+    assert [p.name.rsplit("-", 1)[0] for p in (out / "cells").glob("*.json")] == ["n3-w-g300-mlp-default"]
+    assert not list((out / "cells").glob(".*tmp"))
+    monkeypatch.setattr(paper_scale, "run_cell", real)
+    assert paper_scale.main([*TINY, "--out", str(out), "--no-knn", "--grasps", "300,400"]) == 0
+    assert len(list((out / "cells").glob("*.json"))) == 2
+
+
+def test_bad_flags(paper_scale, tmp_path):
+    with pytest.raises(SystemExit):
+        paper_scale.parse_args(["--out", str(tmp_path), "--nets", "huge"])
+    with pytest.raises(SystemExit):
+        paper_scale.parse_args(["--out", str(tmp_path), "--fingers", "2"])
