@@ -157,7 +157,14 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
             put(k, lo, _grasp_chunk(*args(k, lo)))
     else:
         # fork (Linux): workers need not re-import the caller's script, which "spawn" does (a script without a
-        # __main__ guard would then run again in every worker); the workers use MuJoCo and numpy only
+        # __main__ guard would then run again in every worker); the workers use MuJoCo and numpy only.
+        # Decompose the meshes here first: a forked worker that starts CoACD inherits its thread runtime from
+        # this process without the threads and deadlocks (seen in the test suite); workers then read the pieces
+        # from the collision cache.
+        from .grasping.collision import convex_pieces
+
+        for obj in objects:
+            convex_pieces(obj)
         ctx = get_context("fork" if "fork" in get_all_start_methods() else "spawn")
         with ProcessPoolExecutor(workers, mp_context=ctx) as ex:
             futs = {ex.submit(_grasp_chunk, *args(k, lo)): (k, lo) for k, lo in tasks}
