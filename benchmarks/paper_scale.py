@@ -42,6 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
+from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD
+
 #: The paper's kit8 one-shot accuracies (%) by (n, normals): the neural-network and nearest-neighbour rows
 #: (/work/shared/reference/paper_figures.md, "One-shot accuracy (%) by classifier (kit8)").
 PAPER_NN = {(3, True): 86.0, (3, False): 47.0, (4, True): 80.7, (4, False): 62.4, (5, True): 83.7, (5, False): 71.1}
@@ -95,7 +97,7 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--exp2", action="store_true", help="also run experiment 2 (IC, BC-NP, BC-IP) in the MLP cells")
     p.add_argument("--exp2-max-grasps", type=int, default=20000, help="experiment 2 only up to this many grasps/object")
     p.add_argument("--trials-per-object", type=int, default=1000, help="experiment 2 trials per object (paper: 1000)")
-    p.add_argument("--threshold", type=float, default=0.85)
+    p.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD)
     p.add_argument("--threads", type=int, default=1, help="torch intra-op threads")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--time-budget", type=float, default=None, help="seconds: start no new cell after this")
