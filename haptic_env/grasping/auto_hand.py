@@ -59,7 +59,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from .hands import HandDescription, HandUnavailableError, _menagerie_spec
+from .hands import HandDescription, HandUnavailableError, _menagerie_spec, finger_of_bodies
 
 __all__ = ["auto_hand", "AutoHandReport", "report", "find_fingertips", "load_mjcf", "single_root",
            "hand_options", "tip_site", "relax_finger_couplings", "standoff_trial", "AUTO_VERSION", "MAX_TIMESTEP",
@@ -304,30 +304,6 @@ def tip_site(m: mujoco.MjModel, b: int) -> tuple[np.ndarray, float]:
     return _tip_site_auto(m, b)
 
 
-def _finger_of_bodies(m: mujoco.MjModel, tip_ids) -> np.ndarray:
-    """(nbody,) finger index of every body (-1: the palm and above, or none): the tips' chains below the bodies
-    they share, plus closed linkages (``connect``/``weld`` equalities) joined to a finger (as the grasp scene)."""
-    chains = [_ancestors(m, int(b)) for b in tip_ids]
-    shared = set.intersection(*(set(c) for c in chains)) if chains else set()
-    finger = np.full(m.nbody, -1)
-    for i, c in enumerate(chains):
-        for b in c:
-            if b not in shared:
-                finger[b] = i
-    for e in range(m.neq):
-        if int(m.eq_type[e]) not in (int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_WELD)) or \
-                int(m.eq_objtype[e]) != int(mujoco.mjtObj.mjOBJ_BODY):
-            continue
-        for a_, b_ in ((m.eq_obj1id[e], m.eq_obj2id[e]), (m.eq_obj2id[e], m.eq_obj1id[e])):
-            x = int(b_)
-            if finger[a_] < 0:
-                continue
-            while x != 0 and x not in shared and finger[x] < 0:
-                finger[x] = finger[a_]
-                x = int(m.body_parentid[x])
-    return finger
-
-
 def relax_finger_couplings(spec: mujoco.MjSpec, tips: list[str]) -> list[str]:
     """Delete the joint equalities that tie joints of two *different* fingers (a parallel gripper's
     mirrored drivers) when every finger they tie is still driven by an actuator without them. The grasp
@@ -339,7 +315,7 @@ def relax_finger_couplings(spec: mujoco.MjSpec, tips: list[str]) -> list[str]:
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
     tip_ids = [m.body(t).id for t in tips]
-    finger = _finger_of_bodies(m, tip_ids)
+    finger = finger_of_bodies(m, tip_ids)
     dof_finger = finger[m.dof_bodyid]
     driven = np.zeros(len(tips), dtype=bool)
     for a in range(m.nu):

@@ -312,6 +312,39 @@ def mjcf_hand(path: str | Path, tips: tuple[str, ...] | list[str] | None = None,
                            close_ctrl=close_ctrl, spread=spread or {}, option=option, timestep=timestep)
 
 
+def finger_of_bodies(m: mujoco.MjModel, tip_ids) -> np.ndarray:
+    """``(nbody,)`` finger index of every body of a compiled hand or scene (-1: the palm and above, or none).
+
+    A body belongs to finger ``i`` when it lies on the chain from tip ``tip_ids[i]`` to the world below the
+    bodies every chain shares; bodies of a closed linkage (a ``connect``/``weld`` equality, e.g. a gripper's
+    driver and coupler bars) belong to the finger they connect to."""
+    chains = []
+    for b in tip_ids:
+        chain, x = [], int(b)
+        while x != 0:
+            chain.append(x)
+            x = int(m.body_parentid[x])
+        chains.append(chain)
+    shared = set.intersection(*(set(c) for c in chains)) if chains else set()
+    finger = np.full(m.nbody, -1)
+    for i, c in enumerate(chains):
+        for b in c:
+            if b not in shared:
+                finger[b] = i
+    for e in range(m.neq):
+        if int(m.eq_type[e]) not in (int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_WELD)) or \
+                int(m.eq_objtype[e]) != int(mujoco.mjtObj.mjOBJ_BODY):
+            continue
+        for a_, b_ in ((m.eq_obj1id[e], m.eq_obj2id[e]), (m.eq_obj2id[e], m.eq_obj1id[e])):
+            x = int(b_)
+            if finger[a_] < 0:
+                continue
+            while x != 0 and x not in shared and finger[x] < 0:
+                finger[x] = finger[a_]
+                x = int(m.body_parentid[x])
+    return finger
+
+
 def load_hand(hand: str | Path | HandDescription, n_fingers: int | None = 4, **kw) -> HandDescription:
     """``"generic"`` (n fingers), ``"allegro"`` (4), ``"shadow"`` (5), ``"aero"`` (5), ``"robotiq"`` (2),
     a HandDescription, an MJCF path or a MuJoCo Menagerie name (``robot`` or ``robot/entry``): those go

@@ -52,7 +52,7 @@ from .base import (
     validate_pose,
 )
 from .collision import CollisionConfig, convex_pieces
-from .hands import HandDescription, load_hand
+from .hands import HandDescription, finger_of_bodies, load_hand
 
 __all__ = ["MujocoConfig", "GraspScene", "MujocoBackend", "quat_from_matrix"]
 
@@ -218,31 +218,7 @@ class GraspScene:
         one_dof = (m.jnt_type == mujoco.mjtJoint.mjJNT_HINGE) | (m.jnt_type == mujoco.mjtJoint.mjJNT_SLIDE)
         self._limited_1dof = np.flatnonzero(one_dof & m.jnt_limited.astype(bool))
         # finger of each actuator (via its joint or its tendon's first joint), -1 for none (e.g. wrist)
-        chains = []
-        for b in self.tip_body_ids:
-            chain, x = [], int(b)
-            while x != 0:
-                chain.append(x)
-                x = int(m.body_parentid[x])
-            chains.append(chain)
-        shared = set.intersection(*(set(c) for c in chains)) if chains else set()
-        body_finger = np.full(m.nbody, -1)
-        for i, c in enumerate(chains):
-            for b in c:
-                if b not in shared:
-                    body_finger[b] = i
-        # closed linkages (a gripper's driver and coupler bars) belong to the finger they connect to
-        for e in range(m.neq):
-            if int(m.eq_type[e]) not in (int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_WELD)) or \
-                    int(m.eq_objtype[e]) != int(mujoco.mjtObj.mjOBJ_BODY):
-                continue
-            for a_, b_ in ((m.eq_obj1id[e], m.eq_obj2id[e]), (m.eq_obj2id[e], m.eq_obj1id[e])):
-                x = int(b_)
-                if body_finger[a_] < 0:
-                    continue
-                while x != 0 and x not in shared and body_finger[x] < 0:
-                    body_finger[x] = body_finger[a_]
-                    x = int(m.body_parentid[x])
+        body_finger = finger_of_bodies(m, self.tip_body_ids)  # closed linkages join the finger they connect to
         self._geom_finger = body_finger[m.geom_bodyid]  # finger of every geom (any link), -1 palm/none
         # fingers each actuator moves: the dofs its transmission acts on (moment arms at qpos0; works
         # for joint, fixed- and spatial-tendon actuators alike). act_fingers[a, i]: actuator a moves
