@@ -10,6 +10,7 @@ from haptic_env.recognizers.calibration import (
     expected_calibration_error,
     fit_temperature,
     reliability,
+    sequence_scores,
     tempered_nll,
 )
 from scipy.special import softmax
@@ -71,3 +72,54 @@ def test_kde_fits_and_stores_its_temperature():
     assert back.temperature == kde.temperature
     assert KDELikelihood(KDEConfig(method="dense", calibrate=False)).fit(X, y, Xv, yv).temperature == 1.0
     assert KDELikelihood(KDEConfig(method="dense")).fit(X, y).temperature == 1.0  # no validation set: none
+
+
+def test_sequence_scores_sums_k_rows_of_one_class():
+    rng = np.random.default_rng(3)
+    S = np.repeat(np.array([[1.0, 0.0, -np.inf], [0.0, 2.0, -1.0]]), [4, 6], axis=0)  # class 0: 4 rows, 1: 6
+    Y = np.repeat([0, 1], [4, 6])
+    out, y = sequence_scores(S, Y, 3, rng)
+    assert out.shape == (30, 3) and y.shape == (30,)
+    assert np.bincount(y).tolist() == [12, 18]  # every k = 1..3, as many sums as the class has rows
+    k = np.concatenate([np.repeat([1, 2, 3], 4), np.repeat([1, 2, 3], 6)])
+    want = np.where(y[:, None] == 0, [1.0, 0.0, -np.inf], [0.0, 2.0, -1.0]) * k[:, None]
+    np.testing.assert_array_equal(out, want)  # each row: the sum of k rows of its own class; -inf stays -inf
+    same, ys = sequence_scores(S, Y, 1, rng)
+    assert same is not None and np.array_equal(same, S) and np.array_equal(ys, Y)
+    for bad in (0, 2.5, -1):
+        with pytest.raises(ValueError, match="max_grasps"):
+            sequence_scores(S, Y, bad, rng)
+
+
+def test_sequence_temperature_calibrates_beliefs_over_several_grasps():
+    """Grasps of one object share a systematic error: the one-shot T leaves the k-grasp belief over-confident."""
+    rng = np.random.default_rng(4)
+    K, B = 4, 4000
+    y = rng.integers(0, K, B)
+    bias = rng.normal(0.0, 1.0, (K, K))  # each object's grasps lean the same (wrong) way, grasp after grasp
+    S = 2.0 * np.eye(K)[y] + bias[y] + rng.normal(0.0, 1.0, (B, K))
+    T1 = fit_temperature(S, y)
+    seq, ys = sequence_scores(S, y, 5, rng)
+    T5 = fit_temperature(seq, ys)
+    assert T5 > 1.2 * T1
+    # fresh 5-grasp beliefs (5 grasps of one object each): the sequence T scores them better than the one-shot T
+    idx = np.stack([rng.choice(np.flatnonzero(y == c), 5) for c in rng.integers(0, K, 2000)])
+    five, y5 = S[idx].sum(axis=1), y[idx[:, 0]]
+    assert tempered_nll(five, y5, T5) < tempered_nll(five, y5, T1)
+
+
+def test_kde_sequence_calibration_is_a_config_setting():
+    rng = np.random.default_rng(6)
+    X = np.concatenate([rng.normal(0, 1, (300, 6)), rng.normal(0.6, 1, (300, 6))])
+    y = np.repeat([0, 1], 300)
+    Xv = np.concatenate([rng.normal(0, 1, (200, 6)), rng.normal(0.6, 1, (200, 6))])
+    yv = np.repeat([0, 1], 200)
+    one = KDELikelihood(KDEConfig(method="dense")).fit(X, y, Xv, yv)
+    seq = KDELikelihood(KDEConfig(method="dense", calibrate_grasps=5)).fit(X, y, Xv, yv)
+    assert seq.factor == one.factor and seq.temperature != one.temperature
+    S, Y = sequence_scores(one.log_likelihood(Xv), yv, 5, np.random.default_rng(0))
+    assert tempered_nll(S, Y, seq.temperature) <= tempered_nll(S, Y, one.temperature) + 1e-9
+    assert KDELikelihood.from_state(seq.config, seq.state()).temperature == seq.temperature
+    for bad in (0, 1.5):
+        with pytest.raises(ValueError, match="calibrate_grasps"):
+            KDEConfig(calibrate_grasps=bad)

@@ -19,7 +19,8 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.special import log_softmax
 
-__all__ = ["fit_temperature", "tempered_nll", "expected_calibration_error", "reliability", "T_BOUNDS"]
+__all__ = ["fit_temperature", "sequence_scores", "tempered_nll", "expected_calibration_error", "reliability",
+           "T_BOUNDS"]
 
 #: Range of temperatures searched by :func:`fit_temperature`.
 T_BOUNDS = (0.02, 200.0)
@@ -77,6 +78,39 @@ def fit_temperature(scores, y, bounds: tuple[float, float] = T_BOUNDS) -> float:
 
     res = minimize_scalar(nll, bounds=(np.log(lo), np.log(hi)), method="bounded", options={"xatol": 1e-3})
     return float(np.exp(res.x))
+
+
+def sequence_scores(scores, y, max_grasps: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Scores of beliefs after ``k = 1 .. max_grasps`` grasps of one object, for fitting a sequence temperature.
+
+    A belief that multiplies tempered likelihoods over ``k`` grasps of the same object sums their scores.
+    The one-shot ``T`` of :func:`fit_temperature` assumes the grasps' errors independent; the grasps of one
+    object share the KDE's systematic errors (an object whose grasps look like another's keeps looking
+    like it), so the ``k``-grasp posterior is over-confident by more than one grasp's ``T`` corrects.
+    Fitting ``T`` on these sums instead calibrates the posteriors an episode actually forms.
+
+    Args:
+        scores: ``(B, K)`` validation scores of single grasps (``-inf`` allowed; it stays ``-inf`` in a sum).
+        y: ``(B,)`` true classes.
+        max_grasps: the longest belief (>= 1; 1 returns ``scores, y`` unchanged).
+        rng: draws the grasps of each sum (with replacement, within one class).
+
+    Returns:
+        ``(S, Y)``: for every class with validation rows and every ``k``, as many sums of ``k`` of its rows
+        as it has rows (``S (M, K)``, ``M = max_grasps * B``), and their classes ``Y (M,)``.
+    """
+    S, Y = _check(scores, y)
+    if not (isinstance(max_grasps, (int, np.integer)) and max_grasps >= 1):
+        raise ValueError(f"max_grasps must be an int >= 1, got {max_grasps!r}")
+    if max_grasps == 1 or len(Y) == 0:
+        return S, Y
+    out_s, out_y = [], []
+    for c in np.unique(Y):
+        rows = np.flatnonzero(Y == c)
+        for k in range(1, int(max_grasps) + 1):
+            out_s.append(S[rng.choice(rows, (len(rows), k))].sum(axis=1))
+            out_y.append(np.full(len(rows), c, dtype=np.int64))
+    return np.concatenate(out_s), np.concatenate(out_y)
 
 
 def reliability(proba, y, bins: int = 10) -> dict[str, np.ndarray]:

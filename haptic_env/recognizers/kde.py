@@ -42,7 +42,7 @@ import numpy as np
 from scipy.special import logsumexp
 from scipy.spatial import cKDTree
 
-from haptic_env.recognizers.calibration import fit_temperature
+from haptic_env.recognizers.calibration import fit_temperature, sequence_scores
 from haptic_env.recognizers.knn import KDTree, pooled_log_density
 from haptic_env.recognizers.preprocess import Standardizer
 from haptic_env.recognizers.preprocess import check_xy as _check_xy
@@ -67,6 +67,10 @@ class KDEConfig:
     n_select: int = 500  #: validation vectors per object used to choose the factor
     calibrate: bool = True  #: fit a temperature on validation vectors (see :mod:`.calibration`)
     n_calibrate: int = 1_000  #: validation vectors per object used to fit the temperature
+    #: grasps per belief the temperature is fitted for: ``T`` minimises the NLL of the posteriors after
+    #: ``k = 1 .. calibrate_grasps`` grasps of one object (sums of ``k`` random validation log-likelihoods of
+    #: that object). 1: the one-shot temperature. See :func:`~.calibration.sequence_scores`.
+    calibrate_grasps: int = 1
     seed: int = 0
 
     def __post_init__(self):
@@ -81,6 +85,8 @@ class KDEConfig:
             raise ValueError(f"KDEConfig.factor_grid must hold positive factors, got {self.factor_grid!r}")
         if not (isinstance(self.n_calibrate, (int, np.integer)) and self.n_calibrate >= 1):
             raise ValueError(f"KDEConfig.n_calibrate must be an int >= 1, got {self.n_calibrate!r}")
+        if not (isinstance(self.calibrate_grasps, (int, np.integer)) and self.calibrate_grasps >= 1):
+            raise ValueError(f"KDEConfig.calibrate_grasps must be an int >= 1, got {self.calibrate_grasps!r}")
         if self.k < 1 or self.cutoff <= 0 or self.max_samples < 1 or self.eps < 0:
             raise ValueError(f"KDEConfig needs k >= 1, cutoff > 0, max_samples >= 1; got {self}")
 
@@ -161,7 +167,10 @@ class KDELikelihood:
             keep = np.concatenate([rng.permutation(np.flatnonzero(yv == c))[: cfg.n_calibrate]
                                    for c in range(self.n_classes)])
             if len(keep):
-                self.temperature = fit_temperature(self.log_likelihood(Xv[keep]), yv[keep])
+                S, Y = self.log_likelihood(Xv[keep]), yv[keep]
+                if cfg.calibrate_grasps > 1:
+                    S, Y = sequence_scores(S, Y, cfg.calibrate_grasps, rng)
+                self.temperature = fit_temperature(S, Y)
         return self
 
     def with_method(self, method: str) -> KDELikelihood:
