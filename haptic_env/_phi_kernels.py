@@ -21,7 +21,8 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["phi_one", "phi_checked", "phi_on_hull", "phi_rows", "surface_area_one", "surface_area_rows", "AMBIGUOUS", "BAD_INPUT"]
+__all__ = ["phi_one", "phi_checked", "phi_on_hull", "phi_rows", "phi2_prepare", "phi2_finish", "surface_area_one",
+           "surface_area_rows", "AMBIGUOUS", "BAD_INPUT"]
 
 AMBIGUOUS = -1  #: a hull face with >= 4 coplanar contacts: triangulate it canonically, then phi_on_hull
 BAD_INPUT = -2  #: non-finite contacts, or a zero / non-finite normal: the caller raises the error
@@ -395,3 +396,99 @@ def surface_area_rows(P, tri, tol, out, status):
             continue
         out[i], status[i] = surface_area_one(P[i], tri, tol)
     return bad
+
+
+# ------------------------------------------------------------------------------------------- n = 2
+# Phi_2 (distance; with normals each normal's angle to the line and the twist about it) in two passes around
+# one ``np.arctan2`` of the caller: NumPy's float64 arctan2 is a SIMD (SVML) routine that differs from libm's
+# ``atan2`` in the last bit of ~2 % of the values, and Phi_2 had been NumPy's all along (``tests/phi_numpy.py``
+# keeps that code as the oracle). Everything else replays the NumPy expressions operation for operation,
+# including NumPy's order of the 3-term reductions on x86-64: ``np.sum(x, -1)`` and ``np.linalg.norm`` add
+# ``((0 + x0) + x1) + x2``, ``einsum("...k,...k->...")`` adds ``(x0 + x2) + (x1 + 0)``; the results are equal
+# bit for bit (tested on random and degenerate grasps).
+
+
+@njit(cache=True, inline="always")
+def _esum(x0, x1, x2):
+    """``einsum("...k,...k->...")``'s sum of three products."""
+    return (x0 + x2) + (x1 + 0.0)
+
+
+@njit(cache=True, inline="always")
+def _rsum(x0, x1, x2):
+    """``np.sum(x, axis=-1)``'s (``add.reduce``'s) sum of three values."""
+    return ((0.0 + x0) + x1) + x2
+
+
+@njit(cache=True)
+def phi2_prepare(P, N, has_normals, dist, ys, xs):
+    """First pass of Phi_2 over ``P (B, 2, 3)`` (raw normals ``N``): ``dist (B,)`` and the arguments of the three
+    ``arctan2`` of each grasp, ``ys``, ``xs (B, 3)``: the angles of normal 0 to ``v = P1 - P0`` and of normal 1
+    to ``-v``, and the twist. Returns :data:`BAD_INPUT` for non-finite contacts or a zero / non-finite normal
+    (the caller raises the precise error), else 0."""
+    B = P.shape[0]
+    for b in range(B):
+        for i in range(2):
+            for j in range(3):
+                if not math.isfinite(P[b, i, j]):
+                    return BAD_INPUT
+        if has_normals:
+            for i in range(2):
+                s = math.sqrt(_esum(N[b, i, 0] * N[b, i, 0], N[b, i, 1] * N[b, i, 1], N[b, i, 2] * N[b, i, 2]))
+                if not (math.isfinite(s) and s > 1e-12):
+                    return BAD_INPUT
+    for b in range(B):
+        v0, v1, v2 = P[b, 1, 0] - P[b, 0, 0], P[b, 1, 1] - P[b, 0, 1], P[b, 1, 2] - P[b, 0, 2]
+        dist[b] = math.sqrt(_rsum(v0 * v0, v1 * v1, v2 * v2))  # np.linalg.norm
+        if not has_normals:
+            continue
+        # the normals as _as_batch makes them unit: N / sqrt(einsum(N, N))
+        s = math.sqrt(_esum(N[b, 0, 0] * N[b, 0, 0], N[b, 0, 1] * N[b, 0, 1], N[b, 0, 2] * N[b, 0, 2]))
+        a0, a1, a2 = N[b, 0, 0] / s, N[b, 0, 1] / s, N[b, 0, 2] / s
+        s = math.sqrt(_esum(N[b, 1, 0] * N[b, 1, 0], N[b, 1, 1] * N[b, 1, 1], N[b, 1, 2] * N[b, 1, 2]))
+        c0, c1, c2 = N[b, 1, 0] / s, N[b, 1, 1] / s, N[b, 1, 2] / s
+        # _angle(N0, v) and _angle(N1, -v): arctan2(|u x w|, u . w), norm and dot through einsum
+        x0, x1, x2 = _cross(a0, a1, a2, v0, v1, v2)
+        ys[b, 0] = math.sqrt(_esum(x0 * x0, x1 * x1, x2 * x2))
+        xs[b, 0] = _esum(a0 * v0, a1 * v1, a2 * v2)
+        m0, m1, m2 = -v0, -v1, -v2
+        x0, x1, x2 = _cross(c0, c1, c2, m0, m1, m2)
+        ys[b, 1] = math.sqrt(_esum(x0 * x0, x1 * x1, x2 * x2))
+        xs[b, 1] = _esum(c0 * m0, c1 * m1, c2 * m2)
+        # twist: e = _unit(v); n_i = N_i - sum(N_i * e) e; arctan2(sum(e * (n0 x n1)), sum(n0 * n1))
+        nv = math.sqrt(_esum(v0 * v0, v1 * v1, v2 * v2))
+        nv = nv if nv > 0 else 1.0
+        e0, e1, e2 = v0 / nv, v1 / nv, v2 / nv
+        t = _rsum(a0 * e0, a1 * e1, a2 * e2)
+        p0, p1, p2 = a0 - t * e0, a1 - t * e1, a2 - t * e2
+        t = _rsum(c0 * e0, c1 * e1, c2 * e2)
+        r0, r1, r2 = c0 - t * e0, c1 - t * e1, c2 - t * e2
+        x0, x1, x2 = _cross(p0, p1, p2, r0, r1, r2)
+        ys[b, 2] = _rsum(e0 * x0, e1 * x1, e2 * x2)
+        xs[b, 2] = _rsum(p0 * r0, p1 * r1, p2 * r2)
+    return 0
+
+
+@njit(cache=True)
+def phi2_finish(dist, ang, has_normals, q, order, reason, valid):
+    """Second pass of Phi_2: from ``dist`` and ``ang = arctan2(ys, xs)`` fill ``q (B, 1 | 4)`` (zero rows for
+    coincident contacts), ``order (B, 2)`` (with normals: the contact whose normal makes the larger angle with
+    the line first), ``reason`` and ``valid``."""
+    for b in range(dist.shape[0]):
+        ok = dist[b] > 1e-300
+        reason[b] = 0 if ok else 1
+        valid[b] = ok
+        order[b, 0], order[b, 1] = 0, 1
+        if not has_normals:
+            q[b, 0] = dist[b] if ok else 0.0
+            continue
+        al0, al1 = ang[b, 0], ang[b, 1]
+        if al1 > al0:
+            order[b, 0], order[b, 1] = 1, 0
+        if ok:
+            q[b, 0] = dist[b]
+            q[b, 1] = max(al0, al1) if not (math.isnan(al0) or math.isnan(al1)) else math.nan
+            q[b, 2] = min(al0, al1) if not (math.isnan(al0) or math.isnan(al1)) else math.nan
+            q[b, 3] = ang[b, 2]
+        else:
+            q[b, 0] = q[b, 1] = q[b, 2] = q[b, 3] = 0.0

@@ -43,7 +43,8 @@ Implementation
     The chain of ``n >= 3`` contacts and the surface area run in the compiled (numba) kernels of
     :mod:`haptic_env._phi_kernels`, one grasp at a time, at every batch size; this module validates
     the input, raises the errors and triangulates planar hull faces of >= 4 contacts (Qhull,
-    :func:`_canonical_hull_triangles`) for the kernels. ``n = 2`` and planar grasps are NumPy. The
+    :func:`_canonical_hull_triangles`) for the kernels. ``n = 2`` runs in two compiled passes around one
+    NumPy ``arctan2`` (:func:`_phi2_rows`, the same bits as the NumPy code it replaced); planar grasps are NumPy. The
     vectorised NumPy chain that served large batches before is a test oracle now
     (``tests/phi_numpy.py``; ``benchmarks/bench_phi.py`` compares the two).
 
@@ -247,9 +248,11 @@ def phi(contacts, normals=None, *, strict: bool = False, tol: float = DEFAULT_TO
     P, N, single = _batched(contacts, normals)
     if _compiled_shapes(P, N):
         q, valid, order, reason = _phi_rows(P, N, tol)
-    else:  # n = 2, or bad shapes (_as_batch raises)
+    elif _compiled_shapes(P, N, n_min=2):
+        q, valid, order, reason = _phi2_rows(P, N)
+    else:  # bad shapes: _as_batch raises
         P, N, single = _as_batch(contacts, normals, 3)
-        q, valid, order, reason = _phi2(P, N, tol)
+        raise ValueError(f"contacts must have shape (B, n, 3) or (n, 3), got {np.shape(contacts)}")  # pragma: no cover
     if strict and not valid.all():
         i = int(np.flatnonzero(~valid)[0])
         raise DegenerateGraspError(
@@ -260,34 +263,30 @@ def phi(contacts, normals=None, *, strict: bool = False, tol: float = DEFAULT_TO
     return GraspFeatures(q, valid, order, reason)
 
 
-def _phi2(P, N, tol):
+def _phi2_rows(P: np.ndarray, N: np.ndarray | None):
+    """``(q, valid, order, reason)`` of a batch ``P (B, 2, 3)`` through the compiled two-pass kernel (its NumPy
+    ``arctan2`` in between; :mod:`haptic_env._phi_kernels`)."""
     B = P.shape[0]
-    v = P[:, 1] - P[:, 0]
-    dist = np.linalg.norm(v, axis=-1)
-    reason = np.where(dist > 1e-300, 0, 1).astype(np.int8)
-    order = np.tile(np.arange(2), (B, 1))
-    if N is None:
-        q = dist[:, None]
-    else:
-        al0 = _angle(N[:, 0], v)
-        al1 = _angle(N[:, 1], -v)
-        # canonical order: the contact whose normal makes the larger angle with the line first
-        swap = al1 > al0
-        order[swap] = [1, 0]
-        e = _unit(v)
-        n0 = N[:, 0] - np.sum(N[:, 0] * e, -1, keepdims=True) * e
-        n1 = N[:, 1] - np.sum(N[:, 1] * e, -1, keepdims=True) * e
-        twist = np.arctan2(np.sum(e * np.cross(n0, n1), -1), np.sum(n0 * n1, -1))  # symmetric in swap
-        q = np.stack([dist, np.maximum(al0, al1), np.minimum(al0, al1), twist], axis=1)
-    valid = reason == 0
-    q = np.where(valid[:, None], q, 0.0)
+    k = _kernels()
+    has_normals = N is not None
+    N = P if N is None else N
+    dist = np.empty(B)
+    ys = np.zeros((B, 3))
+    xs = np.zeros((B, 3))
+    if k.phi2_prepare(P, N, has_normals, dist, ys, xs) == k.BAD_INPUT:
+        _raise_bad_input(P, N if has_normals else None)
+    q = np.empty((B, 4 if has_normals else 1))
+    order = np.empty((B, 2), dtype=np.int64)
+    reason = np.empty(B, dtype=np.int8)
+    valid = np.empty(B, dtype=bool)
+    k.phi2_finish(dist, np.arctan2(ys, xs) if has_normals else ys, has_normals, q, order, reason, valid)
     return q, valid, order, reason
 
 
-def _compiled_shapes(P: np.ndarray, N: np.ndarray | None) -> bool:
-    """Whether the compiled kernels take this batch: ``(B, n, 3)`` contacts with ``n >= 3`` and normals of the
-    same shape (else :func:`_as_batch` raises, or ``n = 2`` goes to :func:`_phi2`)."""
-    return P.ndim == 3 and P.shape[2] == 3 and P.shape[1] >= 3 and (N is None or N.shape == P.shape)
+def _compiled_shapes(P: np.ndarray, N: np.ndarray | None, n_min: int = 3) -> bool:
+    """Whether the compiled kernels take this batch: ``(B, n, 3)`` contacts with ``n >= n_min`` and normals of
+    the same shape (else :func:`_as_batch` raises; ``n = 2`` goes to :func:`_phi2_rows`)."""
+    return P.ndim == 3 and P.shape[2] == 3 and P.shape[1] >= n_min and (N is None or N.shape == P.shape)
 
 
 @lru_cache(maxsize=None)

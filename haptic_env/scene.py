@@ -96,6 +96,33 @@ class Scene:
         # child generator for the backend, derived from the env's np_random: same seed -> same episode
         return target, pose, scale, int(rng.integers(2**63))
 
+    def draw_many(self, rngs, which=None) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[int]]:
+        """:meth:`draw` from each generator of ``rngs`` (``which[j]``: the object of draw ``j``, or None), the same
+        draws in the same order from each (tested equal): ``(targets (m,), poses (m, 4, 4), scales (m,), seeds)``.
+        A vector env's resets of one step; the yaw poses' cos / sin in one NumPy call each."""
+        m = len(rngs)
+        which = [None] * m if which is None else which
+        targets = np.empty(m, dtype=np.int64)
+        poses = np.tile(np.eye(4), (m, 1, 1))
+        scales = np.ones(m)
+        seeds = [0] * m
+        yaw = self.config.pose == "table-yaw"
+        angles = np.empty(m)
+        K, scale_range = self.n_classes, self.config.scale_range
+        for j, rng in enumerate(rngs):
+            targets[j] = self.resolve(which[j]) if which[j] is not None else int(rng.integers(K))
+            if yaw:  # random_pose(rng, "table-yaw")'s draw
+                angles[j] = rng.uniform(0.0, 2.0 * np.pi)
+            else:
+                poses[j] = random_pose(rng, self.config.pose)
+            if scale_range is not None:
+                scales[j] = float(rng.uniform(scale_range[0], scale_range[1]))
+            seeds[j] = int(rng.integers(2**63))
+        if yaw:
+            c, s = np.cos(angles), np.sin(angles)
+            poses[:, 0, 0], poses[:, 0, 1], poses[:, 1, 0], poses[:, 1, 1] = c, -s, s, c
+        return targets, poses, scales, seeds
+
     def reset(self, rng: np.random.Generator, which=None) -> None:
         """Draw (from ``rng``, :meth:`draw`) the object unless ``which`` names it, its pose, its scale and the
         backend's generator of the episode, and place the object in the backend."""

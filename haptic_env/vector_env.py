@@ -213,16 +213,19 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
         """Sub-env ``i``'s ``HapticRecogEnv.reset(seed=seeds[j], options={"object": which[j]})`` for each
         ``i = idx[j]`` (no seed: its generator continues; no object: drawn)."""
         noisy = self.backend.config.contact_noise > 0 or self.backend.config.normal_noise_deg > 0
-        for j, i in enumerate(idx.tolist()):
-            seed = None if seeds is None else seeds[j]
-            if seed is not None or self._rngs[i] is None:  # gym.Env.reset's seeding
-                self._rngs[i], self._seeds[i] = seeding.np_random(seed)
-            k, pose, scale, backend_seed = self.scene.draw(self._rngs[i], None if which is None else which[j])
-            self.targets[i], self.poses[i], self.scales[i] = k, pose, scale
-            # the backend's generator draws only noise: built when there is noise
-            self._backend_rngs[i] = np.random.Generator(np.random.PCG64(backend_seed)) if noisy else None
-            self._placed.place(i, k, pose, scale)  # = the single env's backend.set_object(objects[k], pose, scale)
-            if self._beliefs is not None:
+        rows = idx.tolist()
+        rngs = self._rngs
+        for j, i in enumerate(rows):
+            if (seeds is not None and seeds[j] is not None) or rngs[i] is None:  # gym.Env.reset's seeding
+                rngs[i], self._seeds[i] = seeding.np_random(None if seeds is None else seeds[j])
+        # = each sub-env's Scene.draw(np_random, which)
+        k, poses, scales, backend_seeds = self.scene.draw_many([rngs[i] for i in rows], which)
+        self.targets[idx], self.poses[idx], self.scales[idx] = k, poses, scales
+        for j, i in enumerate(rows):  # the backend's generator draws only noise: built when there is noise
+            self._backend_rngs[i] = np.random.Generator(np.random.PCG64(backend_seeds[j])) if noisy else None
+        self._placed.place_many(idx, k, poses, scales)  # = the single env's backend.set_object(objects[k], pose, scale)
+        if self._beliefs is not None:
+            for i in rows:
                 self.probs[i] = self._beliefs[i].reset()
         if self._beliefs is None:
             self._log_belief[idx] = self._prior_log

@@ -8,7 +8,9 @@ size): faster at every batch size measured, with the same results (``benchmarks/
 6 % of the 8-finger grasps need Qhull in both paths; 2.1-3.0x on contacts in general position; 7-112x on
 batches of 1-64 grasps). This second, independently
 vectorised implementation of the same algorithm stays as the oracle the compiled path is tested against
-(``tests/test_grasp_features.py``) and as the baseline of ``benchmarks/bench_phi.py``.
+(``tests/test_grasp_features.py``) and as the baseline of ``benchmarks/bench_phi.py``. Its ``n = 2`` code
+(:func:`_phi2`) was the package's own until the compiled two-pass kernel replaced it; that kernel is tested
+equal to it bit for bit.
 """
 
 from __future__ import annotations
@@ -22,7 +24,6 @@ from haptic_env.grasp_features import (
     _cross,
     _dot,
     _norm,
-    _phi2,
     _topology,
     _unit,
     feature_dim,
@@ -60,6 +61,31 @@ def surface_area_numpy(contacts, *, tol: float = DEFAULT_TOL) -> np.ndarray:
     P, _, single = _as_batch(contacts, None, 3)
     out = _surface_area_numpy(P, tol)
     return out[0] if single else out
+
+
+def _phi2(P, N, tol):
+    """Phi_2 in NumPy (the production code until the compiled two-pass kernel replaced it)."""
+    B = P.shape[0]
+    v = P[:, 1] - P[:, 0]
+    dist = np.linalg.norm(v, axis=-1)
+    reason = np.where(dist > 1e-300, 0, 1).astype(np.int8)
+    order = np.tile(np.arange(2), (B, 1))
+    if N is None:
+        q = dist[:, None]
+    else:
+        al0 = _angle(N[:, 0], v)
+        al1 = _angle(N[:, 1], -v)
+        # canonical order: the contact whose normal makes the larger angle with the line first
+        swap = al1 > al0
+        order[swap] = [1, 0]
+        e = _unit(v)
+        n0 = N[:, 0] - np.sum(N[:, 0] * e, -1, keepdims=True) * e
+        n1 = N[:, 1] - np.sum(N[:, 1] * e, -1, keepdims=True) * e
+        twist = np.arctan2(np.sum(e * np.cross(n0, n1), -1), np.sum(n0 * n1, -1))  # symmetric in swap
+        q = np.stack([dist, np.maximum(al0, al1), np.minimum(al0, al1), twist], axis=1)
+    valid = reason == 0
+    q = np.where(valid[:, None], q, 0.0)
+    return q, valid, order, reason
 
 
 def _signed_dihedral(x, y, w, u) -> np.ndarray:

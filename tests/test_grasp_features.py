@@ -289,3 +289,53 @@ def test_compiled_path_raises_the_same_errors():
     N[0, 3] = np.nan
     with pytest.raises(ValueError, match="normal 3 of grasp 0 is zero or not finite"):
         phi(P[:1].repeat(2, 0), N)
+
+
+def _bitwise_equal(a, b) -> bool:
+    a, b = np.asarray(a), np.asarray(b)
+    return a.shape == b.shape and bool(np.all((a == b) | (np.isnan(a) & np.isnan(b)))
+                                       and np.all(np.signbit(a) == np.signbit(b)))
+
+
+@pytest.mark.parametrize("normals", [False, True])
+def test_two_finger_kernel_equals_the_numpy_oracle_bit_for_bit(normals):
+    """Phi_2 (two compiled passes around NumPy's arctan2) gives the NumPy code's bits (tests/phi_numpy.py):
+    random grasps over scales, coincident contacts, normals along the line and opposite, signed zeros, axis-aligned
+    values; batches and single grasps."""
+    from tests.phi_numpy import phi_numpy
+
+    rng = np.random.default_rng(7)
+    M = 20_000
+    P = rng.normal(size=(M, 2, 3)) * rng.choice([1e-4, 1.0, 1e3], (M, 1, 1))
+    N = rng.normal(size=(M, 2, 3)) * rng.choice([1e-6, 1.0, 7.0], (M, 1, 1))
+    P[:50, 1] = P[:50, 0]  # coincident
+    v = P[50:100, 1] - P[50:100, 0]
+    N[50:100] = np.stack([v, -v], axis=1)  # normals along the line (zero twist projections)
+    N[100:150] = np.stack([v, v], axis=1)
+    grid = np.array([0.0, -0.0, 1.0, -1.0, 0.5])
+    P[150:2150] = rng.choice(grid, (2000, 2, 3))
+    N[150:2150] = rng.choice(grid, (2000, 2, 3))
+    zero = (np.einsum("...k,...k->...", N, N) == 0).any(axis=1)
+    N[zero] = 1.0
+    N_arg = N if normals else None
+    q, valid, order, reason = phi_numpy(P, N_arg)
+    f = phi(P, N_arg)
+    assert _bitwise_equal(f.q, q)
+    np.testing.assert_array_equal(f.valid, valid)
+    np.testing.assert_array_equal(f.order, order)
+    np.testing.assert_array_equal(f.reason, reason)
+    assert not valid[:50].any() and valid[50:].any()
+    for i in (0, 60, 120, 200, 5000):
+        g = phi(P[i], None if N_arg is None else N[i])
+        assert _bitwise_equal(g.q, q[i]) and g.valid == valid[i]
+
+
+def test_two_finger_kernel_raises_the_same_errors():
+    P = np.random.default_rng(0).normal(size=(3, 2, 3))
+    P[2, 1, 0] = np.nan
+    with pytest.raises(ValueError, match="grasp 2 are not finite"):
+        phi(P)
+    N = np.ones((2, 2, 3))
+    N[1, 0] = 0.0
+    with pytest.raises(ValueError, match="normal 0 of grasp 1 is zero or not finite"):
+        phi(P[:2] * 0 + 1.0 + np.arange(2)[:, None, None] * [[0, 0, 0], [1, 0, 0]], N)

@@ -34,6 +34,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import trimesh
 
+from . import _geometric_kernels as gk
 from .base import (
     ACTION_DIM,
     GraspBatch,
@@ -257,6 +258,15 @@ class GeometricBackend:
         slot ``b`` as ``set_object(objects[k], pose, scale)`` would."""
         return PlacedObjects([self._scene_of(o.mesh) for o in objects], size)
 
+    def _curl_trig(self) -> tuple[np.ndarray, np.ndarray]:
+        """``cos`` and ``sin`` of the fingertips' curl angles ``beta (n,)`` (as :meth:`rays` computes them)."""
+        trig = getattr(self, "_curl_trig_cache", None)
+        if trig is None:
+            cfg, n = self.config, self.n_fingers
+            beta = np.deg2rad(np.r_[np.asarray(cfg.curl_deg[: n - 1]), cfg.curl_deg[-1]])
+            trig = self._curl_trig_cache = (np.cos(beta), np.sin(beta))
+        return trig
+
     def grasp_placed(self, actions: np.ndarray, placed: "PlacedObjects", rows=None, rngs=None) -> GraspBatch:
         """``B`` grasps at once, grasp ``j`` of the object in slot ``rows[j]`` of ``placed`` (default: slot ``j``)
         with action ``actions[j]``; ``rngs[j]`` draws its noise (needed only with contact or normal noise). One
@@ -272,66 +282,54 @@ class GeometricBackend:
             raise ValueError(f"grasp_placed: {B} actions but {rows.shape} rows")
         if (placed.index[rows] < 0).any():
             raise RuntimeError("grasp_placed: a slot has no object placed (PlacedObjects.place first)")
-        # rays exactly as rays(), with each grasp's own centre and start radius
-        ap = decode_approach(a, cfg.support)
-        frame = approach_frame(ap)
-        ang = finger_angles(ap.spread, n, cfg.min_spread)
-        e1, e2 = frame[:, None, :, 0], frame[:, None, :, 1]
-        radial = np.cos(ang)[..., None] * e1 + np.sin(ang)[..., None] * e2
-        beta = np.deg2rad(np.r_[np.asarray(cfg.curl_deg[: n - 1]), cfg.curl_deg[-1]])
-        e3 = frame[:, None, :, 2]
-        d_w = -np.cos(beta)[:, None] * radial + np.sin(beta)[:, None] * e3  # (B, n, 3)
+        # rays exactly as rays(), with each grasp's own centre and start radius (compiled: _geometric_kernels,
+        # bit for bit the NumPy reference; the trig and the matmuls stay NumPy's)
+        th = np.empty((B, 3 + n))
+        gk.ray_angles(a, cfg.support == "table", n, float(cfg.min_spread), th)
+        cb, sb = self._curl_trig()
         R, t, scale, radius = placed.R[rows], placed.t[rows], placed.scale[rows], placed.radius[rows]
-        R0 = cfg.margin * radius
-        o_w = placed.centre[rows][:, None, :] - R0[:, None, None] * d_w
+        d_w = np.empty((B, n, 3))
+        o_t = np.empty((B, n, 3))  # o_w - t
+        gk.ray_frames(np.cos(th), np.sin(th), cb, sb, placed.centre[rows], t, radius, float(cfg.margin), d_w, o_t)
         # _cast, per grasp: the rays in the unscaled object frame (batched matmul: one (n, 3) @ (3, 3) per grasp)
-        o = np.matmul(o_w - t[:, None, :], R)
+        o = np.matmul(o_t, R)
         o /= scale[:, None, None]
         d = np.matmul(d_w, R)
         o, d = o.reshape(-1, 3), d.reshape(-1, 3)
         kind = np.repeat(placed.index[rows], n)  # object of each ray
-        order = np.argsort(kind, kind="stable")  # rays grouped by object: one contiguous block each
-        o_s, d_s, kind_s = o[order], d[order], kind[order]
-        bounds = np.flatnonzero(np.diff(kind_s)) + 1
-        tri_s = np.empty(B * n, dtype=np.int64)
-        for lo, hi in zip(np.r_[0, bounds].tolist(), np.r_[bounds, B * n].tolist()):  # one Embree call per object
-            k = int(kind_s[lo])
+        K = len(placed.scenes)
+        order = np.empty(B * n, dtype=np.int64)  # rays grouped by object (stable): one contiguous block each
+        starts = np.empty(K + 1, dtype=np.int64)
+        o32 = np.empty((B * n, 3), dtype=np.float32)  # trimesh's _EmbreeWrap.run inputs
+        d32 = np.empty((B * n, 3), dtype=np.float32)
+        gk.embree_inputs(o, d, kind, K, placed.embree_origin, placed.embree_scale, order, starts, o32, d32)
+        tri_s = np.empty(B * n, dtype=np.int64)  # first-hit triangle of each grouped ray, in its object (-1: none)
+        bounds = starts.tolist()
+        for k in range(K):  # one Embree call per object
+            lo, hi = bounds[k], bounds[k + 1]
+            if hi == lo:
+                continue
             scene = placed.embree[k]
             if scene is not None:
-                hit = np.asarray(scene.run(o_s[lo:hi], d_s[lo:hi]), dtype=np.int64)
+                tri_s[lo:hi] = scene.scene.run(o32[lo:hi], d32[lo:hi])
             else:
-                hit = np.asarray(placed.scenes[k].intersector.intersects_first(o_s[lo:hi], d_s[lo:hi]), dtype=np.int64)
-            tri_s[lo:hi] = np.where(hit >= 0, hit + placed.face_offset[k], -1)  # global triangle ids
-        tri = np.empty(B * n, dtype=np.int64)
-        tri[order] = tri_s
-        contacts = np.zeros((B * n, 3))
-        normals = np.zeros((B * n, 3))
-        touched = np.zeros(B * n, dtype=bool)
-        idx_ray = np.flatnonzero(tri >= 0)
-        if len(idx_ray):  # the hit maths of _cast on all rays at once (row-wise: the same bits per ray)
-            idx_tri = tri[idx_ray]
-            fn = placed.face_normals[idx_tri]
-            dn = np.einsum("ij,ij->i", fn, d[idx_ray])
-            safe = np.where(np.abs(dn) > 1e-12, dn, 1e-12)
-            tdist = np.einsum("ij,ij->i", placed.face_v0[idx_tri] - o[idx_ray], fn) / safe
-            locs = o[idx_ray] + tdist[:, None] * d[idx_ray]
-            g = idx_ray // n  # grasp of each hit
-            reach = cfg.reach * cfg.margin * radius / scale
-            ok = (tdist >= 0.0) & (tdist <= reach[g] + 1e-9) & (np.abs(dn) > 1e-12)
-            sign = np.where(dn >= 0.0, 1.0, -1.0)
-            # to the world frame: one (m_b, 3) @ (3, 3) per grasp, m_b = n rows (misses are zero rows)
-            L = np.zeros((B * n, 3))
-            L[idx_ray] = locs
-            Nf = np.zeros((B * n, 3))
-            Nf[idx_ray] = sign[:, None] * fn
-            RT = R.transpose(0, 2, 1)
-            pw = (np.matmul(L.reshape(B, n, 3) * scale[:, None, None], RT) + t[:, None, :]).reshape(-1, 3)[idx_ray]
-            nw = np.matmul(Nf.reshape(B, n, 3), RT).reshape(-1, 3)[idx_ray]
-            if cfg.support == "table":
-                ok &= pw[:, 2] > placed.table_z[rows][g] + cfg.table_clearance
-            r = idx_ray[ok]
-            contacts[r], normals[r], touched[r] = pw[ok], nw[ok], True
-        contacts, normals, touched = contacts.reshape(B, n, 3), normals.reshape(B, n, 3), touched.reshape(B, n)
+                rr = order[lo:hi]
+                tri_s[lo:hi] = placed.scenes[k].intersector.intersects_first(o[rr], d[rr])
+        L = np.empty((B * n, 3))  # the hit maths of _cast on all rays at once (row-wise: the same bits per ray)
+        Nf = np.empty((B * n, 3))
+        ok = np.empty(B * n, dtype=bool)
+        reach = cfg.reach * cfg.margin * radius / scale
+        gk.hit_maths(tri_s, order, placed.face_offset, kind, placed.face_normals, placed.face_v0, o, d, reach, n, L,
+                     Nf, ok)
+        # to the world frame: one (n, 3) @ (3, 3) per grasp (misses are zero rows)
+        RT = R.transpose(0, 2, 1)
+        pw = np.matmul(L.reshape(B, n, 3) * scale[:, None, None], RT)
+        nw = np.matmul(Nf.reshape(B, n, 3), RT)
+        contacts = np.zeros((B, n, 3))
+        normals = np.zeros((B, n, 3))
+        touched = np.zeros((B, n), dtype=bool)
+        gk.hit_results(pw, nw, t, ok, cfg.support == "table", placed.table_z[rows], float(cfg.table_clearance), n,
+                       contacts, normals, touched)
         if cfg.contact_noise > 0 or (cfg.normal_noise_deg > 0 and cfg.normals):
             if rngs is None or len(rngs) != B:
                 raise ValueError("grasp_placed with contact or normal noise needs one generator per grasp (rngs)")
@@ -436,8 +434,13 @@ class PlacedObjects:
         #: each object's Embree scene (None: trimesh's intersector), looked up once (the intersector re-hashes
         #: the mesh at every lookup)
         self.embree = [getattr(sc.intersector, "_scene", None) for sc in scenes]
+        #: the Embree wrappers' ray transform (trimesh's ``_EmbreeWrap.run``: ``(o - origin) * scale``, float32)
+        self.embree_origin = np.array([np.zeros(3) if e is None else np.asarray(e.origin, dtype=np.float64)
+                                       for e in self.embree]).reshape(-1, 3)
+        self.embree_scale = np.array([1.0 if e is None else float(e.scale) for e in self.embree])
         #: lowest vertex z of each object (the table height of an unscaled object whose pose keeps z upright)
         self._zmin = [float(sc.vertices[:, 2].min()) for sc in scenes]
+        self._radius = np.array([sc.radius for sc in scenes], dtype=np.float64)
         self.face_offset = np.concatenate([[0], np.cumsum([len(sc.face_normals) for sc in scenes])[:-1]]).astype(np.int64)
         self.face_normals = np.concatenate([sc.face_normals for sc in scenes])
         self.face_v0 = np.concatenate([sc.face_v0 for sc in scenes])
@@ -452,16 +455,23 @@ class PlacedObjects:
     def place(self, b: int, k: int, pose: np.ndarray, scale: float = 1.0) -> None:
         """Object ``k`` in slot ``b`` with a rigid ``pose (4, 4)`` (not re-validated) and a positive ``scale``:
         the numbers of ``GeometricBackend.set_object`` (same expressions, same bits)."""
-        sc = self.scenes[k]
-        T = np.asarray(pose, dtype=np.float64)
-        R = T[:3, :3].copy()
-        t = T[:3, 3].copy()
-        s = float(scale)
-        self.index[b] = k
-        self.R[b], self.t[b], self.scale[b] = R, t, s
-        self.radius[b] = s * sc.radius
-        self.centre[b] = R @ (s * sc.centre) + t
-        if s == 1.0 and R[2, 0] == 0.0 and R[2, 1] == 0.0 and R[2, 2] == 1.0:  # a yaw: the same number, exactly
-            self.table_z[b] = float(self._zmin[k] + t[2])
-        else:
-            self.table_z[b] = float(((s * sc.vertices) @ R[2]).min() + t[2])
+        self.place_many([b], [k], np.asarray(pose, dtype=np.float64)[None], [scale])
+
+    def place_many(self, slots, ks, poses: np.ndarray, scales) -> None:
+        """:meth:`place` of object ``ks[j]`` in slot ``slots[j]`` with ``poses[j] (4, 4)`` and ``scales[j]``, for
+        each ``j`` (a vector env's resets of one step)."""
+        slots = np.asarray(slots, dtype=np.int64)
+        ks = np.asarray(ks, dtype=np.int64)
+        s_all = np.asarray(scales, dtype=np.float64)
+        R_all = np.ascontiguousarray(poses[:, :3, :3])
+        t_all = np.ascontiguousarray(poses[:, :3, 3])
+        self.index[slots] = ks
+        self.R[slots], self.t[slots], self.scale[slots] = R_all, t_all, s_all
+        self.radius[slots] = s_all * self._radius[ks]
+        for j, (b, k, s) in enumerate(zip(slots.tolist(), ks.tolist(), s_all.tolist())):
+            sc, R, t = self.scenes[k], R_all[j], t_all[j]
+            self.centre[b] = R @ (s * sc.centre) + t
+            if s == 1.0 and R[2, 0] == 0.0 and R[2, 1] == 0.0 and R[2, 2] == 1.0:  # a yaw: the same number, exactly
+                self.table_z[b] = float(self._zmin[k] + t[2])
+            else:
+                self.table_z[b] = float(((s * sc.vertices) @ R[2]).min() + t[2])
