@@ -15,7 +15,8 @@ Two training regimes per hand, both computed from the meshes alone:
   (``DatasetConfig(source="hand")``, ``--approaches`` per object, training seed 0).
 
 Test sequences are fresh hand grasps (pool seeds ``1000 + seed``, never used for training or for
-the calibration temperatures, which are fitted on the training grasps' validation split);
+the calibration temperatures, which are fitted on the training grasps' validation split: the KDE's for
+beliefs of 1 to ``--calibrate-grasps`` grasps of one object, by default the hand's registered env's setting);
 ``--split validation`` draws them from pool seeds ``500 + seed`` instead, for choosing settings.
 ``--queries`` queries per object and seed; the spread is the std over ``--seeds``.
 
@@ -38,15 +39,19 @@ from tqdm import tqdm
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from haptic_env import ENV_VARIANTS  # noqa: E402
+from haptic_env.config import HapticRecogConfig  # noqa: E402
 from haptic_env.dataset import DatasetConfig  # noqa: E402
 from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
 from haptic_env.hand_grasps import hand_grasp_pool  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
-from haptic_env.recognizers import RecognizerConfig, build_recognizer  # noqa: E402
+from haptic_env.recognizers import KDEConfig, RecognizerConfig, build_recognizer  # noqa: E402
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD  # noqa: E402
 
 #: hand -> (fingers, normals settings); the paper: Allegro with and without normals, 5-finger hands without.
 SETUPS = {"allegro": (4, (True, False)), "shadow": (5, (False,)), "aero": (5, (False,))}
+#: hand -> its registered env (whose ``calibrate_grasps`` the table uses unless ``--calibrate-grasps`` is given)
+ENV_IDS = {"allegro": "HapticRecogMuJoCo-v0", "shadow": "HapticRecogShadow-v0", "aero": "HapticRecogAero-v0"}
 #: label -> (updater kind, z, random subsets per grasp)
 METHODS = {"IC": ("ic", None, None), "BC-NP": ("bc-np", None, None), "BC-IP": ("bc-ip", None, None),
            "IC, z=3": ("ic", 3, 4), "BC-NP, z=3": ("bc-np", 3, 4)}
@@ -71,13 +76,13 @@ def run_query(updater, C, N, T, normals: bool) -> tuple[int, int, bool]:
     return updater.prediction, len(C), False
 
 
-def training_config(regime: str, hand: str, args) -> RecognizerConfig:
+def training_config(regime: str, hand: str, args, calibrate_grasps: int = 1) -> RecognizerConfig:
     if regime == "hand":
         g = DatasetConfig(source="hand", hand=hand, grasps_per_object=args.approaches, seed=0)
     else:
         g = DatasetConfig(source="surface", grasps_per_object=args.surface_grasps, contact_noise=args.surface_noise,
                           normal_noise_deg=args.surface_normal_noise, seed=0)
-    return RecognizerConfig(grasps=g)
+    return RecognizerConfig(grasps=g, kde=KDEConfig(calibrate_grasps=calibrate_grasps))
 
 
 def evaluate(rec, pools, n: int, normals: bool, args) -> dict[str, dict]:
@@ -122,6 +127,9 @@ def main(argv=None) -> int:
     ap.add_argument("--surface-grasps", type=int, default=20_000, help="surface regime: training grasps per object")
     ap.add_argument("--surface-noise", type=float, default=0.0, help="surface regime: contact noise std (m)")
     ap.add_argument("--surface-normal-noise", type=float, default=0.0, help="surface regime: normal noise (deg)")
+    ap.add_argument("--calibrate-grasps", type=int, default=None,
+                    help="fit the KDE temperature for beliefs of 1..K grasps of one object (1: one-shot; default: "
+                         "the hand's registered env's setting, HapticRecogConfig.calibrate_grasps)")
     ap.add_argument("--raw", action="store_true", help="the paper's raw scores (no calibration temperatures)")
     ap.add_argument("--out", type=Path, default=None, help="write hand_table.md here")
     args = ap.parse_args(argv)
@@ -144,34 +152,38 @@ def main(argv=None) -> int:
             print(f"skipping {hand}: {exc}")
             continue
         usable = float(np.mean([(p.touched.sum(-1) >= 3).mean() for p in pools]))
+        K = args.calibrate_grasps or ENV_VARIANTS[ENV_IDS[name]].get("calibrate_grasps",
+                                                                     HapticRecogConfig.calibrate_grasps)
         for regime in args.regimes:
-            cfg = training_config(regime, hand, args)
+            cfg = training_config(regime, hand, args, K)
             for normals in normal_settings:
                 rec = build_recognizer(objects, n, normals, z_values=tuple(range(3, n)), config=cfg)
                 temps = rec.models.temperature(n)
                 res = evaluate(rec, pools, n, normals, args)
                 for label, r in tqdm(res.items(), desc=f"{hand} {regime}", disable=True):
-                    rows.append((hand, n, normals, regime, label, r, usable, temps))
+                    rows.append((hand, n, normals, regime, label, r, usable, temps, K))
     cols = {(4, True): "4+", (4, False): "4-", (5, False): "5-"}
+    calib = "raw scores" if args.raw else ("calibrated scores (temperatures fitted on validation grasps; the KDE's "
+                                           "for beliefs of 1-K grasps of one object, K in the last column)")
     lines = [
         f"YCB-10, {args.queries} queries per object x {len(args.seeds)} {args.split} seeds ({args.seeds}), <= {args.max_grasps} "
         f"random-approach grasps per query, lambda = {args.threshold}, "
-        f"{'raw scores' if args.raw else 'calibrated scores (temperatures fitted on validation grasps)'}. "
+        f"{calib}. "
         "Success = decided and correct at the stop; accuracy = final prediction correct (decided or not). "
         "Mean +- std over the test seeds. Paper: Pisa/IIT SoftHand for the 5-finger rows, real Allegro for the 4-finger rows.",
         "",
         "| hand | fingers | normals | training | method | success % | accuracy % | grasps | paper (success % / grasps) | "
-        "usable grasps | T (KDE / MLP) |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "usable grasps | T (KDE / MLP) | K |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for hand, n, normals, regime, label, r, usable, temps in rows:
+    for hand, n, normals, regime, label, r, usable, temps, K in rows:
         paper = PAPER[label].get(cols[(n, normals)])
         lines.append(
             f"| {hand} | {n} | {'yes' if normals else 'no'} | {regime} | {label} | "
             f"{100 * r['success'].mean():.1f} +- {100 * r['success'].std():.1f} | "
             f"{100 * r['accuracy'].mean():.1f} +- {100 * r['accuracy'].std():.1f} | "
             f"{r['grasps'].mean():.2f} +- {r['grasps'].std():.2f} | {paper[0]} / {paper[1]} | {usable:.2f} | "
-            f"{temps['kde']:.2f} / {temps['classifier']:.2f} |")
+            f"{temps['kde']:.2f} / {temps['classifier']:.2f} | {K} |")
     text = "\n".join(lines)
     print("\n" + text)
     if args.out is not None:

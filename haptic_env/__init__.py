@@ -28,9 +28,9 @@ _ENTRY = "haptic_env.env:HapticRecogEnv"
 ENV_VARIANTS: dict[str, dict[str, Any]] = {
     "HapticRecog-v0": {},
     "HapticRecogMuJoCo-v0": {"backend": "mujoco", "backend_kwargs": {"hand": "allegro"}, "objects": "ycb10",
-                             "z_fingers": 3},
+                             "z_fingers": 3, "calibrate_grasps": 5},
     "HapticRecogShadow-v0": {"backend": "mujoco", "backend_kwargs": {"hand": "shadow"}, "objects": "ycb10",
-                             "n_fingers": 5, "normals": False, "z_fingers": 3},
+                             "n_fingers": 5, "normals": False, "z_fingers": 3, "calibrate_grasps": 5},
     "HapticRecogAero-v0": {"backend": "mujoco", "backend_kwargs": {"hand": "aero"}, "objects": "ycb10",
                            "n_fingers": 5, "normals": False, "z_fingers": 3},
     "HapticRecogRobotiq-v0": {"backend": "mujoco", "backend_kwargs": {"hand": "robotiq"}, "objects": "ycb10",

@@ -355,6 +355,22 @@ def test_kde_method_reaches_the_recognizer_config(env_config):
         _recognizer_kwargs(env_config.replace(kde_method="fastest"))
 
 
+
+def test_calibrate_grasps_reaches_the_kde_config(env_config):
+    from haptic_env import ENV_VARIANTS
+    from haptic_env.config import recognizer_kwargs as _recognizer_kwargs
+
+    assert HapticRecogConfig().calibrate_grasps == 1  # one-shot temperature unless a variant says otherwise
+    assert _recognizer_kwargs(env_config)["config"].kde.calibrate_grasps == 1
+    assert _recognizer_kwargs(env_config.replace(calibrate_grasps=5))["config"].kde.calibrate_grasps == 5
+    own = env_config.replace(calibrate_grasps=5, recognizer_kwargs={"config": {"kde": {"calibrate_grasps": 3}}})
+    assert _recognizer_kwargs(own)["config"].kde.calibrate_grasps == 3  # the JSON config's own setting wins
+    for env_id in ("HapticRecogMuJoCo-v0", "HapticRecogShadow-v0"):  # chosen per hand on validation grasps
+        assert ENV_VARIANTS[env_id]["calibrate_grasps"] == 5
+    for bad in (0, 2.0, "5"):
+        with pytest.raises(ValueError, match="calibrate_grasps"):
+            env_config.replace(calibrate_grasps=bad)
+
 HAND_ENVS = {"HapticRecogMuJoCo-v0": 4, "HapticRecogShadow-v0": 5, "HapticRecogAero-v0": 5, "HapticRecogRobotiq-v0": 2}
 
 
@@ -366,9 +382,10 @@ def test_mujoco_hand_variants_run_an_episode(env_id):
 
     if data_dir() is None:
         pytest.skip("needs the shared data (ycb/ meshes and the menagerie hands): set HAPTIC_DATA")
-    # the Allegro's own grasps (few approaches, to stay fast); the 5-finger hands rarely touch the plate with all five
-    # fingers, so a fast recogniser for them trains on surface grasps (the hand source itself: tests/test_hand_grasps.py)
-    grasps = {"grasps_per_object": 40} if env_id == "HapticRecogMuJoCo-v0" else {"grasps_per_object": 300,
+    # the Allegro's own grasps (few approaches, to stay fast: 100 give the plate, its hardest object, ~10 complete
+    # ones); the 5-finger hands rarely touch the plate with all five fingers, so a fast recogniser for them trains on
+    # surface grasps (the hand source itself: tests/test_hand_grasps.py)
+    grasps = {"grasps_per_object": 100} if env_id == "HapticRecogMuJoCo-v0" else {"grasps_per_object": 300,
                                                                                "source": "surface"}
     env = haptic_env.make(env_id=env_id, recognizer_kwargs={"config": {"grasps": grasps}, "progress": False})
     obs, info = env.reset(seed=0)

@@ -79,9 +79,9 @@ def test_sequence_scores_sums_k_rows_of_one_class():
     S = np.repeat(np.array([[1.0, 0.0, -np.inf], [0.0, 2.0, -1.0]]), [4, 6], axis=0)  # class 0: 4 rows, 1: 6
     Y = np.repeat([0, 1], [4, 6])
     out, y = sequence_scores(S, Y, 3, rng)
-    assert out.shape == (30, 3) and y.shape == (30,)
-    assert np.bincount(y).tolist() == [12, 18]  # every k = 1..3, as many sums as the class has rows
-    k = np.concatenate([np.repeat([1, 2, 3], 4), np.repeat([1, 2, 3], 6)])
+    assert out.shape == (36, 3) and y.shape == (36,)
+    assert np.bincount(y).tolist() == [18, 18]  # every k = 1..3, as many sums per class as the largest class has rows
+    k = np.tile(np.repeat([1, 2, 3], 6), 2)
     want = np.where(y[:, None] == 0, [1.0, 0.0, -np.inf], [0.0, 2.0, -1.0]) * k[:, None]
     np.testing.assert_array_equal(out, want)  # each row: the sum of k rows of its own class; -inf stays -inf
     same, ys = sequence_scores(S, Y, 1, rng)

@@ -70,4 +70,7 @@ class AnalysisConfig:
     @property
     def scores_label(self) -> str:
         """How experiments 2-6 score grasps, as the report's headings say it."""
-        return "calibrated scores" if self.calibrated else "raw scores (paper)"
+        if not self.calibrated:
+            return "raw scores (paper)"
+        k = self.kde.calibrate_grasps
+        return f"calibrated scores (KDE for beliefs of 1-{k} grasps)" if k > 1 else "calibrated scores"

@@ -163,35 +163,22 @@ def _menagerie_spec(robot: str, entry: str) -> mujoco.MjSpec:
 
 
 def allegro_hand(side: str = "right") -> HandDescription:
-    """Wonik Allegro V3 (4 fingers: ff, mf, rf, thumb; 16 position actuators)."""
+    """Wonik Allegro V3 (4 fingers: ff, mf, rf, thumb; 16 position actuators).
+
+    The closing synergy, open pose, approach axis and standoff are the automatic path's
+    (:func:`~haptic_env.grasping.auto_hand.auto_hand` on the Menagerie file), as for the Shadow: every
+    flexion actuator closes to the top of its range and the thumb opposes, so fingers close until they
+    touch. On 400 ycb10 approaches (one core) that gives complete 4-finger grasps on 0.40 of them against
+    0.26 for the earlier hand-written synergy (proximal joints stopped at 1.1 rad), and >= 3 fingertips on
+    0.75 against 0.65. Physics: a 4 ms step with the earlier description's 0.24 s of closing (60 steps;
+    contacts checked every 20 ms) keeps those rates of the 2 ms step at 1.4x its grasps/s (192 against 135
+    grasps/s; the earlier synergy at 2 ms: 157)."""
     if side not in ("right", "left"):
         raise ValueError(f"side must be 'right' or 'left', got {side!r}")
-    spec = _menagerie_spec("wonik_allegro", f"{side}_hand")
-    # closing synergy (tuned for fingertip contacts): proximal moderately, medial/distal fully
-    close = {}
-    for f in ("ff", "mf", "rf"):
-        close.update({f"{f}a1": 1.1, f"{f}a2": 1.6, f"{f}a3": 1.5})
-    close.update({"tha0": 1.396, "tha1": 1.16, "tha2": 1.6, "tha3": 1.6})
-    names = [spec.actuators[i].name for i in range(len(spec.actuators))]
-    # menagerie names actuators ffa0..tha3; fall back to joint-named actuators
-    if "ffa1" not in names:
-        close = {k.replace("a", "j", 1) if k[2] == "a" else k: v for k, v in close.items()}
-    sgn = 1.0 if side == "right" else -1.0
-    spread = {k: v for k, v in {
-        _act(names, "ff", 0): (sgn * 0.25, -sgn * 0.1), _act(names, "rf", 0): (-sgn * 0.25, sgn * 0.1)}.items()}
-    open_ctrl = {_act(names, "th", 0): 0.5}  # thumb not yet opposed: it would block the approach
-    return HandDescription(name=f"allegro_{side}", spec=spec, root="palm",
-                           tips=("ff_tip", "mf_tip", "rf_tip", "th_tip"),
-                           open_ctrl=open_ctrl, close_ctrl=close, spread=spread,
-                           approach_axis=np.array([0.0, 0.0, 1.0]),  # palm normal in the mount frame
-                           option={"cone": mujoco.mjtCone.mjCONE_ELLIPTIC, "impratio": 10.0}, max_steps=120)
+    from .auto_hand import auto_hand
 
-
-def _act(names: list[str], finger: str, k: int) -> str:
-    for cand in (f"{finger}a{k}", f"{finger}j{k}"):
-        if cand in names:
-            return cand
-    raise HandUnavailableError(f"actuator for {finger} joint {k} not found among {names}")
+    d = auto_hand(f"wonik_allegro/{side}_hand")
+    return dataclasses.replace(d, name=f"allegro_{side}", timestep=0.004, max_steps=60)
 
 
 def shadow_hand(side: str = "right") -> HandDescription:

@@ -87,7 +87,8 @@ def sequence_scores(scores, y, max_grasps: int, rng: np.random.Generator) -> tup
     The one-shot ``T`` of :func:`fit_temperature` assumes the grasps' errors independent; the grasps of one
     object share the KDE's systematic errors (an object whose grasps look like another's keeps looking
     like it), so the ``k``-grasp posterior is over-confident by more than one grasp's ``T`` corrects.
-    Fitting ``T`` on these sums instead calibrates the posteriors an episode actually forms.
+    Fitting ``T`` on these sums instead calibrates the posteriors an episode actually forms. Every class
+    gets the same number of sums (episodes draw their object uniformly), however few validation rows it has.
 
     Args:
         scores: ``(B, K)`` validation scores of single grasps (``-inf`` allowed; it stays ``-inf`` in a sum).
@@ -96,20 +97,22 @@ def sequence_scores(scores, y, max_grasps: int, rng: np.random.Generator) -> tup
         rng: draws the grasps of each sum (with replacement, within one class).
 
     Returns:
-        ``(S, Y)``: for every class with validation rows and every ``k``, as many sums of ``k`` of its rows
-        as it has rows (``S (M, K)``, ``M = max_grasps * B``), and their classes ``Y (M,)``.
+        ``(S, Y)``: for every class present in ``y`` and every ``k``, ``m`` sums of ``k`` of its rows, ``m`` the
+        largest class's row count (``S (M, K)``, ``M = max_grasps * m * classes``), and their classes ``Y (M,)``.
     """
     S, Y = _check(scores, y)
     if not (isinstance(max_grasps, (int, np.integer)) and max_grasps >= 1):
         raise ValueError(f"max_grasps must be an int >= 1, got {max_grasps!r}")
     if max_grasps == 1 or len(Y) == 0:
         return S, Y
+    classes, counts = np.unique(Y, return_counts=True)
+    m = int(counts.max())
     out_s, out_y = [], []
-    for c in np.unique(Y):
+    for c in classes:
         rows = np.flatnonzero(Y == c)
         for k in range(1, int(max_grasps) + 1):
-            out_s.append(S[rng.choice(rows, (len(rows), k))].sum(axis=1))
-            out_y.append(np.full(len(rows), c, dtype=np.int64))
+            out_s.append(S[rng.choice(rows, (m, k))].sum(axis=1))
+            out_y.append(np.full(m, c, dtype=np.int64))
     return np.concatenate(out_s), np.concatenate(out_y)
 
 
