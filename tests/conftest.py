@@ -1,8 +1,11 @@
-"""Shared fixtures: a per-session cache directory and a small, fast recogniser for env/agent tests."""
+"""Shared fixtures: a per-session cache directory, a small, fast recogniser for env/agent tests, and the
+benchmark scripts as modules."""
 
 from __future__ import annotations
 
+import importlib.util
 import os
+from pathlib import Path
 
 import pytest
 from hypothesis import settings
@@ -49,3 +52,17 @@ def env_config(small_recognizer_kwargs, haptic_cache):
     cfg = HapticRecogConfig(recognizer_kwargs=small_recognizer_kwargs)
     get_recognizer(load_object_set(cfg.objects), cfg)  # build once, shared by every env of the session
     return cfg
+
+
+@pytest.fixture(scope="session")
+def load_benchmark():
+    """``load_benchmark("soak")``: ``benchmarks/soak.py`` imported as a module (the benchmarks are scripts, not a
+    package), for tests of their functions."""
+    def load(name: str):
+        path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
+        spec = importlib.util.spec_from_file_location(f"{name}_bench", path)
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        return mod
+
+    return load

@@ -2,20 +2,14 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
 import pytest
 
 
 @pytest.fixture(scope="module")
-def paper_scale():
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "paper_scale.py"
-    spec = importlib.util.spec_from_file_location("paper_scale_bench", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+def paper_scale(load_benchmark):
+    return load_benchmark("paper_scale")
 
 
 TINY = ["--objects", "default", "--fingers", "3", "--normals", "yes", "--nets", "default", "--max-epochs", "1",

@@ -25,17 +25,6 @@ def test_scaled_resets_reuse_one_scene_per_object(env_config):
     assert env.backend.n_scenes <= env.n_classes
 
 
-def _soak_module():
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "soak.py"
-    spec = importlib.util.spec_from_file_location("soak_bench", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
 #: RSS growth allowed after the warm-up (MiB): the soak benchmark's target for 100,000 steps
 MAX_GROWTH_MB = 20.0
 
@@ -43,20 +32,20 @@ MAX_GROWTH_MB = 20.0
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["HapticRecog-v0", "scale_range", "pose=so3", "z_fingers=3", "updater=ic",
                                   "updater=bc-ip"])
-def test_short_soak_keeps_rss_flat(name, small_recognizer_kwargs):
+def test_short_soak_keeps_rss_flat(name, small_recognizer_kwargs, load_benchmark):
     """The short version of ``benchmarks/soak.py`` (geometric variants, small recogniser): 10,000 random steps
     after a 2,000-step warm-up, RSS growth within MAX_GROWTH_MB."""
-    soak = _soak_module()
+    soak = load_benchmark("soak")
     env_id, overrides = soak.variants()[name]
     r = soak.soak(env_id, {**overrides, "recognizer_kwargs": small_recognizer_kwargs}, steps=10_000, warmup=2_000)
     assert r["episodes"] > 100
     assert r["growth_mb"] <= MAX_GROWTH_MB, r
 
 
-def test_soak_benchmark_variants_cover_the_registered_envs():
+def test_soak_benchmark_variants_cover_the_registered_envs(load_benchmark):
     from haptic_env import ENV_VARIANTS
 
-    soak = _soak_module()
+    soak = load_benchmark("soak")
     names = soak.variants()
     assert set(ENV_VARIANTS) <= set(names)
     assert {"scale_range", "pose=so3", "z_fingers=3", "updater=ic", "updater=bc-ip"} <= set(names)
