@@ -355,7 +355,6 @@ def test_kde_method_reaches_the_recognizer_config(env_config):
         _recognizer_kwargs(env_config.replace(kde_method="fastest"))
 
 
-
 def test_calibrate_grasps_reaches_the_kde_config(env_config):
     from haptic_env import ENV_VARIANTS
     from haptic_env.config import recognizer_kwargs as _recognizer_kwargs
@@ -370,6 +369,7 @@ def test_calibrate_grasps_reaches_the_kde_config(env_config):
     for bad in (0, 2.0, "5"):
         with pytest.raises(ValueError, match="calibrate_grasps"):
             env_config.replace(calibrate_grasps=bad)
+
 
 HAND_ENVS = {"HapticRecogMuJoCo-v0": 4, "HapticRecogShadow-v0": 5, "HapticRecogAero-v0": 5, "HapticRecogRobotiq-v0": 2}
 

@@ -24,6 +24,14 @@ def _calibrated_draws(rng, B=20_000, K=5):
     return z, y
 
 
+def _two_gaussians(rng, n_train: int, n_val: int, d: int, shift: float):
+    """Two unit Gaussians in ``d`` dimensions, ``shift`` apart on every axis: ``X, y`` (n_train each), ``Xv, yv``
+    (n_val each), drawn in that order."""
+    X = np.concatenate([rng.normal(0, 1, (n_train, d)), rng.normal(shift, 1, (n_train, d))])
+    Xv = np.concatenate([rng.normal(0, 1, (n_val, d)), rng.normal(shift, 1, (n_val, d))])
+    return X, np.repeat([0, 1], n_train), Xv, np.repeat([0, 1], n_val)
+
+
 def test_fit_temperature_recovers_the_over_confidence():
     rng = np.random.default_rng(0)
     z, y = _calibrated_draws(rng)
@@ -60,12 +68,8 @@ def test_reliability_bins_count_every_row():
 
 
 def test_kde_fits_and_stores_its_temperature():
-    rng = np.random.default_rng(2)
     # two overlapping classes in 8 dimensions: a KDE on few points is over-confident (T > 1)
-    X = np.concatenate([rng.normal(0, 1, (400, 8)), rng.normal(0.5, 1, (400, 8))])
-    y = np.repeat([0, 1], 400)
-    Xv = np.concatenate([rng.normal(0, 1, (300, 8)), rng.normal(0.5, 1, (300, 8))])
-    yv = np.repeat([0, 1], 300)
+    X, y, Xv, yv = _two_gaussians(np.random.default_rng(2), 400, 300, d=8, shift=0.5)
     kde = KDELikelihood(KDEConfig(method="dense")).fit(X, y, Xv, yv)
     assert kde.temperature > 1.0
     back = KDELikelihood.from_state(kde.config, kde.state())
@@ -109,11 +113,7 @@ def test_sequence_temperature_calibrates_beliefs_over_several_grasps():
 
 
 def test_kde_sequence_calibration_is_a_config_setting():
-    rng = np.random.default_rng(6)
-    X = np.concatenate([rng.normal(0, 1, (300, 6)), rng.normal(0.6, 1, (300, 6))])
-    y = np.repeat([0, 1], 300)
-    Xv = np.concatenate([rng.normal(0, 1, (200, 6)), rng.normal(0.6, 1, (200, 6))])
-    yv = np.repeat([0, 1], 200)
+    X, y, Xv, yv = _two_gaussians(np.random.default_rng(6), 300, 200, d=6, shift=0.6)
     one = KDELikelihood(KDEConfig(method="dense")).fit(X, y, Xv, yv)
     seq = KDELikelihood(KDEConfig(method="dense", calibrate_grasps=5)).fit(X, y, Xv, yv)
     assert seq.factor == one.factor and seq.temperature != one.temperature
