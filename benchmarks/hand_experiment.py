@@ -133,6 +133,8 @@ def main(argv=None) -> int:
     ap.add_argument("--raw", action="store_true", help="the paper's raw scores (no calibration temperatures)")
     ap.add_argument("--out", type=Path, default=None, help="write hand_table.md here")
     args = ap.parse_args(argv)
+    if args.calibrate_grasps is not None and args.calibrate_grasps < 1:
+        ap.error(f"--calibrate-grasps must be >= 1, got {args.calibrate_grasps}")
     if data_dir() is None:
         print("the hand experiment needs the YCB meshes (ycb/ in the shared data folder; set HAPTIC_DATA)")
         return 1
@@ -152,8 +154,9 @@ def main(argv=None) -> int:
             print(f"skipping {hand}: {exc}")
             continue
         usable = float(np.mean([(p.touched.sum(-1) >= 3).mean() for p in pools]))
-        K = args.calibrate_grasps or ENV_VARIANTS[ENV_IDS[name]].get("calibrate_grasps",
-                                                                     HapticRecogConfig.calibrate_grasps)
+        K = args.calibrate_grasps
+        if K is None:  # the hand's registered env's setting
+            K = HapticRecogConfig().replace(**ENV_VARIANTS[ENV_IDS[name]]).calibrate_grasps
         for regime in args.regimes:
             cfg = training_config(regime, hand, args, K)
             for normals in normal_settings:
