@@ -250,8 +250,8 @@ def phi(contacts, normals=None, *, strict: bool = False, tol: float = DEFAULT_TO
         q, valid, order, reason = _phi_rows(P, N, tol)
     elif _compiled_shapes(P, N, n_min=2):
         q, valid, order, reason = _phi2_rows(P, N)
-    else:  # bad shapes: _as_batch raises
-        P, N, single = _as_batch(contacts, normals, 3)
+    else:  # bad shapes (not (B, n >= 2, 3), or normals of another shape): _as_batch raises the precise error
+        _as_batch(contacts, normals, 3)
         raise ValueError(f"contacts must have shape (B, n, 3) or (n, 3), got {np.shape(contacts)}")  # pragma: no cover
     if strict and not valid.all():
         i = int(np.flatnonzero(~valid)[0])

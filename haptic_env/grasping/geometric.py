@@ -136,6 +136,9 @@ class GeometricBackend:
     def __init__(self, config: GeometricConfig | None = None) -> None:
         self.config = config or GeometricConfig()
         self.n_fingers = int(self.config.n_fingers)
+        # cos and sin of the fingertips' curl angles beta (n,): the rays' out-of-plane tilt (rays, grasp_placed)
+        beta = np.deg2rad(np.r_[np.asarray(self.config.curl_deg[: self.n_fingers - 1]), self.config.curl_deg[-1]])
+        self._curl_cos, self._curl_sin = np.cos(beta), np.sin(beta)
         self._obj: Any = None
         self._last: tuple[np.ndarray, np.ndarray, GraspResult] | None = None
         self._scale = 1.0
@@ -227,9 +230,8 @@ class GeometricBackend:
         ang = finger_angles(ap.spread, self.n_fingers, cfg.min_spread)  # (B, n)
         e1, e2 = frame[:, None, :, 0], frame[:, None, :, 1]
         radial = np.cos(ang)[..., None] * e1 + np.sin(ang)[..., None] * e2  # (B, n, 3)
-        beta = np.deg2rad(np.r_[np.asarray(cfg.curl_deg[: self.n_fingers - 1]), cfg.curl_deg[-1]])
         e3 = frame[:, None, :, 2]
-        d = -np.cos(beta)[:, None] * radial + np.sin(beta)[:, None] * e3  # (B, n, 3) unit
+        d = -self._curl_cos[:, None] * radial + self._curl_sin[:, None] * e3  # (B, n, 3) unit
         R0 = cfg.margin * self._radius
         return self._centre - R0 * d, d
 
@@ -258,15 +260,6 @@ class GeometricBackend:
         slot ``b`` as ``set_object(objects[k], pose, scale)`` would."""
         return PlacedObjects([self._scene_of(o.mesh) for o in objects], size)
 
-    def _curl_trig(self) -> tuple[np.ndarray, np.ndarray]:
-        """``cos`` and ``sin`` of the fingertips' curl angles ``beta (n,)`` (as :meth:`rays` computes them)."""
-        trig = getattr(self, "_curl_trig_cache", None)
-        if trig is None:
-            cfg, n = self.config, self.n_fingers
-            beta = np.deg2rad(np.r_[np.asarray(cfg.curl_deg[: n - 1]), cfg.curl_deg[-1]])
-            trig = self._curl_trig_cache = (np.cos(beta), np.sin(beta))
-        return trig
-
     def grasp_placed(self, actions: np.ndarray, placed: "PlacedObjects", rows=None, rngs=None) -> GraspBatch:
         """``B`` grasps at once, grasp ``j`` of the object in slot ``rows[j]`` of ``placed`` (default: slot ``j``)
         with action ``actions[j]``; ``rngs[j]`` draws its noise (needed only with contact or normal noise). One
@@ -286,11 +279,11 @@ class GeometricBackend:
         # bit for bit the NumPy reference; the trig and the matmuls stay NumPy's)
         th = np.empty((B, 3 + n))
         gk.ray_angles(a, cfg.support == "table", n, float(cfg.min_spread), th)
-        cb, sb = self._curl_trig()
         R, t, scale, radius = placed.R[rows], placed.t[rows], placed.scale[rows], placed.radius[rows]
         d_w = np.empty((B, n, 3))
         o_t = np.empty((B, n, 3))  # o_w - t
-        gk.ray_frames(np.cos(th), np.sin(th), cb, sb, placed.centre[rows], t, radius, float(cfg.margin), d_w, o_t)
+        gk.ray_frames(np.cos(th), np.sin(th), self._curl_cos, self._curl_sin, placed.centre[rows], t, radius,
+                      float(cfg.margin), d_w, o_t)
         # _cast, per grasp: the rays in the unscaled object frame (batched matmul: one (n, 3) @ (3, 3) per grasp)
         o = np.matmul(o_t, R)
         o /= scale[:, None, None]
