@@ -85,16 +85,8 @@ class Scene:
     def draw(self, rng: np.random.Generator, which=None) -> tuple[int, np.ndarray, float, int]:
         """An episode's ``(object index, pose, scale, seed of the backend's generator)`` drawn from ``rng`` in this
         order (the object unless ``which`` names it); :meth:`reset` and the vector env's sub-envs both draw
-        through it."""
-        target = self.resolve(which) if which is not None else int(rng.integers(self.n_classes))
-        pose = random_pose(rng, self.config.pose)
-        if self.config.scale_range is not None:
-            lo, hi = self.config.scale_range
-            scale = float(rng.uniform(lo, hi))
-        else:
-            scale = 1.0
-        # child generator for the backend, derived from the env's np_random: same seed -> same episode
-        return target, pose, scale, int(rng.integers(2**63))
+        through it (the vector env via :meth:`draw_many`)."""
+        return self._draw(rng, which, yaw_angle=False)
 
     def draw_many(self, rngs, which=None) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[int]]:
         """:meth:`draw` from each generator of ``rngs`` (``which[j]``: the object of draw ``j``, or None), the same
@@ -102,26 +94,35 @@ class Scene:
         A vector env's resets of one step; the yaw poses' cos / sin in one NumPy call each."""
         m = len(rngs)
         which = [None] * m if which is None else which
+        yaw = self.config.pose == "table-yaw"
         targets = np.empty(m, dtype=np.int64)
         poses = np.tile(np.eye(4), (m, 1, 1))
+        angles = np.empty(m)
         scales = np.ones(m)
         seeds = [0] * m
-        yaw = self.config.pose == "table-yaw"
-        angles = np.empty(m)
-        K, scale_range = self.n_classes, self.config.scale_range
         for j, rng in enumerate(rngs):
-            targets[j] = self.resolve(which[j]) if which[j] is not None else int(rng.integers(K))
-            if yaw:  # random_pose(rng, "table-yaw")'s draw
-                angles[j] = rng.uniform(0.0, 2.0 * np.pi)
+            targets[j], pose, scales[j], seeds[j] = self._draw(rng, which[j], yaw_angle=yaw)
+            if yaw:
+                angles[j] = pose
             else:
-                poses[j] = random_pose(rng, self.config.pose)
-            if scale_range is not None:
-                scales[j] = float(rng.uniform(scale_range[0], scale_range[1]))
-            seeds[j] = int(rng.integers(2**63))
-        if yaw:
+                poses[j] = pose
+        if yaw:  # random_pose's "table-yaw" matrix, for all draws at once
             c, s = np.cos(angles), np.sin(angles)
             poses[:, 0, 0], poses[:, 0, 1], poses[:, 1, 0], poses[:, 1, 1] = c, -s, s, c
         return targets, poses, scales, seeds
+
+    def _draw(self, rng: np.random.Generator, which, yaw_angle: bool):
+        """The one draw order of :meth:`draw` and :meth:`draw_many`; with ``yaw_angle`` (pose "table-yaw") the
+        pose is returned as its yaw angle (``random_pose``'s one draw), for :meth:`draw_many` to turn into matrices."""
+        target = self.resolve(which) if which is not None else int(rng.integers(self.n_classes))
+        pose = rng.uniform(0.0, 2.0 * np.pi) if yaw_angle else random_pose(rng, self.config.pose)
+        if self.config.scale_range is not None:
+            lo, hi = self.config.scale_range
+            scale = float(rng.uniform(lo, hi))
+        else:
+            scale = 1.0
+        # child generator for the backend, derived from the env's np_random: same seed -> same episode
+        return target, pose, scale, int(rng.integers(2**63))
 
     def reset(self, rng: np.random.Generator, which=None) -> None:
         """Draw (from ``rng``, :meth:`draw`) the object unless ``which`` names it, its pose, its scale and the
