@@ -98,6 +98,28 @@ def test_cli_dry_run_and_bad_spec(tmp_path, capsys):
     assert "seeds" in capsys.readouterr().err
 
 
+def test_match_selects_jobs_and_what_they_need(tmp_path, capsys):
+    from haptic_env.cli import main
+    from haptic_env.sweep.runner import _plan
+
+    spec = parse_spec({"name": "m", "seeds": [0, 1], "env_ids": ["HapticRecog-v0"],
+                       "agent": [{"name": "random"}, {"name": "ppo", "algo": "ppo", "total_timesteps": 64}]})
+    todo, done = _plan(spec, tmp_path, None, "evaluate/.*/ppo/seed1")
+    assert [j.id.rsplit("-", 1)[0] for j in todo] == ["train/HapticRecog-v0/ppo/seed1",
+                                                      "evaluate/HapticRecog-v0/ppo/seed1"]
+    assert done == []
+    assert len(_plan(spec, tmp_path, None, None)[0]) == len(spec.jobs) == 6
+
+    assert main(["sweep", str(SMOKE), "--dry-run", "--out", str(tmp_path), "--match", "greedy"]) == 0
+    listed = capsys.readouterr().out
+    assert "evaluate/default/greedy/seed0-" in listed and "/random/" not in listed
+    for bad, why in (("(", "not a regular expression"), ("nothing-like-this", "matches none")):
+        with pytest.raises(SystemExit) as exc:
+            main(["sweep", str(SMOKE), "--dry-run", "--match", bad])
+        assert exc.value.code == 2
+        assert why in capsys.readouterr().err
+
+
 # ------------------------------------------------------------------------------------------ Ray
 @pytest.fixture(scope="module")
 def local_ray(haptic_cache, env_config, small_recognizer_kwargs):

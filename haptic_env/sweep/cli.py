@@ -4,6 +4,7 @@ cluster), skip the finished ones, retry and report the failed ones, and write th
     haptic-recog sweep sweeps/easy.toml                      # local Ray, all cores
     haptic-recog sweep sweeps/easy.toml --num-cpus 2 --out outputs/sweeps/easy
     ray start --head --port 6379 && haptic-recog sweep sweeps/easy.toml --address 127.0.0.1:6379
+    haptic-recog sweep sweeps/hands.toml --match allegro     # only the jobs whose id matches (and what they need)
     haptic-recog sweep sweeps/easy.toml --dry-run            # list the jobs and their state
     haptic-recog sweep sweeps/easy.toml --report-only        # the report from the run folders on disk
 
@@ -13,6 +14,7 @@ Exit status 0 when every job is done, 1 when a job failed (after its retries; th
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from pathlib import Path
 
@@ -37,6 +39,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    "spec's max_retries, else 2)")
     p.add_argument("--only", nargs="+", choices=KINDS, default=None, help="run only these job kinds (and what "
                    "they need)")
+    p.add_argument("--match", default=None, metavar="REGEX", help="run only the jobs whose id (as --dry-run lists "
+                   "them, e.g. 'train/allegro/ppo/seed0-...') contains a match of REGEX, and what they need; the "
+                   "report covers every finished job")
     p.add_argument("--dry-run", action="store_true", help="list the jobs and whether they are done; run nothing")
     p.add_argument("--report-only", action="store_true", help="write the report from the run folders; run nothing")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -60,8 +65,18 @@ def _main(args) -> int:
         raise UsageError(str(exc)) from exc
     out = (args.out or spec.default_out()).resolve()
     kinds = set(args.only) if args.only else None
+    if args.match is not None:
+        try:
+            pattern = re.compile(args.match)
+        except re.error as exc:
+            raise UsageError(f"--match {args.match!r} is not a regular expression: {exc}") from None
+        if not any(pattern.search(j.id) for j in spec.jobs):
+            raise UsageError(f"--match {args.match!r} matches none of the spec's {len(spec.jobs)} job ids "
+                             "(--dry-run lists them)")
     if args.dry_run:
         for j in spec.jobs:
+            if args.match is not None and not pattern.search(j.id):
+                continue
             state = "done" if is_done(j.run_dir(out)) else "todo"
             needs = ", ".join(j.deps) if len(j.deps) <= 2 else f"{j.deps[0]} and {len(j.deps) - 1} more"
             print(f"{state:5} {j.id}  (cpus {j.cpus:g}{', needs ' + needs if j.deps else ''})")
@@ -75,7 +90,7 @@ def _main(args) -> int:
             raise UsageError("the sweep runs on Ray, which is not installed: pip install 'haptic-recog[sweep]' "
                              "(or pip install 'ray>=2.40')")
         result = run_sweep(spec, out, address=args.address, num_cpus=args.num_cpus, max_retries=args.max_retries,
-                           kinds=kinds, progress=not args.quiet)
+                           kinds=kinds, match=args.match, progress=not args.quiet)
     write_status(result, spec)
     report = write_sweep_report(spec, result, command=["haptic-recog", "sweep", *sys.argv[2:]]
                                 if sys.argv[1:2] == ["sweep"] else None)

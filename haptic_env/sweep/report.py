@@ -152,6 +152,9 @@ def write_sweep_report(spec: SweepSpec, result: SweepResult, command: list[str] 
                  for a in agents}
         extra = (f"env `{env_id}` with `{kwargs}`; {p['episodes']} episodes x env seeds {p['env_seeds']} per agent "
                  f"seed; agent seeds: " + ", ".join(f"{a} {s}" for a, s in seeds.items()) + ".")
+        missing = [f"{j.params['agent']} seed {j.params['seed']}" for j in jobs if not is_done(j.run_dir(out))]
+        if missing:
+            extra += " Not run (or not finished): " + ", ".join(missing) + "."
         write_report(records, env_out, _max_grasps(env_id, kwargs), title=f"Sweep {spec.name}: {env}", extra=extra)
         agg = json.loads((env_out / "results.json").read_text())["rliable"]
         aggs[env] = agg

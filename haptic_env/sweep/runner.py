@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,10 +48,12 @@ class SweepResult:
         return not self.failed
 
 
-def _plan(spec: SweepSpec, out: Path, kinds: set[str] | None) -> tuple[list[Job], list[Job]]:
-    """(jobs to run in dependency order, jobs already done)."""
+def _plan(spec: SweepSpec, out: Path, kinds: set[str] | None, match: str | None = None) -> tuple[list[Job], list[Job]]:
+    """(jobs to run in dependency order, jobs already done): those of ``kinds`` (all if None) whose id
+    ``re.search``-matches ``match`` (all if None), with the jobs they need."""
     by_id = spec.by_id()
-    wanted = [j for j in spec.jobs if kinds is None or j.kind in kinds]
+    pattern = re.compile(match) if match is not None else None
+    wanted = [j for j in spec.jobs if (kinds is None or j.kind in kinds) and (pattern is None or pattern.search(j.id))]
     todo, done, seen = [], [], set()
 
     def visit(j: Job) -> None:
@@ -82,7 +85,7 @@ def _error_text(exc: BaseException) -> str:
 
 def run_sweep(spec: SweepSpec, out: str | Path | None = None, *, address: str | None = None,
               num_cpus: int | None = None, max_retries: int | None = None, kinds: set[str] | None = None,
-              progress: bool = True, poll: float = 1.0) -> SweepResult:
+              match: str | None = None, progress: bool = True, poll: float = 1.0) -> SweepResult:
     """Run the jobs of ``spec`` that are not done yet on Ray, then return what is done and what failed (the
     report is :func:`haptic_env.sweep.report.write_sweep_report`). Uses the running Ray if there is one
     (``ray.is_initialized()``), else ``ray.init(address or "local", num_cpus=...)`` and shuts it down after."""
@@ -93,7 +96,7 @@ def run_sweep(spec: SweepSpec, out: str | Path | None = None, *, address: str | 
     out.mkdir(parents=True, exist_ok=True)
     retries = spec.max_retries if max_retries is None else max_retries
     by_id = spec.by_id()
-    todo, done_before = _plan(spec, out, kinds)
+    todo, done_before = _plan(spec, out, kinds, match)
     result = SweepResult(out=out, skipped=[j.id for j in done_before])
     for j in done_before:
         result.done[j.id] = read_done(j.run_dir(out))
@@ -151,12 +154,12 @@ def _running(run_dir: Path) -> bool:
 
 
 def run_jobs_inline(spec: SweepSpec, out: str | Path | None = None, *, kinds: set[str] | None = None,
-                    on_done: Callable[[str], None] | None = None) -> SweepResult:
+                    match: str | None = None, on_done: Callable[[str], None] | None = None) -> SweepResult:
     """The same jobs one after another in this process, without Ray (the sequential reference of the
     benchmark; no retries)."""
     out = Path(out or spec.default_out()).resolve()
     by_id = spec.by_id()
-    todo, done_before = _plan(spec, out, kinds)
+    todo, done_before = _plan(spec, out, kinds, match)
     result = SweepResult(out=out, skipped=[j.id for j in done_before])
     t0 = time.time()
     for j in todo:
