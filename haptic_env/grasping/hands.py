@@ -20,10 +20,8 @@ radius. Fingertip order: fingers, thumb last.
 
 from __future__ import annotations
 
-import dataclasses
-
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import mujoco
@@ -178,7 +176,7 @@ def allegro_hand(side: str = "right") -> HandDescription:
     from .auto_hand import auto_hand
 
     d = auto_hand(f"wonik_allegro/{side}_hand")
-    return dataclasses.replace(d, name=f"allegro_{side}", timestep=0.004, max_steps=60)
+    return replace(d, name=f"allegro_{side}", timestep=0.004, max_steps=60)
 
 
 def shadow_hand(side: str = "right") -> HandDescription:
@@ -201,7 +199,7 @@ def shadow_hand(side: str = "right") -> HandDescription:
     from .auto_hand import auto_hand
 
     d = auto_hand(f"shadow_hand/{side}_hand")
-    return dataclasses.replace(d, name=f"shadow_{side}", timestep=0.004, max_steps=75)
+    return replace(d, name=f"shadow_{side}", timestep=0.004, max_steps=75)
 
 
 def aero_hand(side: str = "right") -> HandDescription:
