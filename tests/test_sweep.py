@@ -113,6 +113,7 @@ def test_match_selects_jobs_and_what_they_need(tmp_path, capsys):
     assert main(["sweep", str(SMOKE), "--dry-run", "--out", str(tmp_path), "--match", "greedy"]) == 0
     listed = capsys.readouterr().out
     assert "evaluate/default/greedy/seed0-" in listed and "/random/" not in listed
+    assert "1 of the spec's 2 jobs" in listed
     for bad, why in (("(", "not a regular expression"), ("nothing-like-this", "matches none")):
         with pytest.raises(SystemExit) as exc:
             main(["sweep", str(SMOKE), "--dry-run", "--match", bad])

@@ -54,7 +54,7 @@ def _main(args) -> int:
 
     from .jobs import is_done, read_done
     from .report import write_sweep_report
-    from .runner import SweepResult, ray_available, run_sweep, write_status
+    from .runner import SweepResult, ray_available, run_sweep, select_jobs, write_status
     from .spec import SpecError, load_spec
 
     if not args.spec.is_file():
@@ -74,13 +74,12 @@ def _main(args) -> int:
             raise UsageError(f"--match {args.match!r} matches none of the spec's {len(spec.jobs)} job ids "
                              "(--dry-run lists them)")
     if args.dry_run:
-        for j in spec.jobs:
-            if args.match is not None and not pattern.search(j.id):
-                continue
+        jobs = select_jobs(spec, kinds, args.match, done=lambda j: is_done(j.run_dir(out)))
+        for j in jobs:
             state = "done" if is_done(j.run_dir(out)) else "todo"
             needs = ", ".join(j.deps) if len(j.deps) <= 2 else f"{j.deps[0]} and {len(j.deps) - 1} more"
             print(f"{state:5} {j.id}  (cpus {j.cpus:g}{', needs ' + needs if j.deps else ''})")
-        print(f"{len(spec.jobs)} jobs; sweep folder {out}")
+        print(f"{len(jobs)} of the spec's {len(spec.jobs)} jobs; sweep folder {out}")
         return 0
     if args.report_only:
         done = [j for j in spec.jobs if is_done(j.run_dir(out))]

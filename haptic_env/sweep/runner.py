@@ -21,7 +21,7 @@ from typing import Any, Callable
 from .jobs import attempts, execute, is_done, read_done
 from .spec import Job, SweepSpec
 
-__all__ = ["SweepResult", "run_sweep", "run_jobs_inline", "ray_available"]
+__all__ = ["SweepResult", "run_sweep", "run_jobs_inline", "ray_available", "select_jobs"]
 
 #: environment variables every worker gets from the driver (cache, data, rendering)
 FORWARD_ENV = ("HAPTIC_CACHE", "HAPTIC_CACHE_READONLY", "HAPTIC_DATA", "MENAGERIE_ROOT", "MUJOCO_GL")
@@ -48,27 +48,35 @@ class SweepResult:
         return not self.failed
 
 
-def _plan(spec: SweepSpec, out: Path, kinds: set[str] | None, match: str | None = None) -> tuple[list[Job], list[Job]]:
-    """(jobs to run in dependency order, jobs already done): those of ``kinds`` (all if None) whose id
-    ``re.search``-matches ``match`` (all if None), with the jobs they need."""
+def select_jobs(spec: SweepSpec, kinds: set[str] | None = None, match: str | None = None,
+                done: Callable[[Job], bool] | None = None) -> list[Job]:
+    """The jobs of ``kinds`` (all if None) whose id ``re.search``-matches ``match`` (all if None), and the jobs
+    they need, in dependency order (a job after the jobs it needs). The needs of a job for which ``done`` is
+    true are not followed (a finished evaluation does not need its training again)."""
     by_id = spec.by_id()
     pattern = re.compile(match) if match is not None else None
-    wanted = [j for j in spec.jobs if (kinds is None or j.kind in kinds) and (pattern is None or pattern.search(j.id))]
-    todo, done, seen = [], [], set()
+    out: list[Job] = []
+    seen: set[str] = set()
 
     def visit(j: Job) -> None:
-        if j.id in seen:
-            return
-        seen.add(j.id)
-        if is_done(j.run_dir(out)):
-            done.append(j)
-            return
-        for d in j.deps:
-            visit(by_id[d])
-        todo.append(j)
+        if j.id not in seen:
+            seen.add(j.id)
+            if done is None or not done(j):
+                for d in j.deps:
+                    visit(by_id[d])
+            out.append(j)
 
-    for j in wanted:
-        visit(j)
+    for j in spec.jobs:
+        if (kinds is None or j.kind in kinds) and (pattern is None or pattern.search(j.id)):
+            visit(j)
+    return out
+
+
+def _plan(spec: SweepSpec, out: Path, kinds: set[str] | None, match: str | None = None) -> tuple[list[Job], list[Job]]:
+    """(jobs to run in dependency order, jobs already done) of :func:`select_jobs`."""
+    todo, done = [], []
+    for j in select_jobs(spec, kinds, match, done=lambda j: is_done(j.run_dir(out))):
+        (done if is_done(j.run_dir(out)) else todo).append(j)
     return todo, done
 
 
