@@ -12,7 +12,8 @@ Two training regimes per hand, both computed from the meshes alone:
 * ``surface``: the paper's way, hand-independent: random surface points with Gaussian contact noise
   (``--surface-noise`` m) and normal noise (``--surface-normal-noise`` deg);
 * ``hand``: hand-matched: the hand's own MuJoCo model grasping each mesh
-  (``DatasetConfig(source="hand")``, ``--approaches`` per object, training seed 0).
+  (``DatasetConfig(source="hand")``, ``--approaches`` per object, by default the hand's registered env's
+  ``training_grasps``; training seed 0).
 
 Test sequences are fresh hand grasps (pool seeds ``1000 + seed``, never used for training or for
 the calibration temperatures, which are fitted on the training grasps' validation split: the KDE's for
@@ -21,7 +22,7 @@ beliefs of 1 to ``--calibrate-grasps`` grasps of one object, by default the hand
 ``--queries`` queries per object and seed; the spread is the std over ``--seeds``.
 
     python benchmarks/hand_experiment.py [--hands allegro shadow aero] [--queries 10] [--seeds 0 1 2]
-        [--max-grasps 30] [--approaches 1500] [--regimes surface hand] [--raw] [--out results/hands]
+        [--max-grasps 30] [--approaches 3000] [--regimes surface hand] [--raw] [--out results/hands]
 
 Prints (and with ``--out`` writes ``hand_table.md``) the table with the paper's figure beside each
 cell; the headline is printed last.
@@ -40,7 +41,7 @@ from tqdm import tqdm
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from haptic_env import ENV_VARIANTS  # noqa: E402
-from haptic_env.config import HapticRecogConfig  # noqa: E402
+from haptic_env.config import HAND_APPROACHES, HapticRecogConfig  # noqa: E402
 from haptic_env.dataset import DatasetConfig  # noqa: E402
 from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
 from haptic_env.hand_grasps import hand_grasp_pool  # noqa: E402
@@ -50,7 +51,8 @@ from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD  # noqa: E402
 
 #: hand -> (fingers, normals settings); the paper: Allegro with and without normals, 5-finger hands without.
 SETUPS = {"allegro": (4, (True, False)), "shadow": (5, (False,)), "aero": (5, (False,))}
-#: hand -> its registered env (whose ``calibrate_grasps`` the table uses unless ``--calibrate-grasps`` is given)
+#: hand -> its registered env (whose ``calibrate_grasps`` and ``training_grasps`` the table uses unless
+#: ``--calibrate-grasps`` / ``--approaches`` are given)
 ENV_IDS = {"allegro": "HapticRecogMuJoCo-v0", "shadow": "HapticRecogShadow-v0", "aero": "HapticRecogAero-v0"}
 #: label -> (updater kind, z, random subsets per grasp)
 METHODS = {"IC": ("ic", None, None), "BC-NP": ("bc-np", None, None), "BC-IP": ("bc-ip", None, None),
@@ -76,9 +78,10 @@ def run_query(updater, C, N, T, normals: bool) -> tuple[int, int, bool]:
     return updater.prediction, len(C), False
 
 
-def training_config(regime: str, hand: str, args, calibrate_grasps: int = 1) -> RecognizerConfig:
+def training_config(regime: str, hand: str, args, calibrate_grasps: int = 1,
+                    approaches: int = HAND_APPROACHES) -> RecognizerConfig:
     if regime == "hand":
-        g = DatasetConfig(source="hand", hand=hand, grasps_per_object=args.approaches, seed=0)
+        g = DatasetConfig(source="hand", hand=hand, grasps_per_object=approaches, seed=0)
     else:
         g = DatasetConfig(source="surface", grasps_per_object=args.surface_grasps, contact_noise=args.surface_noise,
                           normal_noise_deg=args.surface_normal_noise, seed=0)
@@ -123,7 +126,9 @@ def main(argv=None) -> int:
     ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
     ap.add_argument("--max-grasps", type=int, default=30, help="grasps per query at most")
     ap.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD, help="certainty threshold lambda")
-    ap.add_argument("--approaches", type=int, default=3000, help="hand regime: training approaches per object")
+    ap.add_argument("--approaches", type=int, default=None,
+                    help="hand regime: training approaches per object (default: the hand's registered env's "
+                         f"setting, HapticRecogConfig.training_grasps, else {HAND_APPROACHES})")
     ap.add_argument("--surface-grasps", type=int, default=20_000, help="surface regime: training grasps per object")
     ap.add_argument("--surface-noise", type=float, default=0.0, help="surface regime: contact noise std (m)")
     ap.add_argument("--surface-normal-noise", type=float, default=0.0, help="surface regime: normal noise (deg)")
@@ -135,6 +140,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if args.calibrate_grasps is not None and args.calibrate_grasps < 1:
         ap.error(f"--calibrate-grasps must be >= 1, got {args.calibrate_grasps}")
+    if args.approaches is not None and args.approaches < 1:
+        ap.error(f"--approaches must be >= 1, got {args.approaches}")
     if data_dir() is None:
         print("the hand experiment needs the YCB meshes (ycb/ in the shared data folder; set HAPTIC_DATA)")
         return 1
@@ -154,17 +161,18 @@ def main(argv=None) -> int:
             print(f"skipping {hand}: {exc}")
             continue
         usable = float(np.mean([(p.touched.sum(-1) >= 3).mean() for p in pools]))
-        K = args.calibrate_grasps
-        if K is None:  # the hand's registered env's setting
-            K = HapticRecogConfig().replace(**ENV_VARIANTS[ENV_IDS[name]]).calibrate_grasps
+        env_config = HapticRecogConfig().replace(**ENV_VARIANTS[ENV_IDS[name]])  # the defaults: the hand's env's
+        K = args.calibrate_grasps if args.calibrate_grasps is not None else env_config.calibrate_grasps
+        A = args.approaches if args.approaches is not None else (env_config.training_grasps or HAND_APPROACHES)
         for regime in args.regimes:
-            cfg = training_config(regime, hand, args, K)
+            cfg = training_config(regime, hand, args, K, A)
+            data = A if regime == "hand" else args.surface_grasps
             for normals in normal_settings:
                 rec = build_recognizer(objects, n, normals, z_values=tuple(range(3, n)), config=cfg)
                 temps = rec.models.temperature(n)
                 res = evaluate(rec, pools, n, normals, args)
                 for label, r in tqdm(res.items(), desc=f"{hand} {regime}", disable=True):
-                    rows.append((hand, n, normals, regime, label, r, usable, temps, K))
+                    rows.append((hand, n, normals, regime, label, r, usable, temps, K, data))
     cols = {(4, True): "4+", (4, False): "4-", (5, False): "5-"}
     calib = "raw scores" if args.raw else ("calibrated scores (temperatures fitted on validation grasps; the KDE's "
                                            "for beliefs of 1-K grasps of one object, K in the last column)")
@@ -176,17 +184,17 @@ def main(argv=None) -> int:
         "Mean +- std over the test seeds. Paper: Pisa/IIT SoftHand for the 5-finger rows, real Allegro for the 4-finger rows.",
         "",
         "| hand | fingers | normals | training | method | success % | accuracy % | grasps | paper (success % / grasps) | "
-        "usable grasps | T (KDE / MLP) | K |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "usable grasps | T (KDE / MLP) | K | training grasps / object |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for hand, n, normals, regime, label, r, usable, temps, K in rows:
+    for hand, n, normals, regime, label, r, usable, temps, K, data in rows:
         paper = PAPER[label].get(cols[(n, normals)])
         lines.append(
             f"| {hand} | {n} | {'yes' if normals else 'no'} | {regime} | {label} | "
             f"{100 * r['success'].mean():.1f} +- {100 * r['success'].std():.1f} | "
             f"{100 * r['accuracy'].mean():.1f} +- {100 * r['accuracy'].std():.1f} | "
             f"{r['grasps'].mean():.2f} +- {r['grasps'].std():.2f} | {paper[0]} / {paper[1]} | {usable:.2f} | "
-            f"{temps['kde']:.2f} / {temps['classifier']:.2f} | {K} |")
+            f"{temps['kde']:.2f} / {temps['classifier']:.2f} | {K} | {data:,} |")
     text = "\n".join(lines)
     print("\n" + text)
     if args.out is not None:

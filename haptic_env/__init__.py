@@ -28,7 +28,7 @@ _ENTRY = "haptic_env.env:HapticRecogEnv"
 ENV_VARIANTS: dict[str, dict[str, Any]] = {
     "HapticRecog-v0": {},
     "HapticRecogMuJoCo-v0": {"backend": "mujoco", "backend_kwargs": {"hand": "allegro"}, "objects": "ycb10",
-                             "z_fingers": 3, "calibrate_grasps": 5},
+                             "z_fingers": 3, "calibrate_grasps": 5, "training_grasps": 6000},
     "HapticRecogShadow-v0": {"backend": "mujoco", "backend_kwargs": {"hand": "shadow"}, "objects": "ycb10",
                              "n_fingers": 5, "normals": False, "z_fingers": 3, "calibrate_grasps": 5},
     "HapticRecogAero-v0": {"backend": "mujoco", "backend_kwargs": {"hand": "aero"}, "objects": "ycb10",

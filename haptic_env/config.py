@@ -76,6 +76,13 @@ class HapticRecogConfig:
     only), "geometric" (the geometric hand's approach grasps), "surface" (random surface points, the paper's
     protocol), or "auto": "hand" for the mujoco backend, else "geometric". All are computed from the meshes
     alone."""
+    training_grasps: int | None = None
+    """Training grasps per object of the recogniser (``DatasetConfig.grasps_per_object``; for "hand" grasps, random
+    approaches per object) unless ``recognizer_kwargs`` sets its own; None: the source's default
+    (:data:`HAND_APPROACHES` for "hand", ``DatasetConfig``'s for the others). The Allegro env uses 6,000: twice the
+    default lifted BC-NP's success at the stop on validation grasps in fewer grasps (RESULTS.md), and its grasps
+    are fast enough to keep the first make under 5 minutes; the 5-finger hands grasp 4-5x slower and keep the
+    default."""
     kde_method: str = "pooled"
     """How the belief update evaluates the per-object KDEs (``KDEConfig.method``) unless ``recognizer_kwargs``
     sets its own: "pooled" (one neighbour search over all objects' training vectors: a compiled k-d tree, ~25 us per grasp),
@@ -100,6 +107,9 @@ class HapticRecogConfig:
                 raise TypeError(f"{name} must be True or False, got {getattr(self, name)!r}")
         if not isinstance(self.calibrate_grasps, (int, np.integer)) or self.calibrate_grasps < 1:
             raise ValueError(f"calibrate_grasps must be an int >= 1, got {self.calibrate_grasps!r}")
+        if self.training_grasps is not None and (isinstance(self.training_grasps, bool) or not (
+                isinstance(self.training_grasps, (int, np.integer)) and self.training_grasps >= 1)):
+            raise ValueError(f"training_grasps must be None or an int >= 1, got {self.training_grasps!r}")
         if not isinstance(self.n_fingers, (int, np.integer)) or self.n_fingers < 2:
             raise ValueError(f"n_fingers must be an int >= 2 (2: a gripper, q is the contact distance), "
                              f"got {self.n_fingers!r}")
@@ -175,8 +185,8 @@ def recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
     """``recognizer_kwargs`` with a JSON-style ``{"config": {"grasps": {...}, "mlp": {...}, "kde": {...}}}``
     turned into ``RecognizerConfig`` (so the command line can pass recogniser settings as JSON); without a
     config, or a JSON config whose ``grasps`` has no ``source``, the recogniser trains on
-    ``config.recognizer_source`` grasps (with ``support`` from the backend's ``support`` setting, default
-    "table"), and its KDE is evaluated by ``config.kde_method`` and calibrated for ``config.calibrate_grasps``
+    ``config.recognizer_source`` grasps (``config.training_grasps`` per object when set, with ``support`` from the
+    backend's ``support`` setting, default "table"), and its KDE is evaluated by ``config.kde_method`` and calibrated for ``config.calibrate_grasps``
     grasps unless the JSON ``kde`` sets them."""
     from haptic_env.dataset import DatasetConfig
     from haptic_env.recognizers import KDEConfig, MLPConfig, RecognizerConfig
@@ -190,6 +200,8 @@ def recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
         if source == "auto":
             source = "hand" if config.backend == "mujoco" else "geometric"
         grasps.setdefault("source", source)
+        if config.training_grasps is not None:
+            grasps.setdefault("grasps_per_object", int(config.training_grasps))
         if grasps["source"] == "hand":  # the backend's own hand, HAND_APPROACHES random approaches per object
             hand = dict(config.backend_kwargs).get("hand", "generic")
             if not isinstance(hand, str):

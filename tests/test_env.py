@@ -371,6 +371,28 @@ def test_calibrate_grasps_reaches_the_kde_config(env_config):
             env_config.replace(calibrate_grasps=bad)
 
 
+def test_training_grasps_reaches_the_dataset_config(env_config):
+    from haptic_env import ENV_VARIANTS
+    from haptic_env.config import HAND_APPROACHES
+    from haptic_env.config import recognizer_kwargs as _recognizer_kwargs
+    from haptic_env.dataset import DatasetConfig
+
+    grasps = lambda cfg: _recognizer_kwargs(cfg)["config"].grasps  # noqa: E731
+    assert HapticRecogConfig().training_grasps is None
+    assert grasps(HapticRecogConfig()).grasps_per_object == DatasetConfig().grasps_per_object  # the source's default
+    assert grasps(HapticRecogConfig(training_grasps=1234)).grasps_per_object == 1234
+    mujoco = dict(backend="mujoco", backend_kwargs={"hand": "generic"})
+    assert grasps(HapticRecogConfig(**mujoco)).grasps_per_object == HAND_APPROACHES
+    allegro = HapticRecogConfig().replace(**ENV_VARIANTS["HapticRecogMuJoCo-v0"])
+    assert allegro.training_grasps == 6000 and grasps(allegro).grasps_per_object == 6000
+    assert grasps(allegro).source == "hand" and grasps(allegro).hand == "allegro"
+    own = allegro.replace(recognizer_kwargs={"config": {"grasps": {"grasps_per_object": 50}}})
+    assert grasps(own).grasps_per_object == 50  # the JSON config's own setting wins
+    for bad in (0, -5, 2.5, "6000", True):
+        with pytest.raises(ValueError, match="training_grasps"):
+            env_config.replace(training_grasps=bad)
+
+
 HAND_ENVS = {"HapticRecogMuJoCo-v0": 4, "HapticRecogShadow-v0": 5, "HapticRecogAero-v0": 5, "HapticRecogRobotiq-v0": 2}
 
 
