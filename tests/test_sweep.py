@@ -174,6 +174,11 @@ def test_smoke_sweep_report_rerun_and_retries(local_ray, tmp_path, capsys, monke
     assert len(episodes) == 1 + 2  # header + 2 episodes x 1 env seed
     status = {r["id"]: r for r in json.loads((out / "status.json").read_text())["jobs"]}
     assert status[ids["broken"]]["state"] == "failed" and status[ids["broken"]]["attempts"] == 2
+    # a spec with a second agent seed: its seed-0 jobs are the ones done, and the report names the seed not run
+    from haptic_env.sweep.runner import SweepResult
+
+    two = write_sweep_report(parse_spec({**doc, "seeds": [0, 1]}), SweepResult(out=out)).read_text()
+    assert "agent seeds: random [0], greedy [0]. Not run (or not finished): random [1], greedy [1]." in two
 
     # the same sweep again through the CLI: the finished jobs are skipped, the failed one is tried again
     spec_file = tmp_path / "spec.toml"

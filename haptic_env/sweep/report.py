@@ -152,9 +152,12 @@ def write_sweep_report(spec: SweepSpec, result: SweepResult, command: list[str] 
                  for a in agents}
         extra = (f"env `{env_id}` with `{kwargs}`; {p['episodes']} episodes x env seeds {p['env_seeds']} per agent "
                  f"seed; agent seeds: " + ", ".join(f"{a} {s}" for a, s in seeds.items()) + ".")
-        missing = [f"{j.params['agent']} seed {j.params['seed']}" for j in jobs if not is_done(j.run_dir(out))]
+        missing: dict[str, list[int]] = {}
+        for j in jobs:
+            if not is_done(j.run_dir(out)):
+                missing.setdefault(j.params["agent"], []).append(j.params["seed"])
         if missing:
-            extra += " Not run (or not finished): " + ", ".join(missing) + "."
+            extra += " Not run (or not finished): " + ", ".join(f"{a} {s}" for a, s in missing.items()) + "."
         write_report(records, env_out, _max_grasps(env_id, kwargs), title=f"Sweep {spec.name}: {env}", extra=extra)
         agg = json.loads((env_out / "results.json").read_text())["rliable"]
         aggs[env] = agg
