@@ -71,16 +71,25 @@ class EpisodeRecord:
 
 
 def run_episodes(agent, make_env: Callable[[], Any], n_episodes: int, seed: int,
-                 progress: Callable[[int], None] | None = None) -> list[EpisodeRecord]:
-    """Run ``n_episodes`` of ``agent`` on a fresh env from ``make_env()``, seeded with ``seed``."""
+                 progress: Callable[[int], None] | None = None, agent_seed: int | None = None) -> list[EpisodeRecord]:
+    """Run ``n_episodes`` of ``agent`` on a fresh env from ``make_env()``, seeded with ``seed``.
+
+    The agent's own randomness (random actions, greedy's candidates, sampled SB3 actions) is seeded with ``seed``
+    too, so that agents compared on one env seed share their random numbers; with ``agent_seed`` it is seeded
+    with ``SeedSequence([seed, agent_seed])`` instead, so that the runs of one agent with different seeds differ
+    (the objects and poses still depend on ``seed`` alone)."""
     if n_episodes < 1:
         raise ValueError(f"n_episodes must be >= 1, got {n_episodes}")
+    if agent_seed is None:
+        own = seed
+    else:
+        own = int(np.random.SeedSequence([int(seed), int(agent_seed)]).generate_state(1)[0])
     env = make_env()
     records = []
     try:
         for ep in range(n_episodes):
             obs, info = env.reset(seed=seed if ep == 0 else None)
-            agent.reset(env, seed=seed if ep == 0 else None)
+            agent.reset(env, seed=own if ep == 0 else None)
             ret, done = 0.0, False
             while not done:
                 obs, r, terminated, truncated, info = env.step(agent.act(obs, env))

@@ -9,7 +9,8 @@ exists is finished: a re-run of the sweep skips it.
   --env-kwargs --hyperparams --resume``). An unfinished run folder with a checkpoint is resumed
   (``--resume <run dir>``). The subprocess gets SIGTERM when its worker dies (``PR_SET_PDEATHSIG``), so it saves
   a checkpoint for the retry; a retry first waits for the previous attempt's ``train.py`` to exit.
-* ``evaluate``: :func:`agents.evaluate.run_episodes` of the agent on every env seed, in this process;
+* ``evaluate``: :func:`agents.evaluate.run_episodes` of the agent on every env seed, in this process, its random
+  numbers seeded by the env seed and the agent seed (so that a baseline's seeds are distinct runs);
   ``episodes.csv``.
 * ``dataset``: :func:`haptic_env.dataset.build_dataset` through the shared cache (``$HAPTIC_CACHE``): a cluster
   run and a laptop run write and read the same files.
@@ -216,12 +217,14 @@ def _evaluate(p: dict[str, Any], run_dir: Path, attempt: int, job: dict[str, Any
         if not model.is_file():
             raise FileNotFoundError(f"model {model} does not exist (its train job has not finished)")
         spec = f"{p['agent']}={model}"
+    if p.get("seeding") != "env+agent":
+        raise ValueError(f"evaluate job: unknown seeding {p.get('seeding')!r} (this version writes 'env+agent')")
     agent = make_agent(spec, seed=p["seed"])
     agent.name = p["agent"]
     records = []
     for s in p["env_seeds"]:
         records += run_episodes(agent, lambda: haptic_env.make(env_id=p["env_id"], **p["env_kwargs"]),
-                                p["episodes"], s)
+                                p["episodes"], s, agent_seed=p["seed"])
     path = run_dir / "episodes.csv"
     tmp = path.with_name(f".episodes.{os.getpid()}.tmp")
     with open(tmp, "w", newline="") as fh:

@@ -223,7 +223,9 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
                 spec = f"{a['algo']}_final.zip"  # in the train job's folder (resolved by the evaluate job)
             jobs.append(Job("evaluate", f"{env}/{name}/seed{s}", {
                 "agent": name, "spec": spec, "trained": trained, "env": env, "env_id": env_id, "env_kwargs": kwargs,
-                "seed": s, "episodes": episodes, "env_seeds": env_seeds}, deps=deps, cpus=eval_cpus))
+                "seed": s, "episodes": episodes, "env_seeds": env_seeds,
+                # the agent's random numbers come from (env seed, agent seed): its seeds are distinct runs
+                "seeding": "env+agent"}, deps=deps, cpus=eval_cpus))
     return jobs
 
 
