@@ -74,9 +74,10 @@ def _main(args) -> int:
             raise UsageError(f"--match {args.match!r} matches none of the spec's {len(spec.jobs)} job ids "
                              "(--dry-run lists them)")
     if args.dry_run:
-        jobs = select_jobs(spec, kinds, args.match, done=lambda j: is_done(j.run_dir(out)))
+        finished = {j.id: is_done(j.run_dir(out)) for j in spec.jobs}
+        jobs = select_jobs(spec, kinds, args.match, done=lambda j: finished[j.id])
         for j in jobs:
-            state = "done" if is_done(j.run_dir(out)) else "todo"
+            state = "done" if finished[j.id] else "todo"
             needs = ", ".join(j.deps) if len(j.deps) <= 2 else f"{j.deps[0]} and {len(j.deps) - 1} more"
             print(f"{state:5} {j.id}  (cpus {j.cpus:g}{', needs ' + needs if j.deps else ''})")
         print(f"{len(jobs)} of the spec's {len(spec.jobs)} jobs; sweep folder {out}")

@@ -148,14 +148,13 @@ def write_sweep_report(spec: SweepSpec, result: SweepResult, command: list[str] 
         env_out = out / "report" / env
         jobs = [j for j in spec.jobs if j.kind == "evaluate" and j.params["env"] == env]
         p = jobs[0].params
-        seeds = {a: sorted({j.params["seed"] for j in jobs if j.params["agent"] == a and is_done(j.run_dir(out))})
-                 for a in agents}
+        finished: dict[str, list[int]] = {}
+        missing: dict[str, list[int]] = {}  # agent -> seeds, in the spec's order
+        for j in jobs:
+            (finished if is_done(j.run_dir(out)) else missing).setdefault(j.params["agent"], []).append(j.params["seed"])
+        seeds = {a: sorted(finished.get(a, [])) for a in agents}
         extra = (f"env `{env_id}` with `{kwargs}`; {p['episodes']} episodes x env seeds {p['env_seeds']} per agent "
                  f"seed; agent seeds: " + ", ".join(f"{a} {s}" for a, s in seeds.items()) + ".")
-        missing: dict[str, list[int]] = {}
-        for j in jobs:
-            if not is_done(j.run_dir(out)):
-                missing.setdefault(j.params["agent"], []).append(j.params["seed"])
         if missing:
             extra += " Not run (or not finished): " + ", ".join(f"{a} {s}" for a, s in missing.items()) + "."
         write_report(records, env_out, _max_grasps(env_id, kwargs), title=f"Sweep {spec.name}: {env}", extra=extra)

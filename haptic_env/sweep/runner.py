@@ -74,9 +74,10 @@ def select_jobs(spec: SweepSpec, kinds: set[str] | None = None, match: str | Non
 
 def _plan(spec: SweepSpec, out: Path, kinds: set[str] | None, match: str | None = None) -> tuple[list[Job], list[Job]]:
     """(jobs to run in dependency order, jobs already done) of :func:`select_jobs`."""
+    finished = {j.id: is_done(j.run_dir(out)) for j in spec.jobs}
     todo, done = [], []
-    for j in select_jobs(spec, kinds, match, done=lambda j: is_done(j.run_dir(out))):
-        (done if is_done(j.run_dir(out)) else todo).append(j)
+    for j in select_jobs(spec, kinds, match, done=lambda j: finished[j.id]):
+        (done if finished[j.id] else todo).append(j)
     return todo, done
 
 
