@@ -166,7 +166,7 @@ def main(argv=None) -> int:
         A = args.approaches if args.approaches is not None else (env_config.training_grasps or HAND_APPROACHES)
         for regime in args.regimes:
             cfg = training_config(regime, hand, args, K, A)
-            data = A if regime == "hand" else args.surface_grasps
+            data = cfg.grasps.grasps_per_object
             for normals in normal_settings:
                 rec = build_recognizer(objects, n, normals, z_values=tuple(range(3, n)), config=cfg)
                 temps = rec.models.temperature(n)
