@@ -228,3 +228,36 @@ def test_scale_without_a_mesh_copy_matches_a_scaled_object():
         scaled.set_object(cyl, np.eye(4), scale=0.0)
     scaled.close()
     copied.close()
+
+
+def test_tip_touched_is_tip_contacts_touched(generic):
+    """The closing loop's cheap check agrees with the full contact read, with and without contacts."""
+    sc = generic._require()
+    seen = 0
+    for a in np.random.default_rng(4).uniform(-1, 1, (6, 4)):
+        generic.grasp(a, np.random.default_rng(0))  # ends at the grasp's final state
+        for _ in range(3):
+            full = sc.tip_contacts()[0]
+            assert np.array_equal(sc.tip_touched(), full)
+            seen += int(full.sum())
+            sc.step(5)
+    assert seen > 0  # fingertips touched, so the comparison covered contacts
+    sc.reset(sc.data.ctrl.copy())
+    sc.set_mount(np.array([0.0, 0.0, 5.0]), np.eye(3))  # far from the object: no contact at all
+    sc.step(1)
+    assert not sc.tip_touched().any() and np.array_equal(sc.tip_touched(), sc.tip_contacts()[0])
+
+
+def test_solver_choice_gives_the_same_grasps():
+    """CG and Newton both solve to MuJoCo's tolerance: same fingertips, contacts within 0.1 mm."""
+    res = {}
+    for solver in ("Newton", "CG"):
+        be = make_backend("mujoco", 4, hand="generic", solver=solver)
+        be.set_object(_cyl())
+        assert be._require().model.opt.solver == {"Newton": 2, "CG": 1}[solver]
+        res[solver] = [be.grasp(a, np.random.default_rng(0)) for a in np.random.default_rng(5).uniform(-1, 1, (8, 4))]
+    for a, b in zip(res["Newton"], res["CG"]):
+        assert np.array_equal(a.touched, b.touched)
+        assert np.allclose(a.contacts, b.contacts, atol=1e-4)
+    with pytest.raises(ValueError, match="solver must be one of"):
+        make_backend("mujoco", 4, hand="generic", solver="cg")

@@ -60,6 +60,10 @@ __all__ = ["MujocoConfig", "GraspScene", "MujocoBackend", "quat_from_matrix"]
 MAX_SCENES = 16
 HAND_BITS = (1, 2)  # (contype, conaffinity) of hand geoms: collide with the object only
 OBJ_BITS = (2, 1)
+#: MuJoCo's constraint solvers by name (``MujocoConfig.solver``; a hand may pick one in ``HandDescription.option``).
+#: ``benchmarks/bench_grasp_solver.py``: CG gives the same grasps as Newton on every hand (both stop at MuJoCo's
+#: tolerance) and is faster on the Shadow only; PGS is about 2x slower on all.
+SOLVERS = {"CG": mujoco.mjtSolver.mjSOL_CG, "Newton": mujoco.mjtSolver.mjSOL_NEWTON, "PGS": mujoco.mjtSolver.mjSOL_PGS}
 
 
 @dataclass(frozen=True)
@@ -72,6 +76,7 @@ class MujocoConfig:
     torque_source: str = "actuator"  # "actuator" | "constraint"
     contact_point: str = "surface"  # "surface": site + r * normal estimate; "site": fingertip site centre
     timestep: float | None = None  # s (None: the hand's own, HandDescription.timestep)
+    solver: str | None = None  # MuJoCo constraint solver "CG" | "Newton" | "PGS" (None: the hand's own, else Newton)
     max_steps: int | None = None  # closing steps at most (None: the hand's default, HandDescription.max_steps)
     min_time: float = 0.08  # s of closing before the rest test may end a grasp
     check_interval: float = 0.02  # s: test for new tip contacts / rest this often (rounded to whole steps)
@@ -88,6 +93,8 @@ class MujocoConfig:
     def __post_init__(self) -> None:
         if self.support not in ("table", "floating"):
             raise ValueError(f"support must be 'table' or 'floating', got {self.support!r}")
+        if self.solver is not None and self.solver not in SOLVERS:
+            raise ValueError(f"solver must be one of {tuple(SOLVERS)}, got {self.solver!r}")
         if self.torque_source not in ("actuator", "constraint"):
             raise ValueError(f"torque_source must be 'actuator' or 'constraint', got {self.torque_source!r}")
         if self.contact_point not in ("surface", "site"):
@@ -138,7 +145,8 @@ class GraspScene:
     """Simulator wrapper: object + hand on a mocap mount. Physics only, no task logic."""
 
     def __init__(self, hand: HandDescription, pieces: list | None, pose: np.ndarray, *, table_z: float | None,
-                 timestep: float = 0.002, friction: float = 0.5, joint_frictionloss: float | None = 0.0) -> None:
+                 timestep: float = 0.002, friction: float = 0.5, joint_frictionloss: float | None = 0.0,
+                 solver: str | None = None) -> None:
         self.hand = hand
         spec = mujoco.MjSpec()
         spec.modelname = "grasp_scene"
@@ -147,6 +155,8 @@ class GraspScene:
         spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
         for k, v in hand.option.items():
             setattr(spec.option, k, v)
+        if solver is not None:  # the config's choice wins over the hand's
+            spec.option.solver = SOLVERS[solver]
         spec.visual.global_.offwidth = 1280
         spec.visual.global_.offheight = 1280
         spec.worldbody.add_light(pos=[0, 0, 2], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
@@ -341,6 +351,18 @@ class GraspScene:
     def tip_positions(self) -> np.ndarray:
         return self.data.site_xpos[self.site_ids].copy()
 
+    def tip_touched(self) -> np.ndarray:
+        """``(n,)`` bool: fingertip ``i`` touches the object (``tip_contacts()[0]`` without the points and
+        normals; the closing loop asks this every check interval)."""
+        d = self.data
+        touched = np.zeros(len(self.site_ids), dtype=bool)
+        if d.ncon:
+            geom = d.contact.geom[: d.ncon]
+            obj0, obj1 = self._is_obj_geom[geom[:, 0]], self._is_obj_geom[geom[:, 1]]
+            finger = np.where(obj0, self._geom_tip[geom[:, 1]], np.where(obj1, self._geom_tip[geom[:, 0]], -1))
+            touched[finger[(finger >= 0) & (obj0 ^ obj1) & (d.contact.dist[: d.ncon] <= 0)]] = True
+        return touched
+
     def tip_contacts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per finger: touched (n,) bool, mean contact point (n,3), mean INWARD contact normal (n,3)."""
         d = self.data
@@ -484,7 +506,8 @@ class MujocoBackend:
         if scene is None:
             pieces = convex_pieces(obj, self.config.collision)  # of the unscaled mesh: cached once per mesh
             scene = GraspScene(self.hand, pieces, T, table_z=table_z, timestep=self.config.timestep or self.hand.timestep,
-                               friction=self.config.friction, joint_frictionloss=self.config.joint_frictionloss)
+                               friction=self.config.friction, joint_frictionloss=self.config.joint_frictionloss,
+                               solver=self.config.solver)
             while len(self._scenes) >= MAX_SCENES:  # least recently used first
                 self._scenes.popitem(last=False)[1].close()
         scene.scale_object(scale)
@@ -589,7 +612,7 @@ class MujocoBackend:
             sc.step(k)
             steps += k
             if cfg.squeeze > 0:  # a finger stops closing at its first fingertip contact
-                touched = sc.tip_contacts()[0] & ~held
+                touched = sc.tip_touched() & ~held
                 if touched.any():
                     sc.hold_fingers(np.flatnonzero(touched), close_u, cfg.squeeze, held=held)
                     held |= touched

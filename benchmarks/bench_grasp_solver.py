@@ -1,0 +1,91 @@
+"""The grasp scene's constraint solver: MuJoCo's CG (the default, ``MujocoConfig.solver``) against Newton
+(MuJoCo's own default) and PGS, on the same random approaches to ycb10, one core, in one run.
+
+    python benchmarks/bench_grasp_solver.py [--approaches 30] [--hands shadow,allegro,aero,robotiq]
+
+Per hand and solver: grasps/s, its ratio to Newton's from the same run (interleaved per object, so load
+drifts hit both), and how far the grasps are from Newton's: the fraction of approaches whose fingertips
+touch exactly as with Newton, and the contact-point difference over fingertips that touch in both
+(median / 90th percentile, mm). Headline figure last: CG's speed-up over Newton on the slowest hand.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from haptic_env.grasping import make_backend  # noqa: E402
+from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
+from haptic_env.objects import data_dir, load_object_set  # noqa: E402
+
+N_FINGERS = {"allegro": 4, "shadow": 5, "aero": 5, "robotiq": 2}
+
+
+def run(hand: str, objects, approaches: int, solvers: tuple[str, ...]) -> dict[str, dict]:
+    nf = N_FINGERS[hand]
+    backends = {s: make_backend("mujoco", n_fingers=nf, hand=hand, support="table", normals=True, solver=s)
+                for s in solvers}
+    out = {s: {"seconds": 0.0, "contacts": [], "touched": []} for s in solvers}
+    for k in tqdm(range(len(objects)), desc=hand, leave=False):
+        acts = np.random.default_rng([7, k]).uniform(-1, 1, (approaches, 4))
+        for s, be in backends.items():
+            be.set_object(objects[k])
+            be.grasp(acts[0], np.random.default_rng(0))  # warm-up (scene build)
+            t = time.perf_counter()
+            for a in acts:
+                r = be.grasp(a, np.random.default_rng(0))
+                out[s]["contacts"].append(r.contacts)
+                out[s]["touched"].append(r.touched)
+            out[s]["seconds"] += time.perf_counter() - t
+    for s, be in backends.items():
+        be.close()
+        out[s]["contacts"], out[s]["touched"] = np.array(out[s]["contacts"]), np.array(out[s]["touched"])
+        out[s]["gps"] = len(out[s]["touched"]) / out[s]["seconds"]
+    return out
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--approaches", type=int, default=30, help="random approaches per object and solver")
+    ap.add_argument("--hands", default="shadow,allegro,aero,robotiq")
+    ap.add_argument("--solvers", default="Newton,CG,PGS", help="the first is the baseline")
+    args = ap.parse_args(argv)
+    if data_dir() is None:
+        sys.exit("needs the shared data (ycb10 meshes and MuJoCo Menagerie): set HAPTIC_DATA / MENAGERIE_ROOT")
+    objects = load_object_set("ycb10")
+    solvers = tuple(args.solvers.split(","))
+    print(f"ycb10, {args.approaches} random approaches per object and solver, one process")
+    print("| hand | solver | grasps/s | speed vs " + solvers[0] + " | same fingertips touch | contact diff median / p90 (mm) |")
+    print("|---|---|---|---|---|---|")
+    headline = []
+    for hand in args.hands.split(","):
+        try:
+            res = run(hand, objects, args.approaches, solvers)
+        except HandUnavailableError as exc:
+            print(f"| {hand} | skipped: {exc} |")
+            continue
+        base = res[solvers[0]]
+        for s in solvers:
+            r = res[s]
+            same = (r["touched"] == base["touched"]).all(axis=1).mean()
+            both = r["touched"] & base["touched"]
+            d = np.linalg.norm(r["contacts"] - base["contacts"], axis=-1)[both] * 1000
+            med, p90 = (np.median(d), np.quantile(d, 0.9)) if d.size else (np.nan, np.nan)
+            ratio = r["gps"] / base["gps"]
+            print(f"| {hand} | {s} | {r['gps']:.1f} | {ratio:.2f}x | {same:.3f} | {med:.2f} / {p90:.2f} |", flush=True)
+            if s == "CG":
+                headline.append((base["gps"], hand, ratio))
+    if headline:
+        _, hand, ratio = min(headline)
+        print(f"\nCG speed-up over {solvers[0]} on the slowest hand ({hand}): {ratio:.2f}x")
+
+
+if __name__ == "__main__":
+    main()
