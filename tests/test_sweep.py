@@ -67,6 +67,19 @@ def test_grid_expansion_keys_and_dependencies():
     assert {i.split("/")[0] for i in changed} == {"train", "evaluate"} and len(changed) == 8
 
 
+def test_a_changed_env_variant_is_a_new_job(monkeypatch):
+    """What a registered id sets is part of its jobs' keys: a release that changes it re-runs them."""
+    import haptic_env
+
+    doc = {"name": "v", "seeds": [0], "env_ids": ["HapticRecog-v0", "HapticRecogKIT-v0"],
+           "agent": [{"name": "random"}, {"name": "ppo", "algo": "ppo", "total_timesteps": 1000}]}
+    before = {j.id for j in parse_spec(copy.deepcopy(doc)).jobs}
+    monkeypatch.setitem(haptic_env.ENV_VARIANTS, "HapticRecogKIT-v0",
+                        {**haptic_env.ENV_VARIANTS["HapticRecogKIT-v0"], "training_grasps": 1234})
+    changed = {j.id for j in parse_spec(doc).jobs} - before
+    assert changed and all("HapticRecogKIT-v0" in i for i in changed) and len(changed) == 3  # train + 2 evaluates
+
+
 @pytest.mark.parametrize("doc, match", [
     ({"name": "x"}, "no jobs"),
     ({"name": "x", "bogus": 1, "env_ids": ["HapticRecog-v0"], "agent": [{"name": "random"}]}, "unknown key"),

@@ -178,6 +178,8 @@ def _envs(doc: dict) -> dict[str, tuple[str, dict[str, Any]]]:
 
 
 def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
+    from haptic_env import ENV_VARIANTS
+
     agents = doc.get("agent", [])
     if agents and not envs:
         raise SpecError("[[agent]] given without any env ([[env]] or env_ids)")
@@ -208,11 +210,14 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
                                 f"spec), got {spec!r}; give algo = \"ppo\"/\"sac\" for a trained agent")
         for env, s in product(envs, a_seeds):
             env_id, kwargs = envs[env]
+            # the registered variant's own settings belong to the job: when a release changes what an env id
+            # sets (e.g. its training grasps), the job's key changes and a re-run trains and evaluates again
+            variant = ENV_VARIANTS[env_id]
             deps: tuple[str, ...] = ()
             if trained:
                 n_envs = _int(a.get("n_envs", 1), f"{where}.n_envs", 1)
                 train = Job("train", f"{env}/{name}/seed{s}", {
-                    "algo": a["algo"], "env_id": env_id, "env_kwargs": kwargs, "seed": s,
+                    "algo": a["algo"], "env_id": env_id, "env_variant": variant, "env_kwargs": kwargs, "seed": s,
                     "total_timesteps": _int(a.get("total_timesteps", 200_000), f"{where}.total_timesteps", 1),
                     "n_envs": n_envs, "vec": a.get("vec", "dummy" if n_envs == 1 else "subproc"),
                     "checkpoint_freq": _int(a.get("checkpoint_freq", 20_000), f"{where}.checkpoint_freq", 1),
@@ -222,7 +227,8 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
                 deps = (train.id,)
                 spec = f"{a['algo']}_final.zip"  # in the train job's folder (resolved by the evaluate job)
             jobs.append(Job("evaluate", f"{env}/{name}/seed{s}", {
-                "agent": name, "spec": spec, "trained": trained, "env": env, "env_id": env_id, "env_kwargs": kwargs,
+                "agent": name, "spec": spec, "trained": trained, "env": env, "env_id": env_id, "env_variant": variant,
+                "env_kwargs": kwargs,
                 "seed": s, "episodes": episodes, "env_seeds": env_seeds,
                 # the agent's random numbers come from (env seed, agent seed): its seeds are distinct runs
                 "seeding": "env+agent"}, deps=deps, cpus=eval_cpus))
