@@ -8,6 +8,7 @@ import pytest
 from haptic_env.recognizers import KDEConfig, KDELikelihood
 from haptic_env.recognizers.calibration import (
     expected_calibration_error,
+    fit_correction,
     fit_temperature,
     reliability,
     sequence_scores,
@@ -70,10 +71,17 @@ def test_reliability_bins_count_every_row():
 def test_kde_fits_and_stores_its_temperature():
     # two overlapping classes in 8 dimensions: a KDE on few points is over-confident (T > 1)
     X, y, Xv, yv = _two_gaussians(np.random.default_rng(2), 400, 300, d=8, shift=0.5)
-    kde = KDELikelihood(KDEConfig(method="dense")).fit(X, y, Xv, yv)
-    assert kde.temperature > 1.0
+    kde = KDELikelihood(KDEConfig(method="dense", correct=False)).fit(X, y, Xv, yv)
+    assert kde.temperature > 1.0 and kde.correction is None
     back = KDELikelihood.from_state(kde.config, kde.state())
-    assert back.temperature == kde.temperature
+    assert back.temperature == kde.temperature and back.correction is None
+    # with the learned correction (the analyses' setting) the temperature is fitted on the corrected scores; both are stored
+    kde = KDELikelihood(KDEConfig(method="dense", correct=True)).fit(X, y, Xv, yv)
+    assert kde.correction is not None and 0.5 < kde.temperature < 2.0
+    back = KDELikelihood.from_state(kde.config, kde.state())
+    S = kde.log_likelihood(Xv[:50])
+    # (the stored training vectors are float32: equal up to that rounding)
+    np.testing.assert_allclose(back.calibrate_scores(back.log_likelihood(Xv[:50])), kde.calibrate_scores(S), rtol=1e-5)
     assert KDELikelihood(KDEConfig(method="dense", calibrate=False)).fit(X, y, Xv, yv).temperature == 1.0
     assert KDELikelihood(KDEConfig(method="dense")).fit(X, y).temperature == 1.0  # no validation set: none
 
@@ -123,3 +131,28 @@ def test_kde_sequence_calibration_is_a_config_setting():
     for bad in (0, 1.5):
         with pytest.raises(ValueError, match="calibrate_grasps"):
             KDEConfig(calibrate_grasps=bad)
+
+
+def test_correction_undoes_a_systematic_bias():
+    """Scores that favour class 0 by a constant (a compact look-alike's KDE) make summed beliefs converge on it;
+    the fitted correction removes the offset, and its one-shot posteriors are calibrated (NLL <= raw's)."""
+    rng = np.random.default_rng(7)
+    K, B = 3, 3000
+    y = rng.integers(0, K, B)
+    S = rng.normal(0, 1, (B, K))
+    S[np.arange(B), y] += 1.0   # the true class scores higher ...
+    S[:, 0] += 1.5              # ... but class 0 always gets a bonus
+    S[rng.random(B) < 0.02, 2] = -np.inf  # a class ruled out now and then
+    corr = fit_correction(S[:2000], y[:2000])
+    Sc = corr(S[2000:])
+    assert Sc.shape == (1000, K) and np.allclose(np.exp(Sc).sum(1), 1.0)
+    yt = y[2000:]
+    assert np.mean(Sc.argmax(1) == yt) > np.mean(S[2000:].argmax(1) == yt) + 0.1
+    raw_nll = tempered_nll(S[2000:] - S[2000:].max(1, keepdims=True), yt, fit_temperature(S[:2000], y[:2000]))
+    assert -Sc[np.arange(1000), yt].mean() < raw_nll
+    # one row at a time gives the same as the batch (the vector env relies on it)
+    np.testing.assert_array_equal(np.concatenate([corr(S[i:i + 1]) for i in range(2000, 2010)]), Sc[:10])
+    with pytest.raises(ValueError, match="every class"):
+        fit_correction(S[y != 1], y[y != 1])
+    with pytest.raises(ValueError, match=r"shape \(B, 3\)"):
+        corr(S[:, :2])

@@ -15,12 +15,14 @@ arrays or floats out.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.special import log_softmax
 
 __all__ = ["fit_temperature", "sequence_scores", "tempered_nll", "expected_calibration_error", "reliability",
-           "T_BOUNDS"]
+           "T_BOUNDS", "ScoreCorrection", "fit_correction"]
 
 #: Range of temperatures searched by :func:`fit_temperature`.
 T_BOUNDS = (0.02, 200.0)
@@ -43,6 +45,74 @@ def _finite_rows(S: np.ndarray) -> np.ndarray:
     top = np.max(np.where(np.isfinite(S), S, -np.inf), axis=1, keepdims=True)
     top = np.where(np.isfinite(top), top, 0.0)
     return np.where(np.isfinite(S), S, top - 1e4)
+
+
+@dataclass(frozen=True)
+class ScoreCorrection:
+    r"""A learned correction of one grasp's class scores (matrix scaling, Guo et al. 2017, section 4.2):
+    ``log_softmax(W @ clip(s - max(s)) + b)``.
+
+    The KDE's log-likelihoods of one object's grasps can be *systematically* wrong, not only over-confident: a
+    class whose training grasps are spread out (an apple) gets lower densities than a compact look-alike (a
+    ball) at the grasps both share, so summing log-likelihoods over grasps converges on the look-alike, and no
+    temperature changes that argmax. A multinomial logistic regression on the row-centred log-likelihood
+    vector, fitted on validation grasps by the NLL of the true class, re-weighs and offsets the classes;
+    its output is a calibrated one-shot log-posterior, i.e. (uniform prior) a log-likelihood ratio, so Bayes
+    updates sum it over grasps exactly as they sum log-likelihoods.
+
+    Attributes:
+        W: ``(K, K)`` weights on the centred scores.
+        b: ``(K,)`` offsets.
+        floor: centred scores are clipped at this value (<= 0; a class a KDE ruled out scores ``-inf``).
+    """
+
+    W: np.ndarray
+    b: np.ndarray
+    floor: float
+
+    def __call__(self, scores) -> np.ndarray:
+        """``(B, K)`` scores -> ``(B, K)`` corrected log-posteriors (rows sum to 1 in probability)."""
+        S = np.asarray(scores, dtype=np.float64)
+        if S.ndim != 2 or S.shape[1] != len(self.b):
+            raise ValueError(f"scores must have shape (B, {len(self.b)}), got {S.shape}")
+        # row by row (no BLAS matrix product): a row's result does not depend on the batch it came in
+        X = _centred(S, self.floor)
+        return log_softmax((X[:, None, :] * self.W[None]).sum(axis=2) + self.b, axis=1)
+
+
+def _centred(S: np.ndarray, floor: float) -> np.ndarray:
+    top = np.max(np.where(np.isfinite(S), S, -np.inf), axis=1, keepdims=True)
+    top = np.where(np.isfinite(top), top, 0.0)
+    return np.maximum(np.where(np.isfinite(S), S - top, floor), floor)
+
+
+def fit_correction(scores, y, *, C: float = 1.0) -> ScoreCorrection:
+    """The :class:`ScoreCorrection` fitted on validation ``scores (B, K)`` of true classes ``y (B,)``
+    (scikit-learn's multinomial ``LogisticRegression``, L2 strength ``1 / C`` on standardised inputs).
+
+    The floor is the smallest finite centred validation score. Needs every class in ``y``."""
+    from sklearn.linear_model import LogisticRegression
+
+    S, Y = _check(scores, y)
+    K = S.shape[1]
+    missing = sorted(set(range(K)) - set(np.unique(Y).tolist()))
+    if missing:
+        raise ValueError(f"fit_correction needs validation scores of every class; classes {missing} have none")
+    if not C > 0:
+        raise ValueError(f"C must be > 0, got {C!r}")
+    finite = np.isfinite(S)
+    top = np.max(np.where(finite, S, -np.inf), axis=1, keepdims=True)
+    centred = (S - np.where(np.isfinite(top), top, 0.0))[finite]
+    floor = float(min(centred.min(), -1.0)) if centred.size else -1.0
+    X = _centred(S, floor)
+    mu, sd = X.mean(axis=0), np.maximum(X.std(axis=0), 1e-9)
+    lr = LogisticRegression(C=C, max_iter=5000).fit((X - mu) / sd, Y)
+    coef, icpt = lr.coef_, lr.intercept_
+    if K == 2:  # scikit-learn's binary model: one logit for class 1, i.e. +-logit / 2 as two softmax inputs
+        coef, icpt = np.vstack([-coef / 2, coef / 2]), np.array([-icpt[0] / 2, icpt[0] / 2])
+    W = coef / sd  # fold the standardisation into W and b
+    b = icpt - W @ mu
+    return ScoreCorrection(W=W, b=b, floor=floor)
 
 
 def tempered_nll(scores, y, T: float) -> float:

@@ -34,7 +34,7 @@ from haptic_env.recognizers.zfinger import ZFingerUpdater, subset_vectors
 
 __all__ = ["RecognizerConfig", "ModelBank", "Recognizer", "build_recognizer", "models_for", "MODELS", "RECOGNIZER_VERSION"]
 
-RECOGNIZER_VERSION = 2  # 2: calibration temperatures; one cache file per model
+RECOGNIZER_VERSION = 3  # 2: calibration temperatures; one cache file per model; 3: the KDE's learned correction
 
 
 @dataclass(frozen=True)
@@ -127,7 +127,7 @@ class ModelBank:
             raise ValueError(f"the {z}-finger KDE was not built (build_recognizer(models=...) without 'kde'); "
                              "BC-NP and BC-IP need it")
         ll = kde.log_likelihood(Q)
-        return ll / kde.temperature if self.calibrated and kde.temperature != 1.0 else ll
+        return kde.calibrate_scores(ll) if self.calibrated else ll
 
 
 @dataclass(eq=False)
@@ -165,8 +165,8 @@ class Recognizer:
 
             kde = self.models.model(self.n_fingers)[1]
             ok = kde is not None and getattr(kde, "pooled", None) is not None
-            scale = 1.0 / kde.temperature if ok and calibrated else 1.0
-            scorers[calibrated] = GraspScorer(self.n_fingers, self.normals, kde, scale=scale) if ok else None
+            post = kde.calibrate_scores if ok and calibrated and kde.calibrated else None
+            scorers[calibrated] = GraspScorer(self.n_fingers, self.normals, kde, post=post) if ok else None
         return scorers[calibrated]
 
     def make_updater(self, kind: str = "bc-np", threshold: float = DEFAULT_THRESHOLD, z: int | None = None, *,

@@ -24,13 +24,17 @@ class GraspScorer:
     """``scorer(contacts (n, 3), normals (n, 3) | None) -> (q (d,), log_lik (1, K) | None)``.
 
     ``log_lik`` is None for a degenerate grasp (then ``q`` is all zeros, as :func:`phi` reports it).
-    ``scale`` multiplies the log-likelihoods (``1 / T``: the KDE's calibration temperature).
+    ``scale`` multiplies the log-likelihoods (``1 / T``: a calibration temperature); ``post``, if given, maps
+    them ``(B, K) -> (B, K)`` after that (the KDE's :meth:`~.kde.KDELikelihood.calibrate_scores`).
     """
 
-    def __init__(self, n_fingers: int, normals: bool, kde, scale: float = 1.0):
+    def __init__(self, n_fingers: int, normals: bool, kde, scale: float = 1.0, post=None):
         if not (np.isfinite(scale) and scale > 0):
             raise ValueError(f"scale must be positive and finite, got {scale!r}")
+        if post is not None and not callable(post):
+            raise TypeError(f"post must be a callable (B, K) -> (B, K) or None, got {type(post).__name__}")
         self.scale = float(scale)
+        self.post = post
         if kde.pooled is None:
             raise ValueError("GraspScorer needs a KDE evaluated with method='pooled'")
         d = feature_dim(n_fingers, normals)
@@ -57,14 +61,17 @@ class GraspScorer:
         status = _score(P, P if N is None else N, self.normals, *self._phi_args, *self._kde_args, self._work, q,
                         np.empty(self.n_fingers, np.int64), out[0])
         if status == 0:
-            if self.scale != 1.0:
-                out *= self.scale
-            return q, out
+            return q, self._finish(out)
         if status > 0:  # degenerate: no information
             return np.zeros(self._d), None
         # a planar hull face (Qhull's canonical triangulation) or bad input (raises): the general path
         f = phi(P, N)
-        return (f.q, self.scale * self.kde.log_likelihood(f.q)) if f.valid else (f.q, None)
+        return (f.q, self._finish(self.kde.log_likelihood(f.q))) if f.valid else (f.q, None)
+
+    def _finish(self, ll: np.ndarray) -> np.ndarray:
+        if self.scale != 1.0:
+            ll = ll * self.scale
+        return self.post(ll) if self.post is not None else ll
 
 
     def batch(self, contacts, normals=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -82,14 +89,13 @@ class GraspScorer:
         status = np.empty(B, np.int64)
         _score_batch(P, P if N is None else N, self.normals, *self._phi_args, *self._kde_args, self._work, q, out,
                      status)
-        if self.scale != 1.0:
-            out *= self.scale
         scored = status == 0
+        out[scored] = self._finish(out[scored])
         for b in np.flatnonzero(status < 0):  # a planar hull face or bad input: the general path, as __call__
             f = phi(P[b], None if N is None else N[b])
             q[b] = f.q
             if f.valid:
-                out[b] = self.scale * self.kde.log_likelihood(f.q)[0]
+                out[b] = self._finish(self.kde.log_likelihood(f.q))[0]
                 scored[b] = True
         q[status > 0] = 0.0
         return q, out, scored
