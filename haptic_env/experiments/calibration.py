@@ -45,7 +45,7 @@ def cell_name(n: int, normals: bool) -> str:
 
 
 def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> None:
-    rep.h("7. Calibration of the posteriors on fresh test grasps (raw vs temperature-scaled)")
+    rep.h("7. Calibration of the posteriors on fresh test grasps (raw vs calibrated)")
     cells = [(n, True) for n in cfg.calib_fingers] + [(n, False) for n in cfg.calib_fingers_no_normals]
     ece_rows, stop_rows, sweeps = [], [], {}
     for n, normals in tqdm(cells, desc="exp7 cells", disable=not cfg.progress):
@@ -93,7 +93,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
                               f"{c[2]:.1f}", f"{c[0]:.1f}", mean_std(c[1], c[3], 2)])
     rep.p(f"Test grasps: {cfg.test_grasps} fresh grasps per object (seed {cfg.seed + TEST_SEED_OFFSET}), never used to "
           f"fit T (T is fitted on the training data's validation split). One-shot posterior: BC = softmax of the KDE "
-          f"log-likelihoods (/ T), MLP = softmax(logits / T). ECE over {cfg.ece_bins} equal-width confidence bins; NLL "
+          f"log-likelihoods ({'learned correction, then / T' if cfg.kde.correct else '/ T'}), MLP = softmax(logits / T). ECE over {cfg.ece_bins} equal-width confidence bins; NLL "
           "of the true class; conf = mean max posterior. Accuracy does not depend on T. Reliability diagrams: "
           "`reliability_<cell>.png`.")
     rep.table(["n", "normals", "model", "T", "accuracy %", "ECE raw", "NLL raw", "conf raw %", "ECE cal", "NLL cal",
