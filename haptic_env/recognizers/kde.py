@@ -36,6 +36,7 @@ Evaluation (``KDEConfig.method``)
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -174,7 +175,11 @@ class KDELikelihood:
                                    for c in range(self.n_classes)])
             if len(keep):
                 S, Y = self.log_likelihood(Xv[keep]), yv[keep]
-                if cfg.correct and len(np.unique(Y)) == self.n_classes:
+                if cfg.correct and len(np.unique(Y)) < self.n_classes:
+                    warnings.warn(f"KDELikelihood.fit: validation vectors of only {len(np.unique(Y))} of "
+                                  f"{self.n_classes} classes; the learned correction needs every class and is "
+                                  "skipped (temperature only)", RuntimeWarning, stacklevel=2)
+                elif cfg.correct:
                     self.correction = fit_correction(S, Y)
                     S = self.correction(S)
                 if cfg.calibrate_grasps > 1:
