@@ -1,5 +1,5 @@
-"""The grasp scene's constraint solver: MuJoCo's CG (the default, ``MujocoConfig.solver``) against Newton
-(MuJoCo's own default) and PGS, on the same random approaches to ycb10, one core, in one run.
+"""The grasp scene's constraint solver (``MujocoConfig.solver``; the Shadow's description picks CG, the other
+hands keep MuJoCo's Newton): CG and PGS against Newton, on the same random approaches to ycb10, one core, one run.
 
     python benchmarks/bench_grasp_solver.py [--approaches 30] [--hands shadow,allegro,aero,robotiq]
 

@@ -351,16 +351,24 @@ class GraspScene:
     def tip_positions(self) -> np.ndarray:
         return self.data.site_xpos[self.site_ids].copy()
 
+    def _object_contacts(self, per_geom: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """For each current contact: ``per_geom`` of its hand geom (a finger index; -1 unless the contact is a
+        touching hand-object one with a hand geom that ``per_geom`` maps), and whether the object is its
+        ``geom[0]`` (then MuJoCo's normal points from the object into the hand)."""
+        d = self.data
+        geom = d.contact.geom[: d.ncon]
+        obj0, obj1 = self._is_obj_geom[geom[:, 0]], self._is_obj_geom[geom[:, 1]]
+        owner = np.where(obj0, per_geom[geom[:, 1]], np.where(obj1, per_geom[geom[:, 0]], -1))
+        ok = (owner >= 0) & (obj0 ^ obj1) & (d.contact.dist[: d.ncon] <= 0)
+        return np.where(ok, owner, -1), obj0
+
     def tip_touched(self) -> np.ndarray:
         """``(n,)`` bool: fingertip ``i`` touches the object (``tip_contacts()[0]`` without the points and
         normals; the closing loop asks this every check interval)."""
-        d = self.data
         touched = np.zeros(len(self.site_ids), dtype=bool)
-        if d.ncon:
-            geom = d.contact.geom[: d.ncon]
-            obj0, obj1 = self._is_obj_geom[geom[:, 0]], self._is_obj_geom[geom[:, 1]]
-            finger = np.where(obj0, self._geom_tip[geom[:, 1]], np.where(obj1, self._geom_tip[geom[:, 0]], -1))
-            touched[finger[(finger >= 0) & (obj0 ^ obj1) & (d.contact.dist[: d.ncon] <= 0)]] = True
+        if self.data.ncon:
+            finger, _ = self._object_contacts(self._geom_tip)
+            touched[finger[finger >= 0]] = True
         return touched
 
     def tip_contacts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -370,16 +378,12 @@ class GraspScene:
         touched = np.zeros(n, dtype=bool)
         pts, nrm = np.zeros((n, 3)), np.zeros((n, 3))
         if d.ncon:
-            geom = d.contact.geom[: d.ncon]
+            finger, obj0 = self._object_contacts(self._geom_tip)
             frame = d.contact.frame[: d.ncon, :3]  # normal points from geom[0] to geom[1]
             pos = d.contact.pos[: d.ncon]
-            obj0 = self._is_obj_geom[geom[:, 0]]
-            obj1 = self._is_obj_geom[geom[:, 1]]
-            finger = np.where(obj0, self._geom_tip[geom[:, 1]], np.where(obj1, self._geom_tip[geom[:, 0]], -1))
             inward = np.where(obj0[:, None], -frame, frame)  # from finger into the object
-            ok = (finger >= 0) & (obj0 ^ obj1) & (d.contact.dist[: d.ncon] <= 0)
-            for i in np.unique(finger[ok]):
-                sel = ok & (finger == i)
+            for i in np.unique(finger[finger >= 0]):
+                sel = finger == i
                 touched[i] = True
                 pts[i] = pos[sel].mean(0)
                 v = inward[sel].sum(0)
@@ -388,16 +392,12 @@ class GraspScene:
 
     def finger_link_contacts(self, exclude_tip: bool = False) -> np.ndarray:
         """(n,) bool: any link of finger i (tip included unless ``exclude_tip``) touches the object."""
-        d = self.data
         out = np.zeros(len(self.site_ids), dtype=bool)
-        if d.ncon:
-            geom = d.contact.geom[: d.ncon]
-            obj0, obj1 = self._is_obj_geom[geom[:, 0]], self._is_obj_geom[geom[:, 1]]
-            f = np.where(obj0, self._geom_finger[geom[:, 1]], np.where(obj1, self._geom_finger[geom[:, 0]], -1))
-            keep = (obj0 ^ obj1) & (f >= 0) & (d.contact.dist[: d.ncon] <= 0)
+        if self.data.ncon:
+            f, _ = self._object_contacts(self._geom_finger)
+            keep = f >= 0
             if exclude_tip:
-                tip = np.where(obj0, self._geom_tip[geom[:, 1]], self._geom_tip[geom[:, 0]])
-                keep &= tip < 0
+                keep &= self._object_contacts(self._geom_tip)[0] < 0
             out[np.unique(f[keep])] = True
         return out
 

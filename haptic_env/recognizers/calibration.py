@@ -40,11 +40,15 @@ def _check(scores, y) -> tuple[np.ndarray, np.ndarray]:
     return S, Y.astype(np.int64)
 
 
+def _row_top(S: np.ndarray) -> np.ndarray:
+    """``(B, 1)``: each row's best finite score (0 for a row with none)."""
+    top = np.max(np.where(np.isfinite(S), S, -np.inf), axis=1, keepdims=True)
+    return np.where(np.isfinite(top), top, 0.0)
+
+
 def _finite_rows(S: np.ndarray) -> np.ndarray:
     """Scores with -inf replaced by a large finite floor below each row's best (a class a KDE ruled out)."""
-    top = np.max(np.where(np.isfinite(S), S, -np.inf), axis=1, keepdims=True)
-    top = np.where(np.isfinite(top), top, 0.0)
-    return np.where(np.isfinite(S), S, top - 1e4)
+    return np.where(np.isfinite(S), S, _row_top(S) - 1e4)
 
 
 @dataclass(frozen=True)
@@ -81,9 +85,8 @@ class ScoreCorrection:
 
 
 def _centred(S: np.ndarray, floor: float) -> np.ndarray:
-    top = np.max(np.where(np.isfinite(S), S, -np.inf), axis=1, keepdims=True)
-    top = np.where(np.isfinite(top), top, 0.0)
-    return np.maximum(np.where(np.isfinite(S), S - top, floor), floor)
+    """Scores minus their row's best finite one, non-finite ones at ``floor``, all clipped at ``floor``."""
+    return np.maximum(np.where(np.isfinite(S), S - _row_top(S), floor), floor)
 
 
 def fit_correction(scores, y, *, C: float = 1.0) -> ScoreCorrection:
@@ -100,11 +103,10 @@ def fit_correction(scores, y, *, C: float = 1.0) -> ScoreCorrection:
         raise ValueError(f"fit_correction needs validation scores of every class; classes {missing} have none")
     if not C > 0:
         raise ValueError(f"C must be > 0, got {C!r}")
-    finite = np.isfinite(S)
-    top = np.max(np.where(finite, S, -np.inf), axis=1, keepdims=True)
-    centred = (S - np.where(np.isfinite(top), top, 0.0))[finite]
-    floor = float(min(centred.min(), -1.0)) if centred.size else -1.0
-    X = _centred(S, floor)
+    centred = _centred(S, -np.inf)
+    finite = centred[np.isfinite(centred)]
+    floor = float(min(finite.min(), -1.0)) if finite.size else -1.0
+    X = np.maximum(centred, floor)
     mu, sd = X.mean(axis=0), np.maximum(X.std(axis=0), 1e-9)
     lr = LogisticRegression(C=C, max_iter=5000).fit((X - mu) / sd, Y)
     coef, icpt = lr.coef_, lr.intercept_

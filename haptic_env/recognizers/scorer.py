@@ -24,16 +24,13 @@ class GraspScorer:
     """``scorer(contacts (n, 3), normals (n, 3) | None) -> (q (d,), log_lik (1, K) | None)``.
 
     ``log_lik`` is None for a degenerate grasp (then ``q`` is all zeros, as :func:`phi` reports it).
-    ``scale`` multiplies the log-likelihoods (``1 / T``: a calibration temperature); ``post``, if given, maps
-    them ``(B, K) -> (B, K)`` after that (the KDE's :meth:`~.kde.KDELikelihood.calibrate_scores`).
+    ``post``, if given, maps the log-likelihoods ``(B, K) -> (B, K)`` (the KDE's calibration,
+    :meth:`~.kde.KDELikelihood.calibrate_scores`).
     """
 
-    def __init__(self, n_fingers: int, normals: bool, kde, scale: float = 1.0, post=None):
-        if not (np.isfinite(scale) and scale > 0):
-            raise ValueError(f"scale must be positive and finite, got {scale!r}")
+    def __init__(self, n_fingers: int, normals: bool, kde, post=None):
         if post is not None and not callable(post):
             raise TypeError(f"post must be a callable (B, K) -> (B, K) or None, got {type(post).__name__}")
-        self.scale = float(scale)
         self.post = post
         if kde.pooled is None:
             raise ValueError("GraspScorer needs a KDE evaluated with method='pooled'")
@@ -69,8 +66,6 @@ class GraspScorer:
         return (f.q, self._finish(self.kde.log_likelihood(f.q))) if f.valid else (f.q, None)
 
     def _finish(self, ll: np.ndarray) -> np.ndarray:
-        if self.scale != 1.0:
-            ll = ll * self.scale
         return self.post(ll) if self.post is not None else ll
 
 
