@@ -68,7 +68,7 @@ def main(argv=None) -> int:
           f"[{time.perf_counter() - t0:.1f} s, cached after the first run]")
     t0 = time.perf_counter()
     kde = KDELikelihood(KDEConfig()).fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val)
-    print(f"KDE fit (bandwidth selection + 8 trees): {time.perf_counter() - t0:.1f} s; factor {kde.factor}, h={kde.bandwidth:.3f}")
+    print(f"KDE fit (bandwidth selection + 8 trees): {time.perf_counter() - t0:.1f} s; factor {kde.factor[0]}, h={kde.bandwidth[0]:.3f}")
     clf = MLPClassifier(MLPConfig(max_epochs=1, max_train=20_000, progress=False, threads=1)).fit(ds.X_train, ds.y_train)
 
     rng = np.random.default_rng(0)

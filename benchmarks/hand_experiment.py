@@ -17,7 +17,8 @@ Two training regimes per hand, both computed from the meshes alone:
 
 Test sequences are fresh hand grasps (pool seeds ``1000 + seed``, never used for training or for
 the calibration temperatures, which are fitted on the training grasps' validation split: the KDE's for
-beliefs of 1 to ``--calibrate-grasps`` grasps of one object, by default the hand's registered env's setting);
+beliefs of 1 to ``--calibrate-grasps`` grasps of one object, by default the hand's registered env's setting;
+``--kde-bandwidth per-class`` gives each object its own KDE bandwidth instead of the envs' shared one);
 ``--split validation`` draws them from pool seeds ``500 + seed`` instead, for choosing settings.
 ``--queries`` queries per object and seed; the spread is the std over ``--seeds``.
 
@@ -47,6 +48,7 @@ from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
 from haptic_env.hand_grasps import hand_grasp_pool  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 from haptic_env.recognizers import KDEConfig, RecognizerConfig, build_recognizer  # noqa: E402
+from haptic_env.recognizers.kde import BANDWIDTHS  # noqa: E402
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD  # noqa: E402
 
 #: hand -> (fingers, normals settings); the paper: Allegro with and without normals, 5-finger hands without.
@@ -79,13 +81,13 @@ def run_query(updater, C, N, T, normals: bool) -> tuple[int, int, bool]:
 
 
 def training_config(regime: str, hand: str, args, calibrate_grasps: int = 1,
-                    approaches: int = HAND_APPROACHES) -> RecognizerConfig:
+                    approaches: int = HAND_APPROACHES, bandwidth: str = "shared") -> RecognizerConfig:
     if regime == "hand":
         g = DatasetConfig(source="hand", hand=hand, grasps_per_object=approaches, seed=0)
     else:
         g = DatasetConfig(source="surface", grasps_per_object=args.surface_grasps, contact_noise=args.surface_noise,
                           normal_noise_deg=args.surface_normal_noise, seed=0)
-    return RecognizerConfig(grasps=g, kde=KDEConfig(calibrate_grasps=calibrate_grasps))
+    return RecognizerConfig(grasps=g, kde=KDEConfig(calibrate_grasps=calibrate_grasps, bandwidth=bandwidth))
 
 
 def evaluate(rec, pools, n: int, normals: bool, args) -> dict[str, dict]:
@@ -135,6 +137,8 @@ def main(argv=None) -> int:
     ap.add_argument("--calibrate-grasps", type=int, default=None,
                     help="fit the KDE temperature for beliefs of 1..K grasps of one object (1: one-shot; default: "
                          "the hand's registered env's setting, HapticRecogConfig.calibrate_grasps)")
+    ap.add_argument("--kde-bandwidth", choices=BANDWIDTHS, default="shared",
+                    help="KDE bandwidths (KDEConfig.bandwidth; the envs use shared) (default shared)")
     ap.add_argument("--raw", action="store_true", help="the paper's raw scores (no calibration temperatures)")
     ap.add_argument("--out", type=Path, default=None, help="write hand_table.md here")
     args = ap.parse_args(argv)
@@ -165,7 +169,7 @@ def main(argv=None) -> int:
         K = args.calibrate_grasps if args.calibrate_grasps is not None else env_config.calibrate_grasps
         A = args.approaches if args.approaches is not None else (env_config.training_grasps or HAND_APPROACHES)
         for regime in args.regimes:
-            cfg = training_config(regime, hand, args, K, A)
+            cfg = training_config(regime, hand, args, K, A, args.kde_bandwidth)
             data = cfg.grasps.grasps_per_object
             for normals in normal_settings:
                 rec = build_recognizer(objects, n, normals, z_values=tuple(range(3, n)), config=cfg)

@@ -124,7 +124,7 @@ def test_kde_sequence_calibration_is_a_config_setting():
     X, y, Xv, yv = _two_gaussians(np.random.default_rng(6), 300, 200, d=6, shift=0.6)
     one = KDELikelihood(KDEConfig(method="dense")).fit(X, y, Xv, yv)
     seq = KDELikelihood(KDEConfig(method="dense", calibrate_grasps=5)).fit(X, y, Xv, yv)
-    assert seq.factor == one.factor and seq.temperature != one.temperature
+    assert np.array_equal(seq.factor, one.factor) and seq.temperature != one.temperature
     S, Y = sequence_scores(one.log_likelihood(Xv), yv, 5, np.random.default_rng(0))
     assert tempered_nll(S, Y, seq.temperature) <= tempered_nll(S, Y, one.temperature) + 1e-9
     assert KDELikelihood.from_state(seq.config, seq.state()).temperature == seq.temperature

@@ -1,15 +1,21 @@
 r"""Per-object kernel density estimates of grasp vectors: ``log p(q | object)``.
 
 Features are standardised with one global :class:`~haptic_env.recognizers.mlp.Standardizer`
-(fitted on all objects' training vectors) and every object gets an isotropic Gaussian KDE with the
-same bandwidth ``h`` in standardised units:
+(fitted on all objects' training vectors) and every object gets an isotropic Gaussian KDE with a
+bandwidth ``h_c`` in standardised units:
 
-.. math:: \log p(q\mid c) = \operatorname{logsumexp}_i\Big(-\tfrac{\lVert q - x_i\rVert^2}{2h^2}\Big)
-          - \log N_c - \tfrac d2 \log(2\pi h^2) - \textstyle\sum_j \log \sigma_j
+.. math:: \log p(q\mid c) = \operatorname{logsumexp}_i\Big(-\tfrac{\lVert q - x_i\rVert^2}{2h_c^2}\Big)
+          - \log N_c - \tfrac d2 \log(2\pi h_c^2) - \textstyle\sum_j \log \sigma_j
 
-``h = factor * N^(-1/(d+4))`` (Scott's rule with the mean per-object sample count ``N``); with
-``factor="auto"`` the factor is chosen from ``KDEConfig.factor_grid`` by the mean validation
-log-likelihood of the true object (training data only; never the test grasps).
+``KDEConfig.bandwidth="shared"`` (default): one ``h = factor * N^(-1/(d+4))`` for all objects (Scott's rule
+with the mean per-object sample count ``N``); with ``factor="auto"`` the factor is chosen from
+``KDEConfig.factor_grid`` by the mean validation log-likelihood of the true object (training data only;
+never the test grasps). ``"per-class"``: each object's ``h_c = factor_c * N_c^(-1/(d+4))``, ``factor_c``
+chosen by the mean validation log-likelihood of that object's own validation vectors, i.e. each class
+density is fitted by held-out likelihood on its own. Objects whose grasps are compact (a sphere's) get a
+narrower kernel and spread ones a wider. On the MuJoCo hands' hand-matched grasps it moved validation BC-NP
+by +0.6 to +0.7 points (within the seeds' spread) but lowered the 5-finger hands' z = 3 subset scoring by
+3-7 points (RESULTS.md), so nothing uses it by default.
 
 Evaluation (``KDEConfig.method``)
     ``"tree"`` (default): a :class:`scipy.spatial.cKDTree` per object; the sum runs over ``k``
@@ -48,9 +54,11 @@ from haptic_env.recognizers.knn import KDTree, pooled_log_density
 from haptic_env.recognizers.preprocess import Standardizer
 from haptic_env.recognizers.preprocess import check_xy as _check_xy
 
-__all__ = ["KDEConfig", "KDELikelihood", "scott_bandwidth"]
+__all__ = ["KDEConfig", "KDELikelihood", "scott_bandwidth", "BANDWIDTHS"]
 
 _METHODS = ("tree", "pooled", "dense", "subsample")
+#: values of ``KDEConfig.bandwidth``
+BANDWIDTHS = ("shared", "per-class")
 
 
 @dataclass(frozen=True)
@@ -59,6 +67,9 @@ class KDEConfig:
 
     factor: float | str = "auto"  #: multiplies Scott's bandwidth; "auto": pick from factor_grid
     factor_grid: tuple[float, ...] = (0.25, 0.35, 0.5, 0.7, 1.0, 1.4)
+    #: "shared": one bandwidth for all objects; "per-class": each object's own (with ``factor="auto"``, its factor
+    #: chosen on its own validation vectors; a fixed ``factor`` scales each object's Scott's rule)
+    bandwidth: str = "shared"
     method: str = "tree"
     k: int = 32  #: neighbours per object ("tree"), of all objects together ("pooled")
     cutoff: float = 4.0  #: neighbour radius in bandwidths ("tree", "pooled")
@@ -82,6 +93,8 @@ class KDEConfig:
     def __post_init__(self):
         if self.method not in _METHODS:
             raise ValueError(f"KDEConfig.method must be one of {_METHODS}, got {self.method!r}")
+        if self.bandwidth not in BANDWIDTHS:
+            raise ValueError(f"KDEConfig.bandwidth must be one of {BANDWIDTHS}, got {self.bandwidth!r}")
         if isinstance(self.factor, str):
             if self.factor != "auto":
                 raise ValueError(f"KDEConfig.factor must be a positive number or 'auto', got {self.factor!r}")
@@ -107,9 +120,9 @@ class KDELikelihood:
     """Gaussian KDE per class on standardised grasp vectors (see module docs)."""
 
     config: KDEConfig = field(default_factory=KDEConfig)
-    bandwidth: float = float("nan")  #: h in standardised units (after fit)
-    factor: float = float("nan")  #: the chosen multiple of Scott's rule
-    selection: dict = field(default_factory=dict)  #: factor -> mean validation log-likelihood
+    bandwidth: np.ndarray | None = None  #: ``(K,)`` each class's h in standardised units (after fit; equal if shared)
+    factor: np.ndarray | None = None  #: ``(K,)`` each class's multiple of Scott's rule
+    selection: dict = field(default_factory=dict)  #: factor -> mean validation log-likelihood (all classes)
     temperature: float = 1.0  #: calibration temperature T (fitted on validation vectors; 1: none)
     correction: ScoreCorrection | None = None  #: learned correction applied before T (None: none)
 
@@ -153,8 +166,10 @@ class KDELikelihood:
         if cfg.method == "subsample":
             self.data = [z[rng.choice(len(z), cfg.max_samples, replace=False)] if len(z) > cfg.max_samples else z
                          for z in self.data]
-        n_mean = float(np.mean([len(z) for z in self.data]))
-        scott = scott_bandwidth(int(n_mean), X.shape[1])
+        if cfg.bandwidth == "shared":
+            scott = np.full(self.n_classes, scott_bandwidth(int(np.mean([len(z) for z in self.data])), X.shape[1]))
+        else:
+            scott = np.array([scott_bandwidth(len(z), X.shape[1]) for z in self.data])
         given_val = X_val is not None
         if cfg.factor == "auto":
             if X_val is None:
@@ -162,9 +177,9 @@ class KDELikelihood:
                 X_val, y_val = X[perm], y[perm]
             else:
                 X_val, y_val = _check_xy(X_val, y_val, X.shape[1], "X_val")
-            self.factor = self._select(scott, self.scaler(X_val), np.asarray(y_val), rng)
+            self.factor = self._select(self.scaler(X_val), np.asarray(y_val), rng)
         else:
-            self.factor = float(cfg.factor)
+            self.factor = np.full(self.n_classes, float(cfg.factor))
         self.bandwidth = self.factor * scott
         self._build_index()
         self._log_norms = None  # refitted: normalisers change
@@ -208,16 +223,22 @@ class KDELikelihood:
             self.pooled = KDTree(np.concatenate(self.data), leafsize=_LEAFSIZE)
             self.pooled_labels = np.repeat(np.arange(self.n_classes), [len(z) for z in self.data])[self.pooled.indices]
 
-    def _select(self, scott: float, Zv: np.ndarray, yv: np.ndarray, rng) -> float:
-        """Factor of the grid with the highest mean true-class validation log-likelihood (dense)."""
+    def _select(self, Zv: np.ndarray, yv: np.ndarray, rng) -> np.ndarray:
+        """``(K,)`` factors of the grid with the highest mean true-class validation log-likelihood (dense): one
+        for all classes ("shared"), or each class's own ("per-class"; a class without validation vectors gets
+        the shared choice)."""
         cfg = self.config
         m = cfg.select_samples
         sub = [z[rng.choice(len(z), m, replace=False)] if len(z) > m else z for z in self.data]
         # the factor multiplies Scott's rule, which carries the N-dependence: on a subsample of m
         # vectors it is evaluated at factor * m^(-1/(d+4)) and then transfers to the full N
-        scott = scott_bandwidth(int(np.mean([len(z) for z in sub])), Zv.shape[1])
-        scores = {f: 0.0 for f in cfg.factor_grid}
-        count = 0
+        d = Zv.shape[1]
+        if cfg.bandwidth == "shared":
+            scott = [scott_bandwidth(int(np.mean([len(z) for z in sub])), d)] * self.n_classes
+        else:
+            scott = [scott_bandwidth(len(z), d) for z in sub]
+        grid = tuple(cfg.factor_grid)
+        sums, counts = np.zeros((self.n_classes, len(grid))), np.zeros(self.n_classes)
         for c in range(self.n_classes):
             zc = Zv[yv == c]
             if len(zc) > cfg.n_select:
@@ -225,18 +246,22 @@ class KDELikelihood:
             if len(zc) == 0:
                 continue
             d2 = _sqdist(zc, sub[c])
-            for f in cfg.factor_grid:
-                h = f * scott
-                ll = logsumexp(-0.5 * d2 / h**2, axis=1) - np.log(len(sub[c])) - 0.5 * zc.shape[1] * np.log(2 * np.pi * h * h)
-                scores[f] += float(ll.sum())
-            count += len(zc)
-        self.selection = {f: s / max(count, 1) for f, s in scores.items()}
-        return float(max(self.selection, key=self.selection.get))
+            for j, f in enumerate(grid):
+                h = f * scott[c]
+                ll = logsumexp(-0.5 * d2 / h**2, axis=1) - np.log(len(sub[c])) - 0.5 * d * np.log(2 * np.pi * h * h)
+                sums[c, j] = float(ll.sum())
+            counts[c] = len(zc)
+        total = sums.sum(0) / max(counts.sum(), 1)
+        self.selection = dict(zip(grid, total.tolist()))
+        shared = grid[int(np.argmax(total))]
+        if cfg.bandwidth == "shared":
+            return np.full(self.n_classes, float(shared))
+        return np.array([grid[int(np.argmax(sums[c]))] if counts[c] else shared for c in range(self.n_classes)], float)
 
     # ---------------------------------------------------------------------------- evaluate
     def _norm(self, c: int) -> float:
         d = self.n_features
-        h = self.bandwidth
+        h = float(self.bandwidth[c])
         return -np.log(len(self.data[c])) - 0.5 * d * np.log(2 * np.pi * h * h) - float(np.log(self.scaler.std).sum())
 
     def log_likelihood(self, q, method: str | None = None) -> np.ndarray:
@@ -258,9 +283,9 @@ class KDELikelihood:
         out = np.empty((len(Z), self.n_classes))
         for c in range(self.n_classes):
             if method == "tree":
-                out[:, c] = self._tree_logsum(c, Z, inv)
+                out[:, c] = self._tree_logsum(c, Z, float(inv[c]))
             else:
-                out[:, c] = _dense_logsum(Z, self.data[c], inv)
+                out[:, c] = _dense_logsum(Z, self.data[c], float(inv[c]))
         return out + self._norms()
 
     def calibrate_scores(self, log_lik: np.ndarray) -> np.ndarray:
@@ -284,7 +309,7 @@ class KDELikelihood:
         cfg = self.config
         tree = self.trees[c]
         k = min(cfg.k, tree.n)
-        dist, _ = tree.query(Z, k=k, eps=cfg.eps, distance_upper_bound=cfg.cutoff * self.bandwidth)
+        dist, _ = tree.query(Z, k=k, eps=cfg.eps, distance_upper_bound=cfg.cutoff * float(self.bandwidth[c]))
         dist = dist.reshape(len(Z), k)
         found = np.isfinite(dist[:, 0])
         res = np.empty(len(Z))
@@ -297,7 +322,7 @@ class KDELikelihood:
             res[~found] = -inv * d1**2
         return res
 
-    def _pooled_logsum(self, Z: np.ndarray, inv: float) -> np.ndarray:
+    def _pooled_logsum(self, Z: np.ndarray, inv: np.ndarray) -> np.ndarray:
         cfg = self.config
         k = min(cfg.k, self.pooled.n)
         return pooled_log_density(*self.pooled.arrays(), self.pooled_labels, Z, k, float(cfg.eps), self._norms(), inv,
@@ -307,7 +332,7 @@ class KDELikelihood:
     def state(self) -> dict[str, np.ndarray]:
         """Arrays that reproduce this KDE (for :func:`haptic_env.cache.save_npz_atomic`)."""
         out = {"kde_mean": self.scaler.mean, "kde_std": self.scaler.std,
-               "kde_bandwidth": np.array(self.bandwidth), "kde_factor": np.array(self.factor),
+               "kde_bandwidth": np.asarray(self.bandwidth, float), "kde_factor": np.asarray(self.factor, float),
                "kde_temperature": np.array(self.temperature)}
         if self.correction is not None:
             out.update(kde_corr_W=self.correction.W, kde_corr_b=self.correction.b,
@@ -320,8 +345,6 @@ class KDELikelihood:
     def from_state(cls, config: KDEConfig, arrays: dict[str, np.ndarray]) -> KDELikelihood:
         kde = cls(config)
         kde.scaler = Standardizer(arrays["kde_mean"], arrays["kde_std"])
-        kde.bandwidth = float(arrays["kde_bandwidth"])
-        kde.factor = float(arrays["kde_factor"])
         kde.temperature = float(arrays.get("kde_temperature", 1.0))
         if "kde_corr_W" in arrays:
             kde.correction = ScoreCorrection(np.asarray(arrays["kde_corr_W"], dtype=np.float64),
@@ -332,6 +355,9 @@ class KDELikelihood:
             kde.data.append(arrays[f"kde_data_{c}"].astype(np.float64))
             c += 1
         kde.n_classes = c
+        # (K,) per class; a cache written before per-class bandwidths holds one shared value
+        kde.bandwidth = np.broadcast_to(np.asarray(arrays["kde_bandwidth"], float), (c,)).copy()
+        kde.factor = np.broadcast_to(np.asarray(arrays["kde_factor"], float), (c,)).copy()
         kde._build_index()
         return kde
 

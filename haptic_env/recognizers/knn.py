@@ -178,7 +178,7 @@ def pooled_log_density(data, nodes, split, labels, Z, k, eps, log_norms, inv, ra
     """The pooled KDE's ``(B, K)`` log densities of standardised queries ``Z (B, d)`` in one call.
 
     ``labels (N,)`` is the class of each vector in tree order; ``log_norms (K,)`` the class normalisers;
-    ``inv = 1 / (2 h^2)``; ``radius = cutoff * h``. Per class: log-sum of the kernels of its vectors among
+    ``inv (K,) = 1 / (2 h_c^2)`` and ``radius (K,) = cutoff * h_c``, per class (a shared bandwidth repeats one value). Per class: log-sum of the kernels of its vectors among
     the ``k`` nearest within ``radius``; else its nearest found vector's kernel; else (no vector of the
     class among the ``k``) the kernel at the ``k``-th distance (see :mod:`haptic_env.recognizers.kde`).
     """
@@ -206,21 +206,19 @@ def log_density_row(data, nodes, split, labels, z, k, eps, log_norms, inv, radiu
     top[:] = -np.inf
     acc[:] = 0.0
     near[:] = np.nan
-    r2 = radius * radius
     for j in range(count):
         c = labels[best_pos[j]]
-        x = -inv * best_d2[j]
+        x = -inv[c] * best_d2[j]
         if np.isnan(near[c]):
             near[c] = x
-        if best_d2[j] <= r2:
+        if best_d2[j] <= radius[c] * radius[c]:
             if acc[c] == 0.0:
                 top[c] = x
             acc[c] += np.exp(x - top[c])
-    floor = -inv * best_d2[count - 1]
     for c in range(log_norms.shape[0]):
         if acc[c] > 0.0:
             out[c] = top[c] + np.log(acc[c]) + log_norms[c]
         elif not np.isnan(near[c]):
             out[c] = near[c] + log_norms[c]
         else:
-            out[c] = floor + log_norms[c]
+            out[c] = -inv[c] * best_d2[count - 1] + log_norms[c]
