@@ -1,14 +1,17 @@
 """How the KDE's scores are calibrated, chosen on validation grasps only: BC-NP with the temperature alone
 (one-shot, or fitted for beliefs of 1-5 grasps) against the learned correction (``calibration.fit_correction``)
-with and without a 5-grasp temperature on top.
+with a one-shot or a 5-grasp temperature on top, and what ``KDEConfig.correct="auto"`` (the analyses' KDE)
+chose for each n.
 
     python benchmarks/correction_validation.py [--objects default] [--fingers 4,5,8] [--no-normals]
 
 The recogniser is the analyses' (``AnalysisConfig``: 10,000 surface grasps per object, tree KDE). Its
 validation split (15 % of the training grasps, never trained on) is halved per object: the calibration is fitted
 on half A and BC-NP runs on half B (600 trials, lambda = 0.85, at most 30 grasps, grasps drawn from the trial's
-object without replacement). Success = decided and correct at the stop. Also printed: the argmax accuracy of the
-summed scores after m grasps (does the belief converge on the right object at all?). Test grasps are never used.
+object without replacement). Success = decided and correct at the stop. Also printed: the held-out NLL of the true
+class under the one-shot posterior on half B (the criterion of ``calibration.select_correction``), and the argmax
+accuracy of the summed scores after m grasps (does the belief converge on the right object at all?). Test grasps are
+never used.
 Headline (last line): BC-NP success with the correction against the one-shot temperature at the largest n.
 """
 
@@ -26,7 +29,7 @@ from haptic_env.dataset import build_dataset  # noqa: E402
 from haptic_env.experiments.config import AnalysisConfig  # noqa: E402
 from haptic_env.experiments.trials import simulate_trials  # noqa: E402
 from haptic_env.objects import load_object_set  # noqa: E402
-from haptic_env.recognizers.calibration import fit_correction, fit_temperature, sequence_scores  # noqa: E402
+from haptic_env.recognizers.calibration import fit_correction, fit_temperature, sequence_scores, tempered_nll  # noqa: E402
 from haptic_env.recognizers.recognizer import build_recognizer  # noqa: E402
 
 
@@ -48,8 +51,8 @@ def main(argv=None) -> None:
     cfg = AnalysisConfig(progress=False)
     K = len(objects)
     print(f"{args.objects}, normals={normals}; validation halves A (fit) / B (trials); BC-NP at lambda 0.85")
-    print("| n | scores | BC-NP success % | grasps | argmax after 1 / 5 / 10 / 30 grasps % |")
-    print("|---|---|---|---|---|")
+    print("| n | scores | BC-NP success % | grasps | held-out one-shot NLL | argmax after 1 / 5 / 10 / 30 grasps % |")
+    print("|---|---|---|---|---|---|")
     last = None
     for n in (int(x) for x in args.fingers.split(",")):
         rc = cfg.recognizer_config()
@@ -62,9 +65,12 @@ def main(argv=None) -> None:
         corr = fit_correction(SA, yA)
         T1 = fit_temperature(SA, yA)
         T5 = fit_temperature(*sequence_scores(SA, yA, 5, np.random.default_rng(1)))
+        Tc1 = fit_temperature(corr(SA), yA)
         Tc5 = fit_temperature(*sequence_scores(corr(SA), yA, 5, np.random.default_rng(1)))
         variants = {f"one-shot T = {T1:.2f}": lambda S: S / T1, f"5-grasp T = {T5:.2f}": lambda S: S / T5,
-                    "correction": corr, f"correction + 5-grasp T = {Tc5:.2f}": lambda S: corr(S) / Tc5}
+                    "correction": corr, f"correction + one-shot T = {Tc1:.2f}": lambda S: corr(S) / Tc1,
+                    f"correction + 5-grasp T = {Tc5:.2f}": lambda S: corr(S) / Tc5}
+        yB = np.concatenate([np.full(len(b), k) for k, b in enumerate(B)])
         res = {}
         for name, f in variants.items():
             Bs = [f(b) for b in B]
@@ -72,8 +78,11 @@ def main(argv=None) -> None:
                                 threshold=0.85, rng=np.random.default_rng(2))
             succ = 100 * np.mean(r["success"] & r["decided"])
             acc = " / ".join(f"{100 * argmax_accuracy(Bs, m, np.random.default_rng(3)):.1f}" for m in (1, 5, 10, 30))
-            print(f"| {n} | {name} | {succ:.1f} | {r['grasps'].mean():.2f} | {acc} |", flush=True)
+            nll = tempered_nll(np.concatenate(Bs), yB, 1.0)
+            print(f"| {n} | {name} | {succ:.1f} | {r['grasps'].mean():.2f} | {nll:.3f} | {acc} |", flush=True)
             res[name.split(" =")[0]] = succ
+        auto = rec.models.model(n)[1].correction is not None
+        print(f"| {n} | the analyses' KDE (correct='auto') chose: {'correction' if auto else 'temperature alone'} | | | | |")
         last = (n, res["one-shot T"], res["correction"])
     if last:
         n, a, b = last

@@ -55,8 +55,9 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
         y = np.concatenate([np.full(len(p), k) for k, p in enumerate(pool)])
         scores = {v: pool_scores(rec.models.with_calibration(v == "calibrated"), pool) for v in ("raw", "calibrated")}
         curves = {}
+        corrected = getattr(rec.models.model(n)[1], "correction", None) is not None
         for model, Tm in (("BC (KDE)", T["kde"]), ("MLP", T["classifier"])):
-            row = [n, "yes" if normals else "no", model, f"{Tm:.2f}"]
+            row = [n, "yes" if normals else "no", model, f"{Tm:.2f}" + (" (corrected)" if corrected and model != "MLP" else "")]
             for v in ("raw", "calibrated"):
                 LL, PR = scores[v]
                 P = oneshot_posterior(np.concatenate(LL)) if model.startswith("BC") else np.concatenate(PR)
@@ -93,7 +94,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
                               f"{c[2]:.1f}", f"{c[0]:.1f}", mean_std(c[1], c[3], 2)])
     rep.p(f"Test grasps: {cfg.test_grasps} fresh grasps per object (seed {cfg.seed + TEST_SEED_OFFSET}), never used to "
           f"fit T (T is fitted on the training data's validation split). One-shot posterior: BC = softmax of the KDE "
-          f"log-likelihoods ({'learned correction, then / T' if cfg.kde.correct else '/ T'}), MLP = softmax(logits / T). ECE over {cfg.ece_bins} equal-width confidence bins; NLL "
+          f"log-likelihoods ({_kde_calibration(cfg.kde.correct)}), MLP = softmax(logits / T). ECE over {cfg.ece_bins} equal-width confidence bins; NLL "
           "of the true class; conf = mean max posterior. Accuracy does not depend on T. Reliability diagrams: "
           "`reliability_<cell>.png`.")
     rep.table(["n", "normals", "model", "T", "accuracy %", "ECE raw", "NLL raw", "conf raw %", "ECE cal", "NLL cal",
@@ -112,3 +113,10 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
         for (kind, v), pts in sweep.items():
             rows.append([n, "yes" if normals else "no", kind, v, *[f"{p[0]:.1f} / {p[1]:.2f}" for p in pts]])
     rep.table(hdr, rows)
+
+
+def _kde_calibration(correct) -> str:
+    """How the KDE's one-shot scores are calibrated, in words (``KDEConfig.correct``)."""
+    if correct == "auto":
+        return "learned correction where it lowers the held-out validation NLL, marked 'corrected', then / T"
+    return "learned correction, then / T" if correct else "/ T"

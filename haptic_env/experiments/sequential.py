@@ -27,7 +27,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
         LL, PR = pool_scores(scored_models(rec, cfg), fresh_pool(objects, n, cfg.normals, cfg))
         oneshot = np.mean(np.concatenate([p.argmax(1) == k for k, p in enumerate(PR)]))
         T = rec.models.temperature(n)
-        row = [n, f"{100 * oneshot:.1f}", f"{T['kde']:.2f}", f"{T['classifier']:.2f}"]
+        corrected = getattr(rec.models.model(n)[1], "correction", None) is not None
+        row = [n, f"{100 * oneshot:.1f}", f"{T['kde']:.2f}" + (" (corrected)" if corrected else ""), f"{T['classifier']:.2f}"]
         for kind in KINDS:
             res = simulate_trials(LL, PR, kind, trials=cfg.trials, max_grasps=cfg.max_grasps, threshold=cfg.threshold,
                                   rng=rng)
@@ -44,6 +45,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     rep.table(hdr, rows)
     rep.p(f"{cfg.trials} trials per cell, at most {cfg.max_grasps} grasps; success ± binomial std; grasps mean ± std. "
           "T: the calibration temperatures fitted on validation grasps (" +
-          ("applied" if cfg.calibrated else "not applied: `--raw`") + "). Confusion matrices for n = 4: `confusion_n4_<kind>.png`.")
+          ("applied" if cfg.calibrated else "not applied: `--raw`") + "); \"corrected\": the KDE's learned correction "
+          "comes first (`KDEConfig.correct`). Confusion matrices for n = 4: `confusion_n4_<kind>.png`.")
     if curves:
         plot_sequential_vs_fingers(curves, rep.out / "sequential_vs_fingers.png")

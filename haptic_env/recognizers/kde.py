@@ -49,7 +49,8 @@ import numpy as np
 from scipy.special import logsumexp
 from scipy.spatial import cKDTree
 
-from haptic_env.recognizers.calibration import ScoreCorrection, fit_correction, fit_temperature, sequence_scores
+from haptic_env.recognizers.calibration import (ScoreCorrection, fit_correction, fit_temperature, select_correction,
+                                                sequence_scores)
 from haptic_env.recognizers.knn import KDTree, pooled_log_density
 from haptic_env.recognizers.preprocess import Standardizer
 from haptic_env.recognizers.preprocess import check_xy as _check_xy
@@ -79,10 +80,12 @@ class KDEConfig:
     n_select: int = 500  #: validation vectors per object used to choose the factor
     calibrate: bool = True  #: fit a temperature on validation vectors (see :mod:`.calibration`)
     #: with ``calibrate``: first fit a learned correction of the log-likelihoods on the validation vectors (matrix
-    #: scaling, :class:`~.calibration.ScoreCorrection`), then the temperature on the corrected scores. On by default
-    #: in the analyses (``AnalysisConfig``; surface-trained KDEs, where it was validated); off for the envs (on the
-    #: Shadow's hand-matched KDE it lowered validation BC-NP; the geometric env was not validated with it).
-    correct: bool = False
+    #: scaling, :class:`~.calibration.ScoreCorrection`), then the temperature on the corrected scores. True: always;
+    #: "auto": only if it gives held-out validation beliefs a lower NLL (:func:`~.calibration.select_correction`), the
+    #: analyses' setting (``AnalysisConfig``; surface-trained KDEs); False (default): never, as in the envs (on the
+    #: hand-matched KDEs, whose beliefs mix 3-, 4- and 5-finger models, it lowered validation BC-NP, RESULTS.md; the
+    #: geometric env was not validated with it).
+    correct: bool | str = False
     n_calibrate: int = 1_000  #: validation vectors per object used to fit the temperature
     #: grasps per belief the temperature is fitted for: ``T`` minimises the NLL of the posteriors after
     #: ``k = 1 .. calibrate_grasps`` grasps of one object (sums of ``k`` random validation log-likelihoods of
@@ -93,6 +96,8 @@ class KDEConfig:
     def __post_init__(self):
         if self.method not in _METHODS:
             raise ValueError(f"KDEConfig.method must be one of {_METHODS}, got {self.method!r}")
+        if self.correct not in (True, False, "auto"):
+            raise ValueError(f"KDEConfig.correct must be True, False or 'auto', got {self.correct!r}")
         if self.bandwidth not in BANDWIDTHS:
             raise ValueError(f"KDEConfig.bandwidth must be one of {BANDWIDTHS}, got {self.bandwidth!r}")
         if isinstance(self.factor, str):
@@ -190,11 +195,17 @@ class KDELikelihood:
                                    for c in range(self.n_classes)])
             if len(keep):
                 S, Y = self.log_likelihood(Xv[keep]), yv[keep]
-                if cfg.correct and len(np.unique(Y)) < self.n_classes:
-                    warnings.warn(f"KDELikelihood.fit: validation vectors of only {len(np.unique(Y))} of "
-                                  f"{self.n_classes} classes; the learned correction needs every class and is "
-                                  "skipped (temperature only)", RuntimeWarning, stacklevel=2)
-                elif cfg.correct:
+                use = cfg.correct
+                counts = np.bincount(Y, minlength=self.n_classes)
+                if use and counts.min() < (2 if use == "auto" else 1):
+                    warnings.warn(f"KDELikelihood.fit: validation vectors per class {counts.tolist()}; the learned "
+                                  "correction needs every class (twice for 'auto') and is skipped (temperature only)",
+                                  RuntimeWarning, stacklevel=2)
+                    use = False
+                if use == "auto":  # its own random stream: the fit below is the same whichever way this goes
+                    use = select_correction(S, Y, calibrate_grasps=cfg.calibrate_grasps,
+                                            rng=np.random.default_rng([cfg.seed, 1]))[0]
+                if use:
                     self.correction = fit_correction(S, Y)
                     S = self.correction(S)
                 if cfg.calibrate_grasps > 1:
