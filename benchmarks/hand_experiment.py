@@ -45,7 +45,7 @@ from haptic_env import ENV_VARIANTS  # noqa: E402
 from haptic_env.config import HAND_APPROACHES, HapticRecogConfig  # noqa: E402
 from haptic_env.dataset import DatasetConfig  # noqa: E402
 from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
-from haptic_env.hand_grasps import hand_grasp_pool  # noqa: E402
+from haptic_env.hand_grasps import BUDGETS, hand_grasp_pool  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 from haptic_env.recognizers import KDEConfig, RecognizerConfig, build_recognizer  # noqa: E402
 from haptic_env.recognizers.kde import BANDWIDTHS  # noqa: E402
@@ -83,7 +83,7 @@ def run_query(updater, C, N, T, normals: bool) -> tuple[int, int, bool]:
 def training_config(regime: str, hand: str, args, calibrate_grasps: int = 1,
                     approaches: int = HAND_APPROACHES, bandwidth: str = "shared") -> RecognizerConfig:
     if regime == "hand":
-        g = DatasetConfig(source="hand", hand=hand, grasps_per_object=approaches, seed=0)
+        g = DatasetConfig(source="hand", hand=hand, grasps_per_object=approaches, seed=0, hand_budget=args.hand_budget)
     else:
         g = DatasetConfig(source="surface", grasps_per_object=args.surface_grasps, contact_noise=args.surface_noise,
                           normal_noise_deg=args.surface_normal_noise, seed=0)
@@ -137,6 +137,8 @@ def main(argv=None) -> int:
     ap.add_argument("--calibrate-grasps", type=int, default=None,
                     help="fit the KDE temperature for beliefs of 1..K grasps of one object (1: one-shot; default: "
                          "the hand's registered env's setting, HapticRecogConfig.calibrate_grasps)")
+    ap.add_argument("--hand-budget", choices=BUDGETS, default="uniform",
+                    help="hand regime: approaches per object, uniform or balanced (DatasetConfig.hand_budget)")
     ap.add_argument("--kde-bandwidth", choices=BANDWIDTHS, default="shared",
                     help="KDE bandwidths (KDEConfig.bandwidth; the envs use shared) (default shared)")
     ap.add_argument("--raw", action="store_true", help="the paper's raw scores (no calibration temperatures)")

@@ -82,6 +82,9 @@ class DatasetConfig:
             hemisphere) or ``"floating"`` (the full sphere).
         hand: with ``source="hand"``, the hand (a name of
             :func:`~haptic_env.grasping.hands.load_hand` or an MJCF path).
+        hand_budget: with ``source="hand"``, ``"uniform"`` (``grasps_per_object`` approaches for every object) or
+            ``"balanced"`` (the same total, spread towards the objects whose grasps rarely complete;
+            :func:`~haptic_env.hand_grasps.balanced_counts`).
     """
 
     n_fingers: int = 4
@@ -98,6 +101,7 @@ class DatasetConfig:
     hand_fingers: int | None = None
     support: str = "table"
     hand: str | None = None
+    hand_budget: str = "uniform"
 
     def __post_init__(self) -> None:
         if int(self.n_fingers) != self.n_fingers or self.n_fingers < 2:
@@ -125,6 +129,8 @@ class DatasetConfig:
             raise ValueError(f"hand_fingers must be an int >= n_fingers={self.n_fingers}, got {self.hand_fingers!r}")
         if self.support not in ("table", "floating"):
             raise ValueError(f"support must be 'table' or 'floating', got {self.support!r}")
+        if self.hand_budget not in ("uniform", "balanced"):
+            raise ValueError(f"hand_budget must be 'uniform' or 'balanced', got {self.hand_budget!r}")
         if (self.source == "hand") != (self.hand is not None):
             raise ValueError(f"hand (got {self.hand!r}) is required with source='hand' and only then "
                              f"(source={self.source!r})")
@@ -411,7 +417,7 @@ def _hand_dataset(objects: ObjectSet, config: DatasetConfig, path: Path | None, 
 
     n_hand = config.hand_fingers or config.n_fingers
     pool = hand_grasp_pool(objects, config.hand, n_hand, config.grasps_per_object, support=config.support,
-                           seed=config.seed, progress=progress)
+                           seed=config.seed, budget=config.hand_budget, progress=progress)
     streams = np.random.SeedSequence([config.seed, 1]).spawn(len(objects))
     Xtr, Ytr, Xva, Yva = [], [], [], []
     for k, ss in enumerate(streams):
@@ -465,6 +471,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="geometric / hand source: fingers of the simulated hand (default --fingers)")
     p.add_argument("--support", choices=("table", "floating"), default="table",
                    help="geometric / hand source: approaches from the upper hemisphere (table) or the sphere")
+    p.add_argument("--hand-budget", choices=("uniform", "balanced"), default=DatasetConfig.hand_budget,
+                   help="hand source: the same approaches for every object, or the same total spread towards the "
+                        "objects whose grasps rarely complete (default %(default)s)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=Path, default=None, help="also write the dataset to this .npz")
     p.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
@@ -508,6 +517,7 @@ def _cli_config(args: argparse.Namespace) -> DatasetConfig:
         hand_fingers=args.hand_fingers,
         support=args.support,
         hand=args.hand,
+        hand_budget=args.hand_budget,
     )
 
 

@@ -13,6 +13,15 @@ progress bar, and cached in ``cache_dir("hand_grasps")`` keyed by the meshes, th
 settings. :func:`pool_rows` turns a pool into ``z``-finger training grasps (a random ``z``-subset
 of the touching fingers of every grasp with at least ``z``), which the dataset's ``"hand"`` source
 maps through Phi_n.
+
+Budgets. ``budget="uniform"`` gives every object the same number of approaches. A hand completes a grasp
+(every finger touching) on 90 % of the approaches to an apple but on 4 % of those to a plate lying on the
+table, so the plate's model is learned from a few hundred grasps and the apple's from thousands.
+``budget="balanced"`` keeps the total (``K x approaches``) and spreads it by :func:`balanced_counts`: the first
+chunk of every object is grasped first, its complete-grasp rate measured, and the rest of the budget goes
+towards the objects whose grasps rarely complete (weights between 1/2 and 2, then scaled to the total).
+Object ``k``'s approaches are one random stream whatever its count, so a balanced pool's first approaches of
+an object are the uniform pool's.
 """
 
 from __future__ import annotations
@@ -30,9 +39,12 @@ from tqdm.auto import tqdm
 
 from .cache import CacheError, cache_dir, config_key, load_npz, save_npz_atomic
 
-__all__ = ["HandGraspPool", "hand_grasp_pool", "pool_rows", "pool_cache_path", "hand_physics_key", "CHUNK"]
+__all__ = ["HandGraspPool", "hand_grasp_pool", "pool_rows", "pool_cache_path", "hand_physics_key", "CHUNK",
+           "BUDGETS", "balanced_counts"]
 
 _CACHE_VERSION = "hand-grasps-v2"  # v2: the key holds the hand's physics (hand_physics_key)
+#: values of ``hand_grasp_pool(budget=...)`` (and ``DatasetConfig.hand_budget``)
+BUDGETS = ("uniform", "balanced")
 #: Approaches per worker task. A task builds its own backend and scene (0.1-0.5 s for the Menagerie hands, about
 #: 1-2 s of grasping at 250 approaches), so a chunk of 1,000 keeps that under 5 % of the task.
 CHUNK = 1000
@@ -40,14 +52,15 @@ CHUNK = 1000
 
 @dataclass(frozen=True)
 class HandGraspPool:
-    """Raw grasps of ``K`` objects by one hand, ``A`` random approaches each.
+    """Raw grasps of ``K`` objects by one hand, ``counts[k]`` random approaches of object ``k`` (at most ``A``).
 
     Attributes:
         contacts: ``(K, A, n, 3)`` fingertip contacts (object frame, m; 0 where a finger missed).
         normals: ``(K, A, n, 3)`` torque-derived inward unit normals (0 where a finger missed).
-        touched: ``(K, A, n)`` bool.
+        touched: ``(K, A, n)`` bool; rows ``counts[k]:`` of object ``k`` were never grasped (all False).
         names: the objects.
         hand: hand name; ``seconds``: generation wall time; ``from_cache``: read from the cache.
+        counts: ``(K,)`` approaches per object (None: ``A`` each).
     """
 
     contacts: np.ndarray
@@ -57,14 +70,21 @@ class HandGraspPool:
     hand: str
     seconds: float
     from_cache: bool = False
+    counts: np.ndarray | None = None
+
+    @property
+    def approaches(self) -> np.ndarray:
+        """``(K,)`` approaches grasped per object."""
+        K, A = self.touched.shape[:2]
+        return np.full(K, A) if self.counts is None else np.asarray(self.counts)
 
     @property
     def grasps_per_second(self) -> float:
-        return float(self.touched.shape[0] * self.touched.shape[1] / max(self.seconds, 1e-9))
+        return float(self.approaches.sum() / max(self.seconds, 1e-9))
 
     def usable(self, z: int) -> np.ndarray:
         """``(K,)`` fraction of each object's grasps with at least ``z`` touching fingers."""
-        return (self.touched.sum(-1) >= z).mean(axis=1)
+        return (self.touched.sum(-1) >= z).sum(axis=1) / self.approaches
 
 
 def hand_physics_key(hand: str, n_fingers: int) -> str:
@@ -82,10 +102,39 @@ def hand_physics_key(hand: str, n_fingers: int) -> str:
     return config_key(h.spec.to_xml(), fields, MujocoConfig(n_fingers=int(n_fingers), hand=hand))
 
 
-def pool_cache_path(objects, hand: str, n_fingers: int, approaches: int, support: str, seed: int) -> Path:
+def pool_cache_path(objects, hand: str, n_fingers: int, approaches: int, support: str, seed: int,
+                    budget: str = "uniform") -> Path:
     key = config_key(_CACHE_VERSION, objects.identity, hand, int(n_fingers), int(approaches), support, int(seed),
-                     hand_physics_key(hand, n_fingers))
+                     hand_physics_key(hand, n_fingers), *([] if budget == "uniform" else [budget]))
     return cache_dir("hand_grasps") / f"{hand}-{key}.npz"
+
+
+def balanced_counts(complete_rate, approaches: int, *, lo: float = 0.5, hi: float = 2.0, minimum: int = 1) -> np.ndarray:
+    """Approaches per object for a budget of ``K x approaches`` spread towards objects whose grasps rarely complete.
+
+    Object ``k``'s weight is ``median(rate) / rate_k`` clipped to ``[lo, hi]`` (a rate of 0 takes ``hi``), so
+    each object's expected number of complete grasps moves towards the median object's; the counts are the
+    weights scaled to the total, at least ``minimum`` each.
+
+    Args:
+        complete_rate: ``(K,)`` fraction of each object's approaches that gave a complete grasp, in ``[0, 1]``.
+        approaches: the uniform count (the total is ``K * approaches``, up to rounding).
+
+    Returns:
+        ``(K,)`` int approaches per object.
+    """
+    r = np.asarray(complete_rate, dtype=np.float64)
+    if r.ndim != 1 or len(r) == 0 or not np.all((r >= 0) & (r <= 1)):
+        raise ValueError(f"complete_rate must be a non-empty (K,) array of fractions in [0, 1], got {complete_rate!r}")
+    if int(approaches) != approaches or approaches < 1:
+        raise ValueError(f"approaches must be an int >= 1, got {approaches!r}")
+    if not 0 < lo <= 1 <= hi:
+        raise ValueError(f"need 0 < lo <= 1 <= hi, got lo={lo!r}, hi={hi!r}")
+    med = float(np.median(r))
+    with np.errstate(divide="ignore"):
+        w = np.where(r > 0, med / np.where(r > 0, r, 1.0), hi) if med > 0 else np.ones_like(r)
+    w = np.clip(w, lo, hi)
+    return np.maximum(np.rint(len(r) * int(approaches) * w / w.sum()).astype(np.int64), int(minimum))
 
 
 def _grasp_chunk(obj, hand: str, n_fingers: int, support: str, actions: np.ndarray, seed) -> tuple:
@@ -106,56 +155,76 @@ def _grasp_chunk(obj, hand: str, n_fingers: int, support: str, actions: np.ndarr
 
 
 def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, support: str = "table", seed: int = 0,
-                    workers: int | None = None, cache: bool = True, progress: bool = True) -> HandGraspPool:
-    """Grasp every object of ``objects`` with ``hand`` along ``approaches`` uniformly random approaches.
+                    budget: str = "uniform", workers: int | None = None, cache: bool = True,
+                    progress: bool = True) -> HandGraspPool:
+    """Grasp every object of ``objects`` with ``hand`` along uniformly random approaches.
 
     Args:
         objects: an ``ObjectSet`` (its collision pieces are used, as in the env).
         hand: a hand name of :func:`~haptic_env.grasping.hands.load_hand` ("allegro", "shadow", ...) or an
             MJCF path; ``n_fingers`` its fingers.
-        approaches: random approaches per object.
+        approaches: random approaches per object ("uniform"), or their mean ("balanced").
+        budget: "uniform" or "balanced" (:func:`balanced_counts` of the first chunk's complete-grasp rates; see
+            the module docstring).
         workers: processes (default: all cores); 1 runs in this process.
         cache: read / write ``cache_dir("hand_grasps")``.
 
-    Object ``k``'s approaches come from ``SeedSequence([seed, k])``, so the pool does not depend on
-    ``workers`` or the chunking.
+    Object ``k``'s approaches come from ``SeedSequence([seed, k])`` and chunk ``lo`` grasps with the
+    random stream ``[seed, k, lo]``, so the pool does not depend on ``workers``, and an object's first
+    approaches do not depend on its count.
     """
     if not isinstance(hand, str):
         raise TypeError(f"hand must be a hand name or an MJCF path (a cache key), got {type(hand).__name__}")
     if int(approaches) != approaches or approaches < 1:
         raise ValueError(f"approaches must be an int >= 1, got {approaches!r}")
-    path = pool_cache_path(objects, hand, n_fingers, approaches, support, seed) if cache else None
+    if budget not in BUDGETS:
+        raise ValueError(f"budget must be one of {BUDGETS}, got {budget!r}")
+    path = pool_cache_path(objects, hand, n_fingers, approaches, support, seed, budget) if cache else None
     if path is not None and path.exists():
         try:
             a = load_npz(path, ("contacts", "normals", "touched", "names", "seconds"))
-            if tuple(str(n) for n in a["names"]) != tuple(objects.names) or a["touched"].shape[1:] != (approaches, n_fingers):
+            counts = a.get("counts")
+            A = approaches if counts is None else int(counts.max())
+            if tuple(str(n) for n in a["names"]) != tuple(objects.names) or a["touched"].shape[1:] != (A, n_fingers):
                 raise CacheError(f"cache file {path} holds another pool")
             return HandGraspPool(a["contacts"], a["normals"], a["touched"].astype(bool), tuple(objects.names), hand,
-                                 float(a["seconds"]), from_cache=True)
+                                 float(a["seconds"]), from_cache=True, counts=counts)
         except CacheError as exc:
             warnings.warn(f"{exc}; rebuilding it", RuntimeWarning, stacklevel=2)
     K = len(objects)
-    actions = [np.random.default_rng(np.random.SeedSequence([seed, k])).uniform(-1, 1, (approaches, 4))
-               for k in range(K)]
-    tasks = [(k, lo) for k in range(K) for lo in range(0, approaches, CHUNK)]
-    C = np.zeros((K, approaches, n_fingers, 3))
-    N = np.zeros_like(C)
-    T = np.zeros((K, approaches, n_fingers), dtype=bool)
-    workers = min(len(tasks), int(workers or os.cpu_count() or 1))
+    first = min(CHUNK, int(approaches))
+    results: dict[tuple[int, int], tuple] = {}
+    workers = min(K * -(-int(approaches) // CHUNK), int(workers or os.cpu_count() or 1))
     t0 = time.perf_counter()
     bar = tqdm(total=K * approaches, desc=f"{hand} grasps", unit="grasp", disable=not progress, smoothing=0.1)
 
-    def put(k, lo, res):
-        c, n, t, _ = res
-        C[k, lo:lo + len(c)], N[k, lo:lo + len(c)], T[k, lo:lo + len(c)] = c, n, t
-        bar.update(len(c))
+    def args(k, lo, hi):  # object k's approach stream, whatever its length, starts the same
+        actions = np.random.default_rng(np.random.SeedSequence([seed, k])).uniform(-1, 1, (hi, 4))[lo:]
+        return (objects[k], hand, n_fingers, support, actions, [seed, k, lo])
 
-    def args(k, lo):
-        return (objects[k], hand, n_fingers, support, actions[k][lo:lo + CHUNK], [seed, k, lo])
+    def chunks(counts, start=0):
+        return [(k, lo, min(lo + CHUNK, int(counts[k]))) for k in range(K) for lo in range(start, int(counts[k]), CHUNK)]
+
+    def phases():
+        """Yields each phase's tasks ``(k, lo, hi)``; the balanced budget reads the first phase's results."""
+        if budget == "uniform":
+            yield chunks(np.full(K, approaches))
+            return
+        yield chunks(np.full(K, first))
+        rate = np.array([results[k, 0][2].all(axis=1).mean() for k in range(K)])
+        counts = np.maximum(balanced_counts(rate, approaches), first)
+        bar.total = int(counts.sum())
+        bar.refresh()
+        yield chunks(counts, start=first)
+
+    def put(k, lo, res):
+        results[k, lo] = res
+        bar.update(len(res[0]))
 
     if workers <= 1:
-        for k, lo in tasks:
-            put(k, lo, _grasp_chunk(*args(k, lo)))
+        for tasks in phases():
+            for k, lo, hi in tasks:
+                put(k, lo, _grasp_chunk(*args(k, lo, hi)))
     else:
         # fork (Linux): workers need not re-import the caller's script, which "spawn" does (a script without a
         # __main__ guard would then run again in every worker); the workers use MuJoCo and numpy only.
@@ -168,15 +237,25 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
             convex_pieces(obj)
         ctx = get_context("fork" if "fork" in get_all_start_methods() else "spawn")
         with ProcessPoolExecutor(workers, mp_context=ctx) as ex:
-            futs = {ex.submit(_grasp_chunk, *args(k, lo)): (k, lo) for k, lo in tasks}
-            for f in as_completed(futs):
-                put(*futs[f], f.result())
+            for tasks in phases():
+                futs = {ex.submit(_grasp_chunk, *args(k, lo, hi)): (k, lo) for k, lo, hi in tasks}
+                for f in as_completed(futs):
+                    put(*futs[f], f.result())
     bar.close()
     seconds = time.perf_counter() - t0
-    pool = HandGraspPool(C, N, T, tuple(objects.names), hand, seconds)
+    counts = np.array([sum(len(r[0]) for (j, _), r in results.items() if j == k) for k in range(K)])
+    A = int(counts.max())
+    C = np.zeros((K, A, n_fingers, 3))
+    N = np.zeros_like(C)
+    T = np.zeros((K, A, n_fingers), dtype=bool)
+    for (k, lo), (c, n, t, _) in results.items():
+        C[k, lo:lo + len(c)], N[k, lo:lo + len(c)], T[k, lo:lo + len(c)] = c, n, t
+    counts = None if budget == "uniform" else counts
+    pool = HandGraspPool(C, N, T, tuple(objects.names), hand, seconds, counts=counts)
     if path is not None:
+        extra = {} if counts is None else {"counts": counts}
         save_npz_atomic(path, contacts=C, normals=N, touched=T, names=np.array(objects.names, dtype=str),
-                        seconds=np.array(seconds))
+                        seconds=np.array(seconds), **extra)
     return pool
 
 

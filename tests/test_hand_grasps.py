@@ -7,7 +7,7 @@ import pytest
 
 from haptic_env.dataset import DatasetConfig, build_dataset
 from haptic_env.grasp_features import feature_dim
-from haptic_env.hand_grasps import hand_grasp_pool, pool_rows
+from haptic_env.hand_grasps import balanced_counts, hand_grasp_pool, pool_rows
 from haptic_env.objects import load_object_set
 
 
@@ -57,3 +57,39 @@ def test_hand_source_dataset(two_objects):
         DatasetConfig(source="surface", hand="allegro")
     with pytest.raises(TypeError, match="hand name"):
         hand_grasp_pool(two_objects, object(), 3, 4)
+
+
+def test_balanced_counts_spread_the_budget_towards_rarely_complete_objects():
+    c = balanced_counts([0.99, 0.45, 0.4, 0.04], 1000)
+    assert abs(c.sum() - 4000) <= 4 and c[3] > c[2] > c[1] > c[0]
+    assert c[3] / c[0] == pytest.approx(4.0, rel=0.01)  # weights clipped to [1/2, 2]
+    np.testing.assert_array_equal(balanced_counts([0.3, 0.3, 0.3], 10), [10, 10, 10])
+    assert balanced_counts([0.0, 0.5], 10)[0] > 10  # never completes: the largest weight
+    for bad in ([], [1.5], [[0.5]]):
+        with pytest.raises(ValueError, match="complete_rate"):
+            balanced_counts(bad, 10)
+    with pytest.raises(ValueError, match="approaches"):
+        balanced_counts([0.5], 0)
+
+
+def test_balanced_pool_keeps_each_objects_first_approaches(two_objects, monkeypatch):
+    """A balanced budget grasps the first chunk of every object, then spreads the rest; an object's first approaches
+    are the uniform pool's, approaches beyond its count are never grasped, and the counts survive the cache."""
+    import haptic_env.hand_grasps as hg
+
+    monkeypatch.setattr(hg, "CHUNK", 4)
+    uni = hand_grasp_pool(two_objects, "generic", 3, 8, seed=6, cache=False, workers=1, progress=False)
+    bal = hand_grasp_pool(two_objects, "generic", 3, 8, seed=6, budget="balanced", workers=1, progress=False)
+    assert bal.counts is not None and bal.counts.min() >= 4 and abs(int(bal.counts.sum()) - 16) <= 2
+    np.testing.assert_array_equal(bal.approaches, bal.counts)
+    for k in range(2):
+        m = min(int(bal.counts[k]), 8)
+        np.testing.assert_array_equal(bal.touched[k, :m], uni.touched[k, :m])
+        np.testing.assert_allclose(bal.contacts[k, :m], uni.contacts[k, :m], atol=1e-9)
+        assert not bal.touched[k, int(bal.counts[k]):].any()
+    again = hand_grasp_pool(two_objects, "generic", 3, 8, seed=6, budget="balanced", workers=1, progress=False)
+    assert again.from_cache and np.array_equal(again.counts, bal.counts)
+    with pytest.raises(ValueError, match="budget"):
+        hand_grasp_pool(two_objects, "generic", 3, 8, budget="greedy")
+    with pytest.raises(ValueError, match="hand_budget"):
+        DatasetConfig(source="hand", hand="generic", hand_budget="greedy")
