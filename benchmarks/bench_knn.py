@@ -39,19 +39,20 @@ from haptic_env.recognizers.knn import log_density_row, workspace  # noqa: E402
 
 
 def ckdtree_row(tree: cKDTree, labels: np.ndarray, z: np.ndarray, k: int, eps: float, log_norms: np.ndarray,
-                inv: float, radius: float) -> np.ndarray:
-    """``knn.log_density_row`` with the search done by ``cKDTree`` and the sums in NumPy (same semantics)."""
+                inv: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """``knn.log_density_row`` with the search done by ``cKDTree`` and the sums in NumPy (same semantics;
+    ``inv``, ``radius``: ``(K,)`` per class)."""
     d, i = tree.query(z, k=k, eps=eps)
     d2 = d * d
-    x = -inv * d2
     c = labels[i]
+    x = -inv[c] * d2
     K = len(log_norms)
-    out = np.full(K, x[-1])  # no vector of the class among the k: the kernel at the k-th distance
+    out = -inv * d2[-1]  # no vector of the class among the k: the kernel at the k-th distance
     first = np.full(K, -1)
     first[c[::-1]] = np.arange(k)[::-1]  # nearest found vector of each class
     has = first >= 0
     out[has] = x[first[has]]
-    near = d2 <= radius * radius
+    near = d2 <= radius[c] * radius[c]
     cn, xn = c[near], x[near]
     top = np.full(K, -np.inf)
     np.maximum.at(top, cn, xn)
