@@ -27,6 +27,7 @@ from tqdm.auto import tqdm
 
 from .cache import CacheError, cache_dir, config_key, load_npz, save_npz_atomic
 from .grasp_features import feature_dim, normalize_scale, phi
+from .hand_grasps import BUDGETS
 from .objects import SAMPLING_METHODS, GraspObject, ObjectSet, load_object_set
 
 __all__ = [
@@ -129,8 +130,8 @@ class DatasetConfig:
             raise ValueError(f"hand_fingers must be an int >= n_fingers={self.n_fingers}, got {self.hand_fingers!r}")
         if self.support not in ("table", "floating"):
             raise ValueError(f"support must be 'table' or 'floating', got {self.support!r}")
-        if self.hand_budget not in ("uniform", "balanced"):
-            raise ValueError(f"hand_budget must be 'uniform' or 'balanced', got {self.hand_budget!r}")
+        if self.hand_budget not in BUDGETS:
+            raise ValueError(f"hand_budget must be one of {BUDGETS}, got {self.hand_budget!r}")
         if (self.source == "hand") != (self.hand is not None):
             raise ValueError(f"hand (got {self.hand!r}) is required with source='hand' and only then "
                              f"(source={self.source!r})")
@@ -471,7 +472,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="geometric / hand source: fingers of the simulated hand (default --fingers)")
     p.add_argument("--support", choices=("table", "floating"), default="table",
                    help="geometric / hand source: approaches from the upper hemisphere (table) or the sphere")
-    p.add_argument("--hand-budget", choices=("uniform", "balanced"), default=DatasetConfig.hand_budget,
+    p.add_argument("--hand-budget", choices=BUDGETS, default=DatasetConfig.hand_budget,
                    help="hand source: the same approaches for every object, or the same total spread towards the "
                         "objects whose grasps rarely complete (default %(default)s)")
     p.add_argument("--seed", type=int, default=0)

@@ -14,8 +14,8 @@ settings. :func:`pool_rows` turns a pool into ``z``-finger training grasps (a ra
 of the touching fingers of every grasp with at least ``z``), which the dataset's ``"hand"`` source
 maps through Phi_n.
 
-Budgets. ``budget="uniform"`` gives every object the same number of approaches. A hand completes a grasp
-(every finger touching) on 90 % of the approaches to an apple but on 4 % of those to a plate lying on the
+Budgets. ``budget="uniform"`` gives every object the same number of approaches. The Aero hand completes a
+grasp (every finger touching) on nearly every approach to an apple but on 4 % of those to a plate lying on the
 table, so the plate's model is learned from a few hundred grasps and the apple's from thousands.
 ``budget="balanced"`` keeps the total (``K x approaches``) and spreads it by :func:`balanced_counts`: the first
 chunk of every object is grasped first, its complete-grasp rate measured, and the rest of the budget goes
