@@ -24,6 +24,7 @@ beliefs of 1 to ``--calibrate-grasps`` grasps of one object, by default the hand
 
     python benchmarks/hand_experiment.py [--hands allegro shadow aero] [--queries 10] [--seeds 0 1 2]
         [--max-grasps 30] [--approaches 3000] [--regimes surface hand] [--raw] [--out results/hands]
+        [--hand-budget uniform|balanced] [--kde-bandwidth shared|per-class]   # options measured, not the envs'
 
 Prints (and with ``--out`` writes ``hand_table.md``) the table with the paper's figure beside each
 cell; the headline is printed last.
