@@ -15,7 +15,7 @@ from tqdm.auto import tqdm
 from haptic_env.experiments.config import MAIN_KINDS, TEST_SEED_OFFSET, AnalysisConfig
 from haptic_env.experiments.fresh_grasps import fresh_pool, pool_scores
 from haptic_env.experiments.plots import plot_lambda_sweep, plot_reliability
-from haptic_env.experiments.report import Report, mean_std
+from haptic_env.experiments.report import Report, kde_temperature, mean_std
 from haptic_env.experiments.trials import simulate_trials
 from haptic_env.recognizers.calibration import _finite_rows, expected_calibration_error
 from haptic_env.recognizers.recognizer import build_recognizer
@@ -55,9 +55,9 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
         y = np.concatenate([np.full(len(p), k) for k, p in enumerate(pool)])
         scores = {v: pool_scores(rec.models.with_calibration(v == "calibrated"), pool) for v in ("raw", "calibrated")}
         curves = {}
-        corrected = getattr(rec.models.model(n)[1], "correction", None) is not None
-        for model, Tm in (("BC (KDE)", T["kde"]), ("MLP", T["classifier"])):
-            row = [n, "yes" if normals else "no", model, f"{Tm:.2f}" + (" (corrected)" if corrected and model != "MLP" else "")]
+        for model, Tm, label in (("BC (KDE)", T["kde"], kde_temperature(rec.models, n)),
+                                 ("MLP", T["classifier"], f"{T['classifier']:.2f}")):
+            row = [n, "yes" if normals else "no", model, label]
             for v in ("raw", "calibrated"):
                 LL, PR = scores[v]
                 P = oneshot_posterior(np.concatenate(LL)) if model.startswith("BC") else np.concatenate(PR)

@@ -43,3 +43,11 @@ class Report:
 def mean_std(m: float, s: float, digits: int = 1) -> str:
     """``"m ± s"`` with ``digits`` decimals."""
     return f"{m:.{digits}f} ± {s:.{digits}f}"
+
+
+def kde_temperature(models, n: int) -> str:
+    """The ``n``-finger KDE's calibration temperature as the reports print it, marked "(corrected)" when its
+    learned correction comes first (``KDEConfig.correct``); ``models`` a recogniser's ``ModelBank``."""
+    kde = models.model(n)[1]
+    corrected = getattr(kde, "correction", None) is not None
+    return f"{models.temperature(n)['kde']:.2f}" + (" (corrected)" if corrected else "")

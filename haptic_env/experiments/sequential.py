@@ -10,7 +10,7 @@ from tqdm.auto import tqdm
 from haptic_env.experiments.config import KINDS, AnalysisConfig
 from haptic_env.experiments.fresh_grasps import fresh_pool, pool_scores, scored_models
 from haptic_env.experiments.plots import plot_confusion, plot_sequential_vs_fingers
-from haptic_env.experiments.report import Report, mean_std
+from haptic_env.experiments.report import Report, kde_temperature, mean_std
 from haptic_env.experiments.trials import confusion, simulate_trials, summarize
 from haptic_env.recognizers.recognizer import build_recognizer
 
@@ -27,8 +27,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
         LL, PR = pool_scores(scored_models(rec, cfg), fresh_pool(objects, n, cfg.normals, cfg))
         oneshot = np.mean(np.concatenate([p.argmax(1) == k for k, p in enumerate(PR)]))
         T = rec.models.temperature(n)
-        corrected = getattr(rec.models.model(n)[1], "correction", None) is not None
-        row = [n, f"{100 * oneshot:.1f}", f"{T['kde']:.2f}" + (" (corrected)" if corrected else ""), f"{T['classifier']:.2f}"]
+        row = [n, f"{100 * oneshot:.1f}", kde_temperature(rec.models, n), f"{T['classifier']:.2f}"]
         for kind in KINDS:
             res = simulate_trials(LL, PR, kind, trials=cfg.trials, max_grasps=cfg.max_grasps, threshold=cfg.threshold,
                                   rng=rng)

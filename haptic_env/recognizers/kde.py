@@ -171,10 +171,7 @@ class KDELikelihood:
         if cfg.method == "subsample":
             self.data = [z[rng.choice(len(z), cfg.max_samples, replace=False)] if len(z) > cfg.max_samples else z
                          for z in self.data]
-        if cfg.bandwidth == "shared":
-            scott = np.full(self.n_classes, scott_bandwidth(int(np.mean([len(z) for z in self.data])), X.shape[1]))
-        else:
-            scott = np.array([scott_bandwidth(len(z), X.shape[1]) for z in self.data])
+        scott = self._scott([len(z) for z in self.data], X.shape[1])
         given_val = X_val is not None
         if cfg.factor == "auto":
             if X_val is None:
@@ -234,6 +231,13 @@ class KDELikelihood:
             self.pooled = KDTree(np.concatenate(self.data), leafsize=_LEAFSIZE)
             self.pooled_labels = np.repeat(np.arange(self.n_classes), [len(z) for z in self.data])[self.pooled.indices]
 
+    def _scott(self, sizes: list[int], d: int) -> np.ndarray:
+        """``(K,)`` Scott's rule for classes of ``sizes`` vectors: at their mean size for all ("shared"), or each at
+        its own ("per-class")."""
+        if self.config.bandwidth == "shared":
+            return np.full(len(sizes), scott_bandwidth(int(np.mean(sizes)), d))
+        return np.array([scott_bandwidth(n, d) for n in sizes])
+
     def _select(self, Zv: np.ndarray, yv: np.ndarray, rng) -> np.ndarray:
         """``(K,)`` factors of the grid with the highest mean true-class validation log-likelihood (dense): one
         for all classes ("shared"), or each class's own ("per-class"; a class without validation vectors gets
@@ -244,10 +248,7 @@ class KDELikelihood:
         # the factor multiplies Scott's rule, which carries the N-dependence: on a subsample of m
         # vectors it is evaluated at factor * m^(-1/(d+4)) and then transfers to the full N
         d = Zv.shape[1]
-        if cfg.bandwidth == "shared":
-            scott = [scott_bandwidth(int(np.mean([len(z) for z in sub])), d)] * self.n_classes
-        else:
-            scott = [scott_bandwidth(len(z), d) for z in sub]
+        scott = self._scott([len(z) for z in sub], d)
         grid = tuple(cfg.factor_grid)
         sums, counts = np.zeros((self.n_classes, len(grid))), np.zeros(self.n_classes)
         for c in range(self.n_classes):
@@ -258,7 +259,7 @@ class KDELikelihood:
                 continue
             d2 = _sqdist(zc, sub[c])
             for j, f in enumerate(grid):
-                h = f * scott[c]
+                h = f * float(scott[c])
                 ll = logsumexp(-0.5 * d2 / h**2, axis=1) - np.log(len(sub[c])) - 0.5 * d * np.log(2 * np.pi * h * h)
                 sums[c, j] = float(ll.sum())
             counts[c] = len(zc)
