@@ -5,7 +5,10 @@ with normals, the torque-derived normals) of each grasp update a belief until it
 lambda or ``--max-grasps`` grasps are spent. Methods (the paper's rows): IC, BC-NP, BC-IP, and IC and
 BC-NP scored on ``k = 4`` random 3-finger subsets of each grasp (z = 3). A grasp with fewer than 3
 touching fingertips carries no information but is spent; an incomplete grasp with 3 <= t < n is scored
-by the t-finger model. Every method sees the same grasp sequences (common random numbers).
+by the t-finger model. Every method sees the same grasp sequences (common random numbers). In the hand regime
+the BC-NP rows also weigh each grasp's touch pattern (which fingertips touched) by ``--touch-weight``, by default
+the hand's registered env's ``touch_weight`` (:mod:`haptic_env.recognizers.touch`); then every grasp carries
+information.
 
 Two training regimes per hand, both computed from the meshes alone:
 
@@ -25,6 +28,7 @@ beliefs of 1 to ``--calibrate-grasps`` grasps of one object, by default the hand
     python benchmarks/hand_experiment.py [--hands allegro shadow aero] [--queries 10] [--seeds 0 1 2]
         [--max-grasps 30] [--approaches 3000] [--regimes surface hand] [--raw] [--out results/hands]
         [--hand-budget uniform|balanced] [--kde-bandwidth shared|per-class]   # options measured, not the envs'
+        [--touch-weight W]
 
 Prints (and with ``--out`` writes ``hand_table.md``) the table with the paper's figure beside each
 cell; the headline is printed last.
@@ -70,14 +74,19 @@ PAPER = {
 }
 
 
-def run_query(updater, C, N, T, normals: bool) -> tuple[int, int, bool]:
-    """Feed one query's grasps ``C, N (G, n, 3)``, ``T (G, n)`` until decided -> (prediction, grasps, decided)."""
+def run_query(updater, C, N, T, normals: bool, touch=None) -> tuple[int, int, bool]:
+    """Feed one query's grasps ``C, N (G, n, 3)``, ``T (G, n)`` until decided -> (prediction, grasps, decided).
+
+    ``touch (G, K)``: each grasp's weighted touch-pattern log-likelihood, added at every grasp (BC-NP only; the
+    same sum as the env's one Bayes step per grasp, :meth:`haptic_env.belief.Belief.update`), or None."""
     updater.reset()
     for k in range(len(C)):
+        if touch is not None:
+            updater.update_scores(log_lik=touch[k:k + 1])
         if T[k].sum() >= 3:
             updater.update_grasp(C[k], N[k] if normals else None, T[k])
-            if updater.decided:
-                return updater.prediction, k + 1, True
+        if updater.decided:
+            return updater.prediction, k + 1, True
     return updater.prediction, len(C), False
 
 
@@ -91,8 +100,9 @@ def training_config(regime: str, hand: str, args, calibrate_grasps: int = 1,
     return RecognizerConfig(grasps=g, kde=KDEConfig(calibrate_grasps=calibrate_grasps, bandwidth=bandwidth))
 
 
-def evaluate(rec, pools, n: int, normals: bool, args) -> dict[str, dict]:
-    """label -> {success (S,), accuracy (S,), grasps (S,)} over seeds."""
+def evaluate(rec, pools, n: int, normals: bool, args, touch_weight: float = 0.0) -> dict[str, dict]:
+    """label -> {success (S,), accuracy (S,), grasps (S,)} over seeds; ``touch_weight``: the BC-NP rows' weight of
+    the touch pattern (``rec.touch``; 0: off)."""
     out = {}
     for label in args.methods:
         kind, z, k = METHODS[label]
@@ -100,13 +110,15 @@ def evaluate(rec, pools, n: int, normals: bool, args) -> dict[str, dict]:
         for s, pool in enumerate(pools):
             rng = np.random.default_rng([7, s])
             upd = rec.make_updater(kind, threshold=args.threshold, z=z, k=k, rng=rng, calibrated=not args.raw)
+            w = touch_weight if kind == "bc-np" else 0.0
             res = []
             for i in range(pool.touched.shape[0]):
                 C = pool.contacts[i].reshape(args.queries, args.max_grasps, n, 3)
                 N = pool.normals[i].reshape(args.queries, args.max_grasps, n, 3)
                 T = pool.touched[i].reshape(args.queries, args.max_grasps, n)
                 for q in range(args.queries):
-                    p, g, d = run_query(upd, C[q], N[q], T[q], normals)
+                    touch = w * rec.touch.log_likelihood(T[q]) if w > 0 else None
+                    p, g, d = run_query(upd, C[q], N[q], T[q], normals, touch)
                     res.append((p == i, g, d))
             r = np.array(res, dtype=float)
             succ.append(np.mean(r[:, 0] * r[:, 2]))
@@ -142,11 +154,16 @@ def main(argv=None) -> int:
                     help="hand regime: approaches per object, uniform or balanced (DatasetConfig.hand_budget)")
     ap.add_argument("--kde-bandwidth", choices=BANDWIDTHS, default="shared",
                     help="KDE bandwidths (KDEConfig.bandwidth; the envs use shared) (default shared)")
+    ap.add_argument("--touch-weight", type=float, default=None,
+                    help="hand regime, BC-NP rows: weight of the touch-pattern log-likelihood (HapticRecogConfig."
+                         "touch_weight; default: the hand's registered env's setting; 0: off)")
     ap.add_argument("--raw", action="store_true", help="the paper's raw scores (no calibration temperatures)")
     ap.add_argument("--out", type=Path, default=None, help="write hand_table.md here")
     args = ap.parse_args(argv)
     if args.calibrate_grasps is not None and args.calibrate_grasps < 1:
         ap.error(f"--calibrate-grasps must be >= 1, got {args.calibrate_grasps}")
+    if args.touch_weight is not None and not (np.isfinite(args.touch_weight) and args.touch_weight >= 0):
+        ap.error(f"--touch-weight must be a finite number >= 0, got {args.touch_weight}")
     if args.approaches is not None and args.approaches < 1:
         ap.error(f"--approaches must be >= 1, got {args.approaches}")
     if data_dir() is None:
@@ -174,12 +191,16 @@ def main(argv=None) -> int:
         for regime in args.regimes:
             cfg = training_config(regime, hand, args, K, A, args.kde_bandwidth)
             data = cfg.grasps.grasps_per_object
+            # the touch pattern needs the hand's own grasps (the hand regime); BC-NP rows only
+            w = (args.touch_weight if args.touch_weight is not None else env_config.touch_weight) \
+                if regime == "hand" else 0.0
             for normals in normal_settings:
-                rec = build_recognizer(objects, n, normals, z_values=tuple(range(3, n)), config=cfg)
+                rec = build_recognizer(objects, n, normals, z_values=tuple(range(3, n)), config=cfg, touch=w > 0)
                 temps = rec.models.temperature(n)
-                res = evaluate(rec, pools, n, normals, args)
+                res = evaluate(rec, pools, n, normals, args, w)
                 for label, r in tqdm(res.items(), desc=f"{hand} {regime}", disable=True):
-                    rows.append((hand, n, normals, regime, label, r, usable, temps, K, data))
+                    rows.append((hand, n, normals, regime, label, r, usable, temps, K, data,
+                                 w if METHODS[label][0] == "bc-np" else 0.0))
     cols = {(4, True): "4+", (4, False): "4-", (5, False): "5-"}
     calib = "raw scores" if args.raw else ("calibrated scores (temperatures fitted on validation grasps; the KDE's "
                                            "for beliefs of 1-K grasps of one object, K in the last column)")
@@ -191,17 +212,17 @@ def main(argv=None) -> int:
         "Mean +- std over the test seeds. Paper: Pisa/IIT SoftHand for the 5-finger rows, real Allegro for the 4-finger rows.",
         "",
         "| hand | fingers | normals | training | method | success % | accuracy % | grasps | paper (success % / grasps) | "
-        "usable grasps | T (KDE / MLP) | K | training grasps / object |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "usable grasps | T (KDE / MLP) | K | training grasps / object | touch w |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for hand, n, normals, regime, label, r, usable, temps, K, data in rows:
+    for hand, n, normals, regime, label, r, usable, temps, K, data, w in rows:
         paper = PAPER[label].get(cols[(n, normals)])
         lines.append(
             f"| {hand} | {n} | {'yes' if normals else 'no'} | {regime} | {label} | "
             f"{100 * r['success'].mean():.1f} +- {100 * r['success'].std():.1f} | "
             f"{100 * r['accuracy'].mean():.1f} +- {100 * r['accuracy'].std():.1f} | "
             f"{r['grasps'].mean():.2f} +- {r['grasps'].std():.2f} | {paper[0]} / {paper[1]} | {usable:.2f} | "
-            f"{temps['kde']:.2f} / {temps['classifier']:.2f} | {K} | {data:,} |")
+            f"{temps['kde']:.2f} / {temps['classifier']:.2f} | {K} | {data:,} | {w:g} |")
     text = "\n".join(lines)
     print("\n" + text)
     if args.out is not None:

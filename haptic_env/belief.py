@@ -11,6 +11,7 @@ public API:
 ``rows_batch(C, N, T)``            the same for ``B`` grasps ``(B, n, 3)``: vectorised for complete grasps
 ``predict(rows)``                  the posteriors after one more grasp for ``G`` candidates (no change)
 ``predict_grasps(C, N, T)``        ``rows_batch`` + ``predict``: what ``B`` simulated grasps would do
+``touch_rows(T)``                  the weighted touch-pattern log-likelihoods of ``B`` grasps (``touch_weight``)
 ``scores(Q)``                      the models' ``(log_lik, proba)`` of score rows
 ``subset_scores(C, N, z, k, rng)`` batched z-subset scoring of ``G`` grasps (paper, Algorithms 3 and 4)
 ``probs`` / ``certainty`` /        the posterior ``(K,)``, its certainty, whether it decided, the grasps
@@ -20,7 +21,9 @@ public API:
 Which grasps update the belief: a grasp with all ``n`` fingers touching, scored by the ``n``-finger model; with
 ``z_fingers`` also an incomplete grasp of ``t >= z`` touching fingers, by the ``t``-finger model; with
 ``score_subsets`` every grasp of ``t >= z`` touching fingers through its ``z``-subsets by the ``z``-finger model.
-Fewer than two touching fingers, or degenerate contacts (coplanar, ...), carry no information.
+Fewer than two touching fingers, or degenerate contacts (coplanar, ...), carry no information, unless the
+belief also weighs the hand's *touch pattern* (``touch_weight > 0``, :mod:`haptic_env.recognizers.touch`): then
+every grasp adds ``w log P(pattern | object)`` to the contacts' log-likelihoods in the same Bayes step.
 
 Complete grasps of a Bayesian updater over a pooled KDE take a compiled path (:class:`GraspScorer`: Phi and the
 KDE search in one call; ``compiled=False`` forces the general path, which gives the same result).
@@ -68,6 +71,12 @@ def get_recognizer(objects, config: HapticRecogConfig):
     return _RECOGNIZERS[key]
 
 
+def _check_touch_weight(w) -> float:
+    if isinstance(w, bool) or not isinstance(w, (int, float, np.integer, np.floating)) or not (math.isfinite(w) and w >= 0):
+        raise ValueError(f"touch_weight must be a finite number >= 0, got {w!r}")
+    return float(w)
+
+
 class Belief:
     """The posterior over a recogniser's objects and everything that moves it (see the module docstring).
 
@@ -79,21 +88,35 @@ class Belief:
         z_fingers: also score incomplete grasps of ``t >= z_fingers`` touching fingers (the recogniser needs
             those models); None: complete grasps only.
         score_subsets: score every grasp through its ``z_fingers``-subsets.
+        touch_weight: ``w`` of the touch-pattern log-likelihood added at every grasp
+            (:mod:`~haptic_env.recognizers.touch`; BC-NP only, and the recogniser needs its ``touch`` model);
+            0: off, the paper's method.
     """
 
     def __init__(self, recognizer, kind: str = "bc-np", threshold: float = DEFAULT_THRESHOLD, *,
-                 calibrated: bool = True, z_fingers: int | None = None, score_subsets: bool = False):
+                 calibrated: bool = True, z_fingers: int | None = None, score_subsets: bool = False,
+                 touch_weight: float = 0.0):
         if kind not in UPDATERS:
             raise ValueError(f"unknown updater kind {kind!r}; choose one of {UPDATERS}")
         if score_subsets and z_fingers is None:
             raise ValueError("score_subsets=True needs z_fingers (the subset size)")
+        touch_weight = _check_touch_weight(touch_weight)
+        if touch_weight > 0 and kind != "bc-np":
+            raise ValueError(f"touch_weight={touch_weight} needs the 'bc-np' updater, got {kind!r}")
+        if touch_weight > 0 and getattr(recognizer, "touch", None) is None:
+            raise ValueError(f"touch_weight={touch_weight} needs a recogniser with its touch model "
+                             "(build_recognizer(touch=True), hand-matched training grasps)")
         self.recognizer = recognizer
+        self.touch_weight = touch_weight
         self.kind = kind
         self.z_fingers = z_fingers
         self.score_subsets = bool(score_subsets)
         self.n_fingers = int(recognizer.n_fingers)
         self.n_classes = int(recognizer.n_classes)
         self.feature_dim = feature_dim(self.n_fingers, recognizer.normals)
+        #: ``(2 ** n, K)``: w log P(pattern | object) by pattern code, or None (off)
+        self._touch = (touch_weight * recognizer.touch.log_p.T).copy() if touch_weight > 0 else None
+        self._bits = np.int64(1) << np.arange(self.n_fingers, dtype=np.int64)
         self.models = recognizer.models.with_calibration(calibrated)
         #: the posterior maths (read-only use: :mod:`haptic_env.recognizers.updaters`)
         self.updater = recognizer.make_updater(kind=kind, threshold=threshold, calibrated=calibrated)
@@ -106,10 +129,12 @@ class Belief:
         self.reset()
 
     @classmethod
-    def from_config(cls, objects, config: HapticRecogConfig) -> Belief:
-        """The belief of an env config over ``objects`` (its recogniser from :func:`get_recognizer`)."""
-        return cls(get_recognizer(objects, config), config.updater, config.threshold, calibrated=config.calibrated,
-                   z_fingers=config.z_fingers, score_subsets=config.score_subsets)
+    def from_config(cls, objects, config: HapticRecogConfig, recognizer=None) -> Belief:
+        """The belief of an env config over ``objects`` (its recogniser from :func:`get_recognizer` unless given):
+        the one place that maps the config's belief settings to a :class:`Belief`."""
+        rec = get_recognizer(objects, config) if recognizer is None else recognizer
+        return cls(rec, config.updater, config.threshold, calibrated=config.calibrated, z_fingers=config.z_fingers,
+                   score_subsets=config.score_subsets, touch_weight=config.touch_weight)
 
     # ------------------------------------------------------------------------------------- state
     @property
@@ -169,21 +194,40 @@ class Belief:
         Returns ``(q, usable)``: the grasp vector of the touching contacts zero-padded to ``(d,)`` (a fresh array;
         all 0 with fewer than two touching) and whether the grasp updated the belief."""
         touched = np.asarray(touched, dtype=bool).reshape(-1)
-        if (self._scorer is not None and self.compiled and np.count_nonzero(touched) == touched.size
-                and (self.kind == "bc-np" or self.updater.n_grasps > 0)):  # BC-IP: its prior from the classifier
-            q, log_lik = self._scorer(contacts, normals)  # = rows + the likelihood of updater.update
-            if log_lik is None:
+        if self._touch is None:
+            if (self._scorer is not None and self.compiled and np.count_nonzero(touched) == touched.size
+                    and (self.kind == "bc-np" or self.updater.n_grasps > 0)):  # BC-IP: its prior from the classifier
+                q, log_lik = self._scorer(contacts, normals)  # = rows + the likelihood of updater.update
+                if log_lik is None:
+                    return q, False
+                self._set(self.updater.update_scores(log_lik=log_lik))
+                return q, True
+            q, Q = self.rows(contacts, normals, touched)
+            if Q is None:
                 return q, False
-            self._set(self.updater.update_scores(log_lik=log_lik))
+            self._set(self.updater.update(Q))
             return q, True
-        q, Q = self.rows(contacts, normals, touched)
-        if Q is None:
-            return q, False
-        self._set(self.updater.update(Q))
+        # with the touch pattern: its row joins the contacts' rows in one Bayes step (BC-NP; every grasp has one)
+        if self._scorer is not None and self.compiled and np.count_nonzero(touched) == touched.size:
+            q, log_lik = self._scorer(contacts, normals)
+        else:
+            q, Q = self.rows(contacts, normals, touched)
+            log_lik = None if Q is None else self.models.log_likelihood(Q)
+        rows = self.touch_rows(touched[None])
+        self._set(self.updater.update_scores(log_lik=rows if log_lik is None else np.concatenate([log_lik, rows])))
         return q, True
 
+    def touch_rows(self, touched) -> np.ndarray:
+        """``(B, K)``: the weighted touch-pattern log-likelihoods ``w log P(pattern | object)`` of ``touched (B, n)``
+        (zeros without the touch pattern, ``touch_weight=0``)."""
+        touched = np.asarray(touched, dtype=bool).reshape(-1, self.n_fingers)
+        if self._touch is None:
+            return np.zeros((len(touched), self.n_classes))
+        return self._touch[touched.astype(np.int64) @ self._bits]
+
     def update_rows(self, Q) -> np.ndarray:
-        """One grasp given as its score rows ``(m, d)`` (or one vector ``(d,)``); returns the posterior."""
+        """One grasp given as its score rows ``(m, d)`` (or one vector ``(d,)``); returns the posterior. The rows
+        carry no touch pattern: with ``touch_weight`` use :meth:`update`."""
         self._set(self.updater.update(Q))
         return self._probs
 
@@ -253,9 +297,22 @@ class Belief:
 
     def predict_grasps(self, contacts, normals, touched) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`predict` of ``B`` grasps ``(B, n, 3)``: ``(posteriors (G, K), scored (G,))``, the grasps that
-        would update the belief (see :meth:`rows_batch`)."""
+        would update the belief (see :meth:`rows_batch`; with ``touch_weight`` every grasp does, ``G = B``)."""
         rows, scored = self.rows_batch(contacts, normals, touched)
-        return self.predict(rows), scored
+        if self._touch is None:
+            return self.predict(rows), scored
+        # with the touch pattern every grasp updates: its contacts' rows (if scored) plus its pattern's row
+        from haptic_env.recognizers.updaters import bayes_steps
+
+        touch = self.touch_rows(touched)
+        B = len(touch)
+        per = [np.zeros((0, self.n_classes))] * B
+        for g, i in enumerate(scored):
+            per[i] = self.models.log_likelihood(rows[g])
+        L = np.concatenate([np.concatenate([per[i], touch[i:i + 1]]) for i in range(B)]) if B else touch
+        starts = np.concatenate([[0], np.cumsum([len(per[i]) + 1 for i in range(B)])]).astype(np.int64)
+        post, _ = bayes_steps(np.broadcast_to(self.updater.log_belief, (B, self.n_classes)), L, starts)
+        return np.exp(post), np.arange(B)
 
     # ----------------------------------------------------------------------------------- scores
     def scores(self, Q) -> tuple[np.ndarray | None, np.ndarray | None]:

@@ -93,9 +93,16 @@ class HapticRecogConfig:
     calibrate_grasps: int = 1
     """The KDE's temperature is fitted for beliefs of ``k = 1 .. calibrate_grasps`` grasps of one object
     (``KDEConfig.calibrate_grasps``, unless ``recognizer_kwargs`` sets its own; 1: the one-shot temperature).
-    The Allegro and Shadow envs use 5: their grasps of one object share the KDE's systematic errors, and a belief
-    multiplied over grasps with the one-shot temperature stops wrong more often. Chosen per hand on validation
-    grasps (RESULTS.md): the Aero's belief then needs twice the grasps for no more success, so it keeps 1."""
+    The Allegro, Shadow and Aero envs use 5: their grasps of one object share the KDE's systematic errors, and a
+    belief multiplied over grasps with the one-shot temperature stops wrong more often. Chosen per hand on
+    validation grasps (RESULTS.md); the Aero's together with its ``touch_weight`` (without the touch pattern its
+    belief needed twice the grasps at 5 for no more success, and it kept 1)."""
+    touch_weight: float = 0.0
+    """Weight ``w`` of the hand's touch-pattern log-likelihood ``w log P(pattern | object)`` that BC-NP adds at
+    every grasp (which fingertips touched: :mod:`haptic_env.recognizers.touch`, estimated from the same
+    hand-matched training grasps as the KDE); 0: off, the paper's method. Needs the "bc-np" updater and "hand"
+    training grasps (the mujoco backend). The Shadow and Aero envs use 0.25 and 0.5, chosen per hand on
+    validation grasps (RESULTS.md); the Allegro keeps 0 (its success at the stop did not change)."""
     recognizer_kwargs: Mapping[str, Any] = field(default_factory=dict)
     """Extra keyword arguments of :func:`haptic_env.recognizers.build_recognizer`, e.g.
     ``{"config": RecognizerConfig(grasps=DatasetConfig(grasps_per_object=5000))}``; ``config`` may also be a
@@ -119,6 +126,16 @@ class HapticRecogConfig:
             raise ValueError(f"recognizer_source='hand' needs the mujoco backend, got backend={self.backend!r}")
         if self.updater not in UPDATERS:
             raise ValueError(f"updater must be one of {UPDATERS}, got {self.updater!r}")
+        w = self.touch_weight
+        if isinstance(w, bool) or not isinstance(w, (int, float, np.integer, np.floating)) or not (
+                math.isfinite(w) and w >= 0):
+            raise ValueError(f"touch_weight must be a finite number >= 0, got {w!r}")
+        if w > 0 and self.updater != "bc-np":
+            raise ValueError(f"touch_weight={w} needs updater='bc-np', got {self.updater!r}")
+        if w > 0 and (self.backend != "mujoco" or self.recognizer_source not in ("auto", "hand")):
+            raise ValueError(f"touch_weight={w} needs hand-matched training grasps (backend='mujoco' with "
+                             f"recognizer_source 'auto' or 'hand'), got backend={self.backend!r}, "
+                             f"recognizer_source={self.recognizer_source!r}")
         if self.reward not in REWARD_KINDS:
             raise ValueError(f"reward must be one of {REWARD_KINDS}, got {self.reward!r}")
         if self.pose not in POSE_MODES:
@@ -192,6 +209,8 @@ def recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
     from haptic_env.recognizers import KDEConfig, MLPConfig, RecognizerConfig
 
     kw = dict(config.recognizer_kwargs)
+    if config.touch_weight > 0:
+        kw.setdefault("touch", True)
     rc = kw.get("config", {})
     if isinstance(rc, Mapping):
         rc = dict(rc)
@@ -214,6 +233,9 @@ def recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
         if isinstance(grasps.get("scale_range"), list):
             grasps["scale_range"] = tuple(grasps["scale_range"])
         rc["grasps"] = DatasetConfig(**grasps)
+        if kw.get("touch") and rc["grasps"].source != "hand":
+            raise ValueError(f"touch_weight={config.touch_weight} needs hand-matched training grasps (source 'hand'), "
+                             f"got source {rc['grasps'].source!r}")
         if isinstance(rc.get("mlp"), Mapping):
             rc["mlp"] = MLPConfig(**rc["mlp"])
         kde = rc.get("kde", {})

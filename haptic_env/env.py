@@ -105,7 +105,10 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     the ``t``-finger model; otherwise (default ``z_fingers=None``, or ``t < z``, or degenerate contacts such
     as coplanar ones) the grasp carries no information: the belief is unchanged. Either way it costs a grasp.
     With ``score_subsets=True`` every grasp with ``t >= z`` touching fingers is scored through all its
-    ``z``-subsets by the ``z``-finger model instead (the paper's z-finger scoring).
+    ``z``-subsets by the ``z``-finger model instead (the paper's z-finger scoring). With ``touch_weight=w > 0``
+    (the 5-finger hand envs) every grasp, incomplete or not, also adds ``w log P(pattern | object)`` of its
+    touch pattern (which fingertips touched), estimated from the hand's own grasps of the meshes
+    (:mod:`haptic_env.recognizers.touch`); such a grasp always updates the belief.
 
     ## Arguments
     One frozen dataclass :class:`HapticRecogConfig` holds every setting. Pass it as ``config=`` and/or
@@ -213,9 +216,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
             raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid: ['object']")
         self.scene.reset(self.np_random, options.get("object"))
         if self._belief is None:
-            c = self.config
-            self._belief = Belief(self.recognizer, c.updater, c.threshold, calibrated=c.calibrated,
-                                  z_fingers=c.z_fingers, score_subsets=c.score_subsets)
+            self._belief = Belief.from_config(self.objects, self.config, self.recognizer)
         self._probs = self._belief.reset()
         self._grasps = 0
         self._episode_over = False

@@ -161,8 +161,7 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
                                                      and not c.score_subsets) else None
         self._scorer = scorer
         if scorer is None:
-            self._beliefs = [Belief(rec, c.updater, c.threshold, calibrated=c.calibrated, z_fingers=c.z_fingers,
-                                    score_subsets=c.score_subsets) for _ in range(self.num_envs)]
+            self._beliefs = [Belief.from_config(self.objects, c, rec) for _ in range(self.num_envs)]
         else:
             b = Belief(rec, c.updater, c.threshold, calibrated=c.calibrated)  # the prior as the single env has it
             self._prior_log = np.asarray(b.updater.log_belief, dtype=np.float64).copy()

@@ -91,3 +91,70 @@ def test_importing_the_kde_or_the_updaters_does_not_load_torch():
                    "haptic_env.env"):
         code = f"import sys, {module}; assert 'torch' not in sys.modules, '{module} loaded torch'"
         subprocess.run([sys.executable, "-c", code], check=True)
+
+
+@pytest.fixture(scope="module")
+def touch_recognizer(recognizer):
+    """The small recogniser with a made-up touch model (4 fingers, 16 patterns; a real one needs a hand's pool)."""
+    import dataclasses
+
+    from haptic_env.recognizers.touch import TouchModel
+
+    rng = np.random.default_rng(11)
+    T = rng.random((recognizer.n_classes, 50, 4)) < rng.uniform(0.2, 0.9, (recognizer.n_classes, 1, 4))
+    return dataclasses.replace(recognizer, touch=TouchModel.fit(T))
+
+
+def test_touch_pattern_adds_w_log_p_at_every_grasp(touch_recognizer):
+    """A grasp without contacts still moves the belief by its pattern; a complete grasp by contacts + pattern, the
+    same on the compiled and the general path; predict_grasps = updating a copy, every grasp scored."""
+    from haptic_env.grasping import make_backend
+    from haptic_env.objects import load_object_set
+
+    w = 0.5
+    belief = Belief(touch_recognizer, "bc-np", z_fingers=3, touch_weight=w)
+    plain = Belief(touch_recognizer, "bc-np", z_fingers=3)
+    none = np.zeros(4, dtype=bool)
+    q, usable = belief.update(np.zeros((4, 3)), np.zeros((4, 3)), none)
+    assert usable and not q.any()
+    lp = w * touch_recognizer.touch.log_p[:, 0]
+    np.testing.assert_allclose(belief.probs, np.exp(lp - logsumexp_(lp)), rtol=1e-12)
+    assert plain.update(np.zeros((4, 3)), np.zeros((4, 3)), none)[1] is False  # without: no information
+
+    backend = make_backend("geometric", n_fingers=4)
+    backend.set_object(load_object_set("default")[1], np.eye(4))
+    res = backend.grasp_batch(np.random.default_rng(1).uniform(-1, 1, (24, 4)), np.random.default_rng(2))
+    full = int(np.flatnonzero(res.touched.all(axis=1))[0])
+    general = copy.deepcopy(belief)
+    general.compiled = False
+    belief.update(res.contacts[full], res.normals[full], res.touched[full])
+    general.update(res.contacts[full], res.normals[full], res.touched[full])
+    np.testing.assert_allclose(belief.probs, general.probs, rtol=1e-9, atol=1e-12)
+    ref = copy.deepcopy(plain)  # contacts alone, then the pattern's row: the same sum
+    ref.update(res.contacts[full], res.normals[full], res.touched[full])
+    lb = np.log(ref.probs) + belief.touch_rows(res.touched[full])[0] + w * touch_recognizer.touch.log_p[:, 0]
+    np.testing.assert_allclose(belief.probs, np.exp(lb - logsumexp_(lb)), rtol=1e-9)
+
+    post, scored = belief.predict_grasps(res.contacts, res.normals, res.touched)
+    assert scored.tolist() == list(range(24))
+    for p, i in zip(post, scored):
+        cp = copy.deepcopy(belief)
+        cp.update(res.contacts[i], res.normals[i], res.touched[i])
+        np.testing.assert_allclose(p, cp.probs, rtol=1e-9, atol=1e-12)
+
+
+def test_touch_weight_is_checked(recognizer, touch_recognizer):
+    with pytest.raises(ValueError, match="touch model"):
+        Belief(recognizer, "bc-np", touch_weight=0.5)
+    with pytest.raises(ValueError, match="bc-np"):
+        Belief(touch_recognizer, "ic", touch_weight=0.5)
+    for bad in (-0.1, np.nan, np.inf, True, "0.5"):
+        with pytest.raises(ValueError, match="touch_weight"):
+            Belief(touch_recognizer, "bc-np", touch_weight=bad)
+    assert not Belief(touch_recognizer, "bc-np", touch_weight=0).touch_rows(np.ones((3, 4), bool)).any()
+
+
+def logsumexp_(v):
+    from scipy.special import logsumexp
+
+    return logsumexp(v)

@@ -364,11 +364,29 @@ def test_calibrate_grasps_reaches_the_kde_config(env_config):
     assert _recognizer_kwargs(env_config.replace(calibrate_grasps=5))["config"].kde.calibrate_grasps == 5
     own = env_config.replace(calibrate_grasps=5, recognizer_kwargs={"config": {"kde": {"calibrate_grasps": 3}}})
     assert _recognizer_kwargs(own)["config"].kde.calibrate_grasps == 3  # the JSON config's own setting wins
-    for env_id in ("HapticRecogMuJoCo-v0", "HapticRecogShadow-v0"):  # chosen per hand on validation grasps
+    for env_id in ("HapticRecogMuJoCo-v0", "HapticRecogShadow-v0", "HapticRecogAero-v0"):  # chosen on validation
         assert ENV_VARIANTS[env_id]["calibrate_grasps"] == 5
     for bad in (0, 2.0, "5"):
         with pytest.raises(ValueError, match="calibrate_grasps"):
             env_config.replace(calibrate_grasps=bad)
+
+
+def test_touch_weight_is_checked_at_make_and_reaches_the_recogniser(env_config):
+    from haptic_env import ENV_VARIANTS
+    from haptic_env.config import recognizer_kwargs as _recognizer_kwargs
+
+    assert HapticRecogConfig().touch_weight == 0.0  # off: the paper's method
+    assert "touch" not in _recognizer_kwargs(env_config)
+    hand = HapticRecogConfig(backend="mujoco", backend_kwargs={"hand": "generic"}, touch_weight=0.5)
+    assert _recognizer_kwargs(hand)["touch"] is True
+    assert ENV_VARIANTS["HapticRecogShadow-v0"]["touch_weight"] == 0.25  # chosen per hand on validation grasps
+    assert ENV_VARIANTS["HapticRecogAero-v0"]["touch_weight"] == 0.5
+    for bad, match in [({"touch_weight": -1.0}, "touch_weight"), ({"touch_weight": float("nan")}, "touch_weight"),
+                       ({"touch_weight": True}, "touch_weight"), ({"touch_weight": 0.5}, "hand-matched"),
+                       ({"touch_weight": 0.5, "backend": "mujoco", "updater": "ic"}, "bc-np"),
+                       ({"touch_weight": 0.5, "backend": "mujoco", "recognizer_source": "surface"}, "hand-matched")]:
+        with pytest.raises(ValueError, match=match):
+            HapticRecogConfig(**bad)
 
 
 def test_training_grasps_reaches_the_dataset_config(env_config):
@@ -406,10 +424,16 @@ def test_mujoco_hand_variants_run_an_episode(env_id):
         pytest.skip("needs the shared data (ycb/ meshes and the menagerie hands): set HAPTIC_DATA")
     # the Allegro's own grasps (few approaches, to stay fast: 100 give the plate, its hardest object, ~10 complete
     # ones); the 5-finger hands rarely touch the plate with all five fingers, so a fast recogniser for them trains on
-    # surface grasps (the hand source itself: tests/test_hand_grasps.py)
+    # surface grasps (the hand source itself: tests/test_hand_grasps.py), so without the touch pattern, which needs
+    # the hand's own grasps
     grasps = {"grasps_per_object": 100} if env_id == "HapticRecogMuJoCo-v0" else {"grasps_per_object": 300,
                                                                                "source": "surface"}
-    env = haptic_env.make(env_id=env_id, recognizer_kwargs={"config": {"grasps": grasps}, "progress": False})
+    kw = {"recognizer_kwargs": {"config": {"grasps": grasps}, "progress": False}}
+    if haptic_env.ENV_VARIANTS[env_id].get("touch_weight", 0) > 0:
+        with pytest.raises(ValueError, match="hand-matched"):
+            haptic_env.make(env_id=env_id, **kw)
+        kw["touch_weight"] = 0.0
+    env = haptic_env.make(env_id=env_id, **kw)
     obs, info = env.reset(seed=0)
     base = env.unwrapped
     assert base.config.backend == "mujoco" and len(base.objects) == 10

@@ -29,6 +29,7 @@ from haptic_env.cache import CacheError, atomic_write, cache_dir, config_key, lo
 from haptic_env.grasp_features import feature_dim
 from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
 from haptic_env.recognizers.mlp import MLPClassifier, MLPConfig
+from haptic_env.recognizers.touch import TouchModel
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS, make_updater
 from haptic_env.recognizers.zfinger import ZFingerUpdater, subset_vectors
 
@@ -139,6 +140,8 @@ class Recognizer:
     normals: bool
     config: RecognizerConfig
     models: ModelBank
+    #: the hand's touch-pattern likelihood (:mod:`~haptic_env.recognizers.touch`; ``build_recognizer(touch=True)``)
+    touch: TouchModel | None = None
 
     @property
     def n_classes(self) -> int:
@@ -212,7 +215,7 @@ def models_for(updater: str) -> tuple[str, ...]:
 
 
 def build_recognizer(objects, n_fingers: int, normals: bool = True, *, z_values=(), config: RecognizerConfig | None = None,
-                     models: tuple[str, ...] = MODELS, cache: bool = True, progress: bool = True,
+                     models: tuple[str, ...] = MODELS, touch: bool = False, cache: bool = True, progress: bool = True,
                      dataset_fn=None) -> Recognizer:
     """Train or load the models for ``objects`` (an ``ObjectSet``) and return a :class:`Recognizer`.
 
@@ -221,6 +224,8 @@ def build_recognizer(objects, n_fingers: int, normals: bool = True, *, z_values=
         z_values: further finger counts to build models for (z-finger scoring, incomplete grasps).
         config: data and model settings (default :class:`RecognizerConfig`).
         models: which of :data:`MODELS` to build (:func:`models_for` an updater); the others are None.
+        touch: also estimate the hand's touch-pattern likelihood (:class:`~haptic_env.recognizers.touch.TouchModel`)
+            from the same hand grasp pool as the training grasps (``config.grasps.source`` must be ``"hand"``).
         cache: load/save trained models under ``cache_dir("recognizers")``, one file per model (keyed by the
             objects, ``z``, ``normals``, the training grasps and that model's config).
         dataset_fn: ``(objects, DatasetConfig) -> GraspDataset`` (default
@@ -233,6 +238,9 @@ def build_recognizer(objects, n_fingers: int, normals: bool = True, *, z_values=
     bad = [m for m in models if m not in MODELS]
     if bad or not models:
         raise ValueError(f"models must be a non-empty subset of {MODELS}, got {models!r}")
+    if touch and config.grasps.source != "hand":
+        raise ValueError(f"touch=True needs hand-matched training grasps (config.grasps.source='hand'), got "
+                         f"source={config.grasps.source!r}: only a hand's own grasps give its touch patterns")
     zs = sorted({int(n_fingers), *map(int, z_values)})
     if zs[0] < 2 or zs[-1] > n_fingers:
         raise ValueError(f"z_values must lie in [2, n_fingers={n_fingers}], got {tuple(z_values)}")
@@ -265,7 +273,18 @@ def build_recognizer(objects, n_fingers: int, normals: bool = True, *, z_values=
                           {"names": list(names), "z": z, "normals": bool(normals), "model": m,
                            "train_seconds": time.perf_counter() - t0})
         bank.add(z, built.get("mlp"), built.get("kde"))
-    return Recognizer(names, int(n_fingers), bool(normals), config, bank)
+    return Recognizer(names, int(n_fingers), bool(normals), config, bank,
+                      touch=_touch_model(objects, config, int(n_fingers), progress) if touch else None)
+
+
+def _touch_model(objects, config: RecognizerConfig, n_fingers: int, progress: bool) -> TouchModel:
+    """The touch-pattern likelihood from the hand grasp pool of the training grasps (cached with them)."""
+    from haptic_env.hand_grasps import hand_grasp_pool
+
+    g = config.dataset_config(n_fingers, True, hand_fingers=n_fingers)
+    pool = hand_grasp_pool(objects, g.hand, g.hand_fingers or n_fingers, g.grasps_per_object, support=g.support,
+                           seed=g.seed, budget=g.hand_budget, progress=progress)
+    return TouchModel.from_pool(pool)
 
 
 def _train(model: str, ds, cfg: RecognizerConfig, progress: bool):
