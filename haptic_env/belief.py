@@ -45,6 +45,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from haptic_env.grasp_features import feature_dim
+from haptic_env.recognizers.touch import check_touch_weight
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS
 
 if TYPE_CHECKING:
@@ -71,12 +72,6 @@ def get_recognizer(objects, config: HapticRecogConfig):
     return _RECOGNIZERS[key]
 
 
-def _check_touch_weight(w) -> float:
-    if isinstance(w, bool) or not isinstance(w, (int, float, np.integer, np.floating)) or not (math.isfinite(w) and w >= 0):
-        raise ValueError(f"touch_weight must be a finite number >= 0, got {w!r}")
-    return float(w)
-
-
 class Belief:
     """The posterior over a recogniser's objects and everything that moves it (see the module docstring).
 
@@ -100,7 +95,7 @@ class Belief:
             raise ValueError(f"unknown updater kind {kind!r}; choose one of {UPDATERS}")
         if score_subsets and z_fingers is None:
             raise ValueError("score_subsets=True needs z_fingers (the subset size)")
-        touch_weight = _check_touch_weight(touch_weight)
+        touch_weight = check_touch_weight(touch_weight)
         if touch_weight > 0 and kind != "bc-np":
             raise ValueError(f"touch_weight={touch_weight} needs the 'bc-np' updater, got {kind!r}")
         if touch_weight > 0 and getattr(recognizer, "touch", None) is None:

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from haptic_env.recognizers.touch import check_touch_weight
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS
 from haptic_env.scene import POSE_MODES
 from haptic_env.task import REWARD_KINDS
@@ -126,10 +127,7 @@ class HapticRecogConfig:
             raise ValueError(f"recognizer_source='hand' needs the mujoco backend, got backend={self.backend!r}")
         if self.updater not in UPDATERS:
             raise ValueError(f"updater must be one of {UPDATERS}, got {self.updater!r}")
-        w = self.touch_weight
-        if isinstance(w, bool) or not isinstance(w, (int, float, np.integer, np.floating)) or not (
-                math.isfinite(w) and w >= 0):
-            raise ValueError(f"touch_weight must be a finite number >= 0, got {w!r}")
+        w = check_touch_weight(self.touch_weight)
         if w > 0 and self.updater != "bc-np":
             raise ValueError(f"touch_weight={w} needs updater='bc-np', got {self.updater!r}")
         if w > 0 and (self.backend != "mujoco" or self.recognizer_source not in ("auto", "hand")):
