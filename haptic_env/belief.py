@@ -109,9 +109,8 @@ class Belief:
         self.n_fingers = int(recognizer.n_fingers)
         self.n_classes = int(recognizer.n_classes)
         self.feature_dim = feature_dim(self.n_fingers, recognizer.normals)
-        #: ``(2 ** n, K)``: w log P(pattern | object) by pattern code, or None (off)
-        self._touch = (touch_weight * recognizer.touch.log_p.T).copy() if touch_weight > 0 else None
-        self._bits = np.int64(1) << np.arange(self.n_fingers, dtype=np.int64)
+        #: the recogniser's touch model when its pattern is weighed in, else None (off)
+        self._touch = recognizer.touch if touch_weight > 0 else None
         self.models = recognizer.models.with_calibration(calibrated)
         #: the posterior maths (read-only use: :mod:`haptic_env.recognizers.updaters`)
         self.updater = recognizer.make_updater(kind=kind, threshold=threshold, calibrated=calibrated)
@@ -218,7 +217,7 @@ class Belief:
         touched = np.asarray(touched, dtype=bool).reshape(-1, self.n_fingers)
         if self._touch is None:
             return np.zeros((len(touched), self.n_classes))
-        return self._touch[touched.astype(np.int64) @ self._bits]
+        return self.touch_weight * self._touch.log_likelihood(touched)
 
     def update_rows(self, Q) -> np.ndarray:
         """One grasp given as its score rows ``(m, d)`` (or one vector ``(d,)``); returns the posterior. The rows

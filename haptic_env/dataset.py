@@ -412,13 +412,23 @@ def _save_dataset(ds: GraspDataset) -> None:
                         names=np.array(ds.names, dtype=str))
 
 
+def hand_pool(objects: ObjectSet, config: DatasetConfig, progress: bool = True):
+    """The hand grasp pool (:func:`~haptic_env.hand_grasps.hand_grasp_pool`, cached) that ``source="hand"`` training
+    grasps of ``config`` come from: its hand, ``hand_fingers`` (default ``n_fingers``), approaches, support, seed
+    and budget. The training grasps and the recogniser's touch model read this one pool."""
+    from .hand_grasps import hand_grasp_pool
+
+    if config.source != "hand":
+        raise ValueError(f"only source='hand' grasps come from a hand grasp pool, got source={config.source!r}")
+    return hand_grasp_pool(objects, config.hand, config.hand_fingers or config.n_fingers, config.grasps_per_object,
+                           support=config.support, seed=config.seed, budget=config.hand_budget, progress=progress)
+
+
 def _hand_dataset(objects: ObjectSet, config: DatasetConfig, path: Path | None, progress: bool) -> GraspDataset:
     """``source="hand"``: the ``n_fingers``-finger rows of a hand grasp pool, split per object."""
-    from .hand_grasps import hand_grasp_pool, pool_rows
+    from .hand_grasps import pool_rows
 
-    n_hand = config.hand_fingers or config.n_fingers
-    pool = hand_grasp_pool(objects, config.hand, n_hand, config.grasps_per_object, support=config.support,
-                           seed=config.seed, budget=config.hand_budget, progress=progress)
+    pool = hand_pool(objects, config, progress)
     streams = np.random.SeedSequence([config.seed, 1]).spawn(len(objects))
     Xtr, Ytr, Xva, Yva = [], [], [], []
     for k, ss in enumerate(streams):

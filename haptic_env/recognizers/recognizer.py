@@ -279,12 +279,10 @@ def build_recognizer(objects, n_fingers: int, normals: bool = True, *, z_values=
 
 def _touch_model(objects, config: RecognizerConfig, n_fingers: int, progress: bool) -> TouchModel:
     """The touch-pattern likelihood from the hand grasp pool of the training grasps (cached with them)."""
-    from haptic_env.hand_grasps import hand_grasp_pool
+    from haptic_env.dataset import hand_pool
 
-    g = config.dataset_config(n_fingers, True, hand_fingers=n_fingers)
-    pool = hand_grasp_pool(objects, g.hand, g.hand_fingers or n_fingers, g.grasps_per_object, support=g.support,
-                           seed=g.seed, budget=g.hand_budget, progress=progress)
-    return TouchModel.from_pool(pool)
+    return TouchModel.from_pool(hand_pool(objects, config.dataset_config(n_fingers, True, hand_fingers=n_fingers),
+                                          progress))
 
 
 def _train(model: str, ds, cfg: RecognizerConfig, progress: bool):
