@@ -28,6 +28,29 @@ def test_tree_matches_dense_reference():
     assert np.median((dense - tree)[true]) < 0.3
 
 
+def test_tree_takes_enough_neighbours_where_a_kernel_covers_many_vectors():
+    """1-d vectors (2 fingers without normals): thousands of an object's vectors lie within its kernel, so a sum
+    over the k = 32 nearest saturates; the tree raises each object's k to cover them and matches the dense sum."""
+    rng = np.random.default_rng(6)
+    X = np.concatenate([rng.normal(0.0, 1.0, 8000), rng.gamma(2.0, 0.6, 8000)])[:, None]
+    y = np.repeat([0, 1], 8000)
+    q = np.concatenate([rng.normal(0.0, 1.0, 200), rng.gamma(2.0, 0.6, 200)])[:, None]
+    yq = np.repeat([0, 1], 200)
+    kde = KDELikelihood(KDEConfig(factor=0.5, eps=0.0)).fit(X, y)
+    assert np.all(kde.tree_k > 500) and np.all(kde.tree_k <= kde.config.k_max)
+    dense = kde.log_likelihood(q, method="dense")
+    rows = np.arange(len(q))
+    assert np.median((dense - kde.log_likelihood(q))[rows, yq]) < 0.05
+    capped = KDELikelihood(KDEConfig(factor=0.5, eps=0.0, k_max=32)).fit(X, y)
+    assert np.array_equal(capped.tree_k, [32, 32])
+    assert np.median((dense - capped.log_likelihood(q))[rows, yq]) > 1.0  # the saturation the floor alone gives
+    again = KDELikelihood.from_state(kde.config, kde.state())  # a cached KDE gets the same neighbour counts
+    assert np.array_equal(again.tree_k, kde.tree_k)
+    # where a kernel covers few vectors (10 dimensions, a narrow kernel) the floor k stays
+    Xs = rng.normal(size=(2000, 10))
+    assert np.array_equal(KDELikelihood(KDEConfig(factor=0.25)).fit(Xs, np.arange(2000) % 2).tree_k, [32, 32])
+
+
 def test_dense_logsum_against_explicit_formula():
     rng = np.random.default_rng(2)
     Z, D = rng.normal(size=(5, 3)), rng.normal(size=(50, 3))
@@ -63,6 +86,8 @@ def test_auto_bandwidth_picks_from_grid_and_state_round_trip():
 def test_kde_errors():
     with pytest.raises(ValueError, match="method"):
         KDEConfig(method="fast")
+    with pytest.raises(ValueError, match="k_max"):
+        KDEConfig(k_max=0)
     with pytest.raises(RuntimeError, match="not fitted"):
         KDELikelihood().log_likelihood(np.zeros((1, 2)))
     kde = KDELikelihood(KDEConfig(factor=1.0)).fit(np.random.default_rng(0).normal(size=(20, 2)), np.arange(20) % 2)
@@ -79,7 +104,8 @@ def test_pooled_matches_tree_and_dense():
     q = X[rng.choice(len(X), 200)] + rng.normal(scale=0.3, size=(200, X.shape[1]))
     exact = KDELikelihood(KDEConfig(factor=0.3, method="pooled", k=len(X), cutoff=100.0, eps=0.0)).fit(X, y)
     assert np.allclose(exact.log_likelihood(q), exact.log_likelihood(q, method="dense"), atol=1e-8)
-    tree = KDELikelihood(KDEConfig(factor=0.3, method="tree", eps=0.0)).fit(X, y)
+    # the tree with the pooled search's k (k_max = k: no raise), so both sum the same neighbours
+    tree = KDELikelihood(KDEConfig(factor=0.3, method="tree", eps=0.0, k_max=32)).fit(X, y)
     pooled = tree.with_method("pooled")
     assert pooled.config.method == "pooled" and np.array_equal(pooled.bandwidth, tree.bandwidth)
     lp, lt, ld = pooled.log_likelihood(q), tree.log_likelihood(q), pooled.log_likelihood(q, method="dense")
