@@ -429,7 +429,8 @@ def plot_learning_curves(log_dirs: dict[str, str | Path], out: str | Path, windo
 
 # --------------------------------------------------------------------------------------- CLI
 def make_agent(spec: str, seed: int = 0, stochastic: bool = False):
-    """``random`` | ``greedy`` | ``greedy:<n_candidates>`` | ``<name>=<model.zip>`` (PPO/SAC from the file name
+    """``random`` | ``greedy[:<n_candidates>]`` | ``greedy-env[:<n_candidates>]`` (the look-ahead simulates the env's own
+    backend, e.g. the MuJoCo hand) | ``<name>=<model.zip>`` (PPO/SAC from the file name
     or ``ppo=...``/``sac=...``). ``stochastic``: SB3 agents sample their actions (named ``<name>-stochastic``)
     instead of taking the mean action."""
     if spec == "random":
@@ -439,10 +440,12 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False):
     if spec.startswith("greedy"):
         from agents.greedy import GreedyInfoGainAgent
 
-        m = int(spec.split(":", 1)[1]) if ":" in spec else 16
-        agent = GreedyInfoGainAgent(n_candidates=m, seed=seed)
-        if ":" in spec:
-            agent.name = spec
+        kind, _, m = spec.partition(":")
+        if kind not in ("greedy", "greedy-env"):
+            raise ValueError(f"unknown agent spec {spec!r}; use greedy[:M] or greedy-env[:M]")
+        agent = GreedyInfoGainAgent(n_candidates=int(m) if m else 16, seed=seed,
+                                    simulate="env" if kind == "greedy-env" else "geometric")
+        agent.name = spec
         return agent
     if "=" in spec or spec.endswith(".zip"):
         from agents.sb3 import SB3Agent
@@ -452,7 +455,7 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False):
         agent = SB3Agent.from_path(path, algo=algo, name=f"{name}-stochastic" if stochastic else name)
         agent.deterministic = not stochastic
         return agent
-    raise ValueError(f"unknown agent spec {spec!r}; use random, greedy[:M], or NAME=path/to/model.zip")
+    raise ValueError(f"unknown agent spec {spec!r}; use random, greedy[:M], greedy-env[:M] or NAME=path/to/model.zip")
 
 
 def add_parser(subparsers) -> None:
@@ -462,7 +465,8 @@ def add_parser(subparsers) -> None:
     p = subparsers.add_parser("evaluate", help="evaluate agents on HapticRecog (table + plots)",
                               description=__doc__.split("\n\n")[0])
     p.add_argument("--agents", nargs="+", default=["random", "greedy"],
-                   help="random | greedy[:M] | NAME=model.zip (ppo=..., sac=...)")
+                   help="random | greedy[:M] | greedy-env[:M] (look-ahead with the env's own backend) | "
+                        "NAME=model.zip (ppo=..., sac=...)")
     p.add_argument("--episodes", type=int_in(1), default=40, help="episodes per seed")
     p.add_argument("--seeds", type=int_in(0), nargs="+", default=[0, 1, 2, 3, 4])
     p.add_argument("--stochastic", action="store_true",

@@ -88,6 +88,35 @@ def test_greedy_picks_the_lowest_expected_entropy(env_config):
     assert np.all(agent.last_scores <= entropy_rows(env.unwrapped.belief[None])[0] + 1e-9)
 
 
+def test_greedy_env_lookahead_simulates_the_envs_own_backend(env_config):
+    """simulate="env": on the geometric env it is the default look-ahead (same actions); on a MuJoCo hand config its
+    hypotheses are grasped by MuJoCo backends of that hand. Bad settings fail at construction, naming the value."""
+    from types import SimpleNamespace
+
+    from agents.evaluate import make_agent
+    from haptic_env.env import HapticRecogConfig
+    from haptic_env.grasping.mujoco_backend import MujocoBackend
+
+    env = haptic_env.make(env_config)
+    obs, _ = env.reset(seed=5)
+    acts = []
+    for agent in (GreedyInfoGainAgent(n_candidates=8, seed=0), make_agent("greedy-env:8", seed=0)):
+        agent.reset(env, seed=0)
+        acts.append(agent.act(obs, env))
+    np.testing.assert_array_equal(acts[0], acts[1])
+    assert make_agent("greedy-env:8").name == "greedy-env:8" and make_agent("greedy").name == "greedy"
+    hand = SimpleNamespace(config=HapticRecogConfig(backend="mujoco", backend_kwargs={"hand": "generic"}),
+                           objects=env.unwrapped.objects[:2])
+    sims = GreedyInfoGainAgent(simulate="env")._sim_backends(hand)
+    assert len(sims) == 2 and all(isinstance(b, MujocoBackend) for b in sims)
+    with pytest.raises(ValueError, match="'hand'"):
+        GreedyInfoGainAgent(simulate="hand")
+    with pytest.raises(ValueError, match="backend_kwargs"):
+        GreedyInfoGainAgent(simulate="env", backend_kwargs={"n_rays": 4})
+    with pytest.raises(ValueError, match="greedy-envy"):
+        make_agent("greedy-envy")
+
+
 def _train_args(algo: str, steps: int, run, recognizer_kwargs: dict, hyperparams: dict) -> list[str]:
     """``train.py`` arguments of a tiny run (one dummy-vec env, 10-grasp episodes, small recogniser);
     the hyper-parameters come last so a test can replace them."""
