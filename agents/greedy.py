@@ -16,7 +16,10 @@ Approximations (documented, deliberate):
 
 * every hypothesis object is simulated **at the env's current pose** (``env.unwrapped.pose``): the pose of the
   object on the table is treated as known and only its identity as unknown (privileged information a
-  learned policy does not get);
+  learned policy does not get). ``pose_known=False`` places the hypotheses at a pose drawn at each reset from
+  the env's pose distribution (``config.pose``) with the agent's own generator instead, so the look-ahead knows
+  no more than a learned policy about where the object is turned; this measures how much of the greedy gain is
+  the privileged pose;
 * the per-episode random scale (``scale_range``) is ignored (hypotheses at scale 1);
 * ``simulate="geometric"`` (default): the simulation uses the geometric backend, even when the env uses another
   backend (the mujoco hand's contacts differ from the simulated ones, so on a hand env the look-ahead does not know
@@ -52,7 +55,8 @@ class GreedyInfoGainAgent:
     name = "greedy"
 
     def __init__(self, n_candidates: int = 16, n_samples: int = 1, min_weight: float = 1e-3,
-                 seed: int | None = None, backend_kwargs: dict[str, Any] | None = None, simulate: str = "geometric"):
+                 seed: int | None = None, backend_kwargs: dict[str, Any] | None = None, simulate: str = "geometric",
+                 pose_known: bool = True):
         if n_candidates < 1 or n_samples < 1:
             raise ValueError(f"n_candidates and n_samples must be >= 1, got {n_candidates}, {n_samples}")
         if simulate not in ("geometric", "env"):
@@ -60,6 +64,7 @@ class GreedyInfoGainAgent:
         if simulate == "env" and backend_kwargs is not None:
             raise ValueError("backend_kwargs applies to simulate='geometric' only; simulate='env' uses the env's own")
         self.simulate = simulate
+        self.pose_known = bool(pose_known)
         if not 0 <= min_weight < 1:
             raise ValueError(f"min_weight must be in [0, 1), got {min_weight}")
         self.n_candidates = int(n_candidates)
@@ -90,7 +95,12 @@ class GreedyInfoGainAgent:
         if seed is not None:
             self._rng = np.random.default_rng(seed)
         base = env.unwrapped
-        pose = base.pose
+        if self.pose_known:
+            pose = base.pose
+        else:
+            from haptic_env.scene import random_pose
+
+            pose = random_pose(self._rng, base.config.pose)
         for obj, backend in zip(base.objects, self._sim_backends(base)):
             backend.set_object(obj, pose)
 

@@ -90,7 +90,8 @@ def test_greedy_picks_the_lowest_expected_entropy(env_config):
 
 def test_greedy_env_lookahead_simulates_the_envs_own_backend(env_config):
     """simulate="env": on the geometric env it is the default look-ahead (same actions); on a MuJoCo hand config its
-    hypotheses are grasped by MuJoCo backends of that hand. Bad settings fail at construction, naming the value."""
+    hypotheses are grasped by MuJoCo backends of that hand; "-blind" hides the pose. Bad settings fail at
+    construction, naming the value."""
     from types import SimpleNamespace
 
     from agents.evaluate import make_agent
@@ -105,6 +106,13 @@ def test_greedy_env_lookahead_simulates_the_envs_own_backend(env_config):
         acts.append(agent.act(obs, env))
     np.testing.assert_array_equal(acts[0], acts[1])
     assert make_agent("greedy-env:8").name == "greedy-env:8" and make_agent("greedy").name == "greedy"
+    # -blind: the hypotheses are placed at a pose of the agent's own draw, not the env's
+    seen, blind = make_agent("greedy:8", seed=0), make_agent("greedy-blind:8", seed=0)
+    for agent in (seen, blind):
+        agent.reset(env, seed=0)
+    assert not blind.pose_known and seen.pose_known
+    np.testing.assert_array_equal(seen._backends[0]._T, env.unwrapped.pose)
+    assert not np.allclose(blind._backends[0]._T, env.unwrapped.pose)
     hand = SimpleNamespace(config=HapticRecogConfig(backend="mujoco", backend_kwargs={"hand": "generic"}),
                            objects=env.unwrapped.objects[:2])
     sims = GreedyInfoGainAgent(simulate="env")._sim_backends(hand)
