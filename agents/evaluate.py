@@ -431,7 +431,7 @@ def plot_learning_curves(log_dirs: dict[str, str | Path], out: str | Path, windo
 def make_agent(spec: str, seed: int = 0, stochastic: bool = False):
     """``random`` | ``greedy[:<n_candidates>]`` | ``greedy-env[:<n_candidates>]`` (the look-ahead simulates the env's own
     backend, e.g. the MuJoCo hand); a ``-blind`` suffix (``greedy-blind``, ``greedy-env-blind``) hides the object's
-    pose from the look-ahead (``pose_known=False``) | ``<name>=<model.zip>`` (PPO/SAC from the file name
+    pose from the look-ahead (``pose_known=False``); ``:M:S`` sets ``S`` samples per candidate (blind: ``S`` poses) | ``<name>=<model.zip>`` (PPO/SAC from the file name
     or ``ppo=...``/``sac=...``). ``stochastic``: SB3 agents sample their actions (named ``<name>-stochastic``)
     instead of taking the mean action."""
     if spec == "random":
@@ -441,10 +441,11 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False):
     if spec.startswith("greedy"):
         from agents.greedy import GreedyInfoGainAgent
 
-        kind, _, m = spec.partition(":")
+        kind, _, rest = spec.partition(":")
+        m, _, samples = rest.partition(":")
         if kind not in ("greedy", "greedy-env", "greedy-blind", "greedy-env-blind"):
-            raise ValueError(f"unknown agent spec {spec!r}; use greedy[-env][-blind][:M]")
-        agent = GreedyInfoGainAgent(n_candidates=int(m) if m else 16, seed=seed,
+            raise ValueError(f"unknown agent spec {spec!r}; use greedy[-env][-blind][:M[:S]]")
+        agent = GreedyInfoGainAgent(n_candidates=int(m) if m else 16, n_samples=int(samples) if samples else 1, seed=seed,
                                     simulate="env" if kind.startswith("greedy-env") else "geometric",
                                     pose_known=not kind.endswith("-blind"))
         agent.name = spec
@@ -457,7 +458,7 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False):
         agent = SB3Agent.from_path(path, algo=algo, name=f"{name}-stochastic" if stochastic else name)
         agent.deterministic = not stochastic
         return agent
-    raise ValueError(f"unknown agent spec {spec!r}; use random, greedy[-env][-blind][:M] or NAME=path/to/model.zip")
+    raise ValueError(f"unknown agent spec {spec!r}; use random, greedy[-env][-blind][:M[:S]] or NAME=path/to/model.zip")
 
 
 def add_parser(subparsers) -> None:
@@ -467,7 +468,7 @@ def add_parser(subparsers) -> None:
     p = subparsers.add_parser("evaluate", help="evaluate agents on HapticRecog (table + plots)",
                               description=__doc__.split("\n\n")[0])
     p.add_argument("--agents", nargs="+", default=["random", "greedy"],
-                   help="random | greedy[-env][-blind][:M] (-env: look-ahead with the env's own backend; -blind: "
+                   help="random | greedy[-env][-blind][:M[:S]] (-env: look-ahead with the env's own backend; -blind: "
                         "without the object's pose) | "
                         "NAME=model.zip (ppo=..., sac=...)")
     p.add_argument("--episodes", type=int_in(1), default=40, help="episodes per seed")

@@ -16,10 +16,11 @@ Approximations (documented, deliberate):
 
 * every hypothesis object is simulated **at the env's current pose** (``env.unwrapped.pose``): the pose of the
   object on the table is treated as known and only its identity as unknown (privileged information a
-  learned policy does not get). ``pose_known=False`` places the hypotheses at a pose drawn at each reset from
-  the env's pose distribution (``config.pose``) with the agent's own generator instead, so the look-ahead knows
-  no more than a learned policy about where the object is turned; this measures how much of the greedy gain is
-  the privileged pose;
+  learned policy does not get). ``pose_known=False`` marginalises the pose instead: each of the ``S`` samples
+  re-places every hypothesis at a fresh pose from the env's pose distribution (``config.pose``, the agent's own
+  generator), so the expected entropy averages over where the object might be turned and the look-ahead knows no
+  more about the pose than a learned policy (the grasp vector is frame-invariant); this measures how much of the
+  greedy gain is the privileged pose;
 * the per-episode random scale (``scale_range``) is ignored (hypotheses at scale 1);
 * ``simulate="geometric"`` (default): the simulation uses the geometric backend, even when the env uses another
   backend (the mujoco hand's contacts differ from the simulated ones, so on a hand env the look-ahead does not know
@@ -119,9 +120,9 @@ class GreedyInfoGainAgent:
             active = np.array([int(np.argmax(b))])
         w = b[active] / b[active].sum()
         expected = np.zeros(M)
-        acts = np.repeat(cands, S, axis=0).astype(np.float64)  # (M*S, A)
+        acts = np.repeat(cands, S, axis=0).astype(np.float64)  # (M*S, A): sample s of candidate m at row m*S + s
         for wk, k in zip(w, active):
-            res = self._sim_backends(base)[k].grasp_batch(acts, self._rng)
+            res = self._grasp(base, k, cands, acts)
             contacts = np.asarray(res.contacts, dtype=np.float64)
             touched = np.asarray(res.touched, dtype=bool)
             normals = None
@@ -134,3 +135,24 @@ class GreedyInfoGainAgent:
             expected += wk * H.reshape(M, S).mean(axis=1)
         self.last_scores = expected
         return cands[int(np.argmin(expected))].astype(space.dtype)
+
+    def _grasp(self, base, k: int, cands: np.ndarray, acts: np.ndarray):
+        """Simulated grasps of hypothesis ``k``, rows ordered as ``acts``: at the known pose, or (``pose_known=False``)
+        sample ``s`` of every candidate at the ``s``-th fresh pose."""
+        backend = self._sim_backends(base)[k]
+        if self.pose_known:
+            return backend.grasp_batch(acts, self._rng)
+        from haptic_env.grasping.base import GraspBatch
+        from haptic_env.scene import random_pose
+
+        M, S = len(cands), self.n_samples
+        parts = []
+        for _ in range(S):
+            backend.set_object(base.objects[k], random_pose(self._rng, base.config.pose))
+            parts.append(backend.grasp_batch(cands.astype(np.float64), self._rng))
+        order = np.arange(M * S).reshape(S, M).T.ravel()  # (s, m) blocks -> row m*S + s
+        fields = {}
+        for name in GraspBatch.__dataclass_fields__:
+            vals = [getattr(p, name) for p in parts]
+            fields[name] = None if vals[0] is None else np.concatenate(vals)[order]
+        return GraspBatch(**fields)

@@ -113,6 +113,12 @@ def test_greedy_env_lookahead_simulates_the_envs_own_backend(env_config):
     assert not blind.pose_known and seen.pose_known
     np.testing.assert_array_equal(seen._backends[0]._T, env.unwrapped.pose)
     assert not np.allclose(blind._backends[0]._T, env.unwrapped.pose)
+    # blind with S = 3 poses per candidate: every active hypothesis is re-placed 3 times per step
+    blind3 = make_agent("greedy-blind:5:3", seed=0)
+    assert (blind3.n_candidates, blind3.n_samples) == (5, 3)
+    blind3.reset(env, seed=0)
+    a = blind3.act(obs, env)
+    assert env.action_space.contains(a) and blind3.last_scores.shape == (5,)
     hand = SimpleNamespace(config=HapticRecogConfig(backend="mujoco", backend_kwargs={"hand": "generic"}),
                            objects=env.unwrapped.objects[:2])
     sims = GreedyInfoGainAgent(simulate="env")._sim_backends(hand)
