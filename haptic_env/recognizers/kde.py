@@ -34,7 +34,8 @@ Evaluation (``KDEConfig.method``)
     So each object takes ``k_c`` neighbours: the 90th percentile, over up to 256 of its own training
     vectors, of the number of its vectors within ``cutoff * h_c``, raised to at least ``k`` but
     not above ``max(k, k_max)``. Computed from the training vectors and the bandwidth when the index is built, so a
-    cached KDE gets the same. In 14 dimensions it stays ``k``.
+    cached KDE gets the same. In 14 dimensions it stays near ``k`` for most objects (compact ones, such as a
+    sphere's grasps, take more).
     ``"pooled"``: ONE k-d tree over the training vectors of all objects
     (:class:`~haptic_env.recognizers.knn.KDTree`: compiled, float32, search and sums in one call); a
     single search finds the ``k`` nearest vectors of any object (same ``eps``). Each object's sum
@@ -343,10 +344,13 @@ class KDELikelihood:
             self._log_norms = np.array([self._norm(c) for c in range(self.n_classes)])
         return self._log_norms
 
-    def _tree_logsum(self, c: int, Z: np.ndarray, inv: float) -> np.ndarray:
+    def _tree_logsum(self, c: int, Z: np.ndarray, inv: float, chunk: int = 1 << 21) -> np.ndarray:
+        k = int(self.tree_k[c])
+        step = max(1, chunk // k)  # rows per query: at most ``chunk`` neighbour distances in memory (k can be 4096)
+        if len(Z) > step:
+            return np.concatenate([self._tree_logsum(c, Z[i:i + step], inv, chunk) for i in range(0, len(Z), step)])
         cfg = self.config
         tree = self.trees[c]
-        k = int(self.tree_k[c])
         dist, _ = tree.query(Z, k=k, eps=cfg.eps, distance_upper_bound=cfg.cutoff * float(self.bandwidth[c]))
         dist = dist.reshape(len(Z), k)
         found = np.isfinite(dist[:, 0])
