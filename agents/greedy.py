@@ -122,7 +122,7 @@ class GreedyInfoGainAgent:
         expected = np.zeros(M)
         acts = np.repeat(cands, S, axis=0).astype(np.float64)  # (M*S, A): sample s of candidate m at row m*S + s
         for wk, k in zip(w, active):
-            res = self._grasp(base, k, cands, acts)
+            res = self._grasp(base, k, acts)
             contacts = np.asarray(res.contacts, dtype=np.float64)
             touched = np.asarray(res.touched, dtype=bool)
             normals = None
@@ -136,20 +136,23 @@ class GreedyInfoGainAgent:
         self.last_scores = expected
         return cands[int(np.argmin(expected))].astype(space.dtype)
 
-    def _grasp(self, base, k: int, cands: np.ndarray, acts: np.ndarray):
-        """Simulated grasps of hypothesis ``k``, rows ordered as ``acts``: at the known pose, or (``pose_known=False``)
-        sample ``s`` of every candidate at the ``s``-th fresh pose."""
+    def _grasp(self, base, k: int, acts: np.ndarray):
+        """Simulated grasps of hypothesis ``k`` for ``acts (M*S, A)`` (each candidate repeated ``S`` times, rows kept in
+        that order): at the known pose, or (``pose_known=False``) sample ``s`` of every candidate at the ``s``-th
+        fresh pose."""
         backend = self._sim_backends(base)[k]
         if self.pose_known:
             return backend.grasp_batch(acts, self._rng)
         from haptic_env.grasping.base import GraspBatch
         from haptic_env.scene import random_pose
 
-        M, S = len(cands), self.n_samples
+        S = self.n_samples
+        cands = acts[::S]  # (M, A): each candidate once
+        M = len(cands)
         parts = []
         for _ in range(S):
             backend.set_object(base.objects[k], random_pose(self._rng, base.config.pose))
-            parts.append(backend.grasp_batch(cands.astype(np.float64), self._rng))
+            parts.append(backend.grasp_batch(cands, self._rng))
         order = np.arange(M * S).reshape(S, M).T.ravel()  # (s, m) blocks -> row m*S + s
         fields = {}
         for name in GraspBatch.__dataclass_fields__:

@@ -38,8 +38,9 @@ from haptic_env.recognizers.kde import KDEConfig, KDELikelihood  # noqa: E402
 from haptic_env.recognizers.recognizer import build_recognizer  # noqa: E402
 
 
-def bc_np(S: list[np.ndarray], trials: int) -> str:
-    """BC-NP on per-object score rows ``S[k] (m_k, K)``: right at the stop, decided and correct, mean grasps."""
+def bc_np(S: list[np.ndarray], trials: int) -> tuple[str, float]:
+    """BC-NP on per-object score rows ``S[k] (m_k, K)``: a line with the success right at the stop, decided and correct,
+    mean grasps and one-shot accuracy; and the success right at the stop (%)."""
     K = len(S)
     r = simulate_trials(S, [np.full_like(s, 1.0 / K) for s in S], "bc-np", trials=trials, max_grasps=30,
                         threshold=0.85, rng=np.random.default_rng(2))
