@@ -109,6 +109,10 @@ def test_cli_dry_run_and_bad_spec(tmp_path, capsys):
         main(["sweep", str(bad)])
     assert exc.value.code == 2
     assert "seeds" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:  # --prior-report must be a report folder, checked before anything runs
+        main(["sweep", str(SMOKE), "--report-only", "--out", str(tmp_path / "new"), "--prior-report", str(tmp_path)])
+    assert exc.value.code == 2 and "is not a sweep report folder" in capsys.readouterr().err
+    assert not (tmp_path / "new").exists()
 
 
 def test_match_selects_jobs_and_what_they_need(tmp_path, capsys):
@@ -192,6 +196,19 @@ def test_smoke_sweep_report_rerun_and_retries(local_ray, tmp_path, capsys, monke
 
     two = write_sweep_report(parse_spec({**doc, "seeds": [0, 1]}), SweepResult(out=out)).read_text()
     assert "agent seeds: random [0], greedy [0]. Not run (or not finished): random [1], greedy [1]." in two
+    # an earlier report stands in for run folders that are gone (--prior-report): the same episodes, the same
+    # aggregates, and the report says where they came from; a report of another spec is refused before writing
+    out2 = tmp_path / "sweep2"
+    merged = write_sweep_report(parse_spec({**doc, "seeds": [0, 1]}), SweepResult(out=out2), prior=out).read_text()
+    assert f"From the earlier report `{out}` (run folders not here): random [0], greedy [0]." in merged
+    assert "Not run (or not finished): random [1], greedy [1]." in merged
+    assert (out2 / "report/default/episodes.csv").read_text() == (out / "report/default/episodes.csv").read_text()
+    rl = [json.loads((o / "report/default/results.json").read_text())["rliable"]["agents"] for o in (out, out2)]
+    assert rl[0] == rl[1]
+    only_random = {**doc, "agent": [a for a in doc["agent"] if a["name"] == "random"]}
+    with pytest.raises(ValueError, match="agent 'greedy' is not evaluated on env 'default'"):
+        write_sweep_report(parse_spec(only_random), SweepResult(out=tmp_path / "sweep3"), prior=out)
+    assert not (tmp_path / "sweep3").exists()
 
     # the same sweep again through the CLI: the finished jobs are skipped, the failed one is tried again
     spec_file = tmp_path / "spec.toml"

@@ -7,6 +7,8 @@ cluster), skip the finished ones, retry and report the failed ones, and write th
     haptic-recog sweep sweeps/hands.toml --match allegro     # only the jobs whose id matches (and what they need)
     haptic-recog sweep sweeps/easy.toml --dry-run            # list the jobs and their state
     haptic-recog sweep sweeps/easy.toml --report-only        # the report from the run folders on disk
+    haptic-recog sweep sweeps/hands.toml --report-only --out NEW --prior-report docs/results/leaderboard/hands_5finger
+                                        # + an earlier report's episodes for the jobs not run in NEW
 
 Exit status 0 when every job is done, 1 when a job failed (after its retries; the report lists it).
 """
@@ -44,6 +46,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    "report covers every finished job")
     p.add_argument("--dry-run", action="store_true", help="list the jobs and whether they are done; run nothing")
     p.add_argument("--report-only", action="store_true", help="write the report from the run folders; run nothing")
+    p.add_argument("--prior-report", type=Path, default=None, metavar="DIR", help="the folder of an earlier "
+                   "report of this spec (report.md + report/<env>/episodes.csv, e.g. a committed one whose run "
+                   "folders are gone): its episodes stand in for the evaluate jobs not finished in --out, and the "
+                   "report names them")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_main)
     return p
@@ -73,6 +79,17 @@ def _main(args) -> int:
         if not any(pattern.search(j.id) for j in spec.jobs):
             raise UsageError(f"--match {args.match!r} matches none of the spec's {len(spec.jobs)} job ids "
                              "(--dry-run lists them)")
+    if args.prior_report is not None:  # checked before anything runs or is written
+        from .report import load_prior_records
+
+        if not (args.prior_report / "report").is_dir():
+            raise UsageError(f"--prior-report {args.prior_report} is not a sweep report folder (it has no report/ "
+                             "folder with report/<env>/episodes.csv)")
+        try:
+            for env in spec.envs:
+                load_prior_records(spec, args.prior_report, env)
+        except ValueError as exc:
+            raise UsageError(f"--prior-report: {exc}") from None
     if args.dry_run:
         finished = {j.id: is_done(j.run_dir(out)) for j in spec.jobs}
         jobs = select_jobs(spec, kinds, args.match, done=lambda j: finished[j.id])
@@ -93,7 +110,7 @@ def _main(args) -> int:
                            kinds=kinds, match=args.match, progress=not args.quiet)
     write_status(result, spec)
     report = write_sweep_report(spec, result, command=["haptic-recog", "sweep", *sys.argv[2:]]
-                                if sys.argv[1:2] == ["sweep"] else None)
+                                if sys.argv[1:2] == ["sweep"] else None, prior=args.prior_report)
     n_new = len(result.done) - len(result.skipped)
     print(f"[sweep] {spec.name}: {n_new} job(s) done in this run, {len(result.skipped)} skipped (done before), "
           f"{len(result.failed)} failed; {result.seconds / 60:.1f} min; report: {report}", flush=True)

@@ -26,25 +26,65 @@ from .spec import SweepSpec
 __all__ = ["write_sweep_report", "load_records"]
 
 
-def load_records(spec: SweepSpec, out: Path, env: str) -> list:
-    """The :class:`~agents.evaluate.EpisodeRecord` of every finished evaluate job of ``env``; episode indices
-    are offset per agent seed so that all seeds' episodes of one env seed are that stratum's runs."""
+def _read_episodes(path: Path, offset: int = 0) -> list:
+    """The :class:`~agents.evaluate.EpisodeRecord` rows of an ``episodes.csv``, episode indices + ``offset``."""
     from agents.evaluate import EpisodeRecord
 
+    with open(path, newline="") as fh:
+        return [EpisodeRecord(agent=row["agent"], seed=int(row["seed"]), episode=int(row["episode"]) + offset,
+                              object=row["object"], grasps=int(row["grasps"]), decided=row["decided"] == "True",
+                              correct=row["correct"] == "True", certainty=float(row["certainty"]),
+                              ret=float(row["ret"]))
+                for row in csv.DictReader(fh)]
+
+
+def _agent_seeds(spec: SweepSpec, env: str) -> dict[str, list[int]]:
+    """agent -> its sorted agent (training) seeds among the evaluate jobs of ``env``."""
+    seeds: dict[str, set[int]] = {}
+    for j in spec.jobs:
+        if j.kind == "evaluate" and j.params["env"] == env:
+            seeds.setdefault(j.params["agent"], set()).add(j.params["seed"])
+    return {a: sorted(s) for a, s in seeds.items()}
+
+
+def load_records(spec: SweepSpec, out: Path, env: str) -> list:
+    """The :class:`~agents.evaluate.EpisodeRecord` of every finished evaluate job of ``env``. A record's ``seed``
+    is the env seed (rliable's stratum); its episode index is offset by the agent seed's index x episodes, so
+    that all agent seeds' episodes of one env seed are that stratum's runs."""
+    seeds = _agent_seeds(spec, env)
     records = []
     for j in spec.jobs:
         if j.kind != "evaluate" or j.params["env"] != env or not is_done(j.run_dir(out)):
             continue
-        seeds = sorted({x.params["seed"] for x in spec.jobs if x.kind == "evaluate" and x.params["env"] == env
-                        and x.params["agent"] == j.params["agent"]})
-        offset = seeds.index(j.params["seed"]) * j.params["episodes"]
-        with open(j.run_dir(out) / "episodes.csv", newline="") as fh:
-            for row in csv.DictReader(fh):
-                records.append(EpisodeRecord(
-                    agent=row["agent"], seed=int(row["seed"]), episode=int(row["episode"]) + offset,
-                    object=row["object"], grasps=int(row["grasps"]), decided=row["decided"] == "True",
-                    correct=row["correct"] == "True", certainty=float(row["certainty"]), ret=float(row["ret"])))
+        offset = seeds[j.params["agent"]].index(j.params["seed"]) * j.params["episodes"]
+        records += _read_episodes(j.run_dir(out) / "episodes.csv", offset)
     return records
+
+
+def load_prior_records(spec: SweepSpec, prior: Path, env: str) -> dict[tuple[str, int], list]:
+    """(agent, agent seed) -> its episodes of ``env`` in an earlier report of this spec
+    (``prior/report/<env>/episodes.csv`` as :func:`write_sweep_report` wrote it, e.g. one committed after its
+    run folders were gone); the agent seed is read back from the episode offset (see :func:`load_records`).
+    Empty if the earlier report has no such file.
+
+    Raises ``ValueError`` if an agent of the file is not evaluated on ``env`` by this spec, or if an episode index
+    lies beyond its agent's seeds: the file is of another spec."""
+    path = prior / "report" / env / "episodes.csv"
+    if not path.is_file():
+        return {}
+    seeds = _agent_seeds(spec, env)
+    episodes = next(j.params["episodes"] for j in spec.jobs if j.kind == "evaluate" and j.params["env"] == env)
+    by_job: dict[tuple[str, int], list] = {}
+    for r in _read_episodes(path):
+        if r.agent not in seeds:
+            raise ValueError(f"{path}: agent {r.agent!r} is not evaluated on env {env!r} by this spec (the earlier "
+                             "report is of another spec)")
+        idx = r.episode // episodes
+        if idx >= len(seeds[r.agent]):
+            raise ValueError(f"{path}: episode {r.episode} of agent {r.agent!r} lies beyond its {len(seeds[r.agent])} "
+                             f"agent seed(s) x {episodes} episodes (the earlier report is of another spec)")
+        by_job.setdefault((r.agent, seeds[r.agent][idx]), []).append(r)
+    return by_job
 
 
 def _max_grasps(env_id: str, kwargs: dict[str, Any]) -> int:
@@ -104,11 +144,18 @@ def _jobs_table(spec: SweepSpec, result: SweepResult) -> str:
     return "\n".join(lines)
 
 
-def write_sweep_report(spec: SweepSpec, result: SweepResult, command: list[str] | None = None) -> Path:
-    """Write ``<sweep>/report.md`` (+ ``leaderboard.png`` and ``report/<env>/``) from the run folders."""
+def write_sweep_report(spec: SweepSpec, result: SweepResult, command: list[str] | None = None,
+                       prior: Path | None = None) -> Path:
+    """Write ``<sweep>/report.md`` (+ ``leaderboard.png`` and ``report/<env>/``) from the run folders.
+
+    ``prior``: the folder of an earlier report of this spec (``haptic-recog sweep --prior-report``); its episodes
+    stand in for the evaluate jobs not finished here (a job finished here takes precedence), and the report names
+    the agent seeds taken from it."""
     from agents.evaluate import rl_markdown_table, write_report
 
     out = result.out
+    # read (and check) the earlier report before anything is written
+    prior_records = {env: load_prior_records(spec, prior, env) for env in spec.envs} if prior is not None else {}
     lines = [f"# Sweep `{spec.name}`", ""]
     if spec.description:
         lines += [spec.description, ""]
@@ -138,23 +185,36 @@ def write_sweep_report(spec: SweepSpec, result: SweepResult, command: list[str] 
     aggs: dict[str, dict[str, Any]] = {}
     for env, (env_id, kwargs) in spec.envs.items():
         records = load_records(spec, out, env)
-        if not records:
-            continue
-        agents = list(dict.fromkeys(r.agent for r in records))
-        if "random" in agents:  # the baseline first: the tables read as "vs random"
-            agents.remove("random")
-            agents.insert(0, "random")
-            records = sorted(records, key=lambda r: agents.index(r.agent))
-        env_out = out / "report" / env
         jobs = [j for j in spec.jobs if j.kind == "evaluate" and j.params["env"] == env]
-        p = jobs[0].params
         finished: dict[str, list[int]] = {}
         missing: dict[str, list[int]] = {}  # agent -> seeds, in the spec's order
         for j in jobs:
             (finished if is_done(j.run_dir(out)) else missing).setdefault(j.params["agent"], []).append(j.params["seed"])
+        from_prior: dict[str, list[int]] = {}
+        if prior is not None:
+            for (agent, seed), recs in prior_records[env].items():
+                if seed in missing.get(agent, []):
+                    records += recs
+                    missing[agent].remove(seed)
+                    from_prior.setdefault(agent, []).append(seed)
+                    finished.setdefault(agent, []).append(seed)
+            missing = {a: s for a, s in missing.items() if s}
+        if not records:
+            continue
+        present = {r.agent for r in records}
+        agents = [a for a in dict.fromkeys(j.params["agent"] for j in jobs) if a in present]  # the spec's order
+        if "random" in agents:  # the baseline first: the tables read as "vs random"
+            agents.remove("random")
+            agents.insert(0, "random")
+        records = sorted(records, key=lambda r: agents.index(r.agent))
+        env_out = out / "report" / env
+        p = jobs[0].params
         seeds = {a: sorted(finished.get(a, [])) for a in agents}
         extra = (f"env `{env_id}` with `{kwargs}`; {p['episodes']} episodes x env seeds {p['env_seeds']} per agent "
                  f"seed; agent seeds: " + ", ".join(f"{a} {s}" for a, s in seeds.items()) + ".")
+        if from_prior:
+            extra += (f" From the earlier report `{prior}` (run folders not here): "
+                      + ", ".join(f"{a} {sorted(s)}" for a, s in from_prior.items()) + ".")
         if missing:
             extra += " Not run (or not finished): " + ", ".join(f"{a} {s}" for a, s in missing.items()) + "."
         write_report(records, env_out, _max_grasps(env_id, kwargs), title=f"Sweep {spec.name}: {env}", extra=extra)
