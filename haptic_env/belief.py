@@ -21,6 +21,10 @@ public API:
 Which grasps update the belief: a grasp with all ``n`` fingers touching, scored by the ``n``-finger model; with
 ``z_fingers`` also an incomplete grasp of ``t >= z`` touching fingers, by the ``t``-finger model; with
 ``score_subsets`` every grasp of ``t >= z`` touching fingers through its ``z``-subsets by the ``z``-finger model.
+The ``C(t, z)`` subsets of one grasp share its contacts, so a Bayesian belief counts them as at most ``subset_k``
+(the paper's Algorithm 4 scores ``k = 4`` random subsets): their summed log-likelihood is multiplied by
+``min(1, subset_k / C(t, z))``, the expected sum of ``subset_k`` random ones, without the draw (``None``: the plain
+product over all of them, Algorithm 3). With ``z = 3`` this changes nothing for 4 fingers (``C(4, 3) = 4``).
 Fewer than two touching fingers, or degenerate contacts (coplanar, ...), carry no information, unless the
 belief also weighs the hand's *touch pattern* (``touch_weight > 0``, :mod:`haptic_env.recognizers.touch`): then
 every grasp adds ``w log P(pattern | object)`` to the contacts' log-likelihoods in the same Bayes step.
@@ -83,6 +87,8 @@ class Belief:
         z_fingers: also score incomplete grasps of ``t >= z_fingers`` touching fingers (the recogniser needs
             those models); None: complete grasps only.
         score_subsets: score every grasp through its ``z_fingers``-subsets.
+        subset_k: with ``score_subsets``, the subsets a Bayesian step counts at most (see the module docstring);
+            None: all of them.
         touch_weight: ``w`` of the touch-pattern log-likelihood added at every grasp
             (:mod:`~haptic_env.recognizers.touch`; BC-NP only, and the recogniser needs its ``touch`` model);
             0: off, the paper's method.
@@ -90,11 +96,14 @@ class Belief:
 
     def __init__(self, recognizer, kind: str = "bc-np", threshold: float = DEFAULT_THRESHOLD, *,
                  calibrated: bool = True, z_fingers: int | None = None, score_subsets: bool = False,
-                 touch_weight: float = 0.0):
+                 touch_weight: float = 0.0, subset_k: int | None = None):
         if kind not in UPDATERS:
             raise ValueError(f"unknown updater kind {kind!r}; choose one of {UPDATERS}")
         if score_subsets and z_fingers is None:
             raise ValueError("score_subsets=True needs z_fingers (the subset size)")
+        if subset_k is not None and not (isinstance(subset_k, (int, np.integer)) and not isinstance(subset_k, bool)
+                                         and subset_k >= 1):
+            raise ValueError(f"subset_k must be an int >= 1 or None, got {subset_k!r}")
         touch_weight = check_touch_weight(touch_weight)
         if touch_weight > 0 and kind != "bc-np":
             raise ValueError(f"touch_weight={touch_weight} needs the 'bc-np' updater, got {kind!r}")
@@ -106,6 +115,8 @@ class Belief:
         self.kind = kind
         self.z_fingers = z_fingers
         self.score_subsets = bool(score_subsets)
+        self.subset_k = None if subset_k is None else int(subset_k)
+        self._bayes = kind in ("bc-np", "bc-ip")
         self.n_fingers = int(recognizer.n_fingers)
         self.n_classes = int(recognizer.n_classes)
         self.feature_dim = feature_dim(self.n_fingers, recognizer.normals)
@@ -128,7 +139,7 @@ class Belief:
         the one place that maps the config's belief settings to a :class:`Belief`."""
         rec = get_recognizer(objects, config) if recognizer is None else recognizer
         return cls(rec, config.updater, config.threshold, calibrated=config.calibrated, z_fingers=config.z_fingers,
-                   score_subsets=config.score_subsets, touch_weight=config.touch_weight)
+                   score_subsets=config.score_subsets, touch_weight=config.touch_weight, subset_k=config.subset_k)
 
     # ------------------------------------------------------------------------------------- state
     @property
@@ -199,17 +210,30 @@ class Belief:
             q, Q = self.rows(contacts, normals, touched)
             if Q is None:
                 return q, False
-            self._set(self.updater.update(Q))
+            self._set(self._update(Q))
             return q, True
         # with the touch pattern: its row joins the contacts' rows in one Bayes step (BC-NP; every grasp has one)
         if self._scorer is not None and self.compiled and np.count_nonzero(touched) == touched.size:
             q, log_lik = self._scorer(contacts, normals)
         else:
             q, Q = self.rows(contacts, normals, touched)
-            log_lik = None if Q is None else self.models.log_likelihood(Q)
+            log_lik = None if Q is None else self.row_weight(len(Q)) * self.models.log_likelihood(Q)
         rows = self.touch_rows(touched[None])
         self._set(self.updater.update_scores(log_lik=rows if log_lik is None else np.concatenate([log_lik, rows])))
         return q, True
+
+    def row_weight(self, m: int) -> float:
+        """The weight of the summed log-likelihood of one grasp's ``m`` score rows in a Bayes step:
+        ``min(1, subset_k / m)`` with ``score_subsets`` and ``subset_k``, else 1 (see the module docstring)."""
+        if not (self.score_subsets and self.subset_k is not None and m > self.subset_k):
+            return 1.0
+        return self.subset_k / m
+
+    def _update(self, Q) -> np.ndarray:
+        """The updater's step of one grasp's score rows ``Q (m, d)``, weighted by :meth:`row_weight` (Bayesian)."""
+        Q = np.atleast_2d(np.asarray(Q, dtype=np.float64))
+        w = self.row_weight(len(Q))
+        return self.updater.update(Q, weight=w) if self._bayes and w != 1.0 else self.updater.update(Q)
 
     def touch_rows(self, touched) -> np.ndarray:
         """``(B, K)``: the weighted touch-pattern log-likelihoods ``w log P(pattern | object)`` of ``touched (B, n)``
@@ -222,7 +246,7 @@ class Belief:
     def update_rows(self, Q) -> np.ndarray:
         """One grasp given as its score rows ``(m, d)`` (or one vector ``(d,)``); returns the posterior. The rows
         carry no touch pattern: with ``touch_weight`` use :meth:`update`."""
-        self._set(self.updater.update(Q))
+        self._set(self._update(Q))
         return self._probs
 
     def rows(self, contacts, normals, touched) -> tuple[np.ndarray, np.ndarray | None]:
@@ -283,7 +307,10 @@ class Belief:
             idx = np.flatnonzero(dims == d)
             Q = np.concatenate([rows[i] for i in idx])
             starts = np.concatenate([[0], np.cumsum([len(rows[i]) for i in idx])])
-            out[idx] = self.updater.predict(Q, starts)
+            if self._bayes and self.score_subsets and self.subset_k is not None:
+                out[idx] = self.updater.predict(Q, starts, weights=[self.row_weight(len(rows[i])) for i in idx])
+            else:
+                out[idx] = self.updater.predict(Q, starts)
         if self.kind == "ic":
             total = out.sum(axis=1, keepdims=True)
             out = np.divide(out, total, out=out, where=total > 0)
@@ -302,7 +329,7 @@ class Belief:
         B = len(touch)
         per = [np.zeros((0, self.n_classes))] * B
         for g, i in enumerate(scored):
-            per[i] = self.models.log_likelihood(rows[g])
+            per[i] = self.row_weight(len(rows[g])) * self.models.log_likelihood(rows[g])
         L = np.concatenate([np.concatenate([per[i], touch[i:i + 1]]) for i in range(B)]) if B else touch
         starts = np.concatenate([[0], np.cumsum([len(per[i]) + 1 for i in range(B)])]).astype(np.int64)
         post, _ = bayes_steps(np.broadcast_to(self.updater.log_belief, (B, self.n_classes)), L, starts)

@@ -58,6 +58,11 @@ class HapticRecogConfig:
     """z-finger scoring (paper, Alg. 3): score every grasp with ``t >= z_fingers`` touching fingers through all
     its ``z_fingers``-subsets of contacts with the ``z``-finger model (likelihoods multiplied), instead of the
     ``t``-finger model. Needs ``z_fingers``."""
+    subset_k: int | None = 4
+    """With ``score_subsets``: the subsets one Bayes step counts at most. The ``C(t, z)`` subsets of a grasp share
+    its contacts; their summed log-likelihood is multiplied by ``min(1, subset_k / C(t, z))``, the expectation of
+    the paper's Algorithm 4 (``k = 4`` random subsets) without the draw. 4 (the paper's): no change for 4 fingers
+    and z = 3; None: the product over all subsets (over-confident with 5 fingers: RESULTS.md)."""
     threshold: float = DEFAULT_THRESHOLD
     """Certainty :math:`\\lambda` at which the episode terminates (the recogniser has decided)."""
     reward: str = "true-posterior-gain"
@@ -150,6 +155,9 @@ class HapticRecogConfig:
             raise ValueError(f"z_fingers must be None or in [2, n_fingers={self.n_fingers}), got {self.z_fingers!r}")
         if self.score_subsets and self.z_fingers is None:
             raise ValueError("score_subsets=True needs z_fingers (the subset size)")
+        if self.subset_k is not None and (isinstance(self.subset_k, bool) or not (
+                isinstance(self.subset_k, (int, np.integer)) and self.subset_k >= 1)):
+            raise ValueError(f"subset_k must be None or an int >= 1, got {self.subset_k!r}")
         if self.scale_range is not None:
             try:
                 lo, hi = (float(v) for v in self.scale_range)

@@ -47,11 +47,13 @@ def recognizer(env_config):
     return get_recognizer(load_object_set(env_config.objects), env_config.replace(z_fingers=3, updater="bc-ip"))
 
 
-@pytest.mark.parametrize("kind", ["bc-np", "bc-ip", "ic", "ic-full"])
-def test_predict_grasps_equals_updating_a_copy(recognizer, kind):
+@pytest.mark.parametrize("kind,subsets", [("bc-np", False), ("bc-ip", False), ("ic", False), ("ic-full", False),
+                                           ("bc-np", True), ("bc-ip", True)])
+def test_predict_grasps_equals_updating_a_copy(recognizer, kind, subsets):
+    """Also with z-subset scoring counted as at most 2 subsets (a complete grasp's 4 rows weigh 1/2)."""
     from haptic_env.grasping import make_backend
 
-    belief = Belief(recognizer, kind, z_fingers=3)
+    belief = Belief(recognizer, kind, z_fingers=3, score_subsets=subsets, subset_k=2)
     backend = make_backend("geometric", n_fingers=4)
     from haptic_env.objects import load_object_set
 
@@ -67,6 +69,29 @@ def test_predict_grasps_equals_updating_a_copy(recognizer, kind):
             assert usable
             np.testing.assert_allclose(p, ref.probs, rtol=1e-9, atol=1e-12)
         belief.update(res.contacts[scored[0]], res.normals[scored[0]], res.touched[scored[0]])
+
+
+def test_subset_k_weighs_a_grasps_subsets_as_k_of_them(recognizer):
+    """A complete 4-finger grasp has C(4, 3) = 4 subsets: subset_k = 2 halves their summed log-likelihood, 4 (the
+    paper's k) and None leave the product as it is; a 3-finger grasp's one subset is never down-weighted."""
+    from scipy.special import softmax
+
+    rng = np.random.default_rng(4)
+    C, N = rng.normal(size=(4, 3)) * 0.05, rng.normal(size=(4, 3))
+    probs = {}
+    for k in (None, 4, 2):
+        b = Belief(recognizer, "bc-np", z_fingers=3, score_subsets=True, subset_k=k)
+        _, Q = b.rows(C, N, np.ones(4, bool))
+        assert len(Q) == 4 and b.row_weight(len(Q)) == (0.5 if k == 2 else 1.0) and b.row_weight(1) == 1.0
+        b.update(C, N, np.ones(4, bool))
+        probs[k] = b.probs
+        L = b.scores(Q)[0].sum(0)
+    np.testing.assert_allclose(probs[None], probs[4], rtol=1e-12)
+    np.testing.assert_allclose(probs[None], softmax(L), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(probs[2], softmax(0.5 * L), rtol=1e-9, atol=1e-12)
+    for bad in (0, -1, 2.5, True, "4"):
+        with pytest.raises(ValueError, match="subset_k"):
+            Belief(recognizer, "bc-np", z_fingers=3, score_subsets=True, subset_k=bad)
 
 
 def test_subset_scores_are_the_rows_of_each_grasps_subsets(recognizer):

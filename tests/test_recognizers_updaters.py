@@ -1,5 +1,7 @@
 """Belief-updater maths on hand-made likelihoods and probabilities."""
 
+import copy
+
 import numpy as np
 import pytest
 from scipy.special import logsumexp
@@ -132,3 +134,28 @@ def test_bc_nan_raises_and_impossible_grasp_carries_no_information():
     np.testing.assert_allclose(u.update([2.0]), before)  # every class impossible: belief unchanged
     assert u.n_grasps == 2
     assert u.certainty == pytest.approx(before.max())
+
+
+def test_bc_weight_tempers_one_step_and_predict_matches_update():
+    """``update(q, weight)`` multiplies the step's summed log-likelihood; ``predict(weights=...)`` gives the same
+    posteriors; BC-IP's first grasp (the classifier prior) takes no weight; bad weights are named."""
+    rng = np.random.default_rng(5)
+    L = np.log(rng.uniform(0.01, 1.0, size=(4, 3)))
+    for cls in (BayesianUpdater, BCIP):
+        model = FixedModel(L)
+        proba = FixedModel(np.exp(L) / np.exp(L).sum(1, keepdims=True))
+        u = BayesianUpdater(model) if cls is BayesianUpdater else BCIP(proba, model)
+        u.update([[3.0]])  # a first step (BC-IP: its prior)
+        Q, starts, w = np.array([[0.0], [1.0], [2.0]]), np.array([0, 2, 3]), np.array([0.4, 2.0])
+        pred = u.predict(Q, starts, weights=w)
+        for g in range(2):
+            v = copy.deepcopy(u)
+            got = v.update(Q[starts[g]:starts[g + 1]], weight=w[g])
+            np.testing.assert_allclose(pred[g], got, rtol=1e-12)
+            post = u.log_belief + w[g] * L[starts[g]:starts[g + 1]].sum(0)
+            np.testing.assert_allclose(got, np.exp(post - logsumexp(post)), rtol=1e-10)
+        for bad in (0.0, -1.0, np.inf, np.nan):
+            with pytest.raises(ValueError, match="weight"):
+                copy.deepcopy(u).update([[0.0]], weight=bad)
+        with pytest.raises(ValueError, match="weights"):
+            u.predict(Q, starts, weights=[1.0])

@@ -142,6 +142,13 @@ def _grouped(Q, starts) -> tuple[np.ndarray, np.ndarray]:
     return Q, starts
 
 
+def _check_weight(weight) -> float:
+    w = float(weight)
+    if not (w > 0 and math.isfinite(w)):
+        raise ValueError(f"weight must be positive and finite, got {weight!r}")
+    return w
+
+
 def _rows(q) -> np.ndarray:
     Q = np.asarray(q, dtype=np.float64)
     if Q.ndim == 1:
@@ -312,15 +319,25 @@ class BayesianUpdater(BeliefUpdater):
         self.n_grasps += 1
         return self.belief
 
-    def update(self, q) -> np.ndarray:
+    def update(self, q, weight: float = 1.0) -> np.ndarray:
+        """One grasp's rows ``q (d,)`` or ``(m, d)``; ``weight`` (> 0) multiplies their combined log-likelihood (a
+        tempered step: z-subset scoring counts ``C(t, z)`` correlated subsets as ``k``, see
+        :class:`~haptic_env.belief.Belief`)."""
         Q = _rows(q)
-        return self.update_scores(log_lik=self.likelihood.log_likelihood(Q) if len(Q) else np.zeros((0, self.n_classes)))
+        L = self.likelihood.log_likelihood(Q) if len(Q) else np.zeros((0, self.n_classes))
+        return self.update_scores(log_lik=L if weight == 1.0 else _check_weight(weight) * L)
 
-    def predict(self, Q, starts=None) -> np.ndarray:
-        """:meth:`BeliefUpdater.predict` in one likelihood call and one batched Bayes step (:func:`bayes_steps`)."""
+    def predict(self, Q, starts=None, weights=None) -> np.ndarray:
+        """:meth:`BeliefUpdater.predict` in one likelihood call and one batched Bayes step (:func:`bayes_steps`);
+        ``weights (G,)``: each grasp's ``weight`` of :meth:`update` (default 1)."""
         Q, starts = _grouped(Q, starts)
         G = len(starts) - 1
         L = self.likelihood.log_likelihood(Q) if len(Q) else np.zeros((0, self.n_classes))
+        if weights is not None:
+            w = np.asarray(weights, dtype=np.float64)
+            if w.shape != (G,) or not (w > 0).all() or not np.isfinite(w).all():
+                raise ValueError(f"weights must be {G} positive finite numbers, got {weights!r}")
+            L = L * np.repeat(w, np.diff(starts))[:, None]
         post, _ = bayes_steps(np.broadcast_to(self.log_belief, (G, self.n_classes)), L, starts, combine=self.combine,
                               max_log_ratio=self.max_log_ratio)
         return np.exp(post)
@@ -354,18 +371,19 @@ class BCIP(BayesianUpdater):
             self.log_belief = post - _logsumexp(post)
         return self.belief
 
-    def update(self, q) -> np.ndarray:
+    def update(self, q, weight: float = 1.0) -> np.ndarray:
+        """As :meth:`BayesianUpdater.update`; the first grasp's classifier prior takes no weight."""
         Q = _rows(q)
         if len(Q) == 0:
             return self.update_scores(log_lik=np.zeros((0, self.n_classes)), proba=np.zeros((0, self.n_classes)))
         if self.n_grasps == 0:
             return self.update_scores(proba=self.classifier.predict_proba(Q))
-        return self.update_scores(log_lik=self.likelihood.log_likelihood(Q))
+        return super().update(Q, weight)
 
-    def predict(self, Q, starts=None) -> np.ndarray:
-        if self.n_grasps == 0:  # the first grasp sets the classifier prior: not a Bayes step
+    def predict(self, Q, starts=None, weights=None) -> np.ndarray:
+        if self.n_grasps == 0:  # the first grasp sets the classifier prior: not a Bayes step (no weight)
             return BeliefUpdater.predict(self, Q, starts)
-        return super().predict(Q, starts)
+        return super().predict(Q, starts, weights)
 
 
 def make_updater(kind: str, *, classifier=None, likelihood=None, threshold: float = DEFAULT_THRESHOLD, **kw) -> BeliefUpdater:

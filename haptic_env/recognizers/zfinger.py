@@ -130,9 +130,10 @@ class ZFingerUpdater:
     def reset(self, prior=None) -> np.ndarray:
         return self.base.reset(prior)
 
-    def update(self, q) -> np.ndarray:
-        """Sub-grasp vectors ``(m, d_z)`` of one grasp (already computed)."""
-        return self.base.update(q)
+    def update(self, q, **kw) -> np.ndarray:
+        """Sub-grasp vectors ``(m, d_z)`` of one grasp (already computed); ``kw``: the base's (``weight`` of a
+        Bayesian updater)."""
+        return self.base.update(q, **kw)
 
     def update_scores(self, log_lik=None, proba=None) -> np.ndarray:
         """Precomputed scores of one grasp's rows (see ``BeliefUpdater.update_scores``)."""
