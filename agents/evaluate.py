@@ -240,9 +240,16 @@ def rl_aggregates(records: Sequence[EpisodeRecord], max_grasps: int, baseline: s
     to_success = {n: score_matrix(records, n, _grasps_to_success) for n in names}
     tau = np.arange(1, max_grasps + 1)
     def est(scores, fn, k):
-        with warnings.catch_warnings():  # rliable hands arch a RandomState through arch's deprecated keyword
-            warnings.filterwarnings("ignore", category=FutureWarning, module=r"arch\.")
-            return rly.get_interval_estimates(scores, fn, reps=reps, random_state=np.random.RandomState(seed + k))
+        # rliable's StratifiedBootstrap draws its resamples from NumPy's global RNG, whatever random_state says:
+        # seed it for this call and put the caller's state back, so that a report is the same every time
+        state = np.random.get_state()
+        np.random.seed(seed + k)
+        try:
+            with warnings.catch_warnings():  # rliable hands arch a RandomState through arch's deprecated keyword
+                warnings.filterwarnings("ignore", category=FutureWarning, module=r"arch\.")
+                return rly.get_interval_estimates(scores, fn, reps=reps, random_state=np.random.RandomState(seed + k))
+        finally:
+            np.random.set_state(state)
 
     g_iqm, g_ci = est(grasps, lambda x: np.array([metrics.aggregate_iqm(x)]), 0)
     s_mean, s_ci = est(correct, lambda x: np.array([metrics.aggregate_mean(x)]), 1)

@@ -236,6 +236,21 @@ def test_rl_aggregates_on_known_episodes():
     assert 0.35 < lo < 0.5 < hi < 0.65
 
 
+def test_rl_aggregates_are_reproducible_and_leave_the_global_rng_alone():
+    """rliable resamples from NumPy's global RNG: the same episodes give the same CIs, and the caller's global
+    state is what it was."""
+    from agents.evaluate import EpisodeRecord, rl_aggregates
+
+    rng = np.random.default_rng(0)
+    recs = [EpisodeRecord(a, s, e, "box", int(rng.integers(1, 9)), bool(rng.random() < 0.8), True, 0.9, 0.0)
+            for a in ("random", "other") for s in range(3) for e in range(10)]
+    np.random.seed(123)
+    before = np.random.get_state()[1].copy()
+    a, b = (rl_aggregates(recs, max_grasps=10, reps=100) for _ in range(2))
+    assert np.array_equal(np.random.get_state()[1], before)
+    assert a == b
+
+
 def test_cli_evaluate_is_registered():
     from haptic_env.cli import build_parser
 
