@@ -9,6 +9,9 @@ grasps, success, P(fewer grasps than random), with their 95% CIs).
 
 Strata and runs: the env seeds are rliable's tasks (every agent sees the same objects and poses per env seed),
 the episodes of all agent seeds (training seeds) on an env seed its runs.
+
+An earlier report of the same spec can stand in for run folders that are gone (``--prior-report``,
+:func:`load_prior_records`): its ``report/<env>/episodes.csv`` fills the evaluate jobs not finished here.
 """
 
 from __future__ import annotations
