@@ -51,6 +51,7 @@ import numpy as np
 from haptic_env.grasp_features import feature_dim
 from haptic_env.recognizers.touch import check_touch_weight
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS
+from haptic_env.recognizers.zfinger import check_subset_k
 
 if TYPE_CHECKING:
     from haptic_env.config import HapticRecogConfig
@@ -101,9 +102,7 @@ class Belief:
             raise ValueError(f"unknown updater kind {kind!r}; choose one of {UPDATERS}")
         if score_subsets and z_fingers is None:
             raise ValueError("score_subsets=True needs z_fingers (the subset size)")
-        if subset_k is not None and not (isinstance(subset_k, (int, np.integer)) and not isinstance(subset_k, bool)
-                                         and subset_k >= 1):
-            raise ValueError(f"subset_k must be an int >= 1 or None, got {subset_k!r}")
+        subset_k = check_subset_k(subset_k)
         touch_weight = check_touch_weight(touch_weight)
         if touch_weight > 0 and kind != "bc-np":
             raise ValueError(f"touch_weight={touch_weight} needs the 'bc-np' updater, got {kind!r}")
@@ -115,8 +114,9 @@ class Belief:
         self.kind = kind
         self.z_fingers = z_fingers
         self.score_subsets = bool(score_subsets)
-        self.subset_k = None if subset_k is None else int(subset_k)
-        self._bayes = kind in ("bc-np", "bc-ip")
+        self.subset_k = subset_k
+        #: whether a grasp's subset rows are weighed (:meth:`row_weight`): a Bayesian step of subset scoring with a k
+        self._weigh_rows = kind in ("bc-np", "bc-ip") and self.score_subsets and subset_k is not None
         self.n_fingers = int(recognizer.n_fingers)
         self.n_classes = int(recognizer.n_classes)
         self.feature_dim = feature_dim(self.n_fingers, recognizer.normals)
@@ -224,16 +224,15 @@ class Belief:
 
     def row_weight(self, m: int) -> float:
         """The weight of the summed log-likelihood of one grasp's ``m`` score rows in a Bayes step:
-        ``min(1, subset_k / m)`` with ``score_subsets`` and ``subset_k``, else 1 (see the module docstring)."""
-        if not (self.score_subsets and self.subset_k is not None and m > self.subset_k):
-            return 1.0
-        return self.subset_k / m
+        ``min(1, subset_k / m)`` for a Bayesian updater with ``score_subsets`` and ``subset_k``, else 1 (see the
+        module docstring)."""
+        return self.subset_k / m if self._weigh_rows and m > self.subset_k else 1.0
 
     def _update(self, Q) -> np.ndarray:
-        """The updater's step of one grasp's score rows ``Q (m, d)``, weighted by :meth:`row_weight` (Bayesian)."""
+        """The updater's step of one grasp's score rows ``Q (m, d)``, weighted by :meth:`row_weight`."""
         Q = np.atleast_2d(np.asarray(Q, dtype=np.float64))
         w = self.row_weight(len(Q))
-        return self.updater.update(Q, weight=w) if self._bayes and w != 1.0 else self.updater.update(Q)
+        return self.updater.update(Q) if w == 1.0 else self.updater.update(Q, weight=w)
 
     def touch_rows(self, touched) -> np.ndarray:
         """``(B, K)``: the weighted touch-pattern log-likelihoods ``w log P(pattern | object)`` of ``touched (B, n)``
@@ -307,7 +306,7 @@ class Belief:
             idx = np.flatnonzero(dims == d)
             Q = np.concatenate([rows[i] for i in idx])
             starts = np.concatenate([[0], np.cumsum([len(rows[i]) for i in idx])])
-            if self._bayes and self.score_subsets and self.subset_k is not None:
+            if self._weigh_rows:
                 out[idx] = self.updater.predict(Q, starts, weights=[self.row_weight(len(rows[i])) for i in idx])
             else:
                 out[idx] = self.updater.predict(Q, starts)

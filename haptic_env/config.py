@@ -19,6 +19,7 @@ import numpy as np
 
 from haptic_env.recognizers.touch import check_touch_weight
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS
+from haptic_env.recognizers.zfinger import check_subset_k
 from haptic_env.scene import POSE_MODES
 from haptic_env.task import REWARD_KINDS
 
@@ -155,9 +156,7 @@ class HapticRecogConfig:
             raise ValueError(f"z_fingers must be None or in [2, n_fingers={self.n_fingers}), got {self.z_fingers!r}")
         if self.score_subsets and self.z_fingers is None:
             raise ValueError("score_subsets=True needs z_fingers (the subset size)")
-        if self.subset_k is not None and (isinstance(self.subset_k, bool) or not (
-                isinstance(self.subset_k, (int, np.integer)) and self.subset_k >= 1)):
-            raise ValueError(f"subset_k must be None or an int >= 1, got {self.subset_k!r}")
+        check_subset_k(self.subset_k)
         if self.scale_range is not None:
             try:
                 lo, hi = (float(v) for v in self.scale_range)

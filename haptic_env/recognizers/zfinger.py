@@ -21,7 +21,7 @@ import numpy as np
 
 from haptic_env.grasp_features import feature_dim, normalize_scale, phi
 
-__all__ = ["subsets", "subset_vectors", "grasp_vectors_for", "ZFingerUpdater", "sample_finger_counts"]
+__all__ = ["subsets", "subset_vectors", "grasp_vectors_for", "ZFingerUpdater", "sample_finger_counts", "check_subset_k"]
 
 
 def subsets(n: int, z: int, k: int | None = None, rng: np.random.Generator | None = None) -> np.ndarray:
@@ -46,6 +46,14 @@ def subsets(n: int, z: int, k: int | None = None, rng: np.random.Generator | Non
     while len(seen) < k:
         seen.add(tuple(sorted(rng.choice(n, size=z, replace=False).tolist())))
     return np.array(sorted(seen), dtype=np.int64)
+
+
+def check_subset_k(k) -> int | None:
+    """``k`` (the subsets one Bayes step counts at most, ``HapticRecogConfig.subset_k``) as an int, or None; a
+    ``ValueError`` naming it unless it is None or an int >= 1."""
+    if k is not None and (isinstance(k, bool) or not (isinstance(k, (int, np.integer)) and k >= 1)):
+        raise ValueError(f"subset_k must be None or an int >= 1, got {k!r}")
+    return None if k is None else int(k)
 
 
 @lru_cache(maxsize=None)
