@@ -45,7 +45,7 @@ from haptic_env.config import HAND_APPROACHES, HapticRecogConfig  # noqa: E402
 from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
 from haptic_env.hand_grasps import hand_grasp_pool  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
-from haptic_env.recognizers import build_recognizer  # noqa: E402
+from haptic_env.recognizers import build_recognizer, models_for  # noqa: E402
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD  # noqa: E402
 from haptic_env.recognizers.zfinger import subset_vectors  # noqa: E402
 
@@ -146,7 +146,7 @@ def main(argv=None) -> int:
         cfg = training_config("hand", hand, cfg_args, env.calibrate_grasps, A)
         for normals in normal_settings:
             rec = build_recognizer(objects, n, normals, z_values=tuple(range(3, n)), config=cfg,
-                                   touch=env.touch_weight > 0)
+                                   models=models_for("bc-np"), touch=env.touch_weight > 0)
             for method in args.methods:
                 z = 3 if method.endswith("z=3") else None
                 w = env.touch_weight
