@@ -19,8 +19,9 @@ CIs (episodes resampled within each env seed), the probability of improvement of
 the performance profile (fraction decided and correct within ``tau`` grasps, with its CI band).
 
 Outputs in ``--out``: ``results.md`` (markdown tables), ``results.json``, ``episodes.csv``,
-``success_vs_grasps.png``, ``grasps_boxplot.png``, ``performance_profile.png`` and, with ``--learning-curves``,
-``learning_curves.png``.
+``success_vs_grasps.png``, ``grasps_boxplot.png``, ``performance_profile.png``, ``confusion.png`` (per agent: the
+object predicted at the stop against the true one, each row normalised; the most common errors are listed in
+``results.md``) and, with ``--learning-curves``, ``learning_curves.png``.
 
 Command line (a sub-command of ``python -m haptic_env.cli``)::
 
@@ -68,6 +69,7 @@ class EpisodeRecord:
     correct: bool
     certainty: float
     ret: float
+    predicted: str = ""  # the object predicted at the stop ("" in episodes.csv files written before it was kept)
 
 
 def run_episodes(agent, make_env: Callable[[], Any], n_episodes: int, seed: int,
@@ -98,7 +100,7 @@ def run_episodes(agent, make_env: Callable[[], Any], n_episodes: int, seed: int,
             records.append(EpisodeRecord(
                 agent=agent.name, seed=int(seed), episode=ep, object=str(info["true_object"]),
                 grasps=int(info["grasps"]), decided=bool(info["decided"]), correct=bool(info["correct"]),
-                certainty=float(info["certainty"]), ret=ret,
+                certainty=float(info["certainty"]), ret=ret, predicted=str(info["predicted"]),
             ))
             if progress is not None:
                 progress(1)
@@ -318,9 +320,11 @@ def write_report(records: Sequence[EpisodeRecord], out: str | Path, max_grasps: 
     paths = {"md": out / "results.md", "json": out / "results.json", "csv": out / "episodes.csv",
              "curve": out / "success_vs_grasps.png", "box": out / "grasps_boxplot.png",
              "profile": out / "performance_profile.png"}
+    conf = confusion(records)
     paths["md"].write_text(
         f"# {title}\n\n{extra}\n\n{markdown_table(rows)}\n\n"
-        f"## RL aggregates (rliable)\n\n{rl_markdown_table(agg)}\n\n"
+        + (f"## Errors at the stop\n\n{errors_markdown(conf)}\n\n" if conf else "")
+        + f"## RL aggregates (rliable)\n\n{rl_markdown_table(agg)}\n\n"
         f"95% stratified bootstrap CIs ({agg['reps']} resamples of the episodes within each env seed). IQM: "
         "interquartile mean. Success at the stop is a 0/1 outcome per episode, so its IQM is taken over the seeds' "
         "success rates. P(...): probability of improvement over random (an episode of the agent against an "
@@ -372,7 +376,66 @@ def write_report(records: Sequence[EpisodeRecord], out: str | Path, max_grasps: 
     ax.set_title("performance profile (95% stratified bootstrap CIs)")
     fig.tight_layout()
     fig.savefig(paths["profile"], dpi=120)
+
+    if conf:
+        paths["confusion"] = out / "confusion.png"
+        plot_confusion(conf, paths["confusion"])
     return paths
+
+
+def confusion(records: Sequence[EpisodeRecord]) -> dict[str, tuple[list[str], np.ndarray]]:
+    """agent -> ``(labels, counts (L, L))``: rows the true object, columns the one predicted at the stop
+    (:func:`sklearn.metrics.confusion_matrix`), labels the sorted objects of all agents' episodes; empty when any
+    episode has no prediction (an ``episodes.csv`` written before predictions were kept)."""
+    from sklearn.metrics import confusion_matrix
+
+    if not records or any(not r.predicted for r in records):
+        return {}
+    labels = sorted({r.object for r in records} | {r.predicted for r in records})
+    out = {}
+    for name in dict.fromkeys(r.agent for r in records):
+        rs = [r for r in records if r.agent == name]
+        out[name] = (labels, confusion_matrix([r.object for r in rs], [r.predicted for r in rs], labels=labels))
+    return out
+
+
+def errors_markdown(conf: dict[str, tuple[list[str], np.ndarray]], top: int = 5) -> str:
+    """Per agent, its ``top`` most common errors at the stop (true -> predicted, count and share of that object's
+    episodes), as a markdown table."""
+    lines = ["| agent | errors | most common (true -> predicted: episodes, share of the true object's) |",
+             "|---|---|---|"]
+    for name, (labels, M) in conf.items():
+        off = M.copy()
+        np.fill_diagonal(off, 0)
+        idx = np.dstack(np.unravel_index(np.argsort(-off, axis=None, kind="stable"), off.shape))[0]
+        worst = [f"{labels[i]} -> {labels[j]}: {off[i, j]} ({100 * off[i, j] / M[i].sum():.0f} %)"
+                 for i, j in idx[:top] if off[i, j] > 0]
+        lines.append(f"| {name} | {int(off.sum())} of {int(M.sum())} | {'; '.join(worst) or '-'} |")
+    return "\n".join(lines)
+
+
+def plot_confusion(conf: dict[str, tuple[list[str], np.ndarray]], path: Path) -> None:
+    """One row-normalised confusion matrix per agent, side by side."""
+    from matplotlib.figure import Figure
+
+    k = len(conf)
+    labels = next(iter(conf.values()))[0]
+    size = 1.2 + 0.35 * len(labels)
+    fig = Figure(figsize=(size * k + 1.0, size + 0.8))
+    axes = np.atleast_1d(fig.subplots(1, k, sharey=True))
+    for ax, (name, (labels, M)) in zip(axes, conf.items()):
+        P = M / np.maximum(M.sum(axis=1, keepdims=True), 1)
+        im = ax.imshow(P, vmin=0.0, vmax=1.0, cmap="Blues")
+        for i, j in zip(*np.nonzero(M)):
+            ax.text(j, i, str(M[i, j]), ha="center", va="center", fontsize=6,
+                    color="white" if P[i, j] > 0.5 else "black")
+        ax.set_xticks(range(len(labels)), labels, rotation=90, fontsize=6)
+        ax.set_yticks(range(len(labels)), labels, fontsize=6)
+        ax.set_xlabel("predicted at the stop")
+        ax.set_title(name, fontsize=9)
+    axes[0].set_ylabel("true object")
+    fig.colorbar(im, ax=list(axes), shrink=0.8, label="share of the true object's episodes")
+    fig.savefig(path, dpi=120, bbox_inches="tight")
 
 
 def read_monitor(folder: str | Path) -> dict[str, np.ndarray]:

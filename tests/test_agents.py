@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import copy
+import csv
 import json
 
 import numpy as np
 import pytest
 
 import haptic_env
-from agents.evaluate import evaluate_agents, plot_learning_curves, summarize, write_report
+from agents.evaluate import (EpisodeRecord, confusion, errors_markdown, evaluate_agents, plot_learning_curves,
+                             summarize, write_report)
 from agents.greedy import GreedyInfoGainAgent, entropy_rows
 from agents.random_policy import RandomAgent
 from haptic_env.belief import Belief, get_recognizer
@@ -215,10 +217,30 @@ def test_evaluate_writes_table_and_plots(env_config, tmp_path):
     lo, hi = agg["random"]["grasps_iqm_ci"]
     assert lo <= agg["random"]["grasps_iqm"] <= hi
     assert len(agg["random"]["profile"]) == 8 and np.all(np.diff(agg["random"]["profile"]) >= 0)
+    # the prediction at the stop is kept: correct means predicted == true, and the confusion matrix counts them
+    assert all(r.predicted and (r.predicted == r.object) == r.correct for r in recs)
+    assert paths["confusion"].stat().st_size > 1000
+    with open(paths["csv"], newline="") as fh:
+        assert [row["predicted"] for row in csv.DictReader(fh)] == [r.predicted for r in recs]
+
+
+def test_confusion_and_errors_table():
+    R = lambda agent, true, pred: EpisodeRecord(agent, 0, 0, true, 3, True, true == pred, 0.9, 0.0, pred)  # noqa: E731
+    recs = [R("a", "box", "box"), R("a", "box", "can"), R("a", "box", "can"), R("a", "can", "can"),
+            R("b", "can", "box"), R("b", "ball", "ball")]
+    conf = confusion(recs)
+    labels, M = conf["a"]
+    assert labels == ["ball", "box", "can"]
+    assert M.tolist() == [[0, 0, 0], [0, 1, 2], [0, 0, 1]]
+    assert conf["b"][1].tolist() == [[1, 0, 0], [0, 0, 0], [0, 1, 0]]
+    md = errors_markdown(conf)
+    assert "| a | 2 of 4 | box -> can: 2 (67 %) |" in md and "| b | 1 of 2 | can -> box: 1 (100 %) |" in md
+    # episodes written before predictions were kept: no confusion matrix rather than a wrong one
+    assert confusion([*recs, EpisodeRecord("a", 0, 1, "box", 3, True, True, 0.9, 0.0)]) == {}
 
 
 def test_rl_aggregates_on_known_episodes():
-    from agents.evaluate import EpisodeRecord, bootstrap_ci, rl_aggregates, score_matrix
+    from agents.evaluate import bootstrap_ci, rl_aggregates, score_matrix
 
     def rec(agent, seed, ep, grasps, correct):
         return EpisodeRecord(agent, seed, ep, "box", grasps, correct, correct, 0.9, 0.0)
@@ -239,7 +261,7 @@ def test_rl_aggregates_on_known_episodes():
 def test_rl_aggregates_are_reproducible_and_leave_the_global_rng_alone():
     """rliable resamples from NumPy's global RNG: the same episodes give the same CIs, and the caller's global
     state is what it was."""
-    from agents.evaluate import EpisodeRecord, rl_aggregates
+    from agents.evaluate import rl_aggregates
 
     rng = np.random.default_rng(0)
     recs = [EpisodeRecord(a, s, e, "box", int(rng.integers(1, 9)), bool(rng.random() < 0.8), True, 0.9, 0.0)

@@ -37,7 +37,7 @@ def _read_episodes(path: Path, offset: int = 0) -> list:
         return [EpisodeRecord(agent=row["agent"], seed=int(row["seed"]), episode=int(row["episode"]) + offset,
                               object=row["object"], grasps=int(row["grasps"]), decided=row["decided"] == "True",
                               correct=row["correct"] == "True", certainty=float(row["certainty"]),
-                              ret=float(row["ret"]))
+                              ret=float(row["ret"]), predicted=row.get("predicted") or "")
                 for row in csv.DictReader(fh)]
 
 
