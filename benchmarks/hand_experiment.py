@@ -74,6 +74,24 @@ PAPER = {
 }
 
 
+def query_pools(objects, hand: str, n: int, split: str, seeds, queries: int, max_grasps: int) -> tuple[list, float] | None:
+    """The query pools of ``split`` (``"test"``: pool seeds ``1000 + s``; ``"validation"``: ``500 + s``), one per seed
+    with ``queries x max_grasps`` random-approach grasps per object, and their usable rate (>= 3 touching
+    fingertips); None (said on stdout) when the hand cannot be loaded."""
+    base = 1000 if split == "test" else 500
+    try:
+        pools = [hand_grasp_pool(objects, hand, n, queries * max_grasps, seed=base + s) for s in seeds]
+    except HandUnavailableError as exc:
+        print(f"skipping {hand}: {exc}")
+        return None
+    return pools, float(np.mean([(p.touched.sum(-1) >= 3).mean() for p in pools]))
+
+
+def env_config(name: str) -> HapticRecogConfig:
+    """The registered env of hand ``name`` (:data:`ENV_IDS`), whose settings are the table's defaults."""
+    return HapticRecogConfig().replace(**ENV_VARIANTS[ENV_IDS[name]])
+
+
 def run_query(updater, C, N, T, normals: bool, touch=None) -> tuple[int, int, bool]:
     """Feed one query's grasps ``C, N (G, n, 3)``, ``T (G, n)`` until decided -> (prediction, grasps, decided).
 
@@ -177,22 +195,18 @@ def main(argv=None) -> int:
         if name not in SETUPS:
             ap.error(f"--hands: unknown hand {name!r}; choose from {list(SETUPS)}")
         n, normal_settings = SETUPS[name]
-        try:
-            base = 1000 if args.split == "test" else 500
-            pools = [hand_grasp_pool(objects, hand, n, args.queries * args.max_grasps, seed=base + s)
-                     for s in args.seeds]
-        except HandUnavailableError as exc:
-            print(f"skipping {hand}: {exc}")
+        got = query_pools(objects, hand, n, args.split, args.seeds, args.queries, args.max_grasps)
+        if got is None:
             continue
-        usable = float(np.mean([(p.touched.sum(-1) >= 3).mean() for p in pools]))
-        env_config = HapticRecogConfig().replace(**ENV_VARIANTS[ENV_IDS[name]])  # the defaults: the hand's env's
-        K = args.calibrate_grasps if args.calibrate_grasps is not None else env_config.calibrate_grasps
-        A = args.approaches if args.approaches is not None else (env_config.training_grasps or HAND_APPROACHES)
+        pools, usable = got
+        env = env_config(name)  # the defaults: the hand's env's
+        K = args.calibrate_grasps if args.calibrate_grasps is not None else env.calibrate_grasps
+        A = args.approaches if args.approaches is not None else (env.training_grasps or HAND_APPROACHES)
         for regime in args.regimes:
             cfg = training_config(regime, hand, args, K, A, args.kde_bandwidth)
             data = cfg.grasps.grasps_per_object
             # the touch pattern needs the hand's own grasps (the hand regime); BC-NP rows only
-            w = (args.touch_weight if args.touch_weight is not None else env_config.touch_weight) \
+            w = (args.touch_weight if args.touch_weight is not None else env.touch_weight) \
                 if regime == "hand" else 0.0
             for normals in normal_settings:
                 rec = build_recognizer(objects, n, normals, z_values=tuple(range(3, n)), config=cfg, touch=w > 0)

@@ -39,11 +39,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.hand_experiment import ENV_IDS, PAPER, SETUPS, run_query, training_config  # noqa: E402
-from haptic_env import ENV_VARIANTS  # noqa: E402
-from haptic_env.config import HAND_APPROACHES, HapticRecogConfig  # noqa: E402
-from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
-from haptic_env.hand_grasps import hand_grasp_pool  # noqa: E402
+from benchmarks.hand_experiment import PAPER, SETUPS, env_config, query_pools, run_query, training_config  # noqa: E402
+from haptic_env.config import HAND_APPROACHES  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 from haptic_env.recognizers import build_recognizer, models_for  # noqa: E402
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD  # noqa: E402
@@ -133,15 +130,11 @@ def main(argv=None) -> int:
     cfg_args = argparse.Namespace(hand_budget="uniform")
     for hand in args.hands:
         n, normal_settings = SETUPS[hand]
-        base = 1000 if args.split == "test" else 500
-        try:
-            pools = [hand_grasp_pool(objects, hand, n, args.queries * args.max_grasps, seed=base + s)
-                     for s in args.seeds]
-        except HandUnavailableError as exc:
-            print(f"skipping {hand}: {exc}")
+        got = query_pools(objects, hand, n, args.split, args.seeds, args.queries, args.max_grasps)
+        if got is None:
             continue
-        usable = float(np.mean([(p.touched.sum(-1) >= 3).mean() for p in pools]))
-        env = HapticRecogConfig().replace(**ENV_VARIANTS[ENV_IDS[hand]])
+        pools, usable = got
+        env = env_config(hand)
         A = env.training_grasps or HAND_APPROACHES
         cfg = training_config("hand", hand, cfg_args, env.calibrate_grasps, A)
         for normals in normal_settings:
@@ -199,10 +192,10 @@ def main(argv=None) -> int:
         args.out.mkdir(parents=True, exist_ok=True)
         cmd = "python benchmarks/stop_frontier.py " + " ".join(sys.argv[1:] if argv is None else argv)
         (args.out / "frontier.md").write_text(f"`{cmd}` ({time.perf_counter() - t0:.0f} s)\n\n{text}\n")
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-        fig, ax = plt.subplots(figsize=(7, 4.5))
+        from matplotlib.figure import Figure  # no pyplot: no global backend switch
+
+        fig = Figure(figsize=(7, 4.5))
+        ax = fig.subplots()
         for hand, normals, method, usable, S, Gr, K, w in results:
             label = f"{hand} {'w/' if normals else 'w/o'} normals, {method}"
             line, = ax.plot(Gr.mean(1), 100 * S.mean(1), "o-", label=label)
