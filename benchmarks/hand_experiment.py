@@ -245,7 +245,7 @@ def main(argv=None) -> int:
         (args.out / "hand_table.md").write_text(f"`{cmd}` ({time.perf_counter() - t_start:.0f} s)\n\n{text}\n")
     if rows:
         best = max((r for r in rows if r[4] == "BC-NP"), key=lambda r: r[5]["success"].mean(), default=rows[0])
-        print(f"HEADLINE: BC-NP success at the stop {100 * best[5]['success'].mean():.1f} % in "
+        print(f"HEADLINE: {best[4]} success at the stop {100 * best[5]['success'].mean():.1f} % in "
               f"{best[5]['grasps'].mean():.2f} grasps ({best[0]}, {best[3]} training, "
               f"{'with' if best[2] else 'without'} normals)")
     return 0
