@@ -92,6 +92,14 @@ def env_config(name: str) -> HapticRecogConfig:
     return HapticRecogConfig().replace(**ENV_VARIANTS[ENV_IDS[name]])
 
 
+def write_table(out: Path, name: str, script: str, argv, seconds: float, text: str) -> None:
+    """Write ``text`` to ``out/name``, headed by the command that made it (``python benchmarks/<script> <argv>``; the
+    process's own arguments when ``argv`` is None) and its wall time."""
+    out.mkdir(parents=True, exist_ok=True)
+    cmd = f"python benchmarks/{script} " + " ".join(sys.argv[1:] if argv is None else argv)
+    (out / name).write_text(f"`{cmd}` ({seconds:.0f} s)\n\n{text}\n")
+
+
 def run_query(updater, C, N, T, normals: bool, touch=None) -> tuple[int, int, bool]:
     """Feed one query's grasps ``C, N (G, n, 3)``, ``T (G, n)`` until decided -> (prediction, grasps, decided).
 
@@ -240,9 +248,7 @@ def main(argv=None) -> int:
     text = "\n".join(lines)
     print("\n" + text)
     if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
-        cmd = "python benchmarks/hand_experiment.py " + " ".join(sys.argv[1:] if argv is None else argv)
-        (args.out / "hand_table.md").write_text(f"`{cmd}` ({time.perf_counter() - t_start:.0f} s)\n\n{text}\n")
+        write_table(args.out, "hand_table.md", "hand_experiment.py", argv, time.perf_counter() - t_start, text)
     if rows:
         best = max((r for r in rows if r[4] == "BC-NP"), key=lambda r: r[5]["success"].mean(), default=rows[0])
         print(f"HEADLINE: {best[4]} success at the stop {100 * best[5]['success'].mean():.1f} % in "

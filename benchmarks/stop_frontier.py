@@ -13,8 +13,9 @@ Each query is a sequence of random-approach grasps of one object (the hand table
 with ``--split validation``, ``1000 + s`` with ``--split test``). Per grasp the belief adds (before the scale)
 
 * ``BC-NP``: the touching contacts' log-likelihood under the model of their count;
-* ``BC-NP, z=3``: the 3-finger subsets' summed log-likelihoods times ``min(1, k / C(t, 3))``, ``k = 4``, the env's
-  ``score_subsets`` rule (``HapticRecogConfig.subset_k``; with 4 fingers all 4 subsets, as the hand table);
+* ``BC-NP, z=3``: the 3-finger subsets' summed log-likelihoods times ``min(1, k / m)`` for ``m`` scored subsets,
+  ``k`` the env's ``subset_k`` (4), its ``score_subsets`` rule (:func:`~haptic_env.recognizers.zfinger.subset_weight`;
+  with 4 fingers all 4 subsets, as the hand table);
 
 both plus the touch pattern's log-likelihood weighted as in the hand's env (``touch_weight``; the Allegro's is 0).
 
@@ -39,19 +40,21 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.hand_experiment import PAPER, SETUPS, env_config, query_pools, run_query, training_config  # noqa: E402
+from benchmarks.hand_experiment import (PAPER, SETUPS, env_config, query_pools, run_query, training_config,  # noqa: E402
+                                        write_table)
 from haptic_env.config import HAND_APPROACHES  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 from haptic_env.recognizers import build_recognizer, models_for  # noqa: E402
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD  # noqa: E402
-from haptic_env.recognizers.zfinger import subset_vectors  # noqa: E402
+from haptic_env.recognizers.zfinger import subset_vectors, subset_weight  # noqa: E402
 
 METHODS = ("BC-NP", "BC-NP, z=3")
-SUBSET_K = 4  # the paper's k (Algorithm 4) = HapticRecogConfig.subset_k
 
 
-def grasp_scores(rec, C, N, T, normals: bool, z: int | None, touch_weight: float) -> np.ndarray:
-    """Per-grasp calibrated log-likelihoods ``(G, K)`` of one query's grasps ``C, N (G, n, 3)``, ``T (G, n)``.
+def grasp_scores(rec, C, N, T, normals: bool, z: int | None, touch_weight: float,
+                 subset_k: int | None = None) -> np.ndarray:
+    """Per-grasp calibrated log-likelihoods ``(G, K)`` of one query's grasps ``C, N (G, n, 3)``, ``T (G, n)``
+    (``z``: scored through its z-subsets, weighted as the env's with ``subset_k``).
 
     A grasp with fewer than 3 touching fingertips adds only its touch pattern's term (0 without one); a row whose
     every class is -inf is left as it is (the replay skips it, as the updaters do)."""
@@ -61,13 +64,12 @@ def grasp_scores(rec, C, N, T, normals: bool, z: int | None, touch_weight: float
     if touch_weight > 0:
         L += touch_weight * rec.touch.log_likelihood(T)
     for g in range(G):
-        t = int(T[g].sum())
-        if t < 3:
+        if T[g].sum() < 3:
             continue
         Q = subset_vectors(C[g], N[g] if normals else None, z, touched=T[g])
         if len(Q) == 0:
             continue
-        w = 1.0 if z is None else min(1.0, SUBSET_K / math.comb(t, z))
+        w = 1.0 if z is None else subset_weight(len(Q), subset_k)
         L[g] += w * models.log_likelihood(Q).sum(axis=0)
     return L
 
@@ -126,7 +128,7 @@ def main(argv=None) -> int:
     scales = np.array(sorted(set(args.scales)))
     objects = load_object_set("ycb10")
     t0 = time.perf_counter()
-    results = []  # (hand, normals, method, usable, {"success","grasps"} (S, seeds), K, w)
+    results = []  # (hand, normals, method, usable, success (scales, seeds), grasps (scales, seeds))
     cfg_args = argparse.Namespace(hand_budget="uniform")
     for hand in args.hands:
         n, normal_settings = SETUPS[hand]
@@ -152,7 +154,7 @@ def main(argv=None) -> int:
                         N = pool.normals[i].reshape(args.queries, args.max_grasps, n, 3)
                         T = pool.touched[i].reshape(args.queries, args.max_grasps, n)
                         for q in range(args.queries):
-                            Ls.append(grasp_scores(rec, C[q], N[q], T[q], normals, z, w))
+                            Ls.append(grasp_scores(rec, C[q], N[q], T[q], normals, z, w, env.subset_k))
                             labels.append(i)
                             checks.append((C[q], N[q], T[q]))
                     L, labels = np.stack(Ls), np.array(labels)
@@ -168,8 +170,7 @@ def main(argv=None) -> int:
                                                      f"!= updater {(p, g, d)}")
                     succ.append(np.mean((pred == labels) & done, axis=1))
                     grasps.append(used.mean(axis=1))
-                results.append((hand, normals, method, usable, np.array(succ).T, np.array(grasps).T,
-                                env.calibrate_grasps, w))
+                results.append((hand, normals, method, usable, np.array(succ).T, np.array(grasps).T))
     if not results:
         return 1
     cols = {(4, True): "4+", (4, False): "4-", (5, False): "5-"}
@@ -181,7 +182,7 @@ def main(argv=None) -> int:
              "| hand | normals | method | paper (success % / grasps) | floor (grasps) | " +
              " | ".join(f"s = {s:g}" for s in scales) + " |",
              "|---|---|---|---|---|" + "---|" * len(scales)]
-    for hand, normals, method, usable, S, Gr, K, w in results:
+    for hand, normals, method, usable, S, Gr in results:
         paper = PAPER[method][cols[(SETUPS[hand][0], normals)]]
         cells = [f"{100 * S[i].mean():.1f} +- {100 * S[i].std():.1f} % / {Gr[i].mean():.2f}" for i in range(len(scales))]
         lines.append(f"| {hand} | {'yes' if normals else 'no'} | {method} | {paper[0]} / {paper[1]} | "
@@ -189,14 +190,12 @@ def main(argv=None) -> int:
     text = "\n".join(lines)
     print("\n" + text)
     if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
-        cmd = "python benchmarks/stop_frontier.py " + " ".join(sys.argv[1:] if argv is None else argv)
-        (args.out / "frontier.md").write_text(f"`{cmd}` ({time.perf_counter() - t0:.0f} s)\n\n{text}\n")
+        write_table(args.out, "frontier.md", "stop_frontier.py", argv, time.perf_counter() - t0, text)
         from matplotlib.figure import Figure  # no pyplot: no global backend switch
 
         fig = Figure(figsize=(7, 4.5))
         ax = fig.subplots()
-        for hand, normals, method, usable, S, Gr, K, w in results:
+        for hand, normals, method, usable, S, Gr in results:
             label = f"{hand} {'w/' if normals else 'w/o'} normals, {method}"
             line, = ax.plot(Gr.mean(1), 100 * S.mean(1), "o-", label=label)
             for i, s in enumerate(scales):
@@ -214,7 +213,7 @@ def main(argv=None) -> int:
         fig.tight_layout()
         fig.savefig(args.out / "frontier.png", dpi=120)
     best = []
-    for hand, normals, method, usable, S, Gr, K, w in results:
+    for hand, normals, method, usable, S, Gr in results:
         paper = PAPER[method][cols[(SETUPS[hand][0], normals)]]
         ok = [i for i in range(len(scales)) if 100 * S[i].mean() >= paper[0]]
         fastest = min(ok, key=lambda i: Gr[i].mean()) if ok else None

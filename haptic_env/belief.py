@@ -51,7 +51,7 @@ import numpy as np
 from haptic_env.grasp_features import feature_dim
 from haptic_env.recognizers.touch import check_touch_weight
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS
-from haptic_env.recognizers.zfinger import check_subset_k
+from haptic_env.recognizers.zfinger import check_subset_k, subset_weight
 
 if TYPE_CHECKING:
     from haptic_env.config import HapticRecogConfig
@@ -226,7 +226,7 @@ class Belief:
         """The weight of the summed log-likelihood of one grasp's ``m`` score rows in a Bayes step:
         ``min(1, subset_k / m)`` for a Bayesian updater with ``score_subsets`` and ``subset_k``, else 1 (see the
         module docstring)."""
-        return self.subset_k / m if self._weigh_rows and m > self.subset_k else 1.0
+        return subset_weight(m, self.subset_k) if self._weigh_rows else 1.0
 
     def _update(self, Q) -> np.ndarray:
         """The updater's step of one grasp's score rows ``Q (m, d)``, weighted by :meth:`row_weight`."""

@@ -56,6 +56,12 @@ def check_subset_k(k) -> int | None:
     return None if k is None else int(k)
 
 
+def subset_weight(m: int, k: int | None) -> float:
+    """The weight of the summed log-likelihood of one grasp's ``m`` z-subset rows in a Bayes step: ``k / m`` when more
+    than ``k`` subsets are scored (they count as the paper's ``k`` random ones, Algorithm 4), else 1; ``k = None``: 1."""
+    return k / m if k is not None and m > k else 1.0
+
+
 @lru_cache(maxsize=None)
 def _all_subsets(n: int, z: int) -> np.ndarray:
     out = np.array(list(combinations(range(n), z)), dtype=np.int64).reshape(-1, z)
