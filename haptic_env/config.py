@@ -110,13 +110,18 @@ class HapticRecogConfig:
     hand-matched training grasps as the KDE); 0: off, the paper's method. Needs the "bc-np" updater and "hand"
     training grasps (the mujoco backend). The Shadow and Aero envs use 0.25 and 0.5, chosen per hand on
     validation grasps (RESULTS.md); the Allegro keeps 0 (its success at the stop did not change)."""
+    observe_contacts: bool = False
+    """Add the latest grasp's contact points (``"contacts"``, ``3n`` values, m) and, with ``normals``, its contact
+    normals (``"contact_normals"``, ``3n``) in the world frame to the observation; 0 for fingers that did not touch.
+    A kinesthetic hand knows where its fingertips stopped, and where they stopped tells a policy where the object's
+    surface is, i.e. its pose, which the frame-invariant grasp vector hides. False: the paper's observation."""
     recognizer_kwargs: Mapping[str, Any] = field(default_factory=dict)
     """Extra keyword arguments of :func:`haptic_env.recognizers.build_recognizer`, e.g.
     ``{"config": RecognizerConfig(grasps=DatasetConfig(grasps_per_object=5000))}``; ``config`` may also be a
     JSON-style dict (``{"grasps": {"grasps_per_object": 5000}, "mlp": {"max_epochs": 5}}``)."""
 
     def __post_init__(self) -> None:
-        for name in ("normals", "score_subsets", "calibrated"):  # bool("no") is True: take real booleans only
+        for name in ("normals", "score_subsets", "calibrated", "observe_contacts"):  # bool("no") is True: take real booleans only
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise TypeError(f"{name} must be True or False, got {getattr(self, name)!r}")
         if not isinstance(self.calibrate_grasps, (int, np.integer)) or self.calibrate_grasps < 1:

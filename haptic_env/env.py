@@ -71,6 +71,14 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     | prev_action  | A    | the latest action (0 before the first grasp)                                | [-1, 1]     |
     | grasp_count  | 1    | grasps so far / ``max_grasps``                                              | [0, 1]      |
 
+    With ``observe_contacts=True`` two parts follow (the length grows by ``3n``, or ``6n`` with normals):
+
+    | Slice           | Size | Content                                                                  | Range       |
+    | --------------- | ---- | ------------------------------------------------------------------------ | ----------- |
+    | contacts        | 3n   | the latest grasp's contact points in the world frame (m), finger by      | +-diameter  |
+    |                 |      | finger; 0 for a finger that did not touch                                |             |
+    | contact_normals | 3n   | their contact normals (only with ``normals``), 0 where not touched       | [-1, 1]     |
+
     ## Rewards
     ``reward = gain - grasp_cost`` with ``gain`` chosen by ``reward``:
 
@@ -240,7 +248,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         self._grasps += 1
         q, usable = self._belief.update(contacts, normals, touched)
         self._probs = self._belief.probs
-        self.task.record(q, touched, usable, a)  # a: a fresh float64 array from _check_action
+        self.task.record(q, touched, usable, a, contacts, normals)  # a: a fresh float64 array from _check_action
         reward, terms = self.task.reward(old, self._probs, self.scene.target)
         terminated = decided = self._belief.decided
         truncated = self.task.truncated(self._grasps, terminated)

@@ -2,7 +2,8 @@ r"""The recognition task: observation layout, reward kinds, termination and trun
 
 :class:`Task` is dm_control's *task*: given what the scene and the belief did in a step, it says what the agent
 observes, what it earns and whether the episode is over. It holds the observation's memory of the latest grasp
-(its grasp vector, touched fingers, usability and action) and nothing else.
+(its grasp vector, touched fingers, usability and action; with ``observe_contacts`` also its world-frame contacts)
+and nothing else.
 
 Rewards (``reward = gain - grasp_cost``; :data:`REWARD_KINDS`):
 
@@ -24,7 +25,7 @@ from gymnasium import spaces
 if TYPE_CHECKING:
     from haptic_env.config import HapticRecogConfig
 
-__all__ = ["Task", "REWARD_KINDS", "entropy"]
+__all__ = ["Task", "REWARD_KINDS", "entropy", "touched_rows"]
 
 REWARD_KINDS = ("true-posterior-gain", "max-posterior-gain", "entropy-reduction")
 
@@ -36,13 +37,24 @@ def entropy(p: np.ndarray) -> float:
     return float(-(nz * np.log(nz)).sum())
 
 
+def touched_rows(x: np.ndarray, touched: np.ndarray, bound: float) -> np.ndarray:
+    """``x (..., n, 3)`` with the rows of fingers that did not touch (``touched (..., n)`` False) set to 0, clipped
+    to ``[-bound, bound]`` and flattened to ``(..., 3n)`` (a new array; non-finite values of untouched rows are
+    dropped, not propagated)."""
+    x = np.asarray(x, dtype=np.float64)
+    out = np.where(np.asarray(touched, dtype=bool)[..., None], x, 0.0)
+    np.clip(out, -bound, bound, out=out)
+    return out.reshape(out.shape[:-2] + (-1,))
+
+
 class Task:
     """Observation space and vector, reward, truncation and ``info`` of ``config``'s recognition task."""
 
     def __init__(self, config: HapticRecogConfig, n_classes: int, feature_dim: int, action_dim: int, q_bound: float):
         self.config = config
         n, K, d, A = config.n_fingers, n_classes, feature_dim, action_dim
-        #: grasp vectors hold angles (rad, |.| <= pi) and lengths (m, <= the largest object diameter)
+        #: grasp vectors hold angles (rad, |.| <= pi) and lengths (m, <= the largest object diameter); world-frame
+        #: contacts lie within the largest diameter of the object's centre (the origin), so the same bound holds them
         self.q_bound = float(q_bound)
         self.observation_structure = {
             "grasp": d, "contact_mask": n, "usable": 1, "belief": K, "prev_action": A, "grasp_count": 1,
@@ -50,7 +62,12 @@ class Task:
         bounds = {
             "grasp": (-self.q_bound, self.q_bound), "contact_mask": (0, 1), "usable": (0, 1), "belief": (0, 1),
             "prev_action": (-1, 1), "grasp_count": (0, 1),
+            "contacts": (-self.q_bound, self.q_bound), "contact_normals": (-1, 1),
         }
+        if config.observe_contacts:
+            self.observation_structure["contacts"] = 3 * n
+            if config.normals:
+                self.observation_structure["contact_normals"] = 3 * n
         self.obs_slices: dict[str, slice] = {}
         lows, highs, start = [], [], 0
         for name, size in self.observation_structure.items():
@@ -69,15 +86,23 @@ class Task:
         self.last_mask = np.zeros(sizes["contact_mask"])
         self.last_usable = 0.0
         self.last_action = np.zeros(sizes["prev_action"])
+        self.last_contacts = np.zeros(sizes.get("contacts", 0))
+        self.last_normals = np.zeros(sizes.get("contact_normals", 0))
 
-    def record(self, q: np.ndarray, touched: np.ndarray, usable: bool, action: np.ndarray) -> None:
+    def record(self, q: np.ndarray, touched: np.ndarray, usable: bool, action: np.ndarray,
+               contacts: np.ndarray | None = None, normals: np.ndarray | None = None) -> None:
         """The latest grasp: its grasp vector ``q (d,)`` (a fresh array: clipped to the observation bounds in place),
-        touched fingers, whether it updated the belief, and its action."""
+        touched fingers, whether it updated the belief, its action, and (observed with ``observe_contacts``) its
+        world-frame ``contacts (n, 3)`` and ``normals (n, 3)``, zeroed where a finger did not touch."""
         np.minimum(np.maximum(q, -self.q_bound, out=q), self.q_bound, out=q)
         self.last_q = q
         self.last_mask = touched.astype(np.float64)
         self.last_usable = float(usable)
         self.last_action = action
+        if "contacts" in self.observation_structure:
+            self.last_contacts = touched_rows(contacts, touched, self.q_bound)
+            if "contact_normals" in self.observation_structure:
+                self.last_normals = touched_rows(normals, touched, 1.0)
 
     def reward(self, old: np.ndarray, new: np.ndarray, target: int) -> tuple[float, dict[str, float]]:
         """``(reward, terms)`` of a step from belief ``old`` to ``new``; the terms sum exactly to the reward."""
@@ -103,6 +128,10 @@ class Task:
         obs[sl["belief"]] = belief
         obs[sl["prev_action"]] = self.last_action
         obs[sl["grasp_count"]] = grasps / self.config.max_grasps
+        if "contacts" in sl:
+            obs[sl["contacts"]] = self.last_contacts
+            if "contact_normals" in sl:
+                obs[sl["contact_normals"]] = self.last_normals
         return obs
 
     def info(self, names, target: int, belief: np.ndarray, certainty: float, *, grasps: int, usable: bool,

@@ -55,7 +55,7 @@ from haptic_env.belief import Belief, get_recognizer
 from haptic_env.config import HapticRecogConfig
 from haptic_env.grasp_features import feature_dim
 from haptic_env.scene import Scene
-from haptic_env.task import Task, entropy
+from haptic_env.task import Task, entropy, touched_rows
 
 __all__ = ["HapticRecogVectorEnv", "make_vector_env"]
 
@@ -131,6 +131,8 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
         self._last_mask = np.zeros((B, n))
         self._last_usable = np.zeros(B)
         self._last_action = np.zeros((B, A))
+        self._last_contacts = np.zeros((B, self.observation_structure.get("contacts", 0)))
+        self._last_normals = np.zeros((B, self.observation_structure.get("contact_normals", 0)))
         self._over = np.zeros(B, dtype=bool)  # episode ended at the last step (next_step: reset at this one)
         self._started = np.zeros(B, dtype=bool)
         self._recognizer = None
@@ -235,6 +237,8 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
         self._last_mask[idx] = 0.0
         self._last_usable[idx] = 0.0
         self._last_action[idx] = 0.0
+        self._last_contacts[idx] = 0.0
+        self._last_normals[idx] = 0.0
         self._started[idx] = True
         self._over[idx] = False
 
@@ -359,6 +363,10 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
         self._last_mask[live] = touched
         self._last_usable[live] = usable[live]
         self._last_action[live] = a
+        if self._last_contacts.shape[1]:
+            self._last_contacts[live] = touched_rows(contacts, touched, self.task.q_bound)
+            if self._last_normals.shape[1]:
+                self._last_normals[live] = touched_rows(normals, touched, 1.0)
 
     def _gain(self, old: np.ndarray, new: np.ndarray, targets: np.ndarray) -> np.ndarray:
         kind = self.config.reward
@@ -378,6 +386,10 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
         obs[:, sl["belief"]] = self.probs
         obs[:, sl["prev_action"]] = self._last_action
         obs[:, sl["grasp_count"]] = (self.grasps / self.config.max_grasps)[:, None]
+        if "contacts" in sl:
+            obs[:, sl["contacts"]] = self._last_contacts
+            if "contact_normals" in sl:
+                obs[:, sl["contact_normals"]] = self._last_normals
         return obs
 
     def _certainty(self) -> np.ndarray:

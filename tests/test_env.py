@@ -228,6 +228,45 @@ def test_observation_slices(env_config):
             break
 
 
+def test_observe_contacts_appends_world_frame_contacts(env_config):
+    """``observe_contacts``: the same observation as the plain env, followed by the latest grasp's world-frame
+    contacts and normals, zeroed for fingers that did not touch."""
+    plain = _make(env_config).unwrapped
+    env = _make(env_config.replace(observe_contacts=True)).unwrapped
+    n, base = env.config.n_fingers, plain.observation_space.shape[0]
+    assert env.observation_structure["contacts"] == env.observation_structure["contact_normals"] == 3 * n
+    assert env.observation_space.shape == (base + 6 * n,)
+    sl = env.obs_slices
+    o1, _ = plain.reset(seed=5, options={"object": "ring"})
+    o2, _ = env.reset(seed=5, options={"object": "ring"})
+    np.testing.assert_array_equal(o2[:base], o1)
+    assert not o2[base:].any()
+    rng = np.random.default_rng(2)
+    partial = 0
+    for _ in range(12):
+        a = rng.uniform(-1, 1, 4)
+        o1, *_, = plain.step(a)
+        o2, _, term, trunc, info = env.step(a)
+        np.testing.assert_array_equal(o2[:base], o1)
+        assert o2 in env.observation_space
+        res, touched = env._last_result, info["touched"]
+        partial += int(not touched.all())
+        c = o2[sl["contacts"]].reshape(n, 3)
+        nrm = o2[sl["contact_normals"]].reshape(n, 3)
+        np.testing.assert_allclose(c[touched], np.asarray(res.contacts)[touched], atol=1e-6)
+        np.testing.assert_allclose(np.linalg.norm(nrm[touched], axis=1), 1.0, atol=1e-5)
+        assert not c[~touched].any() and not nrm[~touched].any()
+        if term or trunc:
+            o1, _ = plain.reset(seed=6, options={"object": "ring"})
+            o2, _ = env.reset(seed=6, options={"object": "ring"})
+            assert not o2[base:].any()
+    assert partial  # the ring leaves fingers off the object: the zeroing is exercised
+    with pytest.raises(TypeError, match="observe_contacts"):
+        env_config.replace(observe_contacts="yes")
+    no_normals = _make(env_config.replace(observe_contacts=True, normals=False)).unwrapped
+    assert "contact_normals" not in no_normals.observation_structure
+
+
 def test_incomplete_grasp_carries_no_information(env_config):
     env = _make(env_config).unwrapped
     env.reset(seed=0, options={"object": "ring"})  # thin: many grasps miss with some fingers

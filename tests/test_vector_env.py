@@ -49,7 +49,7 @@ def _assert_same_step(r1, r2):
 @pytest.mark.parametrize("overrides", [
     {},
     {"pose": "so3", "scale_range": (0.8, 1.2), "reward": "entropy-reduction", "max_grasps": 4,
-     "backend_kwargs": {"contact_noise": 0.002, "normal_noise_deg": 3.0}},
+     "backend_kwargs": {"contact_noise": 0.002, "normal_noise_deg": 3.0}, "observe_contacts": True},
 ])
 def test_sub_env_i_equals_a_single_env_seeded_seed_plus_i(env_config, mode, overrides):
     """The documented scheme: reset(seed=s) -> sub-env i is HapticRecogEnv reset(seed=s + i), autoresets continue
@@ -73,7 +73,7 @@ def test_sub_env_i_equals_a_single_env_seeded_seed_plus_i(env_config, mode, over
 
 def test_general_belief_path_equals_single_envs(env_config):
     """A setting outside the fast path (z-finger models for incomplete grasps) keeps one Belief per sub-env."""
-    cfg = env_config.replace(z_fingers=3, grasp_cost=0.01)
+    cfg = env_config.replace(z_fingers=3, grasp_cost=0.01, observe_contacts=True)
     B = 3
     venv = HapticRecogVectorEnv(B, cfg)
     ref = SyncVectorEnv([lambda: HapticRecogEnv(cfg) for _ in range(B)])
