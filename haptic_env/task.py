@@ -119,20 +119,20 @@ class Task:
     def truncated(self, grasps: int, terminated: bool) -> bool:
         return (not terminated) and grasps >= self.config.max_grasps
 
-    def observation(self, belief: np.ndarray, grasps: int) -> np.ndarray:
-        sl = self.obs_slices
-        obs = np.empty(self.observation_space.shape, dtype=np.float32)
-        obs[sl["grasp"]] = self.last_q
-        obs[sl["contact_mask"]] = self.last_mask
-        obs[sl["usable"]] = self.last_usable
-        obs[sl["belief"]] = belief
-        obs[sl["prev_action"]] = self.last_action
-        obs[sl["grasp_count"]] = grasps / self.config.max_grasps
-        if "contacts" in sl:
-            obs[sl["contacts"]] = self.last_contacts
-            if "contact_normals" in sl:
-                obs[sl["contact_normals"]] = self.last_normals
+    def fill(self, obs: np.ndarray, parts: dict[str, Any]) -> np.ndarray:
+        """Write every part of the layout into ``obs (..., D)`` from ``parts`` (name -> value broadcastable to
+        ``(..., size)``; a batch of envs passes ``(B, size)`` or ``(B, 1)``); the one place that maps parts to slices,
+        used by the single and the native vector env. Returns ``obs``."""
+        for name, sl in self.obs_slices.items():
+            obs[..., sl] = parts[name]
         return obs
+
+    def observation(self, belief: np.ndarray, grasps: int) -> np.ndarray:
+        return self.fill(np.empty(self.observation_space.shape, dtype=np.float32), {
+            "grasp": self.last_q, "contact_mask": self.last_mask, "usable": self.last_usable, "belief": belief,
+            "prev_action": self.last_action, "grasp_count": grasps / self.config.max_grasps,
+            "contacts": self.last_contacts, "contact_normals": self.last_normals,
+        })
 
     def info(self, names, target: int, belief: np.ndarray, certainty: float, *, grasps: int, usable: bool,
              decided: bool) -> dict[str, Any]:

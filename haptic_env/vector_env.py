@@ -378,19 +378,13 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
         return np.array([entropy(o) - entropy(nw) for o, nw in zip(old, new)])
 
     def _observations(self) -> np.ndarray:
-        sl = self.obs_slices
         obs = np.empty((self.num_envs,) + self.single_observation_space.shape, dtype=np.float32)
-        obs[:, sl["grasp"]] = self._last_q
-        obs[:, sl["contact_mask"]] = self._last_mask
-        obs[:, sl["usable"]] = self._last_usable[:, None]
-        obs[:, sl["belief"]] = self.probs
-        obs[:, sl["prev_action"]] = self._last_action
-        obs[:, sl["grasp_count"]] = (self.grasps / self.config.max_grasps)[:, None]
-        if "contacts" in sl:
-            obs[:, sl["contacts"]] = self._last_contacts
-            if "contact_normals" in sl:
-                obs[:, sl["contact_normals"]] = self._last_normals
-        return obs
+        return self.task.fill(obs, {
+            "grasp": self._last_q, "contact_mask": self._last_mask, "usable": self._last_usable[:, None],
+            "belief": self.probs, "prev_action": self._last_action,
+            "grasp_count": (self.grasps / self.config.max_grasps)[:, None],
+            "contacts": self._last_contacts, "contact_normals": self._last_normals,
+        })
 
     def _certainty(self) -> np.ndarray:
         if self._beliefs is not None:
