@@ -23,11 +23,14 @@ from haptic_env.recognizers.zfinger import check_subset_k
 from haptic_env.scene import POSE_MODES
 from haptic_env.task import REWARD_KINDS
 
-__all__ = ["HapticRecogConfig", "recognizer_kwargs", "RECOGNIZER_SOURCES", "HAND_APPROACHES", "KDE_METHODS"]
+__all__ = ["HapticRecogConfig", "recognizer_kwargs", "RECOGNIZER_SOURCES", "HAND_APPROACHES", "KDE_METHODS",
+           "HAND_BACKENDS"]
 
 RECOGNIZER_SOURCES = ("auto", "hand", "geometric", "surface")
 #: How the env's belief update may evaluate the KDE (``KDEConfig.method``).
 KDE_METHODS = ("pooled", "tree", "dense")
+#: Backends whose grasps are a MuJoCo hand's (``backend_kwargs["hand"]``): the physics, or its recorded grasps.
+HAND_BACKENDS = ("mujoco", "replay")
 #: Random approaches per object of the default ``"hand"`` training grasps.
 HAND_APPROACHES = 3_000
 
@@ -41,7 +44,8 @@ class HapticRecogConfig:
     object_kwargs: Mapping[str, Any] = field(default_factory=dict)
     """Extra keyword arguments of ``load_object_set`` (``data_dir``, ``units``)."""
     backend: str = "geometric"
-    """Grasp backend for :func:`haptic_env.grasping.make_backend`: "geometric" | "uniform" | "mujoco"."""
+    """Grasp backend for :func:`haptic_env.grasping.make_backend`: "geometric" | "uniform" | "mujoco" | "replay" (the
+    hand's recorded MuJoCo grasps of the nearest recorded approach: the same env, far faster, to train agents on)."""
     backend_kwargs: Mapping[str, Any] = field(default_factory=dict)
     """Extra keyword arguments of ``make_backend`` (e.g. ``hand="allegro"`` for mujoco)."""
     n_fingers: int = 4
@@ -79,9 +83,9 @@ class HapticRecogConfig:
     registered envs have no ``max_episode_steps``); also normalises the grasp count in the observation."""
     recognizer_source: str = "auto"
     """Training grasps of the recogniser (``DatasetConfig.source``) unless ``recognizer_kwargs`` sets its own:
-    "hand" (the MuJoCo backend's own hand grasping each mesh, :mod:`haptic_env.hand_grasps`; mujoco backend
-    only), "geometric" (the geometric hand's approach grasps), "surface" (random surface points, the paper's
-    protocol), or "auto": "hand" for the mujoco backend, else "geometric". All are computed from the meshes
+    "hand" (the MuJoCo backend's own hand grasping each mesh, :mod:`haptic_env.hand_grasps`; mujoco and replay
+    backends only), "geometric" (the geometric hand's approach grasps), "surface" (random surface points, the paper's
+    protocol), or "auto": "hand" for the mujoco and replay backends, else "geometric". All are computed from the meshes
     alone."""
     training_grasps: int | None = None
     """Training grasps per object of the recogniser (``DatasetConfig.grasps_per_object``; for "hand" grasps, random
@@ -134,15 +138,15 @@ class HapticRecogConfig:
                              f"got {self.n_fingers!r}")
         if self.recognizer_source not in RECOGNIZER_SOURCES:
             raise ValueError(f"recognizer_source must be one of {RECOGNIZER_SOURCES}, got {self.recognizer_source!r}")
-        if self.recognizer_source == "hand" and self.backend != "mujoco":
-            raise ValueError(f"recognizer_source='hand' needs the mujoco backend, got backend={self.backend!r}")
+        if self.recognizer_source == "hand" and self.backend not in HAND_BACKENDS:
+            raise ValueError(f"recognizer_source='hand' needs a hand backend {HAND_BACKENDS}, got backend={self.backend!r}")
         if self.updater not in UPDATERS:
             raise ValueError(f"updater must be one of {UPDATERS}, got {self.updater!r}")
         w = check_touch_weight(self.touch_weight)
         if w > 0 and self.updater != "bc-np":
             raise ValueError(f"touch_weight={w} needs updater='bc-np', got {self.updater!r}")
-        if w > 0 and (self.backend != "mujoco" or self.recognizer_source not in ("auto", "hand")):
-            raise ValueError(f"touch_weight={w} needs hand-matched training grasps (backend='mujoco' with "
+        if w > 0 and (self.backend not in HAND_BACKENDS or self.recognizer_source not in ("auto", "hand")):
+            raise ValueError(f"touch_weight={w} needs hand-matched training grasps (backend {HAND_BACKENDS} with "
                              f"recognizer_source 'auto' or 'hand'), got backend={self.backend!r}, "
                              f"recognizer_source={self.recognizer_source!r}")
         if self.reward not in REWARD_KINDS:
@@ -227,7 +231,7 @@ def recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
         grasps = dict(rc.get("grasps", {}))
         source = config.recognizer_source
         if source == "auto":
-            source = "hand" if config.backend == "mujoco" else "geometric"
+            source = "hand" if config.backend in HAND_BACKENDS else "geometric"
         grasps.setdefault("source", source)
         if config.training_grasps is not None:
             grasps.setdefault("grasps_per_object", int(config.training_grasps))

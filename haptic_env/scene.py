@@ -56,6 +56,9 @@ class Scene:
                             f"{exc}") from exc
         if int(self.backend.n_fingers) != config.n_fingers:
             raise ValueError(f"backend {config.backend!r} has {self.backend.n_fingers} fingers, config asks {config.n_fingers}")
+        prepare = getattr(self.backend, "prepare", None)  # the replay backend records its objects' grasps up front
+        if callable(prepare):
+            prepare(self.objects)
         self.action_dim = int(self.backend.action_dim)
         #: the largest object diameter at the largest scale (bounds the lengths in a grasp vector)
         scale_hi = config.scale_range[1] if config.scale_range is not None else 1.0

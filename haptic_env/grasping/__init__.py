@@ -1,6 +1,6 @@
 """Grasp backends: where a hand's fingertips touch an object for a chosen approach.
 
-``make_backend("geometric" | "uniform" | "mujoco", n_fingers, **cfg)``; see :mod:`.base` for the
+``make_backend("geometric" | "uniform" | "mujoco" | "replay", n_fingers, **cfg)``; see :mod:`.base` for the
 approach (action) layout and :class:`GraspResult`.
 """
 

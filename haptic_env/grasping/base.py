@@ -246,18 +246,19 @@ def validate_pose(pose: Any) -> np.ndarray:
     return T
 
 
-BACKENDS = ("geometric", "uniform", "mujoco")
+BACKENDS = ("geometric", "uniform", "mujoco", "replay")
 
 
 def make_backend(name: str = "geometric", n_fingers: int | None = None, **cfg: Any) -> GraspBackend:
-    """Build a backend by name: ``"geometric"`` | ``"uniform"`` | ``"mujoco"``.
+    """Build a backend by name: ``"geometric"`` | ``"uniform"`` | ``"mujoco"`` | ``"replay"``.
 
     ``cfg`` are the fields of that backend's config dataclass (:class:`GeometricConfig`,
-    :class:`UniformConfig`, :class:`MujocoConfig`); unknown keys raise TypeError naming them.
-    For ``"mujoco"``, ``hand="generic"|"allegro"|"shadow"|"<path to .xml>"`` picks the hand; the
+    :class:`UniformConfig`, :class:`MujocoConfig`, :class:`~.replay.ReplayConfig`); unknown keys raise TypeError
+    naming them. For ``"mujoco"``, ``hand="generic"|"allegro"|"shadow"|"<path to .xml>"`` picks the hand; the
     Allegro hand has 4 fingers, Shadow 5 (``n_fingers`` must agree); any other MJCF file or MuJoCo
-    Menagerie name is described automatically (:mod:`.auto_hand`). ``n_fingers=None``: 4, or for
-    ``"mujoco"`` the hand's own count.
+    Menagerie name is described automatically (:mod:`.auto_hand`). ``"replay"`` answers with that hand's
+    recorded MuJoCo grasps of the nearest recorded approach (:mod:`.replay`: fast, to train agents on).
+    ``n_fingers=None``: 4, or for ``"mujoco"`` and ``"replay"`` the hand's own count.
     """
     if name == "geometric":
         from .geometric import GeometricBackend, GeometricConfig
@@ -271,4 +272,8 @@ def make_backend(name: str = "geometric", n_fingers: int | None = None, **cfg: A
         from .mujoco_backend import MujocoBackend, MujocoConfig
 
         return MujocoBackend(MujocoConfig(n_fingers=n_fingers, **cfg))  # None: the hand's own count
+    if name == "replay":
+        from .replay import ReplayBackend, ReplayConfig
+
+        return ReplayBackend(ReplayConfig(n_fingers=n_fingers, **cfg))  # a hand's recorded MuJoCo grasps
     raise ValueError(f"unknown grasp backend {name!r}; choose one of {BACKENDS}")

@@ -1,0 +1,123 @@
+"""Replay backend: a hand's recorded MuJoCo grasps looked up by approach (generic hand: no data needed)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from haptic_env.grasping import make_backend
+from haptic_env.grasping.replay import ReplayConfig, approach_embedding
+from haptic_env.hand_grasps import hand_grasp_pool
+from haptic_env.objects import load_object_set
+
+
+@pytest.fixture(scope="module")
+def two_objects():
+    return load_object_set("default").subset(("can", "mug"), name="can-mug")
+
+
+def _yaw_pose(psi: float) -> np.ndarray:
+    T = np.eye(4)
+    c, s = np.cos(psi), np.sin(psi)
+    T[:2, :2] = [[c, -s], [s, c]]
+    return T
+
+
+def _pool_actions(seed: int, k: int, approaches: int) -> np.ndarray:
+    return np.random.default_rng(np.random.SeedSequence([seed, k])).uniform(-1, 1, (approaches, 4))
+
+
+def test_a_recorded_approach_replays_the_physics_grasp(two_objects):
+    """At a recorded approach the replay gives the pool's grasp, which is the MuJoCo backend's grasp there; under a
+    yaw it gives that grasp turned, along the azimuth turned by the same yaw."""
+    be = make_backend("replay", hand="generic", approaches=12, pool_seed=3, progress=False)
+    assert be.n_fingers == 4
+    be.prepare(two_objects)
+    pool = hand_grasp_pool(two_objects, "generic", 4, 12, seed=3, progress=False)  # the same cached pool
+    assert pool.from_cache
+    actions = _pool_actions(3, 1, 12).astype(np.float32)  # object 1 (the mug)'s approach stream
+    mug = two_objects["mug"]
+    be.set_object(mug)
+    batch = be.grasp_batch(actions, None)
+    np.testing.assert_allclose(batch.contacts, pool.contacts[1], atol=1e-6)
+    np.testing.assert_array_equal(batch.touched, pool.touched[1])
+    phys = make_backend("mujoco", n_fingers=4, hand="generic", normals=True)
+    phys.set_object(mug)
+    i = int(np.argmax(pool.touched[1].sum(1)))  # an approach that touches
+    r = phys.grasp(actions[i], np.random.default_rng(0))
+    np.testing.assert_allclose(r.contacts, batch.contacts[i], atol=1e-6)  # solver round-off
+    np.testing.assert_allclose(r.normals, batch.normals[i], atol=1e-6)
+    phys.close()
+    # turned by psi: the azimuth turned by psi gives the same grasp, turned
+    psi = 2.4
+    be.set_object(mug, _yaw_pose(psi))
+    turned = actions.astype(np.float64).copy()
+    turned[:, 0] = np.mod(turned[:, 0] + psi / np.pi + 1.0, 2.0) - 1.0
+    tb = be.grasp_batch(turned.astype(np.float32), None)
+    R = _yaw_pose(psi)[:3, :3]
+    np.testing.assert_allclose(tb.contacts, batch.contacts @ R.T, atol=1e-5)
+    np.testing.assert_allclose(tb.normals, batch.normals @ R.T, atol=1e-5)
+    np.testing.assert_array_equal(tb.touched, batch.touched)
+    one = be.grasp(turned[i].astype(np.float32), None)  # the single grasp is the batch's row, with its usability
+    np.testing.assert_allclose(one.contacts, tb.contacts[i])
+    assert one.info["usable"] == (one.touched.sum() >= 3)
+
+
+def test_nearest_approach_and_periodic_distance(two_objects):
+    be = make_backend("replay", hand="generic", approaches=12, pool_seed=3, normals=False, progress=False)
+    be.set_object(two_objects["can"])  # not prepared: recorded (here: read from the cache) on first use
+    actions = _pool_actions(3, 0, 12)
+    near = actions[5] + 0.01
+    near[0] = near[0] - 2.0 if near[0] > 1.0 else near[0]
+    g = be.grasp(np.clip(near, -1, 1).astype(np.float32), None)
+    assert g.normals is None
+    expect = be.grasp(actions[5].astype(np.float32), None)
+    np.testing.assert_array_equal(g.contacts, expect.contacts)
+    # azimuth and roll are periodic: -1 and 1 are the same approach
+    e = approach_embedding(np.array([[-1.0, 0.2, 1.0, 0.3], [1.0, 0.2, -1.0, 0.3]]))
+    np.testing.assert_allclose(e[0], e[1], atol=1e-12)
+
+
+def test_bad_input(two_objects):
+    be = make_backend("replay", hand="generic", approaches=12, pool_seed=3, progress=False)
+    with pytest.raises(RuntimeError, match="set_object"):
+        be.grasp(np.zeros(4, np.float32), None)
+    tilted = np.eye(4)
+    tilted[1:3, 1:3] = [[0.0, -1.0], [1.0, 0.0]]  # a quarter turn about x
+    with pytest.raises(ValueError, match="vertical axis only"):
+        be.set_object(two_objects["can"], tilted)
+    moved = np.eye(4)
+    moved[0, 3] = 0.1
+    with pytest.raises(ValueError, match="vertical axis only"):
+        be.set_object(two_objects["can"], moved)
+    be.set_object(two_objects["can"])
+    with pytest.raises(ValueError, match="outside"):
+        be.grasp(np.full(4, 2.0, np.float32), None)
+    for bad in ({"approaches": 0}, {"approaches": True}, {"pool_seed": -1}, {"hand": ""}, {"support": "wall"}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            ReplayConfig(**bad)
+
+
+def test_env_on_the_replay_backend(small_recognizer_kwargs):
+    """An env with backend="replay" trains its recogniser on the hand's own grasps by default ("auto" -> "hand", as
+    for "mujoco"), and steps with the spaces of the mujoco env."""
+    from haptic_env.config import recognizer_kwargs
+    from haptic_env.env import HapticRecogConfig, HapticRecogEnv
+
+    grasps = recognizer_kwargs(HapticRecogConfig(backend="replay", backend_kwargs={"hand": "generic"}))["config"].grasps
+    assert grasps.source == "hand" and grasps.hand == "generic"
+    HapticRecogConfig(backend="replay", backend_kwargs={"hand": "generic"}, touch_weight=0.5)  # hand-matched: allowed
+    cfg = HapticRecogConfig(backend="replay", backend_kwargs={"hand": "generic", "approaches": 8, "progress": False},
+                            recognizer_source="surface", recognizer_kwargs=small_recognizer_kwargs, max_grasps=3)
+    env = HapticRecogEnv(cfg)
+    try:
+        assert env.action_space.shape == (4,)
+        obs, info = env.reset(seed=0)
+        assert env.observation_space.contains(obs)
+        done = False
+        while not done:
+            obs, r, term, trunc, info = env.step(env.action_space.sample())
+            assert env.observation_space.contains(obs)
+            done = term or trunc
+    finally:
+        env.close()
