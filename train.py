@@ -70,7 +70,9 @@ class Args:
     torch_threads: int = 1
     """Torch intra-op threads of the learner."""
     env: HapticRecogConfig = field(default_factory=HapticRecogConfig)
-    """The env's settings (:class:`haptic_env.config.HapticRecogConfig`)."""
+    """The env's settings (:class:`haptic_env.config.HapticRecogConfig`), starting from the ``--env-id`` variant's
+    (``haptic_env.variant_config``): ``--env.backend replay`` on ``HapticRecogMuJoCo-v0`` trains on the Allegro's
+    recorded grasps."""
     env_kwargs: str = "{}"
     """JSON dict of further HapticRecogConfig fields, applied on top of ``--env.*`` (for the mapping fields:
     recognizer_kwargs, backend_kwargs, object_kwargs)."""
@@ -97,8 +99,15 @@ def parse_args(argv: list[str] | None = None) -> Args:
     env settings ``HapticRecogConfig`` rejects, a missing ``--resume`` file) exit with a one-line usage error."""
     import tyro
 
-    try:
-        args = tyro.cli(Args, args=argv, description=__doc__.splitlines()[0])
+    from haptic_env import ENV_VARIANTS, variant_config
+
+    argv = sys.argv[1:] if argv is None else list(argv)
+    env_id = _env_id(argv)
+    if env_id not in ENV_VARIANTS:
+        _usage_error(f"argument --env-id: unknown env {env_id!r}; choose from {list(ENV_VARIANTS)}")
+    try:  # --env.* start from the variant's whole config, so that a flag changes a field the variant sets too
+        args = tyro.cli(Args, args=argv, default=Args(env_id=env_id, env=variant_config(env_id)),
+                        description=__doc__.splitlines()[0])
     except (TypeError, ValueError, FileNotFoundError) as exc:  # HapticRecogConfig's validation of --env.*
         _usage_error(f"env settings: {exc}")
     for name, lo in _MINIMUM.items():
@@ -130,11 +139,18 @@ def parse_args(argv: list[str] | None = None) -> Args:
         other = next((a for a in ALGOS if a != args.algo and Path(args.resume).name.startswith(a + "_")), None)
         if other is not None:
             _usage_error(f"argument --resume: {args.resume} is a {other} checkpoint, not {args.algo} (pass --algo {other})")
-    from haptic_env import ENV_VARIANTS
-
-    if args.env_id not in ENV_VARIANTS:
-        _usage_error(f"argument --env-id: unknown env {args.env_id!r}; choose from {list(ENV_VARIANTS)}")
     return args
+
+
+def _env_id(argv: list[str]) -> str:
+    """The ``--env-id`` of ``argv`` (its last one, as tyro reads it), or the default."""
+    env_id = Args.env_id
+    for i, a in enumerate(argv):
+        if a in ("--env-id", "--env_id") and i + 1 < len(argv):
+            env_id = argv[i + 1]
+        elif a.startswith(("--env-id=", "--env_id=")):
+            env_id = a.split("=", 1)[1]
+    return env_id
 
 
 def env_config(args: Args) -> HapticRecogConfig:

@@ -51,8 +51,24 @@ for _id, _kwargs in ENV_VARIANTS.items():
                  vector_entry_point=_VECTOR_ENTRY if _kwargs.get("backend", "geometric") == "geometric" else None)
 
 
+def variant_config(env_id: str = "HapticRecog-v0", **changes: Any):
+    """The whole :class:`~haptic_env.config.HapticRecogConfig` of a registered env: the defaults, the fields its
+    variant sets (:data:`ENV_VARIANTS`), then ``changes``."""
+    from haptic_env.config import HapticRecogConfig
+
+    if env_id not in ENV_VARIANTS:
+        raise ValueError(f"unknown env id {env_id!r}; choose one of {list(ENV_VARIANTS)}")
+    return HapticRecogConfig().replace(**{**ENV_VARIANTS[env_id], **changes})
+
+
 def make(config=None, env_id: str = "HapticRecog-v0", **kwargs):
-    """``gymnasium.make(env_id, config=config, **kwargs)``: the env truncates itself after ``config.max_grasps``."""
+    """``gymnasium.make(env_id, config=config, **kwargs)``: the env truncates itself after ``config.max_grasps``.
+
+    A ``config`` is the env's whole setting, the fields its variant sets included (build it with
+    :func:`variant_config`): they are taken from ``config``, where ``gymnasium.make(env_id, config=config)`` alone
+    would put the variant's values over them. ``kwargs`` override either way."""
     import gymnasium as gym
 
+    if config is not None:
+        kwargs = {**{k: getattr(config, k) for k in ENV_VARIANTS.get(env_id, {})}, **kwargs}
     return gym.make(env_id, config=config, **kwargs)

@@ -460,9 +460,12 @@ def _bayes(log_beliefs, log_lik, starts, combine, max_log_ratio):
 
 def make_vector_env(num_envs: int = 1, config: HapticRecogConfig | None = None, env_id: str = "HapticRecog-v0",
                     **kwargs: Any) -> HapticRecogVectorEnv:
-    """``gym.make_vec(env_id, num_envs, vectorization_mode="vector_entry_point", config=config, **kwargs)``."""
-    import haptic_env  # noqa: F401  (registers the ids)
+    """``gym.make_vec(env_id, num_envs, vectorization_mode="vector_entry_point", config=config, **kwargs)``; as
+    :func:`haptic_env.make`, a ``config`` is the whole setting (the fields its variant sets are taken from it)."""
+    import haptic_env
 
+    if config is not None:
+        kwargs = {**{k: getattr(config, k) for k in haptic_env.ENV_VARIANTS.get(env_id, {})}, **kwargs}
     return gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", config=config, **kwargs)
 
 

@@ -194,6 +194,32 @@ def test_tiny_sac_trains_and_acts_in_bounds(env_config, small_recognizer_kwargs,
     assert a.shape == env.action_space.shape and env.action_space.contains(a.astype(np.float32))
 
 
+def test_train_env_flags_change_the_fields_a_variant_sets(small_recognizer_kwargs):
+    """``--env.*`` start from the ``--env-id`` variant's config and may change what the variant sets; the envs the
+    run makes are that config (``haptic_env.make`` takes the variant's fields from a given config; before, gymnasium
+    put the variant's values back over the flags, silently)."""
+    import train
+    from agents import sb3
+
+    args = train.parse_args(["--env-id", "HapticRecogKIT-v0", "--env.grasp-cost", "0.03"])
+    assert train.env_config(args).objects == "kit8" and train.env_config(args).grasp_cost == 0.03
+    args = train.parse_args(["--env-id=HapticRecogKIT-v0", "--env.objects", "default", "--env.max-grasps", "3",
+                             "--env-kwargs", json.dumps({"recognizer_kwargs": small_recognizer_kwargs})])
+    config = train.env_config(args)
+    assert config.objects == "default"  # the KIT variant's "kit8" changed by the flag: no shared data needed
+    venv = sb3.make_vec_env(config, n_envs=1, vec="dummy", env_id="HapticRecogKIT-v0")
+    try:
+        assert venv.envs[0].unwrapped.config == config
+    finally:
+        venv.close()
+    assert haptic_env.make(config, env_id="HapticRecogKIT-v0").unwrapped.config.objects == "default"
+    assert haptic_env.variant_config("HapticRecogKIT-v0").objects == "kit8"
+    with pytest.raises(ValueError, match="unknown env id"):
+        haptic_env.variant_config("Nope-v0")
+    with pytest.raises(SystemExit):
+        train.parse_args(["--env-id", "Nope-v0"])
+
+
 def test_evaluate_writes_table_and_plots(env_config, tmp_path):
     make = lambda: haptic_env.make(env_config.replace(max_grasps=8))  # noqa: E731
     recs = evaluate_agents([RandomAgent(), RandomAgent()], make, 3, seeds=[0, 1], progress=False)

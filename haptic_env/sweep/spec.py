@@ -163,7 +163,7 @@ def _envs(doc: dict) -> dict[str, tuple[str, dict[str, Any]]]:
             raise SpecError(f"{where}: unknown env id {env_id!r}; choose from {list(ENV_VARIANTS)}")
         kwargs = {**common, **t.get("kwargs", {})}
         clash = sorted(k for k in kwargs if k in ENV_VARIANTS[env_id] and kwargs[k] != ENV_VARIANTS[env_id][k])
-        if clash:  # training applies the variant over --env-kwargs, evaluation the kwargs over the variant
+        if clash:  # a row named after a registered env is that env (changes beyond its variant: HapticRecog-v0)
             raise SpecError(f"{where}: kwargs {clash} change what {env_id} sets ({ENV_VARIANTS[env_id]}); "
                             "use id = \"HapticRecog-v0\" with the full kwargs instead")
         try:
