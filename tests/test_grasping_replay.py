@@ -121,3 +121,15 @@ def test_env_on_the_replay_backend(small_recognizer_kwargs):
             done = term or trunc
     finally:
         env.close()
+
+
+def test_fidelity_benchmark_runs_on_the_generic_hand(load_benchmark, capsys):
+    """benchmarks/replay_fidelity.py on a small pool: the replay of a pool's own approaches (same seed) is exact."""
+    fidelity = load_benchmark("replay_fidelity")
+    assert fidelity.main(["--hand", "generic", "--objects", "default", "--approaches", "6", "--replay-seed", "4",
+                          "--pool-seed", "4", "--pool-approaches", "6", "--time-approaches", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "| **mean** | **100 %** | **100 %** | **0.0** |" in out  # the held-out pool is the replay's own
+    assert out.strip().splitlines()[-1].startswith("replay backend: ")
+    with pytest.raises(SystemExit):
+        fidelity.main(["--approaches", "0"])

@@ -1,0 +1,110 @@
+"""How close is the replay backend to the MuJoCo hand it records, and how much faster is it?
+
+The replay backend (:mod:`haptic_env.grasping.replay`) answers an approach with the recorded grasp of the nearest of
+``--approaches`` recorded approaches. This script asks it for the approaches of a held-out pool of the same hand (the
+hand table's validation pools: ``--pool-seed 500``, ``--pool-approaches 300`` per object, grasped by MuJoCo at the
+identity pose) and compares, object by object, what it returns with what MuJoCo gave there:
+
+* the touched fingertips: the same set, and the same usability (>= 3 fingertips);
+* the contacts of fingertips that touched in both: mean distance (mm).
+
+Each figure is also given for a *random* record of the same object (the replay with its lookup replaced by a random
+index): what a replay that ignored the approach would score. Speed: replayed grasps per second against MuJoCo's own
+grasps per second on ``--time-approaches`` approaches, in the same run (one process), as a ratio.
+
+    python benchmarks/replay_fidelity.py [--hand allegro] [--objects ycb10] [--approaches 6000] [--pool-seed 500]
+
+The first run records the replay pool (``approaches`` per object; 4.6 min for the Allegro's 60,000 on 2 cores) and the
+held-out pool unless they are cached. The headline (the speed ratio) is printed last.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+import numpy as np
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--hand", default="allegro")
+    ap.add_argument("--objects", default="ycb10")
+    ap.add_argument("--approaches", type=int, default=6000, help="recorded approaches per object of the replay")
+    ap.add_argument("--replay-seed", type=int, default=1, help="the replay pool's seed (ReplayConfig.pool_seed)")
+    ap.add_argument("--pool-seed", type=int, default=500, help="seed of the held-out MuJoCo pool compared with")
+    ap.add_argument("--pool-approaches", type=int, default=300, help="held-out approaches per object")
+    ap.add_argument("--time-approaches", type=int, default=100, help="approaches timed on each backend")
+    args = ap.parse_args(argv)
+    for name in ("approaches", "pool_approaches", "time_approaches"):
+        if getattr(args, name) < 1:
+            ap.error(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
+
+    from haptic_env.grasping import make_backend
+    from haptic_env.hand_grasps import hand_grasp_pool
+    from haptic_env.objects import load_object_set
+
+    objects = load_object_set(args.objects)
+    replay = make_backend("replay", hand=args.hand, approaches=args.approaches, pool_seed=args.replay_seed)
+    replay.prepare(objects)
+    n = replay.n_fingers
+    held = hand_grasp_pool(objects, args.hand, n, args.pool_approaches, seed=args.pool_seed)
+    rng = np.random.default_rng(0)
+    rows, tot = [], {"replay": [], "random": []}
+    for k, obj in enumerate(objects):
+        actions = np.random.default_rng(np.random.SeedSequence([args.pool_seed, k])).uniform(
+            -1, 1, (args.pool_approaches, 4)).astype(np.float32)  # hand_grasp_pool's stream of object k
+        replay.set_object(obj)
+        got = replay.grasp_batch(actions, rng)
+        _, C, _, T = replay._tables[obj.name, obj.mesh_hash]
+        pick = rng.integers(0, len(T), len(actions))
+        cells = []
+        for label, contacts, touched in (("replay", got.contacts, got.touched), ("random", C[pick], T[pick])):
+            same = (touched == held.touched[k]).all(axis=1).mean()
+            usable = ((touched.sum(1) >= min(3, n)) == (held.touched[k].sum(1) >= min(3, n))).mean()
+            both = touched & held.touched[k]
+            dist = 1000 * np.linalg.norm(contacts - held.contacts[k], axis=-1)[both].mean() if both.any() else np.nan
+            tot[label].append((same, usable, dist))
+            cells += [same, usable, dist]
+        rows.append((obj.name, *cells))
+
+    print(f"{args.hand} on {args.objects}: replay of {args.approaches} recorded approaches per object (seed "
+          f"{args.replay_seed}) against MuJoCo's grasps of {args.pool_approaches} held-out approaches (seed "
+          f"{args.pool_seed})\n")
+    print("| object | same fingertips | same usability | contact distance (mm) | random record: same fingertips | "
+          "same usability | distance (mm) |")
+    print("|---|---|---|---|---|---|---|")
+    for name, s, u, d, rs, ru, rd in rows:
+        print(f"| {name} | {100 * s:.0f} % | {100 * u:.0f} % | {d:.1f} | {100 * rs:.0f} % | {100 * ru:.0f} % | {rd:.1f} |")
+    m = {lab: np.nanmean(np.array(v), axis=0) for lab, v in tot.items()}
+    print(f"| **mean** | **{100 * m['replay'][0]:.0f} %** | **{100 * m['replay'][1]:.0f} %** | "
+          f"**{m['replay'][2]:.1f}** | {100 * m['random'][0]:.0f} % | {100 * m['random'][1]:.0f} % | "
+          f"{m['random'][2]:.1f} |\n")
+
+    # speed: the same approaches on both backends, one process
+    acts = rng.uniform(-1, 1, (args.time_approaches, 4)).astype(np.float32)
+    phys = make_backend("mujoco", hand=args.hand, normals=True)
+    obj = objects[0]
+    phys.set_object(obj)
+    replay.set_object(obj)
+    phys.grasp(acts[0], rng)  # warm up
+    t0 = time.perf_counter()
+    for a in acts:
+        phys.grasp(a, rng)
+    t_phys = (time.perf_counter() - t0) / len(acts)
+    reps = max(1, int(0.5 / max(t_phys, 1e-6)))
+    t0 = time.perf_counter()
+    for _ in range(reps):
+        for a in acts:
+            replay.grasp(a, rng)
+    t_replay = (time.perf_counter() - t0) / (reps * len(acts))
+    phys.close()
+    print(f"grasp time on {obj.name}: MuJoCo {1e3 * t_phys:.2f} ms, replay {1e3 * t_replay:.3f} ms")
+    print(f"replay backend: {t_phys / t_replay:.0f}x the grasps per second of the MuJoCo {args.hand} "
+          f"({1 / t_replay:,.0f} against {1 / t_phys:,.0f} grasps/s, one process)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
