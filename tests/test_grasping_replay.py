@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -91,6 +93,10 @@ def test_bad_input(two_objects):
     with pytest.raises(ValueError, match="vertical axis only"):
         be.set_object(two_objects["can"], moved)
     be.set_object(two_objects["can"])
+    scaled = two_objects["can"].mesh.copy()
+    scaled.apply_scale(1.5)
+    with pytest.raises(ValueError, match="scaled copy"):
+        be.set_object(dataclasses.replace(two_objects["can"], mesh=scaled))
     with pytest.raises(ValueError, match="outside"):
         be.grasp(np.full(4, 2.0, np.float32), None)
     for bad in ({"approaches": 0}, {"approaches": True}, {"pool_seed": -1}, {"hand": ""}, {"support": "wall"}):

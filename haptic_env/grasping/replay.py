@@ -11,7 +11,7 @@ Poses. The table and the approach frame (:func:`~haptic_env.grasping.base.approa
 the world turns about its vertical axis, so a grasp of an object turned by a yaw ``psi`` along an approach of
 azimuth ``phi`` is the grasp of the unturned object along azimuth ``phi - psi``, turned by ``psi``. The backend
 therefore replays any "table-yaw" pose (a rotation about ``z``, no translation) exactly as the physics would; other
-poses and scaled objects raise ``ValueError``.
+poses, and another mesh under a prepared object's name (a scaled copy), raise ``ValueError``.
 
 Fidelity. Replayed grasps are real grasps of the object by the hand (so the recogniser sees in-distribution
 grasp vectors), but from a nearby approach, not the asked one. With 6,000 approaches per object the Allegro's
@@ -125,6 +125,9 @@ class ReplayBackend:
         yaw = _yaw(T)
         key = (obj.name, obj.mesh_hash)
         if key not in self._tables:
+            if any(name == obj.name for name, _ in self._tables):  # e.g. the env's scale_range: a scaled copy
+                raise ValueError(f"the replay backend has recorded grasps of object {obj.name!r} as prepared, not of "
+                                 "another mesh under that name (a scaled copy: use scale_range=None)")
             self.prepare(ObjectSet(f"replay-{obj.name}", [obj]))
         self._table, self._obj, self._R, self._yaw = self._tables[key], obj, T[:3, :3].copy(), yaw
 
