@@ -10,7 +10,9 @@ the MuJoCo backend itself, whose observations and actions are the same.
 Poses. The table and the approach frame (:func:`~haptic_env.grasping.base.approach_frame`) do not change when
 the world turns about its vertical axis, so a grasp of an object turned by a yaw ``psi`` along an approach of
 azimuth ``phi`` is the grasp of the unturned object along azimuth ``phi - psi``, turned by ``psi``. The backend
-therefore replays any "table-yaw" pose (a rotation about ``z``, no translation) exactly as the physics would; other
+therefore replays any "table-yaw" pose (a rotation about ``z``, no translation) as the physics would (the MuJoCo
+Allegro's grasps turn with the object to 1e-16 m in 8 of 8 approaches measured; the generic hand's by up to 15 mm in
+2 of 8, cause not measured); other
 poses, and another mesh under a prepared object's name (a scaled copy), raise ``ValueError``.
 
 Fidelity. Replayed grasps are real grasps of the object by the hand (so the recogniser sees in-distribution
