@@ -164,3 +164,21 @@ def test_the_allegro_physics_turns_with_the_object():
             np.testing.assert_allclose(r1.contacts, r0.contacts @ _yaw_pose(psi)[:3, :3].T, atol=1e-9)
     finally:
         be.close()
+
+
+def test_neighbours_draw_one_of_the_nearest_records(two_objects):
+    be = make_backend("replay", hand="generic", approaches=12, pool_seed=3, neighbours=3, progress=False)
+    be.set_object(two_objects["mug"])
+    tree, C, _, _ = be._tables["mug", two_objects["mug"].mesh_hash]
+    a = np.tile(np.array([0.2, -0.3, 0.5, 0.1], np.float32), (64, 1))
+    got = be.grasp_batch(a, np.random.default_rng(0))
+    _, near = tree.query(approach_embedding(a[:1].astype(np.float64)), k=3)
+    records = {C[i].tobytes() for i in near[0]}  # (two records may be alike, e.g. both missed)
+    assert {g.tobytes() for g in got.contacts} == records  # every one of the 3 nearest, and nothing else
+    again = be.grasp_batch(a, np.random.default_rng(0))
+    np.testing.assert_array_equal(again.contacts, got.contacts)  # the generator decides
+    with pytest.raises(ValueError, match="Generator"):
+        be.grasp_batch(a, None)
+    for bad in (0, 13, True):
+        with pytest.raises(ValueError, match="neighbours"):
+            ReplayConfig(approaches=12, neighbours=bad)
