@@ -72,3 +72,10 @@ def test_bad_flags(paper_scale, tmp_path):
         paper_scale.parse_args(["--out", str(tmp_path), "--nets", "huge"])
     with pytest.raises(SystemExit):
         paper_scale.parse_args(["--out", str(tmp_path), "--fingers", "2"])
+
+
+def test_sampling_protocol_rejects_bad_values_first(load_benchmark):
+    protocol = load_benchmark("sampling_protocol")
+    for bad in (["--fingers", "2"], ["--grasps", "10"], ["--faces", "4"]):
+        with pytest.raises(SystemExit):
+            protocol.main(bad)
