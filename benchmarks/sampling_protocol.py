@@ -10,7 +10,7 @@ explains it: the same kNN (``k`` = 1, 15, 50 on standardised grasp vectors) on k
   centres (the paper's protocol).
 
 Training ``--grasps`` per object (seed 1), ``--test-grasps`` fresh ones per object (seed 2), ``n`` fingers with or
-without normals. Needs the shared data (kit/) and ``pip install fast-simplification``.
+without normals. Needs the shared data (kit/) and ``pip install -e ".[bench]"`` (fast-simplification).
 
     python benchmarks/sampling_protocol.py [--fingers 3] [--no-normals] [--grasps 20000] [--faces 800]
 """
@@ -37,7 +37,7 @@ def main(argv=None) -> int:
     try:
         import fast_simplification
     except ImportError:
-        ap.error("the decimated meshes need fast-simplification: pip install fast-simplification")
+        ap.error("the decimated meshes need fast-simplification: pip install -e \".[bench]\"")
     import trimesh
     from sklearn.neighbors import KNeighborsClassifier
 
