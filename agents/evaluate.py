@@ -556,11 +556,10 @@ def add_parser(subparsers) -> None:
 def _main(args) -> int:
     import haptic_env
     from haptic_env.cli import UsageError
-    from haptic_env.env import HapticRecogConfig
 
     kwargs = args.env_kwargs if isinstance(args.env_kwargs, dict) else json.loads(args.env_kwargs)
     try:
-        config = HapticRecogConfig().replace(**{**haptic_env.ENV_VARIANTS.get(args.env_id, {}), **kwargs})
+        config = haptic_env.variant_config(args.env_id, **kwargs)  # --env-id is one of its choices
     except (TypeError, ValueError, FileNotFoundError) as exc:
         raise UsageError(f"--env-kwargs: {exc}") from exc
     out = Path(args.out)

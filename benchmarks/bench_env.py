@@ -46,12 +46,10 @@ def main(argv=None) -> None:
 
     torch.set_num_threads(1)
     import haptic_env
-    from haptic_env.env import HapticRecogConfig
 
-    fields = dict(haptic_env.ENV_VARIANTS[args.env_id])
-    fields.update({k: v for k, v in (("objects", args.objects), ("n_fingers", args.n_fingers)) if v is not None})
-    cfg = HapticRecogConfig().replace(**fields, updater=args.updater, threshold=1.0,
-                                      max_grasps=10**9)  # never stop: every step is a full step
+    fields = {k: v for k, v in (("objects", args.objects), ("n_fingers", args.n_fingers)) if v is not None}
+    cfg = haptic_env.variant_config(args.env_id, **fields, updater=args.updater, threshold=1.0,
+                                    max_grasps=10**9)  # never stop: every step is a full step
     env = haptic_env.make(cfg, env_id=args.env_id, max_episode_steps=None).unwrapped
     t0 = time.perf_counter()
     env.reset(seed=0)

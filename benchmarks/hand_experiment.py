@@ -46,7 +46,7 @@ from tqdm import tqdm
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from haptic_env import ENV_VARIANTS  # noqa: E402
+from haptic_env import variant_config  # noqa: E402
 from haptic_env.config import HAND_APPROACHES, HapticRecogConfig  # noqa: E402
 from haptic_env.dataset import DatasetConfig  # noqa: E402
 from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
@@ -89,7 +89,7 @@ def query_pools(objects, hand: str, n: int, split: str, seeds, queries: int, max
 
 def env_config(name: str) -> HapticRecogConfig:
     """The registered env of hand ``name`` (:data:`ENV_IDS`), whose settings are the table's defaults."""
-    return HapticRecogConfig().replace(**ENV_VARIANTS[ENV_IDS[name]])
+    return variant_config(ENV_IDS[name])
 
 
 def write_table(out: Path, name: str, script: str, argv, seconds: float, text: str) -> None:

@@ -42,7 +42,7 @@ def main(argv=None) -> int:
             ap.error(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
 
     from haptic_env.grasping import make_backend
-    from haptic_env.hand_grasps import hand_grasp_pool
+    from haptic_env.hand_grasps import hand_grasp_pool, pool_actions
     from haptic_env.objects import load_object_set
 
     objects = load_object_set(args.objects)
@@ -53,8 +53,7 @@ def main(argv=None) -> int:
     rng = np.random.default_rng(0)
     rows, tot = [], {"replay": [], "random": []}
     for k, obj in enumerate(objects):
-        actions = np.random.default_rng(np.random.SeedSequence([args.pool_seed, k])).uniform(
-            -1, 1, (args.pool_approaches, 4)).astype(np.float32)  # hand_grasp_pool's stream of object k
+        actions = pool_actions(args.pool_seed, k, args.pool_approaches).astype(np.float32)
         replay.set_object(obj)
         got = replay.grasp_batch(actions, rng)
         _, C, _, T = replay._tables[obj.name, obj.mesh_hash]

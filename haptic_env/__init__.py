@@ -69,6 +69,12 @@ def make(config=None, env_id: str = "HapticRecog-v0", **kwargs):
     would put the variant's values over them. ``kwargs`` override either way."""
     import gymnasium as gym
 
-    if config is not None:
-        kwargs = {**{k: getattr(config, k) for k in ENV_VARIANTS.get(env_id, {})}, **kwargs}
-    return gym.make(env_id, config=config, **kwargs)
+    return gym.make(env_id, config=config, **config_kwargs(config, env_id, kwargs))
+
+
+def config_kwargs(config, env_id: str, kwargs: dict[str, Any]) -> dict[str, Any]:
+    """The keyword arguments that make ``gymnasium.make(env_id, config=config, **result)`` build ``config`` with
+    ``kwargs`` on top: the fields the variant of ``env_id`` sets, taken from ``config`` (none without a config)."""
+    if config is None:
+        return dict(kwargs)
+    return {**{k: getattr(config, k) for k in ENV_VARIANTS.get(env_id, {})}, **kwargs}

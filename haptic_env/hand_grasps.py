@@ -39,8 +39,8 @@ from tqdm.auto import tqdm
 
 from .cache import CacheError, cache_dir, config_key, load_npz, save_npz_atomic
 
-__all__ = ["HandGraspPool", "hand_grasp_pool", "pool_rows", "pool_cache_path", "hand_physics_key", "CHUNK",
-           "BUDGETS", "balanced_counts"]
+__all__ = ["HandGraspPool", "hand_grasp_pool", "pool_actions", "pool_rows", "pool_cache_path", "hand_physics_key",
+           "CHUNK", "BUDGETS", "balanced_counts"]
 
 _CACHE_VERSION = "hand-grasps-v2"  # v2: the key holds the hand's physics (hand_physics_key)
 #: values of ``hand_grasp_pool(budget=...)`` (and ``DatasetConfig.hand_budget``)
@@ -137,6 +137,12 @@ def balanced_counts(complete_rate, approaches: int, *, lo: float = 0.5, hi: floa
     return np.maximum(np.rint(len(r) * int(approaches) * w / w.sum()).astype(np.int64), int(minimum))
 
 
+def pool_actions(seed: int, k: int, count: int) -> np.ndarray:
+    """``(count, 4)``: the first ``count`` random approaches of object ``k`` in a pool of ``seed`` (its stream
+    ``SeedSequence([seed, k])``, the same whatever the object's count), as :func:`hand_grasp_pool` grasps them."""
+    return np.random.default_rng(np.random.SeedSequence([int(seed), int(k)])).uniform(-1, 1, (int(count), 4))
+
+
 def _grasp_chunk(obj, hand: str, n_fingers: int, support: str, actions: np.ndarray, seed) -> tuple:
     """Worker: grasp ``obj`` along ``actions (m, 4)`` -> contacts, normals, touched, seconds."""
     from .grasping import make_backend
@@ -199,7 +205,7 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
     bar = tqdm(total=K * approaches, desc=f"{hand} grasps", unit="grasp", disable=not progress, smoothing=0.1)
 
     def args(k, lo, hi):  # object k's approach stream, whatever its length, starts the same
-        actions = np.random.default_rng(np.random.SeedSequence([seed, k])).uniform(-1, 1, (hi, 4))[lo:]
+        actions = pool_actions(seed, k, hi)[lo:]
         return (objects[k], hand, n_fingers, support, actions, [seed, k, lo])
 
     def chunks(counts, start=0):

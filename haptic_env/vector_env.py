@@ -464,8 +464,7 @@ def make_vector_env(num_envs: int = 1, config: HapticRecogConfig | None = None, 
     :func:`haptic_env.make`, a ``config`` is the whole setting (the fields its variant sets are taken from it)."""
     import haptic_env
 
-    if config is not None:
-        kwargs = {**{k: getattr(config, k) for k in haptic_env.ENV_VARIANTS.get(env_id, {})}, **kwargs}
-    return gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", config=config, **kwargs)
+    return gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", config=config,
+                        **haptic_env.config_kwargs(config, env_id, kwargs))
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from haptic_env.grasping import make_backend
 from haptic_env.grasping.replay import ReplayConfig, approach_embedding
-from haptic_env.hand_grasps import hand_grasp_pool
+from haptic_env.hand_grasps import hand_grasp_pool, pool_actions
 from haptic_env.objects import load_object_set
 
 
@@ -25,10 +25,6 @@ def _yaw_pose(psi: float) -> np.ndarray:
     return T
 
 
-def _pool_actions(seed: int, k: int, approaches: int) -> np.ndarray:
-    return np.random.default_rng(np.random.SeedSequence([seed, k])).uniform(-1, 1, (approaches, 4))
-
-
 def test_a_recorded_approach_replays_the_physics_grasp(two_objects):
     """At a recorded approach the replay gives the pool's grasp, which is the MuJoCo backend's grasp there; under a
     yaw it gives that grasp turned, along the azimuth turned by the same yaw."""
@@ -37,7 +33,7 @@ def test_a_recorded_approach_replays_the_physics_grasp(two_objects):
     be.prepare(two_objects)
     pool = hand_grasp_pool(two_objects, "generic", 4, 12, seed=3, progress=False)  # the same cached pool
     assert pool.from_cache
-    actions = _pool_actions(3, 1, 12).astype(np.float32)  # object 1 (the mug)'s approach stream
+    actions = pool_actions(3, 1, 12).astype(np.float32)  # object 1 (the mug)'s approach stream
     mug = two_objects["mug"]
     be.set_object(mug)
     batch = be.grasp_batch(actions, None)
@@ -68,7 +64,7 @@ def test_a_recorded_approach_replays_the_physics_grasp(two_objects):
 def test_nearest_approach_and_periodic_distance(two_objects):
     be = make_backend("replay", hand="generic", approaches=12, pool_seed=3, normals=False, progress=False)
     be.set_object(two_objects["can"])  # not prepared: recorded (here: read from the cache) on first use
-    actions = _pool_actions(3, 0, 12)
+    actions = pool_actions(3, 0, 12)
     near = actions[5] + 0.01
     near[0] = near[0] - 2.0 if near[0] > 1.0 else near[0]
     g = be.grasp(np.clip(near, -1, 1).astype(np.float32), None)

@@ -112,7 +112,7 @@ class ReplayBackend:
         """Record (or read from the cache) the pools of every object of the ``ObjectSet`` ``objects``."""
         from scipy.spatial import cKDTree
 
-        from haptic_env.hand_grasps import hand_grasp_pool
+        from haptic_env.hand_grasps import hand_grasp_pool, pool_actions
 
         cfg = self.config
         todo = [o for o in objects if (o.name, o.mesh_hash) not in self._tables]
@@ -123,10 +123,8 @@ class ReplayBackend:
         subset = objects if len(todo) == len(objects) else ObjectSet(objects.name, todo)
         pool = hand_grasp_pool(subset, cfg.hand, self.n_fingers, int(cfg.approaches), support=cfg.support,
                                seed=int(cfg.pool_seed), progress=cfg.progress)
-        A = int(cfg.approaches)
         for k, obj in enumerate(subset):
-            # hand_grasp_pool's approach stream of object k (its docstring): SeedSequence([seed, k])
-            actions = np.random.default_rng(np.random.SeedSequence([int(cfg.pool_seed), k])).uniform(-1, 1, (A, 4))
+            actions = pool_actions(cfg.pool_seed, k, cfg.approaches)
             self._tables[obj.name, obj.mesh_hash] = (cKDTree(approach_embedding(actions)), pool.contacts[k],
                                                       pool.normals[k], pool.touched[k])
 
@@ -167,8 +165,7 @@ class ReplayBackend:
     def grasp(self, action: np.ndarray, rng: np.random.Generator) -> GraspResult:
         a = validate_action(action, self.action_dim)
         r = self.grasp_batch(a[None], rng)[0]
-        n = int(np.count_nonzero(r.touched))
-        r.info["usable"] = bool(n >= min(3, self.n_fingers))
+        r.info["usable"] = r.usable  # as the mujoco backend's results carry it
         return r
 
     def render(self, width: int = 480, height: int = 480) -> np.ndarray:

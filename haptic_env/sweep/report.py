@@ -92,9 +92,8 @@ def load_prior_records(spec: SweepSpec, prior: Path, env: str) -> dict[tuple[str
 
 def _max_grasps(env_id: str, kwargs: dict[str, Any]) -> int:
     import haptic_env
-    from haptic_env.config import HapticRecogConfig
 
-    return HapticRecogConfig().replace(**{**haptic_env.ENV_VARIANTS[env_id], **kwargs}).max_grasps
+    return haptic_env.variant_config(env_id, **kwargs).max_grasps
 
 
 def _leaderboard_png(aggs: dict[str, dict[str, Any]], path: Path) -> Path:

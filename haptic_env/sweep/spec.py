@@ -146,8 +146,7 @@ def _int(v: Any, where: str, lo: int = 0) -> int:
 
 
 def _envs(doc: dict) -> dict[str, tuple[str, dict[str, Any]]]:
-    from haptic_env import ENV_VARIANTS
-    from haptic_env.config import HapticRecogConfig
+    from haptic_env import ENV_VARIANTS, variant_config
 
     common = doc.get("env_kwargs", {})
     if not isinstance(common, dict):
@@ -167,7 +166,7 @@ def _envs(doc: dict) -> dict[str, tuple[str, dict[str, Any]]]:
             raise SpecError(f"{where}: kwargs {clash} change what {env_id} sets ({ENV_VARIANTS[env_id]}); "
                             "use id = \"HapticRecog-v0\" with the full kwargs instead")
         try:
-            HapticRecogConfig().replace(**{**ENV_VARIANTS[env_id], **kwargs})
+            variant_config(env_id, **kwargs)
         except (TypeError, ValueError) as exc:
             raise SpecError(f"{where} ({env_id}): {exc}") from None
         label = _safe(t.get("name", env_id))
