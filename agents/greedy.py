@@ -104,6 +104,8 @@ class GreedyInfoGainAgent:
             pose = random_pose(self._rng, base.config.pose)
         for obj, backend in zip(base.objects, self._sim_backends(base)):
             backend.set_object(obj, pose)
+        # each hypothesis's table height at that pose: its simulated contacts are measured from it (grasp_heights)
+        self._support_z = [base.scene.support_height(k, pose) for k in range(len(base.objects))]
 
     def act(self, obs: np.ndarray, env: Any) -> np.ndarray:
         base = env.unwrapped
@@ -128,7 +130,8 @@ class GreedyInfoGainAgent:
             normals = None
             if base.config.normals:
                 normals = res.normals if res.normals is not None else res.gt_normals
-            posteriors, scored = belief.predict_grasps(contacts, normals, touched)  # scored as the env would
+            posteriors, scored = belief.predict_grasps(contacts, normals, touched,  # scored as the env would
+                                                       support_z=self._support_z[k])
             H = np.full(M * S, H0)
             if scored.size:
                 H[scored] = entropy_rows(posteriors)

@@ -4,7 +4,7 @@ r"""The belief over the ``K`` objects: grasp :math:`\to q = \Phi_n \to` likeliho
 public API:
 
 =================================  ===================================================================
-``reset(prior)``                   forget all grasps (returns the prior)
+``reset(prior, support_z)``        forget all grasps (returns the prior); the episode's table height
 ``update(contacts, normals, t)``   one real grasp -> ``(q, usable)``; the posterior moves if usable
 ``update_rows(Q)``                 one grasp given as its score rows ``(m, d)`` (precomputed vectors)
 ``rows(contacts, normals, t)``     the grasp vector and score rows of one grasp (no state change)
@@ -25,6 +25,9 @@ The ``C(t, z)`` subsets of one grasp share its contacts, so a Bayesian belief co
 (the paper's Algorithm 4 scores ``k = 4`` random subsets): their summed log-likelihood is multiplied by
 ``min(1, subset_k / C(t, z))``, the expected sum of ``subset_k`` random ones, without the draw (``None``: the plain
 product over all of them, Algorithm 3). With ``z = 3`` this changes nothing for 4 fingers (``C(4, 3) = 4``).
+A recogniser whose grasp vectors carry the contacts' heights above the table (``DatasetConfig.heights``) reads
+the contacts in the support frame: the belief holds the episode's table height ``support_z`` (world z, set by
+``reset``; :func:`~haptic_env.grasping.base.support_height`) and subtracts it from every grasp it scores.
 Fewer than two touching fingers, or degenerate contacts (coplanar, ...), carry no information, unless the
 belief also weighs the hand's *touch pattern* (``touch_weight > 0``, :mod:`haptic_env.recognizers.touch`): then
 every grasp adds ``w log P(pattern | object)`` to the contacts' log-likelihoods in the same Bayes step.
@@ -56,7 +59,7 @@ from haptic_env.recognizers.zfinger import check_subset_k, subset_weight
 if TYPE_CHECKING:
     from haptic_env.config import HapticRecogConfig
 
-__all__ = ["Belief", "get_recognizer"]
+__all__ = ["Belief", "get_recognizer", "check_heights"]
 
 _RECOGNIZERS: dict[str, Any] = {}
 
@@ -75,6 +78,16 @@ def get_recognizer(objects, config: HapticRecogConfig):
     if key not in _RECOGNIZERS:
         _RECOGNIZERS[key] = build_recognizer(objects, config.n_fingers, config.normals, z_values=z_values, **kwargs)
     return _RECOGNIZERS[key]
+
+
+def check_heights(recognizer, config: HapticRecogConfig) -> None:
+    """A ``ValueError`` unless the recogniser's grasp vectors carry the contact heights exactly when the env config
+    asks for them (``grasp_heights``; the observation's width follows the config)."""
+    has = bool(getattr(recognizer, "heights", False))
+    if has != bool(config.grasp_heights):
+        raise ValueError(f"the recogniser's grasp vectors {'carry' if has else 'lack'} the contact heights but the "
+                         f"config has grasp_heights={config.grasp_heights}; set both alike (recognizer_kwargs' "
+                         "DatasetConfig.heights follows grasp_heights unless given)")
 
 
 class Belief:
@@ -119,7 +132,11 @@ class Belief:
         self._weigh_rows = kind in ("bc-np", "bc-ip") and self.score_subsets and subset_k is not None
         self.n_fingers = int(recognizer.n_fingers)
         self.n_classes = int(recognizer.n_classes)
-        self.feature_dim = feature_dim(self.n_fingers, recognizer.normals)
+        #: the grasp vectors carry the contacts' heights (then contacts are scored relative to ``support_z``)
+        self.heights = bool(getattr(recognizer, "heights", False))
+        self.feature_dim = feature_dim(self.n_fingers, recognizer.normals, heights=self.heights)
+        #: the episode's table height (world z, m); see :meth:`reset`
+        self.support_z = 0.0
         #: the recogniser's touch model when its pattern is weighed in, else None (off)
         self._touch = recognizer.touch if touch_weight > 0 else None
         self.models = recognizer.models.with_calibration(calibrated)
@@ -138,6 +155,7 @@ class Belief:
         """The belief of an env config over ``objects`` (its recogniser from :func:`get_recognizer` unless given):
         the one place that maps the config's belief settings to a :class:`Belief`."""
         rec = get_recognizer(objects, config) if recognizer is None else recognizer
+        check_heights(rec, config)
         return cls(rec, config.updater, config.threshold, calibrated=config.calibrated, z_fingers=config.z_fingers,
                    score_subsets=config.score_subsets, touch_weight=config.touch_weight, subset_k=config.subset_k)
 
@@ -171,10 +189,23 @@ class Belief:
     def threshold(self) -> float:
         return float(self.updater.threshold)
 
-    def reset(self, prior=None) -> np.ndarray:
-        """Forget all grasps; returns the prior ``(K,)`` (uniform by default)."""
+    def reset(self, prior=None, *, support_z: float = 0.0) -> np.ndarray:
+        """Forget all grasps; returns the prior ``(K,)`` (uniform by default). ``support_z``: the table top's height
+        (world z) under this episode's object, which a heights recogniser measures the contacts from."""
+        support_z = float(support_z)
+        if not math.isfinite(support_z):
+            raise ValueError(f"support_z must be a finite height (m), got {support_z!r}")
         self._probs = self._checked(self.updater.reset(prior))
+        self.support_z = support_z
         return self._probs
+
+    def _support_frame(self, contacts, support_z: float | None = None) -> np.ndarray:
+        """``contacts (..., 3)`` as the recogniser reads them: moved down by the table height (``support_z``, default
+        the episode's) when its vectors carry heights, else unchanged."""
+        if not self.heights:
+            return contacts
+        z = self.support_z if support_z is None else float(support_z)
+        return np.asarray(contacts, dtype=np.float64) - np.array([0.0, 0.0, z])
 
     def _set(self, b) -> None:
         b = self._checked(b)
@@ -199,6 +230,7 @@ class Belief:
         Returns ``(q, usable)``: the grasp vector of the touching contacts zero-padded to ``(d,)`` (a fresh array;
         all 0 with fewer than two touching) and whether the grasp updated the belief."""
         touched = np.asarray(touched, dtype=bool).reshape(-1)
+        contacts = self._support_frame(contacts)
         if self._touch is None:
             if (self._scorer is not None and self.compiled and np.count_nonzero(touched) == touched.size
                     and (self.kind == "bc-np" or self.updater.n_grasps > 0)):  # BC-IP: its prior from the classifier
@@ -207,7 +239,7 @@ class Belief:
                     return q, False
                 self._set(self.updater.update_scores(log_lik=log_lik))
                 return q, True
-            q, Q = self.rows(contacts, normals, touched)
+            q, Q = self.rows(contacts, normals, touched, support_z=0.0)
             if Q is None:
                 return q, False
             self._set(self._update(Q))
@@ -216,7 +248,7 @@ class Belief:
         if self._scorer is not None and self.compiled and np.count_nonzero(touched) == touched.size:
             q, log_lik = self._scorer(contacts, normals)
         else:
-            q, Q = self.rows(contacts, normals, touched)
+            q, Q = self.rows(contacts, normals, touched, support_z=0.0)
             log_lik = None if Q is None else self.row_weight(len(Q)) * self.models.log_likelihood(Q)
         rows = self.touch_rows(touched[None])
         self._set(self.updater.update_scores(log_lik=rows if log_lik is None else np.concatenate([log_lik, rows])))
@@ -248,12 +280,14 @@ class Belief:
         self._set(self._update(Q))
         return self._probs
 
-    def rows(self, contacts, normals, touched) -> tuple[np.ndarray, np.ndarray | None]:
+    def rows(self, contacts, normals, touched, *, support_z: float | None = None) -> tuple[np.ndarray, np.ndarray | None]:
         """The grasp vector ``q (d,)`` of one grasp's touching contacts (zero-padded) and the rows ``Q (m, d_z)`` that
         score it, or None (no information). Both come from ``Recognizer.features`` (a recogniser trained
         scale-normalised sees normalised vectors): the touching contacts as one grasp, or their ``z``-subsets
-        with ``score_subsets``."""
+        with ``score_subsets``. ``support_z``: the table height the contacts are measured from (default: the
+        episode's, :meth:`reset`)."""
         touched = np.asarray(touched, dtype=bool).reshape(-1)
+        contacts = self._support_frame(contacts, support_z)
         t = np.count_nonzero(touched)
         q = np.zeros(self.feature_dim)
         if t < 2:
@@ -268,11 +302,12 @@ class Belief:
         scored = t == self.n_fingers or (z is not None and t >= z)
         return q, (Q if scored and len(Q) else None)
 
-    def rows_batch(self, contacts, normals, touched) -> tuple[list[np.ndarray], np.ndarray]:
+    def rows_batch(self, contacts, normals, touched, *,
+                   support_z: float | None = None) -> tuple[list[np.ndarray], np.ndarray]:
         """:meth:`rows` for ``B`` grasps ``(B, n, 3)`` / ``(B, n)``: ``(rows, scored)`` with ``scored (G,)`` the batch
         indices of the grasps that would update the belief and ``rows[g] (m_g, d_g)`` the score rows of grasp
         ``scored[g]``. Vectorised when only complete grasps are scored by one model (the default)."""
-        contacts = np.asarray(contacts, dtype=np.float64)
+        contacts = np.asarray(self._support_frame(contacts, support_z), dtype=np.float64)
         touched = np.asarray(touched, dtype=bool)
         if self.z_fingers is None and not self._normalize:
             from haptic_env.recognizers.zfinger import grasp_vectors_for
@@ -283,11 +318,11 @@ class Belief:
             if self.recognizer.normals and normals is None:
                 raise ValueError("this recogniser was trained with normals; pass the contact normals")
             N = np.asarray(normals, dtype=np.float64)[full] if self.recognizer.normals else None
-            q, valid = grasp_vectors_for(contacts[full], N)
+            q, valid = grasp_vectors_for(contacts[full], N, heights=self.heights)
             return list(q[valid][:, None, :]), full[valid]
         rows, scored = [], []
         for i in range(len(contacts)):
-            _, Q = self.rows(contacts[i], None if normals is None else normals[i], touched[i])
+            _, Q = self.rows(contacts[i], None if normals is None else normals[i], touched[i], support_z=0.0)
             if Q is not None:
                 rows.append(Q)
                 scored.append(i)
@@ -315,10 +350,11 @@ class Belief:
             out = np.divide(out, total, out=out, where=total > 0)
         return out
 
-    def predict_grasps(self, contacts, normals, touched) -> tuple[np.ndarray, np.ndarray]:
+    def predict_grasps(self, contacts, normals, touched, *,
+                       support_z: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`predict` of ``B`` grasps ``(B, n, 3)``: ``(posteriors (G, K), scored (G,))``, the grasps that
         would update the belief (see :meth:`rows_batch`; with ``touch_weight`` every grasp does, ``G = B``)."""
-        rows, scored = self.rows_batch(contacts, normals, touched)
+        rows, scored = self.rows_batch(contacts, normals, touched, support_z=support_z)
         if self._touch is None:
             return self.predict(rows), scored
         # with the touch pattern every grasp updates: its contacts' rows (if scored) plus its pattern's row
@@ -359,7 +395,7 @@ class Belief:
 
         from haptic_env.recognizers.zfinger import grasp_vectors_for
 
-        C = np.asarray(contacts, dtype=np.float64)
+        C = np.asarray(self._support_frame(contacts), dtype=np.float64)
         G, n, _ = C.shape
         allsub = np.array(list(combinations(range(n), z)))
         if k is None or k >= len(allsub):
@@ -370,7 +406,7 @@ class Belief:
         at = np.arange(G)[:, None, None]
         Pz = C[at, idx].reshape(-1, z, 3)
         Nz = None if normals is None else np.asarray(normals, dtype=np.float64)[at, idx].reshape(-1, z, 3)
-        q, valid = grasp_vectors_for(Pz, Nz, normalize=self._normalize)
+        q, valid = grasp_vectors_for(Pz, Nz, normalize=self._normalize, heights=self.heights)
         m = idx.shape[1]
         K = self.n_classes
         ll = np.zeros((G * m, K))

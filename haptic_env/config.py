@@ -114,6 +114,12 @@ class HapticRecogConfig:
     hand-matched training grasps as the KDE); 0: off, the paper's method. Needs the "bc-np" updater and "hand"
     training grasps (the mujoco backend). The Shadow and Aero envs use 0.25 and 0.5, chosen per hand on
     validation grasps (RESULTS.md); the Allegro keeps 0 (its success at the stop did not change)."""
+    grasp_heights: bool = False
+    """Append the contacts' heights above the table to the grasp vector (``n`` more values, in the chain order of
+    :math:`\\Phi_n`; ``DatasetConfig.heights``, ``phi(heights=True)``), for the recogniser and the observation. The
+    object rests on the table turned only about the vertical (``pose="table-yaw"``), so how high the fingertips
+    touch it is known to the robot and does not depend on the unknown yaw. False: the paper's frame-invariant
+    vector. Needs ``pose="table-yaw"`` and the table support."""
     observe_contacts: bool = False
     """Add the latest grasp's contact points (``"contacts"``, ``3n`` values, m) and, with ``normals``, its contact
     normals (``"contact_normals"``, ``3n``) in the world frame to the observation; 0 for fingers that did not touch.
@@ -125,7 +131,7 @@ class HapticRecogConfig:
     JSON-style dict (``{"grasps": {"grasps_per_object": 5000}, "mlp": {"max_epochs": 5}}``)."""
 
     def __post_init__(self) -> None:
-        for name in ("normals", "score_subsets", "calibrated", "observe_contacts"):  # bool("no") is True: take real booleans only
+        for name in ("normals", "score_subsets", "calibrated", "observe_contacts", "grasp_heights"):  # bool("no") is True: take real booleans only
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise TypeError(f"{name} must be True or False, got {getattr(self, name)!r}")
         if not isinstance(self.calibrate_grasps, (int, np.integer)) or self.calibrate_grasps < 1:
@@ -173,6 +179,11 @@ class HapticRecogConfig:
                 raise ValueError(f"scale_range must be (lo, hi) with 0 < lo <= hi, got {self.scale_range!r}") from exc
             if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo <= hi):
                 raise ValueError(f"scale_range must be (lo, hi) with 0 < lo <= hi, got {self.scale_range!r}")
+        if self.grasp_heights and (self.pose != "table-yaw"
+                                   or dict(self.backend_kwargs).get("support", "table") != "table"):
+            raise ValueError(f"grasp_heights=True needs objects resting on the table, turned about the vertical only "
+                             f"(pose='table-yaw', support 'table'), got pose={self.pose!r}, support="
+                             f"{dict(self.backend_kwargs).get('support', 'table')!r}")
         if self.kde_method not in KDE_METHODS:
             raise ValueError(f"kde_method must be 'pooled', 'tree' or 'dense', got {self.kde_method!r}")
         for name in ("recognizer_kwargs", "object_kwargs", "backend_kwargs"):
@@ -244,6 +255,7 @@ def recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
             grasps.setdefault("grasps_per_object", HAND_APPROACHES)
         if grasps["source"] in ("geometric", "hand"):
             grasps.setdefault("support", dict(config.backend_kwargs).get("support", "table"))
+        grasps.setdefault("heights", bool(config.grasp_heights))
         if isinstance(grasps.get("scale_range"), list):
             grasps["scale_range"] = tuple(grasps["scale_range"])
         rc["grasps"] = DatasetConfig(**grasps)

@@ -27,6 +27,7 @@ from tqdm.auto import tqdm
 
 from .cache import CacheError, cache_dir, config_key, load_npz, save_npz_atomic
 from .grasp_features import feature_dim, normalize_scale, phi
+from .grasping.base import support_height
 from .hand_grasps import BUDGETS
 from .objects import SAMPLING_METHODS, GraspObject, ObjectSet, load_object_set
 
@@ -37,6 +38,7 @@ __all__ = [
     "approach_grasps",
     "SOURCES",
     "grasp_vectors",
+    "support_frame",
     "build_dataset",
     "dataset_cache_path",
     "add_parser",
@@ -86,6 +88,10 @@ class DatasetConfig:
         hand_budget: with ``source="hand"``, ``"uniform"`` (``grasps_per_object`` approaches for every object) or
             ``"balanced"`` (the same total, spread towards the objects whose grasps rarely complete;
             :func:`~haptic_env.hand_grasps.balanced_counts`).
+        heights: append the contacts' heights above the table the object rests on (``phi(heights=True)``:
+            ``n`` more values; contacts are taken in the support frame of the object at its identity pose,
+            :func:`~haptic_env.grasping.base.support_height`). Only for objects that keep that resting pose
+            (the envs' ``"table-yaw"`` poses).
     """
 
     n_fingers: int = 4
@@ -103,6 +109,7 @@ class DatasetConfig:
     support: str = "table"
     hand: str | None = None
     hand_budget: str = "uniform"
+    heights: bool = False
 
     def __post_init__(self) -> None:
         if int(self.n_fingers) != self.n_fingers or self.n_fingers < 2:
@@ -137,6 +144,8 @@ class DatasetConfig:
                              f"(source={self.source!r})")
         if self.hand is not None and not isinstance(self.hand, str):
             raise ValueError(f"hand must be a hand name or an MJCF path, got {self.hand!r}")
+        if not isinstance(self.heights, (bool, np.bool_)):
+            raise ValueError(f"heights must be a bool, got {self.heights!r}")
 
     def source_key(self) -> str:
         """The identity of the grasp source beyond this config: the hand's physics for ``source="hand"``
@@ -150,7 +159,7 @@ class DatasetConfig:
     @property
     def feature_dim(self) -> int:
         """Length ``d`` of a grasp vector."""
-        return feature_dim(self.n_fingers, self.normals)
+        return feature_dim(self.n_fingers, self.normals, heights=self.heights)
 
 
 @dataclass(frozen=True)
@@ -260,7 +269,8 @@ def grasp_vectors(
     :func:`~haptic_env.grasp_features.phi`.
 
     Args:
-        contacts: ``(G, n, 3)`` contacts in metres.
+        contacts: ``(G, n, 3)`` contacts in metres (with ``config.heights``: in the support frame, z up and
+            ``z = 0`` on the table top; :func:`support_frame`).
         normals: ``(G, n, 3)`` inward unit normals; required when ``config.normals``, ignored otherwise.
         config: the dataset config (``n`` must equal ``config.n_fingers``).
         rng: randomness of scale and noise (default ``default_rng(config.seed)``).
@@ -289,8 +299,17 @@ def grasp_vectors(
         N = _tilt(N, np.deg2rad(config.normal_noise_deg), rng)
     if config.normalize_scale:
         P, _ = normalize_scale(P)
-    feats = phi(P, N)
+    feats = phi(P, N, heights=config.heights)
     return feats.q, feats.valid
+
+
+def support_frame(contacts: np.ndarray, obj: GraspObject, config: DatasetConfig) -> np.ndarray:
+    """Contacts ``(G, n, 3)`` of ``obj`` at its identity pose (object frame) in the frame ``grasp_vectors`` reads:
+    with ``config.heights`` moved down by the table top's height (:func:`~haptic_env.grasping.base.support_height`),
+    otherwise unchanged (the same array)."""
+    if not config.heights:
+        return contacts
+    return contacts - np.array([0.0, 0.0, support_height(obj.mesh.vertices)])
 
 
 def _object_grasps(obj: GraspObject, config: DatasetConfig, rng: np.random.Generator) -> np.ndarray:
@@ -309,7 +328,7 @@ def _object_grasps(obj: GraspObject, config: DatasetConfig, rng: np.random.Gener
                                    support=config.support)
         else:
             C, N = sample_grasps(obj, batch, config.n_fingers, rng, sampling=config.sampling)
-        X, valid = grasp_vectors(C, N if config.normals else None, config, rng=rng)
+        X, valid = grasp_vectors(support_frame(C, obj, config), N if config.normals else None, config, rng=rng)
         X = X[valid][: need - have]
         parts.append(X.astype(np.float32))
         have += len(X)
@@ -434,7 +453,7 @@ def _hand_dataset(objects: ObjectSet, config: DatasetConfig, path: Path | None, 
     for k, ss in enumerate(streams):
         rng = np.random.default_rng(ss)
         C, N = pool_rows(pool, k, config.n_fingers, rng)
-        X, valid = grasp_vectors(C, N if config.normals else None, config, rng=rng)
+        X, valid = grasp_vectors(support_frame(C, objects[k], config), N if config.normals else None, config, rng=rng)
         X = X[valid].astype(np.float32)
         if len(X) < 2:
             raise RuntimeError(f"object {objects.names[k]!r}: {len(X)} of {config.grasps_per_object} {config.hand} "

@@ -71,6 +71,9 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     | prev_action  | A    | the latest action (0 before the first grasp)                                | [-1, 1]     |
     | grasp_count  | 1    | grasps so far / ``max_grasps``                                              | [0, 1]      |
 
+    With ``grasp_heights=True`` the grasp part also holds the touching contacts' heights above the table (after
+    :math:`\Phi`, in its chain order): ``d = feature_dim(n, normals, heights=True)``.
+
     With ``observe_contacts=True`` two parts follow (the length grows by ``3n``, or ``6n`` with normals):
 
     | Slice           | Size | Content                                                                  | Range       |
@@ -161,7 +164,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         self.scene = Scene(config)
         self.objects, self.object_names, self.backend = self.scene.objects, self.scene.names, self.scene.backend
         self.n_classes, self.action_dim = self.scene.n_classes, self.scene.action_dim
-        self.feature_dim = feature_dim(config.n_fingers, config.normals)
+        self.feature_dim = feature_dim(config.n_fingers, config.normals, heights=config.grasp_heights)
         self.task = Task(config, self.n_classes, self.feature_dim, self.action_dim,
                          q_bound=max(np.pi, self.scene.diameter * 1.01))
         self.observation_structure, self.obs_slices = self.task.observation_structure, self.task.obs_slices
@@ -226,7 +229,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         self.scene.reset(self.np_random, options.get("object"))
         if self._belief is None:
             self._belief = Belief.from_config(self.objects, self.config, self.recognizer)
-        self._probs = self._belief.reset()
+        self._probs = self._belief.reset(support_z=self.scene.support_z)
         self._grasps = 0
         self._episode_over = False
         self._last_result = None

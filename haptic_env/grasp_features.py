@@ -27,6 +27,14 @@ Two contacts, ``n = 2``
     The distance; with normals also each normal's angle to the line between the contacts and the
     signed twist between the normals about that line: ``1`` or ``4`` (``= 5n - 6``) values.
 
+Heights above the support (``phi(..., heights=True)``)
+    An object resting on a table in one of its resting poses, turned only about the vertical, keeps the
+    heights of its surface points above the table. With the contacts given in the *support frame*
+    (z up, ``z = 0`` on the table top), ``heights=True`` appends each contact's height ``z`` in chain
+    order: ``n`` more values. That vector is invariant to turns about the vertical and to horizontal
+    moves, not to tilts, so it only suits objects that keep their resting pose (the envs' ``"table-yaw"``
+    poses); a robot knows its table, so the heights are sensed as the contacts are (forward kinematics).
+
 Planar grasps (:func:`phi_planar`, ``(B, n, 2)``)
     The polygon of the contacts sorted counter-clockwise about their centroid; starting at the
     longest counter-clockwise edge ``v0 v1``: ``|v0 v1|``, then for each further vertex the signed
@@ -93,12 +101,17 @@ class GraspFeatures(NamedTuple):
     reason: np.ndarray  #: ``(B,)`` int8 code into :data:`DEGENERACY_REASONS`
 
 
-def feature_dim(n: int, normals: bool = False, dim: int = 3) -> int:
-    """Length of :math:`\\Phi_n` for ``n`` contacts in ``dim`` (2 or 3) dimensions."""
+def feature_dim(n: int, normals: bool = False, dim: int = 3, heights: bool = False) -> int:
+    """Length of :math:`\\Phi_n` for ``n`` contacts in ``dim`` (2 or 3) dimensions; ``heights``: plus the ``n``
+    contact heights (:func:`phi` with ``heights=True``, 3-d only)."""
     if dim not in (2, 3):
         raise ValueError(f"dim must be 2 or 3, got {dim}")
     if n < 2:
         raise ValueError(f"a grasp needs at least 2 contacts, got n={n}")
+    if heights:
+        if dim != 3:
+            raise ValueError("contact heights need 3-d contacts (dim=3)")
+        return feature_dim(n, normals, dim) + n
     if n == 2:
         return (4 if dim == 3 else 3) if normals else 1
     if dim == 3:
@@ -231,7 +244,8 @@ def _canonical_hull_triangles(pts: np.ndarray, tol: float) -> np.ndarray | None:
 
 
 # ------------------------------------------------------------------------------------------ phi
-def phi(contacts, normals=None, *, strict: bool = False, tol: float = DEFAULT_TOL) -> GraspFeatures:
+def phi(contacts, normals=None, *, strict: bool = False, tol: float = DEFAULT_TOL,
+        heights: bool = False) -> GraspFeatures:
     r"""Grasp vectors :math:`q = \Phi_n(P[, N])` of a batch of spatial grasps.
 
     Args:
@@ -240,10 +254,12 @@ def phi(contacts, normals=None, *, strict: bool = False, tol: float = DEFAULT_TO
         strict: raise :class:`DegenerateGraspError` for the first degenerate grasp instead of
             flagging it in ``valid``.
         tol: relative tolerance of the degeneracy tests.
+        heights: append the contacts' heights ``z`` in chain order (the contacts must be in the support
+            frame; see the module docstring).
 
     Returns:
-        :class:`GraspFeatures` with ``q`` of shape ``(B, feature_dim(n, normals))`` (``(d,)`` etc.
-        for a single grasp).
+        :class:`GraspFeatures` with ``q`` of shape ``(B, feature_dim(n, normals, heights=heights))``
+        (``(d,)`` etc. for a single grasp).
     """
     P, N, single = _batched(contacts, normals)
     if _compiled_shapes(P, N):
@@ -258,6 +274,9 @@ def phi(contacts, normals=None, *, strict: bool = False, tol: float = DEFAULT_TO
         raise DegenerateGraspError(
             f"grasp {i} is degenerate ({DEGENERACY_REASONS[int(reason[i])]}): contacts {P[i].tolist()}"
         )
+    if heights:
+        h = np.take_along_axis(P[:, :, 2], order, axis=1)
+        q = np.concatenate([q, np.where(valid[:, None], h, 0.0)], axis=1)
     if single:
         return GraspFeatures(q[0], valid[0], order[0], reason[0])
     return GraspFeatures(q, valid, order, reason)

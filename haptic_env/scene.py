@@ -67,11 +67,20 @@ class Scene:
         self.target = 0
         self.pose = np.eye(4)
         self.scale = 1.0
+        #: the table top's height under the episode's object (world z, m): what a robot knows of its table
+        self.support_z = 0.0
         self.rng: np.random.Generator | None = None  # the backend's generator this episode
 
     @property
     def n_classes(self) -> int:
         return len(self.objects)
+
+    def support_height(self, k: int, pose, scale: float = 1.0) -> float:
+        """The table top's height (world z) under object ``k`` at ``pose`` and ``scale``
+        (:func:`~haptic_env.grasping.base.support_height`; every ``support="table"`` backend puts its table there)."""
+        from haptic_env.grasping.base import support_height
+
+        return support_height(self.objects[k].mesh.vertices, pose, scale)
 
     def resolve(self, which) -> int:
         """The index of an object given by name or index (``reset(options={"object": ...})``)."""
@@ -133,6 +142,7 @@ class Scene:
         self.target, self.pose, self.scale, seed = self.draw(rng, which)
         self.rng = np.random.Generator(np.random.PCG64(seed))
         obj = self.objects[self.target]
+        self.support_z = self.support_height(self.target, self.pose, self.scale)
         if self.scale != 1.0 and getattr(self.backend, "supports_scale", False):
             # the backend scales the object as a transform: no per-episode mesh copy (nor a new ray-casting scene)
             self.backend.set_object(obj, self.pose.copy(), scale=self.scale)

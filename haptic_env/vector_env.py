@@ -51,7 +51,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from haptic_env.belief import Belief, get_recognizer
+from haptic_env.belief import Belief, check_heights, get_recognizer
 from haptic_env.config import HapticRecogConfig
 from haptic_env.grasp_features import feature_dim
 from haptic_env.scene import Scene
@@ -105,7 +105,7 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
                                       f"got {config.backend!r}; use gymnasium.vector.SyncVectorEnv of HapticRecogEnv")
         self.objects, self.object_names, self.backend = self.scene.objects, self.scene.names, self.scene.backend
         self.n_classes, self.action_dim = self.scene.n_classes, self.scene.action_dim
-        self.feature_dim = feature_dim(config.n_fingers, config.normals)
+        self.feature_dim = feature_dim(config.n_fingers, config.normals, heights=config.grasp_heights)
         self.task = Task(config, self.n_classes, self.feature_dim, self.action_dim,
                          q_bound=max(np.pi, self.scene.diameter * 1.01))
         self.observation_structure, self.obs_slices = self.task.observation_structure, self.task.obs_slices
@@ -123,6 +123,8 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
         self.targets = np.zeros(B, dtype=np.int64)
         self.poses = np.tile(np.eye(4), (B, 1, 1))
         self.scales = np.ones(B)
+        #: each sub-env's table height under its object (world z; read with ``grasp_heights``)
+        self.support_z = np.zeros(B)
         self.grasps = np.zeros(B, dtype=np.int64)
         self.probs = np.full((B, K), 1.0 / K)
         self._log_belief = np.log(self.probs)
@@ -158,6 +160,7 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
     def _build_beliefs(self) -> None:
         c = self.config
         rec = self.recognizer
+        check_heights(rec, c)
         # None for a KDE not evaluated "pooled" or scale-normalised grasps: then the general path
         scorer = rec.grasp_scorer(c.calibrated) if (c.updater == "bc-np" and c.z_fingers is None
                                                      and not c.score_subsets) else None
@@ -225,9 +228,11 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
         for j, i in enumerate(rows):  # the backend's generator draws only noise: built when there is noise
             self._backend_rngs[i] = np.random.Generator(np.random.PCG64(backend_seeds[j])) if noisy else None
         self._placed.place_many(idx, k, poses, scales)  # = the single env's backend.set_object(objects[k], pose, scale)
+        if self.config.grasp_heights:  # the table height under each placed object (= Scene.support_height)
+            self.support_z[idx] = self._placed.table_z[idx]
         if self._beliefs is not None:
             for i in rows:
-                self.probs[i] = self._beliefs[i].reset()
+                self.probs[i] = self._beliefs[i].reset(support_z=self.support_z[i])
         if self._beliefs is None:
             self._log_belief[idx] = self._prior_log
             self.probs[idx] = self._prior_probs
@@ -319,6 +324,9 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
                 raise ValueError(f"config.normals=True but backend {c.backend!r} senses no contact normals")
         self.grasps[live] += 1
         q = np.zeros((len(live), self.feature_dim))
+        heights = self.config.grasp_heights
+        # the fast path's contacts in each sub-env's support frame (a Belief moves them itself)
+        scored_contacts = contacts - np.outer(self.support_z[live], [0.0, 0.0, 1.0])[:, None, :] if heights else contacts
         if self._scorer is None:  # the general path: each sub-env's Belief, exactly as the single env
             for j, i in enumerate(live):
                 bel = self._beliefs[i]
@@ -330,7 +338,7 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
             n = c.n_fingers
             full = np.flatnonzero(t == n)
             if len(full):
-                qf, ll, scored = self._scorer.batch(contacts[full], None if normals is None else normals[full])
+                qf, ll, scored = self._scorer.batch(scored_contacts[full], None if normals is None else normals[full])
                 q[full] = qf
                 rows = full[scored]
                 env_rows = live[rows]
@@ -349,9 +357,9 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
                     from haptic_env.recognizers.zfinger import grasp_vectors_for
 
                     m = touched[part]
-                    P = contacts[part][m].reshape(len(part), tt, 3)
+                    P = scored_contacts[part][m].reshape(len(part), tt, 3)
                     N = None if not self.recognizer.normals else normals[part][m].reshape(len(part), tt, 3)
-                    qp, valid = grasp_vectors_for(P, N)
+                    qp, valid = grasp_vectors_for(P, N, heights=heights)
                     q[part[valid], : qp.shape[1]] = qp[valid]
             maxlog = np.maximum.reduce(self._log_belief[live], axis=1).tolist()
             thr = self._threshold

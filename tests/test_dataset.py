@@ -218,3 +218,27 @@ def test_geometric_source_matches_approach_model(tmp_path, monkeypatch):
         DatasetConfig(n_fingers=3, source="geometric", hand_fingers=2)
     with pytest.raises(ValueError, match="source must be one of"):
         DatasetConfig(source="robot")
+
+
+def test_heights_dataset_measures_contacts_from_the_table(objects):
+    """DatasetConfig(heights=True): every vector ends with its contacts' heights above the table the object rests on
+    (the lowest mesh vertex), in Phi's chain order; the rest is the plain dataset's vector."""
+    from haptic_env.dataset import support_frame
+
+    mug = objects["mug"]
+    cfg = DatasetConfig(n_fingers=4, normals=True, heights=True, grasps_per_object=60)
+    assert cfg.feature_dim == feature_dim(4, True) + 4
+    C, N = sample_grasps(mug, 50, 4, np.random.default_rng(3))
+    S = support_frame(C, mug, cfg)
+    zmin = np.asarray(mug.mesh.vertices)[:, 2].min()
+    np.testing.assert_allclose(S[..., 2], C[..., 2] - zmin)
+    assert support_frame(C, mug, DatasetConfig(n_fingers=4)) is C
+    X, valid = grasp_vectors(S, N, cfg)
+    f = phi(C, N)
+    np.testing.assert_allclose(X[:, :f.q.shape[1]], f.q, atol=1e-9)
+    np.testing.assert_allclose(X[valid, f.q.shape[1]:], np.take_along_axis(C[..., 2] - zmin, f.order, 1)[valid])
+    assert (X[valid, f.q.shape[1]:] >= -1e-9).all()  # nothing below the table
+    ds = build_dataset(objects, cfg, progress=False)
+    assert ds.X_train.shape[1] == cfg.feature_dim
+    with pytest.raises(ValueError, match="heights must be a bool"):
+        DatasetConfig(heights="yes")

@@ -451,7 +451,8 @@ def test_training_grasps_reaches_the_dataset_config(env_config):
             env_config.replace(training_grasps=bad)
 
 
-HAND_ENVS = {"HapticRecogMuJoCo-v0": 4, "HapticRecogShadow-v0": 5, "HapticRecogAero-v0": 5, "HapticRecogRobotiq-v0": 2}
+HAND_ENVS = {"HapticRecogMuJoCo-v0": 4, "HapticRecogShadow-v0": 5, "HapticRecogAero-v0": 5, "HapticRecogRobotiq-v0": 2,
+             "HapticRecogMuJoCoHeights-v0": 4, "HapticRecogShadowHeights-v0": 5, "HapticRecogAeroHeights-v0": 5}
 
 
 @pytest.mark.parametrize("env_id", list(HAND_ENVS))
@@ -466,10 +467,10 @@ def test_mujoco_hand_variants_run_an_episode(env_id):
     # ones); the 5-finger hands rarely touch the plate with all five fingers, so a fast recogniser for them trains on
     # surface grasps (the hand source itself: tests/test_hand_grasps.py), so without the touch pattern, which needs
     # the hand's own grasps
-    grasps = {"grasps_per_object": 100} if env_id == "HapticRecogMuJoCo-v0" else {"grasps_per_object": 300,
-                                                                               "source": "surface"}
+    allegro = env_id.startswith("HapticRecogMuJoCo")
+    grasps = {"grasps_per_object": 100} if allegro else {"grasps_per_object": 300, "source": "surface"}
     kw = {"recognizer_kwargs": {"config": {"grasps": grasps}, "progress": False}}
-    if haptic_env.ENV_VARIANTS[env_id].get("touch_weight", 0) > 0:
+    if haptic_env.ENV_VARIANTS[env_id].get("touch_weight", 0) > 0 and not allegro:
         with pytest.raises(ValueError, match="hand-matched"):
             haptic_env.make(env_id=env_id, **kw)
         kw["touch_weight"] = 0.0
@@ -479,6 +480,7 @@ def test_mujoco_hand_variants_run_an_episode(env_id):
     assert base.config.backend == "mujoco" and len(base.objects) == 10
     assert base.recognizer.config.grasps.source == grasps.get("source", "hand")
     assert base.recognizer.models.model(HAND_ENVS[env_id])[0] is None  # BC-NP: no classifier trained
+    assert base.recognizer.heights == ("Heights" in env_id) == base.config.grasp_heights
     for _ in range(3):
         obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
         assert env.observation_space.contains(obs)
@@ -535,3 +537,73 @@ def test_grasp_scorer_matches_features_and_kde(env_config):
         scorer(np.full((4, 3), np.nan), rng.normal(size=(4, 3)))
     with pytest.raises(ValueError, match="shape"):
         scorer(P[:3], N[:3])
+
+
+def test_grasp_heights_reach_the_recogniser_observation_and_belief(env_config):
+    """grasp_heights=True: the recogniser trains on vectors with the contacts' heights above the table, the observed
+    grasp vector has n more values, and the belief scores the world-frame contacts of an episode from its object's
+    table height (compiled and general paths alike); settings that break the premise raise at make."""
+    from haptic_env.grasp_features import feature_dim
+    from haptic_env.grasping.base import support_height
+
+    cfg = env_config.replace(grasp_heights=True, threshold=1.0, max_grasps=40)
+    fast, slow = HapticRecogEnv(cfg), HapticRecogEnv(cfg)
+    fast.reset(seed=4)
+    slow.reset(seed=4)
+    assert fast.recognizer.heights and fast.recognizer.config.grasps.heights
+    assert fast.feature_dim == feature_dim(4, True, heights=True) == fast.belief_state.feature_dim
+    obj = fast.objects[fast.target]
+    assert fast.belief_state.support_z == fast.scene.support_z == pytest.approx(
+        support_height(obj.mesh.vertices, fast.pose))
+    slow.belief_state.compiled = False
+    rng = np.random.default_rng(2)
+    seen = 0
+    for _ in range(30):
+        a = rng.uniform(-1, 1, fast.action_dim).astype(np.float32)
+        of, rf, tf, uf, f = fast.step(a)
+        os_, rs, ts, us, s = slow.step(a)
+        np.testing.assert_allclose(of, os_, rtol=0, atol=1e-6)
+        np.testing.assert_allclose(f["belief"], s["belief"], rtol=1e-9, atol=1e-12)
+        res = fast._last_result
+        if res.touched.all():  # the observed vector ends with the contacts' heights above the table
+            rows = fast.recognizer.features(res.contacts - [0, 0, fast.scene.support_z], res.normals)
+            if len(rows):
+                seen += 1
+                np.testing.assert_allclose(fast.belief_state.rows(res.contacts, res.normals, res.touched)[1], rows)
+                assert (rows[0, -4:] >= -1e-6).all()
+        if tf or uf:
+            seed = int(rng.integers(1 << 30))
+            fast.reset(seed=seed)
+            slow.reset(seed=seed)
+    assert seen > 0
+    with pytest.raises(ValueError, match="grasp_heights=True needs"):
+        env_config.replace(grasp_heights=True, pose="so3")
+    plain = {"config": {"grasps": {"grasps_per_object": 1500, "heights": False},
+                        "mlp": {"depth": 1, "width": 32, "max_epochs": 1, "progress": False}}, "progress": False}
+    with pytest.raises(ValueError, match="lack the contact heights"):
+        HapticRecogEnv(env_config.replace(grasp_heights=True, recognizer_kwargs=plain)).reset(seed=0)
+
+
+def test_greedy_look_ahead_with_grasp_heights(env_config):
+    from agents.greedy import GreedyInfoGainAgent
+
+    env = gym.make("HapticRecog-v0", config=env_config.replace(grasp_heights=True))
+    agent = GreedyInfoGainAgent(n_candidates=4, n_samples=2, seed=0)
+    obs, _ = env.reset(seed=1)
+    agent.reset(env)
+    for _ in range(3):
+        obs, r, term, trunc, info = env.step(agent.act(obs, env))
+        assert np.isfinite(r) and agent.last_scores.shape == (4,)
+        if term or trunc:
+            break
+
+
+def test_heights_hand_envs_are_the_plain_ones_with_grasp_heights():
+    """The Heights hand envs change only the grasp vector (heights) and the touch weight chosen for it on validation."""
+    from haptic_env import ENV_VARIANTS
+
+    for hand, w in (("MuJoCo", 1.0), ("Shadow", 0.5), ("Aero", 1.0)):
+        plain, heights = ENV_VARIANTS[f"HapticRecog{hand}-v0"], ENV_VARIANTS[f"HapticRecog{hand}Heights-v0"]
+        assert heights == {**plain, "grasp_heights": True, "touch_weight": w}
+        assert haptic_env.variant_config(f"HapticRecog{hand}Heights-v0").grasp_heights
+        assert not haptic_env.variant_config(f"HapticRecog{hand}-v0").grasp_heights

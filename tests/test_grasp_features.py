@@ -339,3 +339,31 @@ def test_two_finger_kernel_raises_the_same_errors():
     N[1, 0] = 0.0
     with pytest.raises(ValueError, match="normal 0 of grasp 1 is zero or not finite"):
         phi(P[:2] * 0 + 1.0 + np.arange(2)[:, None, None] * [[0, 0, 0], [1, 0, 0]], N)
+
+
+@pytest.mark.parametrize("n,normals", [(2, False), (3, True), (4, False), (5, True)])
+def test_heights_append_the_contact_heights_in_chain_order(n, normals):
+    """phi(heights=True) = [Phi_n, z of the contacts in chain order]: invariant to turns about the vertical and to
+    horizontal moves, not to vertical ones; degenerate rows stay all zero."""
+    P, N = random_grasp(5, n, batch=32, normals=normals)
+    f = phi(P, N)
+    fh = phi(P, N, heights=True)
+    d = feature_dim(n, normals)
+    assert fh.q.shape == (32, feature_dim(n, normals, heights=True)) == (32, d + n)
+    np.testing.assert_array_equal(fh.q[:, :d], f.q)
+    np.testing.assert_array_equal(fh.q[:, d:], np.take_along_axis(P[:, :, 2], f.order, axis=1))
+    R = Rotation.from_euler("z", 1.234).as_matrix()
+    shift = np.array([0.3, -2.0, 0.0])
+    moved = phi(P @ R.T + shift, None if N is None else N @ R.T, heights=True)
+    np.testing.assert_allclose(moved.q, fh.q, atol=1e-9)
+    lifted = phi(P + [0.0, 0.0, 0.5], N, heights=True)
+    np.testing.assert_allclose(lifted.q[:, d:], fh.q[:, d:] + 0.5, atol=1e-12)
+    flat = np.zeros((1, max(n, 3), 3))  # coincident contacts: no polyhedron
+    assert not phi(flat[:, :n], heights=True).q.any()
+
+
+def test_feature_dim_with_heights():
+    assert feature_dim(4, True, heights=True) == 18 and feature_dim(3, False, heights=True) == 6
+    assert feature_dim(2, False, heights=True) == 3
+    with pytest.raises(ValueError, match="3-d contacts"):
+        feature_dim(4, False, dim=2, heights=True)

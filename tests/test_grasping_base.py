@@ -67,3 +67,22 @@ def test_make_backend_unknown_name_and_bad_config():
         make_backend("geometric", 4, no_such_option=1)
     with pytest.raises(ValueError, match="n_fingers"):
         make_backend("geometric", 1)
+
+
+def test_support_height_is_the_lowest_posed_vertex():
+    from scipy.spatial.transform import Rotation
+
+    from haptic_env.grasping.base import support_height
+
+    V = np.array([[0.0, 0.0, -0.1], [0.1, 0.2, 0.3], [-0.2, 0.1, 0.05]])
+    assert support_height(V) == pytest.approx(-0.1)
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_euler("z", 0.7).as_matrix()  # a yaw keeps every height
+    T[:3, 3] = [1.0, 2.0, 0.25]
+    assert support_height(V, T, scale=2.0) == pytest.approx(2.0 * -0.1 + 0.25)
+    T[:3, :3] = Rotation.from_euler("x", np.pi).as_matrix()  # upside down: the top vertex is lowest
+    assert support_height(V, T) == pytest.approx(-0.3 + 0.25)
+    with pytest.raises(ValueError, match="vertices must have shape"):
+        support_height(np.zeros((0, 3)))
+    with pytest.raises(ValueError, match="4x4"):
+        support_height(V, np.eye(3))

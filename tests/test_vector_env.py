@@ -50,6 +50,7 @@ def _assert_same_step(r1, r2):
     {},
     {"pose": "so3", "scale_range": (0.8, 1.2), "reward": "entropy-reduction", "max_grasps": 4,
      "backend_kwargs": {"contact_noise": 0.002, "normal_noise_deg": 3.0}, "observe_contacts": True},
+    {"grasp_heights": True, "scale_range": (0.8, 1.2), "backend_kwargs": {"contact_noise": 0.002}},
 ])
 def test_sub_env_i_equals_a_single_env_seeded_seed_plus_i(env_config, mode, overrides):
     """The documented scheme: reset(seed=s) -> sub-env i is HapticRecogEnv reset(seed=s + i), autoresets continue
@@ -71,9 +72,12 @@ def test_sub_env_i_equals_a_single_env_seeded_seed_plus_i(env_config, mode, over
     assert (venv.scene.backend.config.contact_noise > 0) == bool(overrides)
 
 
-def test_general_belief_path_equals_single_envs(env_config):
+@pytest.mark.parametrize("heights", [False, True])
+def test_general_belief_path_equals_single_envs(env_config, heights):
     """A setting outside the fast path (z-finger models for incomplete grasps) keeps one Belief per sub-env."""
     cfg = env_config.replace(z_fingers=3, grasp_cost=0.01, observe_contacts=True)
+    if heights:
+        cfg = cfg.replace(grasp_heights=True, scale_range=(0.9, 1.1))
     B = 3
     venv = HapticRecogVectorEnv(B, cfg)
     ref = SyncVectorEnv([lambda: HapticRecogEnv(cfg) for _ in range(B)])

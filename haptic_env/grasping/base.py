@@ -45,6 +45,7 @@ __all__ = [
     "decode_approach",
     "approach_frame",
     "validate_pose",
+    "support_height",
     "make_backend",
     "BACKENDS",
 ]
@@ -229,6 +230,18 @@ def approach_frame(approach: Approach) -> np.ndarray:
     e1 = c * b1 + s * b2
     e2 = _cross(e3, e1)
     return np.stack([e1, e2, e3], axis=-1)
+
+
+def support_height(vertices, pose=None, scale: float = 1.0) -> float:
+    """The table top's height (world z, m) under an object resting on it: the lowest z of its ``vertices (V, 3)``
+    (object frame), scaled by ``scale`` about the object's origin, then posed by ``pose (4, 4)`` (identity when
+    None). Every backend with ``support="table"`` puts its table there; contacts minus it are in the support frame
+    that :func:`~haptic_env.grasp_features.phi` ``(heights=True)`` reads."""
+    v = float(scale) * np.asarray(vertices, dtype=np.float64)
+    if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0:
+        raise ValueError(f"vertices must have shape (V, 3) with V >= 1, got {v.shape}")
+    T = validate_pose(pose)
+    return float((v @ T[2, :3]).min() + T[2, 3])
 
 
 def validate_pose(pose: Any) -> np.ndarray:

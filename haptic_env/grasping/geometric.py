@@ -41,6 +41,7 @@ from .base import (
     GraspResult,
     approach_frame,
     decode_approach,
+    support_height,
     validate_action,
     validate_actions,
     validate_pose,
@@ -171,7 +172,7 @@ class GeometricBackend:
         self._face_v0 = sc.face_v0
         self._radius = s * sc.radius  # world units
         self._centre = self._R @ (s * sc.centre) + self._t
-        self._table_z = float(((s * sc.vertices) @ self._R[2]).min() + self._t[2])
+        self._table_z = support_height(sc.vertices, T, s)
         self._last = None
 
     def _scene_of(self, mesh: trimesh.Trimesh) -> "_MeshScene":

@@ -47,6 +47,7 @@ from .base import (
     GraspResult,
     approach_frame,
     decode_approach,
+    support_height,
     validate_action,
     validate_actions,
     validate_pose,
@@ -500,7 +501,7 @@ class MujocoBackend:
         c_obj = 0.5 * (v.min(0) + v.max(0))
         self._centre = T[:3, :3] @ c_obj + T[:3, 3]
         self._radius = float(np.linalg.norm(vw - self._centre, axis=1).max())
-        table_z = float(vw[:, 2].min()) if self.config.support == "table" else None
+        table_z = support_height(mesh.vertices, T, scale) if self.config.support == "table" else None
         key = (obj.name, obj.mesh_hash)  # one compiled scene per mesh: a new pose or scale only edits the model
         scene = self._scenes.pop(key, None)
         if scene is None:

@@ -79,9 +79,11 @@ class ModelBank:
     n_classes: int
     entries: dict[int, tuple[int, object, KDELikelihood]] = field(default_factory=dict)  # d -> (z, clf, kde)
     calibrated: bool = True
+    #: the grasp vectors carry the contacts' heights (``DatasetConfig.heights``)
+    heights: bool = False
 
     def add(self, z: int, classifier, kde: KDELikelihood | None) -> None:
-        self.entries[feature_dim(z, self.normals)] = (z, classifier, kde)
+        self.entries[feature_dim(z, self.normals, heights=self.heights)] = (z, classifier, kde)
 
     def with_calibration(self, calibrated: bool) -> ModelBank:
         """The same models (shared, not copied), scored with or without the calibration temperatures."""
@@ -104,7 +106,7 @@ class ModelBank:
 
     def model(self, z: int):
         """``(classifier, kde)`` of the ``z``-finger model."""
-        return self.entries[feature_dim(z, self.normals)][1:]
+        return self.entries[feature_dim(z, self.normals, heights=self.heights)][1:]
 
     def temperature(self, z: int) -> dict[str, float]:
         """The calibration temperatures of the ``z``-finger models: ``{"kde": T, "classifier": T}`` (1: none)."""
@@ -149,11 +151,17 @@ class Recognizer:
 
     def features(self, contacts, normals=None, *, touched=None, z: int | None = None, k: int | None = None,
                  rng: np.random.Generator | None = None) -> np.ndarray:
-        """Grasp vectors ``(m, d)`` of one grasp ``contacts (n, 3)`` (see :func:`subset_vectors`)."""
+        """Grasp vectors ``(m, d)`` of one grasp ``contacts (n, 3)`` (see :func:`subset_vectors`; with
+        :attr:`heights`, the contacts in the support frame)."""
         if self.normals and normals is None:
             raise ValueError("this recogniser was trained with normals; pass the contact normals")
         return subset_vectors(contacts, normals if self.normals else None, z, k=k, rng=rng, touched=touched,
-                              normalize=self.config.grasps.normalize_scale)
+                              normalize=self.config.grasps.normalize_scale, heights=self.heights)
+
+    @property
+    def heights(self) -> bool:
+        """Whether its grasp vectors carry the contacts' heights above the support (``DatasetConfig.heights``)."""
+        return bool(self.config.grasps.heights)
 
     def grasp_scorer(self, calibrated: bool = True):
         """:class:`~haptic_env.recognizers.scorer.GraspScorer` of complete ``n_fingers`` grasps (Phi and the KDE
@@ -169,7 +177,8 @@ class Recognizer:
             kde = self.models.model(self.n_fingers)[1]
             ok = kde is not None and getattr(kde, "pooled", None) is not None
             post = kde.calibrate_scores if ok and calibrated and kde.calibrated else None
-            scorers[calibrated] = GraspScorer(self.n_fingers, self.normals, kde, post=post) if ok else None
+            scorers[calibrated] = (GraspScorer(self.n_fingers, self.normals, kde, post=post, heights=self.heights)
+                                   if ok else None)
         return scorers[calibrated]
 
     def make_updater(self, kind: str = "bc-np", threshold: float = DEFAULT_THRESHOLD, z: int | None = None, *,
@@ -194,7 +203,7 @@ class Recognizer:
         models = self.models.with_calibration(calibrated)
         base = make_updater(kind, classifier=models, likelihood=models, threshold=threshold,
                             n_classes=self.n_classes, **kw)
-        return ZFingerUpdater(base, z, k=k, rng=rng, normalize=self.config.grasps.normalize_scale)
+        return ZFingerUpdater(base, z, k=k, rng=rng, normalize=self.config.grasps.normalize_scale, heights=self.heights)
 
 
 def _objects_key(objects) -> list:
@@ -253,7 +262,7 @@ def build_recognizer(objects, n_fingers: int, normals: bool = True, *, z_values=
             return build_dataset(objs, dcfg, cache=cache, progress=progress)
 
     names = tuple(o.name for o in objects)
-    bank = ModelBank(normals=bool(normals), n_classes=len(names))
+    bank = ModelBank(normals=bool(normals), n_classes=len(names), heights=bool(config.grasps.heights))
     okey = config_key(_objects_key(objects)) if cache else ""
     root = cache_dir("recognizers") if cache else None
     for z in zs:

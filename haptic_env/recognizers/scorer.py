@@ -28,19 +28,20 @@ class GraspScorer:
     :meth:`~.kde.KDELikelihood.calibrate_scores`).
     """
 
-    def __init__(self, n_fingers: int, normals: bool, kde, post=None):
+    def __init__(self, n_fingers: int, normals: bool, kde, post=None, heights: bool = False):
         if post is not None and not callable(post):
             raise TypeError(f"post must be a callable (B, K) -> (B, K) or None, got {type(post).__name__}")
         self.post = post
         if kde.pooled is None:
             raise ValueError("GraspScorer needs a KDE evaluated with method='pooled'")
-        d = feature_dim(n_fingers, normals)
+        d = feature_dim(n_fingers, normals, heights=heights)
         if kde.n_features != d:
-            raise ValueError(f"the KDE has {kde.n_features} features, {n_fingers} fingers (normals={normals}) give {d}")
-        self.n_fingers, self.normals, self.kde = int(n_fingers), bool(normals), kde
+            raise ValueError(f"the KDE has {kde.n_features} features, {n_fingers} fingers (normals={normals}, "
+                             f"heights={heights}) give {d}")
+        self.n_fingers, self.normals, self.kde, self.heights = int(n_fingers), bool(normals), kde, bool(heights)
         tri, tri_edges, _, n_edges = _topology(self.n_fingers)
         cfg = kde.config
-        self._phi_args = (tri, tri_edges, n_edges, DEFAULT_TOL)
+        self._phi_args = (tri, tri_edges, n_edges, DEFAULT_TOL, feature_dim(n_fingers, normals), self.heights)
         self._kde_args = (kde.scaler.mean, kde.scaler.std, *kde.pooled.arrays(), kde.pooled_labels,
                           min(cfg.k, kde.pooled.n), float(cfg.eps), kde._norms(), 0.5 / kde.bandwidth**2,
                           cfg.cutoff * kde.bandwidth)
@@ -62,7 +63,7 @@ class GraspScorer:
         if status > 0:  # degenerate: no information
             return np.zeros(self._d), None
         # a planar hull face (Qhull's canonical triangulation) or bad input (raises): the general path
-        f = phi(P, N)
+        f = phi(P, N, heights=self.heights)
         return (f.q, self._finish(self.kde.log_likelihood(f.q))) if f.valid else (f.q, None)
 
     def _finish(self, ll: np.ndarray) -> np.ndarray:
@@ -87,7 +88,7 @@ class GraspScorer:
         scored = status == 0
         out[scored] = self._finish(out[scored])
         for b in np.flatnonzero(status < 0):  # a planar hull face or bad input: the general path, as __call__
-            f = phi(P[b], None if N is None else N[b])
+            f = phi(P[b], None if N is None else N[b], heights=self.heights)
             q[b] = f.q
             if f.valid:
                 out[b] = self._finish(self.kde.log_likelihood(f.q))[0]
@@ -97,22 +98,27 @@ class GraspScorer:
 
 
 @njit(cache=True)
-def _score_batch(P, N, has_normals, tri, tri_edges, n_edges, tol, mean, std, data, nodes, split, labels, k, eps,
-                 log_norms, inv, radius, work, q, out, status):
+def _score_batch(P, N, has_normals, tri, tri_edges, n_edges, tol, d_phi, has_heights, mean, std, data, nodes, split,
+                 labels, k, eps, log_norms, inv, radius, work, q, out, status):
     """:func:`_score` of ``B`` grasps (the same kernels, one row at a time)."""
     order = np.empty(P.shape[1], np.int64)
     for b in range(P.shape[0]):
-        status[b] = _score(P[b], N[b], has_normals, tri, tri_edges, n_edges, tol, mean, std, data, nodes, split,
-                           labels, k, eps, log_norms, inv, radius, work, q[b], order, out[b])
+        status[b] = _score(P[b], N[b], has_normals, tri, tri_edges, n_edges, tol, d_phi, has_heights, mean, std, data,
+                           nodes, split, labels, k, eps, log_norms, inv, radius, work, q[b], order, out[b])
 
 
 @njit(cache=True)
-def _score(P, N, has_normals, tri, tri_edges, n_edges, tol, mean, std, data, nodes, split, labels, k, eps, log_norms,
-           inv, radius, work, q, order, out):
-    """Phi of one grasp into ``q``, then its pooled-KDE log densities into ``out``; returns the Phi status."""
-    status = phik.phi_checked(P, N, has_normals, tri, tri_edges, n_edges, tol, q, order, np.empty((P.shape[0], 3)))
+def _score(P, N, has_normals, tri, tri_edges, n_edges, tol, d_phi, has_heights, mean, std, data, nodes, split, labels,
+           k, eps, log_norms, inv, radius, work, q, order, out):
+    """Phi of one grasp into ``q[:d_phi]`` (and with ``has_heights`` the contacts' heights in chain order into the
+    rest), then its pooled-KDE log densities into ``out``; returns the Phi status."""
+    status = phik.phi_checked(P, N, has_normals, tri, tri_edges, n_edges, tol, q[:d_phi], order,
+                              np.empty((P.shape[0], 3)))
     if status != 0:
         return status
+    if has_heights:
+        for i in range(P.shape[0]):
+            q[d_phi + i] = P[order[i], 2]
     z = (q - mean) / std
     log_density_row(data, nodes, split, labels, z, k, eps, log_norms, inv, radius, work, out)
     return 0

@@ -69,19 +69,22 @@ def _all_subsets(n: int, z: int) -> np.ndarray:
     return out
 
 
-def grasp_vectors_for(contacts, normals=None, *, normalize: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """``Phi`` of a batch ``(B, n, 3)`` (optionally scale-normalised): ``(q (B, d), valid (B,))``."""
+def grasp_vectors_for(contacts, normals=None, *, normalize: bool = False,
+                      heights: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """``Phi`` of a batch ``(B, n, 3)`` (optionally scale-normalised; ``heights``: with the contacts' heights, the
+    contacts in the support frame): ``(q (B, d), valid (B,))``."""
     P = np.asarray(contacts, dtype=np.float64)
     if normalize:
         P, _ = normalize_scale(P)
-    f = phi(P, normals)
+    f = phi(P, normals, heights=heights)
     if f.q.ndim == 2:
         return f.q, f.valid
     return np.atleast_2d(f.q), np.atleast_1d(f.valid)
 
 
 def subset_vectors(contacts, normals=None, z: int | None = None, *, k: int | None = None,
-                   rng: np.random.Generator | None = None, touched=None, normalize: bool = False) -> np.ndarray:
+                   rng: np.random.Generator | None = None, touched=None, normalize: bool = False,
+                   heights: bool = False) -> np.ndarray:
     """Grasp vectors of the z-subsets of one grasp's touching contacts.
 
     Args:
@@ -90,9 +93,10 @@ def subset_vectors(contacts, normals=None, z: int | None = None, *, k: int | Non
         k: number of random subsets (None: all of them).
         touched: optional ``(n,)`` bool; only touching contacts are used (incomplete grasps).
         normalize: scale-normalise each subset (objects of unknown scale).
+        heights: append the contacts' heights (contacts in the support frame; ``phi(heights=True)``).
 
     Returns:
-        ``(m, feature_dim(z, normals))`` vectors of the non-degenerate subsets (``m`` may be 0).
+        ``(m, feature_dim(z, normals, heights=heights))`` vectors of the non-degenerate subsets (``m`` may be 0).
     """
     P = np.asarray(contacts, dtype=np.float64)
     if P.ndim != 2 or P.shape[1] != 3:
@@ -107,7 +111,7 @@ def subset_vectors(contacts, normals=None, z: int | None = None, *, k: int | Non
             N = None if N is None else N[t]
     n = len(P)
     z = n if z is None else int(z)
-    d = feature_dim(max(z, 2), N is not None)
+    d = feature_dim(max(z, 2), N is not None, heights=heights)
     if n < z or z < 2:
         return np.zeros((0, d))
     if z == n:  # the whole grasp: one row (the common case: an env step)
@@ -115,7 +119,7 @@ def subset_vectors(contacts, normals=None, z: int | None = None, *, k: int | Non
     else:
         idx = subsets(n, z, k, rng)
         Pz, Nz = P[idx], None if N is None else N[idx]
-    q, valid = grasp_vectors_for(Pz, Nz, normalize=normalize)
+    q, valid = grasp_vectors_for(Pz, Nz, normalize=normalize, heights=heights)
     return q if valid.all() else q[valid]
 
 
@@ -123,10 +127,10 @@ class ZFingerUpdater:
     """Wraps a belief updater whose models are z-finger models; updates from whole n-finger grasps."""
 
     def __init__(self, base, z: int | None = None, *, k: int | None = None, rng: np.random.Generator | None = None,
-                 normalize: bool = False):
+                 normalize: bool = False, heights: bool = False):
         if k is not None and rng is None:
             raise ValueError("ZFingerUpdater with random subsets (k) needs an rng")
-        self.base, self.z, self.k, self.rng, self.normalize = base, z, k, rng, normalize
+        self.base, self.z, self.k, self.rng, self.normalize, self.heights = base, z, k, rng, normalize, heights
 
     def __getattr__(self, name):  # certainty, prediction, n_grasps, n_classes, ...
         if name == "base":  # not set yet (copy / pickle build the object before its __dict__)
@@ -154,8 +158,10 @@ class ZFingerUpdater:
         return self.base.update_scores(log_lik=log_lik, proba=proba)
 
     def update_grasp(self, contacts, normals=None, touched=None) -> np.ndarray:
-        """One grasp from raw contacts ``(n, 3)`` (+ inward normals) -> new belief ``(K,)``."""
-        Q = subset_vectors(contacts, normals, self.z, k=self.k, rng=self.rng, touched=touched, normalize=self.normalize)
+        """One grasp from raw contacts ``(n, 3)`` (+ inward normals; with ``heights``, in the support frame) -> new
+        belief ``(K,)``."""
+        Q = subset_vectors(contacts, normals, self.z, k=self.k, rng=self.rng, touched=touched, normalize=self.normalize,
+                           heights=self.heights)
         return self.base.update(Q)
 
 
