@@ -113,9 +113,14 @@ def test_subset_scores_are_the_rows_of_each_grasps_subsets(recognizer):
 
 def test_importing_the_kde_or_the_updaters_does_not_load_torch():
     for module in ("haptic_env.recognizers.kde", "haptic_env.recognizers.updaters", "haptic_env.belief",
-                   "haptic_env.env"):
+                   "haptic_env.env", "haptic_env.recognizers.recognizer", "haptic_env.recognizers.mlp_config"):
         code = f"import sys, {module}; assert 'torch' not in sys.modules, '{module} loaded torch'"
         subprocess.run([sys.executable, "-c", code], check=True)
+    # an env's recogniser settings (BC-NP: the KDE only) are built without torch, which only the MLP needs
+    code = ("import sys; from haptic_env.config import HapticRecogConfig, recognizer_kwargs; "
+            "rc = recognizer_kwargs(HapticRecogConfig(recognizer_kwargs={'config': {'mlp': {'depth': 1}}}))['config']; "
+            "assert rc.mlp.depth == 1; assert 'torch' not in sys.modules, 'recognizer_kwargs loaded torch'")
+    subprocess.run([sys.executable, "-c", code], check=True)
 
 
 @pytest.fixture(scope="module")

@@ -13,7 +13,8 @@ import importlib
 _EXPORTS = {
     **dict.fromkeys(("CLASSIFIERS", "Classifier", "SklearnClassifier", "make_classifier"), "baselines"),
     **dict.fromkeys(("KDEConfig", "KDELikelihood", "scott_bandwidth"), "kde"),
-    **dict.fromkeys(("MLPClassifier", "MLPConfig"), "mlp"),
+    "MLPClassifier": "mlp",
+    "MLPConfig": "mlp_config",
     **dict.fromkeys(("expected_calibration_error", "fit_temperature", "reliability", "sequence_scores"),
                     "calibration"),
     **dict.fromkeys(("MODELS", "ModelBank", "Recognizer", "RecognizerConfig", "build_recognizer", "models_for"),

@@ -28,7 +28,7 @@ from haptic_env.dataset import DatasetConfig
 from haptic_env.cache import CacheError, atomic_write, cache_dir, config_key, load_npz, save_npz_atomic
 from haptic_env.grasp_features import feature_dim
 from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
-from haptic_env.recognizers.mlp import MLPClassifier, MLPConfig
+from haptic_env.recognizers.mlp_config import MLPConfig
 from haptic_env.recognizers.touch import TouchModel
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS, make_updater
 from haptic_env.recognizers.zfinger import ZFingerUpdater, subset_vectors
@@ -297,6 +297,8 @@ def _touch_model(objects, config: RecognizerConfig, n_fingers: int, progress: bo
 def _train(model: str, ds, cfg: RecognizerConfig, progress: bool):
     k = len(ds.names)
     if model == "mlp":
+        from haptic_env.recognizers.mlp import MLPClassifier  # torch: only where an MLP is trained or loaded
+
         clf = MLPClassifier(dataclasses.replace(cfg.mlp, progress=progress and cfg.mlp.progress))
         return clf.fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val, n_classes=k)
     return KDELikelihood(cfg.kde).fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val, n_classes=k)
@@ -327,6 +329,8 @@ def _load(root, key: str, model: str, config: RecognizerConfig):
         if info.get("sha256") != hashlib.sha256(path.read_bytes()).hexdigest():
             raise CacheError(f"{path} does not match the digest in {meta.name} (damaged or replaced)")
         if model == "mlp":
+            from haptic_env.recognizers.mlp import MLPClassifier
+
             loaded = MLPClassifier.load(path)
         else:  # every class's data: a file missing one would load as a KDE of fewer objects
             required = ("kde_mean", "kde_std", "kde_bandwidth", "kde_factor", *(f"kde_data_{c}" for c in range(len(names))))

@@ -1,0 +1,39 @@
+"""The settings of the MLP classifier (:class:`MLPConfig`), apart from :mod:`~haptic_env.recognizers.mlp` so that a
+recogniser's config can be built and read without importing torch (a BC-NP env never trains the MLP)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["MLPConfig"]
+
+
+@dataclass(frozen=True)
+class MLPConfig:
+    """Architecture and training of :class:`MLPClassifier`."""
+
+    depth: int = 3  #: hidden layers
+    width: int = 256  #: units per hidden layer
+    lr: float = 3e-3  #: Adam learning rate (decayed by ``lr_decay`` per epoch)
+    lr_decay: float = 0.93
+    weight_decay: float = 0.0
+    batch_size: int = 1024
+    max_epochs: int = 40
+    patience: int = 4  #: epochs without validation-loss improvement before stopping
+    max_train: int | None = None  #: train on a random subsample of at most this many rows
+    val_fraction: float = 0.1  #: used only when no explicit validation set is given to ``fit``
+    seed: int = 0
+    threads: int | None = None  #: torch intra-op threads (None: see :func:`set_torch_threads`)
+    progress: bool = True
+
+    def __post_init__(self):
+        for name in ("depth", "width", "batch_size", "max_epochs", "patience"):
+            v = getattr(self, name)
+            if not isinstance(v, (int, np.integer)) or v < (0 if name == "depth" else 1):
+                raise ValueError(f"MLPConfig.{name} must be a positive integer, got {v!r}")
+        if not (self.lr > 0 and np.isfinite(self.lr)):
+            raise ValueError(f"MLPConfig.lr must be positive and finite, got {self.lr!r}")
+        if not 0.0 < self.val_fraction < 1.0:
+            raise ValueError(f"MLPConfig.val_fraction must be in (0, 1), got {self.val_fraction!r}")
