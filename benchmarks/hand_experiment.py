@@ -23,12 +23,15 @@ the calibration temperatures, which are fitted on the training grasps' validatio
 beliefs of 1 to ``--calibrate-grasps`` grasps of one object, by default the hand's registered env's setting;
 ``--kde-bandwidth per-class`` gives each object its own KDE bandwidth instead of the envs' shared one);
 ``--split validation`` draws them from pool seeds ``500 + seed`` instead, for choosing settings.
+``--heights`` appends the contacts' heights above the table to every grasp vector, in training and in the
+queries (``DatasetConfig.heights``, the envs' ``grasp_heights``; the objects rest upright as in the pools); the
+defaults then come from the hand's ``Heights`` env (:data:`HEIGHTS_ENV_IDS`), which sets ``grasp_heights``.
 ``--queries`` queries per object and seed; the spread is the std over ``--seeds``.
 
     python benchmarks/hand_experiment.py [--hands allegro shadow aero] [--queries 10] [--seeds 0 1 2]
         [--max-grasps 30] [--approaches 3000] [--regimes surface hand] [--raw] [--out results/hands]
         [--hand-budget uniform|balanced] [--kde-bandwidth shared|per-class]   # options measured, not the envs'
-        [--touch-weight W]
+        [--touch-weight W] [--heights]
 
 Prints (and with ``--out`` writes ``hand_table.md``) the table with the paper's figure beside each
 cell; the headline is printed last.
@@ -49,6 +52,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from haptic_env import variant_config  # noqa: E402
 from haptic_env.config import HAND_APPROACHES, HapticRecogConfig  # noqa: E402
 from haptic_env.dataset import DatasetConfig  # noqa: E402
+from haptic_env.grasping.base import support_height  # noqa: E402
 from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
 from haptic_env.hand_grasps import BUDGETS, hand_grasp_pool  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
@@ -61,6 +65,8 @@ SETUPS = {"allegro": (4, (True, False)), "shadow": (5, (False,)), "aero": (5, (F
 #: hand -> its registered env (whose ``calibrate_grasps`` and ``training_grasps`` the table uses unless
 #: ``--calibrate-grasps`` / ``--approaches`` are given)
 ENV_IDS = {"allegro": "HapticRecogMuJoCo-v0", "shadow": "HapticRecogShadow-v0", "aero": "HapticRecogAero-v0"}
+#: the same with the contacts' heights (``--heights``): the hands' ``Heights`` envs (``grasp_heights=True``)
+HEIGHTS_ENV_IDS = {name: env_id.replace("-v0", "Heights-v0") for name, env_id in ENV_IDS.items()}
 #: label -> (updater kind, z, random subsets per grasp)
 METHODS = {"IC": ("ic", None, None), "BC-NP": ("bc-np", None, None), "BC-IP": ("bc-ip", None, None),
            "IC, z=3": ("ic", 3, 4), "BC-NP, z=3": ("bc-np", 3, 4)}
@@ -87,9 +93,10 @@ def query_pools(objects, hand: str, n: int, split: str, seeds, queries: int, max
     return pools, float(np.mean([(p.touched.sum(-1) >= 3).mean() for p in pools]))
 
 
-def env_config(name: str) -> HapticRecogConfig:
-    """The registered env of hand ``name`` (:data:`ENV_IDS`), whose settings are the table's defaults."""
-    return variant_config(ENV_IDS[name])
+def env_config(name: str, heights: bool = False) -> HapticRecogConfig:
+    """The registered env of hand ``name`` (:data:`ENV_IDS`; with ``heights`` :data:`HEIGHTS_ENV_IDS`), whose settings
+    are the table's defaults."""
+    return variant_config((HEIGHTS_ENV_IDS if heights else ENV_IDS)[name])
 
 
 def write_table(out: Path, name: str, script: str, argv, seconds: float, text: str) -> None:
@@ -118,18 +125,24 @@ def run_query(updater, C, N, T, normals: bool, touch=None) -> tuple[int, int, bo
 
 def training_config(regime: str, hand: str, args, calibrate_grasps: int = 1,
                     approaches: int = HAND_APPROACHES, bandwidth: str = "shared") -> RecognizerConfig:
+    heights = bool(getattr(args, "heights", False))
     if regime == "hand":
-        g = DatasetConfig(source="hand", hand=hand, grasps_per_object=approaches, seed=0, hand_budget=args.hand_budget)
+        g = DatasetConfig(source="hand", hand=hand, grasps_per_object=approaches, seed=0, hand_budget=args.hand_budget,
+                          heights=heights)
     else:
         g = DatasetConfig(source="surface", grasps_per_object=args.surface_grasps, contact_noise=args.surface_noise,
-                          normal_noise_deg=args.surface_normal_noise, seed=0)
+                          normal_noise_deg=args.surface_normal_noise, seed=0, heights=heights)
     return RecognizerConfig(grasps=g, kde=KDEConfig(calibrate_grasps=calibrate_grasps, bandwidth=bandwidth))
 
 
-def evaluate(rec, pools, n: int, normals: bool, args, touch_weight: float = 0.0) -> dict[str, dict]:
+def evaluate(rec, pools, n: int, normals: bool, args, touch_weight: float = 0.0, objects=None) -> dict[str, dict]:
     """label -> {success (S,), accuracy (S,), grasps (S,)} over seeds; ``touch_weight``: the BC-NP rows' weight of
-    the touch pattern (``rec.touch``; 0: off)."""
+    the touch pattern (``rec.touch``; 0: off). A recogniser with heights reads each object's contacts from its table
+    (``objects``: the pools' objects, at their identity pose)."""
     out = {}
+    K = pools[0].touched.shape[0]
+    lift = ([np.array([0.0, 0.0, support_height(o.mesh.vertices)]) for o in objects] if rec.heights
+            else [np.zeros(3)] * K)
     for label in args.methods:
         kind, z, k = METHODS[label]
         succ, acc, used = [], [], []
@@ -139,7 +152,7 @@ def evaluate(rec, pools, n: int, normals: bool, args, touch_weight: float = 0.0)
             w = touch_weight if kind == "bc-np" else 0.0
             res = []
             for i in range(pool.touched.shape[0]):
-                C = pool.contacts[i].reshape(args.queries, args.max_grasps, n, 3)
+                C = (pool.contacts[i] - lift[i]).reshape(args.queries, args.max_grasps, n, 3)
                 N = pool.normals[i].reshape(args.queries, args.max_grasps, n, 3)
                 T = pool.touched[i].reshape(args.queries, args.max_grasps, n)
                 for q in range(args.queries):
@@ -184,6 +197,9 @@ def main(argv=None) -> int:
                     help="hand regime, BC-NP rows: weight of the touch-pattern log-likelihood (HapticRecogConfig."
                          "touch_weight; default: the hand's registered env's setting; 0: off)")
     ap.add_argument("--raw", action="store_true", help="the paper's raw scores (no calibration temperatures)")
+    ap.add_argument("--heights", action="store_true",
+                    help="append the contacts' heights above the table to the grasp vectors (DatasetConfig.heights, "
+                         "the envs' grasp_heights)")
     ap.add_argument("--out", type=Path, default=None, help="write hand_table.md here")
     args = ap.parse_args(argv)
     if args.calibrate_grasps is not None and args.calibrate_grasps < 1:
@@ -207,7 +223,7 @@ def main(argv=None) -> int:
         if got is None:
             continue
         pools, usable = got
-        env = env_config(name)  # the defaults: the hand's env's
+        env = env_config(name, args.heights)  # the defaults: the hand's env's
         K = args.calibrate_grasps if args.calibrate_grasps is not None else env.calibrate_grasps
         A = args.approaches if args.approaches is not None else (env.training_grasps or HAND_APPROACHES)
         for regime in args.regimes:
@@ -219,7 +235,7 @@ def main(argv=None) -> int:
             for normals in normal_settings:
                 rec = build_recognizer(objects, n, normals, z_values=tuple(range(3, n)), config=cfg, touch=w > 0)
                 temps = rec.models.temperature(n)
-                res = evaluate(rec, pools, n, normals, args, w)
+                res = evaluate(rec, pools, n, normals, args, w, objects)
                 for label, r in tqdm(res.items(), desc=f"{hand} {regime}", disable=True):
                     rows.append((hand, n, normals, regime, label, r, usable, temps, K, data,
                                  w if METHODS[label][0] == "bc-np" else 0.0))
@@ -229,7 +245,7 @@ def main(argv=None) -> int:
     lines = [
         f"YCB-10, {args.queries} queries per object x {len(args.seeds)} {args.split} seeds ({args.seeds}), <= {args.max_grasps} "
         f"random-approach grasps per query, lambda = {args.threshold}, "
-        f"{calib}. "
+        f"{calib}{'; grasp vectors with the contacts heights above the table (--heights)' if args.heights else ''}. "
         "Success = decided and correct at the stop; accuracy = final prediction correct (decided or not). "
         "Mean +- std over the test seeds. Paper: Pisa/IIT SoftHand for the 5-finger rows, real Allegro for the 4-finger rows.",
         "",

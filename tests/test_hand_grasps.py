@@ -93,3 +93,27 @@ def test_balanced_pool_keeps_each_objects_first_approaches(two_objects, monkeypa
         hand_grasp_pool(two_objects, "generic", 3, 8, budget="greedy")
     with pytest.raises(ValueError, match="hand_budget"):
         DatasetConfig(source="hand", hand="generic", hand_budget="greedy")
+
+
+def test_heights_information_benchmark_features(load_benchmark):
+    """benchmarks/heights_information.py: its three feature sets of a pool, from the same grasps (synthetic pool)."""
+    from haptic_env.grasp_features import feature_dim
+    from haptic_env.hand_grasps import HandGraspPool
+    from haptic_env.objects import load_object_set
+
+    bench = load_benchmark("heights_information")
+    objects = load_object_set("default").subset(["box", "mug"], name="two")
+    rng = np.random.default_rng(0)
+    C = rng.normal(0, 0.03, (2, 40, 4, 3))
+    N = rng.normal(size=C.shape)
+    T = rng.random((2, 40, 4)) < 0.8
+    pool = HandGraspPool(C, N, T, tuple(objects.names), "generic", 0.0)
+    X, y = bench.features(pool, objects, 0, 4, True, np.random.default_rng(1))
+    assert set(X) == set(bench.FEATURES) and len(y) == len(X["phi"]) == int(T.all(-1).sum())
+    d = feature_dim(4, True)
+    assert X["phi"].shape[1] == d and X["phi+heights"].shape[1] == d + 4 and X["phi+approach"].shape[1] == d + 4
+    np.testing.assert_array_equal(X["phi+heights"][:, :d], X["phi"])
+    X3, y3 = bench.features(pool, objects, 0, 3, False, np.random.default_rng(1))
+    assert "phi+approach" not in X3 and X3["phi+heights"].shape[1] == feature_dim(3, False) + 3
+    acc = bench.one_shot((X, y), [(X, y)], "phi+heights")
+    assert acc.shape == (1,) and acc[0] == 1.0  # its own grasps: distance-weighted neighbours are exact
