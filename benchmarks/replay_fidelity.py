@@ -56,7 +56,7 @@ def main(argv=None) -> int:
         actions = pool_actions(args.pool_seed, k, args.pool_approaches).astype(np.float32)
         replay.set_object(obj)
         got = replay.grasp_batch(actions, rng)
-        _, C, _, T = replay._tables[obj.name, obj.mesh_hash]
+        _, C, _, T = replay.records(obj)
         pick = rng.integers(0, len(T), len(actions))
         cells = []
         for label, contacts, touched in (("replay", got.contacts, got.touched), ("random", C[pick], T[pick])):

@@ -230,7 +230,7 @@ class Belief:
         Returns ``(q, usable)``: the grasp vector of the touching contacts zero-padded to ``(d,)`` (a fresh array;
         all 0 with fewer than two touching) and whether the grasp updated the belief."""
         touched = np.asarray(touched, dtype=bool).reshape(-1)
-        contacts = self._support_frame(contacts)
+        contacts = self._support_frame(contacts)  # from here on in the support frame: rows(..., support_z=0.0)
         if self._touch is None:
             if (self._scorer is not None and self.compiled and np.count_nonzero(touched) == touched.size
                     and (self.kind == "bc-np" or self.updater.n_grasps > 0)):  # BC-IP: its prior from the classifier
@@ -322,7 +322,8 @@ class Belief:
             return list(q[valid][:, None, :]), full[valid]
         rows, scored = [], []
         for i in range(len(contacts)):
-            _, Q = self.rows(contacts[i], None if normals is None else normals[i], touched[i], support_z=0.0)
+            _, Q = self.rows(contacts[i], None if normals is None else normals[i], touched[i],
+                             support_z=0.0)  # contacts: already in the support frame
             if Q is not None:
                 rows.append(Q)
                 scored.append(i)

@@ -165,7 +165,7 @@ def test_the_allegro_physics_turns_with_the_object():
 def test_neighbours_draw_one_of_the_nearest_records(two_objects):
     be = make_backend("replay", hand="generic", approaches=12, pool_seed=3, neighbours=3, progress=False)
     be.set_object(two_objects["mug"])
-    tree, C, _, _ = be._tables["mug", two_objects["mug"].mesh_hash]
+    tree, C, _, _ = be.records(two_objects["mug"])
     a = np.tile(np.array([0.2, -0.3, 0.5, 0.1], np.float32), (64, 1))
     got = be.grasp_batch(a, np.random.default_rng(0))
     _, near = tree.query(approach_embedding(a[:1].astype(np.float64)), k=3)

@@ -128,6 +128,17 @@ class ReplayBackend:
             self._tables[obj.name, obj.mesh_hash] = (cKDTree(approach_embedding(actions)), pool.contacts[k],
                                                       pool.normals[k], pool.touched[k])
 
+    def records(self, obj) -> tuple:
+        """The recorded grasps of ``obj`` (recorded first if need be), in the object's frame at the identity pose:
+        ``(tree, contacts (A, n, 3), normals (A, n, 3), touched (A, n))``, ``tree`` the k-d tree of the recorded
+        approaches' :func:`approach_embedding` (row ``i`` is approach ``i`` of the pool)."""
+        from haptic_env.objects import ObjectSet
+
+        key = (obj.name, obj.mesh_hash)
+        if key not in self._tables:
+            self.prepare(ObjectSet(f"replay-{obj.name}", [obj]))
+        return self._tables[key]
+
     def set_object(self, obj, pose: np.ndarray | None = None) -> None:
         from haptic_env.objects import ObjectSet
 
