@@ -19,11 +19,14 @@ with ``--split validation``, ``1000 + s`` with ``--split test``). Per grasp the 
 
 both plus the touch pattern's log-likelihood weighted as in the hand's env (``touch_weight``; the Allegro's is 0).
 
+With ``--heights`` the grasp vectors carry the contacts' heights above the table, and the settings are the hand's
+``Heights`` env's (``hand_experiment.py --heights``).
+
 Scale 1 is the registered env's belief; the script checks that its replay reproduces the hand table's updaters
 exactly there (the same stops and predictions), before it reports anything.
 
     python benchmarks/stop_frontier.py [--hands allegro] [--split validation] [--seeds 0 1 2] [--queries 10]
-        [--scales 0.5 0.7 1 1.4 2 3 4 6] [--out docs/results/stop_frontier]
+        [--scales 0.5 0.7 1 1.4 2 3 4 6] [--heights] [--out docs/results/stop_frontier]
 
 Writes ``frontier.md`` and ``frontier.png`` under ``--out``; the headline is printed last.
 """
@@ -43,6 +46,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.hand_experiment import (PAPER, SETUPS, env_config, query_pools, run_query, training_config,  # noqa: E402
                                         write_table)
 from haptic_env.config import HAND_APPROACHES  # noqa: E402
+from haptic_env.grasping.base import support_height  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 from haptic_env.recognizers import build_recognizer, models_for  # noqa: E402
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD  # noqa: E402
@@ -66,7 +70,7 @@ def grasp_scores(rec, C, N, T, normals: bool, z: int | None, touch_weight: float
     for g in range(G):
         if T[g].sum() < 3:
             continue
-        Q = subset_vectors(C[g], N[g] if normals else None, z, touched=T[g])
+        Q = subset_vectors(C[g], N[g] if normals else None, z, touched=T[g], heights=rec.heights)
         if len(Q) == 0:
             continue
         w = 1.0 if z is None else subset_weight(len(Q), subset_k)
@@ -113,6 +117,8 @@ def main(argv=None) -> int:
     ap.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD, help="certainty threshold lambda")
     ap.add_argument("--scales", type=float, nargs="+", default=[0.5, 0.7, 1.0, 1.4, 2.0, 3.0, 4.0, 6.0, 10.0],
                     help="multipliers of the calibrated per-grasp log-likelihood (1: the env's belief)")
+    ap.add_argument("--heights", action="store_true",
+                    help="grasp vectors with the contacts' heights above the table (the hands' Heights envs)")
     ap.add_argument("--out", type=Path, default=None, help="write frontier.md and frontier.png here")
     args = ap.parse_args(argv)
     bad = [s for s in args.scales if not (np.isfinite(s) and s > 0)]
@@ -129,14 +135,16 @@ def main(argv=None) -> int:
     objects = load_object_set("ycb10")
     t0 = time.perf_counter()
     results = []  # (hand, normals, method, usable, success (scales, seeds), grasps (scales, seeds))
-    cfg_args = argparse.Namespace(hand_budget="uniform")
+    cfg_args = argparse.Namespace(hand_budget="uniform", heights=args.heights)
     for hand in args.hands:
         n, normal_settings = SETUPS[hand]
         got = query_pools(objects, hand, n, args.split, args.seeds, args.queries, args.max_grasps)
         if got is None:
             continue
         pools, usable = got
-        env = env_config(hand)
+        env = env_config(hand, args.heights)
+        # the queries' contacts as the recogniser reads them: from each object's table with heights
+        lift = [np.array([0.0, 0.0, support_height(o.mesh.vertices) if args.heights else 0.0]) for o in objects]
         A = env.training_grasps or HAND_APPROACHES
         cfg = training_config("hand", hand, cfg_args, env.calibrate_grasps, A)
         for normals in normal_settings:
@@ -150,7 +158,7 @@ def main(argv=None) -> int:
                     K = pool.touched.shape[0]
                     Ls, labels, checks = [], [], []
                     for i in range(K):
-                        C = pool.contacts[i].reshape(args.queries, args.max_grasps, n, 3)
+                        C = (pool.contacts[i] - lift[i]).reshape(args.queries, args.max_grasps, n, 3)
                         N = pool.normals[i].reshape(args.queries, args.max_grasps, n, 3)
                         T = pool.touched[i].reshape(args.queries, args.max_grasps, n)
                         for q in range(args.queries):
