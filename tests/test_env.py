@@ -491,6 +491,17 @@ def test_mujoco_hand_variants_run_an_episode(env_id):
     env.close()
 
 
+def _step_alike(fast, slow, a) -> bool:
+    """Step two envs with action ``a`` and check that they agree (observation, belief, reward, end, usable); returns
+    whether the episode ended."""
+    of, rf, tf, uf, f = fast.step(a)
+    os_, rs, ts, us, s = slow.step(a)
+    np.testing.assert_allclose(of, os_, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(f["belief"], s["belief"], rtol=1e-9, atol=1e-12)
+    assert (rf, tf, uf, f["usable"]) == pytest.approx((rs, ts, us, s["usable"]))
+    return bool(tf or uf)
+
+
 @pytest.mark.parametrize("updater", ["bc-np", "bc-ip"])
 def test_compiled_scorer_path_equals_the_general_path(env_config, updater):
     """Complete grasps go through Recognizer.grasp_scorer (one compiled call): same observations, rewards, beliefs."""
@@ -502,13 +513,8 @@ def test_compiled_scorer_path_equals_the_general_path(env_config, updater):
     slow.belief_state.compiled = False  # force Belief.rows + updater.update
     rng = np.random.default_rng(0)
     for _ in range(50):
-        a = rng.uniform(-1, 1, fast.action_dim).astype(np.float32)
-        of, rf, tf, uf, f = fast.step(a)
-        os_, rs, ts, us, s = slow.step(a)
-        np.testing.assert_allclose(of, os_, rtol=0, atol=1e-6)
-        np.testing.assert_allclose(f["belief"], s["belief"], rtol=1e-9, atol=1e-12)
-        assert (rf, tf, uf, f["usable"]) == pytest.approx((rs, ts, us, s["usable"]))
-        if tf or uf:  # a certainty of exactly 1.0 ends the episode: go on in the next one
+        if _step_alike(fast, slow, rng.uniform(-1, 1, fast.action_dim).astype(np.float32)):
+            # a certainty of exactly 1.0 ends the episode: go on in the next one
             seed = int(rng.integers(1 << 30))
             fast.reset(seed=seed)
             slow.reset(seed=seed)
@@ -559,11 +565,7 @@ def test_grasp_heights_reach_the_recogniser_observation_and_belief(env_config):
     rng = np.random.default_rng(2)
     seen = 0
     for _ in range(30):
-        a = rng.uniform(-1, 1, fast.action_dim).astype(np.float32)
-        of, rf, tf, uf, f = fast.step(a)
-        os_, rs, ts, us, s = slow.step(a)
-        np.testing.assert_allclose(of, os_, rtol=0, atol=1e-6)
-        np.testing.assert_allclose(f["belief"], s["belief"], rtol=1e-9, atol=1e-12)
+        ended = _step_alike(fast, slow, rng.uniform(-1, 1, fast.action_dim).astype(np.float32))
         res = fast._last_result
         if res.touched.all():  # the observed vector ends with the contacts' heights above the table
             rows = fast.recognizer.features(res.contacts - [0, 0, fast.scene.support_z], res.normals)
@@ -571,7 +573,7 @@ def test_grasp_heights_reach_the_recogniser_observation_and_belief(env_config):
                 seen += 1
                 np.testing.assert_allclose(fast.belief_state.rows(res.contacts, res.normals, res.touched)[1], rows)
                 assert (rows[0, -4:] >= -1e-6).all()
-        if tf or uf:
+        if ended:
             seed = int(rng.integers(1 << 30))
             fast.reset(seed=seed)
             slow.reset(seed=seed)
