@@ -67,7 +67,8 @@ class Scene:
         self.target = 0
         self.pose = np.eye(4)
         self.scale = 1.0
-        #: the table top's height under the episode's object (world z, m): what a robot knows of its table
+        #: the table top's height under the episode's object (world z, m): what a robot knows of its table; computed
+        #: where the grasp vector reads it (``grasp_heights``), else 0
         self.support_z = 0.0
         self.rng: np.random.Generator | None = None  # the backend's generator this episode
 
@@ -142,7 +143,8 @@ class Scene:
         self.target, self.pose, self.scale, seed = self.draw(rng, which)
         self.rng = np.random.Generator(np.random.PCG64(seed))
         obj = self.objects[self.target]
-        self.support_z = self.support_height(self.target, self.pose, self.scale)
+        if self.config.grasp_heights:
+            self.support_z = self.support_height(self.target, self.pose, self.scale)
         if self.scale != 1.0 and getattr(self.backend, "supports_scale", False):
             # the backend scales the object as a transform: no per-episode mesh copy (nor a new ray-casting scene)
             self.backend.set_object(obj, self.pose.copy(), scale=self.scale)
