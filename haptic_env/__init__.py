@@ -2,17 +2,18 @@
 
 ``import haptic_env`` registers the environments (cheap: no torch or mujoco import):
 
-=========================  ==========================================================================
-``HapticRecog-v0``         geometric backend, default embedded object set, 4 fingers + normals, BC-NP
-``HapticRecogMuJoCo-v0``   MuJoCo backend, Allegro hand (4 fingers + normals), YCB-10 (needs shared data)
-``HapticRecogShadow-v0``   MuJoCo, Shadow hand (5 fingers, no normals), YCB-10
-``HapticRecogAero-v0``     MuJoCo, TetherIA Aero Hand Open (5 tendon-driven fingers, 7 actuators; no normals)
-``HapticRecogRobotiq-v0``  MuJoCo, Robotiq 2F-85 gripper (2 fingers: q = contact distance + normal angles)
-``HapticRecogKIT-v0``      geometric backend, KIT-8 objects (``make`` raises if the data is absent)
-``HapticRecogMuJoCoHeights-v0``  the Allegro env with the contacts' heights above the table in the grasp vector
-``HapticRecogShadowHeights-v0``  the Shadow env, likewise (``grasp_heights=True``)
-``HapticRecogAeroHeights-v0``    the Aero env, likewise
-=========================  ==========================================================================
+================================  ==================================================================================
+``HapticRecog-v0``                geometric backend, default embedded object set, 4 fingers + normals, BC-NP
+``HapticRecogMuJoCo-v0``          MuJoCo backend, Allegro hand (4 fingers + normals), YCB-10 (needs shared data)
+``HapticRecogShadow-v0``          MuJoCo, Shadow hand (5 fingers, no normals), YCB-10
+``HapticRecogAero-v0``            MuJoCo, TetherIA Aero Hand Open (5 tendon-driven fingers, 7 actuators; no normals)
+``HapticRecogRobotiq-v0``         MuJoCo, Robotiq 2F-85 gripper (2 fingers: q = contact distance + normal angles)
+``HapticRecogKIT-v0``             geometric backend, KIT-8 objects (``make`` raises if the data is absent)
+``HapticRecogMuJoCoHeights-v0``   the Allegro env with the contacts' heights above the table in the grasp vector
+``HapticRecogShadowHeights-v0``   the Shadow env, likewise (``grasp_heights=True``)
+``HapticRecogAeroHeights-v0``     the Aero env, likewise
+``HapticRecogRobotiqHeights-v0``  the Robotiq env, likewise
+================================  ==================================================================================
 
 The ``Heights`` hand envs differ from their plain ones only in the grasp vector (the paper's frame-invariant
 Phi_n plus each contact's height above the table, ``grasp_heights``) and in the belief settings chosen
@@ -51,7 +52,7 @@ ENV_VARIANTS: dict[str, dict[str, Any]] = {
 #: (env seeds 500-504, RESULTS.md "Heights above the table")
 ENV_VARIANTS.update({f"HapticRecog{hand}Heights-v0": {**ENV_VARIANTS[f"HapticRecog{hand}-v0"], "grasp_heights": True,
                                                        "touch_weight": w}
-                     for hand, w in (("MuJoCo", 1.0), ("Shadow", 0.5), ("Aero", 1.0))})
+                     for hand, w in (("MuJoCo", 1.0), ("Shadow", 0.5), ("Aero", 1.0), ("Robotiq", 1.0))})
 
 #: the native vector env (:mod:`haptic_env.vector_env`) of the geometric variants:
 #: ``gym.make_vec(id, num_envs, vectorization_mode="vector_entry_point")`` (also make_vec's default for them)

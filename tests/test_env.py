@@ -452,7 +452,8 @@ def test_training_grasps_reaches_the_dataset_config(env_config):
 
 
 HAND_ENVS = {"HapticRecogMuJoCo-v0": 4, "HapticRecogShadow-v0": 5, "HapticRecogAero-v0": 5, "HapticRecogRobotiq-v0": 2,
-             "HapticRecogMuJoCoHeights-v0": 4, "HapticRecogShadowHeights-v0": 5, "HapticRecogAeroHeights-v0": 5}
+             "HapticRecogMuJoCoHeights-v0": 4, "HapticRecogShadowHeights-v0": 5, "HapticRecogAeroHeights-v0": 5,
+             "HapticRecogRobotiqHeights-v0": 2}
 
 
 @pytest.mark.parametrize("env_id", list(HAND_ENVS))
@@ -604,7 +605,7 @@ def test_heights_hand_envs_are_the_plain_ones_with_grasp_heights():
     """The Heights hand envs change only the grasp vector (heights) and the touch weight chosen for it on validation."""
     from haptic_env import ENV_VARIANTS
 
-    for hand, w in (("MuJoCo", 1.0), ("Shadow", 0.5), ("Aero", 1.0)):
+    for hand, w in (("MuJoCo", 1.0), ("Shadow", 0.5), ("Aero", 1.0), ("Robotiq", 1.0)):
         plain, heights = ENV_VARIANTS[f"HapticRecog{hand}-v0"], ENV_VARIANTS[f"HapticRecog{hand}Heights-v0"]
         assert heights == {**plain, "grasp_heights": True, "touch_weight": w}
         assert haptic_env.variant_config(f"HapticRecog{hand}Heights-v0").grasp_heights
