@@ -51,8 +51,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from haptic_env import variant_config  # noqa: E402
 from haptic_env.config import HAND_APPROACHES, HapticRecogConfig  # noqa: E402
-from haptic_env.dataset import DatasetConfig  # noqa: E402
-from haptic_env.grasping.base import support_height  # noqa: E402
+from haptic_env.dataset import DatasetConfig, support_frame  # noqa: E402
 from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
 from haptic_env.hand_grasps import BUDGETS, hand_grasp_pool  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
@@ -135,14 +134,12 @@ def training_config(regime: str, hand: str, args, calibrate_grasps: int = 1,
     return RecognizerConfig(grasps=g, kde=KDEConfig(calibrate_grasps=calibrate_grasps, bandwidth=bandwidth))
 
 
-def evaluate(rec, pools, n: int, normals: bool, args, touch_weight: float = 0.0, objects=None) -> dict[str, dict]:
-    """label -> {success (S,), accuracy (S,), grasps (S,)} over seeds; ``touch_weight``: the BC-NP rows' weight of
-    the touch pattern (``rec.touch``; 0: off). A recogniser with heights reads each object's contacts from its table
-    (``objects``: the pools' objects, at their identity pose)."""
+def evaluate(rec, pools, objects, n: int, normals: bool, args, touch_weight: float = 0.0) -> dict[str, dict]:
+    """label -> {success (S,), accuracy (S,), grasps (S,)} over seeds of the pools of ``objects``; ``touch_weight``:
+    the BC-NP rows' weight of the touch pattern (``rec.touch``; 0: off). The queries' contacts are read as the
+    recogniser's training grasps were (:func:`~haptic_env.dataset.support_frame`: from each object's table when its
+    vectors carry heights)."""
     out = {}
-    K = pools[0].touched.shape[0]
-    lift = ([np.array([0.0, 0.0, support_height(o.mesh.vertices)]) for o in objects] if rec.heights
-            else [np.zeros(3)] * K)
     for label in args.methods:
         kind, z, k = METHODS[label]
         succ, acc, used = [], [], []
@@ -152,7 +149,8 @@ def evaluate(rec, pools, n: int, normals: bool, args, touch_weight: float = 0.0,
             w = touch_weight if kind == "bc-np" else 0.0
             res = []
             for i in range(pool.touched.shape[0]):
-                C = (pool.contacts[i] - lift[i]).reshape(args.queries, args.max_grasps, n, 3)
+                C = support_frame(pool.contacts[i], objects[i], rec.config.grasps).reshape(args.queries,
+                                                                                            args.max_grasps, n, 3)
                 N = pool.normals[i].reshape(args.queries, args.max_grasps, n, 3)
                 T = pool.touched[i].reshape(args.queries, args.max_grasps, n)
                 for q in range(args.queries):
@@ -235,7 +233,7 @@ def main(argv=None) -> int:
             for normals in normal_settings:
                 rec = build_recognizer(objects, n, normals, z_values=tuple(range(3, n)), config=cfg, touch=w > 0)
                 temps = rec.models.temperature(n)
-                res = evaluate(rec, pools, n, normals, args, w, objects)
+                res = evaluate(rec, pools, objects, n, normals, args, w)
                 for label, r in tqdm(res.items(), desc=f"{hand} {regime}", disable=True):
                     rows.append((hand, n, normals, regime, label, r, usable, temps, K, data,
                                  w if METHODS[label][0] == "bc-np" else 0.0))

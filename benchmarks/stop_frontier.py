@@ -46,7 +46,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.hand_experiment import (PAPER, SETUPS, env_config, query_pools, run_query, training_config,  # noqa: E402
                                         write_table)
 from haptic_env.config import HAND_APPROACHES  # noqa: E402
-from haptic_env.grasping.base import support_height  # noqa: E402
+from haptic_env.dataset import support_frame  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 from haptic_env.recognizers import build_recognizer, models_for  # noqa: E402
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD  # noqa: E402
@@ -143,8 +143,6 @@ def main(argv=None) -> int:
             continue
         pools, usable = got
         env = env_config(hand, args.heights)
-        # the queries' contacts as the recogniser reads them: from each object's table with heights
-        lift = [np.array([0.0, 0.0, support_height(o.mesh.vertices) if args.heights else 0.0]) for o in objects]
         A = env.training_grasps or HAND_APPROACHES
         cfg = training_config("hand", hand, cfg_args, env.calibrate_grasps, A)
         for normals in normal_settings:
@@ -158,7 +156,9 @@ def main(argv=None) -> int:
                     K = pool.touched.shape[0]
                     Ls, labels, checks = [], [], []
                     for i in range(K):
-                        C = (pool.contacts[i] - lift[i]).reshape(args.queries, args.max_grasps, n, 3)
+                        # read as the recogniser's training grasps were (from the object's table with heights)
+                        C = support_frame(pool.contacts[i], objects[i], rec.config.grasps).reshape(
+                            args.queries, args.max_grasps, n, 3)
                         N = pool.normals[i].reshape(args.queries, args.max_grasps, n, 3)
                         T = pool.touched[i].reshape(args.queries, args.max_grasps, n)
                         for q in range(args.queries):

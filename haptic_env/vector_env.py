@@ -324,9 +324,6 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
                 raise ValueError(f"config.normals=True but backend {c.backend!r} senses no contact normals")
         self.grasps[live] += 1
         q = np.zeros((len(live), self.feature_dim))
-        heights = self.config.grasp_heights
-        # the fast path's contacts in each sub-env's support frame (a Belief moves them itself)
-        scored_contacts = contacts - np.outer(self.support_z[live], [0.0, 0.0, 1.0])[:, None, :] if heights else contacts
         if self._scorer is None:  # the general path: each sub-env's Belief, exactly as the single env
             for j, i in enumerate(live):
                 bel = self._beliefs[i]
@@ -334,6 +331,9 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
                 self.probs[i] = bel.probs
                 decided[i] = bel.decided
         else:
+            heights = c.grasp_heights
+            # the contacts in each sub-env's support frame (on the general path each Belief moves them itself)
+            scored_contacts = contacts - np.outer(self.support_z[live], [0.0, 0.0, 1.0])[:, None, :] if heights else contacts
             t = touched.sum(axis=1)
             n = c.n_fingers
             full = np.flatnonzero(t == n)
