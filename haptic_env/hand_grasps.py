@@ -10,7 +10,9 @@ are then in the training distribution.
 :func:`hand_grasp_pool` returns the raw grasps of every object (contacts, normals, touched
 fingers), spread over processes (one task per chunk of approaches, all cores by default), with a
 progress bar, and cached in ``cache_dir("hand_grasps")`` keyed by the meshes, the hand and the
-settings. :func:`pool_rows` turns a pool into ``z``-finger training grasps (a random ``z``-subset
+settings. A build survives interruption: every finished chunk is saved at once (atomically, in a
+``<pool>.parts`` folder next to the pool's file), and the next call with the same settings grasps only
+the chunks that are missing; the folder is removed when the pool is saved. :func:`pool_rows` turns a pool into ``z``-finger training grasps (a random ``z``-subset
 of the touching fingers of every grasp with at least ``z``), which the dataset's ``"hand"`` source
 maps through Phi_n.
 
@@ -27,6 +29,7 @@ an object are the uniform pool's.
 from __future__ import annotations
 
 import os
+import shutil
 import time
 import warnings
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -37,10 +40,10 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from .cache import CacheError, cache_dir, config_key, load_npz, save_npz_atomic
+from .cache import CacheError, cache_dir, clean_stale_tmp, config_key, load_npz, save_npz_atomic
 
 __all__ = ["HandGraspPool", "hand_grasp_pool", "pool_actions", "pool_rows", "pool_cache_path", "hand_physics_key",
-           "CHUNK", "BUDGETS", "balanced_counts"]
+           "CHUNK", "BUDGETS", "balanced_counts", "parts_dir"]
 
 _CACHE_VERSION = "hand-grasps-v2"  # v2: the key holds the hand's physics (hand_physics_key)
 #: values of ``hand_grasp_pool(budget=...)`` (and ``DatasetConfig.hand_budget``)
@@ -160,6 +163,41 @@ def _grasp_chunk(obj, hand: str, n_fingers: int, support: str, actions: np.ndarr
     return C, N, T, time.perf_counter() - t0
 
 
+def parts_dir(path: Path) -> Path:
+    """The folder holding the finished chunks of an unfinished build of the pool cached at ``path``."""
+    return path.with_name(path.stem + ".parts")
+
+
+def _part_name(k: int, lo: int, hi: int) -> str:
+    return f"k{int(k)}-{int(lo)}-{int(hi)}.npz"
+
+
+def _load_parts(folder: Path, n_fingers: int) -> tuple[dict[tuple[int, int, int], tuple], float]:
+    """The chunks an interrupted build saved in ``folder``: ``{(k, lo, hi): (C, N, T, seconds)}``, and the wall time
+    those builds had spent when they saved their last chunk (summed over the builds). A part that cannot be read
+    (a build killed while the disk was full, ...) is dropped with a warning and grasped again."""
+    parts: dict[tuple[int, int, int], tuple] = {}
+    spent: dict[str, float] = {}
+    if not folder.is_dir():
+        return parts, 0.0
+    clean_stale_tmp(folder)
+    for f in sorted(folder.glob("k*-*-*.npz")):
+        try:
+            k, lo, hi = (int(v) for v in f.stem[1:].split("-"))
+            a = load_npz(f, ("contacts", "normals", "touched", "seconds", "build", "elapsed"))
+            if a["touched"].shape != (hi - lo, n_fingers):
+                raise CacheError(f"cache file {f} holds {a['touched'].shape[0]} grasps of {a['touched'].shape[1]} "
+                                 f"fingers, not {hi - lo} of {n_fingers}")
+        except (CacheError, ValueError) as exc:
+            warnings.warn(f"{exc}; grasping that chunk again", RuntimeWarning, stacklevel=3)
+            f.unlink(missing_ok=True)
+            continue
+        parts[k, lo, hi] = (a["contacts"], a["normals"], a["touched"].astype(bool), float(a["seconds"]))
+        build = str(a["build"])
+        spent[build] = max(spent.get(build, 0.0), float(a["elapsed"]))
+    return parts, float(sum(spent.values()))
+
+
 def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, support: str = "table", seed: int = 0,
                     budget: str = "uniform", workers: int | None = None, cache: bool = True,
                     progress: bool = True) -> HandGraspPool:
@@ -177,7 +215,9 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
 
     Object ``k``'s approaches come from ``SeedSequence([seed, k])`` and chunk ``lo`` grasps with the
     random stream ``[seed, k, lo]``, so the pool does not depend on ``workers``, and an object's first
-    approaches do not depend on its count.
+    approaches do not depend on its count. For the same reason an interrupted build (``cache=True``) resumes from
+    its saved chunks (:func:`parts_dir`) and gives the pool an uninterrupted one gives; ``seconds`` then sums the
+    builds' wall times up to their last saved chunk.
     """
     if not isinstance(hand, str):
         raise TypeError(f"hand must be a hand name or an MJCF path (a cache key), got {type(hand).__name__}")
@@ -201,8 +241,14 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
     first = min(CHUNK, int(approaches))
     results: dict[tuple[int, int], tuple] = {}
     workers = min(K * -(-int(approaches) // CHUNK), int(workers or os.cpu_count() or 1))
+    parts = parts_dir(path) if path is not None else None
+    saved, spent = _load_parts(parts, n_fingers) if parts is not None else ({}, 0.0)
+    build = f"{os.getpid()}-{time.time_ns()}"  # this build's id in its saved chunks
     t0 = time.perf_counter()
     bar = tqdm(total=K * approaches, desc=f"{hand} grasps", unit="grasp", disable=not progress, smoothing=0.1)
+    if saved:
+        bar.write(f"{hand} grasps: resuming an interrupted build, {sum(len(r[0]) for r in saved.values())} grasps "
+                  f"saved in {parts}")
 
     def args(k, lo, hi):  # object k's approach stream, whatever its length, starts the same
         actions = pool_actions(seed, k, hi)[lo:]
@@ -223,14 +269,30 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
         bar.refresh()
         yield chunks(counts, start=first)
 
-    def put(k, lo, res):
+    def put(k, lo, hi, res, save=True):
         results[k, lo] = res
+        if save and parts is not None:  # saved at once: an interrupted build resumes from here
+            c, n, t, sec = res
+            try:
+                save_npz_atomic(parts / _part_name(k, lo, hi), contacts=c, normals=n, touched=t,
+                                seconds=np.array(sec), build=np.array(build),
+                                elapsed=np.array(time.perf_counter() - t0))
+            except OSError as exc:  # only a resume aid (another build of the same pool may have just finished)
+                warnings.warn(f"could not save a finished chunk in {parts} ({exc}); an interrupted build would grasp "
+                              "it again", RuntimeWarning, stacklevel=2)
         bar.update(len(res[0]))
+
+    def todo(tasks):
+        """The tasks not saved by an earlier build (those are put from their saved chunks)."""
+        for k, lo, hi in tasks:
+            if (k, lo, hi) in saved:
+                put(k, lo, hi, saved[k, lo, hi], save=False)
+        return [t for t in tasks if t not in saved]
 
     if workers <= 1:
         for tasks in phases():
-            for k, lo, hi in tasks:
-                put(k, lo, _grasp_chunk(*args(k, lo, hi)))
+            for k, lo, hi in todo(tasks):
+                put(k, lo, hi, _grasp_chunk(*args(k, lo, hi)))
     else:
         # fork (Linux): workers need not re-import the caller's script, which "spawn" does (a script without a
         # __main__ guard would then run again in every worker); the workers use MuJoCo and numpy only.
@@ -244,11 +306,11 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
         ctx = get_context("fork" if "fork" in get_all_start_methods() else "spawn")
         with ProcessPoolExecutor(workers, mp_context=ctx) as ex:
             for tasks in phases():
-                futs = {ex.submit(_grasp_chunk, *args(k, lo, hi)): (k, lo) for k, lo, hi in tasks}
+                futs = {ex.submit(_grasp_chunk, *args(k, lo, hi)): (k, lo, hi) for k, lo, hi in todo(tasks)}
                 for f in as_completed(futs):
                     put(*futs[f], f.result())
     bar.close()
-    seconds = time.perf_counter() - t0
+    seconds = spent + time.perf_counter() - t0
     counts = np.array([sum(len(r[0]) for (j, _), r in results.items() if j == k) for k in range(K)])
     A = int(counts.max())
     C = np.zeros((K, A, n_fingers, 3))
@@ -262,6 +324,7 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
         extra = {} if counts is None else {"counts": counts}
         save_npz_atomic(path, contacts=C, normals=N, touched=T, names=np.array(objects.names, dtype=str),
                         seconds=np.array(seconds), **extra)
+        shutil.rmtree(parts, ignore_errors=True)
     return pool
 
 

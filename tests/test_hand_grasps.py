@@ -95,6 +95,42 @@ def test_balanced_pool_keeps_each_objects_first_approaches(two_objects, monkeypa
         DatasetConfig(source="hand", hand="generic", hand_budget="greedy")
 
 
+def test_interrupted_pool_build_resumes_from_its_saved_chunks(two_objects, monkeypatch):
+    """A build killed part-way keeps its finished chunks; the next call grasps only the missing ones and gives the
+    uninterrupted pool; the chunks' folder is removed once the pool is saved, and an unreadable chunk is regrasped."""
+    import haptic_env.hand_grasps as hg
+
+    monkeypatch.setattr(hg, "CHUNK", 4)  # 2 objects x 12 approaches: 6 chunks
+    real = hg._grasp_chunk
+    calls = []
+
+    def interrupted(*a):
+        if len(calls) == 3:
+            raise KeyboardInterrupt  # Ctrl-C during the fourth chunk
+        calls.append(a[-1])
+        return real(*a)
+
+    monkeypatch.setattr(hg, "_grasp_chunk", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        hand_grasp_pool(two_objects, "generic", 3, 12, seed=7, workers=1, progress=False)
+    path = hg.pool_cache_path(two_objects, "generic", 3, 12, "table", 7)
+    parts = hg.parts_dir(path)
+    assert not path.exists() and len(list(parts.glob("*.npz"))) == 3
+    (parts / sorted(p.name for p in parts.glob("*.npz"))[0]).write_bytes(b"not an npz")  # a damaged chunk
+
+    calls.clear()
+    monkeypatch.setattr(hg, "_grasp_chunk", lambda *a: calls.append(a[-1]) or real(*a))
+    with pytest.warns(RuntimeWarning, match="grasping that chunk again"):
+        resumed = hand_grasp_pool(two_objects, "generic", 3, 12, seed=7, workers=1, progress=False)
+    assert len(calls) == 4  # the 3 chunks never saved and the damaged one
+    assert path.exists() and not parts.exists() and not resumed.from_cache
+    whole = hand_grasp_pool(two_objects, "generic", 3, 12, seed=7, workers=1, cache=False, progress=False)
+    np.testing.assert_array_equal(resumed.touched, whole.touched)
+    np.testing.assert_allclose(resumed.contacts, whole.contacts, atol=1e-9)
+    np.testing.assert_allclose(resumed.normals, whole.normals, atol=1e-9)
+    assert resumed.seconds > 0
+
+
 def test_heights_information_benchmark_features(load_benchmark):
     """benchmarks/heights_information.py: its three feature sets of a pool, from the same grasps (synthetic pool)."""
     from haptic_env.grasp_features import feature_dim
