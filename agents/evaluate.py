@@ -23,6 +23,11 @@ Outputs in ``--out``: ``results.md`` (markdown tables), ``results.json``, ``epis
 object predicted at the stop against the true one, each row normalised; the most common errors are listed in
 ``results.md``) and, with ``--learning-curves``, ``learning_curves.png``.
 
+An interrupted evaluation resumes: the command saves every finished block of episodes (one agent on one env seed)
+in ``<out>/.partial/`` at once, and the same command run again evaluates only the missing blocks (each block resets
+the env and the agent with its seed, so its episodes are the same either way); the folder is removed once the
+report is written.
+
 Command line (a sub-command of ``python -m haptic_env.cli``)::
 
     python -m haptic_env.cli evaluate --agents random greedy ppo=runs/ppo/ppo_final.zip \\
@@ -33,6 +38,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
 import time
 import warnings
 from dataclasses import asdict, dataclass
@@ -110,18 +116,51 @@ def run_episodes(agent, make_env: Callable[[], Any], n_episodes: int, seed: int,
 
 
 def evaluate_agents(agents: Sequence[Any], make_env: Callable[[], Any], n_episodes: int,
-                    seeds: Iterable[int], progress: bool = True) -> list[EpisodeRecord]:
-    """Every agent x every seed x ``n_episodes`` episodes (tqdm progress)."""
+                    seeds: Iterable[int], progress: bool = True, store: str | Path | None = None,
+                    keys: Sequence[str] | None = None) -> list[EpisodeRecord]:
+    """Every agent x every seed x ``n_episodes`` episodes (tqdm progress).
+
+    With ``store`` (a folder) every finished block (one agent on one seed) is saved there at once, as
+    ``<key>-seed<s>.json``, and blocks already saved there are read instead of run, so that an interrupted
+    evaluation resumes. ``keys[i]`` names agent ``i``'s blocks: it must change whenever what the agent does or the
+    env it runs in changes (:func:`_main` hashes the command's arguments and model files into it)."""
     from tqdm.auto import tqdm
 
     seeds = list(seeds)
+    if store is not None and (keys is None or len(keys) != len(agents)):
+        raise ValueError(f"store needs one key per agent ({len(agents)}), got {keys!r}")
     out: list[EpisodeRecord] = []
     with tqdm(total=len(agents) * len(seeds) * n_episodes, desc="evaluate", disable=not progress) as bar:
-        for agent in agents:
+        for i, agent in enumerate(agents):
             for s in seeds:
+                block = None if store is None else Path(store) / f"{keys[i]}-seed{int(s)}.json"
+                saved = _read_block(block, n_episodes) if block is not None else None
+                if saved is not None:
+                    out += saved
+                    bar.update(len(saved))
+                    continue
                 bar.set_postfix_str(f"{agent.name} seed={s}")
-                out += run_episodes(agent, make_env, n_episodes, s, progress=bar.update)
+                recs = run_episodes(agent, make_env, n_episodes, s, progress=bar.update)
+                if block is not None:
+                    from haptic_env.cache import atomic_write
+
+                    with atomic_write(block, "w") as fh:
+                        json.dump([asdict(r) for r in recs], fh)
+                out += recs
     return out
+
+
+def _read_block(path: Path, n_episodes: int) -> list[EpisodeRecord] | None:
+    """A saved block's records, or None (not saved, or unreadable: then it is run again)."""
+    if not path.is_file():
+        return None
+    try:
+        recs = [EpisodeRecord(**r) for r in json.loads(path.read_text())]
+    except (ValueError, TypeError, OSError) as exc:
+        warnings.warn(f"cannot read the saved episodes {path} ({exc}); running them again", RuntimeWarning,
+                      stacklevel=3)
+        return None
+    return recs if len(recs) == n_episodes else None
 
 
 # ------------------------------------------------------------------------------------ stats
@@ -531,6 +570,20 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False):
     raise ValueError(f"unknown agent spec {spec!r}; use random, greedy[-env][-blind][:M[:S]] or NAME=path/to/model.zip")
 
 
+def _block_key(spec: str, args, kwargs: dict) -> str:
+    """What one agent's saved blocks of ``evaluate`` depend on: the agent spec (with its model file's bytes), the env
+    and its overrides, the episodes per seed and ``--stochastic``."""
+    import hashlib
+
+    from haptic_env.cache import config_key
+
+    path = spec.partition("=")[2] if "=" in spec else (spec if spec.endswith(".zip") else "")
+    model = hashlib.sha256(Path(path).read_bytes()).hexdigest() if path else ""
+    name = spec.partition("=")[0] if "=" in spec else Path(spec).stem
+    safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in name)[:40]
+    return f"{safe}-" + config_key(spec, model, args.env_id, kwargs, int(args.episodes), bool(args.stochastic))
+
+
 def add_parser(subparsers) -> None:
     from haptic_env import ENV_VARIANTS
     from haptic_env.cli import int_in, json_object
@@ -583,10 +636,16 @@ def _main(args) -> int:
             raise UsageError(f"--agents: {exc}") from exc
     make_env = lambda: haptic_env.make(env_id=args.env_id, **kwargs)  # noqa: E731  (overrides the variant's fields)
     t0 = time.time()
-    records = evaluate_agents(agents, make_env, args.episodes, args.seeds)
+    store = out / ".partial"
+    keys = [_block_key(spec, args, kwargs) for spec in args.agents]
+    resumed = sum((store / f"{k}-seed{s}.json").is_file() for k in keys for s in args.seeds)
+    records = evaluate_agents(agents, make_env, args.episodes, args.seeds, store=store, keys=keys)
+    note = f" (resumed: {resumed} of {len(keys) * len(args.seeds)} agent-seed blocks read from an interrupted run)" \
+        if resumed else ""
     paths = write_report(records, args.out, config.max_grasps,
                          extra=f"env `{args.env_id}`, config overrides `{kwargs}`; {args.episodes} episodes x seeds "
-                               f"{args.seeds}; {time.time() - t0:.0f} s.")
+                               f"{args.seeds}; {time.time() - t0:.0f} s{note}.")
+    shutil.rmtree(store, ignore_errors=True)
     if curves:
         plot_learning_curves(curves, Path(args.out) / "learning_curves.png")
     print(paths["md"].read_text())

@@ -30,6 +30,36 @@ def test_random_and_greedy_complete_episodes(env_config):
     assert objs["random"] == objs["greedy"]
 
 
+def test_interrupted_evaluation_resumes_from_its_saved_blocks(env_config, tmp_path):
+    """evaluate_agents(store=...) saves each finished (agent, seed) block; after an interruption the same call runs
+    only the missing blocks and returns what an uninterrupted evaluation returns (greedy included: its candidates
+    are seeded per block). An unreadable block is run again."""
+    cfg = env_config.replace(max_grasps=8)
+    made = []
+
+    def make():
+        if len(made) == 3:
+            raise KeyboardInterrupt  # Ctrl-C when the fourth block starts
+        made.append(1)
+        return haptic_env.make(cfg)
+
+    agents = lambda: [RandomAgent(), GreedyInfoGainAgent(n_candidates=4)]  # noqa: E731
+    store, keys = tmp_path / ".partial", ["random-k", "greedy-k"]
+    with pytest.raises(KeyboardInterrupt):
+        evaluate_agents(agents(), make, 2, seeds=[0, 1], progress=False, store=store, keys=keys)
+    assert sorted(p.name for p in store.iterdir()) == ["greedy-k-seed0.json", "random-k-seed0.json",
+                                                       "random-k-seed1.json"]
+    (store / "random-k-seed1.json").write_text("{not json")
+    made.clear()
+    with pytest.warns(RuntimeWarning, match="running them again"):
+        resumed = evaluate_agents(agents(), make, 2, seeds=[0, 1], progress=False, store=store, keys=keys)
+    assert len(made) == 2  # random seed 1 (unreadable) and greedy seed 1
+    whole = evaluate_agents(agents(), lambda: haptic_env.make(cfg), 2, seeds=[0, 1], progress=False)
+    assert resumed == whole
+    with pytest.raises(ValueError, match="one key per agent"):
+        evaluate_agents(agents(), make, 2, seeds=[0], progress=False, store=store, keys=["a"])
+
+
 def test_agent_seed_gives_distinct_runs_on_the_same_episodes(env_config):
     """run_episodes: without agent_seed the agent's numbers follow the env seed (agents share them); with it,
     two agent seeds act differently on the same objects and poses, and one agent seed repeats exactly."""
