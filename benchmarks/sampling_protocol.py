@@ -10,7 +10,13 @@ explains it: the same kNN (``k`` = 1, 15, 50 on standardised grasp vectors) on k
   centres (the paper's protocol).
 
 Training ``--grasps`` per object (seed 1), ``--test-grasps`` fresh ones per object (seed 2), ``n`` fingers with or
-without normals. Needs the shared data (kit/) and ``pip install -e ".[bench]"`` (fast-simplification).
+without normals.
+
+At ``n = 3`` two more rows use the authors' public code's grasp vector on the paper's protocol (decimated meshes,
+face centres): its ``sample_grasp`` sorts the chosen face indices, and its ``parameterize_grasp`` takes the
+triangle from its longest edge in that cyclic order and appends the normals' angles in that index order, so the
+vector depends on the mesh's face order, which this project's Phi_n does not. The rows compare the face order
+("their order") with a random one (shuffled): a difference would be information that a real hand does not have. Needs the shared data (kit/) and ``pip install -e ".[bench]"`` (fast-simplification).
 
     python benchmarks/sampling_protocol.py [--fingers 3] [--no-normals] [--grasps 20000] [--faces 800]
 """
@@ -83,11 +89,67 @@ def main(argv=None) -> int:
             best[mesh_label, label] = max(accs)
             print(f"| {mesh_label} | {label} | " + " | ".join(f"{100 * a:.1f} %" for a in accs)
                   + f" |  <!-- {time.perf_counter() - t0:.0f} s -->", flush=True)
+    if args.fingers == 3:
+        for order in ("their order (sorted face indices)", "shuffled"):
+            t0 = time.perf_counter()
+            Xtr, ytr = authors_data(decimated, args.grasps, 1, sort=order != "shuffled", normals=normals)
+            Xte, yte = authors_data(decimated, args.test_grasps, 2, sort=order != "shuffled", normals=normals)
+            mu, sd = Xtr.mean(0), Xtr.std(0) + 1e-12
+            accs = [(KNeighborsClassifier(k).fit((Xtr - mu) / sd, ytr).predict((Xte - mu) / sd) == yte).mean()
+                    for k in (1, 15, 50)]
+            print(f"| decimated ({args.faces} faces) | centres of uniform faces, the authors' vector, {order} | "
+                  + " | ".join(f"{100 * a:.1f} %" for a in accs) + f" |  <!-- {time.perf_counter() - t0:.0f} s -->",
+                  flush=True)
     ours = best["full (about 25,000 faces)", "area-uniform points"]
     paper = best[f"decimated ({args.faces} faces)", "centres of uniform faces"]
     print(f"\nthe paper's sampling, best k: {100 * paper:.1f} % against this project's {100 * ours:.1f} % "
           f"({100 * (paper - ours):+.1f} points)")
     return 0
+
+
+def authors_n3(X: np.ndarray, N: np.ndarray | None) -> np.ndarray:
+    """The authors' public ``parameterize_grasp`` for 3 fingers, vectorised: ``X, N (B, 3, 3)`` in their order ->
+    ``(B, 3)`` (two angles and the longest edge) or ``(B, 9)`` with the six normal angles in the input order.
+
+    The triangle starts at the longest edge in the input's cyclic order; the normals are measured against the
+    triangle's normal (``(v1 - v0) x (v2 - v0) / (|v1 - v0| |v2 - v0|)``, not unit length, as in their code) and
+    the unit longest edge, for the contacts in their input order."""
+    B = len(X)
+    D = np.linalg.norm(X - np.roll(X, -1, axis=1), axis=2)  # |v0 v1|, |v1 v2|, |v2 v0|
+    i = np.argmax(D, axis=1)
+    Xr = X[np.arange(B)[:, None], (np.arange(3)[None] + i[:, None]) % 3]
+
+    def angle(a, b):
+        c = (a * b).sum(-1) / (np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1) + 1e-300)
+        return np.arccos(np.clip(c, -1.0, 1.0))
+
+    e01, e02 = Xr[:, 1] - Xr[:, 0], Xr[:, 2] - Xr[:, 0]
+    q = [angle(e02, e01), angle(Xr[:, 0] - Xr[:, 1], Xr[:, 2] - Xr[:, 1]), np.linalg.norm(e01, axis=1)]
+    if N is not None:
+        tri = np.cross(e01, e02) / (np.linalg.norm(e01, axis=1) * np.linalg.norm(e02, axis=1) + 1e-300)[:, None]
+        edge = e01 / (np.linalg.norm(e01, axis=1)[:, None] + 1e-300)
+        for j in range(3):
+            q += [np.arccos(np.clip((tri * N[:, j]).sum(-1), -1, 1)), np.arccos(np.clip((edge * N[:, j]).sum(-1), -1, 1))]
+    return np.stack(q, axis=1)
+
+
+def authors_data(objs, count: int, seed: int, *, sort: bool, normals: bool) -> tuple[np.ndarray, np.ndarray]:
+    """``count`` 3-finger grasps per object sampled as the authors' code does (3 distinct uniformly chosen faces, their
+    centres and inward normals; indices sorted when ``sort``, else in random order) through :func:`authors_n3`."""
+    rng = np.random.default_rng(seed)
+    X, y = [], []
+    for k, obj in enumerate(objs):
+        F = len(obj.mesh.faces)
+        idx = rng.integers(0, F, size=(count, 3))
+        while (bad := (idx[:, 0] == idx[:, 1]) | (idx[:, 1] == idx[:, 2]) | (idx[:, 0] == idx[:, 2])).any():
+            idx[bad] = rng.integers(0, F, size=(int(bad.sum()), 3))
+        if sort:
+            idx = np.sort(idx, axis=1)
+        C = np.asarray(obj.mesh.triangles_center)[idx]
+        Nn = -np.asarray(obj.mesh.face_normals)[idx] if normals else None
+        X.append(authors_n3(C, Nn))
+        y.append(np.full(count, k))
+    return np.concatenate(X), np.concatenate(y)
 
 
 if __name__ == "__main__":
