@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 
@@ -79,3 +80,32 @@ def test_sampling_protocol_rejects_bad_values_first(load_benchmark):
     for bad in (["--fingers", "2"], ["--grasps", "10"], ["--faces", "4"]):
         with pytest.raises(SystemExit):
             protocol.main(bad)
+
+
+def test_sampling_protocol_authors_vector(load_benchmark):
+    """The authors' 3-finger vector (benchmarks/sampling_protocol.py): their code's arithmetic, grasp by grasp; rigid
+    invariant; it starts at the longest edge, so a cyclic shift of the contacts leaves it unchanged, but it depends
+    on their order otherwise (reversed: the two angles swap), and its normal angles follow the input order."""
+    sp = load_benchmark("sampling_protocol")
+    rng = np.random.default_rng(0)
+    X = rng.normal(size=(40, 3, 3))
+    N = rng.normal(size=(40, 3, 3))
+    N /= np.linalg.norm(N, axis=2, keepdims=True)
+    q = sp.authors_n3(X, N)
+    assert q.shape == (40, 9) and sp.authors_n3(X, None).shape == (40, 3)
+    for x, nn, row in zip(X[:5], N[:5], q[:5]):  # their parameterize_grasp for n = 3, written out for one grasp
+        D = [np.linalg.norm(x[0] - x[1]), np.linalg.norm(x[1] - x[2]), np.linalg.norm(x[2] - x[0])]
+        i = int(np.argmax(D))
+        t = np.roll(x, -i, axis=0)
+        a0 = np.arccos(np.dot(t[2] - t[0], t[1] - t[0]) / (np.linalg.norm(t[2] - t[0]) * np.linalg.norm(t[1] - t[0])))
+        a1 = np.arccos(np.dot(t[0] - t[1], t[2] - t[1]) / (np.linalg.norm(t[0] - t[1]) * np.linalg.norm(t[2] - t[1])))
+        v1, v2 = t[1] - t[0], t[2] - t[0]
+        tri, edge = np.cross(v1, v2) / (np.linalg.norm(v1) * np.linalg.norm(v2)), v1 / np.linalg.norm(v1)
+        ang = [f(v) for v in nn for f in (lambda v: np.arccos(tri @ v), lambda v: np.arccos(edge @ v))]
+        np.testing.assert_allclose(row, [a0, a1, D[i], *ang], atol=1e-12)
+    R = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    R *= np.sign(np.linalg.det(R))  # a rotation (a reflection would flip the triangle's normal)
+    np.testing.assert_allclose(sp.authors_n3(X @ R.T + 5.0, N @ R.T), q, atol=1e-9)
+    np.testing.assert_allclose(sp.authors_n3(np.roll(X, 1, axis=1), np.roll(N, 1, axis=1))[:, :3], q[:, :3], atol=1e-12)
+    rev = sp.authors_n3(X[:, ::-1], N[:, ::-1])
+    np.testing.assert_allclose(rev[:, [1, 0, 2]], q[:, :3], atol=1e-12)
