@@ -12,9 +12,9 @@ fingers), spread over processes (one task per chunk of approaches, all cores by 
 progress bar, and cached in ``cache_dir("hand_grasps")`` keyed by the meshes, the hand and the
 settings. A build survives interruption: every finished chunk is saved at once (atomically, in a
 ``<pool>.parts`` folder next to the pool's file), and the next call with the same settings grasps only
-the chunks that are missing; the folder is removed when the pool is saved. :func:`pool_rows` turns a pool into ``z``-finger training grasps (a random ``z``-subset
-of the touching fingers of every grasp with at least ``z``), which the dataset's ``"hand"`` source
-maps through Phi_n.
+the chunks that are missing; the folder is removed when the pool is saved. :func:`pool_rows` turns a
+pool into ``z``-finger training grasps (a random ``z``-subset of the touching fingers of every grasp
+with at least ``z``), which the dataset's ``"hand"`` source maps through Phi_n.
 
 Budgets. ``budget="uniform"`` gives every object the same number of approaches. The Aero hand completes a
 grasp (every finger touching) on nearly every approach to an apple but on 4 % of those to a plate lying on the
@@ -28,6 +28,7 @@ an object are the uniform pool's.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import time
@@ -188,9 +189,12 @@ def _load_parts(folder: Path, n_fingers: int) -> tuple[dict[tuple[int, int, int]
             if a["touched"].shape != (hi - lo, n_fingers):
                 raise CacheError(f"cache file {f} holds {a['touched'].shape[0]} grasps of {a['touched'].shape[1]} "
                                  f"fingers, not {hi - lo} of {n_fingers}")
+        except FileNotFoundError:  # another build of the same pool finished and removed the folder meanwhile
+            continue
         except (CacheError, ValueError) as exc:
             warnings.warn(f"{exc}; grasping that chunk again", RuntimeWarning, stacklevel=3)
-            f.unlink(missing_ok=True)
+            with contextlib.suppress(OSError):
+                f.unlink()
             continue
         parts[k, lo, hi] = (a["contacts"], a["normals"], a["touched"].astype(bool), float(a["seconds"]))
         build = str(a["build"])
