@@ -16,7 +16,9 @@ At ``n = 3`` two more rows use the authors' public code's grasp vector on the pa
 face centres): its ``sample_grasp`` sorts the chosen face indices, and its ``parameterize_grasp`` takes the
 triangle from its longest edge in that cyclic order and appends the normals' angles in that index order, so the
 vector depends on the mesh's face order, which this project's Phi_n does not. The rows compare the face order
-("their order") with a random one (shuffled): a difference would be information that a real hand does not have. Needs the shared data (kit/) and ``pip install -e ".[bench]"`` (fast-simplification).
+("their order") with a random one (shuffled): a difference would be information that a real hand does not have.
+
+Needs the shared data (kit/) and ``pip install -e ".[bench]"`` (fast-simplification).
 
     python benchmarks/sampling_protocol.py [--fingers 3] [--no-normals] [--grasps 20000] [--faces 800]
 """
