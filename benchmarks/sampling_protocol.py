@@ -131,7 +131,7 @@ def authors_n3(X: np.ndarray, N: np.ndarray | None) -> np.ndarray:
         tri = np.cross(e01, e02) / (np.linalg.norm(e01, axis=1) * np.linalg.norm(e02, axis=1) + 1e-300)[:, None]
         edge = e01 / (np.linalg.norm(e01, axis=1)[:, None] + 1e-300)
         for j in range(3):
-            q += [np.arccos(np.clip((tri * N[:, j]).sum(-1), -1, 1)), np.arccos(np.clip((edge * N[:, j]).sum(-1), -1, 1))]
+            q += [np.arccos(np.clip((ref * N[:, j]).sum(-1), -1, 1)) for ref in (tri, edge)]
     return np.stack(q, axis=1)
 
 
