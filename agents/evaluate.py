@@ -133,7 +133,7 @@ def evaluate_agents(agents: Sequence[Any], make_env: Callable[[], Any], n_episod
     with tqdm(total=len(agents) * len(seeds) * n_episodes, desc="evaluate", disable=not progress) as bar:
         for i, agent in enumerate(agents):
             for s in seeds:
-                block = None if store is None else Path(store) / f"{keys[i]}-seed{int(s)}.json"
+                block = None if store is None else _block_path(store, keys[i], s)
                 saved = _read_block(block, n_episodes) if block is not None else None
                 if saved is not None:
                     out += saved
@@ -148,6 +148,11 @@ def evaluate_agents(agents: Sequence[Any], make_env: Callable[[], Any], n_episod
                         json.dump([asdict(r) for r in recs], fh)
                 out += recs
     return out
+
+
+def _block_path(store: str | Path, key: str, seed: int) -> Path:
+    """Where :func:`evaluate_agents` saves the block of the agent keyed ``key`` on env seed ``seed``."""
+    return Path(store) / f"{key}-seed{int(seed)}.json"
 
 
 def _read_block(path: Path, n_episodes: int) -> list[EpisodeRecord] | None:
@@ -638,7 +643,7 @@ def _main(args) -> int:
     t0 = time.time()
     store = out / ".partial"
     keys = [_block_key(spec, args, kwargs) for spec in args.agents]
-    resumed = sum((store / f"{k}-seed{s}.json").is_file() for k in keys for s in args.seeds)
+    resumed = sum(_block_path(store, k, s).is_file() for k in keys for s in args.seeds)
     records = evaluate_agents(agents, make_env, args.episodes, args.seeds, store=store, keys=keys)
     note = f" (resumed: {resumed} of {len(keys) * len(args.seeds)} agent-seed blocks read from an interrupted run)" \
         if resumed else ""
