@@ -20,7 +20,8 @@ public API:
 
 Which grasps update the belief: a grasp with all ``n`` fingers touching, scored by the ``n``-finger model; with
 ``z_fingers`` also an incomplete grasp of ``t >= z`` touching fingers, by the ``t``-finger model; with
-``score_subsets`` every grasp of ``t >= z`` touching fingers through its ``z``-subsets by the ``z``-finger model.
+``score_subsets`` every grasp of ``t >= z`` touching fingers through its ``z``-subsets by the ``z``-finger model,
+and with ``min_fingers = m`` also one of ``m <= t < z``, by the ``t``-finger model.
 The ``C(t, z)`` subsets of one grasp share its contacts, so a Bayesian belief counts them as at most ``subset_k``
 (the paper's Algorithm 4 scores ``k = 4`` random subsets): their summed log-likelihood is multiplied by
 ``min(1, subset_k / C(t, z))``, the expected sum of ``subset_k`` random ones, without the draw (``None``: the plain
@@ -69,7 +70,8 @@ def get_recognizer(objects, config: HapticRecogConfig):
     from haptic_env.cache import config_key
     from haptic_env.config import recognizer_kwargs
 
-    z_values = tuple(range(config.z_fingers, config.n_fingers)) if config.z_fingers is not None else ()
+    lowest = config.z_fingers if config.min_fingers is None else config.min_fingers
+    z_values = tuple(range(lowest, config.n_fingers)) if lowest is not None else ()
     kwargs = recognizer_kwargs(config)  # torch: imported on first use only
     from haptic_env.recognizers import build_recognizer, models_for
 
@@ -100,7 +102,9 @@ class Belief:
         calibrated: temperature-scaled scores (False: the paper's raw ones).
         z_fingers: also score incomplete grasps of ``t >= z_fingers`` touching fingers (the recogniser needs
             those models); None: complete grasps only.
-        score_subsets: score every grasp through its ``z_fingers``-subsets.
+        score_subsets: score every grasp of ``t >= z_fingers`` touching fingers through its ``z_fingers``-subsets.
+        min_fingers: with ``score_subsets``, also score a grasp of ``min_fingers <= t < z_fingers`` touching fingers
+            by the ``t``-finger model; None: ``z_fingers`` (such grasps carry no contact information).
         subset_k: with ``score_subsets``, the subsets a Bayesian step counts at most (see the module docstring);
             None: all of them.
         touch_weight: ``w`` of the touch-pattern log-likelihood added at every grasp
@@ -110,11 +114,14 @@ class Belief:
 
     def __init__(self, recognizer, kind: str = "bc-np", threshold: float = DEFAULT_THRESHOLD, *,
                  calibrated: bool = True, z_fingers: int | None = None, score_subsets: bool = False,
-                 touch_weight: float = 0.0, subset_k: int | None = None):
+                 touch_weight: float = 0.0, subset_k: int | None = None, min_fingers: int | None = None):
         if kind not in UPDATERS:
             raise ValueError(f"unknown updater kind {kind!r}; choose one of {UPDATERS}")
         if score_subsets and z_fingers is None:
             raise ValueError("score_subsets=True needs z_fingers (the subset size)")
+        if min_fingers is not None and not (score_subsets and 2 <= min_fingers < z_fingers):
+            raise ValueError(f"min_fingers={min_fingers!r} needs score_subsets and 2 <= min_fingers < z_fingers "
+                             f"({z_fingers!r})")
         subset_k = check_subset_k(subset_k)
         touch_weight = check_touch_weight(touch_weight)
         if touch_weight > 0 and kind != "bc-np":
@@ -132,6 +139,9 @@ class Belief:
         self._weigh_rows = kind in ("bc-np", "bc-ip") and self.score_subsets and subset_k is not None
         self.n_fingers = int(recognizer.n_fingers)
         self.n_classes = int(recognizer.n_classes)
+        #: the fewest touching fingers whose contacts are scored (``n_fingers``: complete grasps only)
+        self.min_fingers = int((self.n_fingers if z_fingers is None else z_fingers) if min_fingers is None
+                               else min_fingers)
         #: the grasp vectors carry the contacts' heights (then contacts are scored relative to ``support_z``)
         self.heights = bool(getattr(recognizer, "heights", False))
         self.feature_dim = feature_dim(self.n_fingers, recognizer.normals, heights=self.heights)
@@ -157,7 +167,8 @@ class Belief:
         rec = get_recognizer(objects, config) if recognizer is None else recognizer
         check_heights(rec, config)
         return cls(rec, config.updater, config.threshold, calibrated=config.calibrated, z_fingers=config.z_fingers,
-                   score_subsets=config.score_subsets, touch_weight=config.touch_weight, subset_k=config.subset_k)
+                   score_subsets=config.score_subsets, touch_weight=config.touch_weight, subset_k=config.subset_k,
+                   min_fingers=config.min_fingers)
 
     # ------------------------------------------------------------------------------------- state
     @property
@@ -299,8 +310,7 @@ class Belief:
         if self.score_subsets and t >= z:
             Q = self.recognizer.features(contacts, normals, touched=touched, z=z)
             return q, (Q if len(Q) else None)
-        scored = t == self.n_fingers or (z is not None and t >= z)
-        return q, (Q if scored and len(Q) else None)
+        return q, (Q if t >= self.min_fingers and len(Q) else None)
 
     def rows_batch(self, contacts, normals, touched, *,
                    support_z: float | None = None) -> tuple[list[np.ndarray], np.ndarray]:

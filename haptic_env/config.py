@@ -63,6 +63,11 @@ class HapticRecogConfig:
     """z-finger scoring (paper, Alg. 3): score every grasp with ``t >= z_fingers`` touching fingers through all
     its ``z_fingers``-subsets of contacts with the ``z``-finger model (likelihoods multiplied), instead of the
     ``t``-finger model. Needs ``z_fingers``."""
+    min_fingers: int | None = None
+    """With ``score_subsets``: also score a grasp of ``min_fingers <= t < z_fingers`` touching fingers, by the
+    ``t``-finger model (its touching contacts as one grasp; the recogniser then also has those models). None: such
+    grasps carry no contact information, as in the paper's z-finger scoring. Without ``score_subsets`` this is what
+    ``z_fingers=min_fingers`` does, so it is refused there."""
     subset_k: int | None = 4
     """With ``score_subsets``: the subsets one Bayes step counts at most. The ``C(t, z)`` subsets of a grasp share
     its contacts; their summed log-likelihood is multiplied by ``min(1, subset_k / C(t, z))``, the expectation of
@@ -171,6 +176,13 @@ class HapticRecogConfig:
             raise ValueError(f"z_fingers must be None or in [2, n_fingers={self.n_fingers}), got {self.z_fingers!r}")
         if self.score_subsets and self.z_fingers is None:
             raise ValueError("score_subsets=True needs z_fingers (the subset size)")
+        if self.min_fingers is not None:
+            if not self.score_subsets:
+                raise ValueError(f"min_fingers={self.min_fingers!r} needs score_subsets=True (without it, set "
+                                 f"z_fingers={self.min_fingers!r})")
+            if not (isinstance(self.min_fingers, (int, np.integer)) and 2 <= self.min_fingers < self.z_fingers):
+                raise ValueError(f"min_fingers must be None or in [2, z_fingers={self.z_fingers}), "
+                                 f"got {self.min_fingers!r}")
         check_subset_k(self.subset_k)
         if self.scale_range is not None:
             try:

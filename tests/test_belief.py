@@ -94,6 +94,33 @@ def test_subset_k_weighs_a_grasps_subsets_as_k_of_them(recognizer):
             Belief(recognizer, "bc-np", z_fingers=3, score_subsets=True, subset_k=bad)
 
 
+def test_min_fingers_scores_the_grasps_that_z_subsets_drop(env_config):
+    """With z = 3 subsets, a grasp of two touching fingers carries no contact information unless ``min_fingers=2``
+    scores it by the 2-finger model (one row of its width); grasps of t >= 3 keep their z-subsets."""
+    from haptic_env.objects import load_object_set
+
+    rec = get_recognizer(load_object_set(env_config.objects), env_config.replace(z_fingers=2, updater="bc-ip"))
+    rng = np.random.default_rng(5)
+    C, N = rng.normal(size=(4, 3)) * 0.05, rng.normal(size=(4, 3))
+    two = np.array([True, False, True, False])
+    plain = Belief(rec, "bc-np", z_fingers=3, score_subsets=True)
+    both = Belief(rec, "bc-np", z_fingers=3, score_subsets=True, min_fingers=2)
+    assert plain.rows(C, N, two)[1] is None
+    _, Q = both.rows(C, N, two)
+    np.testing.assert_array_equal(Q, rec.features(C[two], N[two]))
+    for touched in (np.ones(4, bool), np.array([True, True, True, False])):
+        np.testing.assert_array_equal(both.rows(C, N, touched)[1], plain.rows(C, N, touched)[1])
+    post, scored = both.predict_grasps(C[None], N[None], two[None])  # the look-ahead sees it too
+    q, usable = both.update(C, N, two)
+    assert usable and scored.tolist() == [0] and not np.allclose(both.probs, plain.probs)
+    np.testing.assert_allclose(post[0], both.probs, rtol=1e-9, atol=1e-12)
+    for bad in (3, 1):
+        with pytest.raises(ValueError, match="min_fingers"):
+            Belief(rec, "bc-np", z_fingers=3, score_subsets=True, min_fingers=bad)
+    with pytest.raises(ValueError, match="min_fingers"):
+        Belief(rec, "bc-np", z_fingers=3, min_fingers=2)
+
+
 def test_subset_scores_are_the_rows_of_each_grasps_subsets(recognizer):
     from itertools import combinations
 

@@ -127,8 +127,9 @@ def test_invalid_actions_raise(env_config, action, match):
 def test_bad_config_and_options_raise(env_config):
     for bad in ({"reward": "bogus"}, {"updater": "xx"}, {"threshold": 1.5}, {"n_fingers": 1},
                 {"grasp_cost": -1.0}, {"pose": "upside-down"}, {"scale_range": (2.0, 1.0)}, {"z_fingers": 4},
-                {"subset_k": 0}, {"subset_k": True}):
-        with pytest.raises(ValueError, match=str(next(iter(bad)))):
+                {"subset_k": 0}, {"subset_k": True}, {"min_fingers": 2},
+                {"z_fingers": 3, "score_subsets": True, "min_fingers": 3}):
+        with pytest.raises(ValueError, match=str(list(bad)[-1])):
             env_config.replace(**bad)
     with pytest.raises(TypeError, match="unknown HapticRecogConfig field"):
         HapticRecogEnv(env_config, no_such_field=1)
