@@ -119,7 +119,8 @@ class Belief:
             raise ValueError(f"unknown updater kind {kind!r}; choose one of {UPDATERS}")
         if score_subsets and z_fingers is None:
             raise ValueError("score_subsets=True needs z_fingers (the subset size)")
-        if min_fingers is not None and not (score_subsets and 2 <= min_fingers < z_fingers):
+        if min_fingers is not None and not (score_subsets and isinstance(min_fingers, (int, np.integer))
+                                            and not isinstance(min_fingers, bool) and 2 <= min_fingers < z_fingers):
             raise ValueError(f"min_fingers={min_fingers!r} needs score_subsets and 2 <= min_fingers < z_fingers "
                              f"({z_fingers!r})")
         subset_k = check_subset_k(subset_k)

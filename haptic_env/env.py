@@ -118,10 +118,10 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     With ``score_subsets=True`` every grasp with ``t >= z`` touching fingers is scored through all its
     ``z``-subsets by the ``z``-finger model instead (the paper's z-finger scoring; a Bayes step counts them as
     at most ``subset_k = 4`` subsets, the paper's Algorithm 4); with ``min_fingers=m`` a grasp of ``m <= t < z``
-    touching fingers is then scored by the ``t``-finger model, where the paper's scoring drops it. With ``touch_weight=w > 0``
-    (the 5-finger hand envs) every grasp, incomplete or not, also adds ``w log P(pattern | object)`` of its
-    touch pattern (which fingertips touched), estimated from the hand's own grasps of the meshes
-    (:mod:`haptic_env.recognizers.touch`); such a grasp always updates the belief.
+    touching fingers is then scored by the ``t``-finger model, where the paper's scoring drops it. With
+    ``touch_weight=w > 0`` (the 5-finger hand envs) every grasp, incomplete or not, also adds
+    ``w log P(pattern | object)`` of its touch pattern (which fingertips touched), estimated from the hand's own
+    grasps of the meshes (:mod:`haptic_env.recognizers.touch`); such a grasp always updates the belief.
 
     ## Arguments
     One frozen dataclass :class:`HapticRecogConfig` holds every setting. Pass it as ``config=`` and/or

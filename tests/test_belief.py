@@ -114,7 +114,7 @@ def test_min_fingers_scores_the_grasps_that_z_subsets_drop(env_config):
     q, usable = both.update(C, N, two)
     assert usable and scored.tolist() == [0] and not np.allclose(both.probs, plain.probs)
     np.testing.assert_allclose(post[0], both.probs, rtol=1e-9, atol=1e-12)
-    for bad in (3, 1):
+    for bad in (3, 1, 2.5, True):
         with pytest.raises(ValueError, match="min_fingers"):
             Belief(rec, "bc-np", z_fingers=3, score_subsets=True, min_fingers=bad)
     with pytest.raises(ValueError, match="min_fingers"):
