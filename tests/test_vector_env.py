@@ -72,12 +72,15 @@ def test_sub_env_i_equals_a_single_env_seeded_seed_plus_i(env_config, mode, over
     assert (venv.scene.backend.config.contact_noise > 0) == bool(overrides)
 
 
-@pytest.mark.parametrize("heights", [False, True])
-def test_general_belief_path_equals_single_envs(env_config, heights):
-    """A setting outside the fast path (z-finger models for incomplete grasps) keeps one Belief per sub-env."""
+@pytest.mark.parametrize("heights,subsets", [(False, False), (True, False), (True, True)])
+def test_general_belief_path_equals_single_envs(env_config, heights, subsets):
+    """A setting outside the fast path (z-finger models for incomplete grasps; z-subsets that also score two-finger
+    grasps) keeps one Belief per sub-env."""
     cfg = env_config.replace(z_fingers=3, grasp_cost=0.01, observe_contacts=True)
     if heights:
         cfg = cfg.replace(grasp_heights=True, scale_range=(0.9, 1.1))
+    if subsets:
+        cfg = cfg.replace(score_subsets=True, min_fingers=2)
     B = 3
     venv = HapticRecogVectorEnv(B, cfg)
     ref = SyncVectorEnv([lambda: HapticRecogEnv(cfg) for _ in range(B)])
