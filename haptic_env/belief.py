@@ -55,7 +55,7 @@ import numpy as np
 from haptic_env.grasp_features import feature_dim
 from haptic_env.recognizers.touch import check_touch_weight
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS
-from haptic_env.recognizers.zfinger import check_subset_k, subset_weight
+from haptic_env.recognizers.zfinger import check_min_fingers, check_subset_k, subset_weight
 
 if TYPE_CHECKING:
     from haptic_env.config import HapticRecogConfig
@@ -119,10 +119,7 @@ class Belief:
             raise ValueError(f"unknown updater kind {kind!r}; choose one of {UPDATERS}")
         if score_subsets and z_fingers is None:
             raise ValueError("score_subsets=True needs z_fingers (the subset size)")
-        if min_fingers is not None and not (score_subsets and isinstance(min_fingers, (int, np.integer))
-                                            and not isinstance(min_fingers, bool) and 2 <= min_fingers < z_fingers):
-            raise ValueError(f"min_fingers={min_fingers!r} needs score_subsets and 2 <= min_fingers < z_fingers "
-                             f"({z_fingers!r})")
+        min_fingers = check_min_fingers(min_fingers, z_fingers, score_subsets)
         subset_k = check_subset_k(subset_k)
         touch_weight = check_touch_weight(touch_weight)
         if touch_weight > 0 and kind != "bc-np":

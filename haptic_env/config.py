@@ -19,7 +19,7 @@ import numpy as np
 
 from haptic_env.recognizers.touch import check_touch_weight
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS
-from haptic_env.recognizers.zfinger import check_subset_k
+from haptic_env.recognizers.zfinger import check_min_fingers, check_subset_k
 from haptic_env.scene import POSE_MODES
 from haptic_env.task import REWARD_KINDS
 
@@ -176,13 +176,7 @@ class HapticRecogConfig:
             raise ValueError(f"z_fingers must be None or in [2, n_fingers={self.n_fingers}), got {self.z_fingers!r}")
         if self.score_subsets and self.z_fingers is None:
             raise ValueError("score_subsets=True needs z_fingers (the subset size)")
-        if self.min_fingers is not None:
-            if not self.score_subsets:
-                raise ValueError(f"min_fingers={self.min_fingers!r} needs score_subsets=True (without it, set "
-                                 f"z_fingers={self.min_fingers!r})")
-            if not (isinstance(self.min_fingers, (int, np.integer)) and 2 <= self.min_fingers < self.z_fingers):
-                raise ValueError(f"min_fingers must be None or in [2, z_fingers={self.z_fingers}), "
-                                 f"got {self.min_fingers!r}")
+        check_min_fingers(self.min_fingers, self.z_fingers, self.score_subsets)
         check_subset_k(self.subset_k)
         if self.scale_range is not None:
             try:

@@ -21,7 +21,8 @@ import numpy as np
 
 from haptic_env.grasp_features import feature_dim, normalize_scale, phi
 
-__all__ = ["subsets", "subset_vectors", "grasp_vectors_for", "ZFingerUpdater", "sample_finger_counts", "check_subset_k"]
+__all__ = ["subsets", "subset_vectors", "grasp_vectors_for", "ZFingerUpdater", "sample_finger_counts", "check_subset_k",
+           "check_min_fingers"]
 
 
 def subsets(n: int, z: int, k: int | None = None, rng: np.random.Generator | None = None) -> np.ndarray:
@@ -54,6 +55,19 @@ def check_subset_k(k) -> int | None:
     if k is not None and (isinstance(k, bool) or not (isinstance(k, (int, np.integer)) and k >= 1)):
         raise ValueError(f"subset_k must be None or an int >= 1, got {k!r}")
     return None if k is None else int(k)
+
+
+def check_min_fingers(m, z: int | None, score_subsets: bool) -> int | None:
+    """``m`` (the fewest touching fingers scored besides the ``z``-subsets, ``HapticRecogConfig.min_fingers``) as an
+    int, or None; a ``ValueError`` naming it unless it is None, or an int in ``[2, z)`` with ``score_subsets`` (without
+    subsets the same scoring is ``z_fingers=m``)."""
+    if m is None:
+        return None
+    if not score_subsets:
+        raise ValueError(f"min_fingers={m!r} needs score_subsets=True (without it, set z_fingers={m!r})")
+    if isinstance(m, bool) or not (isinstance(m, (int, np.integer)) and z is not None and 2 <= m < z):
+        raise ValueError(f"min_fingers must be None or an int in [2, z_fingers={z}), got {m!r}")
+    return int(m)
 
 
 def subset_weight(m: int, k: int | None) -> float:
