@@ -29,7 +29,6 @@ normals, grasps, nets) and re-run with more cells later.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import hashlib
 import json
 import os

@@ -6,7 +6,6 @@ Example counts are small (the whole module runs in well under 40 s); ``CI=1`` de
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import os
 import warnings
