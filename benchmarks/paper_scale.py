@@ -98,6 +98,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--trials-per-object", type=int, default=1000, help="experiment 2 trials per object (paper: 1000)")
     p.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD)
     p.add_argument("--threads", type=int, default=1, help="torch intra-op threads")
+    p.add_argument("--normal-axis", choices=("t2", "ab"), default="t2",
+                   help="each normal's second angle in Phi_n (n >= 4): to t2's normal (the paper's) or to the edge ab")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--time-budget", type=float, default=None, help="seconds: start no new cell after this")
     p.add_argument("--force", action="store_true", help="rerun cells that are already done")
@@ -118,7 +120,8 @@ def settings(args) -> dict:
     return {"version": CELL_VERSION, "objects": args.objects, "test_grasps": args.test_grasps,
             "val_fraction": args.val_fraction, "max_epochs": args.max_epochs, "patience": args.patience, "lr": args.lr,
             "lr_decay": args.lr_decay, "batch_size": args.batch_size, "knn_k": args.knn_k, "seed": args.seed,
-            "trials_per_object": args.trials_per_object, "threshold": args.threshold}  # --exp2: whether to run, not how
+            "trials_per_object": args.trials_per_object, "threshold": args.threshold,  # --exp2: whether to run, not how
+            **({} if args.normal_axis == "t2" else {"normal_axis": args.normal_axis})}  # the paper's keeps older hashes
 
 
 def settings_hash(args) -> str:
@@ -165,6 +168,7 @@ class _Data:
         if key not in self._train:
             self._train.clear()
             dc = DatasetConfig(n_fingers=n, normals=normals, grasps_per_object=g, val_fraction=self.args.val_fraction,
+                               normal_axis=self.args.normal_axis,
                                seed=self.args.seed)
             t0 = time.perf_counter()
             ds = build_dataset(self.objects, dc, progress=False)
@@ -178,6 +182,7 @@ class _Data:
         if key not in self._test:
             self._test.clear()
             dc = DatasetConfig(n_fingers=n, normals=normals, grasps_per_object=self.args.test_grasps, val_fraction=0.0,
+                               normal_axis=self.args.normal_axis,
                                seed=self.args.seed + TEST_SEED_OFFSET)
             ds = build_dataset(self.objects, dc, progress=False)
             self._test[key] = (ds.X_train.astype(np.float64), ds.y_train)
@@ -297,7 +302,9 @@ def write_report(out: Path, args, command: str) -> Path:
          f"{args.seed + TEST_SEED_OFFSET}); {100 * args.val_fraction:.0f} % of each object's grasps held out for "
          f"validation (MLP early stopping, patience {args.patience}, at most {args.max_epochs} epochs, Adam lr {args.lr} "
          f"x {args.lr_decay}/epoch, batch {args.batch_size}, all training rows); {args.threads} torch thread(s); "
-         f"settings hash `{h}`. Paper: the NN / kNN rows of its kit8 one-shot table.", ""]
+         f"settings hash `{h}`. Paper: the NN / kNN rows of its kit8 one-shot table.",
+         *([] if args.normal_axis == "t2" else ["", f"**Phi_n with `normal_axis=\"{args.normal_axis}\"`** (not the paper's): each "
+            "normal's second angle is to the edge ab of t1, not to t2's normal (n >= 4; n = 3 is the same)."]), ""]
     series: dict[tuple, list[dict]] = {}
     for c in cells:
         series.setdefault((c["n"], c["normals"], c["model"]), []).append(c)

@@ -70,7 +70,8 @@ def grasp_scores(rec, C, N, T, normals: bool, z: int | None, touch_weight: float
     for g in range(G):
         if T[g].sum() < 3:
             continue
-        Q = subset_vectors(C[g], N[g] if normals else None, z, touched=T[g], heights=rec.heights)
+        Q = subset_vectors(C[g], N[g] if normals else None, z, touched=T[g], heights=rec.heights,
+                           normal_axis=rec.normal_axis)
         if len(Q) == 0:
             continue
         w = 1.0 if z is None else subset_weight(len(Q), subset_k)

@@ -26,6 +26,10 @@ __all__ = ["phi_one", "phi_checked", "phi_on_hull", "phi_rows", "phi2_prepare", 
 
 AMBIGUOUS = -1  #: a hull face with >= 4 coplanar contacts: triangulate it canonically, then phi_on_hull
 BAD_INPUT = -2  #: non-finite contacts, or a zero / non-finite normal: the caller raises the error
+#: ``has_normals`` codes: False / 0 no normals; True / 1 each normal's angles to t1's normal and to t2's (for n = 3:
+#: to the edge ab), the paper's; 2 (:data:`NORMALS_AB`) to t1's normal and to the edge ab at every n
+#: (``phi(normal_axis="ab")``)
+NORMALS_AB = 2
 
 
 @njit(cache=True, inline="always")
@@ -307,7 +311,7 @@ def _chain(P, N, has_normals, tri, tri_edges, n_edges, area, hull, q, order):
         s = _norm(m0, m1, m2)
         if s > 0:
             m0, m1, m2 = m0 / s, m1 / s, m2 / s
-        if n == 3:
+        if n == 3 or has_normals == NORMALS_AB:
             r0, r1, r2 = ba0, ba1, ba2
         else:
             da0, da1, da2 = _sub(P, order[3], ia)

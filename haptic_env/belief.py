@@ -142,6 +142,8 @@ class Belief:
                                else min_fingers)
         #: the grasp vectors carry the contacts' heights (then contacts are scored relative to ``support_z``)
         self.heights = bool(getattr(recognizer, "heights", False))
+        #: each normal's second angle in the recogniser's grasp vectors (``phi(normal_axis=)``)
+        self.normal_axis = getattr(recognizer, "normal_axis", "t2")
         self.feature_dim = feature_dim(self.n_fingers, recognizer.normals, heights=self.heights)
         #: the episode's table height (world z, m); see :meth:`reset`
         self.support_z = 0.0
@@ -326,7 +328,7 @@ class Belief:
             if self.recognizer.normals and normals is None:
                 raise ValueError("this recogniser was trained with normals; pass the contact normals")
             N = np.asarray(normals, dtype=np.float64)[full] if self.recognizer.normals else None
-            q, valid = grasp_vectors_for(contacts[full], N, heights=self.heights)
+            q, valid = grasp_vectors_for(contacts[full], N, heights=self.heights, normal_axis=self.normal_axis)
             return list(q[valid][:, None, :]), full[valid]
         rows, scored = [], []
         for i in range(len(contacts)):
@@ -415,7 +417,8 @@ class Belief:
         at = np.arange(G)[:, None, None]
         Pz = C[at, idx].reshape(-1, z, 3)
         Nz = None if normals is None else np.asarray(normals, dtype=np.float64)[at, idx].reshape(-1, z, 3)
-        q, valid = grasp_vectors_for(Pz, Nz, normalize=self._normalize, heights=self.heights)
+        q, valid = grasp_vectors_for(Pz, Nz, normalize=self._normalize, heights=self.heights,
+                                     normal_axis=self.normal_axis)
         m = idx.shape[1]
         K = self.n_classes
         ll = np.zeros((G * m, K))

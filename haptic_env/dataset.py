@@ -26,7 +26,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .cache import CacheError, cache_dir, config_key, load_npz, save_npz_atomic
-from .grasp_features import feature_dim, normalize_scale, phi
+from .grasp_features import check_normal_axis, feature_dim, normalize_scale, phi
 from .grasping.base import support_height
 from .hand_grasps import BUDGETS
 from .objects import SAMPLING_METHODS, GraspObject, ObjectSet, load_object_set
@@ -92,6 +92,9 @@ class DatasetConfig:
             ``n`` more values; contacts are taken in the support frame of the object at its identity pose,
             :func:`~haptic_env.grasping.base.support_height`). Only for objects that keep that resting pose
             (the envs' ``"table-yaw"`` poses).
+        normal_axis: with normals and ``n >= 4``, each normal's second angle is to ``t2``'s normal (``"t2"``, the
+            paper's) or to the edge ``ab`` (``"ab"``: both angles in ``t1``'s frame, as the paper does for
+            ``n = 3``; :func:`~haptic_env.grasp_features.phi`).
     """
 
     n_fingers: int = 4
@@ -110,6 +113,7 @@ class DatasetConfig:
     hand: str | None = None
     hand_budget: str = "uniform"
     heights: bool = False
+    normal_axis: str = "t2"
 
     def __post_init__(self) -> None:
         if int(self.n_fingers) != self.n_fingers or self.n_fingers < 2:
@@ -125,6 +129,7 @@ class DatasetConfig:
             if len(sr) != 2 or not all(np.isfinite(sr)) or not 0 < sr[0] <= sr[1]:
                 raise ValueError(f"scale_range must be (lo, hi) with 0 < lo <= hi, got {self.scale_range!r}")
             object.__setattr__(self, "scale_range", sr)
+        check_normal_axis(self.normal_axis)
         if self.sampling not in SAMPLING_METHODS:
             raise ValueError(f"sampling must be one of {SAMPLING_METHODS}, got {self.sampling!r}")
         if not 0.0 <= self.val_fraction < 1.0:
@@ -299,7 +304,7 @@ def grasp_vectors(
         N = _tilt(N, np.deg2rad(config.normal_noise_deg), rng)
     if config.normalize_scale:
         P, _ = normalize_scale(P)
-    feats = phi(P, N, heights=config.heights)
+    feats = phi(P, N, heights=config.heights, normal_axis=config.normal_axis)
     return feats.q, feats.valid
 
 

@@ -359,7 +359,7 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
                     m = touched[part]
                     P = scored_contacts[part][m].reshape(len(part), tt, 3)
                     N = None if not self.recognizer.normals else normals[part][m].reshape(len(part), tt, 3)
-                    qp, valid = grasp_vectors_for(P, N, heights=heights)
+                    qp, valid = grasp_vectors_for(P, N, heights=heights, normal_axis=self.recognizer.normal_axis)
                     q[part[valid], : qp.shape[1]] = qp[valid]
             maxlog = np.maximum.reduce(self._log_belief[live], axis=1).tolist()
             thr = self._threshold

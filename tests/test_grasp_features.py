@@ -367,3 +367,64 @@ def test_feature_dim_with_heights():
     assert feature_dim(2, False, heights=True) == 3
     with pytest.raises(ValueError, match="3-d contacts"):
         feature_dim(4, False, dim=2, heights=True)
+
+
+# ----------------------------------------------------------------- normal_axis="ab" (each normal in t1's frame)
+def _angles_in_t1_frame(P, N, order):
+    """Reference: each unit normal's angles (chain order) to t1's normal (b - a) x (c - a) and to the edge b - a."""
+    Po = np.take_along_axis(P, order[..., None], 1)
+    No = np.take_along_axis(N / np.linalg.norm(N, axis=-1, keepdims=True), order[..., None], 1)
+    x = Po[:, 1] - Po[:, 0]
+    z = np.cross(Po[:, 1] - Po[:, 0], Po[:, 2] - Po[:, 0])
+    x /= np.linalg.norm(x, axis=1, keepdims=True)
+    z /= np.linalg.norm(z, axis=1, keepdims=True)
+    to_z = np.arccos(np.clip(np.einsum("gnk,gk->gn", No, z), -1, 1))
+    to_x = np.arccos(np.clip(np.einsum("gnk,gk->gn", No, x), -1, 1))
+    return np.stack([to_z, to_x], -1).reshape(len(P), -1)
+
+
+@pytest.mark.parametrize("n", [3, 4, 5, 7])
+def test_normal_axis_ab_reads_every_normal_in_t1s_frame(n):
+    """The contact part and the order are the paper's; each normal's angles are to t1's normal and to ab (the
+    paper's n = 3 rule at every n), so at n = 3 both settings agree and at n >= 4 only the normal part differs."""
+    P, N = random_grasp(n, n, batch=300, normals=True)
+    f, g = phi(P, N), phi(P, N, normal_axis="ab")
+    assert g.q.shape == f.q.shape == (300, feature_dim(n, True)) and g.valid.all()
+    np.testing.assert_array_equal(g.order, f.order)
+    np.testing.assert_array_equal(g.q[:, : 3 * n - 6], f.q[:, : 3 * n - 6])
+    np.testing.assert_allclose(g.q[:, 3 * n - 6:], _angles_in_t1_frame(P, N, g.order), atol=1e-7)
+    if n == 3:
+        np.testing.assert_array_equal(g.q, f.q)
+    else:
+        assert not np.allclose(g.q, f.q)
+    # without normals the setting changes nothing
+    np.testing.assert_array_equal(phi(P, normal_axis="ab").q, phi(P).q)
+
+
+@SETTINGS
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(3, 9), motion=rigid, data=st.data())
+def test_normal_axis_ab_is_invariant_to_rigid_motion_and_finger_order(seed, n, motion, data):
+    P, N = random_grasp(seed, n, normals=True)
+    Rm = Rotation.random(random_state=motion[0]).as_matrix()
+    perm = np.array(data.draw(st.permutations(range(n))))
+    f = phi(P, N, normal_axis="ab")
+    g = phi((P @ Rm.T + np.array(motion[1]))[:, perm], (N @ Rm.T)[:, perm], normal_axis="ab")
+    np.testing.assert_allclose(f.q, g.q, atol=1e-8)
+
+
+def test_normal_axis_ab_on_coplanar_box_faces_and_bad_values():
+    """Planar hull faces of >= 4 contacts (the Qhull path) take the setting too; a bad value is named."""
+    from haptic_env.dataset import DatasetConfig, sample_grasps
+    from haptic_env.objects import load_object_set
+
+    rng = np.random.default_rng(5)
+    C, N = sample_grasps(load_object_set("default")["box"], 2000, 5, rng)
+    g = phi(C, N, normal_axis="ab")
+    Rm = Rotation.random(random_state=5).as_matrix()
+    np.testing.assert_allclose(phi(C @ Rm.T, N @ Rm.T, normal_axis="ab").q, g.q, atol=1e-7)
+    v = g.valid
+    np.testing.assert_allclose(g.q[v, 9:], _angles_in_t1_frame(C[v], N[v], g.order[v]), atol=1e-7)
+    with pytest.raises(ValueError, match="normal_axis must be one of .*'t3'"):
+        phi(C, N, normal_axis="t3")
+    with pytest.raises(ValueError, match="normal_axis must be one of .*'AB'"):
+        DatasetConfig(normal_axis="AB")

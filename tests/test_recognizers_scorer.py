@@ -8,15 +8,15 @@ from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
 from haptic_env.recognizers.scorer import GraspScorer
 
 
-@pytest.mark.parametrize("n, normals", [(3, False), (4, False), (5, True)])
-def test_scorer_equals_phi_then_kde(n, normals):
+@pytest.mark.parametrize("n, normals, axis", [(3, False, "t2"), (4, False, "t2"), (5, True, "t2"), (5, True, "ab")])
+def test_scorer_equals_phi_then_kde(n, normals, axis):
     rng = np.random.default_rng(n)
     P = rng.normal(size=(3000, n, 3))
     N = rng.normal(size=P.shape) if normals else None
-    f = phi(P, N)
+    f = phi(P, N, normal_axis=axis)
     y = (P[:, 0, 0] > 0).astype(int) + 2 * (P[:, 1, 1] > 0)
     kde = KDELikelihood(KDEConfig(factor=0.5, method="pooled")).fit(f.q[f.valid], y[f.valid])
-    scorer = GraspScorer(n, normals, kde)
+    scorer = GraspScorer(n, normals, kde, normal_axis=axis)
     for i in range(40):
         Pi = rng.normal(size=(n, 3))
         if n == 5 and i % 10 == 0:  # a square hull face: the Qhull fallback of the general path
@@ -24,7 +24,7 @@ def test_scorer_equals_phi_then_kde(n, normals):
             Pi[4, 2] = 0.7
         Ni = rng.normal(size=(n, 3)) if normals else None
         q, ll = scorer(Pi, Ni)
-        g = phi(Pi, Ni)
+        g = phi(Pi, Ni, normal_axis=axis)
         np.testing.assert_allclose(q, g.q, rtol=0, atol=1e-12)
         np.testing.assert_allclose(ll, kde.log_likelihood(g.q), rtol=1e-12, atol=1e-9)
 

@@ -156,12 +156,18 @@ class Recognizer:
         if self.normals and normals is None:
             raise ValueError("this recogniser was trained with normals; pass the contact normals")
         return subset_vectors(contacts, normals if self.normals else None, z, k=k, rng=rng, touched=touched,
-                              normalize=self.config.grasps.normalize_scale, heights=self.heights)
+                              normalize=self.config.grasps.normalize_scale, heights=self.heights,
+                              normal_axis=self.normal_axis)
 
     @property
     def heights(self) -> bool:
         """Whether its grasp vectors carry the contacts' heights above the support (``DatasetConfig.heights``)."""
         return bool(self.config.grasps.heights)
+
+    @property
+    def normal_axis(self) -> str:
+        """Each normal's second angle in its grasp vectors (``DatasetConfig.normal_axis``, ``phi(normal_axis=)``)."""
+        return self.config.grasps.normal_axis
 
     def grasp_scorer(self, calibrated: bool = True):
         """:class:`~haptic_env.recognizers.scorer.GraspScorer` of complete ``n_fingers`` grasps (Phi and the KDE
@@ -177,8 +183,8 @@ class Recognizer:
             kde = self.models.model(self.n_fingers)[1]
             ok = kde is not None and getattr(kde, "pooled", None) is not None
             post = kde.calibrate_scores if ok and calibrated and kde.calibrated else None
-            scorers[calibrated] = (GraspScorer(self.n_fingers, self.normals, kde, post=post, heights=self.heights)
-                                   if ok else None)
+            scorers[calibrated] = (GraspScorer(self.n_fingers, self.normals, kde, post=post, heights=self.heights,
+                                               normal_axis=self.normal_axis) if ok else None)
         return scorers[calibrated]
 
     def make_updater(self, kind: str = "bc-np", threshold: float = DEFAULT_THRESHOLD, z: int | None = None, *,
@@ -203,7 +209,8 @@ class Recognizer:
         models = self.models.with_calibration(calibrated)
         base = make_updater(kind, classifier=models, likelihood=models, threshold=threshold,
                             n_classes=self.n_classes, **kw)
-        return ZFingerUpdater(base, z, k=k, rng=rng, normalize=self.config.grasps.normalize_scale, heights=self.heights)
+        return ZFingerUpdater(base, z, k=k, rng=rng, normalize=self.config.grasps.normalize_scale, heights=self.heights,
+                              normal_axis=self.normal_axis)
 
 
 def _objects_key(objects) -> list:

@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 
 from haptic_env import _phi_kernels as phik
-from haptic_env.grasp_features import DEFAULT_TOL, _topology, feature_dim, phi
+from haptic_env.grasp_features import DEFAULT_TOL, _topology, feature_dim, normals_code, phi
 from haptic_env.recognizers.knn import log_density_row, workspace
 
 __all__ = ["GraspScorer"]
@@ -28,7 +28,7 @@ class GraspScorer:
     :meth:`~.kde.KDELikelihood.calibrate_scores`).
     """
 
-    def __init__(self, n_fingers: int, normals: bool, kde, post=None, heights: bool = False):
+    def __init__(self, n_fingers: int, normals: bool, kde, post=None, heights: bool = False, normal_axis: str = "t2"):
         if post is not None and not callable(post):
             raise TypeError(f"post must be a callable (B, K) -> (B, K) or None, got {type(post).__name__}")
         self.post = post
@@ -39,6 +39,8 @@ class GraspScorer:
             raise ValueError(f"the KDE has {kde.n_features} features, {n_fingers} fingers (normals={normals}, "
                              f"heights={heights}) give {d}")
         self.n_fingers, self.normals, self.kde, self.heights = int(n_fingers), bool(normals), kde, bool(heights)
+        self.normal_axis = normal_axis
+        self._normals_code = normals_code(self.normals, normal_axis)  # the kernels' has_normals (0, 1 or 2)
         tri, tri_edges, _, n_edges = _topology(self.n_fingers)
         cfg = kde.config
         self._phi_args = (tri, tri_edges, n_edges, DEFAULT_TOL, feature_dim(n_fingers, normals), self.heights)
@@ -56,14 +58,14 @@ class GraspScorer:
                              f"got {P.shape}" + ("" if N is None else f" and {N.shape}"))
         q = np.zeros(self._d)
         out = np.empty((1, self._K))
-        status = _score(P, P if N is None else N, self.normals, *self._phi_args, *self._kde_args, self._work, q,
+        status = _score(P, P if N is None else N, self._normals_code, *self._phi_args, *self._kde_args, self._work, q,
                         np.empty(self.n_fingers, np.int64), out[0])
         if status == 0:
             return q, self._finish(out)
         if status > 0:  # degenerate: no information
             return np.zeros(self._d), None
         # a planar hull face (Qhull's canonical triangulation) or bad input (raises): the general path
-        f = phi(P, N, heights=self.heights)
+        f = phi(P, N, heights=self.heights, normal_axis=self.normal_axis)
         return (f.q, self._finish(self.kde.log_likelihood(f.q))) if f.valid else (f.q, None)
 
     def _finish(self, ll: np.ndarray) -> np.ndarray:
@@ -83,12 +85,12 @@ class GraspScorer:
         q = np.zeros((B, self._d))
         out = np.empty((B, self._K))
         status = np.empty(B, np.int64)
-        _score_batch(P, P if N is None else N, self.normals, *self._phi_args, *self._kde_args, self._work, q, out,
+        _score_batch(P, P if N is None else N, self._normals_code, *self._phi_args, *self._kde_args, self._work, q, out,
                      status)
         scored = status == 0
         out[scored] = self._finish(out[scored])
         for b in np.flatnonzero(status < 0):  # a planar hull face or bad input: the general path, as __call__
-            f = phi(P[b], None if N is None else N[b], heights=self.heights)
+            f = phi(P[b], None if N is None else N[b], heights=self.heights, normal_axis=self.normal_axis)
             q[b] = f.q
             if f.valid:
                 out[b] = self._finish(self.kde.log_likelihood(f.q))[0]

@@ -83,14 +83,15 @@ def _all_subsets(n: int, z: int) -> np.ndarray:
     return out
 
 
-def grasp_vectors_for(contacts, normals=None, *, normalize: bool = False,
-                      heights: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def grasp_vectors_for(contacts, normals=None, *, normalize: bool = False, heights: bool = False,
+                      normal_axis: str = "t2") -> tuple[np.ndarray, np.ndarray]:
     """``Phi`` of a batch ``(B, n, 3)`` (optionally scale-normalised; ``heights``: with the contacts' heights, the
-    contacts in the support frame): ``(q (B, d), valid (B,))``."""
+    contacts in the support frame; ``normal_axis``: :func:`~haptic_env.grasp_features.phi`'s): ``(q (B, d),
+    valid (B,))``."""
     P = np.asarray(contacts, dtype=np.float64)
     if normalize:
         P, _ = normalize_scale(P)
-    f = phi(P, normals, heights=heights)
+    f = phi(P, normals, heights=heights, normal_axis=normal_axis)
     if f.q.ndim == 2:
         return f.q, f.valid
     return np.atleast_2d(f.q), np.atleast_1d(f.valid)
@@ -98,7 +99,7 @@ def grasp_vectors_for(contacts, normals=None, *, normalize: bool = False,
 
 def subset_vectors(contacts, normals=None, z: int | None = None, *, k: int | None = None,
                    rng: np.random.Generator | None = None, touched=None, normalize: bool = False,
-                   heights: bool = False) -> np.ndarray:
+                   heights: bool = False, normal_axis: str = "t2") -> np.ndarray:
     """Grasp vectors of the z-subsets of one grasp's touching contacts.
 
     Args:
@@ -108,6 +109,7 @@ def subset_vectors(contacts, normals=None, z: int | None = None, *, k: int | Non
         touched: optional ``(n,)`` bool; only touching contacts are used (incomplete grasps).
         normalize: scale-normalise each subset (objects of unknown scale).
         heights: append the contacts' heights (contacts in the support frame; ``phi(heights=True)``).
+        normal_axis: each normal's second angle (``phi(normal_axis=...)``).
 
     Returns:
         ``(m, feature_dim(z, normals, heights=heights))`` vectors of the non-degenerate subsets (``m`` may be 0).
@@ -133,7 +135,7 @@ def subset_vectors(contacts, normals=None, z: int | None = None, *, k: int | Non
     else:
         idx = subsets(n, z, k, rng)
         Pz, Nz = P[idx], None if N is None else N[idx]
-    q, valid = grasp_vectors_for(Pz, Nz, normalize=normalize, heights=heights)
+    q, valid = grasp_vectors_for(Pz, Nz, normalize=normalize, heights=heights, normal_axis=normal_axis)
     return q if valid.all() else q[valid]
 
 
@@ -141,10 +143,11 @@ class ZFingerUpdater:
     """Wraps a belief updater whose models are z-finger models; updates from whole n-finger grasps."""
 
     def __init__(self, base, z: int | None = None, *, k: int | None = None, rng: np.random.Generator | None = None,
-                 normalize: bool = False, heights: bool = False):
+                 normalize: bool = False, heights: bool = False, normal_axis: str = "t2"):
         if k is not None and rng is None:
             raise ValueError("ZFingerUpdater with random subsets (k) needs an rng")
         self.base, self.z, self.k, self.rng, self.normalize, self.heights = base, z, k, rng, normalize, heights
+        self.normal_axis = normal_axis
 
     def __getattr__(self, name):  # certainty, prediction, n_grasps, n_classes, ...
         if name == "base":  # not set yet (copy / pickle build the object before its __dict__)
@@ -175,7 +178,7 @@ class ZFingerUpdater:
         """One grasp from raw contacts ``(n, 3)`` (+ inward normals; with ``heights``, in the support frame) -> new
         belief ``(K,)``."""
         Q = subset_vectors(contacts, normals, self.z, k=self.k, rng=self.rng, touched=touched, normalize=self.normalize,
-                           heights=self.heights)
+                           heights=self.heights, normal_axis=self.normal_axis)
         return self.base.update(Q)
 
 
