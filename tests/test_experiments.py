@@ -29,6 +29,31 @@ def test_analysis_cli_smoke(tmp_path, cache):
     assert (out / "success_vs_grasps.png").stat().st_size > 1000
 
 
+def test_analysis_with_normal_axis_ab_trains_and_tests_on_it(tmp_path, cache):
+    """``--normal-axis ab`` reaches the training and the fresh test grasps alike (a one-shot cell learns them) and
+    the report says so; a bad value is refused before anything is written."""
+    from haptic_env.experiments.config import AnalysisConfig
+    from haptic_env.experiments.fresh_grasps import fresh_pool
+    from haptic_env.objects import load_object_set
+
+    cfg = AnalysisConfig(normal_axis="ab", test_grasps=5)
+    assert cfg.recognizer_config().grasps.normal_axis == "ab"
+    objs = load_object_set("default")
+    pool = fresh_pool(objs, 4, True, cfg)
+    ref = fresh_pool(objs, 4, True, AnalysisConfig(test_grasps=5))
+    np.testing.assert_array_equal(pool[0][:, :6], ref[0][:, :6])  # the contacts' part is the paper's
+    assert not np.allclose(pool[0][:, 6:], ref[0][:, 6:])
+    out = tmp_path / "out"
+    assert main(["analysis", "--out", str(out), "--experiments", "2", "--grasps-per-object", "200", "--test-grasps",
+                 "20", "--trials", "10", "--fingers", "4", "--mlp-epochs", "1", "--normal-axis", "ab", "--quiet"]) == 0
+    assert 'normal_axis=\"ab\"' in (out / "results.md").read_text()
+    with pytest.raises(ValueError, match="normal_axis must be one of .*'t3'"):
+        AnalysisConfig(normal_axis="t3")
+    with pytest.raises(SystemExit):
+        main(["analysis", "--out", str(tmp_path / "bad"), "--normal-axis", "t3"])
+    assert not (tmp_path / "bad").exists()
+
+
 def test_build_recognizer_caches_and_updates(cache):
     from haptic_env.objects import load_object_set
 

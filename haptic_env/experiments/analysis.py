@@ -42,7 +42,9 @@ def run_analysis(cfg: AnalysisConfig, out: str | Path, command: str | None = Non
     rep.lines += [f"{cfg.scores_label} in experiments 2-6; seed {cfg.seed}; {cfg.grasps_per_object} training grasps "
                   f"per object; {cfg.test_grasps} fresh test grasps per object; {cfg.trials} trials; max {cfg.max_grasps} "
                   f"grasps; MLP {cfg.mlp.depth}x{cfg.mlp.width}; "
-                  f"KDE {cfg.kde.method} (k={cfg.kde.k}, cutoff {cfg.kde.cutoff} h, factor {cfg.kde.factor})."]
+                  f"KDE {cfg.kde.method} (k={cfg.kde.k}, cutoff {cfg.kde.cutoff} h, factor {cfg.kde.factor})."
+                  + ("" if cfg.normal_axis == "t2" else f" Phi_n with `normal_axis=\"{cfg.normal_axis}\"` (not the "
+                     "paper's): each normal's second angle to the edge ab of t1, not to t2's normal (n >= 4).")]
     rng = np.random.default_rng(cfg.seed)
     for e in cfg.experiments:
         t0 = time.perf_counter()

@@ -76,6 +76,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--baseline-max-train", type=int, default=d.baseline_max_train)
     p.add_argument("--zfinger-hands", default="5,6,8", help="experiment 3 hand sizes n")
     p.add_argument("--no-normals", action="store_true", help="experiments 2-6 without normals")
+    p.add_argument("--normal-axis", default=d.normal_axis, choices=("t2", "ab"),
+                   help="each normal's second angle in Phi_n (n >= 4): to t2's normal (t2, the paper's) or to the "
+                        "edge ab (ab)")
     p.add_argument("--raw", action="store_true",
                    help="experiments 2-6 on the raw scores (the paper's method), without the calibration temperatures")
     p.add_argument("--no-correction", action="store_true",
@@ -114,7 +117,8 @@ def _run_cli(args) -> int:
         max_grasps=args.max_grasps, threshold=args.threshold, fingers=_ints(args.fingers),
         oneshot_fingers=_ints(args.oneshot_fingers),
         classifiers=tuple(c for c in args.classifiers.split(",") if c), baseline_max_train=args.baseline_max_train,
-        zfinger_hands=_ints(args.zfinger_hands), normals=not args.no_normals, calibrated=not args.raw,
+        zfinger_hands=_ints(args.zfinger_hands), normals=not args.no_normals, normal_axis=args.normal_axis,
+        calibrated=not args.raw,
         calib_fingers=_ints(args.calib_fingers), calib_fingers_no_normals=_ints(args.calib_fingers_no_normals),
         lambdas=_lambdas(args.lambdas), seed=args.seed,
         mlp=MLPConfig(depth=args.mlp_depth, width=args.mlp_width, max_epochs=args.mlp_epochs, patience=3,

@@ -7,6 +7,7 @@ import dataclasses
 from dataclasses import dataclass, field
 
 from haptic_env.dataset import DatasetConfig
+from haptic_env.grasp_features import check_normal_axis
 from haptic_env.recognizers.baselines import CLASSIFIERS
 from haptic_env.recognizers.kde import KDEConfig
 from haptic_env.recognizers.mlp import MLPConfig
@@ -51,6 +52,9 @@ class AnalysisConfig:
     scale_range: tuple[float, float] = (0.1, 5.0)
     family_members: int = 10
     normals: bool = True  #: experiments 2-6
+    #: each normal's second angle in Phi_n (n >= 4): to t2's normal ("t2", the paper's) or to the edge ab ("ab";
+    #: ``phi(normal_axis=)``), in every experiment's training and test grasps
+    normal_axis: str = "t2"
     calibrated: bool = True  #: experiments 2-6 use the validation-fitted temperatures (False: the paper's raw scores)
     calib_fingers: tuple[int, ...] = (3, 4, 5, 8)  #: experiment 7, with normals
     calib_fingers_no_normals: tuple[int, ...] = (4,)  #: experiment 7, without normals
@@ -65,10 +69,14 @@ class AnalysisConfig:
     kde: KDEConfig = field(default_factory=lambda: KDEConfig(correct="auto"))
     progress: bool = True
 
+    def __post_init__(self):
+        check_normal_axis(self.normal_axis)
+
     def recognizer_config(self, **kw) -> RecognizerConfig:
         """The :class:`RecognizerConfig` every experiment trains its object models with (``kw``: more
         :class:`DatasetConfig` fields, e.g. experiment 4's scale range)."""
-        grasps = DatasetConfig(grasps_per_object=self.grasps_per_object, seed=self.seed, **kw)
+        grasps = DatasetConfig(grasps_per_object=self.grasps_per_object, seed=self.seed,
+                               **{"normal_axis": self.normal_axis, **kw})
         return RecognizerConfig(grasps=grasps, mlp=dataclasses.replace(self.mlp, progress=False), kde=self.kde)
 
     @property

@@ -66,7 +66,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     test_set = family_set(n_held, np.random.default_rng(cfg.seed + TEST_SEED_OFFSET))
     fam_idx = {f: i for i, f in enumerate(FAMILIES)}
     per_obj = max(1000, cfg.grasps_per_object * len(objects) // max(len(train_set), 1))
-    dc = DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=per_obj, normalize_scale=True, seed=cfg.seed)
+    dc = DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=per_obj, normalize_scale=True, seed=cfg.seed,
+                       normal_axis=cfg.normal_axis)
     ds = build_dataset(train_set, dc, progress=False)
     fam_of = np.array([fam_idx[train_set.families[nm]] for nm in train_set.names])
     clf = MLPClassifier(dataclasses.replace(cfg.mlp, progress=False)).fit(ds.X_train, fam_of[ds.y_train], ds.X_val,
@@ -74,7 +75,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     kde = KDELikelihood(cfg.kde).fit(ds.X_train, fam_of[ds.y_train], ds.X_val, fam_of[ds.y_val], n_classes=len(FAMILIES))
     # temperatures on new validation members (another seed than training and test)
     vds = build_dataset(val_set, DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=cfg.test_grasps,
-                                               normalize_scale=True, val_fraction=0.0,
+                                               normalize_scale=True, val_fraction=0.0, normal_axis=cfg.normal_axis,
                                                seed=cfg.seed + FAMILY_VAL_SEED_OFFSET), progress=False)
     fam_val = np.array([fam_idx[val_set.families[nm]] for nm in val_set.names])
     T_kde, T_mlp = family_temperatures(kde, clf, vds.X_train.astype(np.float64), fam_val[vds.y_train]) \

@@ -19,7 +19,7 @@ def fresh_pool(objects, n: int, normals: bool, cfg: AnalysisConfig, **dkw) -> li
     """Fresh test grasp vectors: list over objects of ``(G, d)`` (``cfg.test_grasps`` each; ``dkw``: more
     :class:`DatasetConfig` fields)."""
     dc = DatasetConfig(n_fingers=n, normals=normals, grasps_per_object=cfg.test_grasps, val_fraction=0.0,
-                       seed=cfg.seed + TEST_SEED_OFFSET, **dkw)
+                       seed=cfg.seed + TEST_SEED_OFFSET, **{"normal_axis": cfg.normal_axis, **dkw})
     ds = build_dataset(objects, dc, progress=False)
     return [ds.X_train[ds.y_train == k].astype(np.float64) for k in range(len(objects))]
 
