@@ -60,7 +60,7 @@ from haptic_env.recognizers.zfinger import check_min_fingers, check_subset_k, su
 if TYPE_CHECKING:
     from haptic_env.config import HapticRecogConfig
 
-__all__ = ["Belief", "get_recognizer", "check_heights"]
+__all__ = ["Belief", "get_recognizer", "check_grasp_vectors"]
 
 _RECOGNIZERS: dict[str, Any] = {}
 
@@ -82,9 +82,15 @@ def get_recognizer(objects, config: HapticRecogConfig):
     return _RECOGNIZERS[key]
 
 
-def check_heights(recognizer, config: HapticRecogConfig) -> None:
-    """A ``ValueError`` unless the recogniser's grasp vectors carry the contact heights exactly when the env config
-    asks for them (``grasp_heights``; the observation's width follows the config)."""
+def check_grasp_vectors(recognizer, config: HapticRecogConfig) -> None:
+    """A ``ValueError`` unless the recogniser's grasp vectors are the ones the env config asks for: the contact
+    heights exactly when ``grasp_heights`` (the observation's width follows the config) and the config's
+    ``normal_axis``."""
+    axis = getattr(recognizer, "normal_axis", "t2")
+    if axis != config.normal_axis:
+        raise ValueError(f"the recogniser's grasp vectors take each normal's second angle to {axis!r} but the config "
+                         f"has normal_axis={config.normal_axis!r}; set both alike (recognizer_kwargs' "
+                         "DatasetConfig.normal_axis follows normal_axis unless given)")
     has = bool(getattr(recognizer, "heights", False))
     if has != bool(config.grasp_heights):
         raise ValueError(f"the recogniser's grasp vectors {'carry' if has else 'lack'} the contact heights but the "
@@ -165,7 +171,7 @@ class Belief:
         """The belief of an env config over ``objects`` (its recogniser from :func:`get_recognizer` unless given):
         the one place that maps the config's belief settings to a :class:`Belief`."""
         rec = get_recognizer(objects, config) if recognizer is None else recognizer
-        check_heights(rec, config)
+        check_grasp_vectors(rec, config)
         return cls(rec, config.updater, config.threshold, calibrated=config.calibrated, z_fingers=config.z_fingers,
                    score_subsets=config.score_subsets, touch_weight=config.touch_weight, subset_k=config.subset_k,
                    min_fingers=config.min_fingers)

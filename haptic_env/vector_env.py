@@ -51,7 +51,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from haptic_env.belief import Belief, check_heights, get_recognizer
+from haptic_env.belief import Belief, check_grasp_vectors, get_recognizer
 from haptic_env.config import HapticRecogConfig
 from haptic_env.grasp_features import feature_dim
 from haptic_env.scene import Scene
@@ -160,7 +160,7 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
     def _build_beliefs(self) -> None:
         c = self.config
         rec = self.recognizer
-        check_heights(rec, c)
+        check_grasp_vectors(rec, c)
         # None for a KDE not evaluated "pooled" or scale-normalised grasps: then the general path
         scorer = rec.grasp_scorer(c.calibrated) if (c.updater == "bc-np" and c.z_fingers is None
                                                      and not c.score_subsets) else None
