@@ -27,8 +27,8 @@ Spatial grasps, ``n >= 3`` (:func:`phi`)
     at every ``n``, as the paper does for ``n = 3``, so both angles are read in ``t1``'s own frame. With
     ``n >= 4`` that carries more: ``t2``'s normal depends on the fourth contact, and when the contacts lie
     nearly in a plane (a grasp across a flat face) it is nearly opposite ``t1``'s, so the two angles repeat
-    each other. Measured on kit8 surface grasps, n = 4 with normals, 20,000 per object: kNN 47.9 -> 57.8 %,
-    MLP 3x256 58.3 -> 69.3 % one-shot (``benchmarks/normal_axis.py``). Same length, ``5n - 6``.
+    each other. Measured on kit8 surface grasps, n = 4 with normals, 20,000 per object, one-shot: kNN 47.9 -> 57.8 %,
+    KDE 46.0 -> 54.5 %, MLP 3x256 58.3 -> 68.4 % (``benchmarks/normal_axis.py``). Same length, ``5n - 6``.
 
 Two contacts, ``n = 2``
     The distance; with normals also each normal's angle to the line between the contacts and the
