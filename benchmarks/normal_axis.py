@@ -34,7 +34,7 @@ def main(argv=None) -> int:
     from sklearn.neighbors import KNeighborsClassifier
 
     from haptic_env.dataset import sample_grasps
-    from haptic_env.grasp_features import phi
+    from haptic_env.grasp_features import NORMAL_AXES, phi
     from haptic_env.objects import load_object_set
     from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
     from haptic_env.recognizers.mlp import MLPClassifier, MLPConfig
@@ -44,8 +44,7 @@ def main(argv=None) -> int:
 
     def grasps(count, seed):
         rng = np.random.default_rng(seed)
-        out = [sample_grasps(o, count, n, rng) for o in objects]
-        return out
+        return [sample_grasps(o, count, n, rng) for o in objects]
 
     t0 = time.perf_counter()
     train, test = grasps(args.grasps, args.seed + 1), grasps(args.test_grasps, args.seed + 2)
@@ -53,7 +52,7 @@ def main(argv=None) -> int:
           f"object (surface, area-uniform); one-shot accuracy %\n")
     print("| normal_axis | " + " | ".join(models) + " |")
     print("|---|" + "---|" * len(models))
-    for axis in ("t2", "ab"):
+    for axis in NORMAL_AXES:
         def vectors(pool):
             X, y = [], []
             for k, (C, N) in enumerate(pool):
@@ -81,7 +80,8 @@ def main(argv=None) -> int:
                     Xtr[perm[nv:]], ytr[perm[nv:]], Xtr[perm[:nv]], ytr[perm[:nv]], n_classes=K)
                 acc = float(np.mean(clf.predict(Xte) == yte))
             row.append(f"{100 * acc:.1f}")
-        print(f"| {axis}{' (the paper' + chr(39) + 's)' if axis == 't2' else ''} | " + " | ".join(row) + " |", flush=True)
+        label = "t2 (the paper's)" if axis == "t2" else axis
+        print(f"| {label} | " + " | ".join(row) + " |", flush=True)
     se = 100 * np.sqrt(0.25 / (K * args.test_grasps))
     print(f"\nbinomial standard error of one cell <= {se:.1f} points; {time.perf_counter() - t0:.0f} s")
     return 0

@@ -41,6 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
+from haptic_env.grasp_features import NORMAL_AXES
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD
 
 #: The paper's kit8 one-shot accuracies (%) by (n, normals): the neural-network and nearest-neighbour rows
@@ -98,7 +99,7 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--trials-per-object", type=int, default=1000, help="experiment 2 trials per object (paper: 1000)")
     p.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD)
     p.add_argument("--threads", type=int, default=1, help="torch intra-op threads")
-    p.add_argument("--normal-axis", choices=("t2", "ab"), default="t2",
+    p.add_argument("--normal-axis", choices=NORMAL_AXES, default="t2",
                    help="each normal's second angle in Phi_n (n >= 4): to t2's normal (the paper's) or to the edge ab")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--time-budget", type=float, default=None, help="seconds: start no new cell after this")

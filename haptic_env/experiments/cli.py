@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import shlex
 
+from haptic_env.grasp_features import NORMAL_AXES
 from haptic_env.experiments.config import AnalysisConfig
 
 __all__ = ["add_parser"]
@@ -76,7 +77,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--baseline-max-train", type=int, default=d.baseline_max_train)
     p.add_argument("--zfinger-hands", default="5,6,8", help="experiment 3 hand sizes n")
     p.add_argument("--no-normals", action="store_true", help="experiments 2-6 without normals")
-    p.add_argument("--normal-axis", default=d.normal_axis, choices=("t2", "ab"),
+    p.add_argument("--normal-axis", default=d.normal_axis, choices=NORMAL_AXES,
                    help="each normal's second angle in Phi_n (n >= 4): to t2's normal (t2, the paper's) or to the "
                         "edge ab (ab)")
     p.add_argument("--raw", action="store_true",
