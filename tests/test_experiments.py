@@ -27,6 +27,10 @@ def test_analysis_cli_smoke(tmp_path, cache):
     for heading in ("## 1.", "## 2.", "## 6."):
         assert heading in text
     assert (out / "success_vs_grasps.png").stat().st_size > 1000
+    assert "factor auto by the calibrated posterior's validation NLL" in text  # the analyses' bandwidth criterion
+    with pytest.raises(SystemExit):
+        main(["analysis", "--out", str(tmp_path / "bad"), "--kde-select", "median"])
+    assert not (tmp_path / "bad").exists()
 
 
 def test_analysis_with_normal_axis_ab_trains_and_tests_on_it(tmp_path, cache):

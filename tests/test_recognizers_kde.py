@@ -160,3 +160,44 @@ def test_per_class_bandwidth_fits_each_class_by_its_own_validation_likelihood():
     assert np.array_equal(again.bandwidth, per.bandwidth) and np.allclose(again.log_likelihood(q), per.log_likelihood(q))
     with pytest.raises(ValueError, match="bandwidth"):
         KDEConfig(bandwidth="adaptive")
+
+
+def test_posterior_selection_picks_the_factor_whose_calibrated_posterior_scores_best_held_out():
+    """``select="posterior"``: each factor's criterion is the held-out validation NLL of the calibration that
+    ``correct`` keeps (recomputed here from a fixed-factor KDE on the same rows), the lowest wins, and the result is
+    the KDE fitted at that factor directly (same bandwidth, scores, temperature and correction)."""
+    from haptic_env.recognizers.calibration import select_correction
+
+    rng = np.random.default_rng(3)
+    X, y = _blobs(rng, n=1500, d=4)
+    Xv, yv = _blobs(np.random.default_rng(4), n=300, d=4)
+    cfg = KDEConfig(correct="auto", select="posterior", n_calibrate=200, seed=5)
+    kde = KDELikelihood(cfg).fit(X, y, Xv, yv)
+    assert set(kde.selection) == set(cfg.factor_grid)
+    best = min(kde.selection, key=kde.selection.get)
+    assert np.all(kde.factor == best)
+    pick = np.random.default_rng([cfg.seed, 2])
+    keep = np.concatenate([pick.permutation(np.flatnonzero(yv == c))[:200] for c in range(3)])
+    for f in (cfg.factor_grid[0], best):
+        fixed = KDELikelihood(KDEConfig(factor=f, calibrate=False)).fit(X, y)
+        _, n_t, n_c = select_correction(fixed.log_likelihood(Xv[keep]), yv[keep], rng=np.random.default_rng([5, 1]))
+        assert kde.selection[f] == pytest.approx(min(n_t, n_c), rel=1e-12)
+    direct = KDELikelihood(KDEConfig(factor=best, correct="auto", n_calibrate=200, seed=5)).fit(X, y, Xv, yv)
+    assert np.array_equal(direct.bandwidth, kde.bandwidth) and np.array_equal(direct.tree_k, kde.tree_k)
+    assert direct.temperature == kde.temperature
+    q = Xv[::37]
+    assert np.array_equal(direct.calibrate_scores(direct.log_likelihood(q)), kde.calibrate_scores(kde.log_likelihood(q)))
+    likelihood = KDELikelihood(KDEConfig(correct="auto", n_calibrate=200, seed=5)).fit(X, y, Xv, yv)
+    assert kde.selection[best] <= kde.selection[float(likelihood.factor[0])]
+
+
+def test_posterior_selection_refuses_what_it_cannot_do():
+    with pytest.raises(ValueError, match="select"):
+        KDEConfig(select="nll")
+    with pytest.raises(ValueError, match="bandwidth='shared'"):
+        KDEConfig(select="posterior", bandwidth="per-class")
+    rng = np.random.default_rng(0)
+    X, y = _blobs(rng, n=200, d=3)
+    with pytest.raises(ValueError, match=r"validation vectors of every class, got \[5, 5, 1\]"):
+        KDELikelihood(KDEConfig(select="posterior")).fit(X, y, X[[0, 1, 2, 3, 4, 200, 201, 202, 203, 204, 400]],
+                                                         y[[0, 1, 2, 3, 4, 200, 201, 202, 203, 204, 400]])

@@ -42,7 +42,8 @@ def run_analysis(cfg: AnalysisConfig, out: str | Path, command: str | None = Non
     rep.lines += [f"{cfg.scores_label} in experiments 2-6; seed {cfg.seed}; {cfg.grasps_per_object} training grasps "
                   f"per object; {cfg.test_grasps} fresh test grasps per object; {cfg.trials} trials; max {cfg.max_grasps} "
                   f"grasps; MLP {cfg.mlp.depth}x{cfg.mlp.width}; "
-                  f"KDE {cfg.kde.method} (k={cfg.kde.k}, cutoff {cfg.kde.cutoff} h, factor {cfg.kde.factor})."
+                  f"KDE {cfg.kde.method} (k={cfg.kde.k}, cutoff {cfg.kde.cutoff} h, factor {cfg.kde.factor}"
+                  f"{_select_words(cfg.kde)})."
                   + ("" if cfg.normal_axis == "t2" else f" Phi_n with `normal_axis=\"{cfg.normal_axis}\"` (not the "
                      "paper's): each normal's second angle to the edge ab of t1, not to t2's normal (n >= 4).")]
     rng = np.random.default_rng(cfg.seed)
@@ -52,3 +53,12 @@ def run_analysis(cfg: AnalysisConfig, out: str | Path, command: str | None = Non
         rep.p(f"_experiment {e}: {time.perf_counter() - t0:.0f} s_")
         rep.write()
     return rep.write()
+
+
+def _select_words(kde) -> str:
+    """How the report names the KDE's bandwidth choice (``KDEConfig.select``), when it is chosen."""
+    if kde.factor != "auto":
+        return ""
+    return (" by the calibrated posterior's validation NLL" if kde.select == "posterior"
+            else " by the density's validation likelihood")
+

@@ -8,6 +8,7 @@ import shlex
 
 from haptic_env.grasp_features import NORMAL_AXES
 from haptic_env.experiments.config import AnalysisConfig
+from haptic_env.recognizers.kde import SELECTS
 
 __all__ = ["add_parser"]
 
@@ -86,6 +87,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="calibrate the KDE by its temperature alone, without the learned correction of its scores "
                         "(KDEConfig.correct; by default it is used where it lowers the held-out validation NLL of "
                         "BC-NP's beliefs; --raw turns off both)")
+    p.add_argument("--kde-select", default=d.kde.select, choices=SELECTS,
+                   help="how the KDE's bandwidth factor is chosen on validation grasps: by the calibrated one-shot "
+                        "posterior's held-out NLL (posterior) or by the density's log-likelihood (likelihood, the "
+                        "envs' choice)")
     p.add_argument("--calibrate-grasps", type=int, default=d.kde.calibrate_grasps,
                    help="fit the KDE's temperature for beliefs of 1..K grasps of one object (1: one-shot; the hand "
                         "envs use 5)")
@@ -125,7 +130,7 @@ def _run_cli(args) -> int:
         mlp=MLPConfig(depth=args.mlp_depth, width=args.mlp_width, max_epochs=args.mlp_epochs, patience=3,
                       max_train=args.mlp_max_train, seed=args.seed),
         kde=KDEConfig(method=args.kde_method, calibrate_grasps=args.calibrate_grasps, seed=args.seed,
-                      correct=False if args.no_correction else "auto"),
+                      correct=False if args.no_correction else "auto", select=args.kde_select),
         progress=not args.quiet,
     )
     for c in cfg.classifiers:
