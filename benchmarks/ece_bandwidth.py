@@ -5,9 +5,10 @@ For each fixed bandwidth factor (x Scott's rule) the analyses' KDE (``AnalysisCo
 fitted without calibration; the two calibrations of :mod:`haptic_env.recognizers.calibration` (the temperature
 alone, and the learned correction then the temperature) are fitted on one half of the validation split (seed 5)
 and scored on the other half (``val``) by the NLL of the true class and the ECE (10 bins). The test columns use the
-experiments' fresh test grasps (``--test-grasps`` per object, seed + 7919); nothing is chosen on them. The
-analyses themselves pick the factor by the validation *density* likelihood (``KDEConfig.factor = "auto"``), marked
-``(auto)``.
+experiments' fresh test grasps (``--test-grasps`` per object, seed + 7919); nothing is chosen on them. The factor
+the analyses' own KDE picks (``KDEConfig.factor = "auto"`` with the analyses' ``KDEConfig.select``: since 2026-12-02
+the calibrated posterior's held-out validation NLL, before it the density's validation likelihood;
+``--select likelihood`` gives the earlier choice) is marked ``(auto)``.
 
     python benchmarks/ece_bandwidth.py --objects default --fingers 4 --no-normals
 
@@ -33,7 +34,7 @@ from haptic_env.experiments.config import AnalysisConfig  # noqa: E402
 from haptic_env.experiments.fresh_grasps import fresh_pool  # noqa: E402
 from haptic_env.objects import load_object_set  # noqa: E402
 from haptic_env.recognizers.calibration import expected_calibration_error, fit_correction, fit_temperature  # noqa: E402
-from haptic_env.recognizers.kde import KDELikelihood  # noqa: E402
+from haptic_env.recognizers.kde import SELECTS, KDELikelihood  # noqa: E402
 
 
 def _nll(S: np.ndarray, y: np.ndarray) -> float:
@@ -47,6 +48,8 @@ def main(argv=None) -> int:
     p.add_argument("--no-normals", action="store_true")
     p.add_argument("--factors", default="0.35,0.5,0.7,1.0,1.4,2.0,2.8")
     p.add_argument("--test-grasps", type=int, default=400)
+    p.add_argument("--select", default=None, choices=SELECTS,
+                   help="the (auto) row's bandwidth criterion (default: the analyses' KDEConfig.select)")
     a = p.parse_args(argv)
     factors = [float(f) for f in a.factors.split(",")]
     if a.fingers < 2 or not factors or min(factors) <= 0:
@@ -63,11 +66,13 @@ def main(argv=None) -> int:
     yv = np.asarray(ds.y_val)
     perm = np.random.default_rng(5).permutation(len(yv))
     A, B = perm[: len(perm) // 2], perm[len(perm) // 2:]
-    auto = KDELikelihood(dataclasses.replace(rc.kde, calibrate=False)).fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val,
+    kcfg = rc.kde if a.select is None else dataclasses.replace(rc.kde, select=a.select)
+    auto = KDELikelihood(kcfg).fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val,
                                                                           n_classes=len(objects))
     auto_f = float(auto.factor[0])
     if auto_f not in factors:
         factors = sorted([*factors, auto_f])
+    print(f"(auto): factor {auto_f:g}, chosen by {kcfg.select} ({', '.join(f'{f:g}: {v:.4f}' for f, v in auto.selection.items())})")
     print(f"{a.objects}, n = {a.fingers}, {'with' if normals else 'without'} normals; {len(ds.X_train)} training, "
           f"{len(yv)} validation ({len(B)} held out), {len(yt)} test grasps\n")
     print("| factor | accuracy val / test % | T only: T | val NLL | val ECE | test ECE | correction + T: T | val NLL "

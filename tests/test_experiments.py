@@ -30,6 +30,8 @@ def test_analysis_cli_smoke(tmp_path, cache):
     assert "factor auto by the calibrated posterior's validation NLL" in text  # the analyses' bandwidth criterion
     with pytest.raises(SystemExit):
         main(["analysis", "--out", str(tmp_path / "bad"), "--kde-select", "median"])
+    with pytest.raises(SystemExit):
+        main(["analysis", "--out", str(tmp_path / "bad"), "--kde-corrections", "matrix,isotonic"])
     assert not (tmp_path / "bad").exists()
 
 

@@ -188,3 +188,69 @@ def test_kde_auto_correction_is_one_of_the_two_fits():
                                   chosen.calibrate_scores(chosen.log_likelihood(q)))
     with pytest.raises(ValueError, match="correct"):
         KDEConfig(correct="sometimes")
+
+
+def _stretched_gaps(rng, p_true: float, B=6000, K=5):
+    """Scores whose gaps to the best class are the true log-posterior's gaps raised to ``1 / p_true`` (x 2), and
+    labels drawn from the true posterior: a :class:`PowerCorrection` with ``p = p_true`` undoes the stretch."""
+    from scipy.special import log_softmax
+
+    z = rng.normal(0.0, 1.5, (B, K))
+    P = softmax(z, axis=1)
+    y = (P.cumsum(1) > rng.random((B, 1))).argmax(1)
+    logp = log_softmax(z, axis=1)
+    return -2.0 * (logp.max(1, keepdims=True) - logp) ** (1 / p_true), y
+
+
+def test_power_correction_recovers_the_exponent_and_beats_a_temperature_held_out():
+    from haptic_env.recognizers.calibration import PowerCorrection, fit_power, select_calibration
+
+    S, y = _stretched_gaps(np.random.default_rng(4), 0.6)
+    S[0, 1] = -np.inf  # a class a KDE ruled out
+    pc = fit_power(S, y)
+    assert pc.p == pytest.approx(0.6, abs=0.05)
+    out = pc(S)
+    assert out.shape == S.shape and np.isfinite(out).all() and np.all(out.max(1) == 0.0)
+    assert out[0, 1] == pytest.approx(-pc.cap ** pc.p)  # the ruled-out class sits at the cap
+    C = pc(S)
+    T = fit_temperature(C, y)
+    assert expected_calibration_error(softmax(C / T, axis=1), y) < expected_calibration_error(
+        softmax(S / fit_temperature(S, y), axis=1), y)
+    choice, nll = select_calibration(S, y, ("matrix", "power"))
+    assert choice == "power" and nll["power"] < nll[None] - 0.01
+    # the first candidates' choice and held-out NLLs do not depend on a later candidate (one random stream)
+    only, nll1 = select_calibration(S, y, ("matrix",))
+    assert nll1[None] == nll[None] and nll1["matrix"] == nll["matrix"]
+    assert select_correction(S, y) == (only == "matrix", nll1[None], nll1["matrix"])
+    np.testing.assert_array_equal(PowerCorrection(1.0, pc.cap)(S[1:]), np.maximum(S[1:] - S[1:].max(1, keepdims=True),
+                                                                                 -pc.cap))  # p = 1: the identity
+    with pytest.raises(ValueError, match="candidates"):
+        select_calibration(S, y, ("matrix", "isotonic"))
+    with pytest.raises(ValueError, match="bounds"):
+        fit_power(S, y, bounds=(1.0, 0.5))
+
+
+def test_kde_power_correction_is_stored_and_chosen_by_auto_only_where_it_helps():
+    """``correct="power"`` fits it and the cache round trip keeps it; ``correct="auto"`` with the power among its
+    candidates fits exactly what the chosen one fits; bad names are refused."""
+    from haptic_env.recognizers.calibration import PowerCorrection
+
+    X, y, Xv, yv = _two_gaussians(np.random.default_rng(2), 400, 300, d=8, shift=0.5)
+    power = KDELikelihood(KDEConfig(method="dense", correct="power")).fit(X, y, Xv, yv)
+    assert isinstance(power.correction, PowerCorrection)
+    again = KDELikelihood.from_state(power.config, power.state())
+    q = Xv[:20]
+    assert again.correction == power.correction and again.temperature == power.temperature
+    np.testing.assert_allclose(again.calibrate_scores(again.log_likelihood(q)),
+                               power.calibrate_scores(power.log_likelihood(q)), atol=1e-5)  # float32 storage
+    auto = KDELikelihood(KDEConfig(method="dense", correct="auto", correct_candidates=("matrix", "power"))
+                         ).fit(X, y, Xv, yv)
+    kind = {type(None): False, PowerCorrection: "power"}.get(type(auto.correction), True)
+    chosen = KDELikelihood(KDEConfig(method="dense", correct=kind)).fit(X, y, Xv, yv)
+    assert auto.temperature == chosen.temperature
+    np.testing.assert_array_equal(auto.calibrate_scores(auto.log_likelihood(q)),
+                                  chosen.calibrate_scores(chosen.log_likelihood(q)))
+    with pytest.raises(ValueError, match="correct_candidates"):
+        KDEConfig(correct="auto", correct_candidates=("power", "power"))
+    with pytest.raises(ValueError, match="correct must be"):
+        KDEConfig(correct="isotonic")

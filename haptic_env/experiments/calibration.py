@@ -94,7 +94,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
                               f"{c[2]:.1f}", f"{c[0]:.1f}", mean_std(c[1], c[3], 2)])
     rep.p(f"Test grasps: {cfg.test_grasps} fresh grasps per object (seed {cfg.seed + TEST_SEED_OFFSET}), never used to "
           f"fit T (T is fitted on the training data's validation split). One-shot posterior: BC = softmax of the KDE "
-          f"log-likelihoods ({_kde_calibration(cfg.kde.correct)}), MLP = softmax(logits / T). ECE over {cfg.ece_bins} equal-width confidence bins; NLL "
+          f"log-likelihoods ({_kde_calibration(cfg.kde)}), MLP = softmax(logits / T). ECE over {cfg.ece_bins} equal-width confidence bins; NLL "
           "of the true class; conf = mean max posterior. Accuracy does not depend on T. Reliability diagrams: "
           "`reliability_<cell>.png`.")
     rep.table(["n", "normals", "model", "T", "accuracy %", "ECE raw", "NLL raw", "conf raw %", "ECE cal", "NLL cal",
@@ -115,8 +115,15 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     rep.table(hdr, rows)
 
 
-def _kde_calibration(correct) -> str:
-    """How the KDE's one-shot scores are calibrated, in words (``KDEConfig.correct``)."""
-    if correct == "auto":
-        return "learned correction where it lowers the held-out validation NLL, marked 'corrected', then / T"
-    return "learned correction, then / T" if correct else "/ T"
+def _kde_calibration(kde) -> str:
+    """How the KDE's one-shot scores are calibrated, in words (``KDEConfig.correct``, ``correct_candidates``)."""
+    if kde.correct == "auto":
+        power = ", or the power of each class's gap to the best, marked 'power p'," if "power" in kde.correct_candidates \
+            else ""
+        return (f"learned correction{power} where it lowers the held-out validation NLL, marked 'corrected', then / T"
+                if "matrix" in kde.correct_candidates else
+                "the power of each class's gap to the best where it lowers the held-out validation NLL, marked "
+                "'power p', then / T")
+    if kde.correct == "power":
+        return "the power of each class's gap to the best, then / T"
+    return "learned correction, then / T" if kde.correct else "/ T"

@@ -8,6 +8,7 @@ import shlex
 
 from haptic_env.grasp_features import NORMAL_AXES
 from haptic_env.experiments.config import AnalysisConfig
+from haptic_env.recognizers.calibration import CORRECTIONS
 from haptic_env.recognizers.kde import SELECTS
 
 __all__ = ["add_parser"]
@@ -23,6 +24,16 @@ def _ints(text: str) -> tuple[int, ...]:
         elif part:
             out.append(int(part))
     return tuple(out)
+
+
+def _corrections(text: str) -> tuple[str, ...]:
+    """``"matrix,power"`` -> ``("matrix", "power")``, each a name of ``calibration.CORRECTIONS``, once."""
+    from haptic_env.cli import UsageError
+
+    out = tuple(c.strip() for c in text.split(",") if c.strip())
+    if not out or len(set(out)) != len(out) or any(c not in CORRECTIONS for c in out):
+        raise UsageError(f"--kde-corrections: expected distinct names of {tuple(CORRECTIONS)}, got {text!r}")
+    return out
 
 
 def _lambdas(text: str) -> tuple[float, ...]:
@@ -91,6 +102,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="how the KDE's bandwidth factor is chosen on validation grasps: by the calibrated one-shot "
                         "posterior's held-out NLL (posterior) or by the density's log-likelihood (likelihood, the "
                         "envs' choice)")
+    p.add_argument("--kde-corrections", default=",".join(d.kde.correct_candidates),
+                   help="the learned corrections of the KDE's scores that are weighed against its temperature alone "
+                        f"on held-out validation grasps (KDEConfig.correct_candidates; of {','.join(CORRECTIONS)})")
     p.add_argument("--calibrate-grasps", type=int, default=d.kde.calibrate_grasps,
                    help="fit the KDE's temperature for beliefs of 1..K grasps of one object (1: one-shot; the hand "
                         "envs use 5)")
@@ -130,7 +144,8 @@ def _run_cli(args) -> int:
         mlp=MLPConfig(depth=args.mlp_depth, width=args.mlp_width, max_epochs=args.mlp_epochs, patience=3,
                       max_train=args.mlp_max_train, seed=args.seed),
         kde=KDEConfig(method=args.kde_method, calibrate_grasps=args.calibrate_grasps, seed=args.seed,
-                      correct=False if args.no_correction else "auto", select=args.kde_select),
+                      correct=False if args.no_correction else "auto", select=args.kde_select,
+                      correct_candidates=_corrections(args.kde_corrections)),
         progress=not args.quiet,
     )
     for c in cfg.classifiers:

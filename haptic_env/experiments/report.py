@@ -47,7 +47,10 @@ def mean_std(m: float, s: float, digits: int = 1) -> str:
 
 def kde_temperature(models, n: int) -> str:
     """The ``n``-finger KDE's calibration temperature as the reports print it, marked "(corrected)" when its
-    learned correction comes first (``KDEConfig.correct``); ``models`` a recogniser's ``ModelBank``."""
+    learned matrix correction comes first and "(power p)" when its power correction does (``KDEConfig.correct``);
+    ``models`` a recogniser's ``ModelBank``."""
     kde = models.model(n)[1]
-    corrected = getattr(kde, "correction", None) is not None
-    return f"{models.temperature(n)['kde']:.2f}" + (" (corrected)" if corrected else "")
+    corr = getattr(kde, "correction", None)
+    p = getattr(corr, "p", None)  # the exponent of a PowerCorrection
+    mark = "" if corr is None else (" (corrected)" if p is None else f" (power {p:.2f})")
+    return f"{models.temperature(n)['kde']:.2f}" + mark

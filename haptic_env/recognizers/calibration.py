@@ -22,7 +22,8 @@ from scipy.optimize import minimize_scalar
 from scipy.special import log_softmax
 
 __all__ = ["fit_temperature", "sequence_scores", "tempered_nll", "expected_calibration_error", "reliability",
-           "T_BOUNDS", "ScoreCorrection", "fit_correction", "select_correction", "SELECT_GRASPS"]
+           "T_BOUNDS", "ScoreCorrection", "fit_correction", "select_correction", "SELECT_GRASPS", "PowerCorrection",
+           "fit_power", "P_BOUNDS", "CORRECTIONS", "select_calibration"]
 
 #: Range of temperatures searched by :func:`fit_temperature`.
 T_BOUNDS = (0.02, 200.0)
@@ -117,6 +118,61 @@ def fit_correction(scores, y, *, C: float = 1.0) -> ScoreCorrection:
     return ScoreCorrection(W=W, b=b, floor=floor)
 
 
+#: Range of exponents searched by :func:`fit_power`.
+P_BOUNDS = (0.1, 2.0)
+
+
+@dataclass(frozen=True)
+class PowerCorrection:
+    r"""A one-parameter correction of the *shape* of a grasp's class scores: each class's gap to the best class,
+    raised to a power, ``-min(max(s) - s_c, cap) ** p``.
+
+    A temperature scales every gap alike. A KDE in few dimensions can be over-confident in its large gaps and
+    under-confident in its small ones at once: then the NLL-optimal temperature leaves the posteriors mis-calibrated
+    at middle confidences (measured: the default set, n = 4 without normals, 200,000 grasps per object, test ECE
+    0.058 with the temperature alone). ``p < 1`` compresses large gaps more than small ones; ``p = 1`` is the identity.
+    Followed by the temperature, it is a two-parameter family that contains temperature scaling. Like
+    :class:`ScoreCorrection` its output is a one-shot log-posterior up to a constant per grasp, which Bayes updates sum
+    over grasps.
+
+    Attributes:
+        p: the exponent (> 0).
+        cap: gaps are clipped at this value (> 0; a class a KDE ruled out, ``-inf``, gets it).
+    """
+
+    p: float
+    cap: float
+
+    def __call__(self, scores) -> np.ndarray:
+        """``(B, K)`` scores -> ``(B, K)`` corrected scores (the best class at 0, the others below)."""
+        S = np.asarray(scores, dtype=np.float64)
+        if S.ndim != 2:
+            raise ValueError(f"scores must have shape (B, K), got {S.shape}")
+        return -(-_centred(S, -self.cap)) ** self.p
+
+
+def fit_power(scores, y, bounds: tuple[float, float] = P_BOUNDS) -> PowerCorrection:
+    """The :class:`PowerCorrection` whose exponent minimises the NLL of the true class after the best temperature
+    (the temperature profiled out: :func:`fit_temperature` at every exponent tried), on validation ``scores (B, K)``
+    of true classes ``y (B,)``. The cap is the largest finite validation gap (at least 1)."""
+    S, Y = _check(scores, y)
+    lo, hi = (float(b) for b in bounds)
+    if not 0 < lo < hi:
+        raise ValueError(f"bounds must be 0 < lo < hi, got {bounds!r}")
+    gaps = -_centred(S, -np.inf)
+    finite = gaps[np.isfinite(gaps)]
+    cap = float(max(finite.max(), 1.0)) if finite.size else 1.0
+    if len(Y) == 0:
+        return PowerCorrection(1.0, cap)
+
+    def nll(log_p: float) -> float:
+        C = PowerCorrection(float(np.exp(log_p)), cap)(S)
+        return tempered_nll(C, Y, fit_temperature(C, Y))
+
+    res = minimize_scalar(nll, bounds=(np.log(lo), np.log(hi)), method="bounded", options={"xatol": 1e-3})
+    return PowerCorrection(float(np.exp(res.x)), cap)
+
+
 def tempered_nll(scores, y, T: float) -> float:
     """Mean negative log-probability of the true class under ``softmax(scores / T)``."""
     S, Y = _check(scores, y)
@@ -192,6 +248,51 @@ def sequence_scores(scores, y, max_grasps: int, rng: np.random.Generator) -> tup
 SELECT_GRASPS = 1
 
 
+#: the learned corrections :func:`select_calibration` weighs against the temperature alone, by name
+CORRECTIONS = {"matrix": fit_correction, "power": fit_power}
+
+
+def select_calibration(scores, y, candidates=("matrix",), *, calibrate_grasps: int = 1, horizon: int = SELECT_GRASPS,
+                       rng: np.random.Generator | None = None) -> tuple[str | None, dict]:
+    """Which calibration gives the KDE's held-out validation posteriors the lowest NLL: the temperature alone
+    (``None``) or one of the learned ``candidates`` (names in :data:`CORRECTIONS`) followed by the temperature.
+
+    Each class's rows are halved; every calibration is fitted on the first halves (its temperature for
+    ``calibrate_grasps``-grasp beliefs, as the KDE fits it) and scored on the second by the mean NLL of the true class
+    after ``k = 1 .. horizon`` summed grasps of one object (:func:`sequence_scores`), in the order temperature alone,
+    then ``candidates`` (one random stream, so the choice between the first ones does not depend on later ones).
+
+    Args:
+        scores: ``(B, K)`` raw validation log-likelihoods; every class needs >= 2 rows.
+        y: ``(B,)`` true classes.
+        candidates: correction names, each once.
+        calibrate_grasps: the temperature's belief length (``KDEConfig.calibrate_grasps``).
+        horizon: longest held-out belief scored.
+        rng: draws the summed grasps (default: a fixed seed, so a fit is reproducible).
+
+    Returns:
+        ``(choice, nll)``: ``None`` or the winning name, and the held-out NLL of each (``None`` for the temperature).
+    """
+    S, Y = _check(scores, y)
+    bad = [c for c in candidates if c not in CORRECTIONS]
+    if bad or len(set(candidates)) != len(candidates):
+        raise ValueError(f"candidates must be distinct names of {tuple(CORRECTIONS)}, got {tuple(candidates)!r}")
+    rng = np.random.default_rng(0) if rng is None else rng
+    K = S.shape[1]
+    rows = [np.flatnonzero(Y == c) for c in range(K)]
+    if min(len(r) for r in rows) < 2:
+        raise ValueError("select_calibration needs >= 2 validation scores of every class, got "
+                         f"{[len(r) for r in rows]}")
+    A = np.concatenate([r[: len(r) // 2] for r in rows])
+    B = np.concatenate([r[len(r) // 2:] for r in rows])
+    fits = {None: (lambda s: s)} | {c: CORRECTIONS[c](S[A], Y[A]) for c in candidates}
+    nll = {}
+    for name, f in fits.items():
+        T = fit_temperature(*sequence_scores(f(S[A]), Y[A], calibrate_grasps, rng))
+        nll[name] = tempered_nll(*sequence_scores(f(S[B]), Y[B], horizon, rng), T)
+    return min(nll, key=nll.get), nll
+
+
 def select_correction(scores, y, *, calibrate_grasps: int = 1, horizon: int = SELECT_GRASPS,
                       rng: np.random.Generator | None = None) -> tuple[bool, float, float]:
     """Whether the learned correction improves the KDE's calibrated posteriors, judged on held-out validation scores.
@@ -214,21 +315,9 @@ def select_correction(scores, y, *, calibrate_grasps: int = 1, horizon: int = SE
     Returns:
         ``(use, nll_temperature, nll_correction)``.
     """
-    S, Y = _check(scores, y)
-    rng = np.random.default_rng(0) if rng is None else rng
-    K = S.shape[1]
-    rows = [np.flatnonzero(Y == c) for c in range(K)]
-    if min(len(r) for r in rows) < 2:
-        raise ValueError("select_correction needs >= 2 validation scores of every class, got "
-                         f"{[len(r) for r in rows]}")
-    A = np.concatenate([r[: len(r) // 2] for r in rows])
-    B = np.concatenate([r[len(r) // 2:] for r in rows])
-    corr = fit_correction(S[A], Y[A])
-    nll = []
-    for f in (lambda s: s, corr):
-        T = fit_temperature(*sequence_scores(f(S[A]), Y[A], calibrate_grasps, rng))
-        nll.append(tempered_nll(*sequence_scores(f(S[B]), Y[B], horizon, rng), T))
-    return bool(nll[1] < nll[0]), float(nll[0]), float(nll[1])
+    choice, nll = select_calibration(scores, y, ("matrix",), calibrate_grasps=calibrate_grasps, horizon=horizon,
+                                     rng=rng)
+    return choice == "matrix", float(nll[None]), float(nll["matrix"])
 
 
 def reliability(proba, y, bins: int = 10) -> dict[str, np.ndarray]:

@@ -13,7 +13,7 @@ with the mean per-object sample count ``N``); with ``factor="auto"`` the factor 
 never the test grasps; ``KDEConfig.select="likelihood"``, the default), or (``select="posterior"``, the analyses'
 setting) by the held-out validation NLL of the *calibrated one-shot posterior*: at each factor the full KDE scores
 the calibration vectors, both calibrations are fitted on one half of each class's vectors and scored on the other
-(:func:`~haptic_env.recognizers.calibration.select_correction`), and the factor whose calibration (as
+(:func:`~haptic_env.recognizers.calibration.select_calibration`), and the factor whose calibration (as
 ``KDEConfig.correct`` would choose it) scores best wins. The density criterion fits each class's density; the
 posterior criterion fits what BC uses, the ratios between classes after calibration. In the one cell where the
 analyses' calibrated one-shot ECE missed 0.05 (the default set, n = 4 without normals) it picked factor 1.4 instead
@@ -66,8 +66,8 @@ import numpy as np
 from scipy.special import logsumexp
 from scipy.spatial import cKDTree
 
-from haptic_env.recognizers.calibration import (ScoreCorrection, fit_correction, fit_temperature, select_correction,
-                                                sequence_scores)
+from haptic_env.recognizers.calibration import (CORRECTIONS, PowerCorrection, ScoreCorrection, fit_temperature,
+                                                select_calibration, sequence_scores)
 from haptic_env.recognizers.knn import KDTree, pooled_log_density
 from haptic_env.recognizers.preprocess import Standardizer
 from haptic_env.recognizers.preprocess import check_xy as _check_xy
@@ -111,8 +111,13 @@ class KDEConfig:
     #: "auto": only if it gives held-out validation beliefs a lower NLL (:func:`~.calibration.select_correction`), the
     #: analyses' setting (``AnalysisConfig``; surface-trained KDEs); False (default): never, as in the envs (on the
     #: hand-matched KDEs, whose beliefs mix 3-, 4- and 5-finger models, it lowered validation BC-NP, RESULTS.md; the
-    #: geometric env was not validated with it).
+    #: geometric env was not validated with it). "power": always the exponent on each class's gap to the best
+    #: (:class:`~.calibration.PowerCorrection`) instead. With "auto" the candidates weighed against the temperature
+    #: alone are ``correct_candidates`` (:data:`~.calibration.CORRECTIONS`; :func:`~.calibration.select_calibration`).
     correct: bool | str = False
+    #: the learned corrections ``correct="auto"`` may choose ("matrix": :class:`~.calibration.ScoreCorrection`,
+    #: "power": :class:`~.calibration.PowerCorrection`)
+    correct_candidates: tuple[str, ...] = ("matrix",)
     n_calibrate: int = 1_000  #: validation vectors per object used to fit the temperature
     #: grasps per belief the temperature is fitted for: ``T`` minimises the NLL of the posteriors after
     #: ``k = 1 .. calibrate_grasps`` grasps of one object (sums of ``k`` random validation log-likelihoods of
@@ -123,8 +128,13 @@ class KDEConfig:
     def __post_init__(self):
         if self.method not in _METHODS:
             raise ValueError(f"KDEConfig.method must be one of {_METHODS}, got {self.method!r}")
-        if self.correct not in (True, False, "auto"):
-            raise ValueError(f"KDEConfig.correct must be True, False or 'auto', got {self.correct!r}")
+        if self.correct not in (True, False, "auto", *CORRECTIONS):
+            raise ValueError(f"KDEConfig.correct must be True, False, 'auto' or one of {tuple(CORRECTIONS)}, got "
+                             f"{self.correct!r}")
+        cands = tuple(self.correct_candidates)
+        if not cands or len(set(cands)) != len(cands) or any(c not in CORRECTIONS for c in cands):
+            raise ValueError(f"KDEConfig.correct_candidates must be distinct names of {tuple(CORRECTIONS)}, got "
+                             f"{self.correct_candidates!r}")
         if self.bandwidth not in BANDWIDTHS:
             raise ValueError(f"KDEConfig.bandwidth must be one of {BANDWIDTHS}, got {self.bandwidth!r}")
         if self.select not in SELECTS:
@@ -163,7 +173,7 @@ class KDELikelihood:
     #: held-out validation NLL of the calibrated one-shot posterior (``select="posterior"``)
     selection: dict = field(default_factory=dict)
     temperature: float = 1.0  #: calibration temperature T (fitted on validation vectors; 1: none)
-    correction: ScoreCorrection | None = None  #: learned correction applied before T (None: none)
+    correction: ScoreCorrection | PowerCorrection | None = None  #: learned correction applied before T (None: none)
 
     def __post_init__(self):
         self.scaler: Standardizer | None = None
@@ -236,10 +246,10 @@ class KDELikelihood:
                                   RuntimeWarning, stacklevel=2)
                     use = False
                 if use == "auto":  # its own random stream: the fit below is the same whichever way this goes
-                    use = select_correction(S, Y, calibrate_grasps=cfg.calibrate_grasps,
-                                            rng=np.random.default_rng([cfg.seed, 1]))[0]
+                    use = select_calibration(S, Y, cfg.correct_candidates, calibrate_grasps=cfg.calibrate_grasps,
+                                             rng=np.random.default_rng([cfg.seed, 1]))[0]
                 if use:
-                    self.correction = fit_correction(S, Y)
+                    self.correction = CORRECTIONS["matrix" if use is True else use](S, Y)
                     S = self.correction(S)
                 if cfg.calibrate_grasps > 1:
                     S, Y = sequence_scores(S, Y, cfg.calibrate_grasps, rng)
@@ -334,8 +344,8 @@ class KDELikelihood:
     def _select_posterior(self, X_val: np.ndarray, y_val: np.ndarray, scott: np.ndarray) -> np.ndarray:
         """``(K,)`` the shared factor of the grid whose calibrated one-shot posterior has the lowest held-out
         validation NLL (``select="posterior"``). Up to ``n_calibrate`` validation vectors per class (its own random
-        stream) are scored by the full KDE at each factor; :func:`~.calibration.select_correction` halves them per
-        class, fits the temperature alone and the correction then the temperature on one half and scores the other;
+        stream) are scored by the full KDE at each factor; :func:`~.calibration.select_calibration` halves them per
+        class, fits the temperature alone and each correction then the temperature on one half and scores the other;
         the calibration that ``config.correct`` would keep gives the factor's NLL."""
         cfg = self.config
         rng = np.random.default_rng([cfg.seed, 2])
@@ -346,12 +356,14 @@ class KDELikelihood:
             raise ValueError(f"KDEConfig.select='posterior' needs >= 2 validation vectors of every class, got "
                              f"{counts.tolist()}")
         Xs, Ys = X_val[keep], y_val[keep]
+        fixed = {False: None, True: "matrix"}.get(cfg.correct, cfg.correct)
+        cands = cfg.correct_candidates if fixed == "auto" else tuple(filter(None, [fixed]))
         nll = {}
         for f in cfg.factor_grid:
             self._set_bandwidth(np.full(self.n_classes, float(f)) * scott)
-            _, n_t, n_c = select_correction(self.log_likelihood(Xs), Ys, calibrate_grasps=cfg.calibrate_grasps,
-                                            rng=np.random.default_rng([cfg.seed, 1]))
-            nll[float(f)] = {"auto": min(n_t, n_c), True: n_c, False: n_t}[cfg.correct]
+            choice, held = select_calibration(self.log_likelihood(Xs), Ys, cands, calibrate_grasps=cfg.calibrate_grasps,
+                                              rng=np.random.default_rng([cfg.seed, 1]))
+            nll[float(f)] = held[choice if fixed == "auto" else fixed]
         self.selection = nll
         return np.full(self.n_classes, min(nll, key=nll.get))
 
@@ -434,7 +446,9 @@ class KDELikelihood:
         out = {"kde_mean": self.scaler.mean, "kde_std": self.scaler.std,
                "kde_bandwidth": np.asarray(self.bandwidth, float), "kde_factor": np.asarray(self.factor, float),
                "kde_temperature": np.array(self.temperature)}
-        if self.correction is not None:
+        if isinstance(self.correction, PowerCorrection):
+            out.update(kde_power_p=np.array(self.correction.p), kde_power_cap=np.array(self.correction.cap))
+        elif self.correction is not None:
             out.update(kde_corr_W=self.correction.W, kde_corr_b=self.correction.b,
                        kde_corr_floor=np.array(self.correction.floor))
         for c, z in enumerate(self.data):
@@ -450,6 +464,8 @@ class KDELikelihood:
             kde.correction = ScoreCorrection(np.asarray(arrays["kde_corr_W"], dtype=np.float64),
                                              np.asarray(arrays["kde_corr_b"], dtype=np.float64),
                                              float(arrays["kde_corr_floor"]))
+        elif "kde_power_p" in arrays:
+            kde.correction = PowerCorrection(float(arrays["kde_power_p"]), float(arrays["kde_power_cap"]))
         c = 0
         while f"kde_data_{c}" in arrays:
             kde.data.append(arrays[f"kde_data_{c}"].astype(np.float64))
