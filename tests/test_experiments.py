@@ -21,13 +21,13 @@ def test_analysis_cli_smoke(tmp_path, cache):
     rc = main(["analysis", "--out", str(out), "--experiments", "1,2,6", "--grasps-per-object", "200",
                "--test-grasps", "20", "--trials", "10", "--fingers", "4", "--oneshot-fingers", "4",
                "--classifiers", "mlp,decision-tree",
-               "--mlp-epochs", "1", "--quiet"])
+               "--mlp-epochs", "1", "--kde-select", "posterior", "--kde-corrections", "matrix,power", "--quiet"])
     assert rc == 0
     text = (out / "results.md").read_text()
     for heading in ("## 1.", "## 2.", "## 6."):
         assert heading in text
     assert (out / "success_vs_grasps.png").stat().st_size > 1000
-    assert "factor auto by the calibrated posterior's validation NLL" in text  # the analyses' bandwidth criterion
+    assert "factor auto by the calibrated posterior's validation NLL" in text  # the opt-in bandwidth criterion
     with pytest.raises(SystemExit):
         main(["analysis", "--out", str(tmp_path / "bad"), "--kde-select", "median"])
     with pytest.raises(SystemExit):

@@ -10,14 +10,14 @@ bandwidth ``h_c`` in standardised units:
 ``KDEConfig.bandwidth="shared"`` (default): one ``h = factor * N^(-1/(d+4))`` for all objects (Scott's rule
 with the mean per-object sample count ``N``); with ``factor="auto"`` the factor is chosen from
 ``KDEConfig.factor_grid`` by the mean validation log-likelihood of the true object (training data only;
-never the test grasps; ``KDEConfig.select="likelihood"``, the default), or (``select="posterior"``, the analyses'
-setting) by the held-out validation NLL of the *calibrated one-shot posterior*: at each factor the full KDE scores
+never the test grasps; ``KDEConfig.select="likelihood"``, the default), or (``select="posterior"``) by the held-out validation NLL of the *calibrated one-shot posterior*: at each factor the full KDE scores
 the calibration vectors, both calibrations are fitted on one half of each class's vectors and scored on the other
 (:func:`~haptic_env.recognizers.calibration.select_calibration`), and the factor whose calibration (as
 ``KDEConfig.correct`` would choose it) scores best wins. The density criterion fits each class's density; the
 posterior criterion fits what BC uses, the ratios between classes after calibration. In the one cell where the
 analyses' calibrated one-shot ECE missed 0.05 (the default set, n = 4 without normals) it picked factor 1.4 instead
-of 0.5: test ECE 0.031 instead of 0.056 on 36,000 test grasps (RESULTS.md). ``"per-class"``: each object's ``h_c = factor_c * N_c^(-1/(d+4))``, ``factor_c``
+of 0.5 with 10,000 grasps per object (test ECE 0.031 instead of 0.056 on 36,000 test grasps), but kept 0.5 with
+200,000 (RESULTS.md). ``"per-class"``: each object's ``h_c = factor_c * N_c^(-1/(d+4))``, ``factor_c``
 chosen by the mean validation log-likelihood of that object's own validation vectors, i.e. each class
 density is fitted by held-out likelihood on its own. Objects whose grasps are compact (a sphere's) get a
 narrower kernel and spread ones a wider. On the MuJoCo hands' hand-matched grasps it moved validation BC-NP
@@ -102,8 +102,8 @@ class KDEConfig:
     #: how ``factor="auto"`` chooses: "likelihood" (default): the true class's validation log-likelihood of a dense
     #: KDE on ``select_samples`` vectors per object; "posterior": the held-out validation NLL of the calibrated
     #: one-shot posterior of the full KDE (the ``n_calibrate`` calibration vectors, halved; "shared" bandwidth
-    #: only), the analyses' setting (``AnalysisConfig``). The envs keep "likelihood": their hand-matched KDEs were
-    #: validated with it.
+    #: only; ``haptic-recog analysis --kde-select posterior``). The envs keep "likelihood": their hand-matched KDEs
+    #: were validated with it.
     select: str = "likelihood"
     calibrate: bool = True  #: fit a temperature on validation vectors (see :mod:`.calibration`)
     #: with ``calibrate``: first fit a learned correction of the log-likelihoods on the validation vectors (matrix
