@@ -72,7 +72,8 @@ def main(argv=None) -> int:
     auto_f = float(auto.factor[0])
     if auto_f not in factors:
         factors = sorted([*factors, auto_f])
-    print(f"(auto): factor {auto_f:g}, chosen by {kcfg.select} ({', '.join(f'{f:g}: {v:.4f}' for f, v in auto.selection.items())})")
+    crit = ", ".join(f"{f:g}: {v:.4f}" for f, v in auto.selection.items())
+    print(f"(auto): factor {auto_f:g}, chosen by {kcfg.select} ({crit})")
     print(f"{a.objects}, n = {a.fingers}, {'with' if normals else 'without'} normals; {len(ds.X_train)} training, "
           f"{len(yv)} validation ({len(B)} held out), {len(yt)} test grasps\n")
     print("| factor | accuracy val / test % | T only: T | val NLL | val ECE | test ECE | correction + T: T | val NLL "

@@ -186,7 +186,8 @@ def test_posterior_selection_picks_the_factor_whose_calibrated_posterior_scores_
     assert np.array_equal(direct.bandwidth, kde.bandwidth) and np.array_equal(direct.tree_k, kde.tree_k)
     assert direct.temperature == kde.temperature
     q = Xv[::37]
-    assert np.array_equal(direct.calibrate_scores(direct.log_likelihood(q)), kde.calibrate_scores(kde.log_likelihood(q)))
+    assert np.array_equal(direct.calibrate_scores(direct.log_likelihood(q)),
+                          kde.calibrate_scores(kde.log_likelihood(q)))
     likelihood = KDELikelihood(KDEConfig(correct="auto", n_calibrate=200, seed=5)).fit(X, y, Xv, yv)
     assert kde.selection[best] <= kde.selection[float(likelihood.factor[0])]
 
@@ -201,3 +202,15 @@ def test_posterior_selection_refuses_what_it_cannot_do():
     with pytest.raises(ValueError, match=r"validation vectors of every class, got \[5, 5, 1\]"):
         KDELikelihood(KDEConfig(select="posterior")).fit(X, y, X[[0, 1, 2, 3, 4, 200, 201, 202, 203, 204, 400]],
                                                          y[[0, 1, 2, 3, 4, 200, 201, 202, 203, 204, 400]])
+
+
+@pytest.mark.parametrize("method", ["tree", "pooled"])
+def test_a_refit_searches_its_own_vectors(method):
+    """Fitting one KDE object again on other vectors rebuilds its search index (the bandwidth alone does not)."""
+    X1, y1 = _blobs(np.random.default_rng(1), n=500, d=3)
+    X2, y2 = _blobs(np.random.default_rng(2), n=500, d=3)
+    kde = KDELikelihood(KDEConfig(factor=0.5, method=method, calibrate=False)).fit(X1, y1)
+    kde.fit(X2, y2)
+    fresh = KDELikelihood(KDEConfig(factor=0.5, method=method, calibrate=False)).fit(X2, y2)
+    q = X2[::50]
+    np.testing.assert_array_equal(kde.log_likelihood(q), fresh.log_likelihood(q))

@@ -118,8 +118,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
 def _kde_calibration(kde) -> str:
     """How the KDE's one-shot scores are calibrated, in words (``KDEConfig.correct``, ``correct_candidates``)."""
     if kde.correct == "auto":
-        power = ", or the power of each class's gap to the best, marked 'power p'," if "power" in kde.correct_candidates \
-            else ""
+        power = (", or the power of each class's gap to the best, marked 'power p',"
+                 if "power" in kde.correct_candidates else "")
         return (f"learned correction{power} where it lowers the held-out validation NLL, marked 'corrected', then / T"
                 if "matrix" in kde.correct_candidates else
                 "the power of each class's gap to the best where it lowers the held-out validation NLL, marked "

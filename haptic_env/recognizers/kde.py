@@ -10,8 +10,9 @@ bandwidth ``h_c`` in standardised units:
 ``KDEConfig.bandwidth="shared"`` (default): one ``h = factor * N^(-1/(d+4))`` for all objects (Scott's rule
 with the mean per-object sample count ``N``); with ``factor="auto"`` the factor is chosen from
 ``KDEConfig.factor_grid`` by the mean validation log-likelihood of the true object (training data only;
-never the test grasps; ``KDEConfig.select="likelihood"``, the default), or (``select="posterior"``) by the held-out validation NLL of the *calibrated one-shot posterior*: at each factor the full KDE scores
-the calibration vectors, both calibrations are fitted on one half of each class's vectors and scored on the other
+never the test grasps; ``KDEConfig.select="likelihood"``, the default), or (``select="posterior"``) by the
+held-out validation NLL of the *calibrated one-shot posterior*: at each factor the full KDE scores the calibration
+vectors, both calibrations are fitted on one half of each class's vectors and scored on the other
 (:func:`~haptic_env.recognizers.calibration.select_calibration`), and the factor whose calibration (as
 ``KDEConfig.correct`` would choose it) scores best wins. The density criterion fits each class's density; the
 posterior criterion fits what BC uses, the ratios between classes after calibration. In the one cell where the
@@ -210,6 +211,7 @@ class KDELikelihood:
         self.scaler = Standardizer.fit(X)
         Z = self.scaler(X)
         self.data = [Z[y == c] for c in range(self.n_classes)]
+        self.trees, self.pooled, self.pooled_labels = [], None, None  # a refit builds its own index
         empty = [c for c, z in enumerate(self.data) if len(z) == 0]
         if empty:
             raise ValueError(f"KDELikelihood.fit: no training vectors for classes {empty}")
