@@ -1,4 +1,5 @@
-r"""Calibration of one-shot class posteriors: a temperature fitted on validation grasps, and its checks.
+r"""Calibration of one-shot class posteriors: a temperature (and learned corrections) fitted on validation grasps,
+and its checks.
 
 Both recognisers give class scores ``s (B, K)`` per grasp: the KDE's log-likelihoods
 :math:`\log p(q \mid c)` (BC) and the MLP's logits (IC, BC-IP's prior). The one-shot posterior is
@@ -7,6 +8,11 @@ and a posterior multiplied over grasps inherits that. :func:`fit_temperature` ch
 negative log-likelihood of the true class on *validation* grasps (Guo et al., 2017, "On Calibration
 of Modern Neural Networks"); the test grasps are never seen. For BC a temperature ``T`` turns the
 likelihood into the tempered (power) likelihood :math:`p(q \mid c)^{1/T}` of every Bayes step.
+
+Two learned corrections may come before the temperature (:data:`CORRECTIONS`): :class:`ScoreCorrection`
+(matrix scaling, it re-weighs and offsets the classes) and :class:`PowerCorrection` (one exponent on each class's
+gap to the best, it reshapes how gaps turn into confidence). :func:`select_calibration` chooses among them and the
+temperature alone on held-out halves of the validation grasps.
 
 :func:`expected_calibration_error` and :func:`reliability` measure how well the confidence
 ``max_c p(c | q)`` matches the accuracy (equal-width confidence bins). All functions are pure: arrays in,
