@@ -6,9 +6,9 @@ fitted without calibration; the two calibrations of :mod:`haptic_env.recognizers
 alone, and the learned correction then the temperature) are fitted on one half of the validation split (seed 5)
 and scored on the other half (``val``) by the NLL of the true class and the ECE (10 bins). The test columns use the
 experiments' fresh test grasps (``--test-grasps`` per object, seed + 7919); nothing is chosen on them. The factor
-the analyses' own KDE picks (``KDEConfig.factor = "auto"`` with the analyses' ``KDEConfig.select``: since 2026-12-02
-the calibrated posterior's held-out validation NLL, before it the density's validation likelihood;
-``--select likelihood`` gives the earlier choice) is marked ``(auto)``.
+the analyses' own KDE picks (``KDEConfig.factor = "auto"`` with the analyses' ``KDEConfig.select``, the density's
+validation likelihood; ``--select posterior`` gives the calibrated posterior's held-out validation NLL) is marked
+``(auto)``.
 
     python benchmarks/ece_bandwidth.py --objects default --fingers 4 --no-normals
 
@@ -66,9 +66,8 @@ def main(argv=None) -> int:
     yv = np.asarray(ds.y_val)
     perm = np.random.default_rng(5).permutation(len(yv))
     A, B = perm[: len(perm) // 2], perm[len(perm) // 2:]
-    kcfg = rc.kde if a.select is None else dataclasses.replace(rc.kde, select=a.select)
-    auto = KDELikelihood(kcfg).fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val,
-                                                                          n_classes=len(objects))
+    kcfg = dataclasses.replace(rc.kde, calibrate=False, **({} if a.select is None else {"select": a.select}))
+    auto = KDELikelihood(kcfg).fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val, n_classes=len(objects))
     auto_f = float(auto.factor[0])
     if auto_f not in factors:
         factors = sorted([*factors, auto_f])

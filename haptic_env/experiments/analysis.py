@@ -61,4 +61,3 @@ def _select_words(kde) -> str:
         return ""
     return (" by the calibrated posterior's validation NLL" if kde.select == "posterior"
             else " by the density's validation likelihood")
-

@@ -8,7 +8,7 @@ import shlex
 
 from haptic_env.grasp_features import NORMAL_AXES
 from haptic_env.experiments.config import AnalysisConfig
-from haptic_env.recognizers.calibration import CORRECTIONS
+from haptic_env.recognizers.calibration import CORRECTIONS, check_corrections
 from haptic_env.recognizers.kde import SELECTS
 
 __all__ = ["add_parser"]
@@ -30,10 +30,11 @@ def _corrections(text: str) -> tuple[str, ...]:
     """``"matrix,power"`` -> ``("matrix", "power")``, each a name of ``calibration.CORRECTIONS``, once."""
     from haptic_env.cli import UsageError
 
-    out = tuple(c.strip() for c in text.split(",") if c.strip())
-    if not out or len(set(out)) != len(out) or any(c not in CORRECTIONS for c in out):
-        raise UsageError(f"--kde-corrections: expected distinct names of {tuple(CORRECTIONS)}, got {text!r}")
-    return out
+    try:
+        return check_corrections([c.strip() for c in text.split(",") if c.strip()], "--kde-corrections",
+                                 allow_empty=False)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
 
 
 def _lambdas(text: str) -> tuple[float, ...]:

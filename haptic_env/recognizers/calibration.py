@@ -29,7 +29,7 @@ from scipy.special import log_softmax
 
 __all__ = ["fit_temperature", "sequence_scores", "tempered_nll", "expected_calibration_error", "reliability",
            "T_BOUNDS", "ScoreCorrection", "fit_correction", "select_correction", "SELECT_GRASPS", "PowerCorrection",
-           "fit_power", "P_BOUNDS", "CORRECTIONS", "select_calibration"]
+           "fit_power", "P_BOUNDS", "CORRECTIONS", "check_corrections", "select_calibration"]
 
 #: Range of temperatures searched by :func:`fit_temperature`.
 T_BOUNDS = (0.02, 200.0)
@@ -258,6 +258,15 @@ SELECT_GRASPS = 1
 CORRECTIONS = {"matrix": fit_correction, "power": fit_power}
 
 
+def check_corrections(names, what: str = "candidates", *, allow_empty: bool = True) -> tuple[str, ...]:
+    """``names`` as a tuple, each a name of :data:`CORRECTIONS` and each once (none only with ``allow_empty``);
+    otherwise a ValueError naming ``what`` and the bad value."""
+    out = tuple(names)
+    if (not out and not allow_empty) or len(set(out)) != len(out) or any(c not in CORRECTIONS for c in out):
+        raise ValueError(f"{what} must be distinct names of {tuple(CORRECTIONS)}, got {names!r}")
+    return out
+
+
 def select_calibration(scores, y, candidates=("matrix",), *, calibrate_grasps: int = 1, horizon: int = SELECT_GRASPS,
                        rng: np.random.Generator | None = None) -> tuple[str | None, dict]:
     """Which calibration gives the KDE's held-out validation posteriors the lowest NLL: the temperature alone
@@ -280,9 +289,7 @@ def select_calibration(scores, y, candidates=("matrix",), *, calibrate_grasps: i
         ``(choice, nll)``: ``None`` or the winning name, and the held-out NLL of each (``None`` for the temperature).
     """
     S, Y = _check(scores, y)
-    bad = [c for c in candidates if c not in CORRECTIONS]
-    if bad or len(set(candidates)) != len(candidates):
-        raise ValueError(f"candidates must be distinct names of {tuple(CORRECTIONS)}, got {tuple(candidates)!r}")
+    candidates = check_corrections(candidates)
     rng = np.random.default_rng(0) if rng is None else rng
     K = S.shape[1]
     rows = [np.flatnonzero(Y == c) for c in range(K)]

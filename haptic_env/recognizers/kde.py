@@ -67,8 +67,8 @@ import numpy as np
 from scipy.special import logsumexp
 from scipy.spatial import cKDTree
 
-from haptic_env.recognizers.calibration import (CORRECTIONS, PowerCorrection, ScoreCorrection, fit_temperature,
-                                                select_calibration, sequence_scores)
+from haptic_env.recognizers.calibration import (CORRECTIONS, PowerCorrection, ScoreCorrection, check_corrections,
+                                                fit_temperature, select_calibration, sequence_scores)
 from haptic_env.recognizers.knn import KDTree, pooled_log_density
 from haptic_env.recognizers.preprocess import Standardizer
 from haptic_env.recognizers.preprocess import check_xy as _check_xy
@@ -132,10 +132,7 @@ class KDEConfig:
         if self.correct not in (True, False, "auto", *CORRECTIONS):
             raise ValueError(f"KDEConfig.correct must be True, False, 'auto' or one of {tuple(CORRECTIONS)}, got "
                              f"{self.correct!r}")
-        cands = tuple(self.correct_candidates)
-        if not cands or len(set(cands)) != len(cands) or any(c not in CORRECTIONS for c in cands):
-            raise ValueError(f"KDEConfig.correct_candidates must be distinct names of {tuple(CORRECTIONS)}, got "
-                             f"{self.correct_candidates!r}")
+        check_corrections(self.correct_candidates, "KDEConfig.correct_candidates", allow_empty=False)
         if self.bandwidth not in BANDWIDTHS:
             raise ValueError(f"KDEConfig.bandwidth must be one of {BANDWIDTHS}, got {self.bandwidth!r}")
         if self.select not in SELECTS:
@@ -286,10 +283,9 @@ class KDELikelihood:
         neighbour counts and the normalisers follow them."""
         self.bandwidth = np.asarray(bandwidth, float)
         self._log_norms = None
-        built = bool(self.trees) if self.config.method == "tree" else self.pooled is not None
-        if built:
-            self.tree_k = self._tree_neighbours() if self.trees else self.tree_k
-        else:
+        if self.trees:
+            self.tree_k = self._tree_neighbours()
+        elif self.pooled is None:
             self._build_index()
 
     def _tree_neighbours(self, probes: int = 256) -> np.ndarray:
