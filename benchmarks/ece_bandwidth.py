@@ -6,8 +6,8 @@ fitted without calibration; the two calibrations of :mod:`haptic_env.recognizers
 alone, and the learned correction then the temperature) are fitted on one half of the validation split (seed 5)
 and scored on the other half (``val``) by the NLL of the true class and the ECE (10 bins). The test columns use the
 experiments' fresh test grasps (``--test-grasps`` per object, seed + 7919); nothing is chosen on them. The factor
-the analyses' own KDE picks (``KDEConfig.factor = "auto"`` with the analyses' ``KDEConfig.select``, the density's
-validation likelihood; ``--select posterior`` gives the calibrated posterior's held-out validation NLL) is marked
+the analyses' own KDE picks (``KDEConfig.factor = "auto"`` with the analyses' ``KDEConfig.select``, the calibrated
+posterior's held-out validation NLL; ``--select likelihood`` gives the density's validation likelihood) is marked
 ``(auto)``.
 
     python benchmarks/ece_bandwidth.py --objects default --fingers 4 --no-normals

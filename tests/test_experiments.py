@@ -21,13 +21,16 @@ def test_analysis_cli_smoke(tmp_path, cache):
     rc = main(["analysis", "--out", str(out), "--experiments", "1,2,6", "--grasps-per-object", "200",
                "--test-grasps", "20", "--trials", "10", "--fingers", "4", "--oneshot-fingers", "4",
                "--classifiers", "mlp,decision-tree",
-               "--mlp-epochs", "1", "--kde-select", "posterior", "--kde-corrections", "matrix,power", "--quiet"])
+               "--mlp-epochs", "1", "--kde-select", "likelihood", "--kde-corrections", "matrix", "--quiet"])
     assert rc == 0
     text = (out / "results.md").read_text()
     for heading in ("## 1.", "## 2.", "## 6."):
         assert heading in text
     assert (out / "success_vs_grasps.png").stat().st_size > 1000
-    assert "factor auto by the calibrated posterior's validation NLL" in text  # the opt-in bandwidth criterion
+    assert "factor auto by the density's validation likelihood" in text  # the earlier criterion, still offered
+    from haptic_env.experiments.config import AnalysisConfig
+    kde = AnalysisConfig().kde  # the analyses' default: the posterior criterion, both corrections weighed
+    assert (kde.select, kde.correct, kde.correct_candidates) == ("posterior", "auto", ("matrix", "power"))
     with pytest.raises(SystemExit):
         main(["analysis", "--out", str(tmp_path / "bad"), "--kde-select", "median"])
     with pytest.raises(SystemExit):
@@ -52,7 +55,9 @@ def test_analysis_with_normal_axis_ab_trains_and_tests_on_it(tmp_path, cache):
     out = tmp_path / "out"
     assert main(["analysis", "--out", str(out), "--experiments", "2", "--grasps-per-object", "200", "--test-grasps",
                  "20", "--trials", "10", "--fingers", "4", "--mlp-epochs", "1", "--normal-axis", "ab", "--quiet"]) == 0
-    assert 'normal_axis=\"ab\"' in (out / "results.md").read_text()
+    text = (out / "results.md").read_text()
+    assert 'normal_axis=\"ab\"' in text
+    assert "factor auto by the calibrated posterior's validation NLL" in text  # the analyses' default criterion
     with pytest.raises(ValueError, match="normal_axis must be one of .*'t3'"):
         AnalysisConfig(normal_axis="t3")
     with pytest.raises(SystemExit):

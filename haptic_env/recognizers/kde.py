@@ -103,7 +103,7 @@ class KDEConfig:
     #: how ``factor="auto"`` chooses: "likelihood" (default): the true class's validation log-likelihood of a dense
     #: KDE on ``select_samples`` vectors per object; "posterior": the held-out validation NLL of the calibrated
     #: one-shot posterior of the full KDE (the ``n_calibrate`` calibration vectors, halved; "shared" bandwidth
-    #: only; ``haptic-recog analysis --kde-select posterior``). The envs keep "likelihood": their hand-matched KDEs
+    #: only), the analyses' setting (``AnalysisConfig.kde``). The envs keep "likelihood": their hand-matched KDEs
     #: were validated with it.
     select: str = "likelihood"
     calibrate: bool = True  #: fit a temperature on validation vectors (see :mod:`.calibration`)
@@ -117,7 +117,7 @@ class KDEConfig:
     #: alone are ``correct_candidates`` (:data:`~.calibration.CORRECTIONS`; :func:`~.calibration.select_calibration`).
     correct: bool | str = False
     #: the learned corrections ``correct="auto"`` may choose ("matrix": :class:`~.calibration.ScoreCorrection`,
-    #: "power": :class:`~.calibration.PowerCorrection`)
+    #: "power": :class:`~.calibration.PowerCorrection`; the analyses weigh both)
     correct_candidates: tuple[str, ...] = ("matrix",)
     n_calibrate: int = 1_000  #: validation vectors per object used to fit the temperature
     #: grasps per belief the temperature is fitted for: ``T`` minimises the NLL of the posteriors after
