@@ -1,7 +1,7 @@
 """How the KDE's scores are calibrated, chosen on validation grasps only: BC-NP with the temperature alone
 (one-shot, or fitted for beliefs of 1-5 grasps) against the learned correction (``calibration.fit_correction``)
-with a one-shot or a 5-grasp temperature on top, and what ``KDEConfig.correct="auto"`` (the analyses' KDE)
-chose for each n.
+with a one-shot or a 5-grasp temperature on top, and what ``KDEConfig.correct="auto"`` (the analyses' KDE, whose
+candidates are the matrix and the power correction) chose for each n.
 
     python benchmarks/correction_validation.py [--objects default] [--fingers 4,5,8] [--no-normals]
 
@@ -29,7 +29,8 @@ from haptic_env.dataset import build_dataset  # noqa: E402
 from haptic_env.experiments.config import AnalysisConfig  # noqa: E402
 from haptic_env.experiments.trials import simulate_trials  # noqa: E402
 from haptic_env.objects import load_object_set  # noqa: E402
-from haptic_env.recognizers.calibration import fit_correction, fit_temperature, sequence_scores, tempered_nll  # noqa: E402
+from haptic_env.recognizers.calibration import (PowerCorrection, fit_correction, fit_temperature,  # noqa: E402
+                                               sequence_scores, tempered_nll)
 from haptic_env.recognizers.recognizer import build_recognizer  # noqa: E402
 
 
@@ -81,8 +82,10 @@ def main(argv=None) -> None:
             nll = tempered_nll(np.concatenate(Bs), yB, 1.0)
             print(f"| {n} | {name} | {succ:.1f} | {r['grasps'].mean():.2f} | {nll:.3f} | {acc} |", flush=True)
             res[name.split(" =")[0]] = succ
-        auto = rec.models.model(n)[1].correction is not None
-        print(f"| {n} | the analyses' KDE (correct='auto') chose: {'correction' if auto else 'temperature alone'} | | | | |")
+        c = rec.models.model(n)[1].correction
+        chose = ("temperature alone" if c is None else
+                 f"power {c.p:.2f}" if isinstance(c, PowerCorrection) else "matrix correction")
+        print(f"| {n} | the analyses' KDE (correct='auto') chose: {chose} | | | | |")
         last = (n, res["one-shot T"], res["correction"])
     if last:
         n, a, b = last
