@@ -27,10 +27,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from haptic_env.dataset import build_dataset  # noqa: E402
 from haptic_env.experiments.config import AnalysisConfig  # noqa: E402
+from haptic_env.experiments.report import kde_temperature  # noqa: E402
 from haptic_env.experiments.trials import simulate_trials  # noqa: E402
 from haptic_env.objects import load_object_set  # noqa: E402
-from haptic_env.recognizers.calibration import (PowerCorrection, fit_correction, fit_temperature,  # noqa: E402
-                                               sequence_scores, tempered_nll)
+from haptic_env.recognizers.calibration import fit_correction, fit_temperature, sequence_scores, tempered_nll  # noqa: E402
 from haptic_env.recognizers.recognizer import build_recognizer  # noqa: E402
 
 
@@ -82,10 +82,8 @@ def main(argv=None) -> None:
             nll = tempered_nll(np.concatenate(Bs), yB, 1.0)
             print(f"| {n} | {name} | {succ:.1f} | {r['grasps'].mean():.2f} | {nll:.3f} | {acc} |", flush=True)
             res[name.split(" =")[0]] = succ
-        c = rec.models.model(n)[1].correction
-        chose = ("temperature alone" if c is None else
-                 f"power {c.p:.2f}" if isinstance(c, PowerCorrection) else "matrix correction")
-        print(f"| {n} | the analyses' KDE (correct='auto') chose: {chose} | | | | |")
+        print(f"| {n} | the analyses' KDE (correct='auto'): T {kde_temperature(rec.models, n)} (\"corrected\": the "
+              "matrix correction first; \"power p\": the power; neither: the temperature alone) | | | | |")
         last = (n, res["one-shot T"], res["correction"])
     if last:
         n, a, b = last
