@@ -95,6 +95,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "edge ab (ab)")
     p.add_argument("--raw", action="store_true",
                    help="experiments 2-6 on the raw scores (the paper's method), without the calibration temperatures")
+    p.add_argument("--stop-scale", action="store_true",
+                   help="experiment 2: divide BC's log-likelihoods by a stop scale chosen on validation trials so "
+                        "that a stop at lambda is right about lambda of the time (fewest BC-NP grasps among the "
+                        "scales that are; haptic_env.experiments.stop_scale)")
     p.add_argument("--no-correction", action="store_true",
                    help="calibrate the KDE by its temperature alone, without the learned correction of its scores "
                         "(KDEConfig.correct; by default it is used where it lowers the held-out validation NLL of "
@@ -139,7 +143,7 @@ def _run_cli(args) -> int:
         oneshot_fingers=_ints(args.oneshot_fingers),
         classifiers=tuple(c for c in args.classifiers.split(",") if c), baseline_max_train=args.baseline_max_train,
         zfinger_hands=_ints(args.zfinger_hands), normals=not args.no_normals, normal_axis=args.normal_axis,
-        calibrated=not args.raw,
+        calibrated=not args.raw, stop_scale=args.stop_scale,
         calib_fingers=_ints(args.calib_fingers), calib_fingers_no_normals=_ints(args.calib_fingers_no_normals),
         lambdas=_lambdas(args.lambdas), seed=args.seed,
         mlp=MLPConfig(depth=args.mlp_depth, width=args.mlp_width, max_epochs=args.mlp_epochs, patience=3,

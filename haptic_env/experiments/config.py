@@ -56,6 +56,10 @@ class AnalysisConfig:
     #: ``phi(normal_axis=)``), in every experiment's training and test grasps
     normal_axis: str = "t2"
     calibrated: bool = True  #: experiments 2-6 use the validation-fitted temperatures (False: the paper's raw scores)
+    #: experiment 2: BC-NP and BC-IP divide their log-likelihoods by a stop scale chosen on validation trials so
+    #: that a stop at lambda is right about lambda of the time (:mod:`~haptic_env.experiments.stop_scale`); off: the
+    #: calibrated one-shot scores as they are
+    stop_scale: bool = False
     calib_fingers: tuple[int, ...] = (3, 4, 5, 8)  #: experiment 7, with normals
     calib_fingers_no_normals: tuple[int, ...] = (4,)  #: experiment 7, without normals
     lambdas: tuple[float, ...] = (0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95)  #: experiment 7

@@ -15,11 +15,14 @@ from haptic_env.experiments.config import TEST_SEED_OFFSET, AnalysisConfig
 __all__ = ["fresh_pool", "contact_pool", "pool_scores", "scored_models"]
 
 
-def fresh_pool(objects, n: int, normals: bool, cfg: AnalysisConfig, **dkw) -> list[np.ndarray]:
-    """Fresh test grasp vectors: list over objects of ``(G, d)`` (``cfg.test_grasps`` each; ``dkw``: more
-    :class:`DatasetConfig` fields)."""
-    dc = DatasetConfig(n_fingers=n, normals=normals, grasps_per_object=cfg.test_grasps, val_fraction=0.0,
-                       seed=cfg.seed + TEST_SEED_OFFSET, **{"normal_axis": cfg.normal_axis, **dkw})
+def fresh_pool(objects, n: int, normals: bool, cfg: AnalysisConfig, *, seed_offset: int = TEST_SEED_OFFSET,
+               grasps: int | None = None, **dkw) -> list[np.ndarray]:
+    """Fresh grasp vectors: list over objects of ``(G, d)``; by default the test grasps (``cfg.test_grasps``
+    each, seed ``cfg.seed + TEST_SEED_OFFSET``). ``seed_offset`` and ``grasps`` draw another pool (validation
+    grasps: :data:`~haptic_env.experiments.stop_scale.VALIDATION_SEED_OFFSET`); ``dkw``: more
+    :class:`DatasetConfig` fields."""
+    dc = DatasetConfig(n_fingers=n, normals=normals, grasps_per_object=cfg.test_grasps if grasps is None else grasps,
+                       val_fraction=0.0, seed=cfg.seed + seed_offset, **{"normal_axis": cfg.normal_axis, **dkw})
     ds = build_dataset(objects, dc, progress=False)
     return [ds.X_train[ds.y_train == k].astype(np.float64) for k in range(len(objects))]
 

@@ -1,6 +1,7 @@
 """Experiment 2: sequential recognition at ``lambda = cfg.threshold`` for each finger count ``cfg.fingers``:
 success and grasps of IC, IC-full, BC-NP and BC-IP, the calibration temperatures, and confusion matrices
-for n = 4 (``confusion_n4_<kind>.png``) and ``sequential_vs_fingers.png``."""
+for n = 4 (``confusion_n4_<kind>.png``) and ``sequential_vs_fingers.png``. With ``cfg.stop_scale`` BC-NP and BC-IP
+divide their log-likelihoods by a stop scale chosen on validation trials (:mod:`~haptic_env.experiments.stop_scale`)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,8 @@ from haptic_env.experiments.config import KINDS, AnalysisConfig
 from haptic_env.experiments.fresh_grasps import fresh_pool, pool_scores, scored_models
 from haptic_env.experiments.plots import plot_confusion, plot_sequential_vs_fingers
 from haptic_env.experiments.report import Report, kde_temperature, mean_std
+from haptic_env.experiments.stop_scale import (STOP_SCALES, VALIDATION_GRASPS, VALIDATION_SEED_OFFSET, VALIDATION_TRIALS,
+                                               fit_stop_scale, scaled)
 from haptic_env.experiments.trials import confusion, simulate_trials, summarize
 from haptic_env.recognizers.recognizer import build_recognizer
 
@@ -24,10 +27,20 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     K = len(objects)
     for n in tqdm(cfg.fingers, desc="exp2 fingers", disable=not cfg.progress):
         rec = build_recognizer(objects, n, cfg.normals, config=cfg.recognizer_config(), progress=False)
-        LL, PR = pool_scores(scored_models(rec, cfg), fresh_pool(objects, n, cfg.normals, cfg))
+        models = scored_models(rec, cfg)
+        LL, PR = pool_scores(models, fresh_pool(objects, n, cfg.normals, cfg))
         oneshot = np.mean(np.concatenate([p.argmax(1) == k for k, p in enumerate(PR)]))
         T = rec.models.temperature(n)
         row = [n, f"{100 * oneshot:.1f}", kde_temperature(rec.models, n), f"{T['classifier']:.2f}"]
+        if cfg.stop_scale:
+            VLL, VPR = pool_scores(models, fresh_pool(objects, n, cfg.normals, cfg, seed_offset=VALIDATION_SEED_OFFSET,
+                                                      grasps=VALIDATION_GRASPS))
+            # its own stream: the test trials below are the same draws with and without the stop scale
+            s, table = fit_stop_scale(VLL, VPR, cfg.threshold, trials=VALIDATION_TRIALS, max_grasps=cfg.max_grasps,
+                                      rng=np.random.default_rng([cfg.seed, n, VALIDATION_SEED_OFFSET]))
+            LL = scaled(LL, s)
+            at = {r[0]: r for r in table}[s]
+            row.append(f"{s:g} ({100 * at[1]:.1f} % / {at[2]:.2f})")
         for kind in KINDS:
             res = simulate_trials(LL, PR, kind, trials=cfg.trials, max_grasps=cfg.max_grasps, threshold=cfg.threshold,
                                   rng=rng)
@@ -38,13 +51,18 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
                 plot_confusion(confusion(res["truth"], res["pred"], K), objects.names,
                                f"{kind}, n=4, lambda={cfg.threshold}", rep.out / f"confusion_n4_{kind}.png")
         rows.append(row)
-    hdr = ["n", "MLP one-shot %", "T KDE", "T MLP"]
+    hdr = ["n", "MLP one-shot %", "T KDE", "T MLP"] + (["stop scale (validation BC-NP)"] if cfg.stop_scale else [])
     for kind in KINDS:
         hdr += [f"{kind} success %", f"{kind} grasps"]
     rep.table(hdr, rows)
     rep.p(f"{cfg.trials} trials per cell, at most {cfg.max_grasps} grasps; success ± binomial std; grasps mean ± std. "
           "T: the calibration temperatures fitted on validation grasps (" +
           ("applied" if cfg.calibrated else "not applied: `--raw`") + "); \"corrected\": the KDE's learned correction "
-          "comes first (`KDEConfig.correct`). Confusion matrices for n = 4: `confusion_n4_<kind>.png`.")
+          "comes first (`KDEConfig.correct`). Confusion matrices for n = 4: `confusion_n4_<kind>.png`." +
+          (f" Stop scale s (`--stop-scale`): BC-NP and BC-IP sum log-likelihoods / s; s is the scale of "
+           f"{list(STOP_SCALES)} with the fewest BC-NP grasps whose validation stops are decided and right in at "
+           f"least lambda of {VALIDATION_TRIALS} trials ({VALIDATION_GRASPS} fresh validation grasps per object, seed "
+           f"{cfg.seed + VALIDATION_SEED_OFFSET}; 1 when none is); in brackets its validation rate and grasps."
+           if cfg.stop_scale else ""))
     if curves:
         plot_sequential_vs_fingers(curves, rep.out / "sequential_vs_fingers.png")

@@ -1,0 +1,83 @@
+"""The stop scale of experiment 2 (haptic_env/experiments/stop_scale.py): chosen on validation trials so that a stop
+at lambda is right at least lambda of the time with the fewest grasps; and the analysis flag that applies it."""
+
+import numpy as np
+import pytest
+
+from haptic_env.experiments.stop_scale import STOP_SCALES, fit_stop_scale, scaled
+from haptic_env.experiments.trials import simulate_trials
+
+
+def _pools(rng, K=4, G=400, margin=0.6, noise=1.0):
+    """Per object ``(G, K)`` Gaussian log-likelihood scores whose true class leads by ``margin`` on average:
+    each grasp weakly informative, so a belief needs several grasps."""
+    LL = []
+    for o in range(K):
+        S = rng.normal(0.0, noise, size=(G, K))
+        S[:, o] += margin
+        LL.append(S)
+    PR = [np.full((G, K), 1.0 / K) for _ in range(K)]
+    return LL, PR
+
+
+def _rate(LL, PR, s, lam, seed):
+    res = simulate_trials(scaled(LL, s), PR, "bc-np", trials=800, max_grasps=30, threshold=lam,
+                          rng=np.random.default_rng(seed))
+    return (res["success"] & res["decided"]).mean(), res["grasps"].mean()
+
+
+def test_fit_stop_scale_takes_the_fewest_grasps_that_stop_right_lambda_of_the_time():
+    rng = np.random.default_rng(0)
+    LL, PR = _pools(rng, margin=1.2)  # an under-confident belief: scores / s with s < 1 stop earlier
+    s, table = fit_stop_scale(LL, PR, 0.85, trials=800, rng=np.random.default_rng(1))
+    assert [r[0] for r in table] == list(STOP_SCALES)
+    qualifying = [r for r in table if r[1] >= 0.85]
+    assert qualifying and s == min(qualifying, key=lambda r: r[2])[0]
+    assert {r[0]: r for r in table}[s][2] <= {r[0]: r for r in table}[1.0][2]
+    # the table is what the trials give: the same replay at the chosen scale, rate and grasps
+    rate, grasps = _rate(LL, PR, s, 0.85, 1)
+    assert (rate, grasps) == pytest.approx({r[0]: r for r in table}[s][1:])
+    # sharper beliefs stop earlier: mean grasps fall as s falls
+    g = [r[2] for r in table]
+    assert g[0] < g[-1]
+
+
+def test_fit_stop_scale_is_one_when_no_scale_stops_right_often_enough():
+    rng = np.random.default_rng(2)
+    LL, PR = _pools(rng, margin=0.0)  # no information: no scale is right 85 % of the time
+    s, table = fit_stop_scale(LL, PR, 0.85, scales=(0.5, 1.0, 2.0), trials=200, rng=np.random.default_rng(3))
+    assert s == 1.0 and all(r[1] < 0.85 for r in table)
+
+
+def test_fit_stop_scale_refuses_bad_input_by_name():
+    LL, PR = _pools(np.random.default_rng(4), G=10)
+    with pytest.raises(ValueError, match="threshold"):
+        fit_stop_scale(LL, PR, 1.5, rng=np.random.default_rng(0))
+    with pytest.raises(ValueError, match="scales"):
+        fit_stop_scale(LL, PR, 0.85, scales=(0.5, -1.0), rng=np.random.default_rng(0))
+    with pytest.raises(ValueError, match="scales"):
+        fit_stop_scale(LL, PR, 0.85, scales=(), rng=np.random.default_rng(0))
+
+
+def test_analysis_stop_scale_flag_reports_the_scale_and_keeps_the_test_trials(tmp_path, monkeypatch):
+    """``--stop-scale`` adds the validation-chosen scale to experiment 2's table; IC, which has no likelihood, and
+    the trials themselves (same draws) are unchanged."""
+    from haptic_env.cli import main
+
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path / "cache"))
+    base = ["analysis", "--experiments", "2", "--grasps-per-object", "200", "--test-grasps", "20", "--trials", "10",
+            "--fingers", "3", "--mlp-epochs", "1", "--quiet"]
+    assert main(base + ["--out", str(tmp_path / "plain")]) == 0
+    assert main(base + ["--out", str(tmp_path / "stop"), "--stop-scale"]) == 0
+    plain = (tmp_path / "plain" / "results.md").read_text()
+    stop = (tmp_path / "stop" / "results.md").read_text()
+    assert "stop scale (validation BC-NP)" in stop and "stop scale" not in plain
+    assert "--stop-scale" in stop  # the equivalent command names it
+
+    def row(text):
+        line = next(ln for ln in text.splitlines() if ln.startswith("| 3 |"))
+        return [c.strip() for c in line.strip("|").split("|")]
+
+    p, s = row(plain), row(stop)
+    assert p[:4] == s[:4]  # n, one-shot accuracy, temperatures
+    assert p[4:8] == s[5:9]  # ic and ic-full: the same trials, no likelihood to scale
