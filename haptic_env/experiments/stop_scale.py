@@ -2,13 +2,13 @@
 
 The KDE's temperature (and learned correction) makes each *one-shot* posterior calibrated (experiment 7). A
 belief of several grasps then stops at ``certainty >= lambda`` and overshoots: one more grasp often takes it from
-0.7 to 0.97, so its stops are right more often than ``lambda`` says (91-93 % at ``lambda = 0.85`` on kit8 with
-normals, at 4-6 grasps). The stop scale ``s`` turns the calibrated log-likelihoods ``L`` of every Bayes step into
+0.7 to 0.97, so its stops are right more often than ``lambda`` says (89-92 % at ``lambda = 0.85`` on kit8 with
+normals, at 3-8 grasps). The stop scale ``s`` turns the calibrated log-likelihoods ``L`` of every Bayes step into
 ``L / s`` and is chosen so that the *stop* means what it says: on validation trials, among :data:`STOP_SCALES`,
 the scale with the fewest mean BC-NP grasps whose stops are decided and right at least ``lambda`` of the time
 (1, i.e. no change, when none is). ``s < 1`` sharpens the belief; then a stop is a risk-controlled decision (right
 with probability about ``lambda``), not a calibrated posterior, and the one-shot posteriors of experiment 7 keep
-the temperature alone.
+the KDE's one-shot calibration (its correction and temperature) without the scale.
 
 Validation trials replay fresh grasps from seed ``seed + VALIDATION_SEED_OFFSET`` (never training or test
 grasps) through the experiments' own trial runner and updater, with their own random stream, so that a run
