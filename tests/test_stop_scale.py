@@ -29,10 +29,11 @@ def _rate(LL, PR, s, lam, seed):
 def test_fit_stop_scale_takes_the_fewest_grasps_that_stop_right_lambda_of_the_time():
     rng = np.random.default_rng(0)
     LL, PR = _pools(rng, margin=1.2)  # an under-confident belief: scores / s with s < 1 stop earlier
-    s, table = fit_stop_scale(LL, PR, 0.85, trials=800, rng=np.random.default_rng(1))
+    chosen, table = fit_stop_scale(LL, PR, 0.85, trials=800, rng=np.random.default_rng(1))
+    s = chosen[0]
     assert [r[0] for r in table] == list(STOP_SCALES)
     qualifying = [r for r in table if r[1] >= 0.85]
-    assert qualifying and s == min(qualifying, key=lambda r: r[2])[0]
+    assert qualifying and chosen == min(qualifying, key=lambda r: r[2])
     assert {r[0]: r for r in table}[s][2] <= {r[0]: r for r in table}[1.0][2]
     # the table is what the trials give: the same replay at the chosen scale, rate and grasps
     rate, grasps = _rate(LL, PR, s, 0.85, 1)
@@ -45,8 +46,11 @@ def test_fit_stop_scale_takes_the_fewest_grasps_that_stop_right_lambda_of_the_ti
 def test_fit_stop_scale_is_one_when_no_scale_stops_right_often_enough():
     rng = np.random.default_rng(2)
     LL, PR = _pools(rng, margin=0.0)  # no information: no scale is right 85 % of the time
-    s, table = fit_stop_scale(LL, PR, 0.85, scales=(0.5, 1.0, 2.0), trials=200, rng=np.random.default_rng(3))
-    assert s == 1.0 and all(r[1] < 0.85 for r in table)
+    chosen, table = fit_stop_scale(LL, PR, 0.85, scales=(0.5, 1.0, 2.0), trials=200, rng=np.random.default_rng(3))
+    assert chosen == table[1] and chosen[0] == 1.0 and all(r[1] < 0.85 for r in table)
+    # without 1 among the scales, the fallback is still 1 (no change), its validation figures unknown
+    chosen, _ = fit_stop_scale(LL, PR, 0.85, scales=(0.5, 2.0), trials=200, rng=np.random.default_rng(3))
+    assert chosen[0] == 1.0 and np.isnan(chosen[1]) and np.isnan(chosen[2])
 
 
 def test_fit_stop_scale_refuses_bad_input_by_name():

@@ -36,11 +36,11 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
             VLL, VPR = pool_scores(models, fresh_pool(objects, n, cfg.normals, cfg, seed_offset=VALIDATION_SEED_OFFSET,
                                                       grasps=VALIDATION_GRASPS))
             # its own stream: the test trials below are the same draws with and without the stop scale
-            s, table = fit_stop_scale(VLL, VPR, cfg.threshold, trials=VALIDATION_TRIALS, max_grasps=cfg.max_grasps,
-                                      rng=np.random.default_rng([cfg.seed, n, VALIDATION_SEED_OFFSET]))
+            (s, rate, grasps), _ = fit_stop_scale(VLL, VPR, cfg.threshold, trials=VALIDATION_TRIALS,
+                                                  max_grasps=cfg.max_grasps,
+                                                  rng=np.random.default_rng([cfg.seed, n, VALIDATION_SEED_OFFSET]))
             LL = scaled(LL, s)
-            at = {r[0]: r for r in table}[s]
-            row.append(f"{s:g} ({100 * at[1]:.1f} % / {at[2]:.2f})")
+            row.append(f"{s:g} ({100 * rate:.1f} % / {grasps:.2f})")
         for kind in KINDS:
             res = simulate_trials(LL, PR, kind, trials=cfg.trials, max_grasps=cfg.max_grasps, threshold=cfg.threshold,
                                   rng=rng)

@@ -42,7 +42,8 @@ def scaled(log_lik: Sequence[np.ndarray], s: float) -> list[np.ndarray]:
 
 def fit_stop_scale(log_lik: Sequence[np.ndarray], proba: Sequence[np.ndarray], threshold: float, *,
                    kind: str = "bc-np", scales: Sequence[float] = STOP_SCALES, trials: int = VALIDATION_TRIALS,
-                   max_grasps: int = 30, rng: np.random.Generator) -> tuple[float, list[tuple[float, float, float]]]:
+                   max_grasps: int = 30,
+                   rng: np.random.Generator) -> tuple[tuple[float, float, float], list[tuple[float, float, float]]]:
     """The stop scale of ``kind``'s belief on validation scores.
 
     Args:
@@ -51,8 +52,9 @@ def fit_stop_scale(log_lik: Sequence[np.ndarray], proba: Sequence[np.ndarray], t
         rng: the validation trials' stream; every scale replays the same trials (a fresh copy of its state).
 
     Returns:
-        ``(s, table)``: the qualifying scale with the fewest mean grasps (1.0 when none qualifies), and per
-        scale ``(s, decided-and-right rate, mean grasps)``.
+        ``(chosen, table)``: per scale weighed, ``table`` holds ``(s, decided-and-right rate, mean grasps)``;
+        ``chosen`` is the row of the qualifying scale with the fewest mean grasps, or when none qualifies the
+        row of ``s = 1`` (``(1.0, nan, nan)`` if 1 was not weighed).
     """
     if not 0.0 < threshold <= 1.0:
         raise ValueError(f"threshold must be in (0, 1], got {threshold!r}")
@@ -68,5 +70,6 @@ def fit_stop_scale(log_lik: Sequence[np.ndarray], proba: Sequence[np.ndarray], t
                               threshold=threshold, rng=r)
         table.append((float(s), float((res["success"] & res["decided"]).mean()), float(res["grasps"].mean())))
     ok = [row for row in table if row[1] >= threshold]
-    s = min(ok, key=lambda row: (row[2], -row[0]))[0] if ok else 1.0
-    return s, table
+    if ok:
+        return min(ok, key=lambda row: (row[2], -row[0])), table
+    return next((row for row in table if row[0] == 1.0), (1.0, float("nan"), float("nan"))), table
