@@ -6,9 +6,8 @@ validation grasps). This script multiplies that per-grasp log-likelihood by a sc
 uncalibrated or over-confident belief; ``s < 1``: more cautious) and replays the same grasp sequences, so that the
 whole trade-off between success at the stop and grasps is measured at once, on validation pools by default. (The
 analyses' stop scale, :mod:`haptic_env.experiments.stop_scale`, divides like a temperature: its scale is ``1 / s``
-here.) It
-answers whether any temperature reaches a target such as the paper's real Allegro BC-NP z=3 (94 % in 1.62 grasps),
-and shows the floor no stopping rule can pass: a grasp with fewer than 3 touching fingertips carries no contact
+here.) It answers whether any temperature reaches a target such as the paper's real Allegro BC-NP z=3 (94 % in
+1.62 grasps), and shows the floor no stopping rule can pass: a grasp with fewer than 3 touching fingertips carries no contact
 information, so the first usable grasp comes after ``1 / usable rate`` grasps on average.
 
 Each query is a sequence of random-approach grasps of one object (the hand table's pools: pool seeds ``500 + s``
