@@ -224,16 +224,17 @@ def _canonical_hull_triangles(pts: np.ndarray, tol: float) -> np.ndarray | None:
     from scipy.spatial import ConvexHull
 
     try:
-        hull = ConvexHull(pts)
+        hull = ConvexHull(pts - pts.mean(0))  # centred: the facets' offsets are lengths within the grasp
     except Exception:
         return None
     scale = np.linalg.norm(pts.max(0) - pts.min(0))
     key = _norm(pts[:, None] - pts[None]).sum(1)
-    eq = hull.equations  # (F, 4): outward unit normal, offset
+    eq = hull.equations  # (F, 4): outward unit normal, offset from the centroid
     groups: list[list[int]] = []
     for f in range(len(eq)):
         for g in groups:
-            if np.abs(eq[g[0]] - eq[f]).max() <= 1e3 * tol * max(scale, 1.0):
+            d = np.abs(eq[g[0]] - eq[f])  # one plane: unit normals alike, and offsets alike relative to the size
+            if d[:3].max() <= 1e3 * tol and d[3] <= 1e3 * tol * scale:
                 g.append(f)
                 break
         else:

@@ -233,6 +233,20 @@ def test_planar_hull_face_is_triangulated_canonically():
         np.testing.assert_allclose(phi(P[perm] @ Rm.T).q, f.q, atol=1e-9)
 
 
+def test_planar_face_grouping_does_not_depend_on_scale_or_position():
+    """Regression (found by Hypothesis): a grasp with a near-planar hull face took the canonical path, whose facet
+    grouping compared unit normals with a tolerance that grew with the grasp's size, so at some sizes it fanned two
+    distinct facets as one face and its area was off by 6e-5. The area is now Qhull's at every size and place."""
+    from scipy.spatial import ConvexHull
+
+    P = random_grasp(1447, 8)[0][5]
+    area = ConvexHull(P).area
+    for s in (1e-3, 1e-2, 1.0, 1e2, 1e3):
+        for t in (0.0, 1e3 * s):
+            np.testing.assert_allclose(surface_area(P * s + t) / s**2, area, rtol=1e-9)
+    np.testing.assert_allclose(surface_area(normalize_scale(P)[0]), 1.0, rtol=1e-9)
+
+
 @pytest.mark.parametrize("n", [5, 6])
 def test_box_surface_grasps_are_order_and_frame_invariant(n):
     """Grasps sampled on a box often put >= 4 contacts on one face; all must stay canonical."""
