@@ -63,20 +63,23 @@ def test_fit_stop_scale_refuses_bad_input_by_name():
         fit_stop_scale(LL, PR, 0.85, scales=(), rng=np.random.default_rng(0))
 
 
-def test_analysis_stop_scale_flag_reports_the_scale_and_keeps_the_test_trials(tmp_path, monkeypatch):
-    """``--stop-scale`` adds the validation-chosen scale to experiment 2's table; IC, which has no likelihood, and
-    the trials themselves (same draws) are unchanged."""
+def test_analysis_stop_scale_is_the_default_and_keeps_the_test_trials(tmp_path, monkeypatch):
+    """By default experiment 2 reports the validation-chosen stop scale; ``--no-stop-scale`` drops it. IC, which
+    has no likelihood, and the trials themselves (same draws) are unchanged."""
     from haptic_env.cli import main
 
     monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path / "cache"))
     base = ["analysis", "--experiments", "2", "--grasps-per-object", "200", "--test-grasps", "20", "--trials", "10",
             "--fingers", "3", "--mlp-epochs", "1", "--quiet"]
-    assert main(base + ["--out", str(tmp_path / "plain")]) == 0
-    assert main(base + ["--out", str(tmp_path / "stop"), "--stop-scale"]) == 0
+    assert main(base + ["--out", str(tmp_path / "plain"), "--no-stop-scale"]) == 0
+    assert main(base + ["--out", str(tmp_path / "stop")]) == 0
     plain = (tmp_path / "plain" / "results.md").read_text()
     stop = (tmp_path / "stop" / "results.md").read_text()
     assert "stop scale (validation BC-NP)" in stop and "stop scale" not in plain
-    assert "--stop-scale" in stop  # the equivalent command names it
+    # the equivalent commands spell the setting out
+    command = {name: text.split("```")[1] for name, text in (("plain", plain), ("stop", stop))}
+    assert " --stop-scale " in command["stop"] and "--no-stop-scale" not in command["stop"]
+    assert " --no-stop-scale " in command["plain"]
 
     def row(text):
         line = next(ln for ln in text.splitlines() if ln.startswith("| 3 |"))
@@ -85,3 +88,21 @@ def test_analysis_stop_scale_flag_reports_the_scale_and_keeps_the_test_trials(tm
     p, s = row(plain), row(stop)
     assert p[:4] == s[:4]  # n, one-shot accuracy, temperatures
     assert p[4:8] == s[5:9]  # ic and ic-full: the same trials, no likelihood to scale
+
+
+def test_raw_scores_have_no_stop_scale_and_refuse_one_by_name(tmp_path, monkeypatch, capsys):
+    """``--raw`` is the paper's method: no calibration and no stop scale; asking for both is a usage error."""
+    from haptic_env.cli import main
+    from haptic_env.experiments.config import AnalysisConfig
+
+    assert AnalysisConfig().uses_stop_scale and not AnalysisConfig(calibrated=False).uses_stop_scale
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path / "cache"))
+    base = ["analysis", "--experiments", "2", "--grasps-per-object", "200", "--test-grasps", "20", "--trials", "10",
+            "--fingers", "3", "--mlp-epochs", "1", "--quiet", "--raw"]
+    with pytest.raises(SystemExit) as exc:
+        main(base + ["--out", str(tmp_path / "both"), "--stop-scale"])
+    assert exc.value.code == 2 and not (tmp_path / "both").exists()
+    assert "--stop-scale" in capsys.readouterr().err
+    assert main(base + ["--out", str(tmp_path / "raw")]) == 0
+    raw = (tmp_path / "raw" / "results.md").read_text()
+    assert "stop scale (validation BC-NP)" not in raw and " --no-stop-scale " in raw.split("```")[1]

@@ -46,8 +46,8 @@ def run_analysis(cfg: AnalysisConfig, out: str | Path, command: str | None = Non
                   f"{_select_words(cfg.kde)})."
                   + ("" if cfg.normal_axis == "t2" else f" Phi_n with `normal_axis=\"{cfg.normal_axis}\"` (not the "
                      "paper's): each normal's second angle to the edge ab of t1, not to t2's normal (n >= 4).")
-                  + (" Experiment 2's BC beliefs use a stop scale chosen on validation trials (`--stop-scale`)."
-                     if cfg.stop_scale else "")]
+                  + (" Experiment 2's BC beliefs use a stop scale chosen on validation trials (the default)."
+                     if cfg.uses_stop_scale else "")]
     rng = np.random.default_rng(cfg.seed)
     for e in cfg.experiments:
         t0 = time.perf_counter()

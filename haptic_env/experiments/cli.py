@@ -62,6 +62,8 @@ def _equivalent_command(args) -> str:
         flag = action.option_strings[-1]
         if isinstance(action, argparse._StoreTrueAction):
             words += [flag] if v else []
+        elif isinstance(action, argparse.BooleanOptionalAction):  # --x / --no-x
+            words += [] if v is None else [action.option_strings[0] if v else action.option_strings[1]]
         elif v is not None:
             words += [flag, str(v)]
     return shlex.join(words)
@@ -95,10 +97,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "edge ab (ab)")
     p.add_argument("--raw", action="store_true",
                    help="experiments 2-6 on the raw scores (the paper's method), without the calibration temperatures")
-    p.add_argument("--stop-scale", action="store_true",
-                   help="experiment 2: divide BC's log-likelihoods by a stop scale chosen on validation trials so "
-                        "that a stop at lambda is right about lambda of the time (fewest BC-NP grasps among the "
-                        "scales that are; haptic_env.experiments.stop_scale)")
+    p.add_argument("--stop-scale", action=argparse.BooleanOptionalAction, default=None,
+                   help="experiment 2: divide BC's calibrated log-likelihoods by a stop scale chosen on validation "
+                        "trials so that a stop at lambda is right about lambda of the time (fewest BC-NP grasps among "
+                        "the scales that are; haptic_env.experiments.stop_scale). Default: on, off with --raw")
     p.add_argument("--no-correction", action="store_true",
                    help="calibrate the KDE by its temperature alone, without the learned correction of its scores "
                         "(KDEConfig.correct; by default it is used where it lowers the held-out validation NLL of "
@@ -136,6 +138,10 @@ def _run_cli(args) -> int:
     from haptic_env.recognizers.kde import KDEConfig
     from haptic_env.recognizers.mlp import MLPConfig
 
+    if args.raw and args.stop_scale:
+        raise UsageError("--stop-scale scales calibrated scores; --raw is the paper's method, with neither "
+                         "(drop one of them)")
+    args.stop_scale = not args.raw if args.stop_scale is None else args.stop_scale  # spelled out in the command
     cfg = AnalysisConfig(
         objects=args.objects, data_dir=args.data_dir, units=args.units, experiments=_ints(args.experiments),
         grasps_per_object=args.grasps_per_object, test_grasps=args.test_grasps, trials=args.trials,

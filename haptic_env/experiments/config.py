@@ -55,11 +55,12 @@ class AnalysisConfig:
     #: each normal's second angle in Phi_n (n >= 4): to t2's normal ("t2", the paper's) or to the edge ab ("ab";
     #: ``phi(normal_axis=)``), in every experiment's training and test grasps
     normal_axis: str = "t2"
-    calibrated: bool = True  #: experiments 2-6 use the validation-fitted temperatures (False: the paper's raw scores)
-    #: experiment 2: BC-NP and BC-IP divide their log-likelihoods by a stop scale chosen on validation trials so
-    #: that a stop at lambda is right about lambda of the time (:mod:`~haptic_env.experiments.stop_scale`); off: the
-    #: calibrated one-shot scores as they are
-    stop_scale: bool = False
+    #: experiments 2-6 use the validation-fitted calibration (False: the paper's raw scores, and no stop scale)
+    calibrated: bool = True
+    #: experiment 2: BC-NP and BC-IP divide their calibrated log-likelihoods by a stop scale chosen on validation
+    #: trials so that a stop at lambda is right about lambda of the time (:mod:`~haptic_env.experiments.stop_scale`);
+    #: off: the calibrated one-shot scores as they are. Only with ``calibrated`` (see :attr:`uses_stop_scale`).
+    stop_scale: bool = True
     calib_fingers: tuple[int, ...] = (3, 4, 5, 8)  #: experiment 7, with normals
     calib_fingers_no_normals: tuple[int, ...] = (4,)  #: experiment 7, without normals
     lambdas: tuple[float, ...] = (0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95)  #: experiment 7
@@ -86,6 +87,12 @@ class AnalysisConfig:
         grasps = DatasetConfig(grasps_per_object=self.grasps_per_object, seed=self.seed,
                                **{"normal_axis": self.normal_axis, **kw})
         return RecognizerConfig(grasps=grasps, mlp=dataclasses.replace(self.mlp, progress=False), kde=self.kde)
+
+    @property
+    def uses_stop_scale(self) -> bool:
+        """Whether experiment 2's BC beliefs use the stop scale: asked for, on calibrated scores (the paper's raw
+        method has none)."""
+        return self.stop_scale and self.calibrated
 
     @property
     def scores_label(self) -> str:

@@ -1,6 +1,6 @@
 """Experiment 2: sequential recognition at ``lambda = cfg.threshold`` for each finger count ``cfg.fingers``:
 success and grasps of IC, IC-full, BC-NP and BC-IP, the calibration temperatures, and confusion matrices
-for n = 4 (``confusion_n4_<kind>.png``) and ``sequential_vs_fingers.png``. With ``cfg.stop_scale`` BC-NP and BC-IP
+for n = 4 (``confusion_n4_<kind>.png``) and ``sequential_vs_fingers.png``. By default (``cfg.uses_stop_scale``) BC-NP and BC-IP
 divide their log-likelihoods by a stop scale chosen on validation trials (:mod:`~haptic_env.experiments.stop_scale`)."""
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
         oneshot = np.mean(np.concatenate([p.argmax(1) == k for k, p in enumerate(PR)]))
         T = rec.models.temperature(n)
         row = [n, f"{100 * oneshot:.1f}", kde_temperature(rec.models, n), f"{T['classifier']:.2f}"]
-        if cfg.stop_scale:
+        if cfg.uses_stop_scale:
             VLL, VPR = pool_scores(models, fresh_pool(objects, n, cfg.normals, cfg, seed_offset=VALIDATION_SEED_OFFSET,
                                                       grasps=VALIDATION_GRASPS))
             # its own stream: the test trials below are the same draws with and without the stop scale
@@ -51,7 +51,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
                 plot_confusion(confusion(res["truth"], res["pred"], K), objects.names,
                                f"{kind}, n=4, lambda={cfg.threshold}", rep.out / f"confusion_n4_{kind}.png")
         rows.append(row)
-    hdr = ["n", "MLP one-shot %", "T KDE", "T MLP"] + (["stop scale (validation BC-NP)"] if cfg.stop_scale else [])
+    hdr = ["n", "MLP one-shot %", "T KDE", "T MLP"] + (["stop scale (validation BC-NP)"] if cfg.uses_stop_scale else [])
     for kind in KINDS:
         hdr += [f"{kind} success %", f"{kind} grasps"]
     rep.table(hdr, rows)
@@ -59,10 +59,10 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
           "T: the calibration temperatures fitted on validation grasps (" +
           ("applied" if cfg.calibrated else "not applied: `--raw`") + "); \"corrected\": the KDE's learned correction "
           "comes first (`KDEConfig.correct`). Confusion matrices for n = 4: `confusion_n4_<kind>.png`." +
-          (f" Stop scale s (`--stop-scale`): BC-NP and BC-IP sum log-likelihoods / s; s is the scale of "
+          (f" Stop scale s (the default; `--no-stop-scale` turns it off): BC-NP and BC-IP sum log-likelihoods / s; s is the scale of "
            f"{list(STOP_SCALES)} with the fewest BC-NP grasps whose validation stops are decided and right in at "
            f"least lambda of {VALIDATION_TRIALS} trials ({VALIDATION_GRASPS} fresh validation grasps per object, seed "
            f"{cfg.seed + VALIDATION_SEED_OFFSET}; 1 when none is); in brackets its validation rate and grasps."
-           if cfg.stop_scale else ""))
+           if cfg.uses_stop_scale else ""))
     if curves:
         plot_sequential_vs_fingers(curves, rep.out / "sequential_vs_fingers.png")

@@ -1,4 +1,5 @@
-"""A stop scale for BC: the threshold calibrated on validation trials (``haptic-recog analysis --stop-scale``).
+"""A stop scale for BC: the threshold calibrated on validation trials (experiment 2's default; ``haptic-recog
+analysis --no-stop-scale`` turns it off).
 
 The KDE's temperature (and learned correction) makes each *one-shot* posterior calibrated (experiment 7). A
 belief of several grasps then stops at ``certainty >= lambda`` and overshoots: one more grasp often takes it from
