@@ -106,3 +106,25 @@ def test_raw_scores_have_no_stop_scale_and_refuse_one_by_name(tmp_path, monkeypa
     assert main(base + ["--out", str(tmp_path / "raw")]) == 0
     raw = (tmp_path / "raw" / "results.md").read_text()
     assert "stop scale (validation BC-NP)" not in raw and " --no-stop-scale " in raw.split("```")[1]
+
+
+def test_experiment_7_sweeps_lambda_with_the_stop_scale_of_experiment_2(tmp_path, monkeypatch):
+    """By default experiment 7 adds BC-NP and BC-IP with the stop scale, fitted on validation trials at each lambda;
+    at experiment 2's lambda it is experiment 2's scale (the same validation grasps and stream). IC has none."""
+    from haptic_env.cli import main
+
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path / "cache"))
+    out = tmp_path / "out"
+    assert main(["analysis", "--out", str(out), "--experiments", "2,7", "--grasps-per-object", "200", "--test-grasps",
+                 "20", "--trials", "10", "--fingers", "4", "--calib-fingers", "4", "--calib-fingers-no-normals", "",
+                 "--lambdas", "0.6,0.85", "--mlp-epochs", "1", "--quiet"]) == 0
+    text = (out / "results.md").read_text()
+    exp2 = next(ln for ln in text.splitlines() if ln.startswith("| 4 | ") and " % / " in ln)
+    s2 = [c.strip() for c in exp2.strip("|").split("|")][4].split(" (")[0]
+    rows = {kind: next((ln for ln in text.splitlines() if ln.startswith(f"| 4 | yes | {kind} | stop scale |")), None)
+            for kind in ("ic", "bc-np", "bc-ip")}
+    assert rows["ic"] is None and rows["bc-np"] and rows["bc-ip"]
+    cells = [c.strip() for c in rows["bc-np"].strip("|").split("|")][4:]
+    assert len(cells) == 2 and all("(s " in c for c in cells)
+    assert cells[1].split("(s ")[1].rstrip(")") == s2  # lambda = 0.85: experiment 2's scale
+    assert "stop-scaled grasps" in text and (out / "lambda_sweep_n4_normals.png").stat().st_size > 1000

@@ -3,7 +3,10 @@
 Per cell (``cfg.calib_fingers`` with normals, ``cfg.calib_fingers_no_normals`` without): the one-shot
 expected calibration error (ECE), NLL and confidence of BC (softmax of the KDE log-likelihoods) and of the
 MLP, raw and temperature-scaled, with reliability diagrams (``reliability_<cell>.png``); success at the stop
-and mean grasps vs lambda for IC, BC-NP and BC-IP, raw and calibrated (``lambda_sweep_<cell>.png``).
+and mean grasps vs lambda for IC, BC-NP and BC-IP, raw and calibrated (``lambda_sweep_<cell>.png``), and with
+``cfg.uses_stop_scale`` (the default) for BC-NP and BC-IP with experiment 2's stop scale, chosen on validation trials
+at each lambda (:mod:`~haptic_env.experiments.stop_scale`): the curve a stop that means what it says should follow,
+just above ``success = lambda``.
 """
 
 from __future__ import annotations
@@ -16,6 +19,8 @@ from haptic_env.experiments.config import MAIN_KINDS, TEST_SEED_OFFSET, Analysis
 from haptic_env.experiments.fresh_grasps import fresh_pool, pool_scores
 from haptic_env.experiments.plots import plot_lambda_sweep, plot_reliability
 from haptic_env.experiments.report import Report, kde_temperature, mean_std
+from haptic_env.experiments.stop_scale import (VALIDATION_GRASPS, VALIDATION_SEED_OFFSET, VALIDATION_TRIALS,
+                                               fit_stop_scale, scaled)
 from haptic_env.experiments.trials import simulate_trials
 from haptic_env.recognizers.calibration import _finite_rows, expected_calibration_error
 from haptic_env.recognizers.recognizer import build_recognizer
@@ -47,7 +52,7 @@ def cell_name(n: int, normals: bool) -> str:
 def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> None:
     rep.h("7. Calibration of the posteriors on fresh test grasps (raw vs calibrated)")
     cells = [(n, True) for n in cfg.calib_fingers] + [(n, False) for n in cfg.calib_fingers_no_normals]
-    ece_rows, stop_rows, sweeps = [], [], {}
+    ece_rows, stop_rows, sweeps, stop_scales = [], [], {}, {}
     for n, normals in tqdm(cells, desc="exp7 cells", disable=not cfg.progress):
         rec = build_recognizer(objects, n, normals, config=cfg.recognizer_config(), progress=False)
         T = rec.models.temperature(n)
@@ -84,6 +89,26 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
                     pts.append((100 * dc.mean(), float(res["grasps"].mean()), 100 * res["success"].mean(),
                                 float(res["grasps"].std())))
                 sweep[(kind, v)] = pts
+        if cfg.uses_stop_scale:  # BC with experiment 2's stop scale, fitted on validation trials at each lambda
+            models = rec.models.with_calibration(True)
+            VLL, VPR = pool_scores(models, fresh_pool(objects, n, normals, cfg, seed_offset=VALIDATION_SEED_OFFSET,
+                                                      grasps=VALIDATION_GRASPS))
+            # experiment 2's validation stream: at its lambda the same scale as there
+            stop_scales[(n, normals)] = [
+                fit_stop_scale(VLL, VPR, lam, trials=VALIDATION_TRIALS, max_grasps=cfg.max_grasps,
+                               rng=np.random.default_rng([cfg.seed, n, VALIDATION_SEED_OFFSET]))[0][0]
+                for lam in cfg.lambdas]
+            LL, PR = scores["calibrated"]
+            for kind in ("bc-np", "bc-ip"):
+                pts = []
+                for lam, sc in zip(cfg.lambdas, stop_scales[(n, normals)]):
+                    trng = np.random.default_rng([cfg.seed, n, int(normals)])
+                    res = simulate_trials(scaled(LL, sc), PR, kind, trials=cfg.trials, max_grasps=cfg.max_grasps,
+                                          threshold=lam, rng=trng)
+                    dc = res["success"] & res["decided"]
+                    pts.append((100 * dc.mean(), float(res["grasps"].mean()), 100 * res["success"].mean(),
+                                float(res["grasps"].std())))
+                sweep[(kind, "stop scale")] = pts
         sweeps[(n, normals)] = sweep
         plot_lambda_sweep({k: [p[:2] for p in v] for k, v in sweep.items()}, cfg.lambdas, title,
                           rep.out / f"lambda_sweep_{cell_name(n, normals)}.png")
@@ -92,6 +117,10 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
             r, c = sweep[(kind, "raw")][li], sweep[(kind, "calibrated")][li]
             stop_rows.append([n, "yes" if normals else "no", kind, f"{r[2]:.1f}", f"{r[0]:.1f}", mean_std(r[1], r[3], 2),
                               f"{c[2]:.1f}", f"{c[0]:.1f}", mean_std(c[1], c[3], 2)])
+            if cfg.uses_stop_scale:
+                z = sweep.get((kind, "stop scale"))
+                stop_rows[-1] += ([f"{z[li][2]:.1f}", f"{z[li][0]:.1f}", mean_std(z[li][1], z[li][3], 2)] if z
+                                  else ["-", "-", "-"])
     rep.p(f"Test grasps: {cfg.test_grasps} fresh grasps per object (seed {cfg.seed + TEST_SEED_OFFSET}), never used to "
           f"fit T (T is fitted on the training data's validation split). One-shot posterior: BC = softmax of the KDE "
           f"log-likelihoods ({_kde_calibration(cfg.kde)}), MLP = softmax(logits / T). ECE over {cfg.ece_bins} equal-width confidence bins; NLL "
@@ -104,14 +133,19 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
           f">= lambda within {cfg.max_grasps} grasps) and correct; grasps mean ± std. {cfg.trials} trials per cell, "
           "the same objects and grasp sequences for every updater, lambda, raw and calibrated (paired).")
     rep.table(["n", "normals", "updater", "raw success %", "raw d&c %", "raw grasps", "cal success %", "cal d&c %",
-               "cal grasps"], stop_rows)
+               "cal grasps"] + (["stop-scaled success %", "stop-scaled d&c %", "stop-scaled grasps"]
+                                if cfg.uses_stop_scale else []), stop_rows)
     rep.p("Success at the stop (decided and correct, %) / mean grasps vs lambda; plots `lambda_sweep_<cell>.png` "
-          "(solid: calibrated, dashed: raw, dotted: success = lambda).")
+          "(solid: calibrated, dashed: raw, dotted: success = lambda" +
+          (", dash-dot: BC with the stop scale, chosen on validation trials at each lambda as in experiment 2, the "
+           "scale s in brackets" if cfg.uses_stop_scale else "") + ").")
     hdr = ["n", "normals", "updater", "scores", *[f"λ={lam:g}" for lam in cfg.lambdas]]
     rows = []
     for (n, normals), sweep in sweeps.items():
         for (kind, v), pts in sweep.items():
-            rows.append([n, "yes" if normals else "no", kind, v, *[f"{p[0]:.1f} / {p[1]:.2f}" for p in pts]])
+            ss = stop_scales[(n, normals)] if v == "stop scale" else [None] * len(pts)
+            rows.append([n, "yes" if normals else "no", kind, v,
+                         *[f"{p[0]:.1f} / {p[1]:.2f}" + ("" if sc is None else f" (s {sc:g})") for p, sc in zip(pts, ss)]])
     rep.table(hdr, rows)
 
 

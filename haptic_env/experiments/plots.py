@@ -95,7 +95,7 @@ def plot_lambda_sweep(sweep: dict, lambdas, title: str, path: Path) -> None:
     colors = {}
     for (kind, variant), pts in sweep.items():
         pts = np.asarray(pts)
-        style = "o-" if variant == "calibrated" else "s--"
+        style = {"calibrated": "o-", "stop scale": "^-."}.get(variant, "s--")
         kw = {"color": colors[kind]} if kind in colors else {}
         (line,) = ax[0].plot(lam, pts[:, 0], style, label=f"{kind} {variant}", **kw)
         colors.setdefault(kind, line.get_color())
