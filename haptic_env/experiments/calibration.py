@@ -83,11 +83,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
                     # one trial rng per cell: every updater, lambda and raw/calibrated sees the same objects and
                     # grasp sequences (paired comparisons, smooth curves)
                     trng = np.random.default_rng([cfg.seed, n, int(normals)])
-                    res = simulate_trials(LL, PR, kind, trials=cfg.trials, max_grasps=cfg.max_grasps, threshold=lam,
-                                          rng=trng)
-                    dc = res["success"] & res["decided"]
-                    pts.append((100 * dc.mean(), float(res["grasps"].mean()), 100 * res["success"].mean(),
-                                float(res["grasps"].std())))
+                    pts.append(_sweep_point(simulate_trials(LL, PR, kind, trials=cfg.trials,
+                                                            max_grasps=cfg.max_grasps, threshold=lam, rng=trng)))
                 sweep[(kind, v)] = pts
         if cfg.uses_stop_scale:  # BC with experiment 2's stop scale, fitted on validation trials at each lambda
             models = rec.models.with_calibration(True)
@@ -103,11 +100,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
                 pts = []
                 for lam, sc in zip(cfg.lambdas, stop_scales[(n, normals)]):
                     trng = np.random.default_rng([cfg.seed, n, int(normals)])
-                    res = simulate_trials(scaled(LL, sc), PR, kind, trials=cfg.trials, max_grasps=cfg.max_grasps,
-                                          threshold=lam, rng=trng)
-                    dc = res["success"] & res["decided"]
-                    pts.append((100 * dc.mean(), float(res["grasps"].mean()), 100 * res["success"].mean(),
-                                float(res["grasps"].std())))
+                    pts.append(_sweep_point(simulate_trials(scaled(LL, sc), PR, kind, trials=cfg.trials,
+                                                            max_grasps=cfg.max_grasps, threshold=lam, rng=trng)))
                 sweep[(kind, "stop scale")] = pts
         sweeps[(n, normals)] = sweep
         plot_lambda_sweep({k: [p[:2] for p in v] for k, v in sweep.items()}, cfg.lambdas, title,
@@ -145,8 +139,15 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
         for (kind, v), pts in sweep.items():
             ss = stop_scales[(n, normals)] if v == "stop scale" else [None] * len(pts)
             rows.append([n, "yes" if normals else "no", kind, v,
-                         *[f"{p[0]:.1f} / {p[1]:.2f}" + ("" if sc is None else f" (s {sc:g})") for p, sc in zip(pts, ss)]])
+                         *[f"{p[0]:.1f} / {p[1]:.2f}" + ("" if sc is None else f" (s {sc:g})")
+                           for p, sc in zip(pts, ss)]])
     rep.table(hdr, rows)
+
+
+def _sweep_point(res: dict) -> tuple[float, float, float, float]:
+    """One lambda of the sweep from ``simulate_trials``: (decided and correct %, mean grasps, correct %, grasps std)."""
+    dc = res["success"] & res["decided"]
+    return 100 * dc.mean(), float(res["grasps"].mean()), 100 * res["success"].mean(), float(res["grasps"].std())
 
 
 def _kde_calibration(kde) -> str:

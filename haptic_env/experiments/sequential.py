@@ -1,7 +1,8 @@
 """Experiment 2: sequential recognition at ``lambda = cfg.threshold`` for each finger count ``cfg.fingers``:
 success and grasps of IC, IC-full, BC-NP and BC-IP, the calibration temperatures, and confusion matrices
-for n = 4 (``confusion_n4_<kind>.png``) and ``sequential_vs_fingers.png``. By default (``cfg.uses_stop_scale``) BC-NP and BC-IP
-divide their log-likelihoods by a stop scale chosen on validation trials (:mod:`~haptic_env.experiments.stop_scale`)."""
+for n = 4 (``confusion_n4_<kind>.png``) and ``sequential_vs_fingers.png``. By default (``cfg.uses_stop_scale``)
+BC-NP and BC-IP divide their log-likelihoods by a stop scale chosen on validation trials
+(:mod:`~haptic_env.experiments.stop_scale`)."""
 
 from __future__ import annotations
 
@@ -59,7 +60,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
           "T: the calibration temperatures fitted on validation grasps (" +
           ("applied" if cfg.calibrated else "not applied: `--raw`") + "); \"corrected\": the KDE's learned correction "
           "comes first (`KDEConfig.correct`). Confusion matrices for n = 4: `confusion_n4_<kind>.png`." +
-          (f" Stop scale s (the default; `--no-stop-scale` turns it off): BC-NP and BC-IP sum log-likelihoods / s; s is the scale of "
+          (f" Stop scale s (the default; `--no-stop-scale` turns it off): BC-NP and BC-IP sum log-likelihoods / s; "
+           f"s is the scale of "
            f"{list(STOP_SCALES)} with the fewest BC-NP grasps whose validation stops are decided and right in at "
            f"least lambda of {VALIDATION_TRIALS} trials ({VALIDATION_GRASPS} fresh validation grasps per object, seed "
            f"{cfg.seed + VALIDATION_SEED_OFFSET}; 1 when none is); in brackets its validation rate and grasps."
