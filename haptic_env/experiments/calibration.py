@@ -19,8 +19,7 @@ from haptic_env.experiments.config import MAIN_KINDS, TEST_SEED_OFFSET, Analysis
 from haptic_env.experiments.fresh_grasps import fresh_pool, pool_scores
 from haptic_env.experiments.plots import plot_lambda_sweep, plot_reliability
 from haptic_env.experiments.report import Report, kde_temperature, mean_std
-from haptic_env.experiments.stop_scale import (VALIDATION_GRASPS, VALIDATION_SEED_OFFSET, VALIDATION_TRIALS,
-                                               fit_stop_scale, scaled)
+from haptic_env.experiments.stop_scale import fit_cell_stop_scales, scaled
 from haptic_env.experiments.trials import simulate_trials
 from haptic_env.recognizers.calibration import _finite_rows, expected_calibration_error
 from haptic_env.recognizers.recognizer import build_recognizer
@@ -74,35 +73,22 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
             ece_rows.append(row)
         title = f"n = {n}, {'with' if normals else 'without'} normals"
         plot_reliability(curves, cfg.ece_bins, title, rep.out / f"reliability_{cell_name(n, normals)}.png")
+        # (updater, scores, their per-lambda stop scale): raw and calibrated unscaled; BC also with experiment 2's
+        # stop scale, fitted on validation trials at each lambda (at experiment 2's lambda, its scale)
+        runs = [(kind, v, [1.0] * len(cfg.lambdas)) for kind in MAIN_KINDS for v in ("raw", "calibrated")]
+        if cfg.uses_stop_scale:
+            stop_scales[(n, normals)] = [row[0] for row in fit_cell_stop_scales(
+                rec.models.with_calibration(True), objects, n, normals, cfg, cfg.lambdas)]
+            runs += [(kind, "stop scale", stop_scales[(n, normals)]) for kind in ("bc-np", "bc-ip")]
         sweep = {}
-        for kind in MAIN_KINDS:
-            for v in ("raw", "calibrated"):
-                LL, PR = scores[v]
-                pts = []
-                for lam in cfg.lambdas:
-                    # one trial rng per cell: every updater, lambda and raw/calibrated sees the same objects and
-                    # grasp sequences (paired comparisons, smooth curves)
-                    trng = np.random.default_rng([cfg.seed, n, int(normals)])
-                    pts.append(_sweep_point(simulate_trials(LL, PR, kind, trials=cfg.trials,
-                                                            max_grasps=cfg.max_grasps, threshold=lam, rng=trng)))
-                sweep[(kind, v)] = pts
-        if cfg.uses_stop_scale:  # BC with experiment 2's stop scale, fitted on validation trials at each lambda
-            models = rec.models.with_calibration(True)
-            VLL, VPR = pool_scores(models, fresh_pool(objects, n, normals, cfg, seed_offset=VALIDATION_SEED_OFFSET,
-                                                      grasps=VALIDATION_GRASPS))
-            # experiment 2's validation stream: at its lambda the same scale as there
-            stop_scales[(n, normals)] = [
-                fit_stop_scale(VLL, VPR, lam, trials=VALIDATION_TRIALS, max_grasps=cfg.max_grasps,
-                               rng=np.random.default_rng([cfg.seed, n, VALIDATION_SEED_OFFSET]))[0][0]
-                for lam in cfg.lambdas]
-            LL, PR = scores["calibrated"]
-            for kind in ("bc-np", "bc-ip"):
-                pts = []
-                for lam, sc in zip(cfg.lambdas, stop_scales[(n, normals)]):
-                    trng = np.random.default_rng([cfg.seed, n, int(normals)])
-                    pts.append(_sweep_point(simulate_trials(scaled(LL, sc), PR, kind, trials=cfg.trials,
-                                                            max_grasps=cfg.max_grasps, threshold=lam, rng=trng)))
-                sweep[(kind, "stop scale")] = pts
+        for kind, v, scales in runs:
+            LL, PR = scores["raw" if v == "raw" else "calibrated"]
+            # one trial rng per cell: every updater, lambda and variant sees the same objects and grasp sequences
+            # (paired comparisons, smooth curves)
+            sweep[(kind, v)] = [
+                _sweep_point(simulate_trials(scaled(LL, sc), PR, kind, trials=cfg.trials, max_grasps=cfg.max_grasps,
+                                             threshold=lam, rng=np.random.default_rng([cfg.seed, n, int(normals)])))
+                for lam, sc in zip(cfg.lambdas, scales)]
         sweeps[(n, normals)] = sweep
         plot_lambda_sweep({k: [p[:2] for p in v] for k, v in sweep.items()}, cfg.lambdas, title,
                           rep.out / f"lambda_sweep_{cell_name(n, normals)}.png")

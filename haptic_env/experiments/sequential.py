@@ -14,7 +14,7 @@ from haptic_env.experiments.fresh_grasps import fresh_pool, pool_scores, scored_
 from haptic_env.experiments.plots import plot_confusion, plot_sequential_vs_fingers
 from haptic_env.experiments.report import Report, kde_temperature, mean_std
 from haptic_env.experiments.stop_scale import (STOP_SCALES, VALIDATION_GRASPS, VALIDATION_SEED_OFFSET, VALIDATION_TRIALS,
-                                               fit_stop_scale, scaled)
+                                               fit_cell_stop_scales, scaled)
 from haptic_env.experiments.trials import confusion, simulate_trials, summarize
 from haptic_env.recognizers.recognizer import build_recognizer
 
@@ -33,13 +33,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
         oneshot = np.mean(np.concatenate([p.argmax(1) == k for k, p in enumerate(PR)]))
         T = rec.models.temperature(n)
         row = [n, f"{100 * oneshot:.1f}", kde_temperature(rec.models, n), f"{T['classifier']:.2f}"]
-        if cfg.uses_stop_scale:
-            VLL, VPR = pool_scores(models, fresh_pool(objects, n, cfg.normals, cfg, seed_offset=VALIDATION_SEED_OFFSET,
-                                                      grasps=VALIDATION_GRASPS))
-            # its own stream: the test trials below are the same draws with and without the stop scale
-            (s, rate, grasps), _ = fit_stop_scale(VLL, VPR, cfg.threshold, trials=VALIDATION_TRIALS,
-                                                  max_grasps=cfg.max_grasps,
-                                                  rng=np.random.default_rng([cfg.seed, n, VALIDATION_SEED_OFFSET]))
+        if cfg.uses_stop_scale:  # its own stream: the test trials below are the same with and without it
+            [(s, rate, grasps)] = fit_cell_stop_scales(models, objects, n, cfg.normals, cfg, [cfg.threshold])
             LL = scaled(LL, s)
             row.append(f"{s:g} ({100 * rate:.1f} % / {grasps:.2f})")
         for kind in KINDS:

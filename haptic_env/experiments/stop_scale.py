@@ -22,10 +22,12 @@ from typing import Sequence
 
 import numpy as np
 
+from haptic_env.experiments.config import AnalysisConfig
+from haptic_env.experiments.fresh_grasps import fresh_pool, pool_scores
 from haptic_env.experiments.trials import simulate_trials
 
 __all__ = ["STOP_SCALES", "VALIDATION_SEED_OFFSET", "VALIDATION_GRASPS", "VALIDATION_TRIALS", "fit_stop_scale",
-           "scaled"]
+           "fit_cell_stop_scales", "scaled"]
 
 #: The scales weighed (1 among them: the calibrated belief unchanged).
 STOP_SCALES = (0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.15, 1.3, 1.5, 2.0)
@@ -74,3 +76,17 @@ def fit_stop_scale(log_lik: Sequence[np.ndarray], proba: Sequence[np.ndarray], t
     if ok:
         return min(ok, key=lambda row: (row[2], -row[0])), table
     return next((row for row in table if row[0] == 1.0), (1.0, float("nan"), float("nan"))), table
+
+
+def fit_cell_stop_scales(models, objects, n: int, normals: bool, cfg: AnalysisConfig,
+                         thresholds: Sequence[float]) -> list[tuple[float, float, float]]:
+    """The chosen ``(s, rate, grasps)`` of :func:`fit_stop_scale` at each threshold, for the cell ``(n, normals)``.
+
+    Its validation grasps (``VALIDATION_GRASPS`` per object, seed ``cfg.seed + VALIDATION_SEED_OFFSET``) are scored
+    once by ``models`` (the calibrated bank), and every threshold replays the cell's own validation stream, so the
+    experiments that share a lambda choose the same scale there and their test trials do not depend on it."""
+    VLL, VPR = pool_scores(models, fresh_pool(objects, n, normals, cfg, seed_offset=VALIDATION_SEED_OFFSET,
+                                              grasps=VALIDATION_GRASPS))
+    return [fit_stop_scale(VLL, VPR, lam, trials=VALIDATION_TRIALS, max_grasps=cfg.max_grasps,
+                           rng=np.random.default_rng([cfg.seed, n, VALIDATION_SEED_OFFSET]))[0]
+            for lam in thresholds]
