@@ -63,3 +63,53 @@ def test_family_temperatures_flatten_uninformative_scores():
     good = np.eye(3)[y] * 4.0  # informative scores keep a moderate temperature
     T_kde, _ = family_temperatures(_Fixed(good), _Fixed(good), np.zeros((600, 6)), y)
     assert T_kde < 5
+
+
+def test_family_temperature_for_beliefs_of_one_member_is_hotter_when_a_member_misleads():
+    """A validation member that looks like another family grasp after grasp (a systematic error, not noise) makes
+    the beliefs summed over its grasps over-confident; the sequence temperature sees that, the one-shot one less."""
+    rng = np.random.default_rng(2)
+    member = np.repeat(np.arange(6), 200)  # 2 members per family
+    fam = member // 2
+    S = np.eye(3)[fam] * 1.5 + rng.normal(0, 1.0, (len(member), 3))
+    S[member == 0] += np.array([-1.5, 1.5, 0.0])  # member 0 (a box) keeps looking like a cylinder
+    one, _ = family_temperatures(_Fixed(S), _Fixed(S), np.zeros((len(S), 6)), fam)
+    seq, _ = family_temperatures(_Fixed(S), _Fixed(S), np.zeros((len(S), 6)), fam, member=member, grasps=10,
+                                 rng=np.random.default_rng(0))
+    assert seq > 1.5 * one
+    with pytest.raises(ValueError, match="member"):
+        family_temperatures(_Fixed(S), _Fixed(S), np.zeros((len(S), 6)), fam, grasps=10)
+    with pytest.raises(ValueError, match="grasps must be an int >= 1, got 0"):
+        family_temperatures(_Fixed(S), _Fixed(S), np.zeros((len(S), 6)), fam, grasps=0)
+
+
+def test_family_source_is_checked_and_reaches_the_grasps(tmp_path):
+    from haptic_env.cli import main
+    from haptic_env.experiments.config import AnalysisConfig
+
+    assert AnalysisConfig().family_grasps == {}  # the paper's surface grasps by default
+    assert AnalysisConfig(family_source="geometric").family_grasps == {"source": "geometric", "support": "floating"}
+    with pytest.raises(ValueError, match="family_source must be one of .*'hand'"):
+        AnalysisConfig(family_source="hand")
+    with pytest.raises(SystemExit):
+        main(["analysis", "--out", str(tmp_path / "bad"), "--experiments", "5", "--family-source", "hand"])
+    assert not (tmp_path / "bad").exists()
+
+
+def test_approach_grasps_carry_family_information_that_surface_grasps_lack():
+    """Issue 6's cause, refined: 4 independent surface points without normals, scale-normalised, barely tell a cube,
+    a round cylinder and a sphere apart (RESULTS.md: 37-40 % one-shot); the geometric hand's grasps, whose fingertips
+    close towards the object's centre along an approach, do (75 % at 48,000 grasps per shape)."""
+    from haptic_env.dataset import DatasetConfig, build_dataset
+    from haptic_env.experiments.config import AnalysisConfig
+    from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
+
+    shapes = family_set(1, np.random.default_rng(0), scale_range=(1.0, 1.0))
+    acc = {}
+    for source in ("surface", "geometric"):
+        ds = build_dataset(shapes, DatasetConfig(n_fingers=4, normals=False, grasps_per_object=1500,
+                                                 normalize_scale=True, seed=0, val_fraction=0.3,
+                                                 **AnalysisConfig(family_source=source).family_grasps), progress=False)
+        kde = KDELikelihood(KDEConfig()).fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val, n_classes=3)
+        acc[source] = np.mean(kde.log_likelihood(ds.X_val).argmax(1) == ds.y_val)
+    assert acc["surface"] < 0.47 and acc["geometric"] > 0.6, acc

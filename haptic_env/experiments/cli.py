@@ -7,7 +7,7 @@ import argparse
 import shlex
 
 from haptic_env.grasp_features import NORMAL_AXES
-from haptic_env.experiments.config import AnalysisConfig
+from haptic_env.experiments.config import FAMILY_SOURCES, AnalysisConfig
 from haptic_env.recognizers.calibration import CORRECTIONS, check_corrections
 from haptic_env.recognizers.kde import SELECTS
 
@@ -92,6 +92,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--baseline-max-train", type=int, default=d.baseline_max_train)
     p.add_argument("--zfinger-hands", default="5,6,8", help="experiment 3 hand sizes n")
     p.add_argument("--no-normals", action="store_true", help="experiments 2-6 without normals")
+    p.add_argument("--family-source", default=d.family_source, choices=FAMILY_SOURCES,
+                   help="experiment 5's grasps of the family members and the objects: independent surface points "
+                        "(surface, the paper's) or the geometric hand closing along random approaches (geometric)")
     p.add_argument("--normal-axis", default=d.normal_axis, choices=NORMAL_AXES,
                    help="each normal's second angle in Phi_n (n >= 4): to t2's normal (t2, the paper's) or to the "
                         "edge ab (ab)")
@@ -149,6 +152,7 @@ def _run_cli(args) -> int:
         oneshot_fingers=_ints(args.oneshot_fingers),
         classifiers=tuple(c for c in args.classifiers.split(",") if c), baseline_max_train=args.baseline_max_train,
         zfinger_hands=_ints(args.zfinger_hands), normals=not args.no_normals, normal_axis=args.normal_axis,
+        family_source=args.family_source,
         calibrated=not args.raw, stop_scale=args.stop_scale,
         calib_fingers=_ints(args.calib_fingers), calib_fingers_no_normals=_ints(args.calib_fingers_no_normals),
         lambdas=_lambdas(args.lambdas), seed=args.seed,

@@ -14,7 +14,7 @@ from haptic_env.recognizers.mlp import MLPConfig
 from haptic_env.recognizers.recognizer import RecognizerConfig
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS
 
-__all__ = ["AnalysisConfig", "TEST_SEED_OFFSET", "KINDS", "MAIN_KINDS", "PAPER"]
+__all__ = ["AnalysisConfig", "TEST_SEED_OFFSET", "KINDS", "MAIN_KINDS", "PAPER", "FAMILY_SOURCES"]
 
 #: Test grasps are fresh samples from seed ``seed + TEST_SEED_OFFSET``, never training data.
 TEST_SEED_OFFSET = 7919
@@ -22,6 +22,10 @@ TEST_SEED_OFFSET = 7919
 KINDS = UPDATERS
 #: IC, BC-NP and BC-IP: the updaters of experiments 3, 4 and 7.
 MAIN_KINDS = ("ic", "bc-np", "bc-ip")
+
+#: Values of :attr:`AnalysisConfig.family_source`: experiment 5's grasps are independent surface points (the
+#: paper's analysis protocol) or the geometric hand's grasps under random approaches over the full sphere.
+FAMILY_SOURCES = ("surface", "geometric")
 
 #: Reference numbers quoted from Sintov & Ben-David (kit objects) for the tables.
 PAPER = {
@@ -51,6 +55,10 @@ class AnalysisConfig:
     incomplete_pn: tuple[tuple[int, float], ...] = ((3, 0.2), (4, 0.3), (5, 0.5))
     scale_range: tuple[float, float] = (0.1, 5.0)
     family_members: int = 10
+    #: experiment 5's grasps, of the family members and of the objects alike (one of :data:`FAMILY_SOURCES`):
+    #: ``"surface"``, independent surface points (the paper's analysis protocol), or ``"geometric"``, what the
+    #: geometric hand touches when it closes along a random approach (still from the meshes alone)
+    family_source: str = "surface"
     normals: bool = True  #: experiments 2-6
     #: each normal's second angle in Phi_n (n >= 4): to t2's normal ("t2", the paper's) or to the edge ab ("ab";
     #: ``phi(normal_axis=)``), in every experiment's training and test grasps
@@ -80,6 +88,13 @@ class AnalysisConfig:
 
     def __post_init__(self):
         check_normal_axis(self.normal_axis)
+        if self.family_source not in FAMILY_SOURCES:
+            raise ValueError(f"family_source must be one of {FAMILY_SOURCES}, got {self.family_source!r}")
+
+    @property
+    def family_grasps(self) -> dict:
+        """The :class:`DatasetConfig` fields of experiment 5's grasps (:attr:`family_source`)."""
+        return {"source": "geometric", "support": "floating"} if self.family_source == "geometric" else {}
 
     def recognizer_config(self, **kw) -> RecognizerConfig:
         """The :class:`RecognizerConfig` every experiment trains its object models with (``kw``: more

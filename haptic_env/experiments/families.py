@@ -19,7 +19,7 @@ from haptic_env.experiments.config import TEST_SEED_OFFSET, AnalysisConfig
 from haptic_env.experiments.fresh_grasps import fresh_pool
 from haptic_env.experiments.report import Report, mean_std
 from haptic_env.experiments.trials import family_trials, simulate_trials
-from haptic_env.recognizers.calibration import _finite_rows, fit_temperature
+from haptic_env.recognizers.calibration import _finite_rows, fit_temperature, sequence_scores
 from haptic_env.recognizers.kde import KDELikelihood
 from haptic_env.recognizers.mlp import MLPClassifier
 
@@ -46,11 +46,29 @@ FAMILY_OBJECT_TRIALS = 10
 FAMILY_VAL_SEED_OFFSET = 1000
 
 
-def family_temperatures(kde, clf, X, fam) -> tuple[float, float]:
+def family_temperatures(kde, clf, X, fam, *, member=None, grasps: int = 1,
+                        rng: np.random.Generator | None = None) -> tuple[float, float]:
     """Calibration temperatures ``(T_kde, T_mlp)`` of family models, fitted on grasps ``X`` of NEW validation
     members with families ``fam`` (the models' own temperatures are fitted on held-back grasps of the training
-    members, which overstates how well a family model knows an unseen member)."""
-    T_kde = fit_temperature(_finite_rows(kde.log_likelihood(X)), fam)
+    members, which overstates how well a family model knows an unseen member).
+
+    With ``grasps > 1`` the KDE's temperature is fitted for BC-NP's beliefs of ``1 .. grasps`` grasps of ONE member
+    (``member``: the validation member of each row; sums drawn with ``rng``,
+    :func:`~haptic_env.recognizers.calibration.sequence_scores`): a member unlike its family's training members
+    keeps looking like another family grasp after grasp, so a belief summed over its grasps is over-confident by
+    more than one grasp's temperature corrects. The MLP's stays one-shot (IC averages, it does not sum)."""
+    if not (isinstance(grasps, (int, np.integer)) and grasps >= 1):
+        raise ValueError(f"family_temperatures: grasps must be an int >= 1, got {grasps!r}")
+    S = _finite_rows(kde.log_likelihood(X))
+    fam = np.asarray(fam)
+    if grasps > 1:
+        if member is None or rng is None:
+            raise ValueError("family_temperatures: grasps > 1 needs the member of each row and an rng")
+        member = np.asarray(member)
+        parts = [sequence_scores(S[member == m], fam[member == m], grasps, rng) for m in np.unique(member)]
+        T_kde = fit_temperature(np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]))
+    else:
+        T_kde = fit_temperature(S, fam)
     T_mlp = fit_temperature(np.log(np.maximum(clf.predict_proba(X), 1e-300)), fam)
     return float(T_kde), float(T_mlp)
 
@@ -58,8 +76,9 @@ def family_temperatures(kde, clf, X, fam) -> tuple[float, float]:
 def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> None:
     from haptic_env.objects import FAMILIES, family_set
 
+    grasps = "surface grasps" if cfg.family_source == "surface" else "geometric-hand grasps under random approaches"
     rep.h("5. Geometry recognition (families: " + ", ".join(FAMILIES) + f"; n = 4, normals: {cfg.normals}, "
-          f"scale-normalised; {cfg.scores_label})")
+          f"scale-normalised, {grasps}; {cfg.scores_label})")
     train_set = family_set(cfg.family_members, np.random.default_rng(cfg.seed))
     n_held = max(2, cfg.family_members // 3)
     val_set = family_set(n_held, np.random.default_rng(cfg.seed + FAMILY_VAL_SEED_OFFSET))
@@ -67,7 +86,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     fam_idx = {f: i for i, f in enumerate(FAMILIES)}
     per_obj = max(1000, cfg.grasps_per_object * len(objects) // max(len(train_set), 1))
     dc = DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=per_obj, normalize_scale=True, seed=cfg.seed,
-                       normal_axis=cfg.normal_axis)
+                       normal_axis=cfg.normal_axis, **cfg.family_grasps)
     ds = build_dataset(train_set, dc, progress=False)
     fam_of = np.array([fam_idx[train_set.families[nm]] for nm in train_set.names])
     clf = MLPClassifier(dataclasses.replace(cfg.mlp, progress=False)).fit(ds.X_train, fam_of[ds.y_train], ds.X_val,
@@ -76,13 +95,16 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     # temperatures on new validation members (another seed than training and test)
     vds = build_dataset(val_set, DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=cfg.test_grasps,
                                                normalize_scale=True, val_fraction=0.0, normal_axis=cfg.normal_axis,
-                                               seed=cfg.seed + FAMILY_VAL_SEED_OFFSET), progress=False)
+                                               seed=cfg.seed + FAMILY_VAL_SEED_OFFSET, **cfg.family_grasps),
+                        progress=False)
     fam_val = np.array([fam_idx[val_set.families[nm]] for nm in val_set.names])
-    T_kde, T_mlp = family_temperatures(kde, clf, vds.X_train.astype(np.float64), fam_val[vds.y_train]) \
+    T_kde, T_mlp = family_temperatures(kde, clf, vds.X_train.astype(np.float64), fam_val[vds.y_train],
+                                       member=vds.y_train, grasps=cfg.max_grasps,
+                                       rng=np.random.default_rng([cfg.seed, FAMILY_VAL_SEED_OFFSET])) \
         if cfg.calibrated else (1.0, 1.0)
 
     def scores(objs):
-        pool = fresh_pool(objs, 4, cfg.normals, cfg, normalize_scale=True)
+        pool = fresh_pool(objs, 4, cfg.normals, cfg, normalize_scale=True, **cfg.family_grasps)
         LL = [kde.log_likelihood(X) / T_kde for X in pool]
         PR = [softmax(np.log(np.maximum(clf.predict_proba(X), 1e-300)) / T_mlp, axis=1) for X in pool]
         return LL, PR
@@ -99,7 +121,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     one_kde = np.mean(np.concatenate([L.argmax(1) == fam_test[k] for k, L in enumerate(LL)]))
     rep.p(f"Held-out family members ({len(test_set)} new random boxes/cylinders/ellipsoids, test seed); one-shot "
           f"family accuracy MLP {100 * one:.1f} %, KDE argmax {100 * one_kde:.1f} % (chance 33.3 %). Temperatures "
-          f"fitted on {len(val_set)} validation members: KDE {T_kde:.2f}, MLP {T_mlp:.2f}. {cfg.trials} trials, "
+          f"fitted on {len(val_set)} validation members: KDE {T_kde:.2f} (for beliefs of 1-{cfg.max_grasps} grasps of one "
+          f"member), MLP {T_mlp:.2f} (one-shot). {cfg.trials} trials, "
           f"lambda = {cfg.threshold}, at most {cfg.max_grasps} grasps; success = family right at the stop.")
     rep.table(["updater", "family success %", "decided %", "grasps"], rows)
     LL, PR = scores(objects)
