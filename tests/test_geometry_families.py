@@ -91,6 +91,8 @@ def test_family_source_is_checked_and_reaches_the_grasps(tmp_path):
     assert AnalysisConfig(family_source="geometric").family_grasps == {"source": "geometric", "support": "floating"}
     with pytest.raises(ValueError, match="family_source must be one of .*'hand'"):
         AnalysisConfig(family_source="hand")
+    with pytest.raises(ValueError, match="family_members must be an int >= 1, got 0"):
+        AnalysisConfig(family_members=0)
     with pytest.raises(SystemExit):
         main(["analysis", "--out", str(tmp_path / "bad"), "--experiments", "5", "--family-source", "hand"])
     assert not (tmp_path / "bad").exists()

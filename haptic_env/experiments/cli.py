@@ -95,6 +95,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--family-source", default=d.family_source, choices=FAMILY_SOURCES,
                    help="experiment 5's grasps of the family members and the objects: independent surface points "
                         "(surface, the paper's) or the geometric hand closing along random approaches (geometric)")
+    p.add_argument("--family-members", type=int, default=d.family_members,
+                   help="experiment 5: training members per family (a third as many validation and test members)")
     p.add_argument("--normal-axis", default=d.normal_axis, choices=NORMAL_AXES,
                    help="each normal's second angle in Phi_n (n >= 4): to t2's normal (t2, the paper's) or to the "
                         "edge ab (ab)")
@@ -152,7 +154,7 @@ def _run_cli(args) -> int:
         oneshot_fingers=_ints(args.oneshot_fingers),
         classifiers=tuple(c for c in args.classifiers.split(",") if c), baseline_max_train=args.baseline_max_train,
         zfinger_hands=_ints(args.zfinger_hands), normals=not args.no_normals, normal_axis=args.normal_axis,
-        family_source=args.family_source,
+        family_source=args.family_source, family_members=args.family_members,
         calibrated=not args.raw, stop_scale=args.stop_scale,
         calib_fingers=_ints(args.calib_fingers), calib_fingers_no_normals=_ints(args.calib_fingers_no_normals),
         lambdas=_lambdas(args.lambdas), seed=args.seed,

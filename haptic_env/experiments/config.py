@@ -54,7 +54,7 @@ class AnalysisConfig:
     zfinger_hands: tuple[int, ...] = (5, 6, 8)  #: experiment 3: n of the hand
     incomplete_pn: tuple[tuple[int, float], ...] = ((3, 0.2), (4, 0.3), (5, 0.5))
     scale_range: tuple[float, float] = (0.1, 5.0)
-    family_members: int = 10
+    family_members: int = 10  #: experiment 5: training members per family
     #: experiment 5's grasps, of the family members and of the objects alike (one of :data:`FAMILY_SOURCES`):
     #: ``"surface"``, independent surface points (the paper's analysis protocol), or ``"geometric"``, what the
     #: geometric hand touches when it closes along a random approach (still from the meshes alone)
@@ -88,6 +88,8 @@ class AnalysisConfig:
 
     def __post_init__(self):
         check_normal_axis(self.normal_axis)
+        if not (isinstance(self.family_members, int) and self.family_members >= 1):
+            raise ValueError(f"family_members must be an int >= 1, got {self.family_members!r}")
         if self.family_source not in FAMILY_SOURCES:
             raise ValueError(f"family_source must be one of {FAMILY_SOURCES}, got {self.family_source!r}")
 
