@@ -40,6 +40,7 @@ __all__ = [
     "grasp_vectors",
     "support_frame",
     "build_dataset",
+    "hand_vectors",
     "dataset_cache_path",
     "add_parser",
 ]
@@ -448,18 +449,31 @@ def hand_pool(objects: ObjectSet, config: DatasetConfig, progress: bool = True):
                            support=config.support, seed=config.seed, budget=config.hand_budget, progress=progress)
 
 
-def _hand_dataset(objects: ObjectSet, config: DatasetConfig, path: Path | None, progress: bool) -> GraspDataset:
-    """``source="hand"``: the ``n_fingers``-finger rows of a hand grasp pool, split per object."""
+def _hand_rows(objects: ObjectSet, config: DatasetConfig, progress: bool):
+    """Yield ``(k, X, rng)`` per object: the valid ``n_fingers``-finger grasp vectors (float32) of ``source="hand"``
+    and the object's generator, positioned for the train/validation split."""
     from .hand_grasps import pool_rows
 
     pool = hand_pool(objects, config, progress)
     streams = np.random.SeedSequence([config.seed, 1]).spawn(len(objects))
-    Xtr, Ytr, Xva, Yva = [], [], [], []
     for k, ss in enumerate(streams):
         rng = np.random.default_rng(ss)
         C, N = pool_rows(pool, k, config.n_fingers, rng)
         X, valid = grasp_vectors(support_frame(C, objects[k], config), N if config.normals else None, config, rng=rng)
-        X = X[valid].astype(np.float32)
+        yield k, X[valid].astype(np.float32), rng
+
+
+def hand_vectors(objects: ObjectSet, config: DatasetConfig, progress: bool = True) -> list[np.ndarray]:
+    """``source="hand"``: every object's valid grasp vectors ``(G_k, d)`` float32, unsplit; an object that the hand
+    never touched with ``n_fingers`` fingers gets ``G_k = 0`` rows (where :func:`build_dataset` raises), so a caller can
+    report which objects a hand cannot grasp."""
+    return [X for _, X, _ in _hand_rows(objects, config, progress)]
+
+
+def _hand_dataset(objects: ObjectSet, config: DatasetConfig, path: Path | None, progress: bool) -> GraspDataset:
+    """``source="hand"``: the ``n_fingers``-finger rows of a hand grasp pool, split per object."""
+    Xtr, Ytr, Xva, Yva = [], [], [], []
+    for k, X, rng in _hand_rows(objects, config, progress):
         if len(X) < 2:
             raise RuntimeError(f"object {objects.names[k]!r}: {len(X)} of {config.grasps_per_object} {config.hand} "
                                f"grasps touched it with >= {config.n_fingers} fingers (non-degenerate); "

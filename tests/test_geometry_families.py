@@ -89,13 +89,23 @@ def test_family_source_is_checked_and_reaches_the_grasps(tmp_path):
 
     assert AnalysisConfig().family_grasps == {}  # the paper's surface grasps by default
     assert AnalysisConfig(family_source="geometric").family_grasps == {"source": "geometric", "support": "floating"}
-    with pytest.raises(ValueError, match="family_source must be one of .*'hand'"):
-        AnalysisConfig(family_source="hand")
+    assert AnalysisConfig(family_source="hand", family_hand="shadow").family_grasps == {
+        "source": "hand", "hand": "shadow", "support": "table"}
+    assert AnalysisConfig(family_scale_range=[1, 2]).family_scale_range == (1.0, 2.0)
+    assert AnalysisConfig().family_scale_range == (0.5, 1.5)  # the paper's aspect spread
+    with pytest.raises(ValueError, match="family_source must be one of .*'hand'.*got 'allegro'"):
+        AnalysisConfig(family_source="allegro")
     with pytest.raises(ValueError, match="family_members must be an int >= 1, got 0"):
         AnalysisConfig(family_members=0)
-    with pytest.raises(SystemExit):
-        main(["analysis", "--out", str(tmp_path / "bad"), "--experiments", "5", "--family-source", "hand"])
-    assert not (tmp_path / "bad").exists()
+    with pytest.raises(ValueError, match=r"family_scale_range must be \(lo, hi\) with 0 < lo <= hi, got \(2.0, 1.0\)"):
+        AnalysisConfig(family_scale_range=(2.0, 1.0))
+    with pytest.raises(ValueError, match="family_hand must be a hand name"):
+        AnalysisConfig(family_hand="")
+    for flags in (["--family-source", "allegro"], ["--family-scale-range", "0.75"],
+                  ["--family-scale-range", "1,x"], ["--family-scale-range", "0,1"]):
+        with pytest.raises(SystemExit):
+            main(["analysis", "--out", str(tmp_path / "bad"), "--experiments", "5", *flags])
+        assert not (tmp_path / "bad").exists()
 
 
 def test_approach_grasps_carry_family_information_that_surface_grasps_lack():

@@ -59,6 +59,26 @@ def test_hand_source_dataset(two_objects):
         hand_grasp_pool(two_objects, object(), 3, 4)
 
 
+def test_hand_vectors_keep_every_row_and_report_objects_the_hand_cannot_grasp(two_objects):
+    """``hand_vectors`` gives each object's rows unsplit (the dataset's train + validation rows); an object too small
+    for the hand gets no rows there, where ``build_dataset`` refuses it by name."""
+    from haptic_env.dataset import hand_vectors
+    from haptic_env.objects import family_set
+
+    cfg = DatasetConfig(n_fingers=3, normals=True, grasps_per_object=12, source="hand", hand="generic", seed=5,
+                        val_fraction=0.25)
+    V = hand_vectors(two_objects, cfg, progress=False)
+    ds = build_dataset(two_objects, cfg, progress=False)
+    counts = np.bincount(ds.y_train, minlength=2) + np.bincount(ds.y_val, minlength=2)
+    assert [len(v) for v in V] == list(counts) and all(v.dtype == np.float32 and v.shape[1] == 9 for v in V)
+    np.testing.assert_allclose(np.sort(V[0], axis=0), np.sort(np.concatenate([ds.X_train[ds.y_train == 0],
+                                                                              ds.X_val[ds.y_val == 0]]), axis=0))
+    tiny = family_set(1, np.random.default_rng(0), scale_range=(0.05, 0.05), families=("ellipsoid",))  # 4 mm
+    assert [len(v) for v in hand_vectors(tiny, cfg, progress=False)] == [0]
+    with pytest.raises(RuntimeError, match="'ellipsoid_00': 0 of 12 generic grasps"):
+        build_dataset(tiny, cfg, cache=False, progress=False)
+
+
 def test_balanced_counts_spread_the_budget_towards_rarely_complete_objects():
     c = balanced_counts([0.99, 0.45, 0.4, 0.04], 1000)
     assert abs(c.sum() - 4000) <= 4 and c[3] > c[2] > c[1] > c[0]

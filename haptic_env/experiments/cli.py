@@ -49,6 +49,19 @@ def _lambdas(text: str) -> tuple[float, ...]:
     return out
 
 
+def _range(text: str, flag: str) -> tuple[float, float]:
+    """``"LO,HI"`` -> ``(LO, HI)`` (checked by :class:`AnalysisConfig`)."""
+    from haptic_env.cli import UsageError
+
+    try:
+        out = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        raise UsageError(f"{flag}: expected LO,HI, got {text!r}") from None
+    if len(out) != 2:
+        raise UsageError(f"{flag}: expected LO,HI, got {text!r}")
+    return out
+
+
 def _equivalent_command(args) -> str:
     """The ``haptic-recog analysis`` command line with every setting spelled out (defaults included)."""
     parser = getattr(args, "_cli_parser", None)
@@ -94,7 +107,13 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--no-normals", action="store_true", help="experiments 2-6 without normals")
     p.add_argument("--family-source", default=d.family_source, choices=FAMILY_SOURCES,
                    help="experiment 5's grasps of the family members and the objects: independent surface points "
-                        "(surface, the paper's) or the geometric hand closing along random approaches (geometric)")
+                        "(surface, the paper's), the geometric hand closing along random approaches (geometric), or "
+                        "the --family-hand's own MuJoCo grasps under random approaches, objects on the table (hand)")
+    p.add_argument("--family-hand", default=d.family_hand,
+                   help="experiment 5 with --family-source hand: the hand (a load_hand name, e.g. allegro)")
+    p.add_argument("--family-scale-range", default=",".join(str(v) for v in d.family_scale_range),
+                   help="experiment 5: LO,HI of the family members' per-axis scale factors about 0.08 m (the paper's "
+                        "0.5,1.5; the Allegro needs larger members, e.g. 0.75,2.25)")
     p.add_argument("--family-members", type=int, default=d.family_members,
                    help="experiment 5: training members per family (a third as many validation and test members)")
     p.add_argument("--normal-axis", default=d.normal_axis, choices=NORMAL_AXES,
@@ -147,24 +166,30 @@ def _run_cli(args) -> int:
         raise UsageError("--stop-scale scales calibrated scores; --raw is the paper's method, with neither "
                          "(drop one of them)")
     args.stop_scale = not args.raw if args.stop_scale is None else args.stop_scale  # spelled out in the command
-    cfg = AnalysisConfig(
-        objects=args.objects, data_dir=args.data_dir, units=args.units, experiments=_ints(args.experiments),
-        grasps_per_object=args.grasps_per_object, test_grasps=args.test_grasps, trials=args.trials,
-        max_grasps=args.max_grasps, threshold=args.threshold, fingers=_ints(args.fingers),
-        oneshot_fingers=_ints(args.oneshot_fingers),
-        classifiers=tuple(c for c in args.classifiers.split(",") if c), baseline_max_train=args.baseline_max_train,
-        zfinger_hands=_ints(args.zfinger_hands), normals=not args.no_normals, normal_axis=args.normal_axis,
-        family_source=args.family_source, family_members=args.family_members,
-        calibrated=not args.raw, stop_scale=args.stop_scale,
-        calib_fingers=_ints(args.calib_fingers), calib_fingers_no_normals=_ints(args.calib_fingers_no_normals),
-        lambdas=_lambdas(args.lambdas), seed=args.seed,
-        mlp=MLPConfig(depth=args.mlp_depth, width=args.mlp_width, max_epochs=args.mlp_epochs, patience=3,
-                      max_train=args.mlp_max_train, seed=args.seed),
-        kde=KDEConfig(method=args.kde_method, calibrate_grasps=args.calibrate_grasps, seed=args.seed,
-                      correct=False if args.no_correction else "auto", select=args.kde_select,
-                      correct_candidates=_corrections(args.kde_corrections)),
-        progress=not args.quiet,
-    )
+    try:  # a bad setting gets the usage message, not a traceback
+        cfg = AnalysisConfig(
+            objects=args.objects, data_dir=args.data_dir, units=args.units, experiments=_ints(args.experiments),
+            grasps_per_object=args.grasps_per_object, test_grasps=args.test_grasps, trials=args.trials,
+            max_grasps=args.max_grasps, threshold=args.threshold, fingers=_ints(args.fingers),
+            oneshot_fingers=_ints(args.oneshot_fingers),
+            classifiers=tuple(c for c in args.classifiers.split(",") if c), baseline_max_train=args.baseline_max_train,
+            zfinger_hands=_ints(args.zfinger_hands), normals=not args.no_normals, normal_axis=args.normal_axis,
+            family_source=args.family_source, family_members=args.family_members, family_hand=args.family_hand,
+            family_scale_range=_range(args.family_scale_range, "--family-scale-range"),
+            calibrated=not args.raw, stop_scale=args.stop_scale,
+            calib_fingers=_ints(args.calib_fingers), calib_fingers_no_normals=_ints(args.calib_fingers_no_normals),
+            lambdas=_lambdas(args.lambdas), seed=args.seed,
+            mlp=MLPConfig(depth=args.mlp_depth, width=args.mlp_width, max_epochs=args.mlp_epochs, patience=3,
+                          max_train=args.mlp_max_train, seed=args.seed),
+            kde=KDEConfig(method=args.kde_method, calibrate_grasps=args.calibrate_grasps, seed=args.seed,
+                          correct=False if args.no_correction else "auto", select=args.kde_select,
+                          correct_candidates=_corrections(args.kde_corrections)),
+            progress=not args.quiet,
+        )
+    except UsageError:
+        raise
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
     for c in cfg.classifiers:
         if c not in CLASSIFIERS:
             raise SystemExit(f"unknown classifier {c!r}; choose from {CLASSIFIERS}")

@@ -6,8 +6,11 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from haptic_env.dataset import DatasetConfig
 from haptic_env.grasp_features import check_normal_axis
+from haptic_env.objects.primitives import FAMILY_SCALE_RANGE
 from haptic_env.recognizers.baselines import CLASSIFIERS
 from haptic_env.recognizers.kde import KDEConfig
 from haptic_env.recognizers.mlp import MLPConfig
@@ -24,8 +27,9 @@ KINDS = UPDATERS
 MAIN_KINDS = ("ic", "bc-np", "bc-ip")
 
 #: Values of :attr:`AnalysisConfig.family_source`: experiment 5's grasps are independent surface points (the
-#: paper's analysis protocol) or the geometric hand's grasps under random approaches over the full sphere.
-FAMILY_SOURCES = ("surface", "geometric")
+#: paper's analysis protocol), the geometric hand's grasps under random approaches over the full sphere, or a robot
+#: hand's own MuJoCo grasps (:attr:`AnalysisConfig.family_hand`) under random approaches, the object on the table.
+FAMILY_SOURCES = ("surface", "geometric", "hand")
 
 #: Reference numbers quoted from Sintov & Ben-David (kit objects) for the tables.
 PAPER = {
@@ -59,6 +63,12 @@ class AnalysisConfig:
     #: ``"surface"``, independent surface points (the paper's analysis protocol), or ``"geometric"``, what the
     #: geometric hand touches when it closes along a random approach (still from the meshes alone)
     family_source: str = "surface"
+    #: with ``family_source="hand"``: the hand (a name of :func:`~haptic_env.grasping.hands.load_hand`); grasps are
+    #: random 4-subsets of the fingers that touched
+    family_hand: str = "allegro"
+    #: experiment 5: the per-axis scale factors of the family members about 0.08 m (the paper's U(0.5, 1.5); a robot
+    #: hand may need larger members, e.g. (0.75, 2.25) for the Allegro, same aspect spread)
+    family_scale_range: tuple[float, float] = FAMILY_SCALE_RANGE
     normals: bool = True  #: experiments 2-6
     #: each normal's second angle in Phi_n (n >= 4): to t2's normal ("t2", the paper's) or to the edge ab ("ab";
     #: ``phi(normal_axis=)``), in every experiment's training and test grasps
@@ -92,11 +102,21 @@ class AnalysisConfig:
             raise ValueError(f"family_members must be an int >= 1, got {self.family_members!r}")
         if self.family_source not in FAMILY_SOURCES:
             raise ValueError(f"family_source must be one of {FAMILY_SOURCES}, got {self.family_source!r}")
+        if not isinstance(self.family_hand, str) or not self.family_hand:
+            raise ValueError(f"family_hand must be a hand name, got {self.family_hand!r}")
+        sr = tuple(self.family_scale_range)
+        if len(sr) != 2 or not all(isinstance(v, (int, float)) and np.isfinite(v) for v in sr) or not 0 < sr[0] <= sr[1]:
+            raise ValueError(f"family_scale_range must be (lo, hi) with 0 < lo <= hi, got {self.family_scale_range!r}")
+        object.__setattr__(self, "family_scale_range", tuple(float(v) for v in sr))
 
     @property
     def family_grasps(self) -> dict:
         """The :class:`DatasetConfig` fields of experiment 5's grasps (:attr:`family_source`)."""
-        return {"source": "geometric", "support": "floating"} if self.family_source == "geometric" else {}
+        if self.family_source == "geometric":
+            return {"source": "geometric", "support": "floating"}
+        if self.family_source == "hand":
+            return {"source": "hand", "hand": self.family_hand, "support": "table"}
+        return {}
 
     def recognizer_config(self, **kw) -> RecognizerConfig:
         """The :class:`RecognizerConfig` every experiment trains its object models with (``kw``: more

@@ -14,7 +14,7 @@ import dataclasses
 import numpy as np
 from scipy.special import softmax
 
-from haptic_env.dataset import DatasetConfig, build_dataset
+from haptic_env.dataset import DatasetConfig, build_dataset, hand_vectors
 from haptic_env.experiments.config import TEST_SEED_OFFSET, AnalysisConfig
 from haptic_env.experiments.fresh_grasps import fresh_pool
 from haptic_env.experiments.report import Report, mean_std
@@ -73,30 +73,44 @@ def family_temperatures(kde, clf, X, fam, *, member=None, grasps: int = 1,
     return float(T_kde), float(T_mlp)
 
 
+def _member_grasps(members, dc: DatasetConfig, cfg: AnalysisConfig):
+    """The family members' grasp dataset; with a hand source, a member too small for the hand gets an error that
+    says which setting to change."""
+    try:
+        return build_dataset(members, dc, progress=False)
+    except RuntimeError as e:
+        if cfg.family_source != "hand":
+            raise
+        raise RuntimeError(f"experiment 5: {e}. The {cfg.family_hand} needs larger family members than "
+                           f"family_scale_range={cfg.family_scale_range} (e.g. --family-scale-range 0.75,2.25)") from e
+
+
 def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> None:
     from haptic_env.objects import FAMILIES, family_set
 
-    grasps = "surface grasps" if cfg.family_source == "surface" else "geometric-hand grasps under random approaches"
+    grasps = {"surface": "surface grasps", "geometric": "geometric-hand grasps under random approaches",
+              "hand": f"{cfg.family_hand} MuJoCo grasps under random approaches, objects on the table"}[cfg.family_source]
+    lo, hi = cfg.family_scale_range
     rep.h("5. Geometry recognition (families: " + ", ".join(FAMILIES) + f"; n = 4, normals: {cfg.normals}, "
-          f"scale-normalised, {grasps}; {cfg.scores_label})")
-    train_set = family_set(cfg.family_members, np.random.default_rng(cfg.seed))
+          f"scale-normalised, {grasps}; member axes U({lo:g}, {hi:g}) x 0.08 m; {cfg.scores_label})")
+    train_set = family_set(cfg.family_members, np.random.default_rng(cfg.seed), scale_range=cfg.family_scale_range)
     n_held = max(2, cfg.family_members // 3)
-    val_set = family_set(n_held, np.random.default_rng(cfg.seed + FAMILY_VAL_SEED_OFFSET))
-    test_set = family_set(n_held, np.random.default_rng(cfg.seed + TEST_SEED_OFFSET))
+    val_set = family_set(n_held, np.random.default_rng(cfg.seed + FAMILY_VAL_SEED_OFFSET),
+                         scale_range=cfg.family_scale_range)
+    test_set = family_set(n_held, np.random.default_rng(cfg.seed + TEST_SEED_OFFSET), scale_range=cfg.family_scale_range)
     fam_idx = {f: i for i, f in enumerate(FAMILIES)}
     per_obj = max(1000, cfg.grasps_per_object * len(objects) // max(len(train_set), 1))
     dc = DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=per_obj, normalize_scale=True, seed=cfg.seed,
                        normal_axis=cfg.normal_axis, **cfg.family_grasps)
-    ds = build_dataset(train_set, dc, progress=False)
+    ds = _member_grasps(train_set, dc, cfg)
     fam_of = np.array([fam_idx[train_set.families[nm]] for nm in train_set.names])
     clf = MLPClassifier(dataclasses.replace(cfg.mlp, progress=False)).fit(ds.X_train, fam_of[ds.y_train], ds.X_val,
                                                                           fam_of[ds.y_val], n_classes=len(FAMILIES))
     kde = KDELikelihood(cfg.kde).fit(ds.X_train, fam_of[ds.y_train], ds.X_val, fam_of[ds.y_val], n_classes=len(FAMILIES))
     # temperatures on new validation members (another seed than training and test)
-    vds = build_dataset(val_set, DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=cfg.test_grasps,
-                                               normalize_scale=True, val_fraction=0.0, normal_axis=cfg.normal_axis,
-                                               seed=cfg.seed + FAMILY_VAL_SEED_OFFSET, **cfg.family_grasps),
-                        progress=False)
+    vds = _member_grasps(val_set, DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=cfg.test_grasps,
+                                                normalize_scale=True, val_fraction=0.0, normal_axis=cfg.normal_axis,
+                                                seed=cfg.seed + FAMILY_VAL_SEED_OFFSET, **cfg.family_grasps), cfg)
     fam_val = np.array([fam_idx[val_set.families[nm]] for nm in val_set.names])
     T_kde, T_mlp = family_temperatures(kde, clf, vds.X_train.astype(np.float64), fam_val[vds.y_train],
                                        member=vds.y_train, grasps=cfg.max_grasps,
@@ -104,12 +118,22 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
         if cfg.calibrated else (1.0, 1.0)
 
     def scores(objs):
-        pool = fresh_pool(objs, 4, cfg.normals, cfg, normalize_scale=True, **cfg.family_grasps)
+        if cfg.family_source == "hand":  # an object the hand never grasps with 4 fingers gets no rows
+            pool = [X.astype(np.float64) for X in hand_vectors(
+                objs, DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=cfg.test_grasps, val_fraction=0.0,
+                                    normalize_scale=True, seed=cfg.seed + TEST_SEED_OFFSET, normal_axis=cfg.normal_axis,
+                                    **cfg.family_grasps), progress=False)]
+        else:
+            pool = fresh_pool(objs, 4, cfg.normals, cfg, normalize_scale=True, **cfg.family_grasps)
         LL = [kde.log_likelihood(X) / T_kde for X in pool]
         PR = [softmax(np.log(np.maximum(clf.predict_proba(X), 1e-300)) / T_mlp, axis=1) for X in pool]
         return LL, PR
 
     LL, PR = scores(test_set)
+    if any(len(L) == 0 for L in LL):
+        raise RuntimeError(f"experiment 5: the {cfg.family_hand} never grasped test member(s) "
+                           f"{[nm for nm, L in zip(test_set.names, LL) if len(L) == 0]} with 4 fingers; "
+                           "use larger members (family_scale_range)")
     fam_test = np.array([fam_idx[test_set.families[nm]] for nm in test_set.names])
     rows = []
     for kind in ("ic", "bc-np"):
@@ -129,14 +153,21 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     ntr = FAMILY_OBJECT_TRIALS
     short = {"box": "box", "elliptic_cylinder": "cyl", "ellipsoid": "ell"}
     rows, hits, labelled, ic_dec, ic_all = [], 0, 0, 0, 0
+    ungrasped = []
     for k, nm in enumerate(objects.names):
+        exp = EXPECTED_FAMILY.get(nm)
+        if len(LL[k]) == 0:  # the hand never touched it with 4 fingers: a labelled object counts as missed
+            ungrasped.append(nm)
+            labelled += exp is not None
+            rows.append([nm, short.get(exp, "-") if exp else "(none)", "no 4-finger grasps", "-", "-", "-", "-", "-",
+                         "-" if exp is None else "no"])
+            continue
         out = {}
         for kind in ("ic", "bc-np"):
             out[kind] = family_trials(LL[k], PR[k], kind, trials=ntr, max_grasps=cfg.max_grasps,
                                       threshold=cfg.threshold, rng=rng)
         ic_dec += out["ic"][1]
         ic_all += ntr
-        exp = EXPECTED_FAMILY.get(nm)
         vote = FAMILIES[int(np.argmax(out["bc-np"][0]))]
         if exp is not None:
             labelled += 1
@@ -149,6 +180,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     rep.p(f"Objects of '{cfg.objects}' classified into families ({ntr} trials per object; votes = predictions at "
           f"the stop, box / cyl / ell; expected = the family a person would expect, '(none)': no clear family, not "
           f"scored). BC-NP's majority vote is the expected family for {hits}/{labelled} labelled objects; IC decided "
-          f"within {cfg.max_grasps} grasps in {ic_dec}/{ic_all} trials.")
+          f"within {cfg.max_grasps} grasps in {ic_dec}/{ic_all} trials."
+          + (f" The {cfg.family_hand} never grasped {', '.join(ungrasped)} with 4 fingers in {cfg.test_grasps} "
+             "approaches (a labelled one counts as a miss)." if ungrasped else ""))
     rep.table(["object", "expected", "IC votes", "IC decided", "BC-NP votes", "BC-NP decided", "BC-NP grasps",
                "BC-NP vote", "match"], rows)
