@@ -125,3 +125,20 @@ def test_approach_grasps_carry_family_information_that_surface_grasps_lack():
         kde = KDELikelihood(KDEConfig()).fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val, n_classes=3)
         acc[source] = np.mean(kde.log_likelihood(ds.X_val).argmax(1) == ds.y_val)
     assert acc["surface"] < 0.47 and acc["geometric"] > 0.6, acc
+
+
+def test_experiment_5_reports_held_back_and_new_members_and_the_object_votes(tmp_path):
+    """End to end (small): experiment 5 writes the one-shot accuracy on held-back grasps of the training members and
+    on new members, the trial table, and one vote row per object."""
+    from haptic_env.cli import main
+
+    out = tmp_path / "fam"
+    assert main(["analysis", "--out", str(out), "--experiments", "5", "--objects", "default", "--family-members", "2",
+                 "--grasps-per-object", "100", "--test-grasps", "40", "--trials", "5", "--max-grasps", "5",
+                 "--no-normals", "--mlp-epochs", "2", "--quiet"]) == 0
+    text = (out / "results.md").read_text()
+    assert "Held-back grasps of the 6 training members (fresh, test seed): one-shot family accuracy MLP" in text
+    assert "Held-out family members (6 new random" in text and "member axes U(0.5, 1.5) x 0.08 m" in text
+    for name in ("box", "can", "apple", "hammer"):
+        assert f"\n| {name} |" in text
+    assert "BC-NP's majority vote is the expected family for" in text

@@ -143,6 +143,11 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
                      mean_std(res["grasps"].mean(), res["grasps"].std(), 2)])
     one = np.mean(np.concatenate([p.argmax(1) == fam_test[k] for k, p in enumerate(PR)]))
     one_kde = np.mean(np.concatenate([L.argmax(1) == fam_test[k] for k, L in enumerate(LL)]))
+    LLh, PRh = scores(train_set)  # fresh grasps (test seed) of the training members: held-back family grasps
+    one_h = np.mean(np.concatenate([p.argmax(1) == fam_of[k] for k, p in enumerate(PRh) if len(p)]))
+    one_kde_h = np.mean(np.concatenate([L.argmax(1) == fam_of[k] for k, L in enumerate(LLh) if len(L)]))
+    rep.p(f"Held-back grasps of the {len(train_set)} training members (fresh, test seed): one-shot family accuracy MLP "
+          f"{100 * one_h:.1f} %, KDE argmax {100 * one_kde_h:.1f} % (chance 33.3 %).")
     rep.p(f"Held-out family members ({len(test_set)} new random boxes/cylinders/ellipsoids, test seed); one-shot "
           f"family accuracy MLP {100 * one:.1f} %, KDE argmax {100 * one_kde:.1f} % (chance 33.3 %). Temperatures "
           f"fitted on {len(val_set)} validation members: KDE {T_kde:.2f} (for beliefs of 1-{cfg.max_grasps} grasps of one "
