@@ -125,8 +125,9 @@ def main(argv=None):
     p.add_argument("--lo", type=float, default=0.5)
     p.add_argument("--hi", type=float, default=1.5)
     p.add_argument("--source", choices=FAMILY_SOURCES, default="surface",
-                   help="training and validation grasps: independent surface points (the paper's) or the geometric "
-                        "hand's grasps under random approaches")
+                   help="training and validation grasps: independent surface points (the paper's), the geometric "
+                        "hand's grasps under random approaches, or the Allegro's own MuJoCo grasps (hand; "
+                        "grasps = approaches per member, of which the 4-finger ones are kept)")
     a = p.parse_args(argv)
     ms = tuple(int(v) for v in a.ms.split(","))
     models = set(a.models.split(","))

@@ -21,6 +21,20 @@ def test_family_set_scale_range():
         family_set(1, np.random.default_rng(0), scale_range=(1.5, 0.5))
 
 
+def test_family_set_size_range_scales_each_member_as_a_whole():
+    """``size_range``: one factor per member on its three axes, keeping its aspect; the shapes are the plain
+    generator's at a fixed size factor of 1, and a bad range is refused by name."""
+    fixed = family_set(2, np.random.default_rng(0), scale_range=(1.0, 1.0), size_range=(2.0, 2.0))
+    for o in fixed:
+        assert np.allclose(o.mesh.extents, 0.16, atol=4e-3), (o.name, o.mesh.extents)
+    sized = family_set(4, np.random.default_rng(1), size_range=(0.5, 2.0))
+    e = np.array([o.mesh.extents for o in sized])
+    assert e.min() >= 0.02 - 1e-6 and e.max() <= 0.24 + 1e-6
+    assert np.ptp(e.max(1)) > 0.06  # sizes vary beyond what the per-axis factors give alone
+    with pytest.raises(ValueError, match=r"size_range must be \(lo, hi\) with 0 < lo <= hi, got \(2, 1\)"):
+        family_set(1, np.random.default_rng(0), size_range=(2, 1))
+
+
 def test_expected_family_labels_are_families():
     assert {v for v in EXPECTED_FAMILY.values() if v is not None} <= set(FAMILIES)
     assert EXPECTED_FAMILY["can"] == "elliptic_cylinder" and EXPECTED_FAMILY["ball"] == "ellipsoid"
@@ -99,10 +113,14 @@ def test_family_source_is_checked_and_reaches_the_grasps(tmp_path):
         AnalysisConfig(family_members=0)
     with pytest.raises(ValueError, match=r"family_scale_range must be \(lo, hi\) with 0 < lo <= hi, got \(2.0, 1.0\)"):
         AnalysisConfig(family_scale_range=(2.0, 1.0))
+    assert AnalysisConfig().family_size_range is None  # the paper's generator
+    assert AnalysisConfig(family_size_range=[0.7, 1.6]).family_size_range == (0.7, 1.6)
+    with pytest.raises(ValueError, match=r"family_size_range must be None or \(lo, hi\).*got \(0, 1\)"):
+        AnalysisConfig(family_size_range=(0, 1))
     with pytest.raises(ValueError, match="family_hand must be a hand name"):
         AnalysisConfig(family_hand="")
     for flags in (["--family-source", "allegro"], ["--family-scale-range", "0.75"],
-                  ["--family-scale-range", "1,x"], ["--family-scale-range", "0,1"]):
+                  ["--family-scale-range", "1,x"], ["--family-scale-range", "0,1"], ["--family-size-range", "2,1"]):
         with pytest.raises(SystemExit):
             main(["analysis", "--out", str(tmp_path / "bad"), "--experiments", "5", *flags])
         assert not (tmp_path / "bad").exists()
@@ -135,10 +153,10 @@ def test_experiment_5_reports_held_back_and_new_members_and_the_object_votes(tmp
     out = tmp_path / "fam"
     assert main(["analysis", "--out", str(out), "--experiments", "5", "--objects", "default", "--family-members", "2",
                  "--grasps-per-object", "100", "--test-grasps", "40", "--trials", "5", "--max-grasps", "5",
-                 "--no-normals", "--mlp-epochs", "2", "--quiet"]) == 0
+                 "--no-normals", "--mlp-epochs", "2", "--family-size-range", "1,1.2", "--quiet"]) == 0
     text = (out / "results.md").read_text()
     assert "Held-back grasps of the 6 training members (fresh, test seed): one-shot family accuracy MLP" in text
-    assert "Held-out family members (6 new random" in text and "member axes U(0.5, 1.5) x 0.08 m" in text
+    assert "Held-out family members (6 new random" in text and "member axes U(0.5, 1.5) x 0.08 m x a size factor U(1, 1.2) per member" in text
     for name in ("box", "can", "apple", "hammer"):
         assert f"\n| {name} |" in text
     assert "BC-NP's majority vote is the expected family for" in text

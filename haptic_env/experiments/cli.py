@@ -114,6 +114,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--family-scale-range", default=",".join(str(v) for v in d.family_scale_range),
                    help="experiment 5: LO,HI of the family members' per-axis scale factors about 0.08 m (the paper's "
                         "0.5,1.5; the Allegro needs larger members, e.g. 0.75,2.25)")
+    p.add_argument("--family-size-range", default=None,
+                   help="experiment 5: LO,HI of a factor per family member on all three axes, its overall size "
+                        "(default none, the paper's); hand-matched grasps depend on size, e.g. 0.7,1.5")
     p.add_argument("--family-members", type=int, default=d.family_members,
                    help="experiment 5: training members per family (a third as many validation and test members)")
     p.add_argument("--normal-axis", default=d.normal_axis, choices=NORMAL_AXES,
@@ -176,6 +179,8 @@ def _run_cli(args) -> int:
             zfinger_hands=_ints(args.zfinger_hands), normals=not args.no_normals, normal_axis=args.normal_axis,
             family_source=args.family_source, family_members=args.family_members, family_hand=args.family_hand,
             family_scale_range=_range(args.family_scale_range, "--family-scale-range"),
+            family_size_range=None if args.family_size_range is None else _range(args.family_size_range,
+                                                                                 "--family-size-range"),
             calibrated=not args.raw, stop_scale=args.stop_scale,
             calib_fingers=_ints(args.calib_fingers), calib_fingers_no_normals=_ints(args.calib_fingers_no_normals),
             lambdas=_lambdas(args.lambdas), seed=args.seed,

@@ -69,6 +69,10 @@ class AnalysisConfig:
     #: experiment 5: the per-axis scale factors of the family members about 0.08 m (the paper's U(0.5, 1.5); a robot
     #: hand may need larger members, e.g. (0.75, 2.25) for the Allegro, same aspect spread)
     family_scale_range: tuple[float, float] = FAMILY_SCALE_RANGE
+    #: experiment 5: a factor per member on all three axes (its overall size), ``None``: none (the paper's). A robot
+    #: hand's grasps depend on size after scale normalisation, so ``family_source="hand"`` wants members of the
+    #: objects' sizes (``family_set(size_range=)``)
+    family_size_range: tuple[float, float] | None = None
     normals: bool = True  #: experiments 2-6
     #: each normal's second angle in Phi_n (n >= 4): to t2's normal ("t2", the paper's) or to the edge ab ("ab";
     #: ``phi(normal_axis=)``), in every experiment's training and test grasps
@@ -108,6 +112,12 @@ class AnalysisConfig:
         if len(sr) != 2 or not all(isinstance(v, (int, float)) and np.isfinite(v) for v in sr) or not 0 < sr[0] <= sr[1]:
             raise ValueError(f"family_scale_range must be (lo, hi) with 0 < lo <= hi, got {self.family_scale_range!r}")
         object.__setattr__(self, "family_scale_range", tuple(float(v) for v in sr))
+        if self.family_size_range is not None:
+            sz = tuple(self.family_size_range)
+            if len(sz) != 2 or not all(isinstance(v, (int, float)) and np.isfinite(v) for v in sz) or not 0 < sz[0] <= sz[1]:
+                raise ValueError(f"family_size_range must be None or (lo, hi) with 0 < lo <= hi, "
+                                 f"got {self.family_size_range!r}")
+            object.__setattr__(self, "family_size_range", tuple(float(v) for v in sz))
 
     @property
     def family_grasps(self) -> dict:

@@ -92,12 +92,14 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
               "hand": f"{cfg.family_hand} MuJoCo grasps under random approaches, objects on the table"}[cfg.family_source]
     lo, hi = cfg.family_scale_range
     rep.h("5. Geometry recognition (families: " + ", ".join(FAMILIES) + f"; n = 4, normals: {cfg.normals}, "
-          f"scale-normalised, {grasps}; member axes U({lo:g}, {hi:g}) x 0.08 m; {cfg.scores_label})")
-    train_set = family_set(cfg.family_members, np.random.default_rng(cfg.seed), scale_range=cfg.family_scale_range)
+          f"scale-normalised, {grasps}; member axes U({lo:g}, {hi:g}) x 0.08 m" + (
+              "" if cfg.family_size_range is None else " x a size factor U({:g}, {:g}) per member".format(
+                  *cfg.family_size_range)) + f"; {cfg.scores_label})")
+    members = {"scale_range": cfg.family_scale_range, "size_range": cfg.family_size_range}
+    train_set = family_set(cfg.family_members, np.random.default_rng(cfg.seed), **members)
     n_held = max(2, cfg.family_members // 3)
-    val_set = family_set(n_held, np.random.default_rng(cfg.seed + FAMILY_VAL_SEED_OFFSET),
-                         scale_range=cfg.family_scale_range)
-    test_set = family_set(n_held, np.random.default_rng(cfg.seed + TEST_SEED_OFFSET), scale_range=cfg.family_scale_range)
+    val_set = family_set(n_held, np.random.default_rng(cfg.seed + FAMILY_VAL_SEED_OFFSET), **members)
+    test_set = family_set(n_held, np.random.default_rng(cfg.seed + TEST_SEED_OFFSET), **members)
     fam_idx = {f: i for i, f in enumerate(FAMILIES)}
     per_obj = max(1000, cfg.grasps_per_object * len(objects) // max(len(train_set), 1))
     dc = DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=per_obj, normalize_scale=True, seed=cfg.seed,

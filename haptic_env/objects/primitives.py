@@ -182,7 +182,8 @@ def _family_mesh(family: str, s: np.ndarray) -> trimesh.Trimesh:
 
 
 def family_set(n_per_family: int, rng: np.random.Generator, families=FAMILIES,
-               scale_range: tuple[float, float] = FAMILY_SCALE_RANGE) -> ObjectSet:
+               scale_range: tuple[float, float] = FAMILY_SCALE_RANGE,
+               size_range: tuple[float, float] | None = None) -> ObjectSet:
     """The paper's geometry families: boxes, elliptic cylinders and ellipsoids.
 
     Each member has per-axis scale factors drawn uniformly from ``FAMILY_SCALE_RANGE`` about the
@@ -194,16 +195,26 @@ def family_set(n_per_family: int, rng: np.random.Generator, families=FAMILIES,
         rng: generator for the scale factors.
         families: subset/order of :data:`FAMILIES`.
         scale_range: ``(lo, hi)`` of the per-axis scale factors (``lo == hi``: cube, round cylinder, sphere).
+        size_range: ``(lo, hi)`` of one more factor per member, common to its three axes (its overall size; drawn
+            after the per-axis factors, so ``None``, the paper's generator, keeps the members of a seed). A robot hand's
+            grasps depend on the object's size even after scale normalisation (its fingers keep their size), so
+            hand-matched family grasps need members of the sizes of the objects to be recognised.
     """
     if int(n_per_family) < 1:
         raise ValueError(f"n_per_family must be >= 1, got {n_per_family}")
     lo, hi = (float(v) for v in scale_range)
     if not 0 < lo <= hi:
         raise ValueError(f"scale_range must be (lo, hi) with 0 < lo <= hi, got {scale_range!r}")
+    if size_range is not None:
+        slo, shi = (float(v) for v in size_range)
+        if not 0 < slo <= shi:
+            raise ValueError(f"size_range must be (lo, hi) with 0 < lo <= hi, got {size_range!r}")
     objs = []
     for fam in families:
         for i in range(int(n_per_family)):
             s = rng.uniform(lo, hi, size=3)
+            if size_range is not None:
+                s = s * rng.uniform(slo, shi)
             mesh, _ = prepare_mesh(_family_mesh(fam, s), f"{fam}_{i:02d}")
             objs.append(GraspObject(f"{fam}_{i:02d}", mesh, family=fam))
     return ObjectSet("families", objs)
