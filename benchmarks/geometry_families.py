@@ -15,6 +15,7 @@ Run (one process, nice)::
 
     OMP_NUM_THREADS=1 nice -n 10 python benchmarks/geometry_families.py --sweep spread
     OMP_NUM_THREADS=1 nice -n 10 python benchmarks/geometry_families.py --sweep norm
+    OMP_NUM_THREADS=1 nice -n 10 python benchmarks/geometry_families.py --sweep sizes --source hand [--size-range 0.7,1.6]
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ import time
 import numpy as np
 from scipy.special import logsumexp
 
-from haptic_env.dataset import DatasetConfig, build_dataset
+from haptic_env.dataset import DatasetConfig, build_dataset, hand_vectors
 from haptic_env.experiments.config import FAMILY_SOURCES, AnalysisConfig
 from haptic_env.objects import FAMILIES, family_set
 from haptic_env.recognizers.baselines import make_classifier
@@ -113,9 +114,37 @@ def run_cell(lo, hi, normals, normalize, members, G, seed, ms, trials, models, s
     return row
 
 
+def size_cell(members, G, seed, size_range, sizes, source):
+    """One-shot family accuracy (KDE, no normals, scale-normalised) on the three FIXED shapes (cube, round cylinder,
+    sphere) at each overall size in ``sizes`` (m), trained on ``members`` per family with per-axis factors
+    U(0.5, 1.5) and, if given, a size factor per member (``size_range``). With a hand's grasps a sphere gives one
+    contact pattern whatever the approach, and that pattern moves with the sphere's size (the fingers keep theirs)."""
+    t0 = time.time()
+    tr = family_set(members, np.random.default_rng(seed), size_range=size_range)
+    ds = build_dataset(tr, DatasetConfig(n_fingers=4, normals=False, grasps_per_object=G, normalize_scale=True,
+                                         seed=seed, **source_kwargs(source)), progress=False)
+    fm = fam_labels(tr)
+    kde = KDELikelihood(KDEConfig()).fit(ds.X_train, fm[ds.y_train], ds.X_val, fm[ds.y_val], n_classes=3)
+    row = {"members": members, "size_range": "-" if size_range is None else f"{size_range[0]:g}-{size_range[1]:g}",
+           "source": source}
+    for size in sizes:
+        shapes = family_set(1, np.random.default_rng(seed), scale_range=(size / 0.08, size / 0.08))
+        if source == "hand":  # a shape too small for the hand keeps its 0 rows (nan), where build_dataset raises
+            P = hand_vectors(shapes, DatasetConfig(n_fingers=4, normals=False, grasps_per_object=300, normalize_scale=True,
+                                                   val_fraction=0.0, seed=seed + VAL_MEMBER_SEED, **source_kwargs(source)),
+                             progress=False)
+        else:
+            P = pool(shapes, 300, False, True, seed + VAL_MEMBER_SEED, source)
+        for k, X in enumerate(P):
+            hit = kde.log_likelihood(X.astype(np.float64)).argmax(1) == k if len(X) else np.array([np.nan])
+            row[f"{('cube', 'cyl', 'sphere')[k]}_{100 * size:g}cm"] = 100 * float(np.mean(hit))
+    row["s"] = time.time() - t0
+    return row
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--sweep", choices=("spread", "norm", "members", "one"), default="spread")
+    p.add_argument("--sweep", choices=("spread", "norm", "members", "one", "sizes"), default="spread")
     p.add_argument("--members", type=int, default=10)
     p.add_argument("--grasps", type=int, default=3000, help="grasps per training member (20 %% held back)")
     p.add_argument("--seed", type=int, default=0)
@@ -128,6 +157,9 @@ def main(argv=None):
                    help="training and validation grasps: independent surface points (the paper's), the geometric "
                         "hand's grasps under random approaches, or the Allegro's own MuJoCo grasps (hand; "
                         "grasps = approaches per member, of which the 4-finger ones are kept)")
+    p.add_argument("--size-range", default=None,
+                   help="--sweep sizes: LO,HI of a size factor per training member (default none, the paper's)")
+    p.add_argument("--sizes", default="0.05,0.067,0.08,0.1,0.12", help="--sweep sizes: the fixed shapes' sizes (m)")
     a = p.parse_args(argv)
     ms = tuple(int(v) for v in a.ms.split(","))
     models = set(a.models.split(","))
@@ -137,9 +169,14 @@ def main(argv=None):
         cells = [(a.lo, a.hi, nrm, nz) for nrm in (False, True) for nz in (True, False)]
     elif a.sweep == "members":
         cells = [(a.lo, a.hi, False, True)]
-    else:
+    else:  # "one" and "sizes": the given spread
         cells = [(a.lo, a.hi, False, True)]
-    rows = [run_cell(lo, hi, nrm, nz, a.members, a.grasps, a.seed, ms, a.trials, models, a.source) for lo, hi, nrm, nz in cells]
+    if a.sweep == "sizes":
+        sr = None if a.size_range is None else tuple(float(v) for v in a.size_range.split(","))
+        rows = [size_cell(a.members, a.grasps, a.seed, sr, tuple(float(v) for v in a.sizes.split(",")), a.source)]
+    else:
+        rows = [run_cell(lo, hi, nrm, nz, a.members, a.grasps, a.seed, ms, a.trials, models, a.source)
+                for lo, hi, nrm, nz in cells]
     keys = list(dict.fromkeys(k for r in rows for k in r))
     print("| " + " | ".join(keys) + " |")
     print("|" + "---|" * len(keys))
