@@ -66,16 +66,17 @@ def votes(score_fn, P, fam_true, ms, trials, rng):
         ok = []
         for _ in range(trials):
             o = rng.integers(len(P))
-            rows = rng.choice(len(P[o]), size=m, replace=False)
+            rows = rng.choice(len(P[o]), size=m, replace=len(P[o]) < m)  # a hand may grasp a member rarely
             ok.append(np.argmax(score_fn(o, rows)) == fam_true[o])
         out[m] = 100 * np.mean(ok)
     return out
 
 
-def run_cell(lo, hi, normals, normalize, members, G, seed, ms, trials, models, source="surface"):
+def run_cell(lo, hi, normals, normalize, members, G, seed, ms, trials, models, source="surface", size_range=None):
     t0 = time.time()
-    tr = family_set(members, np.random.default_rng(seed), scale_range=(lo, hi))
-    va = family_set(max(3, members // 2), np.random.default_rng(seed + VAL_MEMBER_SEED), scale_range=(lo, hi))
+    tr = family_set(members, np.random.default_rng(seed), scale_range=(lo, hi), size_range=size_range)
+    va = family_set(max(3, members // 2), np.random.default_rng(seed + VAL_MEMBER_SEED), scale_range=(lo, hi),
+                    size_range=size_range)
     ds = build_dataset(tr, DatasetConfig(n_fingers=4, normals=normals, grasps_per_object=G, normalize_scale=normalize,
                                          seed=seed, **source_kwargs(source)), progress=False)
     fm = fam_labels(tr)
@@ -85,6 +86,8 @@ def run_cell(lo, hi, normals, normalize, members, G, seed, ms, trials, models, s
     fnew = fam_labels(va)
     rng = np.random.default_rng(seed + 1)
     row = {"spread": f"{lo:g}-{hi:g}", "normals": normals, "norm": normalize, "source": source}
+    if size_range is not None:
+        row["size_range"] = f"{size_range[0]:g}-{size_range[1]:g}"
     kde = KDELikelihood(KDEConfig()).fit(ds.X_train, ytr, ds.X_val, yva, n_classes=3)
     row["kde_1_held"] = 100 * np.mean(kde.log_likelihood(ds.X_val).argmax(1) == yva)
     LLn = [kde.log_likelihood(X) for X in new]
@@ -158,7 +161,7 @@ def main(argv=None):
                         "hand's grasps under random approaches, or the Allegro's own MuJoCo grasps (hand; "
                         "grasps = approaches per member, of which the 4-finger ones are kept)")
     p.add_argument("--size-range", default=None,
-                   help="--sweep sizes: LO,HI of a size factor per training member (default none, the paper's)")
+                   help="LO,HI of a size factor per member (family_set(size_range=); default none, the paper's)")
     p.add_argument("--sizes", default="0.05,0.067,0.08,0.1,0.12", help="--sweep sizes: the fixed shapes' sizes (m)")
     a = p.parse_args(argv)
     ms = tuple(int(v) for v in a.ms.split(","))
@@ -171,11 +174,11 @@ def main(argv=None):
         cells = [(a.lo, a.hi, False, True)]
     else:  # "one" and "sizes": the given spread
         cells = [(a.lo, a.hi, False, True)]
+    sr = None if a.size_range is None else tuple(float(v) for v in a.size_range.split(","))
     if a.sweep == "sizes":
-        sr = None if a.size_range is None else tuple(float(v) for v in a.size_range.split(","))
         rows = [size_cell(a.members, a.grasps, a.seed, sr, tuple(float(v) for v in a.sizes.split(",")), a.source)]
     else:
-        rows = [run_cell(lo, hi, nrm, nz, a.members, a.grasps, a.seed, ms, a.trials, models, a.source)
+        rows = [run_cell(lo, hi, nrm, nz, a.members, a.grasps, a.seed, ms, a.trials, models, a.source, sr)
                 for lo, hi, nrm, nz in cells]
     keys = list(dict.fromkeys(k for r in rows for k in r))
     print("| " + " | ".join(keys) + " |")
