@@ -113,10 +113,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="experiment 5 with --family-source hand: the hand (a load_hand name, e.g. allegro)")
     p.add_argument("--family-scale-range", default=",".join(str(v) for v in d.family_scale_range),
                    help="experiment 5: LO,HI of the family members' per-axis scale factors about 0.08 m (the paper's "
-                        "0.5,1.5; the Allegro needs larger members, e.g. 0.75,2.25)")
+                        "0.5,1.5)")
     p.add_argument("--family-size-range", default=None,
                    help="experiment 5: LO,HI of a factor per family member on all three axes, its overall size "
-                        "(default none, the paper's); hand-matched grasps depend on size, e.g. 0.7,1.5")
+                        "(default none, the paper's); a hand's grasps depend on size, so with --family-source hand let the "
+                        "members span the objects' sizes, e.g. 0.7,1.6")
     p.add_argument("--family-members", type=int, default=d.family_members,
                    help="experiment 5: training members per family (a third as many validation and test members)")
     p.add_argument("--normal-axis", default=d.normal_axis, choices=NORMAL_AXES,

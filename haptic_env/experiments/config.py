@@ -66,8 +66,7 @@ class AnalysisConfig:
     #: with ``family_source="hand"``: the hand (a name of :func:`~haptic_env.grasping.hands.load_hand`); grasps are
     #: random 4-subsets of the fingers that touched
     family_hand: str = "allegro"
-    #: experiment 5: the per-axis scale factors of the family members about 0.08 m (the paper's U(0.5, 1.5); a robot
-    #: hand may need larger members, e.g. (0.75, 2.25) for the Allegro, same aspect spread)
+    #: experiment 5: the per-axis scale factors of the family members about 0.08 m (the paper's U(0.5, 1.5))
     family_scale_range: tuple[float, float] = FAMILY_SCALE_RANGE
     #: experiment 5: a factor per member on all three axes (its overall size), ``None``: none (the paper's). A robot
     #: hand's grasps depend on size after scale normalisation, so ``family_source="hand"`` wants members of the

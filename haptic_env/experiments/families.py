@@ -82,7 +82,8 @@ def _member_grasps(members, dc: DatasetConfig, cfg: AnalysisConfig):
         if cfg.family_source != "hand":
             raise
         raise RuntimeError(f"experiment 5: {e}. The {cfg.family_hand} needs larger family members than "
-                           f"family_scale_range={cfg.family_scale_range} (e.g. --family-scale-range 0.75,2.25)") from e
+                           f"family_scale_range={cfg.family_scale_range}, family_size_range={cfg.family_size_range} "
+                           "give (--family-scale-range, --family-size-range)") from e
 
 
 def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> None:
@@ -135,7 +136,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     if any(len(L) == 0 for L in LL):
         raise RuntimeError(f"experiment 5: the {cfg.family_hand} never grasped test member(s) "
                            f"{[nm for nm, L in zip(test_set.names, LL) if len(L) == 0]} with 4 fingers; "
-                           "use larger members (family_scale_range)")
+                           "use larger members (--family-scale-range, --family-size-range)")
     fam_test = np.array([fam_idx[test_set.families[nm]] for nm in test_set.names])
     rows = []
     for kind in ("ic", "bc-np"):
