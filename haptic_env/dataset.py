@@ -19,7 +19,7 @@ import argparse
 import re
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +41,7 @@ __all__ = [
     "support_frame",
     "build_dataset",
     "hand_vectors",
+    "hand_dataset",
     "dataset_cache_path",
     "add_parser",
 ]
@@ -470,22 +471,51 @@ def hand_vectors(objects: ObjectSet, config: DatasetConfig, progress: bool = Tru
     return [X for _, X, _ in _hand_rows(objects, config, progress)]
 
 
-def _hand_dataset(objects: ObjectSet, config: DatasetConfig, path: Path | None, progress: bool) -> GraspDataset:
-    """``source="hand"``: the ``n_fingers``-finger rows of a hand grasp pool, split per object."""
-    Xtr, Ytr, Xva, Yva = [], [], [], []
+def hand_dataset(objects: ObjectSet, config: DatasetConfig, *, progress: bool = True,
+                 min_rows: int = 2) -> tuple[GraspDataset, dict[str, int]]:
+    """``source="hand"``: the rows of a hand grasp pool split per object (as :func:`build_dataset`, uncached: the pool
+    is), leaving out each object that the hand touched with ``n_fingers`` fingers fewer than ``min_rows`` times.
+
+    Returns the dataset (labels stay the positions in ``objects``; a left-out object has no rows) and the left-out
+    objects with their row counts, so that a caller can report them (a family of random members, say, where the
+    hand cannot grasp every member). Raises if no object is left."""
+    if not (isinstance(min_rows, (int, np.integer)) and min_rows >= 1):
+        raise ValueError(f"hand_dataset: min_rows must be an int >= 1, got {min_rows!r}")
+    ds, left_out = _split_hand_rows(objects, config, progress, min_rows)
+    if ds is None:
+        raise RuntimeError(f"none of the {len(objects)} objects was touched with >= {config.n_fingers} fingers "
+                           f"(non-degenerate) in {min_rows} of {config.grasps_per_object} {config.hand} grasps")
+    return ds, left_out
+
+
+def _split_hand_rows(objects: ObjectSet, config: DatasetConfig, progress: bool,
+                     min_rows: int) -> tuple[GraspDataset | None, dict[str, int]]:
+    Xtr, Ytr, Xva, Yva, left_out = [], [], [], [], {}
     for k, X, rng in _hand_rows(objects, config, progress):
-        if len(X) < 2:
-            raise RuntimeError(f"object {objects.names[k]!r}: {len(X)} of {config.grasps_per_object} {config.hand} "
-                               f"grasps touched it with >= {config.n_fingers} fingers (non-degenerate); "
-                               "use more approaches or fewer fingers")
+        if len(X) < min_rows:
+            left_out[objects.names[k]] = len(X)
+            continue
         n_val = int(round(config.val_fraction * len(X)))
         perm = rng.permutation(len(X))
         Xva.append(X[perm[:n_val]])
         Xtr.append(X[perm[n_val:]])
         Yva.append(np.full(n_val, k, dtype=np.int64))
         Ytr.append(np.full(len(X) - n_val, k, dtype=np.int64))
+    if not Xtr:
+        return None, left_out
     return GraspDataset(np.concatenate(Xtr), np.concatenate(Ytr), np.concatenate(Xva), np.concatenate(Yva),
-                        objects.names, config, cache_path=path)
+                        objects.names, config), left_out
+
+
+def _hand_dataset(objects: ObjectSet, config: DatasetConfig, path: Path | None, progress: bool) -> GraspDataset:
+    """``source="hand"`` for :func:`build_dataset`: every object must have at least two rows."""
+    ds, left_out = _split_hand_rows(objects, config, progress, 2)
+    if left_out:
+        name, n = next(iter(left_out.items()))
+        raise RuntimeError(f"object {name!r}: {n} of {config.grasps_per_object} {config.hand} "
+                           f"grasps touched it with >= {config.n_fingers} fingers (non-degenerate); "
+                           "use more approaches or fewer fingers")
+    return replace(ds, cache_path=path)
 
 
 # ---------------------------------------------------------------------------------------- CLI

@@ -160,3 +160,28 @@ def test_experiment_5_reports_held_back_and_new_members_and_the_object_votes(tmp
     for name in ("box", "can", "apple", "hammer"):
         assert f"\n| {name} |" in text
     assert "BC-NP's majority vote is the expected family for" in text
+
+
+def test_members_the_hand_cannot_grasp_are_left_out_and_a_family_without_members_is_an_error():
+    """With a hand source, experiment 5 leaves out a random member that the hand never grasps with 4 fingers (and
+    names it); a family with no graspable member is an error naming both member ranges."""
+    from haptic_env.dataset import DatasetConfig
+    from haptic_env.experiments.config import AnalysisConfig
+    from haptic_env.experiments.families import _member_grasps
+    from haptic_env.objects import ObjectSet
+
+    cfg = AnalysisConfig(family_source="hand", family_hand="generic")
+    dc = DatasetConfig(n_fingers=4, normals=False, grasps_per_object=20, normalize_scale=True, seed=3,
+                       **cfg.family_grasps)
+    big = family_set(1, np.random.default_rng(0), scale_range=(1.5, 1.5))  # one 12 cm member per family
+    tiny = family_set(1, np.random.default_rng(0), scale_range=(0.05, 0.05), families=("ellipsoid",))  # 4 mm
+    ds, left = _member_grasps(big, dc, cfg, "training")
+    assert left == {} and set(np.unique(ds.y_train)) == {0, 1, 2}
+    two_ell = family_set(2, np.random.default_rng(0), scale_range=(1.5, 1.5), families=("ellipsoid",))
+    mixed = ObjectSet("mixed", [big["box_00"], big["elliptic_cylinder_00"], tiny["ellipsoid_00"], two_ell[1]])
+    ds, left = _member_grasps(mixed, dc, cfg, "training")
+    assert left == {"ellipsoid_00": 0} and set(np.unique(ds.y_train)) == {0, 1, 3}
+    no_ell = ObjectSet("no-ell", [big["box_00"], big["elliptic_cylinder_00"], tiny["ellipsoid_00"]])
+    with pytest.raises(RuntimeError, match=r"grasped no validation member of \['ellipsoid'\] .*family_scale_range="
+                                           r"\(0.5, 1.5\), family_size_range=None"):
+        _member_grasps(no_ell, dc, cfg, "validation")

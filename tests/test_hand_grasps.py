@@ -79,6 +79,29 @@ def test_hand_vectors_keep_every_row_and_report_objects_the_hand_cannot_grasp(tw
         build_dataset(tiny, cfg, cache=False, progress=False)
 
 
+def test_hand_dataset_leaves_out_the_objects_the_hand_cannot_grasp_and_names_them(two_objects):
+    """``hand_dataset`` splits the rows of the objects the hand grasps like ``build_dataset`` does and names those it
+    left out (labels stay positions in the set), instead of refusing the whole set."""
+    from haptic_env.dataset import hand_dataset
+    from haptic_env.objects import ObjectSet, family_set
+
+    cfg = DatasetConfig(n_fingers=3, normals=True, grasps_per_object=12, source="hand", hand="generic", seed=5,
+                        val_fraction=0.25)
+    tiny = family_set(1, np.random.default_rng(0), scale_range=(0.05, 0.05), families=("ellipsoid",))  # 4 mm
+    mixed = ObjectSet("can-tiny-mug", [two_objects["can"], tiny[0], two_objects["mug"]])
+    ds, left_out = hand_dataset(mixed, cfg, progress=False)
+    ref = build_dataset(two_objects, cfg, progress=False)
+    assert left_out == {"ellipsoid_00": 0} and ds.names == mixed.names and ds.cache_path is None
+    np.testing.assert_array_equal(np.unique(ds.y_train), [0, 2])  # the mug keeps its label 2
+    # the first object's approaches and split do not depend on the set's size: the same rows as in build_dataset
+    np.testing.assert_array_equal(ds.X_train[ds.y_train == 0], ref.X_train[ref.y_train == 0])
+    np.testing.assert_array_equal(ds.X_val[ds.y_val == 0], ref.X_val[ref.y_val == 0])
+    with pytest.raises(RuntimeError, match="none of the 1 objects"):
+        hand_dataset(tiny, cfg, progress=False)
+    with pytest.raises(ValueError, match="min_rows must be an int >= 1, got 0"):
+        hand_dataset(two_objects, cfg, min_rows=0)
+
+
 def test_balanced_counts_spread_the_budget_towards_rarely_complete_objects():
     c = balanced_counts([0.99, 0.45, 0.4, 0.04], 1000)
     assert abs(c.sum() - 4000) <= 4 and c[3] > c[2] > c[1] > c[0]

@@ -14,7 +14,7 @@ import dataclasses
 import numpy as np
 from scipy.special import softmax
 
-from haptic_env.dataset import DatasetConfig, build_dataset, hand_vectors
+from haptic_env.dataset import DatasetConfig, build_dataset, hand_dataset, hand_vectors
 from haptic_env.experiments.config import TEST_SEED_OFFSET, AnalysisConfig
 from haptic_env.experiments.fresh_grasps import fresh_pool
 from haptic_env.experiments.report import Report, mean_std
@@ -73,17 +73,28 @@ def family_temperatures(kde, clf, X, fam, *, member=None, grasps: int = 1,
     return float(T_kde), float(T_mlp)
 
 
-def _member_grasps(members, dc: DatasetConfig, cfg: AnalysisConfig):
-    """The family members' grasp dataset; with a hand source, a member too small for the hand gets an error that
-    says which setting to change."""
+def _too_small(cfg: AnalysisConfig, what: str) -> RuntimeError:
+    return RuntimeError(f"experiment 5: the {cfg.family_hand} hand grasped {what} with 4 fingers; it needs larger family "
+                        f"members than family_scale_range={cfg.family_scale_range}, family_size_range="
+                        f"{cfg.family_size_range} give (--family-scale-range, --family-size-range)")
+
+
+def _member_grasps(members, dc: DatasetConfig, cfg: AnalysisConfig, role: str):
+    """The family members' grasp dataset and the members left out (name -> rows): with a hand source, a member that
+    the hand does not grasp with 4 fingers (too small or too flat for it) is left out; a family left without members
+    gets an error that says which setting to change."""
+    if cfg.family_source != "hand":
+        return build_dataset(members, dc, progress=False), {}
+    from haptic_env.objects import FAMILIES
+
     try:
-        return build_dataset(members, dc, progress=False)
+        ds, left_out = hand_dataset(members, dc, progress=False)
     except RuntimeError as e:
-        if cfg.family_source != "hand":
-            raise
-        raise RuntimeError(f"experiment 5: {e}. The {cfg.family_hand} needs larger family members than "
-                           f"family_scale_range={cfg.family_scale_range}, family_size_range={cfg.family_size_range} "
-                           "give (--family-scale-range, --family-size-range)") from e
+        raise _too_small(cfg, f"none of the {len(members)} {role} members") from e
+    kept = {members.families[nm] for nm in members.names if nm not in left_out}
+    if missing := [f for f in FAMILIES if f not in kept]:
+        raise _too_small(cfg, f"no {role} member of {missing} (left out: {sorted(left_out)})")
+    return ds, left_out
 
 
 def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> None:
@@ -105,15 +116,16 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     per_obj = max(1000, cfg.grasps_per_object * len(objects) // max(len(train_set), 1))
     dc = DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=per_obj, normalize_scale=True, seed=cfg.seed,
                        normal_axis=cfg.normal_axis, **cfg.family_grasps)
-    ds = _member_grasps(train_set, dc, cfg)
+    ds, left_train = _member_grasps(train_set, dc, cfg, "training")
     fam_of = np.array([fam_idx[train_set.families[nm]] for nm in train_set.names])
     clf = MLPClassifier(dataclasses.replace(cfg.mlp, progress=False)).fit(ds.X_train, fam_of[ds.y_train], ds.X_val,
                                                                           fam_of[ds.y_val], n_classes=len(FAMILIES))
     kde = KDELikelihood(cfg.kde).fit(ds.X_train, fam_of[ds.y_train], ds.X_val, fam_of[ds.y_val], n_classes=len(FAMILIES))
     # temperatures on new validation members (another seed than training and test)
-    vds = _member_grasps(val_set, DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=cfg.test_grasps,
+    vds, left_val = _member_grasps(val_set, DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=cfg.test_grasps,
                                                 normalize_scale=True, val_fraction=0.0, normal_axis=cfg.normal_axis,
-                                                seed=cfg.seed + FAMILY_VAL_SEED_OFFSET, **cfg.family_grasps), cfg)
+                                                seed=cfg.seed + FAMILY_VAL_SEED_OFFSET, **cfg.family_grasps), cfg,
+                                     "validation")
     fam_val = np.array([fam_idx[val_set.families[nm]] for nm in val_set.names])
     T_kde, T_mlp = family_temperatures(kde, clf, vds.X_train.astype(np.float64), fam_val[vds.y_train],
                                        member=vds.y_train, grasps=cfg.max_grasps,
@@ -133,11 +145,13 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
         return LL, PR
 
     LL, PR = scores(test_set)
-    if any(len(L) == 0 for L in LL):
-        raise RuntimeError(f"experiment 5: the {cfg.family_hand} never grasped test member(s) "
-                           f"{[nm for nm, L in zip(test_set.names, LL) if len(L) == 0]} with 4 fingers; "
-                           "use larger members (--family-scale-range, --family-size-range)")
-    fam_test = np.array([fam_idx[test_set.families[nm]] for nm in test_set.names])
+    left_test = {nm: 0 for nm, L in zip(test_set.names, LL) if len(L) == 0}  # the hand never grasped them
+    kept = [k for k, L in enumerate(LL) if len(L)]
+    if missing := sorted({test_set.families[nm] for nm in test_set.names} - {test_set.families[test_set.names[k]]
+                                                                              for k in kept}):
+        raise _too_small(cfg, f"no test member of {missing} (left out: {sorted(left_test)})")
+    LL, PR = [LL[k] for k in kept], [PR[k] for k in kept]
+    fam_test = np.array([fam_idx[test_set.families[test_set.names[k]]] for k in kept])
     rows = []
     for kind in ("ic", "bc-np"):
         res = simulate_trials(LL, PR, kind, trials=cfg.trials, max_grasps=cfg.max_grasps, threshold=cfg.threshold, rng=rng)
@@ -147,13 +161,20 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     one = np.mean(np.concatenate([p.argmax(1) == fam_test[k] for k, p in enumerate(PR)]))
     one_kde = np.mean(np.concatenate([L.argmax(1) == fam_test[k] for k, L in enumerate(LL)]))
     LLh, PRh = scores(train_set)  # fresh grasps (test seed) of the training members: held-back family grasps
-    one_h = np.mean(np.concatenate([p.argmax(1) == fam_of[k] for k, p in enumerate(PRh) if len(p)]))
-    one_kde_h = np.mean(np.concatenate([L.argmax(1) == fam_of[k] for k, L in enumerate(LLh) if len(L)]))
-    rep.p(f"Held-back grasps of the {len(train_set)} training members (fresh, test seed): one-shot family accuracy MLP "
+    held = [k for k, nm in enumerate(train_set.names) if nm not in left_train and len(LLh[k])]
+    one_h = np.mean(np.concatenate([PRh[k].argmax(1) == fam_of[k] for k in held]))
+    one_kde_h = np.mean(np.concatenate([LLh[k].argmax(1) == fam_of[k] for k in held]))
+    n_tr, n_val, n_te = (len(st) - len(left) for st, left in ((train_set, left_train), (val_set, left_val),
+                                                             (test_set, left_test)))
+    if left_train or left_val or left_test:
+        rep.p(f"The {cfg.family_hand} grasped some random members with fewer than 4 fingers only (too small or too flat "
+              f"for it); they are left out: training {sorted(left_train)}, validation {sorted(left_val)}, test "
+              f"{sorted(left_test)}.")
+    rep.p(f"Held-back grasps of the {n_tr} training members (fresh, test seed): one-shot family accuracy MLP "
           f"{100 * one_h:.1f} %, KDE argmax {100 * one_kde_h:.1f} % (chance 33.3 %).")
-    rep.p(f"Held-out family members ({len(test_set)} new random boxes/cylinders/ellipsoids, test seed); one-shot "
+    rep.p(f"Held-out family members ({n_te} new random boxes/cylinders/ellipsoids, test seed); one-shot "
           f"family accuracy MLP {100 * one:.1f} %, KDE argmax {100 * one_kde:.1f} % (chance 33.3 %). Temperatures "
-          f"fitted on {len(val_set)} validation members: KDE {T_kde:.2f} (for beliefs of 1-{cfg.max_grasps} grasps of one "
+          f"fitted on {n_val} validation members: KDE {T_kde:.2f} (for beliefs of 1-{cfg.max_grasps} grasps of one "
           f"member), MLP {T_mlp:.2f} (one-shot). {cfg.trials} trials, "
           f"lambda = {cfg.threshold}, at most {cfg.max_grasps} grasps; success = family right at the stop.")
     rep.table(["updater", "family success %", "decided %", "grasps"], rows)
