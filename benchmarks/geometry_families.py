@@ -21,12 +21,13 @@ Run (one process, nice)::
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 
 import numpy as np
 from scipy.special import logsumexp
 
-from haptic_env.dataset import DatasetConfig, build_dataset, hand_vectors
+from haptic_env.dataset import DatasetConfig, build_dataset, hand_dataset, hand_vectors
 from haptic_env.experiments.config import FAMILY_SOURCES, AnalysisConfig
 from haptic_env.objects import FAMILIES, family_set
 from haptic_env.recognizers.baselines import make_classifier
@@ -41,9 +42,24 @@ def fam_labels(objs) -> np.ndarray:
     return np.array([idx[objs.families[n]] for n in objs.names])
 
 
+def member_dataset(objs, dc: DatasetConfig):
+    """The training members' grasps; with a hand source a member the hand never grasps with 4 fingers is left out and
+    named, as experiment 5 does (``hand_dataset``)."""
+    if dc.source != "hand":
+        return build_dataset(objs, dc, progress=False)
+    ds, left_out = hand_dataset(objs, dc, progress=False)
+    if left_out:
+        print(f"left out (never grasped with 4 fingers): {sorted(left_out)}", file=sys.stderr)
+    return ds
+
+
 def pool(objs, G, normals, normalize, seed, source="surface"):
-    ds = build_dataset(objs, DatasetConfig(n_fingers=4, normals=normals, grasps_per_object=G, normalize_scale=normalize,
-                                           val_fraction=0.0, seed=seed, **source_kwargs(source)), progress=False)
+    """Per-object grasp vectors (float64); with a hand source an object it never grasps with 4 fingers has 0 rows."""
+    dc = DatasetConfig(n_fingers=4, normals=normals, grasps_per_object=G, normalize_scale=normalize, val_fraction=0.0,
+                       seed=seed, **source_kwargs(source))
+    if source == "hand":
+        return [X.astype(np.float64) for X in hand_vectors(objs, dc, progress=False)]
+    ds = build_dataset(objs, dc, progress=False)
     return [ds.X_train[ds.y_train == k].astype(np.float64) for k in range(len(objs))]
 
 
@@ -77,13 +93,13 @@ def run_cell(lo, hi, normals, normalize, members, G, seed, ms, trials, models, s
     tr = family_set(members, np.random.default_rng(seed), scale_range=(lo, hi), size_range=size_range)
     va = family_set(max(3, members // 2), np.random.default_rng(seed + VAL_MEMBER_SEED), scale_range=(lo, hi),
                     size_range=size_range)
-    ds = build_dataset(tr, DatasetConfig(n_fingers=4, normals=normals, grasps_per_object=G, normalize_scale=normalize,
-                                         seed=seed, **source_kwargs(source)), progress=False)
+    ds = member_dataset(tr, DatasetConfig(n_fingers=4, normals=normals, grasps_per_object=G, normalize_scale=normalize,
+                                          seed=seed, **source_kwargs(source)))
     fm = fam_labels(tr)
     ytr, yva = fm[ds.y_train], fm[ds.y_val]
-    held = [ds.X_val[ds.y_val == k].astype(np.float64) for k in range(len(tr))]  # held-back grasps, training members
     new = pool(va, max(200, G // 5), normals, normalize, seed + VAL_MEMBER_SEED, source)  # new members
-    fnew = fam_labels(va)
+    kept = [k for k, X in enumerate(new) if len(X)]  # a hand may never grasp a small member with 4 fingers
+    new, fnew = [new[k] for k in kept], fam_labels(va)[kept]
     rng = np.random.default_rng(seed + 1)
     row = {"spread": f"{lo:g}-{hi:g}", "normals": normals, "norm": normalize, "source": source}
     if size_range is not None:
@@ -95,11 +111,13 @@ def run_cell(lo, hi, normals, normalize, members, G, seed, ms, trials, models, s
     for m, a in votes(lambda o, r: LLn[o][r].sum(0), LLn, fnew, ms, trials, rng).items():
         row[f"bcnp_{m}_new"] = a
     if "member" in models:
-        kdem = KDELikelihood(KDEConfig()).fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val, n_classes=len(tr))
-        LLm = [kdem.log_likelihood(X) for X in new]
+        mem = np.unique(ds.y_train)  # the members with grasps (a hand may leave some out), as classes 0..M-1
+        kdem = KDELikelihood(KDEConfig()).fit(ds.X_train, np.searchsorted(mem, ds.y_train), ds.X_val,
+                                              np.searchsorted(mem, ds.y_val), n_classes=len(mem))
+        LLm, fmem = [kdem.log_likelihood(X) for X in new], fm[mem]
         row["mem_1_new"] = 100 * np.mean(np.concatenate(
-            [np.array([member_family_ll(L[i:i + 1], fm).argmax() for i in range(len(L))]) == fnew[k] for k, L in enumerate(LLm)]))
-        for m, a in votes(lambda o, r: member_family_ll(LLm[o][r], fm, kdem.temperature), LLm, fnew, ms, trials, rng).items():
+            [np.array([member_family_ll(L[i:i + 1], fmem).argmax() for i in range(len(L))]) == fnew[k] for k, L in enumerate(LLm)]))
+        for m, a in votes(lambda o, r: member_family_ll(LLm[o][r], fmem, kdem.temperature), LLm, fnew, ms, trials, rng).items():
             row[f"mem_{m}_new"] = a
     if "mlp" in models:
         mlp = MLPClassifier(MLPConfig(max_epochs=20, patience=3, progress=False)).fit(ds.X_train, ytr, ds.X_val, yva, n_classes=3)
@@ -113,7 +131,6 @@ def run_cell(lo, hi, normals, normalize, members, G, seed, ms, trials, models, s
         row["rf_1_held"] = 100 * np.mean(rf.predict_proba(ds.X_val).argmax(1) == yva)
         row["rf_1_new"] = 100 * np.mean(np.concatenate([rf.predict_proba(X).argmax(1) == fnew[k] for k, X in enumerate(new)]))
     row["s"] = time.time() - t0
-    del held
     return row
 
 
@@ -124,20 +141,15 @@ def size_cell(members, G, seed, size_range, sizes, source):
     contact pattern whatever the approach, and that pattern moves with the sphere's size (the fingers keep theirs)."""
     t0 = time.time()
     tr = family_set(members, np.random.default_rng(seed), size_range=size_range)
-    ds = build_dataset(tr, DatasetConfig(n_fingers=4, normals=False, grasps_per_object=G, normalize_scale=True,
-                                         seed=seed, **source_kwargs(source)), progress=False)
+    ds = member_dataset(tr, DatasetConfig(n_fingers=4, normals=False, grasps_per_object=G, normalize_scale=True,
+                                          seed=seed, **source_kwargs(source)))
     fm = fam_labels(tr)
     kde = KDELikelihood(KDEConfig()).fit(ds.X_train, fm[ds.y_train], ds.X_val, fm[ds.y_val], n_classes=3)
     row = {"members": members, "size_range": "-" if size_range is None else f"{size_range[0]:g}-{size_range[1]:g}",
            "source": source}
     for size in sizes:
         shapes = family_set(1, np.random.default_rng(seed), scale_range=(size / 0.08, size / 0.08))
-        if source == "hand":  # a shape too small for the hand keeps its 0 rows (nan), where build_dataset raises
-            P = hand_vectors(shapes, DatasetConfig(n_fingers=4, normals=False, grasps_per_object=300, normalize_scale=True,
-                                                   val_fraction=0.0, seed=seed + VAL_MEMBER_SEED, **source_kwargs(source)),
-                             progress=False)
-        else:
-            P = pool(shapes, 300, False, True, seed + VAL_MEMBER_SEED, source)
+        P = pool(shapes, 300, False, True, seed + VAL_MEMBER_SEED, source)  # a shape too small for a hand: 0 rows (nan)
         for k, X in enumerate(P):
             hit = kde.log_likelihood(X.astype(np.float64)).argmax(1) == k if len(X) else np.array([np.nan])
             row[f"{('cube', 'cyl', 'sphere')[k]}_{100 * size:g}cm"] = 100 * float(np.mean(hit))
