@@ -74,8 +74,8 @@ def family_temperatures(kde, clf, X, fam, *, member=None, grasps: int = 1,
 
 
 def _too_small(cfg: AnalysisConfig, what: str) -> RuntimeError:
-    return RuntimeError(f"experiment 5: the {cfg.family_hand} hand grasped {what} with 4 fingers; it needs larger family "
-                        f"members than family_scale_range={cfg.family_scale_range}, family_size_range="
+    return RuntimeError(f"experiment 5: the {cfg.family_hand} hand grasped {what} with 4 fingers; it needs larger "
+                        f"family members than family_scale_range={cfg.family_scale_range}, family_size_range="
                         f"{cfg.family_size_range} give (--family-scale-range, --family-size-range)")
 
 
@@ -122,10 +122,10 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
                                                                           fam_of[ds.y_val], n_classes=len(FAMILIES))
     kde = KDELikelihood(cfg.kde).fit(ds.X_train, fam_of[ds.y_train], ds.X_val, fam_of[ds.y_val], n_classes=len(FAMILIES))
     # temperatures on new validation members (another seed than training and test)
-    vds, left_val = _member_grasps(val_set, DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=cfg.test_grasps,
-                                                normalize_scale=True, val_fraction=0.0, normal_axis=cfg.normal_axis,
-                                                seed=cfg.seed + FAMILY_VAL_SEED_OFFSET, **cfg.family_grasps), cfg,
-                                     "validation")
+    vdc = DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=cfg.test_grasps, normalize_scale=True,
+                        val_fraction=0.0, normal_axis=cfg.normal_axis, seed=cfg.seed + FAMILY_VAL_SEED_OFFSET,
+                        **cfg.family_grasps)
+    vds, left_val = _member_grasps(val_set, vdc, cfg, "validation")
     fam_val = np.array([fam_idx[val_set.families[nm]] for nm in val_set.names])
     T_kde, T_mlp = family_temperatures(kde, clf, vds.X_train.astype(np.float64), fam_val[vds.y_train],
                                        member=vds.y_train, grasps=cfg.max_grasps,
@@ -147,8 +147,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     LL, PR = scores(test_set)
     left_test = {nm: 0 for nm, L in zip(test_set.names, LL) if len(L) == 0}  # the hand never grasped them
     kept = [k for k, L in enumerate(LL) if len(L)]
-    if missing := sorted({test_set.families[nm] for nm in test_set.names} - {test_set.families[test_set.names[k]]
-                                                                              for k in kept}):
+    if missing := [f for f in FAMILIES if f not in {test_set.families[test_set.names[k]] for k in kept}]:
         raise _too_small(cfg, f"no test member of {missing} (left out: {sorted(left_test)})")
     LL, PR = [LL[k] for k in kept], [PR[k] for k in kept]
     fam_test = np.array([fam_idx[test_set.families[test_set.names[k]]] for k in kept])
