@@ -160,6 +160,7 @@ def test_experiment_5_reports_held_back_and_new_members_and_the_object_votes(tmp
     for name in ("box", "can", "apple", "hammer"):
         assert f"\n| {name} |" in text
     assert "BC-NP's majority vote is the expected family for" in text
+    assert "Plot: `family_votes.png`." in text and (out / "family_votes.png").stat().st_size > 5000
 
 
 def test_members_the_hand_cannot_grasp_are_left_out_and_a_family_without_members_is_an_error():
@@ -185,3 +186,17 @@ def test_members_the_hand_cannot_grasp_are_left_out_and_a_family_without_members
     with pytest.raises(RuntimeError, match=r"grasped no validation member of \['ellipsoid'\] .*family_scale_range="
                                            r"\(0.5, 1.5\), family_size_range=None"):
         _member_grasps(no_ell, dc, cfg, "validation")
+
+
+def test_family_votes_plot_draws_every_object_including_one_without_grasps(tmp_path):
+    """The votes plot takes one ``(K, F)`` vote matrix per updater; an object without grasps (a zero row) is drawn
+    empty and labelled, not skipped, so the rows line up with the table."""
+    from matplotlib.image import imread
+
+    from haptic_env.experiments.plots import plot_family_votes
+
+    votes = {"IC": np.array([[10, 0, 0], [0, 0, 0], [2, 3, 5]]), "BC-NP": np.array([[5, 5, 0], [0, 0, 0], [0, 0, 10]])}
+    path = tmp_path / "votes.png"
+    plot_family_votes(["box", "cube", "ring"], ["box", "box", None], votes, FAMILIES, "'x'", path)
+    img = imread(path)
+    assert img.ndim == 3 and img.shape[0] >= 250 and img.shape[1] > img.shape[0]

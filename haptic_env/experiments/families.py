@@ -17,6 +17,7 @@ from scipy.special import softmax
 from haptic_env.dataset import DatasetConfig, build_dataset, hand_dataset, hand_vectors
 from haptic_env.experiments.config import TEST_SEED_OFFSET, AnalysisConfig
 from haptic_env.experiments.fresh_grasps import fresh_pool
+from haptic_env.experiments.plots import plot_family_votes
 from haptic_env.experiments.report import Report, mean_std
 from haptic_env.experiments.trials import family_trials, simulate_trials
 from haptic_env.recognizers.calibration import _finite_rows, fit_temperature, sequence_scores
@@ -181,6 +182,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     ntr = FAMILY_OBJECT_TRIALS
     short = {"box": "box", "elliptic_cylinder": "cyl", "ellipsoid": "ell"}
     rows, hits, labelled, ic_dec, ic_all = [], 0, 0, 0, 0
+    all_votes = {kind: np.zeros((len(objects), len(FAMILIES)), dtype=int) for kind in ("ic", "bc-np")}
     ungrasped = []
     for k, nm in enumerate(objects.names):
         exp = EXPECTED_FAMILY.get(nm)
@@ -194,6 +196,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
         for kind in ("ic", "bc-np"):
             out[kind] = family_trials(LL[k], PR[k], kind, trials=ntr, max_grasps=cfg.max_grasps,
                                       threshold=cfg.threshold, rng=rng)
+        for kind in out:
+            all_votes[kind][k] = out[kind][0]
         ic_dec += out["ic"][1]
         ic_all += ntr
         vote = FAMILIES[int(np.argmax(out["bc-np"][0]))]
@@ -210,6 +214,9 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
           f"scored). BC-NP's majority vote is the expected family for {hits}/{labelled} labelled objects; IC decided "
           f"within {cfg.max_grasps} grasps in {ic_dec}/{ic_all} trials."
           + (f" The {cfg.family_hand} never grasped {', '.join(ungrasped)} with 4 fingers in {cfg.test_grasps} "
-             "approaches (a labelled one counts as a miss)." if ungrasped else ""))
+             "approaches (a labelled one counts as a miss)." if ungrasped else "") + " Plot: `family_votes.png`.")
     rep.table(["object", "expected", "IC votes", "IC decided", "BC-NP votes", "BC-NP decided", "BC-NP grasps",
                "BC-NP vote", "match"], rows)
+    plot_family_votes(objects.names, [EXPECTED_FAMILY.get(nm) for nm in objects.names],
+                      {kind.upper(): V for kind, V in all_votes.items()}, FAMILIES, f"'{cfg.objects}'",
+                      rep.out / "family_votes.png")

@@ -10,11 +10,12 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.patches import Patch
 
 from haptic_env.recognizers.calibration import expected_calibration_error, reliability
 
 __all__ = ["plot_confusion", "plot_sequential_vs_fingers", "plot_success_vs_grasps", "plot_reliability",
-           "plot_lambda_sweep"]
+           "plot_lambda_sweep", "plot_family_votes"]
 
 DPI = 110
 
@@ -104,4 +105,33 @@ def plot_lambda_sweep(sweep: dict, lambdas, title: str, path: Path) -> None:
               title=f"success vs lambda, {title}")
     ax[1].set(xlabel="lambda (decision threshold)", ylabel="mean grasps", yscale="log", title=f"grasps vs lambda, {title}")
     ax[0].legend(fontsize=7)
+    _save(fig, path)
+
+
+def plot_family_votes(names, expected, votes: dict, families, title: str, path: Path) -> None:
+    """Experiment 5: one panel per updater, a stacked bar per object of its trials' family votes.
+
+    ``votes[kind]`` is ``(K, F)`` votes (a row of zeros: the object was never grasped, drawn empty); ``expected`` is
+    the expected family per object (None: none), marked by a black edge on that family's segment."""
+    names, F = list(names), len(families)
+    fig = Figure(figsize=(4.2 * len(votes) + 2.0, max(2.5, 1.0 + 0.28 * len(names))))
+    axes = fig.subplots(1, len(votes), squeeze=False, sharey=True)[0]
+    colors = ("tab:orange", "tab:blue", "tab:green", "tab:red", "tab:purple")
+    y = np.arange(len(names))
+    for ax, (kind, V) in zip(axes, votes.items()):
+        V = np.asarray(V, dtype=float)
+        left = np.zeros(len(names))
+        for f in range(F):
+            edge = ["k" if e == families[f] else "none" for e in expected]
+            ax.barh(y, V[:, f], left=left, color=colors[f % len(colors)], edgecolor=edge, linewidth=1.2)
+            left += V[:, f]
+        for k in np.flatnonzero(V.sum(1) == 0):
+            ax.text(0.1, k, "no grasps to vote on" + (f" (expected: {expected[k]})" if expected[k] else ""),
+                    va="center", fontsize=6, color="0.4")
+        ax.set(xlabel="trials", title=f"{kind} votes, {title}", xlim=(0, max(1.0, V.sum(1).max())))
+        ax.set_yticks(y, names, fontsize=7)
+        ax.invert_yaxis()
+    handles = [Patch(facecolor=colors[f % len(colors)], label=families[f]) for f in range(F)]
+    axes[-1].legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    fig.text(0.99, 0.01, "black edge: the family a person would expect", ha="right", fontsize=7, color="0.4")
     _save(fig, path)
