@@ -154,6 +154,27 @@ def test_simulate_trials_reports_decided():
     assert np.array_equal(res["decided"], res["truth"] == 0)
 
 
+def test_ic_certainty_reaches_the_trials_and_is_checked(tmp_path):
+    """``AnalysisConfig.ic_certainty`` / ``--ic-certainty``: the authors' share rule stops IC sooner than the count
+    rule on the same draws; a bad rule is refused by name before any work."""
+    from haptic_env.experiments.config import AnalysisConfig
+
+    PR = [np.array([[0.7, 0.3]] * 10), np.array([[0.2, 0.8]] * 10)]
+    LL = [np.log(p) for p in PR]
+    kw = dict(trials=20, max_grasps=10, threshold=0.85)
+    count = simulate_trials(LL, PR, "ic", rng=np.random.default_rng(0), **kw)
+    share = simulate_trials(LL, PR, "ic", rng=np.random.default_rng(0), ic_certainty="share", **kw)
+    assert not count["decided"].any() and share["decided"].all() and (share["grasps"] == 2).all()
+    assert share["success"].all()
+    assert "IC certainty: the winner's share" in AnalysisConfig(ic_certainty="share").scores_label
+    assert "IC certainty" not in AnalysisConfig().scores_label
+    with pytest.raises(ValueError, match=r"ic_certainty must be one of \('count', 'share'\), got 'sum'"):
+        AnalysisConfig(ic_certainty="sum")
+    with pytest.raises(SystemExit):
+        main(["analysis", "--out", str(tmp_path / "bad"), "--ic-certainty", "sum"])
+    assert not (tmp_path / "bad").exists()
+
+
 def _incomplete_reference(pools, p, kind, trials, max_grasps, threshold, rng):
     """Experiment 3's incomplete-grasp loop as first written (before the shared trial runner): the oracle of
     the rng draws (one object per trial, then per grasp a finger count and a row, only until the decision)."""

@@ -54,6 +54,52 @@ def test_ic_decides_at_threshold():
     assert u.certainty == 0.85 and u.decided  # exactly at the threshold counts as decided
 
 
+def test_ic_share_certainty_is_the_winners_share_from_the_second_grasp():
+    """``certainty="share"`` (the authors' code): the last grasp's winner's score while below 0.6, then its share of the
+    winners' scores; never decided on one grasp."""
+    P = [[0.7, 0.3, 0.0], [0.8, 0.2, 0.0], [0.4, 0.6, 0.0], [0.4, 0.3, 0.3], [0.3, 0.4, 0.3]]
+    u = make_updater("ic", classifier=FixedModel(P), certainty="share")
+    u.reset()
+    u.update([0.0])
+    assert u.certainty == pytest.approx(1.0) and not u.decided  # 0.7 >= 0.6: share 1, but one grasp never decides
+    u.update([1.0])
+    assert u.certainty == pytest.approx(1.0) and u.decided and u.prediction == 0  # the count rule: 1.5 / 2 = 0.75
+    u.update([2.0])  # class 1 wins this grasp with 0.6: its share 0.6 / 2.1
+    assert u.certainty == pytest.approx(0.6 / 2.1) and not u.decided and u.prediction == 0
+    u.reset()
+    u.update([3.0])
+    u.update([4.0])  # winners 0 then 1, each 0.4 < 0.6: the certainty is the last winner's score
+    assert u.certainty == pytest.approx(0.4) and not u.decided
+    with pytest.raises(ValueError, match=r"IC certainty must be one of \('count', 'share'\), got 'sum'"):
+        make_updater("ic", classifier=FixedModel(P), certainty="sum")
+    with pytest.raises(ValueError, match="winner-only IC"):
+        make_updater("ic-full", classifier=FixedModel(P), certainty="share")
+
+
+def test_ic_share_stops_where_the_authors_loop_stops():
+    """On random probability sequences, the ``share`` updater stops on the grasp and with the prediction of the authors'
+    IC loop (``IC_inference.py``: ``P[j] += p[j]``; ``p_all = P[j]`` if ``P[j] < 0.6`` else ``P[j] / sum(P)``; at
+    least two grasps), written out here as the oracle."""
+    from haptic_env.experiments.trials import run_trial, scores_updater
+
+    rng = np.random.default_rng(3)
+    K, lam = 4, 0.85
+    u = scores_updater("ic", K, lam, ic_certainty="share")
+    for _ in range(300):
+        seq = rng.dirichlet(np.full(K, rng.choice([0.3, 1.0, 3.0])), size=30)
+        Pref, stop = np.zeros(K), len(seq)
+        for count, p in enumerate(seq, start=1):
+            j = int(np.argmax(p))
+            Pref[j] += p[j]
+            p_all = Pref[j] if Pref[j] < 0.6 else Pref[j] / Pref.sum()
+            if count > 1 and p_all >= lam:
+                stop = count
+                break
+        run_trial(u, ((np.zeros((1, K)), p[None]) for p in seq))
+        assert u.n_grasps == stop and u.prediction == int(np.argmax(Pref))
+        assert u.decided == (stop < len(seq) or p_all >= lam)
+
+
 def test_bc_posterior_is_normalised_product():
     rng = np.random.default_rng(0)
     L = rng.uniform(0.01, 1.0, size=(5, 4))

@@ -87,7 +87,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
             # (paired comparisons, smooth curves)
             sweep[(kind, v)] = [
                 _sweep_point(simulate_trials(scaled(LL, sc), PR, kind, trials=cfg.trials, max_grasps=cfg.max_grasps,
-                                             threshold=lam, rng=np.random.default_rng([cfg.seed, n, int(normals)])))
+                                             threshold=lam, rng=np.random.default_rng([cfg.seed, n, int(normals)]),
+                                             ic_certainty=cfg.ic_certainty))
                 for lam, sc in zip(cfg.lambdas, scales)]
         sweeps[(n, normals)] = sweep
         plot_lambda_sweep({k: [p[:2] for p in v] for k, v in sweep.items()}, cfg.lambdas, title,

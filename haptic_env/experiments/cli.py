@@ -10,6 +10,7 @@ from haptic_env.grasp_features import NORMAL_AXES
 from haptic_env.experiments.config import FAMILY_SOURCES, AnalysisConfig
 from haptic_env.recognizers.calibration import CORRECTIONS, check_corrections
 from haptic_env.recognizers.kde import SELECTS
+from haptic_env.recognizers.updaters import IC_CERTAINTIES
 
 __all__ = ["add_parser"]
 
@@ -125,6 +126,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "edge ab (ab)")
     p.add_argument("--raw", action="store_true",
                    help="experiments 2-6 on the raw scores (the paper's method), without the calibration temperatures")
+    p.add_argument("--ic-certainty", choices=IC_CERTAINTIES, default=d.ic_certainty,
+                   help="IC's certainty: count, the winner's summed probability over the grasp count (default); share, "
+                        "its share of the summed winner scores once it reaches 0.6, from the second grasp on (the "
+                        "authors' public code)")
     p.add_argument("--stop-scale", action=argparse.BooleanOptionalAction, default=None,
                    help="experiment 2: divide BC's calibrated log-likelihoods by a stop scale chosen on validation "
                         "trials so that a stop at lambda is right about lambda of the time (fewest BC-NP grasps among "
@@ -182,7 +187,7 @@ def _run_cli(args) -> int:
             family_scale_range=_range(args.family_scale_range, "--family-scale-range"),
             family_size_range=None if args.family_size_range is None else _range(args.family_size_range,
                                                                                  "--family-size-range"),
-            calibrated=not args.raw, stop_scale=args.stop_scale,
+            calibrated=not args.raw, stop_scale=args.stop_scale, ic_certainty=args.ic_certainty,
             calib_fingers=_ints(args.calib_fingers), calib_fingers_no_normals=_ints(args.calib_fingers_no_normals),
             lambdas=_lambdas(args.lambdas), seed=args.seed,
             mlp=MLPConfig(depth=args.mlp_depth, width=args.mlp_width, max_epochs=args.mlp_epochs, patience=3,

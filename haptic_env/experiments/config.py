@@ -15,7 +15,7 @@ from haptic_env.recognizers.baselines import CLASSIFIERS
 from haptic_env.recognizers.kde import KDEConfig
 from haptic_env.recognizers.mlp import MLPConfig
 from haptic_env.recognizers.recognizer import RecognizerConfig
-from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS
+from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, IC_CERTAINTIES, UPDATERS
 
 __all__ = ["AnalysisConfig", "TEST_SEED_OFFSET", "KINDS", "MAIN_KINDS", "PAPER", "FAMILY_SOURCES"]
 
@@ -82,6 +82,9 @@ class AnalysisConfig:
     #: trials so that a stop at lambda is right about lambda of the time (:mod:`~haptic_env.experiments.stop_scale`);
     #: off: the calibrated one-shot scores as they are. Only with ``calibrated`` (see :attr:`uses_stop_scale`).
     stop_scale: bool = True
+    #: IC's certainty rule in every experiment (:data:`~haptic_env.recognizers.updaters.IC_CERTAINTIES`): ``"count"``,
+    #: ``max S / k``; ``"share"``, the winner's share of the summed winner scores as the authors' public code has it
+    ic_certainty: str = "count"
     calib_fingers: tuple[int, ...] = (3, 4, 5, 8)  #: experiment 7, with normals
     calib_fingers_no_normals: tuple[int, ...] = (4,)  #: experiment 7, without normals
     lambdas: tuple[float, ...] = (0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95)  #: experiment 7
@@ -103,6 +106,8 @@ class AnalysisConfig:
         check_normal_axis(self.normal_axis)
         if not (isinstance(self.family_members, int) and self.family_members >= 1):
             raise ValueError(f"family_members must be an int >= 1, got {self.family_members!r}")
+        if self.ic_certainty not in IC_CERTAINTIES:
+            raise ValueError(f"ic_certainty must be one of {IC_CERTAINTIES}, got {self.ic_certainty!r}")
         if self.family_source not in FAMILY_SOURCES:
             raise ValueError(f"family_source must be one of {FAMILY_SOURCES}, got {self.family_source!r}")
         if not isinstance(self.family_hand, str) or not self.family_hand:
@@ -142,11 +147,15 @@ class AnalysisConfig:
 
     @property
     def scores_label(self) -> str:
-        """How experiments 2-6 score grasps, as the report's headings say it."""
+        """How experiments 2-6 score grasps (and IC's certainty, if not the default), as the report's headings say it."""
+        ic = "; IC certainty: the winner's share of the winners' scores (the authors' code)" \
+            if self.ic_certainty == "share" else ""
         if not self.calibrated:
-            return "raw scores (paper)"
+            return "raw scores (paper)" + ic
         k = self.kde.calibrate_grasps
         label = f"calibrated scores (KDE for beliefs of 1-{k} grasps)" if k > 1 else "calibrated scores"
         if self.kde.correct == "auto":
-            return label + ": the KDE's learned correction where it helps held-out validation beliefs, then its temperature"
-        return label + (": the KDE's learned correction, then its temperature" if self.kde.correct else "")
+            label += ": the KDE's learned correction where it helps held-out validation beliefs, then its temperature"
+        elif self.kde.correct:
+            label += ": the KDE's learned correction, then its temperature"
+        return label + ic

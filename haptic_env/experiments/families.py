@@ -154,7 +154,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     fam_test = np.array([fam_idx[test_set.families[test_set.names[k]]] for k in kept])
     rows = []
     for kind in ("ic", "bc-np"):
-        res = simulate_trials(LL, PR, kind, trials=cfg.trials, max_grasps=cfg.max_grasps, threshold=cfg.threshold, rng=rng)
+        res = simulate_trials(LL, PR, kind, trials=cfg.trials, max_grasps=cfg.max_grasps, threshold=cfg.threshold, rng=rng,
+                              ic_certainty=cfg.ic_certainty)
         ok = fam_test[res["truth"]] == res["pred"]
         rows.append([kind, f"{100 * ok.mean():.1f}", f"{100 * res['decided'].mean():.1f}",
                      mean_std(res["grasps"].mean(), res["grasps"].std(), 2)])
@@ -195,7 +196,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
         out = {}
         for kind in ("ic", "bc-np"):
             out[kind] = family_trials(LL[k], PR[k], kind, trials=ntr, max_grasps=cfg.max_grasps,
-                                      threshold=cfg.threshold, rng=rng)
+                                      threshold=cfg.threshold, rng=rng, ic_certainty=cfg.ic_certainty)
         for kind in out:
             all_votes[kind][k] = out[kind][0]
         ic_dec += out["ic"][1]

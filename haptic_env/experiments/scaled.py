@@ -26,7 +26,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
         row = ["yes" if norm else "no", f"{100 * oneshot:.1f}"]
         for kind in MAIN_KINDS:
             sr, se, gm, gs = summarize(simulate_trials(LL, PR, kind, trials=cfg.trials, max_grasps=cfg.max_grasps,
-                                                       threshold=cfg.threshold, rng=rng))
+                                                       threshold=cfg.threshold, rng=rng, ic_certainty=cfg.ic_certainty))
             row += [f"{sr:.1f} ± {se:.1f}", mean_std(gm, gs, 2)]
         rows.append(row)
     rep.table(["scale normalisation", "MLP one-shot %", "IC success %", "IC grasps", "BC-NP success %", "BC-NP grasps",

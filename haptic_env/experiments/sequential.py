@@ -39,7 +39,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
             row.append(f"{s:g} ({100 * rate:.1f} % / {grasps:.2f})")
         for kind in KINDS:
             res = simulate_trials(LL, PR, kind, trials=cfg.trials, max_grasps=cfg.max_grasps, threshold=cfg.threshold,
-                                  rng=rng)
+                                  rng=rng, ic_certainty=cfg.ic_certainty)
             sr, se, gm, gs = summarize(res)
             row += [f"{sr:.1f} ± {se:.1f}", mean_std(gm, gs, 2)]
             curves.setdefault(kind, []).append((n, sr, gm))

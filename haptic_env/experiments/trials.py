@@ -32,9 +32,11 @@ class _Classes:
         self.n_classes = k
 
 
-def scores_updater(kind: str, n_classes: int, threshold: float) -> BeliefUpdater:
-    """An updater of ``kind`` over ``n_classes`` classes, fed through ``update_scores`` only."""
-    return make_updater(kind, classifier=_Classes(n_classes), likelihood=_Classes(n_classes), threshold=threshold)
+def scores_updater(kind: str, n_classes: int, threshold: float, ic_certainty: str = "count") -> BeliefUpdater:
+    """An updater of ``kind`` over ``n_classes`` classes, fed through ``update_scores`` only; ``ic_certainty``: IC's
+    certainty rule (:data:`~haptic_env.recognizers.updaters.IC_CERTAINTIES`; other kinds ignore it)."""
+    kw = {"certainty": ic_certainty} if kind == "ic" else {}
+    return make_updater(kind, classifier=_Classes(n_classes), likelihood=_Classes(n_classes), threshold=threshold, **kw)
 
 
 def run_trial(u: BeliefUpdater, draws: Iterable[tuple[np.ndarray, np.ndarray]], truth: int | None = None,
@@ -63,13 +65,15 @@ def _rows(LL: np.ndarray, PR: np.ndarray, order) -> Iterable[tuple[np.ndarray, n
 
 
 def simulate_trials(log_lik: list[np.ndarray], proba: list[np.ndarray], kind: str, *, trials: int, max_grasps: int,
-                    threshold: float, rng: np.random.Generator, fixed_steps: bool = False) -> dict:
+                    threshold: float, rng: np.random.Generator, fixed_steps: bool = False,
+                    ic_certainty: str = "count") -> dict:
     """Trials on uniformly drawn objects, each drawing test grasps without replacement from its object's pool
     (with replacement when the pool holds fewer than ``max_grasps``).
 
     Args:
         log_lik, proba: per object ``o``, ``(G_o, K)`` scores of its test grasps (rows combined per grasp).
         fixed_steps: disregard the threshold and run ``max_grasps`` grasps (experiment 6).
+        ic_certainty: IC's certainty rule (:func:`scores_updater`).
 
     Returns:
         dict with ``success (T,) bool`` (prediction right at the stop), ``decided (T,) bool`` (certainty
@@ -78,7 +82,7 @@ def simulate_trials(log_lik: list[np.ndarray], proba: list[np.ndarray], kind: st
     """
     n_obj = len(log_lik)
     K = (log_lik[0] if log_lik[0] is not None and len(log_lik[0]) else proba[0]).shape[1]  # classes
-    u = scores_updater(kind, K, threshold)
+    u = scores_updater(kind, K, threshold, ic_certainty)
     truth = rng.integers(0, n_obj, size=trials)  # object index (= class unless classes are families)
     pred = np.zeros(trials, dtype=np.int64)
     used = np.zeros(trials, dtype=np.int64)
@@ -100,7 +104,8 @@ def simulate_trials(log_lik: list[np.ndarray], proba: list[np.ndarray], kind: st
 
 
 def incomplete_trials(pools: dict[int, tuple[list[np.ndarray], list[np.ndarray]]], p: np.ndarray, kind: str, *,
-                      trials: int, max_grasps: int, threshold: float, rng: np.random.Generator) -> dict:
+                      trials: int, max_grasps: int, threshold: float, rng: np.random.Generator,
+                      ic_certainty: str = "count") -> dict:
     """Trials of incomplete grasps: per trial a uniformly drawn object; per grasp a finger count ``z`` drawn
     with probabilities ``p`` over ``sorted(pools)`` and one of the object's ``z``-finger test grasps (with
     replacement). ``pools[z] = (log_lik, proba)`` per object, as for :func:`simulate_trials`.
@@ -109,7 +114,7 @@ def incomplete_trials(pools: dict[int, tuple[list[np.ndarray], list[np.ndarray]]
     """
     zlist = sorted(pools)
     K = len(pools[zlist[0]][0])
-    u = scores_updater(kind, K, threshold)
+    u = scores_updater(kind, K, threshold, ic_certainty)
 
     def draws(o):
         for _ in range(max_grasps):
@@ -127,11 +132,11 @@ def incomplete_trials(pools: dict[int, tuple[list[np.ndarray], list[np.ndarray]]
 
 
 def family_trials(LL: np.ndarray, PR: np.ndarray, kind: str, *, trials: int, max_grasps: int, threshold: float,
-                  rng: np.random.Generator) -> tuple[np.ndarray, int, np.ndarray]:
+                  rng: np.random.Generator, ic_certainty: str = "count") -> tuple[np.ndarray, int, np.ndarray]:
     """``trials`` runs of ``kind`` on ONE object's test pool (``LL``/``PR``: ``(G, C)``, at most ``max_grasps``
     of its grasps without replacement per trial): the class votes ``(C,)`` (prediction at the stop), how many
     decided, and the grasps used ``(trials,)``."""
-    u = scores_updater(kind, LL.shape[1], threshold)
+    u = scores_updater(kind, LL.shape[1], threshold, ic_certainty)
     votes, decided, used = np.zeros(LL.shape[1], dtype=np.int64), 0, []
     for _ in range(trials):
         run_trial(u, _rows(LL, PR, rng.permutation(len(LL))[:max_grasps]))

@@ -43,7 +43,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
                 for kind in MAIN_KINDS:
                     sr, se, gm, gs = summarize(simulate_trials(LL, PR, kind, trials=cfg.trials,
                                                                max_grasps=cfg.max_grasps, threshold=cfg.threshold,
-                                                               rng=rng))
+                                                               rng=rng, ic_certainty=cfg.ic_certainty))
                     row += [f"{sr:.1f} ± {se:.1f}", mean_std(gm, gs, 2)]
                 rows.append(row)
     rep.table(["hand n", "z", "subsets", "IC success %", "IC grasps", "BC-NP success %", "BC-NP grasps",
@@ -60,7 +60,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     rows = []
     for kind in MAIN_KINDS:
         sr, se, gm, gs = summarize(incomplete_trials(pools, p, kind, trials=cfg.trials, max_grasps=cfg.max_grasps,
-                                                     threshold=cfg.threshold, rng=rng))
+                                                     threshold=cfg.threshold, rng=rng, ic_certainty=cfg.ic_certainty))
         rows.append([kind, f"{sr:.1f} ± {se:.1f}", mean_std(gm, gs, 2)])
     rep.p(f"Incomplete grasps: finger count z ~ p_n(z) = {pn} per grasp, each scored by its z-finger model.")
     rep.table(["updater", "success %", "grasps"], rows)

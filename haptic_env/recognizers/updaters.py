@@ -21,7 +21,9 @@ IC — iterative classification (paper, Algorithm 1)
     gets ``S_j += p_j`` (``"ic"``), or the whole vector is added, ``S += p`` (``"ic-full"``).
     Belief ``S / k`` after ``k`` grasps (sub-stochastic for ``"ic"``); certainty ``max S / k``.
     We normalise by the grasp count: normalising the winner-only scores by ``sum S`` would give
-    certainty 1 after the first grasp whatever the classifier said.
+    certainty 1 after the first grasp whatever the classifier said. The authors' public code does normalise by
+    ``sum S``, guarded: the last grasp's winner's ``S_j`` until it reaches 0.6, then ``S_j / sum S``, and no
+    decision before the second grasp (``certainty="share"``, opt-in).
 BC-NP — Bayesian classification, non-informative prior
     ``log b <- log b + log p(q | c)``, renormalised with logsumexp (exact in log space).
 BC-IP — informative prior
@@ -45,10 +47,14 @@ import numpy as np
 from numba import njit
 
 __all__ = ["BeliefUpdater", "IterativeClassification", "BayesianUpdater", "BCNP", "BCIP", "make_updater", "UPDATERS",
-           "DEFAULT_THRESHOLD", "bayes_steps"]
+           "DEFAULT_THRESHOLD", "IC_CERTAINTIES", "bayes_steps"]
 
 #: Every belief-updater kind (the env, the recogniser and the experiments take these names).
 UPDATERS = ("ic", "ic-full", "bc-np", "bc-ip")
+#: How IC turns its scores into a certainty (:class:`IterativeClassification`): ours, or the authors' code's.
+IC_CERTAINTIES = ("count", "share")
+#: ``"share"``: below this winner score the certainty is the score itself (the authors' code's 0.6).
+SHARE_FROM = 0.6
 #: The certainty ``lambda_s`` at which a recogniser decides (the paper's 0.85); the one default of every threshold.
 DEFAULT_THRESHOLD = 0.85
 
@@ -226,19 +232,45 @@ class BeliefUpdater(ABC):
 
 
 class IterativeClassification(BeliefUpdater):
-    """IC (``full=False``, paper Algorithm 1) and its full-accumulation variant (``full=True``)."""
+    """IC (``full=False``, paper Algorithm 1) and its full-accumulation variant (``full=True``).
 
-    def __init__(self, classifier, threshold: float = DEFAULT_THRESHOLD, *, full: bool = False, n_classes: int | None = None):
+    ``certainty`` (IC only) is how the scores become a certainty: ``"count"`` (default) ``max S / k``; ``"share"``
+    as the authors' public code (``IC_inference.py``) computes it: for the class ``j`` that won the LAST grasp,
+    ``S_j`` while ``S_j < 0.6`` and its share ``S_j / sum S`` of the winners' scores from then on, with no
+    decision before the second grasp. The share stops far sooner (two grasps won by the same class with ``p >= 0.3``
+    give certainty 1) and is not a probability; ``"count"`` stays at or below the fraction of grasps the class won.
+    """
+
+    def __init__(self, classifier, threshold: float = DEFAULT_THRESHOLD, *, full: bool = False,
+                 n_classes: int | None = None, certainty: str = "count"):
+        if certainty not in IC_CERTAINTIES:
+            raise ValueError(f"IC certainty must be one of {IC_CERTAINTIES}, got {certainty!r}")
+        if full and certainty != "count":
+            raise ValueError(f"IC certainty {certainty!r} is defined for winner-only IC ('ic'), not 'ic-full'")
         self.classifier = classifier
         self.full = bool(full)
         self.kind = "ic-full" if full else "ic"
+        self.certainty_rule = certainty
         super().__init__(n_classes or classifier.n_classes, threshold)
 
     def reset(self, prior=None) -> np.ndarray:
         self._prior = self._check_prior(prior)  # shown as the belief before the first grasp only
         self.scores = np.zeros(self.n_classes)
         self.n_grasps = 0
+        self.last_winner = -1  # the class that won the last scored grasp ("share" certainty)
         return self.belief
+
+    @property
+    def certainty(self) -> float:
+        if self.certainty_rule == "count" or self.last_winner < 0:
+            return float(self.belief.max())
+        s = float(self.scores[self.last_winner])
+        return s if s < SHARE_FROM else s / float(self.scores.sum())
+
+    @property
+    def decided(self) -> bool:
+        first = 2 if self.certainty_rule == "share" else 1
+        return self.n_grasps >= first and self.certainty >= self.threshold
 
     @property
     def belief(self) -> np.ndarray:
@@ -254,11 +286,12 @@ class IterativeClassification(BeliefUpdater):
         if len(P) == 0:  # no usable (sub-)grasp: the grasp is spent, the scores stay
             return self.belief
         p = P.mean(axis=0)
+        j = int(np.argmax(p))
         if self.full:
             self.scores += p
         else:
-            j = int(np.argmax(p))
             self.scores[j] += p[j]
+        self.last_winner = j
         return self.belief
 
     def update(self, q) -> np.ndarray:
