@@ -116,11 +116,13 @@ class Belief:
         touch_weight: ``w`` of the touch-pattern log-likelihood added at every grasp
             (:mod:`~haptic_env.recognizers.touch`; BC-NP only, and the recogniser needs its ``touch`` model);
             0: off, the paper's method.
+        ic_certainty: with ``kind="ic"``, IC's certainty rule (``IterativeClassification``): "count" or "share".
     """
 
     def __init__(self, recognizer, kind: str = "bc-np", threshold: float = DEFAULT_THRESHOLD, *,
                  calibrated: bool = True, z_fingers: int | None = None, score_subsets: bool = False,
-                 touch_weight: float = 0.0, subset_k: int | None = None, min_fingers: int | None = None):
+                 touch_weight: float = 0.0, subset_k: int | None = None, min_fingers: int | None = None,
+                 ic_certainty: str = "count"):
         if kind not in UPDATERS:
             raise ValueError(f"unknown updater kind {kind!r}; choose one of {UPDATERS}")
         if score_subsets and z_fingers is None:
@@ -157,7 +159,8 @@ class Belief:
         self._touch = recognizer.touch if touch_weight > 0 else None
         self.models = recognizer.models.with_calibration(calibrated)
         #: the posterior maths (read-only use: :mod:`haptic_env.recognizers.updaters`)
-        self.updater = recognizer.make_updater(kind=kind, threshold=threshold, calibrated=calibrated)
+        self.updater = recognizer.make_updater(kind=kind, threshold=threshold, calibrated=calibrated,
+                                               **({"certainty": ic_certainty} if kind == "ic" else {}))
         bayes = kind in ("bc-np", "bc-ip") and not self.score_subsets
         self._scorer = recognizer.grasp_scorer(calibrated) if bayes else None
         #: use the compiled scorer for complete grasps where it applies (False: the general path, same result)
@@ -174,7 +177,7 @@ class Belief:
         check_grasp_vectors(rec, config)
         return cls(rec, config.updater, config.threshold, calibrated=config.calibrated, z_fingers=config.z_fingers,
                    score_subsets=config.score_subsets, touch_weight=config.touch_weight, subset_k=config.subset_k,
-                   min_fingers=config.min_fingers)
+                   min_fingers=config.min_fingers, ic_certainty=config.ic_certainty)
 
     # ------------------------------------------------------------------------------------- state
     @property

@@ -19,7 +19,7 @@ import numpy as np
 
 from haptic_env.grasp_features import check_normal_axis
 from haptic_env.recognizers.touch import check_touch_weight
-from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS
+from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, IC_CERTAINTIES, UPDATERS
 from haptic_env.recognizers.zfinger import check_min_fingers, check_subset_k
 from haptic_env.scene import POSE_MODES
 from haptic_env.task import REWARD_KINDS
@@ -56,6 +56,10 @@ class HapticRecogConfig:
     updater: str = "bc-np"
     """Belief update, one of ``haptic_env.recognizers.UPDATERS``: "bc-np" | "bc-ip" | "ic" | "ic-full"
     (``Recognizer.make_updater(kind=...)``)."""
+    ic_certainty: str = "count"
+    """With ``updater="ic"``: how IC's scores become its certainty, "count" (``max S / k``) or "share" (the last
+    winner's share of the winners' scores once it reaches 0.6, from the second grasp on: the authors' public code;
+    ``IterativeClassification``). Other updaters ignore it."""
     z_fingers: int | None = None
     """If set (``2 <= z < n_fingers``), the recogniser also gets models for ``z .. n_fingers - 1`` fingers and an
     incomplete grasp with ``t >= z`` touching fingers updates the belief through the ``t``-finger model (its
@@ -160,6 +164,8 @@ class HapticRecogConfig:
             raise ValueError(f"recognizer_source='hand' needs a hand backend {HAND_BACKENDS}, got backend={self.backend!r}")
         if self.updater not in UPDATERS:
             raise ValueError(f"updater must be one of {UPDATERS}, got {self.updater!r}")
+        if self.ic_certainty not in IC_CERTAINTIES:
+            raise ValueError(f"ic_certainty must be one of {IC_CERTAINTIES}, got {self.ic_certainty!r}")
         w = check_touch_weight(self.touch_weight)
         if w > 0 and self.updater != "bc-np":
             raise ValueError(f"touch_weight={w} needs updater='bc-np', got {self.updater!r}")

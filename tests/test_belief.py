@@ -249,3 +249,24 @@ def test_a_recogniser_with_normal_axis_ab_is_scored_with_it(env_config, small_re
         ref = _copy.deepcopy(belief)
         ref.update(res.contacts[i], res.normals[i], res.touched[i])
         np.testing.assert_allclose(p, ref.probs, rtol=1e-9, atol=1e-12)
+
+
+def test_ic_certainty_reaches_the_belief_and_the_env_config(recognizer, env_config):
+    """``HapticRecogConfig.ic_certainty`` / ``Belief(ic_certainty=)``: the env's IC can take the authors' share rule,
+    which never decides on the first grasp; a bad rule is refused by name."""
+    from haptic_env.grasping import make_backend
+    from haptic_env.objects import load_object_set
+
+    share, count = Belief(recognizer, "ic", ic_certainty="share"), Belief(recognizer, "ic")
+    assert (share.updater.base.certainty_rule, count.updater.base.certainty_rule) == ("share", "count")
+    backend = make_backend("geometric", n_fingers=4)
+    backend.set_object(load_object_set("default")[0], np.eye(4))
+    res = backend.grasp_batch(np.random.default_rng(1).uniform(-1, 1, (24, 4)), np.random.default_rng(2))
+    i = int(np.flatnonzero(res.touched.all(1))[0])
+    share.update(res.contacts[i], res.normals[i], res.touched[i])
+    count.update(res.contacts[i], res.normals[i], res.touched[i])
+    assert share.n_grasps == 1 and not share.decided
+    np.testing.assert_allclose(share.probs, count.probs)  # the rule changes the certainty, not the belief
+    assert env_config.replace(updater="ic", ic_certainty="share").ic_certainty == "share"
+    with pytest.raises(ValueError, match=r"ic_certainty must be one of \('count', 'share'\), got 'sum'"):
+        env_config.replace(ic_certainty="sum")
