@@ -31,7 +31,7 @@ defaults then come from the hand's ``Heights`` env (:data:`HEIGHTS_ENV_IDS`), wh
     python benchmarks/hand_experiment.py [--hands allegro shadow aero] [--queries 10] [--seeds 0 1 2]
         [--max-grasps 30] [--approaches 3000] [--regimes surface hand] [--raw] [--out results/hands]
         [--hand-budget uniform|balanced] [--kde-bandwidth shared|per-class]   # options measured, not the envs'
-        [--touch-weight W] [--heights]
+        [--touch-weight W] [--heights] [--ic-certainty count|share]
 
 Prints (and with ``--out`` writes ``hand_table.md``) the table with the paper's figure beside each
 cell; the headline is printed last.
@@ -57,7 +57,7 @@ from haptic_env.hand_grasps import BUDGETS, hand_grasp_pool  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 from haptic_env.recognizers import KDEConfig, RecognizerConfig, build_recognizer  # noqa: E402
 from haptic_env.recognizers.kde import BANDWIDTHS  # noqa: E402
-from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD  # noqa: E402
+from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, IC_CERTAINTIES  # noqa: E402
 
 #: hand -> (fingers, normals settings); the paper: Allegro with and without normals, 5-finger hands without.
 SETUPS = {"allegro": (4, (True, False)), "shadow": (5, (False,)), "aero": (5, (False,))}
@@ -145,7 +145,8 @@ def evaluate(rec, pools, objects, n: int, normals: bool, args, touch_weight: flo
         succ, acc, used = [], [], []
         for s, pool in enumerate(pools):
             rng = np.random.default_rng([7, s])
-            upd = rec.make_updater(kind, threshold=args.threshold, z=z, k=k, rng=rng, calibrated=not args.raw)
+            ic = {"certainty": args.ic_certainty} if kind == "ic" else {}
+            upd = rec.make_updater(kind, threshold=args.threshold, z=z, k=k, rng=rng, calibrated=not args.raw, **ic)
             w = touch_weight if kind == "bc-np" else 0.0
             res = []
             for i in range(pool.touched.shape[0]):
@@ -195,6 +196,8 @@ def main(argv=None) -> int:
                     help="hand regime, BC-NP rows: weight of the touch-pattern log-likelihood (HapticRecogConfig."
                          "touch_weight; default: the hand's registered env's setting; 0: off)")
     ap.add_argument("--raw", action="store_true", help="the paper's raw scores (no calibration temperatures)")
+    ap.add_argument("--ic-certainty", choices=IC_CERTAINTIES, default="count",
+                    help="the IC rows' certainty: count (ours, default) or share (the authors' code)")
     ap.add_argument("--heights", action="store_true",
                     help="append the contacts' heights above the table to the grasp vectors (DatasetConfig.heights, "
                          "the envs' grasp_heights)")
