@@ -145,8 +145,8 @@ def evaluate(rec, pools, objects, n: int, normals: bool, args, touch_weight: flo
         succ, acc, used = [], [], []
         for s, pool in enumerate(pools):
             rng = np.random.default_rng([7, s])
-            ic = {"certainty": args.ic_certainty} if kind == "ic" else {}
-            upd = rec.make_updater(kind, threshold=args.threshold, z=z, k=k, rng=rng, calibrated=not args.raw, **ic)
+            upd = rec.make_updater(kind, threshold=args.threshold, z=z, k=k, rng=rng, calibrated=not args.raw,
+                                   ic_certainty=args.ic_certainty)
             w = touch_weight if kind == "bc-np" else 0.0
             res = []
             for i in range(pool.touched.shape[0]):

@@ -160,7 +160,7 @@ class Belief:
         self.models = recognizer.models.with_calibration(calibrated)
         #: the posterior maths (read-only use: :mod:`haptic_env.recognizers.updaters`)
         self.updater = recognizer.make_updater(kind=kind, threshold=threshold, calibrated=calibrated,
-                                               **({"certainty": ic_certainty} if kind == "ic" else {}))
+                                               ic_certainty=ic_certainty)
         bayes = kind in ("bc-np", "bc-ip") and not self.score_subsets
         self._scorer = recognizer.grasp_scorer(calibrated) if bayes else None
         #: use the compiled scorer for complete grasps where it applies (False: the general path, same result)

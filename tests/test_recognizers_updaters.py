@@ -58,7 +58,7 @@ def test_ic_share_certainty_is_the_winners_share_from_the_second_grasp():
     """``certainty="share"`` (the authors' code): the last grasp's winner's score while below 0.6, then its share of the
     winners' scores; never decided on one grasp."""
     P = [[0.7, 0.3, 0.0], [0.8, 0.2, 0.0], [0.4, 0.6, 0.0], [0.4, 0.3, 0.3], [0.3, 0.4, 0.3]]
-    u = make_updater("ic", classifier=FixedModel(P), certainty="share")
+    u = make_updater("ic", classifier=FixedModel(P), ic_certainty="share")
     u.reset()
     u.update([0.0])
     assert u.certainty == pytest.approx(1.0) and not u.decided  # 0.7 >= 0.6: share 1, but one grasp never decides
@@ -71,9 +71,9 @@ def test_ic_share_certainty_is_the_winners_share_from_the_second_grasp():
     u.update([4.0])  # winners 0 then 1, each 0.4 < 0.6: the certainty is the last winner's score
     assert u.certainty == pytest.approx(0.4) and not u.decided
     with pytest.raises(ValueError, match=r"IC certainty must be one of \('count', 'share'\), got 'sum'"):
-        make_updater("ic", classifier=FixedModel(P), certainty="sum")
+        make_updater("ic", classifier=FixedModel(P), ic_certainty="sum")
     with pytest.raises(ValueError, match="winner-only IC"):
-        make_updater("ic-full", classifier=FixedModel(P), certainty="share")
+        IterativeClassification(FixedModel(P), full=True, certainty="share")
 
 
 def test_ic_share_stops_where_the_authors_loop_stops():

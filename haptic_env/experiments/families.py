@@ -80,21 +80,26 @@ def _too_small(cfg: AnalysisConfig, what: str) -> RuntimeError:
                         f"{cfg.family_size_range} give (--family-scale-range, --family-size-range)")
 
 
+def _check_families(members, left_out, cfg: AnalysisConfig, role: str) -> None:
+    """Raise if leaving out the members ``left_out`` (the hand never grasped them) leaves a family without members."""
+    from haptic_env.objects import FAMILIES
+
+    kept = {members.families[nm] for nm in members.names if nm not in left_out}
+    if missing := [f for f in FAMILIES if f not in kept]:
+        raise _too_small(cfg, f"no {role} member of {missing} (left out: {sorted(left_out)})")
+
+
 def _member_grasps(members, dc: DatasetConfig, cfg: AnalysisConfig, role: str):
     """The family members' grasp dataset and the members left out (name -> rows): with a hand source, a member that
     the hand does not grasp with 4 fingers (too small or too flat for it) is left out; a family left without members
     gets an error that says which setting to change."""
     if cfg.family_source != "hand":
         return build_dataset(members, dc, progress=False), {}
-    from haptic_env.objects import FAMILIES
-
     try:
         ds, left_out = hand_dataset(members, dc, progress=False)
     except RuntimeError as e:
         raise _too_small(cfg, f"none of the {len(members)} {role} members") from e
-    kept = {members.families[nm] for nm in members.names if nm not in left_out}
-    if missing := [f for f in FAMILIES if f not in kept]:
-        raise _too_small(cfg, f"no {role} member of {missing} (left out: {sorted(left_out)})")
+    _check_families(members, left_out, cfg, role)
     return ds, left_out
 
 
@@ -147,9 +152,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
 
     LL, PR = scores(test_set)
     left_test = {nm: 0 for nm, L in zip(test_set.names, LL) if len(L) == 0}  # the hand never grasped them
+    _check_families(test_set, left_test, cfg, "test")
     kept = [k for k, L in enumerate(LL) if len(L)]
-    if missing := [f for f in FAMILIES if f not in {test_set.families[test_set.names[k]] for k in kept}]:
-        raise _too_small(cfg, f"no test member of {missing} (left out: {sorted(left_test)})")
     LL, PR = [LL[k] for k in kept], [PR[k] for k in kept]
     fam_test = np.array([fam_idx[test_set.families[test_set.names[k]]] for k in kept])
     rows = []

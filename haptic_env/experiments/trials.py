@@ -35,8 +35,8 @@ class _Classes:
 def scores_updater(kind: str, n_classes: int, threshold: float, ic_certainty: str = "count") -> BeliefUpdater:
     """An updater of ``kind`` over ``n_classes`` classes, fed through ``update_scores`` only; ``ic_certainty``: IC's
     certainty rule (:data:`~haptic_env.recognizers.updaters.IC_CERTAINTIES`; other kinds ignore it)."""
-    kw = {"certainty": ic_certainty} if kind == "ic" else {}
-    return make_updater(kind, classifier=_Classes(n_classes), likelihood=_Classes(n_classes), threshold=threshold, **kw)
+    return make_updater(kind, classifier=_Classes(n_classes), likelihood=_Classes(n_classes), threshold=threshold,
+                        ic_certainty=ic_certainty)
 
 
 def run_trial(u: BeliefUpdater, draws: Iterable[tuple[np.ndarray, np.ndarray]], truth: int | None = None,

@@ -419,16 +419,20 @@ class BCIP(BayesianUpdater):
         return super().predict(Q, starts, weights)
 
 
-def make_updater(kind: str, *, classifier=None, likelihood=None, threshold: float = DEFAULT_THRESHOLD, **kw) -> BeliefUpdater:
-    """An updater by name (:data:`UPDATERS`), given the models it needs."""
+def make_updater(kind: str, *, classifier=None, likelihood=None, threshold: float = DEFAULT_THRESHOLD,
+                 ic_certainty: str = "count", **kw) -> BeliefUpdater:
+    """An updater by name (:data:`UPDATERS`), given the models it needs. ``ic_certainty``: IC's certainty rule
+    (:data:`IC_CERTAINTIES`), which only ``"ic"`` takes; the other kinds ignore it."""
     if kind not in UPDATERS:
         raise ValueError(f"unknown updater kind {kind!r}; choose one of {UPDATERS}")
+    if ic_certainty not in IC_CERTAINTIES:
+        raise ValueError(f"IC certainty must be one of {IC_CERTAINTIES}, got {ic_certainty!r}")
     if kind in ("ic", "ic-full", "bc-ip") and classifier is None:
         raise ValueError(f"updater {kind!r} needs a classifier")
     if kind in ("bc-np", "bc-ip") and likelihood is None:
         raise ValueError(f"updater {kind!r} needs a likelihood model")
     if kind == "ic":
-        return IterativeClassification(classifier, threshold, full=False, **kw)
+        return IterativeClassification(classifier, threshold, full=False, certainty=ic_certainty, **kw)
     if kind == "ic-full":
         return IterativeClassification(classifier, threshold, full=True, **kw)
     if kind == "bc-np":
