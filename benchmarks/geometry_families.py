@@ -27,8 +27,9 @@ import time
 import numpy as np
 from scipy.special import logsumexp
 
-from haptic_env.dataset import DatasetConfig, build_dataset, hand_dataset, hand_vectors
+from haptic_env.dataset import DatasetConfig, build_dataset, hand_vectors
 from haptic_env.experiments.config import FAMILY_SOURCES, AnalysisConfig
+from haptic_env.experiments.families import member_grasps
 from haptic_env.objects import FAMILIES, family_set
 from haptic_env.recognizers.baselines import make_classifier
 from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
@@ -42,30 +43,32 @@ def fam_labels(objs) -> np.ndarray:
     return np.array([idx[objs.families[n]] for n in objs.names])
 
 
-def member_dataset(objs, dc: DatasetConfig):
-    """The training members' grasps; with a hand source a member the hand never grasps with 4 fingers is left out and
-    named, as experiment 5 does (``hand_dataset``)."""
-    if dc.source != "hand":
-        return build_dataset(objs, dc, progress=False)
-    ds, left_out = hand_dataset(objs, dc, progress=False)
+def member_dataset(objs, dc: DatasetConfig, cfg: AnalysisConfig):
+    """The training members' grasps as experiment 5 takes them (:func:`~haptic_env.experiments.families.member_grasps`):
+    with a hand source a member the hand never grasps with 4 fingers is left out and named, and a family left without
+    members is an error."""
+    ds, left_out = member_grasps(objs, dc, cfg, "training")
     if left_out:
         print(f"left out (never grasped with 4 fingers): {sorted(left_out)}", file=sys.stderr)
     return ds
 
 
-def pool(objs, G, normals, normalize, seed, source="surface"):
-    """Per-object grasp vectors (float64); with a hand source an object it never grasps with 4 fingers has 0 rows."""
+def pool(objs, G, normals, normalize, seed, cfg: AnalysisConfig):
+    """Per-object grasp vectors (float64) from ``cfg``'s family source; with a hand source an object it never grasps
+    with 4 fingers has 0 rows."""
     dc = DatasetConfig(n_fingers=4, normals=normals, grasps_per_object=G, normalize_scale=normalize, val_fraction=0.0,
-                       seed=seed, **source_kwargs(source))
-    if source == "hand":
+                       seed=seed, **cfg.family_grasps)
+    if cfg.family_source == "hand":
         return [X.astype(np.float64) for X in hand_vectors(objs, dc, progress=False)]
     ds = build_dataset(objs, dc, progress=False)
     return [ds.X_train[ds.y_train == k].astype(np.float64) for k in range(len(objs))]
 
 
-def source_kwargs(source: str) -> dict:
-    """DatasetConfig fields of a grasp source, as experiment 5 uses them (``AnalysisConfig.family_source``)."""
-    return AnalysisConfig(family_source=source).family_grasps
+def family_config(source: str, lo=0.5, hi=1.5, size_range=None, heights=False) -> AnalysisConfig:
+    """Experiment 5's settings of the family grasps (source, members' ranges, heights): the one place that turns them
+    into DatasetConfig fields is ``AnalysisConfig.family_grasps``."""
+    return AnalysisConfig(family_source=source, family_scale_range=(lo, hi), family_size_range=size_range,
+                          family_heights=heights)
 
 
 def member_family_ll(LLm, fam_m, T=1.0):
@@ -88,20 +91,24 @@ def votes(score_fn, P, fam_true, ms, trials, rng):
     return out
 
 
-def run_cell(lo, hi, normals, normalize, members, G, seed, ms, trials, models, source="surface", size_range=None):
+def run_cell(lo, hi, normals, normalize, members, G, seed, ms, trials, models, source="surface", size_range=None,
+             heights=False):
     t0 = time.time()
+    cfg = family_config(source, lo, hi, size_range, heights)
     tr = family_set(members, np.random.default_rng(seed), scale_range=(lo, hi), size_range=size_range)
     va = family_set(max(3, members // 2), np.random.default_rng(seed + VAL_MEMBER_SEED), scale_range=(lo, hi),
                     size_range=size_range)
     ds = member_dataset(tr, DatasetConfig(n_fingers=4, normals=normals, grasps_per_object=G, normalize_scale=normalize,
-                                          seed=seed, **source_kwargs(source)))
+                                          seed=seed, **cfg.family_grasps), cfg)
     fm = fam_labels(tr)
     ytr, yva = fm[ds.y_train], fm[ds.y_val]
-    new = pool(va, max(200, G // 5), normals, normalize, seed + VAL_MEMBER_SEED, source)  # new members
+    new = pool(va, max(200, G // 5), normals, normalize, seed + VAL_MEMBER_SEED, cfg)  # new members
     kept = [k for k, X in enumerate(new) if len(X)]  # a hand may never grasp a small member with 4 fingers
     new, fnew = [new[k] for k in kept], fam_labels(va)[kept]
     rng = np.random.default_rng(seed + 1)
     row = {"spread": f"{lo:g}-{hi:g}", "normals": normals, "norm": normalize, "source": source}
+    if heights:
+        row["heights"] = True
     if size_range is not None:
         row["size_range"] = f"{size_range[0]:g}-{size_range[1]:g}"
     kde = KDELikelihood(KDEConfig()).fit(ds.X_train, ytr, ds.X_val, yva, n_classes=3)
@@ -134,22 +141,25 @@ def run_cell(lo, hi, normals, normalize, members, G, seed, ms, trials, models, s
     return row
 
 
-def size_cell(members, G, seed, size_range, sizes, source):
+def size_cell(members, G, seed, size_range, sizes, source, heights=False):
     """One-shot family accuracy (KDE, no normals, scale-normalised) on the three FIXED shapes (cube, round cylinder,
     sphere) at each overall size in ``sizes`` (m), trained on ``members`` per family with per-axis factors
     U(0.5, 1.5) and, if given, a size factor per member (``size_range``). With a hand's grasps a sphere gives one
     contact pattern whatever the approach, and that pattern moves with the sphere's size (the fingers keep theirs)."""
     t0 = time.time()
+    cfg = family_config(source, size_range=size_range, heights=heights)
     tr = family_set(members, np.random.default_rng(seed), size_range=size_range)
     ds = member_dataset(tr, DatasetConfig(n_fingers=4, normals=False, grasps_per_object=G, normalize_scale=True,
-                                          seed=seed, **source_kwargs(source)))
+                                          seed=seed, **cfg.family_grasps), cfg)
     fm = fam_labels(tr)
     kde = KDELikelihood(KDEConfig()).fit(ds.X_train, fm[ds.y_train], ds.X_val, fm[ds.y_val], n_classes=3)
     row = {"members": members, "size_range": "-" if size_range is None else f"{size_range[0]:g}-{size_range[1]:g}",
            "source": source}
+    if heights:
+        row["heights"] = True
     for size in sizes:
         shapes = family_set(1, np.random.default_rng(seed), scale_range=(size / 0.08, size / 0.08))
-        P = pool(shapes, 300, False, True, seed + VAL_MEMBER_SEED, source)  # a shape too small for a hand: 0 rows (nan)
+        P = pool(shapes, 300, False, True, seed + VAL_MEMBER_SEED, cfg)  # a shape too small for a hand: 0 rows (nan)
         for k, X in enumerate(P):
             hit = kde.log_likelihood(X.astype(np.float64)).argmax(1) == k if len(X) else np.array([np.nan])
             row[f"{('cube', 'cyl', 'sphere')[k]}_{100 * size:g}cm"] = 100 * float(np.mean(hit))
@@ -174,6 +184,9 @@ def main(argv=None):
                         "grasps = approaches per member, of which the 4-finger ones are kept)")
     p.add_argument("--size-range", default=None,
                    help="LO,HI of a size factor per member (family_set(size_range=); default none, the paper's)")
+    p.add_argument("--heights", action="store_true",
+                   help="with --source hand: append the contacts' heights above the table (experiment 5's "
+                        "--family-heights)")
     p.add_argument("--sizes", default="0.05,0.067,0.08,0.1,0.12", help="--sweep sizes: the fixed shapes' sizes (m)")
     a = p.parse_args(argv)
     ms = tuple(int(v) for v in a.ms.split(","))
@@ -188,9 +201,10 @@ def main(argv=None):
         cells = [(a.lo, a.hi, False, True)]
     sr = None if a.size_range is None else tuple(float(v) for v in a.size_range.split(","))
     if a.sweep == "sizes":
-        rows = [size_cell(a.members, a.grasps, a.seed, sr, tuple(float(v) for v in a.sizes.split(",")), a.source)]
+        rows = [size_cell(a.members, a.grasps, a.seed, sr, tuple(float(v) for v in a.sizes.split(",")), a.source,
+                          a.heights)]
     else:
-        rows = [run_cell(lo, hi, nrm, nz, a.members, a.grasps, a.seed, ms, a.trials, models, a.source, sr)
+        rows = [run_cell(lo, hi, nrm, nz, a.members, a.grasps, a.seed, ms, a.trials, models, a.source, sr, a.heights)
                 for lo, hi, nrm, nz in cells]
     keys = list(dict.fromkeys(k for r in rows for k in r))
     print("| " + " | ".join(keys) + " |")

@@ -104,7 +104,12 @@ def test_family_source_is_checked_and_reaches_the_grasps(tmp_path):
     assert AnalysisConfig().family_grasps == {}  # the paper's surface grasps by default
     assert AnalysisConfig(family_source="geometric").family_grasps == {"source": "geometric", "support": "floating"}
     assert AnalysisConfig(family_source="hand", family_hand="shadow").family_grasps == {
-        "source": "hand", "hand": "shadow", "support": "table"}
+        "source": "hand", "hand": "shadow", "support": "table", "heights": False}
+    assert AnalysisConfig(family_source="hand", family_heights=True).family_grasps["heights"] is True
+    with pytest.raises(ValueError, match="family_heights needs family_source='hand'.*got family_source='surface'"):
+        AnalysisConfig(family_heights=True)
+    with pytest.raises(ValueError, match="family_heights must be a bool, got 1"):
+        AnalysisConfig(family_source="hand", family_heights=1)
     assert AnalysisConfig(family_scale_range=[1, 2]).family_scale_range == (1.0, 2.0)
     assert AnalysisConfig().family_scale_range == (0.5, 1.5)  # the paper's aspect spread
     with pytest.raises(ValueError, match="family_source must be one of .*'hand'.*got 'allegro'"):
@@ -120,7 +125,8 @@ def test_family_source_is_checked_and_reaches_the_grasps(tmp_path):
     with pytest.raises(ValueError, match="family_hand must be a hand name"):
         AnalysisConfig(family_hand="")
     for flags in (["--family-source", "allegro"], ["--family-scale-range", "0.75"],
-                  ["--family-scale-range", "1,x"], ["--family-scale-range", "0,1"], ["--family-size-range", "2,1"]):
+                  ["--family-scale-range", "1,x"], ["--family-scale-range", "0,1"], ["--family-size-range", "2,1"],
+                  ["--family-heights"]):  # heights need the hand's table
         with pytest.raises(SystemExit):
             main(["analysis", "--out", str(tmp_path / "bad"), "--experiments", "5", *flags])
         assert not (tmp_path / "bad").exists()
@@ -168,7 +174,7 @@ def test_members_the_hand_cannot_grasp_are_left_out_and_a_family_without_members
     names it); a family with no graspable member is an error naming both member ranges."""
     from haptic_env.dataset import DatasetConfig
     from haptic_env.experiments.config import AnalysisConfig
-    from haptic_env.experiments.families import _member_grasps
+    from haptic_env.experiments.families import member_grasps
     from haptic_env.objects import ObjectSet
 
     cfg = AnalysisConfig(family_source="hand", family_hand="generic")
@@ -176,16 +182,24 @@ def test_members_the_hand_cannot_grasp_are_left_out_and_a_family_without_members
                        **cfg.family_grasps)
     big = family_set(1, np.random.default_rng(0), scale_range=(1.5, 1.5))  # one 12 cm member per family
     tiny = family_set(1, np.random.default_rng(0), scale_range=(0.05, 0.05), families=("ellipsoid",))  # 4 mm
-    ds, left = _member_grasps(big, dc, cfg, "training")
+    ds, left = member_grasps(big, dc, cfg, "training")
     assert left == {} and set(np.unique(ds.y_train)) == {0, 1, 2}
     two_ell = family_set(2, np.random.default_rng(0), scale_range=(1.5, 1.5), families=("ellipsoid",))
     mixed = ObjectSet("mixed", [big["box_00"], big["elliptic_cylinder_00"], tiny["ellipsoid_00"], two_ell[1]])
-    ds, left = _member_grasps(mixed, dc, cfg, "training")
+    ds, left = member_grasps(mixed, dc, cfg, "training")
     assert left == {"ellipsoid_00": 0} and set(np.unique(ds.y_train)) == {0, 1, 3}
     no_ell = ObjectSet("no-ell", [big["box_00"], big["elliptic_cylinder_00"], tiny["ellipsoid_00"]])
     with pytest.raises(RuntimeError, match=r"grasped no validation member of \['ellipsoid'\] .*family_scale_range="
                                            r"\(0.5, 1.5\), family_size_range=None"):
-        _member_grasps(no_ell, dc, cfg, "validation")
+        member_grasps(no_ell, dc, cfg, "validation")
+    # --family-heights: the same grasps with each contact's height above the table appended (scale-normalised)
+    hcfg = AnalysisConfig(family_source="hand", family_hand="generic", family_heights=True)
+    hds, _ = member_grasps(big, DatasetConfig(n_fingers=4, normals=False, grasps_per_object=20, normalize_scale=True,
+                                              seed=3, **hcfg.family_grasps), hcfg, "training")
+    ds, _ = member_grasps(big, dc, cfg, "training")
+    assert ds.feature_dim == 6 and hds.feature_dim == 10
+    np.testing.assert_array_equal(hds.X_train[:, :6], ds.X_train)
+    assert (hds.X_train[:, 6:] >= -1e-6).all() and (hds.X_train[:, 6:].max(1) > 0.1).all()  # above the table
 
 
 def test_family_votes_plot_draws_every_object_including_one_without_grasps(tmp_path):

@@ -72,6 +72,10 @@ class AnalysisConfig:
     #: hand's grasps depend on size after scale normalisation, so ``family_source="hand"`` wants members of the
     #: objects' sizes (``family_set(size_range=)``)
     family_size_range: tuple[float, float] | None = None
+    #: experiment 5 with ``family_source="hand"``: append each contact's height above the table (``phi(heights=True)``,
+    #: scaled with the contacts by the scale normalisation); the objects rest on the table in their own pose, so a
+    #: robot senses the heights as it senses the contacts. Off: the paper's frame-invariant Phi_n
+    family_heights: bool = False
     normals: bool = True  #: experiments 2-6
     #: each normal's second angle in Phi_n (n >= 4): to t2's normal ("t2", the paper's) or to the edge ab ("ab";
     #: ``phi(normal_axis=)``), in every experiment's training and test grasps
@@ -122,6 +126,11 @@ class AnalysisConfig:
                 raise ValueError(f"family_size_range must be None or (lo, hi) with 0 < lo <= hi, "
                                  f"got {self.family_size_range!r}")
             object.__setattr__(self, "family_size_range", tuple(float(v) for v in sz))
+        if not isinstance(self.family_heights, bool):
+            raise ValueError(f"family_heights must be a bool, got {self.family_heights!r}")
+        if self.family_heights and self.family_source != "hand":
+            raise ValueError(f"family_heights needs family_source='hand' (objects on the table), got "
+                             f"family_source={self.family_source!r}")
 
     @property
     def family_grasps(self) -> dict:
@@ -129,7 +138,7 @@ class AnalysisConfig:
         if self.family_source == "geometric":
             return {"source": "geometric", "support": "floating"}
         if self.family_source == "hand":
-            return {"source": "hand", "hand": self.family_hand, "support": "table"}
+            return {"source": "hand", "hand": self.family_hand, "support": "table", "heights": self.family_heights}
         return {}
 
     def recognizer_config(self, **kw) -> RecognizerConfig:

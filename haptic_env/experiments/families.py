@@ -89,7 +89,7 @@ def _check_families(members, left_out, cfg: AnalysisConfig, role: str) -> None:
         raise _too_small(cfg, f"no {role} member of {missing} (left out: {sorted(left_out)})")
 
 
-def _member_grasps(members, dc: DatasetConfig, cfg: AnalysisConfig, role: str):
+def member_grasps(members, dc: DatasetConfig, cfg: AnalysisConfig, role: str):
     """The family members' grasp dataset and the members left out (name -> rows): with a hand source, a member that
     the hand does not grasp with 4 fingers (too small or too flat for it) is left out; a family left without members
     gets an error that says which setting to change."""
@@ -112,7 +112,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     rep.h("5. Geometry recognition (families: " + ", ".join(FAMILIES) + f"; n = 4, normals: {cfg.normals}, "
           f"scale-normalised, {grasps}; member axes U({lo:g}, {hi:g}) x 0.08 m" + (
               "" if cfg.family_size_range is None else " x a size factor U({:g}, {:g}) per member".format(
-                  *cfg.family_size_range)) + f"; {cfg.scores_label})")
+                  *cfg.family_size_range)) + ("; with each contact's height above the table" if cfg.family_heights
+                                               else "") + f"; {cfg.scores_label})")
     members = {"scale_range": cfg.family_scale_range, "size_range": cfg.family_size_range}
     train_set = family_set(cfg.family_members, np.random.default_rng(cfg.seed), **members)
     n_held = max(2, cfg.family_members // 3)
@@ -122,7 +123,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     per_obj = max(1000, cfg.grasps_per_object * len(objects) // max(len(train_set), 1))
     dc = DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=per_obj, normalize_scale=True, seed=cfg.seed,
                        normal_axis=cfg.normal_axis, **cfg.family_grasps)
-    ds, left_train = _member_grasps(train_set, dc, cfg, "training")
+    ds, left_train = member_grasps(train_set, dc, cfg, "training")
     fam_of = np.array([fam_idx[train_set.families[nm]] for nm in train_set.names])
     clf = MLPClassifier(dataclasses.replace(cfg.mlp, progress=False)).fit(ds.X_train, fam_of[ds.y_train], ds.X_val,
                                                                           fam_of[ds.y_val], n_classes=len(FAMILIES))
@@ -131,7 +132,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     vdc = DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=cfg.test_grasps, normalize_scale=True,
                         val_fraction=0.0, normal_axis=cfg.normal_axis, seed=cfg.seed + FAMILY_VAL_SEED_OFFSET,
                         **cfg.family_grasps)
-    vds, left_val = _member_grasps(val_set, vdc, cfg, "validation")
+    vds, left_val = member_grasps(val_set, vdc, cfg, "validation")
     fam_val = np.array([fam_idx[val_set.families[nm]] for nm in val_set.names])
     T_kde, T_mlp = family_temperatures(kde, clf, vds.X_train.astype(np.float64), fam_val[vds.y_train],
                                        member=vds.y_train, grasps=cfg.max_grasps,
