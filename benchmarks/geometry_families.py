@@ -16,6 +16,11 @@ Run (one process, nice)::
     OMP_NUM_THREADS=1 nice -n 10 python benchmarks/geometry_families.py --sweep spread
     OMP_NUM_THREADS=1 nice -n 10 python benchmarks/geometry_families.py --sweep norm
     OMP_NUM_THREADS=1 nice -n 10 python benchmarks/geometry_families.py --sweep sizes --source hand [--size-range 0.7,1.6]
+    OMP_NUM_THREADS=1 nice -n 10 python benchmarks/geometry_families.py --sweep members --source hand --members 20 \
+        --grasps 1000 --size-range 0.7,1.6 [--heights] [--lying]
+
+``--heights`` and ``--lying`` are experiment 5's ``--family-heights`` (each contact's height above the table) and
+``--family-lying`` (every second cylinder member on its side).
 """
 
 from __future__ import annotations
@@ -64,11 +69,11 @@ def pool(objs, G, normals, normalize, seed, cfg: AnalysisConfig):
     return [ds.X_train[ds.y_train == k].astype(np.float64) for k in range(len(objs))]
 
 
-def family_config(source: str, lo=0.5, hi=1.5, size_range=None, heights=False) -> AnalysisConfig:
-    """Experiment 5's settings of the family grasps (source, members' ranges, heights): the one place that turns them
-    into DatasetConfig fields is ``AnalysisConfig.family_grasps``."""
+def family_config(source: str, lo=0.5, hi=1.5, size_range=None, heights=False, lying=False) -> AnalysisConfig:
+    """Experiment 5's settings of the family grasps (source, members' ranges and poses, heights): the one place that
+    turns them into DatasetConfig fields is ``AnalysisConfig.family_grasps``."""
     return AnalysisConfig(family_source=source, family_scale_range=(lo, hi), family_size_range=size_range,
-                          family_heights=heights)
+                          family_heights=heights, family_lying=lying)
 
 
 def member_family_ll(LLm, fam_m, T=1.0):
@@ -92,12 +97,12 @@ def votes(score_fn, P, fam_true, ms, trials, rng):
 
 
 def run_cell(lo, hi, normals, normalize, members, G, seed, ms, trials, models, source="surface", size_range=None,
-             heights=False):
+             heights=False, lying=False):
     t0 = time.time()
-    cfg = family_config(source, lo, hi, size_range, heights)
-    tr = family_set(members, np.random.default_rng(seed), scale_range=(lo, hi), size_range=size_range)
+    cfg = family_config(source, lo, hi, size_range, heights, lying)
+    tr = family_set(members, np.random.default_rng(seed), scale_range=(lo, hi), size_range=size_range, lying=lying)
     va = family_set(max(3, members // 2), np.random.default_rng(seed + VAL_MEMBER_SEED), scale_range=(lo, hi),
-                    size_range=size_range)
+                    size_range=size_range, lying=lying)
     ds = member_dataset(tr, DatasetConfig(n_fingers=4, normals=normals, grasps_per_object=G, normalize_scale=normalize,
                                           seed=seed, **cfg.family_grasps), cfg)
     fm = fam_labels(tr)
@@ -109,6 +114,8 @@ def run_cell(lo, hi, normals, normalize, members, G, seed, ms, trials, models, s
     row = {"spread": f"{lo:g}-{hi:g}", "normals": normals, "norm": normalize, "source": source}
     if heights:
         row["heights"] = True
+    if lying:
+        row["lying"] = True
     if size_range is not None:
         row["size_range"] = f"{size_range[0]:g}-{size_range[1]:g}"
     kde = KDELikelihood(KDEConfig()).fit(ds.X_train, ytr, ds.X_val, yva, n_classes=3)
@@ -187,6 +194,8 @@ def main(argv=None):
     p.add_argument("--heights", action="store_true",
                    help="with --source hand: append the contacts' heights above the table (experiment 5's "
                         "--family-heights)")
+    p.add_argument("--lying", action="store_true",
+                   help="every second cylinder member lies on its side (experiment 5's --family-lying)")
     p.add_argument("--sizes", default="0.05,0.067,0.08,0.1,0.12", help="--sweep sizes: the fixed shapes' sizes (m)")
     a = p.parse_args(argv)
     ms = tuple(int(v) for v in a.ms.split(","))
@@ -204,7 +213,7 @@ def main(argv=None):
         rows = [size_cell(a.members, a.grasps, a.seed, sr, tuple(float(v) for v in a.sizes.split(",")), a.source,
                           a.heights)]
     else:
-        rows = [run_cell(lo, hi, nrm, nz, a.members, a.grasps, a.seed, ms, a.trials, models, a.source, sr, a.heights)
+        rows = [run_cell(lo, hi, nrm, nz, a.members, a.grasps, a.seed, ms, a.trials, models, a.source, sr, a.heights, a.lying)
                 for lo, hi, nrm, nz in cells]
     keys = list(dict.fromkeys(k for r in rows for k in r))
     print("| " + " | ".join(keys) + " |")

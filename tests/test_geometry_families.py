@@ -35,6 +35,20 @@ def test_family_set_size_range_scales_each_member_as_a_whole():
         family_set(1, np.random.default_rng(0), size_range=(2, 1))
 
 
+def test_family_set_lying_lays_every_second_cylinder_on_its_side_and_keeps_the_rest():
+    """``lying=True``: the odd-index elliptic cylinders turn their axis from z to x (same extents, permuted); every
+    other member, and the draws, are those of the plain generator; a non-bool is refused by name."""
+    plain = family_set(4, np.random.default_rng(3))
+    lying = family_set(4, np.random.default_rng(3), lying=True)
+    for a, b in zip(plain, lying):
+        turned = a.family == "elliptic_cylinder" and int(a.name[-2:]) % 2 == 1
+        assert (a.mesh_hash != b.mesh_hash) == turned, a.name
+        ea, eb = a.mesh.extents, b.mesh.extents
+        np.testing.assert_allclose(eb, ea[[2, 1, 0]] if turned else ea, atol=1e-9)
+    with pytest.raises(ValueError, match="lying must be a bool, got 'yes'"):
+        family_set(1, np.random.default_rng(0), lying="yes")
+
+
 def test_expected_family_labels_are_families():
     assert {v for v in EXPECTED_FAMILY.values() if v is not None} <= set(FAMILIES)
     assert EXPECTED_FAMILY["can"] == "elliptic_cylinder" and EXPECTED_FAMILY["ball"] == "ellipsoid"
@@ -108,6 +122,8 @@ def test_family_source_is_checked_and_reaches_the_grasps(tmp_path):
     assert AnalysisConfig(family_source="hand", family_heights=True).family_grasps["heights"] is True
     with pytest.raises(ValueError, match="family_heights needs family_source='hand'.*got family_source='surface'"):
         AnalysisConfig(family_heights=True)
+    with pytest.raises(ValueError, match="family_lying must be a bool, got 1"):
+        AnalysisConfig(family_lying=1)
     with pytest.raises(ValueError, match="family_heights must be a bool, got 1"):
         AnalysisConfig(family_source="hand", family_heights=1)
     assert AnalysisConfig(family_scale_range=[1, 2]).family_scale_range == (1.0, 2.0)
@@ -159,10 +175,10 @@ def test_experiment_5_reports_held_back_and_new_members_and_the_object_votes(tmp
     out = tmp_path / "fam"
     assert main(["analysis", "--out", str(out), "--experiments", "5", "--objects", "default", "--family-members", "2",
                  "--grasps-per-object", "100", "--test-grasps", "40", "--trials", "5", "--max-grasps", "5",
-                 "--no-normals", "--mlp-epochs", "2", "--family-size-range", "1,1.2", "--quiet"]) == 0
+                 "--no-normals", "--mlp-epochs", "2", "--family-size-range", "1,1.2", "--family-lying", "--quiet"]) == 0
     text = (out / "results.md").read_text()
     assert "Held-back grasps of the 6 training members (fresh, test seed): one-shot family accuracy MLP" in text
-    assert "Held-out family members (6 new random" in text and "member axes U(0.5, 1.5) x 0.08 m x a size factor U(1, 1.2) per member" in text
+    assert "Held-out family members (6 new random" in text and "member axes U(0.5, 1.5) x 0.08 m x a size factor U(1, 1.2) per member; every second cylinder lying" in text
     for name in ("box", "can", "apple", "hammer"):
         assert f"\n| {name} |" in text
     assert "BC-NP's majority vote is the expected family for" in text

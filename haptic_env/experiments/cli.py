@@ -122,6 +122,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--family-heights", action="store_true",
                    help="experiment 5 with --family-source hand: append each contact's height above the table to the "
                         "grasp vector (the objects rest on the table in their own pose; default: the paper's Phi_n)")
+    p.add_argument("--family-lying", action="store_true",
+                   help="experiment 5: every second elliptic cylinder member lies on its side (default: all stand, the "
+                        "paper's generator); with --family-source hand the pose on the table changes the grasps")
     p.add_argument("--family-members", type=int, default=d.family_members,
                    help="experiment 5: training members per family (a third as many validation and test members)")
     p.add_argument("--normal-axis", default=d.normal_axis, choices=NORMAL_AXES,
@@ -190,7 +193,7 @@ def _run_cli(args) -> int:
             family_scale_range=_range(args.family_scale_range, "--family-scale-range"),
             family_size_range=None if args.family_size_range is None else _range(args.family_size_range,
                                                                                  "--family-size-range"),
-            family_heights=args.family_heights,
+            family_heights=args.family_heights, family_lying=args.family_lying,
             calibrated=not args.raw, stop_scale=args.stop_scale, ic_certainty=args.ic_certainty,
             calib_fingers=_ints(args.calib_fingers), calib_fingers_no_normals=_ints(args.calib_fingers_no_normals),
             lambdas=_lambdas(args.lambdas), seed=args.seed,

@@ -76,6 +76,9 @@ class AnalysisConfig:
     #: scaled with the contacts by the scale normalisation); the objects rest on the table in their own pose, so a
     #: robot senses the heights as it senses the contacts. Off: the paper's frame-invariant Phi_n
     family_heights: bool = False
+    #: experiment 5: every second elliptic cylinder member lies on its side (``family_set(lying=True)``); the paper's
+    #: generator stands them all on an end. Matters where the pose on the table does (a hand source)
+    family_lying: bool = False
     normals: bool = True  #: experiments 2-6
     #: each normal's second angle in Phi_n (n >= 4): to t2's normal ("t2", the paper's) or to the edge ab ("ab";
     #: ``phi(normal_axis=)``), in every experiment's training and test grasps
@@ -128,6 +131,8 @@ class AnalysisConfig:
             object.__setattr__(self, "family_size_range", tuple(float(v) for v in sz))
         if not isinstance(self.family_heights, bool):
             raise ValueError(f"family_heights must be a bool, got {self.family_heights!r}")
+        if not isinstance(self.family_lying, bool):
+            raise ValueError(f"family_lying must be a bool, got {self.family_lying!r}")
         if self.family_heights and self.family_source != "hand":
             raise ValueError(f"family_heights needs family_source='hand' (objects on the table), got "
                              f"family_source={self.family_source!r}")

@@ -112,9 +112,9 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     rep.h("5. Geometry recognition (families: " + ", ".join(FAMILIES) + f"; n = 4, normals: {cfg.normals}, "
           f"scale-normalised, {grasps}; member axes U({lo:g}, {hi:g}) x 0.08 m" + (
               "" if cfg.family_size_range is None else " x a size factor U({:g}, {:g}) per member".format(
-                  *cfg.family_size_range)) + ("; with each contact's height above the table" if cfg.family_heights
-                                               else "") + f"; {cfg.scores_label})")
-    members = {"scale_range": cfg.family_scale_range, "size_range": cfg.family_size_range}
+                  *cfg.family_size_range)) + ("; every second cylinder lying" if cfg.family_lying else "")
+          + ("; with each contact's height above the table" if cfg.family_heights else "") + f"; {cfg.scores_label})")
+    members = {"scale_range": cfg.family_scale_range, "size_range": cfg.family_size_range, "lying": cfg.family_lying}
     train_set = family_set(cfg.family_members, np.random.default_rng(cfg.seed), **members)
     n_held = max(2, cfg.family_members // 3)
     val_set = family_set(n_held, np.random.default_rng(cfg.seed + FAMILY_VAL_SEED_OFFSET), **members)

@@ -183,7 +183,7 @@ def _family_mesh(family: str, s: np.ndarray) -> trimesh.Trimesh:
 
 def family_set(n_per_family: int, rng: np.random.Generator, families=FAMILIES,
                scale_range: tuple[float, float] = FAMILY_SCALE_RANGE,
-               size_range: tuple[float, float] | None = None) -> ObjectSet:
+               size_range: tuple[float, float] | None = None, lying: bool = False) -> ObjectSet:
     """The paper's geometry families: boxes, elliptic cylinders and ellipsoids.
 
     Each member has per-axis scale factors drawn uniformly from ``FAMILY_SCALE_RANGE`` about the
@@ -199,9 +199,15 @@ def family_set(n_per_family: int, rng: np.random.Generator, families=FAMILIES,
             after the per-axis factors, so ``None``, the paper's generator, keeps the members of a seed). A robot hand's
             grasps depend on the object's size even after scale normalisation (its fingers keep their size), so
             hand-matched family grasps need members of the sizes of the objects to be recognised.
+        lying: every second elliptic cylinder (odd index) lies on its side, its axis along x instead of z. An object on
+            a table rests in one of its stable poses, and a hand that grasps from above touches a standing and a
+            lying cylinder differently; a box or an ellipsoid on another face is just another member (its three
+            factors are drawn alike). The draws and the other members are those of ``lying=False``.
     """
     if int(n_per_family) < 1:
         raise ValueError(f"n_per_family must be >= 1, got {n_per_family}")
+    if not isinstance(lying, (bool, np.bool_)):
+        raise ValueError(f"lying must be a bool, got {lying!r}")
     lo, hi = (float(v) for v in scale_range)
     if not 0 < lo <= hi:
         raise ValueError(f"scale_range must be (lo, hi) with 0 < lo <= hi, got {scale_range!r}")
@@ -215,6 +221,9 @@ def family_set(n_per_family: int, rng: np.random.Generator, families=FAMILIES,
             s = rng.uniform(lo, hi, size=3)
             if size_range is not None:
                 s = s * rng.uniform(slo, shi)
-            mesh, _ = prepare_mesh(_family_mesh(fam, s), f"{fam}_{i:02d}")
+            mesh = _family_mesh(fam, s)
+            if lying and fam == "elliptic_cylinder" and i % 2 == 1:
+                mesh.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [0.0, 1.0, 0.0]))
+            mesh, _ = prepare_mesh(mesh, f"{fam}_{i:02d}")
             objs.append(GraspObject(f"{fam}_{i:02d}", mesh, family=fam))
     return ObjectSet("families", objs)
