@@ -1,0 +1,101 @@
+"""Does turning each approach relative to the last one beat random approaches? (issue 5, PPO's reference points)
+
+A pose-blind policy on the hand envs cannot aim an approach at the object's unknown yaw, but it can choose the next
+approach relative to its previous one ("grasp again from 90 degrees round"), which a learned policy could express
+through ``prev_action`` in its observation. Scripted policies measure what that strategy is worth before any
+training:
+
+* ``random``: every action uniform in the action box (the baseline);
+* ``turnT``: the first grasp random, each next one turned by ``T * pi`` about the vertical from the previous one, the
+  other approach parameters (elevation, roll, spread) drawn anew;
+* ``turnT-keep``: the same turn, the other parameters kept from the previous grasp (the same approach, turned).
+
+Same env seeds, objects and poses for every policy (``haptic-recog evaluate``'s episodes, ``run_episodes``).
+
+    OMP_NUM_THREADS=1 python benchmarks/relative_approaches.py --env-id HapticRecogMuJoCo-v0 \\
+        --seeds 500 501 502 503 504 --episodes 40 --out results/hands/relative_approaches_val.md
+
+Prints a markdown table (success at the stop = decided and correct, mean grasps, fewer grasps than random); the
+headline, the best turned policy against random, is printed last.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+from agents.evaluate import run_episodes
+from agents.random_policy import RandomAgent
+
+importlib.import_module("haptic_env")  # registers the envs
+
+
+class TurnedAgent(RandomAgent):
+    """First grasp random; each next approach turned by ``turn * pi`` about the world z axis from the previous one
+    (azimuth wrapped into ``[-1, 1)``); ``keep``: the other approach parameters repeated, else drawn anew."""
+
+    def __init__(self, turn: float, keep: bool, seed: int | None = None):
+        if not np.isfinite(turn):
+            raise ValueError(f"turn must be finite, got {turn!r}")
+        super().__init__(seed)
+        self.turn, self.keep, self._prev = float(turn), bool(keep), None
+        self.name = f"turn{turn:g}" + ("-keep" if keep else "")
+
+    def reset(self, env, seed: int | None = None) -> None:
+        super().reset(env, seed)
+        self._prev = None
+
+    def act(self, obs: np.ndarray, env) -> np.ndarray:
+        a = super().act(obs, env)
+        if self._prev is not None:
+            if self.keep:
+                a = self._prev.copy()
+            a[0] = (self._prev[0] + self.turn + 1.0) % 2.0 - 1.0
+        self._prev = a.astype(env.action_space.dtype)
+        return self._prev
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--env-id", default="HapticRecogMuJoCo-v0")
+    p.add_argument("--seeds", type=int, nargs="+", default=[500, 501, 502, 503, 504],
+                   help="env seeds (500-504: the hand envs' validation seeds)")
+    p.add_argument("--episodes", type=int, default=40, help="episodes per seed")
+    p.add_argument("--turns", type=float, nargs="+", default=[0.5, 1.0], help="turns in units of pi")
+    p.add_argument("--out", type=Path, default=None, help="also write the table to this markdown file")
+    a = p.parse_args(argv)
+    if a.episodes < 1:
+        p.error(f"--episodes must be >= 1, got {a.episodes}")
+    agents = [RandomAgent()] + [TurnedAgent(t, k) for t in a.turns for k in (False, True)]
+    agents[0].name = "random"
+    rows, base = [], None
+    for agent in agents:
+        recs = [r for s in a.seeds for r in run_episodes(agent, lambda: gym.make(a.env_id), a.episodes, s)]
+        grasps = np.array([r.grasps for r in recs], dtype=np.float64)
+        ok = np.array([r.decided and r.correct for r in recs])
+        base = grasps.mean() if base is None else base
+        rows.append((agent.name, 100 * ok.mean(), grasps.mean(), grasps.std(ddof=1) / np.sqrt(len(grasps)),
+                     100 * (1 - grasps.mean() / base)))
+        print(f"{agent.name}: {rows[-1][1]:.1f} % in {rows[-1][2]:.2f} grasps", file=sys.stderr, flush=True)
+    lines = [f"`{a.env_id}`, env seeds {' '.join(map(str, a.seeds))}, {a.episodes} episodes each "
+             f"({len(a.seeds) * a.episodes} per policy)", "",
+             "| policy | success at the stop | mean grasps (+- s.e.) | fewer grasps than random |", "|---|---|---|---|"]
+    lines += [f"| {n} | {s:.1f} % | {g:.2f} +- {se:.2f} | {f:.1f} % |" for n, s, g, se, f in rows]
+    text = "\n".join(lines)
+    print(text)
+    if a.out is not None:
+        a.out.parent.mkdir(parents=True, exist_ok=True)
+        a.out.write_text(f"python benchmarks/relative_approaches.py {' '.join(argv or sys.argv[1:])}\n\n{text}\n")
+    best = max(rows[1:], key=lambda r: r[4])
+    print(f"best turned policy: {best[0]}, {best[4]:.1f} % fewer grasps than random ({best[1]:.1f} % success against "
+          f"{rows[0][1]:.1f} %)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
