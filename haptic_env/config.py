@@ -19,7 +19,7 @@ import numpy as np
 
 from haptic_env.grasp_features import check_normal_axis
 from haptic_env.recognizers.touch import check_touch_weight
-from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, IC_CERTAINTIES, UPDATERS
+from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS, check_ic_certainty
 from haptic_env.recognizers.zfinger import check_min_fingers, check_subset_k
 from haptic_env.scene import POSE_MODES
 from haptic_env.task import REWARD_KINDS
@@ -164,8 +164,7 @@ class HapticRecogConfig:
             raise ValueError(f"recognizer_source='hand' needs a hand backend {HAND_BACKENDS}, got backend={self.backend!r}")
         if self.updater not in UPDATERS:
             raise ValueError(f"updater must be one of {UPDATERS}, got {self.updater!r}")
-        if self.ic_certainty not in IC_CERTAINTIES:
-            raise ValueError(f"ic_certainty must be one of {IC_CERTAINTIES}, got {self.ic_certainty!r}")
+        check_ic_certainty(self.ic_certainty)
         w = check_touch_weight(self.touch_weight)
         if w > 0 and self.updater != "bc-np":
             raise ValueError(f"touch_weight={w} needs updater='bc-np', got {self.updater!r}")

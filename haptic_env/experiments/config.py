@@ -15,7 +15,7 @@ from haptic_env.recognizers.baselines import CLASSIFIERS
 from haptic_env.recognizers.kde import KDEConfig
 from haptic_env.recognizers.mlp import MLPConfig
 from haptic_env.recognizers.recognizer import RecognizerConfig
-from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, IC_CERTAINTIES, UPDATERS
+from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS, check_ic_certainty
 
 __all__ = ["AnalysisConfig", "TEST_SEED_OFFSET", "KINDS", "MAIN_KINDS", "PAPER", "FAMILY_SOURCES"]
 
@@ -113,8 +113,7 @@ class AnalysisConfig:
         check_normal_axis(self.normal_axis)
         if not (isinstance(self.family_members, int) and self.family_members >= 1):
             raise ValueError(f"family_members must be an int >= 1, got {self.family_members!r}")
-        if self.ic_certainty not in IC_CERTAINTIES:
-            raise ValueError(f"ic_certainty must be one of {IC_CERTAINTIES}, got {self.ic_certainty!r}")
+        check_ic_certainty(self.ic_certainty)
         if self.family_source not in FAMILY_SOURCES:
             raise ValueError(f"family_source must be one of {FAMILY_SOURCES}, got {self.family_source!r}")
         if not isinstance(self.family_hand, str) or not self.family_hand:

@@ -47,7 +47,7 @@ import numpy as np
 from numba import njit
 
 __all__ = ["BeliefUpdater", "IterativeClassification", "BayesianUpdater", "BCNP", "BCIP", "make_updater", "UPDATERS",
-           "DEFAULT_THRESHOLD", "IC_CERTAINTIES", "bayes_steps"]
+           "DEFAULT_THRESHOLD", "IC_CERTAINTIES", "check_ic_certainty", "bayes_steps"]
 
 #: Every belief-updater kind (the env, the recogniser and the experiments take these names).
 UPDATERS = ("ic", "ic-full", "bc-np", "bc-ip")
@@ -55,6 +55,14 @@ UPDATERS = ("ic", "ic-full", "bc-np", "bc-ip")
 IC_CERTAINTIES = ("count", "share")
 #: ``"share"``: below this winner score the certainty is the score itself (the authors' code's 0.6).
 SHARE_FROM = 0.6
+
+
+def check_ic_certainty(rule, name: str = "ic_certainty") -> str:
+    """``rule`` unchanged; a ``ValueError`` naming it (as ``name``) unless it is one of :data:`IC_CERTAINTIES`."""
+    if rule not in IC_CERTAINTIES:
+        raise ValueError(f"{name} must be one of {IC_CERTAINTIES}, got {rule!r}")
+    return rule
+
 #: The certainty ``lambda_s`` at which a recogniser decides (the paper's 0.85); the one default of every threshold.
 DEFAULT_THRESHOLD = 0.85
 
@@ -243,8 +251,7 @@ class IterativeClassification(BeliefUpdater):
 
     def __init__(self, classifier, threshold: float = DEFAULT_THRESHOLD, *, full: bool = False,
                  n_classes: int | None = None, certainty: str = "count"):
-        if certainty not in IC_CERTAINTIES:
-            raise ValueError(f"IC certainty must be one of {IC_CERTAINTIES}, got {certainty!r}")
+        check_ic_certainty(certainty, "IC certainty")
         if full and certainty != "count":
             raise ValueError(f"IC certainty {certainty!r} is defined for winner-only IC ('ic'), not 'ic-full'")
         self.classifier = classifier
@@ -425,8 +432,7 @@ def make_updater(kind: str, *, classifier=None, likelihood=None, threshold: floa
     (:data:`IC_CERTAINTIES`), which only ``"ic"`` takes; the other kinds ignore it."""
     if kind not in UPDATERS:
         raise ValueError(f"unknown updater kind {kind!r}; choose one of {UPDATERS}")
-    if ic_certainty not in IC_CERTAINTIES:
-        raise ValueError(f"IC certainty must be one of {IC_CERTAINTIES}, got {ic_certainty!r}")
+    check_ic_certainty(ic_certainty, "IC certainty")
     if kind in ("ic", "ic-full", "bc-ip") and classifier is None:
         raise ValueError(f"updater {kind!r} needs a classifier")
     if kind in ("bc-np", "bc-ip") and likelihood is None:
