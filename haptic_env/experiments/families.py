@@ -89,6 +89,13 @@ def _check_families(members, left_out, cfg: AnalysisConfig, role: str) -> None:
         raise _too_small(cfg, f"no {role} member of {missing} (left out: {sorted(left_out)})")
 
 
+def _grasp_config(cfg: AnalysisConfig, grasps: int, seed: int, **kw) -> DatasetConfig:
+    """Experiment 5's grasps (of members and objects alike): 4 fingers, scale-normalised, ``cfg``'s normals and family
+    source; ``grasps`` per object (approaches with a hand source), ``kw``: more :class:`DatasetConfig` fields."""
+    return DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=grasps, normalize_scale=True, seed=seed,
+                         normal_axis=cfg.normal_axis, **cfg.family_grasps, **kw)
+
+
 def member_grasps(members, dc: DatasetConfig, cfg: AnalysisConfig, role: str):
     """The family members' grasp dataset and the members left out (name -> rows): with a hand source, a member that
     the hand does not grasp with 4 fingers (too small or too flat for it) is left out; a family left without members
@@ -121,17 +128,13 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     test_set = family_set(n_held, np.random.default_rng(cfg.seed + TEST_SEED_OFFSET), **members)
     fam_idx = {f: i for i, f in enumerate(FAMILIES)}
     per_obj = max(1000, cfg.grasps_per_object * len(objects) // max(len(train_set), 1))
-    dc = DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=per_obj, normalize_scale=True, seed=cfg.seed,
-                       normal_axis=cfg.normal_axis, **cfg.family_grasps)
-    ds, left_train = member_grasps(train_set, dc, cfg, "training")
+    ds, left_train = member_grasps(train_set, _grasp_config(cfg, per_obj, cfg.seed), cfg, "training")
     fam_of = np.array([fam_idx[train_set.families[nm]] for nm in train_set.names])
     clf = MLPClassifier(dataclasses.replace(cfg.mlp, progress=False)).fit(ds.X_train, fam_of[ds.y_train], ds.X_val,
                                                                           fam_of[ds.y_val], n_classes=len(FAMILIES))
     kde = KDELikelihood(cfg.kde).fit(ds.X_train, fam_of[ds.y_train], ds.X_val, fam_of[ds.y_val], n_classes=len(FAMILIES))
     # temperatures on new validation members (another seed than training and test)
-    vdc = DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=cfg.test_grasps, normalize_scale=True,
-                        val_fraction=0.0, normal_axis=cfg.normal_axis, seed=cfg.seed + FAMILY_VAL_SEED_OFFSET,
-                        **cfg.family_grasps)
+    vdc = _grasp_config(cfg, cfg.test_grasps, cfg.seed + FAMILY_VAL_SEED_OFFSET, val_fraction=0.0)
     vds, left_val = member_grasps(val_set, vdc, cfg, "validation")
     fam_val = np.array([fam_idx[val_set.families[nm]] for nm in val_set.names])
     T_kde, T_mlp = family_temperatures(kde, clf, vds.X_train.astype(np.float64), fam_val[vds.y_train],
@@ -142,9 +145,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     def scores(objs):
         if cfg.family_source == "hand":  # an object the hand never grasps with 4 fingers gets no rows
             pool = [X.astype(np.float64) for X in hand_vectors(
-                objs, DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=cfg.test_grasps, val_fraction=0.0,
-                                    normalize_scale=True, seed=cfg.seed + TEST_SEED_OFFSET, normal_axis=cfg.normal_axis,
-                                    **cfg.family_grasps), progress=False)]
+                objs, _grasp_config(cfg, cfg.test_grasps, cfg.seed + TEST_SEED_OFFSET, val_fraction=0.0), progress=False)]
         else:
             pool = fresh_pool(objs, 4, cfg.normals, cfg, normalize_scale=True, **cfg.family_grasps)
         LL = [kde.log_likelihood(X) / T_kde for X in pool]
@@ -202,7 +203,6 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
         for kind in ("ic", "bc-np"):
             out[kind] = family_trials(LL[k], PR[k], kind, trials=ntr, max_grasps=cfg.max_grasps,
                                       threshold=cfg.threshold, rng=rng, ic_certainty=cfg.ic_certainty)
-        for kind in out:
             all_votes[kind][k] = out[kind][0]
         ic_dec += out["ic"][1]
         ic_all += ntr
