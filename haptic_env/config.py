@@ -43,7 +43,7 @@ class HapticRecogConfig:
     objects: str = "default"
     """Object-set spec for :func:`haptic_env.objects.load_object_set` ("default", "families", "kit8", "ycb10", a folder)."""
     object_kwargs: Mapping[str, Any] = field(default_factory=dict)
-    """Extra keyword arguments of ``load_object_set`` (``data_dir``, ``units``)."""
+    """Extra keyword arguments of ``load_object_set`` (``data_dir``, ``units``, ``up``)."""
     backend: str = "geometric"
     """Grasp backend for :func:`haptic_env.grasping.make_backend`: "geometric" | "uniform" | "mujoco" | "replay" (the
     hand's recorded MuJoCo grasps of the nearest recorded approach: the same env, far faster, to train agents on)."""
@@ -229,7 +229,7 @@ class HapticRecogConfig:
             k = object_count(self.objects, **dict(self.object_kwargs))
         except TypeError as exc:
             raise ValueError(f"invalid object_kwargs {sorted(self.object_kwargs)}: load_object_set takes "
-                             "data_dir and units") from exc
+                             "data_dir, units and up") from exc
         if k is not None and k < 2:
             raise ValueError(f"object set {self.objects!r} has {k} object(s); recognising one needs at least 2")
 

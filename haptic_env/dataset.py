@@ -29,7 +29,7 @@ from .cache import CacheError, cache_dir, config_key, load_npz, save_npz_atomic
 from .grasp_features import check_normal_axis, feature_dim, normalize_scale, phi
 from .grasping.base import support_height
 from .hand_grasps import BUDGETS
-from .objects import SAMPLING_METHODS, GraspObject, ObjectSet, load_object_set
+from .objects import SAMPLING_METHODS, UP_AXES, GraspObject, ObjectSet, load_object_set
 
 __all__ = [
     "DatasetConfig",
@@ -526,6 +526,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--objects", default="default",
                    help="default | families[:N] | kit8 | kit20 | ycb10 | a folder of STL/OBJ/PLY (default: default)")
     p.add_argument("--units", default="m", help="units of a folder's mesh files: m, cm, mm or metres per unit")
+    p.add_argument("--up", default="z", choices=UP_AXES,
+                   help="a folder's mesh files' up axis, turned to z (named sets know theirs: KIT y)")
     from haptic_env.cli import float_in, int_in
 
     p.add_argument("--fingers", type=int_in(2, 20), default=4, help="contacts per grasp, 2..20 (default 4)")
@@ -568,7 +570,7 @@ def _run_cli(args: argparse.Namespace) -> int:
     if args.out is not None and args.out.is_dir():  # checked before the work, not when saving its result
         raise UsageError(f"--out {args.out} is a folder; give a file name such as {args.out / 'grasps.npz'}")
     try:
-        objects = load_object_set(args.objects, units=args.units)
+        objects = load_object_set(args.objects, units=args.units, up=args.up)
         config = _cli_config(args)
     except (ValueError, TypeError, FileNotFoundError) as exc:  # bad --objects / --units / value combinations
         raise UsageError(str(exc)) from exc

@@ -14,7 +14,10 @@ from haptic_env.objects import (
     data_dir,
     family_set,
     load_object_set,
+    up_rotation,
 )
+from haptic_env.experiments.config import AnalysisConfig
+from haptic_env.grasping.collision import convex_pieces
 from haptic_env.objects.loaders import KIT8, unit_scale
 
 
@@ -186,6 +189,43 @@ def test_folder_loader_errors(tmp_path):
             unit_scale(units)
 
 
+def test_up_axis_stands_a_folder_up(tmp_path):
+    """A y-up file (a bottle's axis along y) stands on the table with its axis along z; winding stays outward."""
+    R = up_rotation("y")
+    np.testing.assert_allclose(R @ [0, 1, 0], [0, 0, 1])
+    np.testing.assert_allclose(up_rotation("x") @ [1, 0, 0], [0, 0, 1])
+    assert np.isclose(np.linalg.det(R), 1.0) and np.isclose(np.linalg.det(up_rotation("x")), 1.0)
+    folder = tmp_path / "objs"
+    folder.mkdir()
+    trimesh.creation.cylinder(radius=0.02, height=0.15, transform=trimesh.transformations.rotation_matrix(
+        np.pi / 2, [1, 0, 0])).export(folder / "bottle.stl")  # its axis along y in the file
+    flat = load_object_set(str(folder))["bottle"]
+    up = load_object_set(str(folder), up="y")["bottle"]
+    np.testing.assert_allclose(flat.extents, [0.04, 0.15, 0.04], rtol=1e-3)
+    np.testing.assert_allclose(up.extents, [0.04, 0.04, 0.15], rtol=1e-3)
+    np.testing.assert_allclose(up.mesh.bounds.mean(0), 0.0, atol=1e-9)
+    assert up.mesh.volume > 0 and np.allclose(up.rotation, R)
+    for bad in ("w", "-y", None):
+        with pytest.raises(ValueError, match="up axis"):
+            load_object_set(str(folder), up=bad)
+        with pytest.raises(ValueError, match="up"):
+            AnalysisConfig(up=bad)
+
+
+def test_up_axis_turns_shipped_collision_pieces(tmp_path):
+    """A YCB-layout folder's collision pieces are turned like the mesh, so they still cover it."""
+    obj = tmp_path / "ycbish" / "000_block"
+    obj.mkdir(parents=True)
+    box = trimesh.creation.box([0.03, 0.12, 0.05])
+    box.apply_translation([0.01, 0.2, -0.03])  # off-centre in the file: the offset matters too
+    box.export(obj / "mesh.stl")
+    box.export(obj / "collision_00.stl")
+    o = load_object_set(str(tmp_path / "ycbish"), up="y")["000_block"]
+    (piece,) = convex_pieces(o)
+    np.testing.assert_allclose(piece.bounds, o.mesh.bounds, atol=1e-6)
+    np.testing.assert_allclose(o.extents, [0.03, 0.05, 0.12], rtol=1e-5)
+
+
 def test_data_dir_env(tmp_path, monkeypatch):
     monkeypatch.setenv("HAPTIC_DATA", str(tmp_path))
     assert data_dir() == tmp_path.resolve()
@@ -206,6 +246,8 @@ def test_kit8_loads_in_metres():
     for o in s:
         assert 0.03 <= o.extents.max() <= 0.3, (o.name, o.extents)
         assert len(o.mesh.faces) > 20_000
+    for tall in ("Shampoo", "ShowerGel", "Sprayflask", "Wineglass"):  # the files are y-up; loaded, they stand
+        assert np.argmax(s[tall].extents) == 2, (tall, s[tall].extents)
         assert o.source is not None and o.source.suffix == ".stl"
 
 

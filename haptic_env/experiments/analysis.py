@@ -34,7 +34,7 @@ def run_analysis(cfg: AnalysisConfig, out: str | Path, command: str | None = Non
             raise ValueError(f"unknown experiment {e}; choose from {sorted(EXPERIMENTS)}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    objects = load_object_set(cfg.objects, data_dir=cfg.data_dir, units=cfg.units)
+    objects = load_object_set(cfg.objects, data_dir=cfg.data_dir, units=cfg.units, up=cfg.up)
     rep = Report(out)
     rep.lines = [f"# Recognition analysis: `{cfg.objects}` ({len(objects)} objects: {', '.join(objects.names)})", ""]
     if command:

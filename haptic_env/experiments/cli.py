@@ -7,6 +7,7 @@ import argparse
 import shlex
 
 from haptic_env.grasp_features import NORMAL_AXES
+from haptic_env.objects.base import UP_AXES
 from haptic_env.experiments.config import FAMILY_SOURCES, AnalysisConfig
 from haptic_env.recognizers.calibration import CORRECTIONS, check_corrections
 from haptic_env.recognizers.kde import SELECTS
@@ -93,6 +94,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--objects", default=d.objects, help="default | families[:N] | kit8 | kit20 | ycb10 | folder")
     p.add_argument("--data-dir", default=None, help="shared data folder (default: $HAPTIC_DATA or ../shared/data)")
     p.add_argument("--units", default="m", help="units of a folder's meshes")
+    p.add_argument("--up", default=d.up, choices=UP_AXES,
+                   help="a folder's meshes' up axis, turned to z so that they stand on the table (named sets know "
+                        "theirs: KIT y)")
     p.add_argument("--out", required=True, help="output folder for results.md and PNG plots")
     p.add_argument("--experiments", default="1,2,3,4,5,6,7", help="comma list / ranges of 1..7 (default all)")
     p.add_argument("--grasps-per-object", type=int, default=d.grasps_per_object, help="training grasps per object (paper: 200000)")
@@ -183,7 +187,7 @@ def _run_cli(args) -> int:
     args.stop_scale = not args.raw if args.stop_scale is None else args.stop_scale  # spelled out in the command
     try:  # a bad setting gets the usage message, not a traceback
         cfg = AnalysisConfig(
-            objects=args.objects, data_dir=args.data_dir, units=args.units, experiments=_ints(args.experiments),
+            objects=args.objects, data_dir=args.data_dir, units=args.units, up=args.up, experiments=_ints(args.experiments),
             grasps_per_object=args.grasps_per_object, test_grasps=args.test_grasps, trials=args.trials,
             max_grasps=args.max_grasps, threshold=args.threshold, fingers=_ints(args.fingers),
             oneshot_fingers=_ints(args.oneshot_fingers),

@@ -10,6 +10,7 @@ import numpy as np
 
 from haptic_env.dataset import DatasetConfig
 from haptic_env.grasp_features import check_normal_axis
+from haptic_env.objects.base import UP_AXES
 from haptic_env.objects.primitives import FAMILY_SCALE_RANGE
 from haptic_env.recognizers.baselines import CLASSIFIERS
 from haptic_env.recognizers.kde import KDEConfig
@@ -45,6 +46,7 @@ class AnalysisConfig:
     objects: str = "default"
     data_dir: str | None = None
     units: str = "m"
+    up: str = "z"  #: a folder's files' up axis (named sets know theirs; KIT: y)
     experiments: tuple[int, ...] = (1, 2, 3, 4, 5, 6, 7)
     grasps_per_object: int = 10_000
     test_grasps: int = 400  #: fresh test grasps per object
@@ -110,6 +112,8 @@ class AnalysisConfig:
     progress: bool = True
 
     def __post_init__(self):
+        if self.up not in UP_AXES:
+            raise ValueError(f"up must be one of {UP_AXES}, got {self.up!r}")
         check_normal_axis(self.normal_axis)
         if not (isinstance(self.family_members, int) and self.family_members >= 1):
             raise ValueError(f"family_members must be an int >= 1, got {self.family_members!r}")

@@ -3,7 +3,7 @@
 Sources, in order for ``method="auto"``:
 
 1. the object's shipped pieces (``obj.collision_paths``, e.g. YCB ``collision_NN.stl``, in the
-   file frame; shifted by ``obj.offset`` to the centred mesh frame);
+   file frame; turned by ``obj.rotation`` and shifted by ``obj.offset`` to the centred mesh frame);
 2. the convex hull, when the mesh is (nearly) convex (hull volume within ``convex_tol`` of the mesh);
 3. a ``coacd`` approximate convex decomposition, cached in ``cache_dir("collision")`` keyed by
    the mesh geometry and the config (atomic ``.npz`` writes).
@@ -57,12 +57,15 @@ def _mesh_hash(mesh: trimesh.Trimesh) -> str:
 
 def _from_files(obj: Any) -> list[trimesh.Trimesh]:
     offset = np.asarray(getattr(obj, "offset", np.zeros(3)), dtype=np.float64)
+    T = np.eye(4)
+    T[:3, :3] = np.asarray(getattr(obj, "rotation", np.eye(3)), dtype=np.float64)
     pieces = []
     for p in obj.collision_paths:
         p = Path(p)
         if not p.is_file():
             raise FileNotFoundError(f"collision piece {p} of object {obj.name!r} is missing")
         m = trimesh.load(p, force="mesh")
+        m.apply_transform(T)
         m.apply_translation(offset)
         pieces.append(m)
     return pieces

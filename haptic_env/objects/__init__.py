@@ -1,6 +1,6 @@
 """Graspable objects: the embedded default set, the paper's geometry families and mesh folders."""
 
-from .base import SAMPLING_METHODS, GraspObject, ObjectSet, prepare_mesh
+from .base import SAMPLING_METHODS, UP_AXES, GraspObject, ObjectSet, prepare_mesh, up_rotation
 from .loaders import KIT8, MeshLoadError, data_dir, load_folder, load_object_set
 from .primitives import DEFAULT_SHAPES, FAMILIES, default_set, family_set, make_shape
 
@@ -9,6 +9,8 @@ __all__ = [
     "ObjectSet",
     "SAMPLING_METHODS",
     "prepare_mesh",
+    "UP_AXES",
+    "up_rotation",
     "load_object_set",
     "load_folder",
     "data_dir",

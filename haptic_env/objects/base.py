@@ -16,17 +16,36 @@ from typing import Iterator, Mapping
 import numpy as np
 import trimesh
 
-__all__ = ["GraspObject", "ObjectSet", "SAMPLING_METHODS", "prepare_mesh"]
+__all__ = ["GraspObject", "ObjectSet", "SAMPLING_METHODS", "UP_AXES", "prepare_mesh", "up_rotation"]
 
 #: Surface sampling methods of :meth:`GraspObject.sample_surface`.
 SAMPLING_METHODS = ("area", "centroid")
 
+#: A mesh file's up axis (:func:`up_rotation`): the axis that points up when the object stands on a table.
+UP_AXES = ("x", "y", "z")
 
-def prepare_mesh(mesh: trimesh.Trimesh, name: str, scale: float = 1.0) -> tuple[trimesh.Trimesh, np.ndarray]:
-    """Validate, scale, orient outward and centre a mesh (a new mesh; the input is untouched).
+
+def up_rotation(up: str) -> np.ndarray:
+    """``(3, 3)`` proper rotation that turns a file's ``up`` axis into +z (the world's up), the identity for "z".
+
+    "y" (e.g. the KIT meshes): a quarter turn about x, ``(x, y, z) -> (x, -z, y)``; "x": a quarter turn about y,
+    ``(x, y, z) -> (-z, y, x)``. Proper rotations keep the winding and so the outward normals.
+    """
+    if up == "z":
+        return np.eye(3)
+    if up == "y":
+        return np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+    if up == "x":
+        return np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
+    raise ValueError(f"up axis must be one of {UP_AXES}, got {up!r}")
+
+
+def prepare_mesh(mesh: trimesh.Trimesh, name: str, scale: float = 1.0, up: str = "z") -> tuple[trimesh.Trimesh, np.ndarray]:
+    """Validate, scale, stand up (:func:`up_rotation`), orient outward and centre a mesh (a new mesh; the input is
+    untouched).
 
     Returns:
-        the prepared mesh and the ``(3,)`` translation applied after scaling (to centre it).
+        the prepared mesh and the ``(3,)`` translation applied after scaling and turning (to centre it).
 
     Raises:
         ValueError: naming ``name`` if the mesh has no faces or non-finite vertices.
@@ -37,9 +56,14 @@ def prepare_mesh(mesh: trimesh.Trimesh, name: str, scale: float = 1.0) -> tuple[
         raise ValueError(f"object {name!r}: mesh has no faces")
     if not np.isfinite(mesh.vertices).all():
         raise ValueError(f"object {name!r}: mesh has non-finite vertices")
+    R = up_rotation(up)  # first: a bad axis is named before any work
     m = mesh.copy()
     if scale != 1.0:
         m.apply_scale(scale)
+    if up != "z":
+        T = np.eye(4)
+        T[:3, :3] = R
+        m.apply_transform(T)
     m.remove_unreferenced_vertices()
     # Outward winding: a (nearly) closed mesh with consistent winding has positive signed volume.
     with np.errstate(divide="ignore", invalid="ignore"):  # a flat mesh has volume 0 (its centre of mass: 0 / 0)
@@ -62,8 +86,10 @@ class GraspObject:
         source: file the mesh was read from (``None`` for generated meshes).
         collision_paths: convex pieces of a decomposition (YCB ``collision_NN.stl``, metres, in
             the file's frame: NOT re-centred) for physics backends; empty when none is shipped.
-        offset: ``(3,)`` translation that was applied to the file's coordinates to centre the mesh
-            (add it to ``collision_paths`` geometry to match :attr:`mesh`).
+        offset: ``(3,)`` translation that was applied to the file's coordinates (scaled and turned by
+            :attr:`rotation`) to centre the mesh.
+        rotation: ``(3, 3)`` rotation that stood the file's coordinates up (:func:`up_rotation`; the identity for
+            a z-up file). ``collision_paths`` geometry matches :attr:`mesh` as ``p @ rotation.T + offset``.
     """
 
     name: str
@@ -72,6 +98,7 @@ class GraspObject:
     source: Path | None = None
     collision_paths: tuple[Path, ...] = ()
     offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:

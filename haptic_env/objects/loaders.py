@@ -7,15 +7,16 @@ Specs understood by :func:`load_object_set`:
 ``"families"`` / ``"families:N"``
     The paper's boxes / elliptic cylinders / ellipsoids, ``N`` (default 10) per family, seed 0.
 ``"kit8"``, ``"kit20"``
-    KIT meshes from ``<data>/kit/*.stl`` (millimetres, converted to metres). ``kit20`` is every file
+    KIT meshes from ``<data>/kit/*.stl`` (millimetres, converted to metres; y up in the files, stood up so
+    that z is up: a bottle stands on the table instead of lying on its side). ``kit20`` is every file
     of the folder; its ``cube.stl`` is unit size in the file and is taken, like the others, as
     millimetres (a 1 mm cube): the file is used as shipped.
 ``"ycb10"``
     ``<data>/ycb/NNN_name/mesh.stl`` (metres), with the ``collision_NN.stl`` convex pieces listed in
     :attr:`GraspObject.collision_paths`.
 any folder
-    Every ``*.stl`` / ``*.obj`` / ``*.ply`` in it (names = file stems), scaled by ``units``; or, if it
-    has none, every sub-folder holding a ``mesh.stl`` (YCB layout).
+    Every ``*.stl`` / ``*.obj`` / ``*.ply`` in it (names = file stems), scaled by ``units`` and stood up by
+    ``up`` (the files' up axis); or, if it has none, every sub-folder holding a ``mesh.stl`` (YCB layout).
 """
 
 from __future__ import annotations
@@ -27,12 +28,14 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from .base import GraspObject, ObjectSet, prepare_mesh
+from .base import GraspObject, ObjectSet, prepare_mesh, up_rotation
 from .primitives import default_set, family_set
 
 __all__ = ["data_dir", "load_object_set", "load_folder", "MeshLoadError", "KIT8", "MESH_SUFFIXES", "unit_scale",
            "object_count"]
 
+#: The KIT meshes' up axis (a bottle's axis, a cup's opening): y, as their extents show.
+KIT_UP = "y"
 #: The 8 KIT objects of the paper's main experiments.
 KIT8 = ("CatLying", "GreenCup", "HeringTin", "Shampoo", "ShowerGel", "Sprayflask", "ToyCarYelloq", "Wineglass")
 MESH_SUFFIXES = (".stl", ".obj", ".ply")
@@ -127,12 +130,13 @@ def _read_mesh(path: Path) -> trimesh.Trimesh:
 
 
 def load_mesh_object(path: str | Path, *, units: str | float = "m", name: str | None = None,
-                     collision_paths: tuple[Path, ...] = ()) -> GraspObject:
-    """One :class:`GraspObject` from a mesh file (scaled to metres and centred)."""
+                     collision_paths: tuple[Path, ...] = (), up: str = "z") -> GraspObject:
+    """One :class:`GraspObject` from a mesh file (scaled to metres, its ``up`` axis turned to z, centred)."""
     path = Path(path)
     name = name or path.stem
+    R = up_rotation(up)  # a bad axis is named before the file is read
     try:
-        mesh, offset = prepare_mesh(_read_mesh(path), name, unit_scale(units))
+        mesh, offset = prepare_mesh(_read_mesh(path), name, unit_scale(units), up)
     except MeshLoadError:
         raise
     except ValueError as exc:
@@ -146,11 +150,12 @@ def load_mesh_object(path: str | Path, *, units: str | float = "m", name: str | 
         warnings.warn(f"mesh file {path}: object {name!r} is {size:.3g} m across with units={units!r}; are the file's "
                       "coordinates in millimetres? (load it with units='mm', e.g. object_kwargs={'units': 'mm'})",
                       UserWarning, stacklevel=2)
-    return GraspObject(name, mesh, source=path, collision_paths=tuple(collision_paths), offset=offset)
+    return GraspObject(name, mesh, source=path, collision_paths=tuple(collision_paths), offset=offset, rotation=R)
 
 
-def load_folder(folder: str | Path, *, units: str | float = "m", name: str | None = None) -> ObjectSet:
-    """Every STL/OBJ/PLY file of ``folder`` (sorted by name), or its ``*/mesh.stl`` sub-folders.
+def load_folder(folder: str | Path, *, units: str | float = "m", name: str | None = None, up: str = "z") -> ObjectSet:
+    """Every STL/OBJ/PLY file of ``folder`` (sorted by name), or its ``*/mesh.stl`` sub-folders, each with its
+    ``up`` axis (one of :data:`~haptic_env.objects.base.UP_AXES`) turned to z.
 
     Raises:
         FileNotFoundError: the folder does not exist.
@@ -161,16 +166,17 @@ def load_folder(folder: str | Path, *, units: str | float = "m", name: str | Non
     if not folder.is_dir():
         raise FileNotFoundError(f"object folder {folder} does not exist")
     scale = unit_scale(units)
+    up_rotation(up)
     files = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in MESH_SUFFIXES)
     set_name = name or folder.name
     if files:
-        return ObjectSet(set_name, [load_mesh_object(p, units=scale) for p in files])
+        return ObjectSet(set_name, [load_mesh_object(p, units=scale, up=up) for p in files])
     subs = sorted(p for p in folder.iterdir() if (p / "mesh.stl").is_file())
     if subs:
         return ObjectSet(
             set_name,
             [
-                load_mesh_object(p / "mesh.stl", units=scale, name=p.name,
+                load_mesh_object(p / "mesh.stl", units=scale, name=p.name, up=up,
                                  collision_paths=tuple(sorted(p.glob("collision_*.stl"))))
                 for p in subs
             ],
@@ -184,15 +190,15 @@ def _kit(root: Path, names: tuple[str, ...] | None, set_name: str) -> ObjectSet:
     if not kit.is_dir():
         raise FileNotFoundError(f"KIT meshes missing: {kit} does not exist; {_DATA_HELP}")
     if names is None:
-        return load_folder(kit, units="mm", name=set_name)
+        return load_folder(kit, units="mm", name=set_name, up=KIT_UP)
     missing = [n for n in names if not (kit / f"{n}.stl").is_file()]
     if missing:
         raise FileNotFoundError(f"KIT meshes missing from {kit}: {[m + '.stl' for m in missing]}; {_DATA_HELP}")
-    return ObjectSet(set_name, [load_mesh_object(kit / f"{n}.stl", units="mm") for n in names])
+    return ObjectSet(set_name, [load_mesh_object(kit / f"{n}.stl", units="mm", up=KIT_UP) for n in names])
 
 
 def object_count(spec: str | Path = "default", *, data_dir: str | Path | None = None,
-                 units: str | float = "m") -> int | None:
+                 units: str | float = "m", up: str = "z") -> int | None:
     """How many objects :func:`load_object_set` would return for ``spec``, without reading any mesh (a folder
     listing at most); None when that is not known cheaply (named data sets, missing folders: loading them
     raises its own error). Takes the same arguments as ``load_object_set``."""
@@ -220,7 +226,7 @@ def object_count(spec: str | Path = "default", *, data_dir: str | Path | None = 
 
 
 def load_object_set(spec: str | Path = "default", *, data_dir: str | Path | None = None,
-                    units: str | float = "m") -> ObjectSet:
+                    units: str | float = "m", up: str = "z") -> ObjectSet:
     """An :class:`ObjectSet` by name (``default``, ``families[:N]``, ``kit8``, ``kit20``, ``ycb10``) or folder.
 
     Args:
@@ -228,7 +234,10 @@ def load_object_set(spec: str | Path = "default", *, data_dir: str | Path | None
         data_dir: shared data folder for the named file sets (default: :func:`data_dir`).
         units: units of a folder's files (``"m"``, ``"cm"``, ``"mm"`` or metres per unit); named
             sets use their known units and ignore it.
+        up: a folder's files' up axis (``"x"``, ``"y"`` or ``"z"``), turned to z so that the objects stand on a
+            table as they should; named sets use their known axis (KIT: y) and ignore it.
     """
+    up_rotation(up)  # a bad axis is named first, whatever the spec
     s = str(spec)
     if s == "default":
         return default_set()
@@ -254,6 +263,6 @@ def load_object_set(spec: str | Path = "default", *, data_dir: str | Path | None
         return load_folder(ycb, units="m", name="ycb10")
     p = Path(s).expanduser()
     if p.is_dir():
-        return load_folder(p, units=units)
+        return load_folder(p, units=units, up=up)
     raise ValueError(f"unknown object set {s!r}: expected 'default', 'families[:N]', 'kit8', 'kit20', "
                      "'ycb10' or an existing folder of STL/OBJ/PLY files")
