@@ -276,3 +276,10 @@ def test_grasp_object_validation():
         GraspObject("", trimesh.creation.box())
     with pytest.raises(ValueError, match="faces"):
         GraspObject("x", trimesh.Trimesh())
+
+
+def test_bad_up_axis_is_named_at_config_time():
+    from haptic_env.config import HapticRecogConfig
+
+    with pytest.raises(ValueError, match="up axis"):
+        HapticRecogConfig(object_kwargs={"up": "q"})

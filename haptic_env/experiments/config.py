@@ -10,7 +10,7 @@ import numpy as np
 
 from haptic_env.dataset import DatasetConfig
 from haptic_env.grasp_features import check_normal_axis
-from haptic_env.objects.base import UP_AXES
+from haptic_env.objects.base import up_rotation
 from haptic_env.objects.primitives import FAMILY_SCALE_RANGE
 from haptic_env.recognizers.baselines import CLASSIFIERS
 from haptic_env.recognizers.kde import KDEConfig
@@ -112,8 +112,7 @@ class AnalysisConfig:
     progress: bool = True
 
     def __post_init__(self):
-        if self.up not in UP_AXES:
-            raise ValueError(f"up must be one of {UP_AXES}, got {self.up!r}")
+        up_rotation(self.up)  # names a bad axis
         check_normal_axis(self.normal_axis)
         if not (isinstance(self.family_members, int) and self.family_members >= 1):
             raise ValueError(f"family_members must be an int >= 1, got {self.family_members!r}")

@@ -201,7 +201,8 @@ def object_count(spec: str | Path = "default", *, data_dir: str | Path | None = 
                  units: str | float = "m", up: str = "z") -> int | None:
     """How many objects :func:`load_object_set` would return for ``spec``, without reading any mesh (a folder
     listing at most); None when that is not known cheaply (named data sets, missing folders: loading them
-    raises its own error). Takes the same arguments as ``load_object_set``."""
+    raises its own error). Takes the same arguments as ``load_object_set``, and rejects a bad ``up`` as it does."""
+    up_rotation(up)
     s = str(spec)
     if s == "default":
         from .primitives import DEFAULT_SHAPES
