@@ -1,0 +1,123 @@
+"""Approaches that the hand's own training grasps say touch well: a pose-blind scripted policy (issue 5, PPO's
+reference points).
+
+The recogniser of a hand env is trained on the hand's MuJoCo grasps of the meshes under uniformly random approaches
+(``recognizer_source="hand"``: the object at the identity pose). Those grasps also tell, from the meshes alone, how
+often each approach touches with enough fingertips. The env turns the object by a random yaw, so a policy that
+cannot see the pose gains nothing from the approach's azimuth, but it can prefer the elevation, roll and spread
+that touch well on average over the objects. Policies (same env seeds, objects and poses for all,
+``run_episodes``):
+
+* ``random``: every action uniform in the action box (the baseline);
+* ``best-complete`` / ``best-usable``: the (elevation, roll, spread) cell of a ``B x B x B`` grid with the highest
+  rate of complete grasps (every fingertip touching) / of usable ones (>= 3 fingertips) in the training pool,
+  uniform within the cell, the azimuth uniform;
+* ``weighted``: cells drawn with probability proportional to their complete-grasp rate squared (a softer choice
+  that keeps some variety), uniform within the cell, the azimuth uniform.
+
+    OMP_NUM_THREADS=1 python benchmarks/usable_approaches.py --env-id HapticRecogMuJoCo-v0 \\
+        --seeds 500 501 502 503 504 --episodes 40 --out results/hands/usable_approaches_val.md
+
+Prints a markdown table (success at the stop = decided and correct, mean grasps, fewer grasps than random); the
+headline, the best scripted policy against random, last. The training pool is the env's own (cached; built on
+the first make).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+from agents.evaluate import run_episodes
+from agents.random_policy import RandomAgent
+from haptic_env.config import recognizer_kwargs
+from haptic_env.dataset import hand_pool
+from haptic_env.hand_grasps import pool_actions
+
+importlib.import_module("haptic_env")  # registers the envs
+
+
+def cell_rates(env_id: str, bins: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """``(complete (B, B, B), usable (B, B, B), grasps)``: the training pool's rate of complete and of usable grasps
+    per (elevation, roll, spread) cell, pooled over the objects and azimuths."""
+    env = gym.make(env_id)
+    try:
+        dc = recognizer_kwargs(env.unwrapped.config)["config"].grasps
+        if dc.source != "hand":
+            raise ValueError(f"{env_id} trains on {dc.source!r} grasps; this benchmark needs a hand env")
+        objects = env.unwrapped.scene.objects
+    finally:
+        env.close()
+    pool = hand_pool(objects, dc, progress=False)
+    A = np.concatenate([pool_actions(dc.seed, k, c) for k, c in enumerate(pool.approaches)])
+    T = np.concatenate([pool.touched[k, :c] for k, c in enumerate(pool.approaches)])
+    idx = np.clip(((A[:, 1:] + 1) / 2 * bins).astype(int), 0, bins - 1)
+    flat = np.ravel_multi_index(idx.T, (bins,) * 3)
+    n = np.bincount(flat, minlength=bins ** 3).astype(float)
+    comp = np.bincount(flat, weights=T.all(1), minlength=bins ** 3) / np.maximum(n, 1)
+    use = np.bincount(flat, weights=T.sum(1) >= 3, minlength=bins ** 3) / np.maximum(n, 1)
+    return comp.reshape((bins,) * 3), use.reshape((bins,) * 3), len(A)
+
+
+class CellAgent(RandomAgent):
+    """Azimuth uniform; (elevation, roll, spread) uniform within a cell drawn with probabilities ``p`` (flat)."""
+
+    def __init__(self, name: str, p: np.ndarray, bins: int, seed: int | None = None):
+        super().__init__(seed)
+        self.name, self.p, self.bins = name, np.asarray(p, dtype=np.float64) / np.sum(p), int(bins)
+
+    def act(self, obs: np.ndarray, env) -> np.ndarray:
+        a = super().act(obs, env)  # the azimuth (and a fresh draw of the rest, replaced below)
+        cell = np.unravel_index(self._rng.choice(len(self.p), p=self.p), (self.bins,) * 3)
+        a[1:] = -1 + 2 * (np.array(cell) + self._rng.uniform(size=3)) / self.bins
+        return a.astype(env.action_space.dtype)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--env-id", default="HapticRecogMuJoCo-v0")
+    p.add_argument("--seeds", type=int, nargs="+", default=[500, 501, 502, 503, 504],
+                   help="env seeds (500-504: the hand envs' validation seeds)")
+    p.add_argument("--episodes", type=int, default=40, help="episodes per seed")
+    p.add_argument("--bins", type=int, default=6, help="grid cells per approach parameter")
+    p.add_argument("--out", type=Path, default=None, help="also write the table to this markdown file")
+    a = p.parse_args(argv)
+    if a.episodes < 1 or a.bins < 1:
+        p.error(f"--episodes and --bins must be >= 1, got {a.episodes} and {a.bins}")
+    comp, use, n = cell_rates(a.env_id, a.bins)
+    one = lambda r: np.eye(r.size)[np.argmax(r)]  # noqa: E731
+    agents = [RandomAgent(), CellAgent("best-complete", one(comp), a.bins), CellAgent("best-usable", one(use), a.bins),
+              CellAgent("weighted", comp.ravel() ** 2, a.bins)]
+    agents[0].name = "random"
+    rows, base = [], None
+    for agent in agents:
+        recs = [r for s in a.seeds for r in run_episodes(agent, lambda: gym.make(a.env_id), a.episodes, s)]
+        grasps = np.array([r.grasps for r in recs], dtype=np.float64)
+        ok = np.array([r.decided and r.correct for r in recs])
+        base = grasps.mean() if base is None else base
+        rows.append((agent.name, 100 * ok.mean(), grasps.mean(), grasps.std(ddof=1) / np.sqrt(len(grasps)),
+                     100 * (1 - grasps.mean() / base)))
+        print(f"{agent.name}: {rows[-1][1]:.1f} % in {rows[-1][2]:.2f} grasps", file=sys.stderr, flush=True)
+    lines = [f"`{a.env_id}`, env seeds {' '.join(map(str, a.seeds))}, {a.episodes} episodes each "
+             f"({len(a.seeds) * a.episodes} per policy); training pool {n} grasps, {a.bins}^3 cells; pooled rates: "
+             f"complete {comp.mean():.2f} (best cell {comp.max():.2f}), usable {use.mean():.2f} (best {use.max():.2f})",
+             "", "| policy | success at the stop | mean grasps (+- s.e.) | fewer grasps than random |", "|---|---|---|---|"]
+    lines += [f"| {nm} | {s:.1f} % | {g:.2f} +- {se:.2f} | {f:.1f} % |" for nm, s, g, se, f in rows]
+    text = "\n".join(lines)
+    print(text)
+    if a.out is not None:
+        a.out.parent.mkdir(parents=True, exist_ok=True)
+        a.out.write_text(f"python benchmarks/usable_approaches.py {' '.join(argv or sys.argv[1:])}\n\n{text}\n")
+    best = max(rows[1:], key=lambda r: r[4])
+    print(f"best scripted policy: {best[0]}, {best[4]:.1f} % fewer grasps than random ({best[1]:.1f} % success "
+          f"against {rows[0][1]:.1f} %)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
