@@ -10,13 +10,13 @@ training:
   other approach parameters (elevation, roll, spread) drawn anew;
 * ``turnT-keep``: the same turn, the other parameters kept from the previous grasp (the same approach, turned).
 
-Same env seeds, objects and poses for every policy (``haptic-recog evaluate``'s episodes, ``run_episodes``).
+Same env seeds, objects and poses for every policy (``haptic-recog evaluate``'s episodes, ``evaluate_agents``).
 
     OMP_NUM_THREADS=1 python benchmarks/relative_approaches.py --env-id HapticRecogMuJoCo-v0 \\
         --seeds 500 501 502 503 504 --episodes 40 --out results/hands/relative_approaches_val.md
 
-Prints a markdown table (success at the stop = decided and correct, mean grasps, fewer grasps than random); the
-headline, the best turned policy against random, is printed last.
+Prints ``haptic-recog evaluate``'s markdown table (success at the stop, decided, grasps, fewer grasps than random,
+with bootstrap CIs); the headline, the best turned policy against random, is printed last.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from agents.evaluate import run_episodes
+from agents.evaluate import evaluate_agents, markdown_table, summarize
 from agents.random_policy import RandomAgent
 
 importlib.import_module("haptic_env")  # registers the envs
@@ -72,30 +72,24 @@ def main(argv=None) -> int:
     if a.episodes < 1:
         p.error(f"--episodes must be >= 1, got {a.episodes}")
     agents = [RandomAgent()] + [TurnedAgent(t, k) for t in a.turns for k in (False, True)]
-    agents[0].name = "random"
-    rows, base = [], None
-    for agent in agents:
-        recs = [r for s in a.seeds for r in run_episodes(agent, lambda: gym.make(a.env_id), a.episodes, s)]
-        grasps = np.array([r.grasps for r in recs], dtype=np.float64)
-        ok = np.array([r.decided and r.correct for r in recs])
-        base = grasps.mean() if base is None else base
-        rows.append((agent.name, 100 * ok.mean(), grasps.mean(), grasps.std(ddof=1) / np.sqrt(len(grasps)),
-                     100 * (1 - grasps.mean() / base)))
-        print(f"{agent.name}: {rows[-1][1]:.1f} % in {rows[-1][2]:.2f} grasps", file=sys.stderr, flush=True)
-    lines = [f"`{a.env_id}`, env seeds {' '.join(map(str, a.seeds))}, {a.episodes} episodes each "
-             f"({len(a.seeds) * a.episodes} per policy)", "",
-             "| policy | success at the stop | mean grasps (+- s.e.) | fewer grasps than random |", "|---|---|---|---|"]
-    lines += [f"| {n} | {s:.1f} % | {g:.2f} +- {se:.2f} | {f:.1f} % |" for n, s, g, se, f in rows]
-    text = "\n".join(lines)
+    rows = compare(agents, a.env_id, a.seeds, a.episodes)
+    text = f"`{a.env_id}`, env seeds {' '.join(map(str, a.seeds))}, {a.episodes} episodes each\n\n{markdown_table(rows)}"
     print(text)
     if a.out is not None:
         a.out.parent.mkdir(parents=True, exist_ok=True)
         a.out.write_text(f"python benchmarks/relative_approaches.py {' '.join(argv or sys.argv[1:])}\n\n{text}\n")
-    best = max(rows[1:], key=lambda r: r[4])
-    print(f"best turned policy: {best[0]}, {best[4]:.1f} % fewer grasps than random ({best[1]:.1f} % success against "
-          f"{rows[0][1]:.1f} %)")
+    best = max(rows[1:], key=lambda r: r["fewer_than_random"])
+    print(f"best turned policy: {best['agent']}, {100 * best['fewer_than_random']:.1f} % fewer grasps than random "
+          f"({100 * best['success']:.1f} % right at the stop against {100 * rows[0]['success']:.1f} %)")
     return 0
 
+
+def compare(agents, env_id: str, seeds, episodes: int) -> list[dict]:
+    """``agents[0]`` must be the random baseline: every agent on the same env seeds (the same objects and poses), one
+    summary row each (``agents.evaluate.summarize``: success at the stop, grasps, fewer grasps than random, with
+    bootstrap CIs). Shared by the scripted-policy benchmarks (``usable_approaches.py``)."""
+    agents[0].name = "random"
+    return summarize(evaluate_agents(agents, lambda: gym.make(env_id), episodes, seeds, progress=False))
 
 if __name__ == "__main__":
     sys.exit(main())

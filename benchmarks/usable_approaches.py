@@ -6,7 +6,7 @@ The recogniser of a hand env is trained on the hand's MuJoCo grasps of the meshe
 often each approach touches with enough fingertips. The env turns the object by a random yaw, so a policy that
 cannot see the pose gains nothing from the approach's azimuth, but it can prefer the elevation, roll and spread
 that touch well on average over the objects. Policies (same env seeds, objects and poses for all,
-``run_episodes``):
+``relative_approaches.compare``):
 
 * ``random``: every action uniform in the action box (the baseline);
 * ``best-complete`` / ``best-usable``: the (elevation, roll, spread) cell of a ``B x B x B`` grid with the highest
@@ -18,8 +18,8 @@ that touch well on average over the objects. Policies (same env seeds, objects a
     OMP_NUM_THREADS=1 python benchmarks/usable_approaches.py --env-id HapticRecogMuJoCo-v0 \\
         --seeds 500 501 502 503 504 --episodes 40 --out results/hands/usable_approaches_val.md
 
-Prints a markdown table (success at the stop = decided and correct, mean grasps, fewer grasps than random); the
-headline, the best scripted policy against random, last. The training pool is the env's own (cached; built on
+Prints ``haptic-recog evaluate``'s markdown table (success at the stop, decided, grasps, fewer grasps than random,
+with bootstrap CIs); the headline, the best scripted policy against random, last. The training pool is the env's own (cached; built on
 the first make).
 """
 
@@ -33,13 +33,15 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from agents.evaluate import run_episodes
+from agents.evaluate import markdown_table
 from agents.random_policy import RandomAgent
 from haptic_env.config import recognizer_kwargs
 from haptic_env.dataset import hand_pool
 from haptic_env.hand_grasps import pool_actions
 
 importlib.import_module("haptic_env")  # registers the envs
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the sibling benchmark, also when imported by the tests
+from relative_approaches import compare  # noqa: E402
 
 
 def cell_rates(env_id: str, bins: int) -> tuple[np.ndarray, np.ndarray, int]:
@@ -93,31 +95,18 @@ def main(argv=None) -> int:
     one = lambda r: np.eye(r.size)[np.argmax(r)]  # noqa: E731
     agents = [RandomAgent(), CellAgent("best-complete", one(comp), a.bins), CellAgent("best-usable", one(use), a.bins),
               CellAgent("weighted", comp.ravel() ** 2, a.bins)]
-    agents[0].name = "random"
-    rows, base = [], None
-    for agent in agents:
-        recs = [r for s in a.seeds for r in run_episodes(agent, lambda: gym.make(a.env_id), a.episodes, s)]
-        grasps = np.array([r.grasps for r in recs], dtype=np.float64)
-        ok = np.array([r.decided and r.correct for r in recs])
-        base = grasps.mean() if base is None else base
-        rows.append((agent.name, 100 * ok.mean(), grasps.mean(), grasps.std(ddof=1) / np.sqrt(len(grasps)),
-                     100 * (1 - grasps.mean() / base)))
-        print(f"{agent.name}: {rows[-1][1]:.1f} % in {rows[-1][2]:.2f} grasps", file=sys.stderr, flush=True)
-    lines = [f"`{a.env_id}`, env seeds {' '.join(map(str, a.seeds))}, {a.episodes} episodes each "
-             f"({len(a.seeds) * a.episodes} per policy); training pool {n} grasps, {a.bins}^3 cells; pooled rates: "
-             f"complete {comp.mean():.2f} (best cell {comp.max():.2f}), usable {use.mean():.2f} (best {use.max():.2f})",
-             "", "| policy | success at the stop | mean grasps (+- s.e.) | fewer grasps than random |", "|---|---|---|---|"]
-    lines += [f"| {nm} | {s:.1f} % | {g:.2f} +- {se:.2f} | {f:.1f} % |" for nm, s, g, se, f in rows]
-    text = "\n".join(lines)
+    rows = compare(agents, a.env_id, a.seeds, a.episodes)
+    text = (f"`{a.env_id}`, env seeds {' '.join(map(str, a.seeds))}, {a.episodes} episodes each; training pool {n} "
+            f"grasps, {a.bins}^3 cells; pooled rates: complete {comp.mean():.2f} (best cell {comp.max():.2f}), usable "
+            f"{use.mean():.2f} (best {use.max():.2f})\n\n{markdown_table(rows)}")
     print(text)
     if a.out is not None:
         a.out.parent.mkdir(parents=True, exist_ok=True)
         a.out.write_text(f"python benchmarks/usable_approaches.py {' '.join(argv or sys.argv[1:])}\n\n{text}\n")
-    best = max(rows[1:], key=lambda r: r[4])
-    print(f"best scripted policy: {best[0]}, {best[4]:.1f} % fewer grasps than random ({best[1]:.1f} % success "
-          f"against {rows[0][1]:.1f} %)")
+    best = max(rows[1:], key=lambda r: r["fewer_than_random"])
+    print(f"best scripted policy: {best['agent']}, {100 * best['fewer_than_random']:.1f} % fewer grasps than random "
+          f"({100 * best['success']:.1f} % right at the stop against {100 * rows[0]['success']:.1f} %)")
     return 0
-
 
 if __name__ == "__main__":
     sys.exit(main())
