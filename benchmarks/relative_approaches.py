@@ -61,35 +61,46 @@ class TurnedAgent(RandomAgent):
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--env-id", default="HapticRecogMuJoCo-v0")
-    p.add_argument("--seeds", type=int, nargs="+", default=[500, 501, 502, 503, 504],
-                   help="env seeds (500-504: the hand envs' validation seeds)")
-    p.add_argument("--episodes", type=int, default=40, help="episodes per seed")
+    p = compare_parser(__doc__.splitlines()[0])
     p.add_argument("--turns", type=float, nargs="+", default=[0.5, 1.0], help="turns in units of pi")
-    p.add_argument("--out", type=Path, default=None, help="also write the table to this markdown file")
     a = p.parse_args(argv)
     if a.episodes < 1:
         p.error(f"--episodes must be >= 1, got {a.episodes}")
     agents = [RandomAgent()] + [TurnedAgent(t, k) for t in a.turns for k in (False, True)]
-    rows = compare(agents, a.env_id, a.seeds, a.episodes)
-    text = f"`{a.env_id}`, env seeds {' '.join(map(str, a.seeds))}, {a.episodes} episodes each\n\n{markdown_table(rows)}"
-    print(text)
-    if a.out is not None:
-        a.out.parent.mkdir(parents=True, exist_ok=True)
-        a.out.write_text(f"python benchmarks/relative_approaches.py {' '.join(argv or sys.argv[1:])}\n\n{text}\n")
-    best = max(rows[1:], key=lambda r: r["fewer_than_random"])
-    print(f"best turned policy: {best['agent']}, {100 * best['fewer_than_random']:.1f} % fewer grasps than random "
-          f"({100 * best['success']:.1f} % right at the stop against {100 * rows[0]['success']:.1f} %)")
+    compare(agents, a, "", "turned policy", argv)
     return 0
 
 
-def compare(agents, env_id: str, seeds, episodes: int) -> list[dict]:
-    """``agents[0]`` must be the random baseline: every agent on the same env seeds (the same objects and poses), one
-    summary row each (``agents.evaluate.summarize``: success at the stop, grasps, fewer grasps than random, with
-    bootstrap CIs). Shared by the scripted-policy benchmarks (``usable_approaches.py``)."""
+def compare_parser(description: str) -> argparse.ArgumentParser:
+    """The arguments that :func:`compare` reads: ``--env-id``, ``--seeds``, ``--episodes``, ``--out``."""
+    p = argparse.ArgumentParser(description=description)
+    p.add_argument("--env-id", default="HapticRecogMuJoCo-v0")
+    p.add_argument("--seeds", type=int, nargs="+", default=[500, 501, 502, 503, 504],
+                   help="env seeds (500-504: the hand envs' validation seeds)")
+    p.add_argument("--episodes", type=int, default=40, help="episodes per seed")
+    p.add_argument("--out", type=Path, default=None, help="also write the table to this markdown file")
+    return p
+
+
+def compare(agents, a: argparse.Namespace, note: str, what: str, argv=None) -> list[dict]:
+    """Every agent on the same env seeds (``a.env_id``, ``a.seeds``, ``a.episodes``: the same objects and poses),
+    ``agents[0]`` the random baseline; prints ``haptic-recog evaluate``'s table (``agents.evaluate.summarize``:
+    success at the stop, grasps, fewer grasps than random, with bootstrap CIs) after a line naming the env and
+    ``note``, writes it to ``a.out`` with the command when given, and prints the best ``what`` against random last.
+    Shared by the scripted-policy benchmarks (``usable_approaches.py``). Returns the summary rows."""
     agents[0].name = "random"
-    return summarize(evaluate_agents(agents, lambda: gym.make(env_id), episodes, seeds, progress=False))
+    rows = summarize(evaluate_agents(agents, lambda: gym.make(a.env_id), a.episodes, a.seeds, progress=False))
+    text = (f"`{a.env_id}`, env seeds {' '.join(map(str, a.seeds))}, {a.episodes} episodes each{note}\n\n"
+            f"{markdown_table(rows)}")
+    print(text)
+    if a.out is not None:
+        a.out.parent.mkdir(parents=True, exist_ok=True)
+        a.out.write_text(f"python benchmarks/{Path(sys.argv[0]).name} {' '.join(argv or sys.argv[1:])}\n\n{text}\n")
+    best = max(rows[1:], key=lambda r: r["fewer_than_random"])
+    print(f"best {what}: {best['agent']}, {100 * best['fewer_than_random']:.1f} % fewer grasps than random "
+          f"({100 * best['success']:.1f} % right at the stop against {100 * rows[0]['success']:.1f} %)")
+    return rows
+
 
 if __name__ == "__main__":
     sys.exit(main())

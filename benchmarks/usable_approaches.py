@@ -25,7 +25,6 @@ the first make).
 
 from __future__ import annotations
 
-import argparse
 import importlib
 import sys
 from pathlib import Path
@@ -33,7 +32,6 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from agents.evaluate import markdown_table
 from agents.random_policy import RandomAgent
 from haptic_env.config import recognizer_kwargs
 from haptic_env.dataset import hand_pool
@@ -41,7 +39,7 @@ from haptic_env.hand_grasps import pool_actions
 
 importlib.import_module("haptic_env")  # registers the envs
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the sibling benchmark, also when imported by the tests
-from relative_approaches import compare  # noqa: E402
+from relative_approaches import compare, compare_parser  # noqa: E402
 
 
 def cell_rates(env_id: str, bins: int) -> tuple[np.ndarray, np.ndarray, int]:
@@ -81,13 +79,8 @@ class CellAgent(RandomAgent):
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--env-id", default="HapticRecogMuJoCo-v0")
-    p.add_argument("--seeds", type=int, nargs="+", default=[500, 501, 502, 503, 504],
-                   help="env seeds (500-504: the hand envs' validation seeds)")
-    p.add_argument("--episodes", type=int, default=40, help="episodes per seed")
+    p = compare_parser(__doc__.splitlines()[0])
     p.add_argument("--bins", type=int, default=6, help="grid cells per approach parameter")
-    p.add_argument("--out", type=Path, default=None, help="also write the table to this markdown file")
     a = p.parse_args(argv)
     if a.episodes < 1 or a.bins < 1:
         p.error(f"--episodes and --bins must be >= 1, got {a.episodes} and {a.bins}")
@@ -95,18 +88,10 @@ def main(argv=None) -> int:
     one = lambda r: np.eye(r.size)[np.argmax(r)]  # noqa: E731
     agents = [RandomAgent(), CellAgent("best-complete", one(comp), a.bins), CellAgent("best-usable", one(use), a.bins),
               CellAgent("weighted", comp.ravel() ** 2, a.bins)]
-    rows = compare(agents, a.env_id, a.seeds, a.episodes)
-    text = (f"`{a.env_id}`, env seeds {' '.join(map(str, a.seeds))}, {a.episodes} episodes each; training pool {n} "
-            f"grasps, {a.bins}^3 cells; pooled rates: complete {comp.mean():.2f} (best cell {comp.max():.2f}), usable "
-            f"{use.mean():.2f} (best {use.max():.2f})\n\n{markdown_table(rows)}")
-    print(text)
-    if a.out is not None:
-        a.out.parent.mkdir(parents=True, exist_ok=True)
-        a.out.write_text(f"python benchmarks/usable_approaches.py {' '.join(argv or sys.argv[1:])}\n\n{text}\n")
-    best = max(rows[1:], key=lambda r: r["fewer_than_random"])
-    print(f"best scripted policy: {best['agent']}, {100 * best['fewer_than_random']:.1f} % fewer grasps than random "
-          f"({100 * best['success']:.1f} % right at the stop against {100 * rows[0]['success']:.1f} %)")
+    compare(agents, a, f"; training pool {n} grasps, {a.bins}^3 cells; pooled rates: complete {comp.mean():.2f} (best "
+            f"cell {comp.max():.2f}), usable {use.mean():.2f} (best {use.max():.2f})", "scripted policy", argv)
     return 0
+
 
 if __name__ == "__main__":
     sys.exit(main())
