@@ -451,8 +451,9 @@ def hand_pool(objects: ObjectSet, config: DatasetConfig, progress: bool = True):
 
 
 def _hand_rows(objects: ObjectSet, config: DatasetConfig, progress: bool):
-    """Yield ``(k, X, rng)`` per object: the valid ``n_fingers``-finger grasp vectors (float32) of ``source="hand"``
-    and the object's generator, positioned for the train/validation split."""
+    """Yield ``(k, X, rng, C)`` per object: the valid ``n_fingers``-finger grasp vectors (float32) of ``source="hand"``,
+    the object's generator, positioned for the train/validation split, and the rows' contacts ``(G_k, n, 3)`` in the
+    object's frame."""
     from .hand_grasps import pool_rows
 
     pool = hand_pool(objects, config, progress)
@@ -461,14 +462,16 @@ def _hand_rows(objects: ObjectSet, config: DatasetConfig, progress: bool):
         rng = np.random.default_rng(ss)
         C, N = pool_rows(pool, k, config.n_fingers, rng)
         X, valid = grasp_vectors(support_frame(C, objects[k], config), N if config.normals else None, config, rng=rng)
-        yield k, X[valid].astype(np.float32), rng
+        yield k, X[valid].astype(np.float32), rng, C[valid]
 
 
-def hand_vectors(objects: ObjectSet, config: DatasetConfig, progress: bool = True) -> list[np.ndarray]:
+def hand_vectors(objects: ObjectSet, config: DatasetConfig, progress: bool = True, *,
+                 contacts: bool = False) -> list[np.ndarray] | list[tuple[np.ndarray, np.ndarray]]:
     """``source="hand"``: every object's valid grasp vectors ``(G_k, d)`` float32, unsplit; an object that the hand
     never touched with ``n_fingers`` fingers gets ``G_k = 0`` rows (where :func:`build_dataset` raises), so a caller can
-    report which objects a hand cannot grasp."""
-    return [X for _, X, _ in _hand_rows(objects, config, progress)]
+    report which objects a hand cannot grasp. With ``contacts``, ``(X, C)`` per object: also each row's contacts
+    ``(G_k, n_fingers, 3)`` in the object's (mesh) frame, to ask where on the object a grasp touched."""
+    return [(X, C) if contacts else X for _, X, _, C in _hand_rows(objects, config, progress)]
 
 
 def hand_dataset(objects: ObjectSet, config: DatasetConfig, *, progress: bool = True,
@@ -491,7 +494,7 @@ def hand_dataset(objects: ObjectSet, config: DatasetConfig, *, progress: bool = 
 def _split_hand_rows(objects: ObjectSet, config: DatasetConfig, progress: bool,
                      min_rows: int) -> tuple[GraspDataset | None, dict[str, int]]:
     Xtr, Ytr, Xva, Yva, left_out = [], [], [], [], {}
-    for k, X, rng in _hand_rows(objects, config, progress):
+    for k, X, rng, _ in _hand_rows(objects, config, progress):
         if len(X) < min_rows:
             left_out[objects.names[k]] = len(X)
             continue

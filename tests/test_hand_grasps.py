@@ -73,6 +73,15 @@ def test_hand_vectors_keep_every_row_and_report_objects_the_hand_cannot_grasp(tw
     assert [len(v) for v in V] == list(counts) and all(v.dtype == np.float32 and v.shape[1] == 9 for v in V)
     np.testing.assert_allclose(np.sort(V[0], axis=0), np.sort(np.concatenate([ds.X_train[ds.y_train == 0],
                                                                               ds.X_val[ds.y_val == 0]]), axis=0))
+    # with contacts: the same rows, each with the contacts it was computed from (object frame, on the object)
+    from haptic_env.grasp_features import phi
+
+    VC = hand_vectors(two_objects, cfg, progress=False, contacts=True)
+    for (X, C), v, obj in zip(VC, V, two_objects):
+        np.testing.assert_array_equal(X, v)
+        assert C.shape == (len(X), 3, 3)
+        np.testing.assert_allclose(phi(C).q, X[:, :3], rtol=1e-4, atol=1e-6)  # the distances, frame-invariant
+        assert np.all(np.abs(C) <= obj.extents / 2 + 0.01)  # within the object's box (contacts on its surface)
     tiny = family_set(1, np.random.default_rng(0), scale_range=(0.05, 0.05), families=("ellipsoid",))  # 4 mm
     assert [len(v) for v in hand_vectors(tiny, cfg, progress=False)] == [0]
     with pytest.raises(RuntimeError, match="'ellipsoid_00': 0 of 12 generic grasps"):
