@@ -24,13 +24,10 @@ import dataclasses
 import numpy as np
 import trimesh
 
-from haptic_env.dataset import DatasetConfig, grasp_vectors, hand_pool, support_frame
-from haptic_env.experiments import families as F
+from haptic_env.dataset import hand_vectors
 from haptic_env.experiments.config import TEST_SEED_OFFSET, AnalysisConfig
-from haptic_env.hand_grasps import pool_rows
-from haptic_env.objects import FAMILIES, family_set, load_object_set
-from haptic_env.recognizers.kde import KDELikelihood
-from haptic_env.recognizers.mlp import MLPClassifier
+from haptic_env.experiments.families import family_models, grasp_config
+from haptic_env.objects import load_object_set
 
 #: (object set, object, a cup?) in the order of the table
 OBJECTS = (("default", "mug", True), ("kit20", "GreenCup", True), ("kit20", "WhiteCup", True), ("ycb10", "025_mug", True),
@@ -90,59 +87,38 @@ def cup_contacts(mesh: trimesh.Trimesh, C: np.ndarray) -> tuple[np.ndarray, np.n
     return on_handle.reshape(C.shape[:2]).any(1), in_cup.reshape(C.shape[:2]).any(1)
 
 
-def grasp_config(cfg: AnalysisConfig, grasps: int, seed: int, **kw) -> DatasetConfig:
-    """Experiment 5's grasps: 4 fingers, scale-normalised, the family source of ``cfg``."""
-    return DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=grasps, normalize_scale=True, seed=seed,
-                         normal_axis=cfg.normal_axis, **cfg.family_grasps, **kw)
-
-
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--members", type=int, default=40)
     a = p.parse_args(argv)
+    # experiment 5's reported setting; its MLP is fitted too (family_models), but only the KDE is used: two epochs
     cfg = AnalysisConfig(objects="default", experiments=(5,), grasps_per_object=1000, normals=False,
                          family_source="hand", family_size_range=(0.7, 1.6), family_members=a.members, seed=a.seed,
-                         progress=False)
-    kw = {"scale_range": cfg.family_scale_range, "size_range": cfg.family_size_range, "lying": cfg.family_lying}
-    train = family_set(cfg.family_members, np.random.default_rng(cfg.seed), **kw)
-    val = family_set(max(2, cfg.family_members // 3), np.random.default_rng(cfg.seed + F.FAMILY_VAL_SEED_OFFSET), **kw)
-    idx = {f: i for i, f in enumerate(FAMILIES)}
-    ds, _ = F.member_grasps(train, grasp_config(cfg, 1000, cfg.seed), cfg, "training")  # experiment 5's floor of
-    fam = np.array([idx[train.families[n]] for n in train.names])                    # 1,000 approaches per member
-    kde = KDELikelihood(cfg.kde).fit(ds.X_train, fam[ds.y_train], ds.X_val, fam[ds.y_val], n_classes=len(FAMILIES))
-    vds, _ = F.member_grasps(val, grasp_config(cfg, cfg.test_grasps, cfg.seed + F.FAMILY_VAL_SEED_OFFSET,
-                                               val_fraction=0.0), cfg, "validation")
-    fval = np.array([idx[val.families[n]] for n in val.names])
-    # family_temperatures also fits the MLP's; only the KDE's is used here, so a short MLP is enough
-    clf = MLPClassifier(dataclasses.replace(cfg.mlp, progress=False, max_epochs=2)).fit(
-        ds.X_train, fam[ds.y_train], ds.X_val, fam[ds.y_val], n_classes=len(FAMILIES))
-    T, _ = F.family_temperatures(kde, clf, vds.X_train.astype(np.float64), fval[vds.y_train], member=vds.y_train,
-                                 grasps=cfg.max_grasps, rng=np.random.default_rng([cfg.seed, F.FAMILY_VAL_SEED_OFFSET]))
+                         mlp=dataclasses.replace(AnalysisConfig().mlp, max_epochs=2), progress=False)
+    sets = {spec: load_object_set(spec) for spec, _, _ in OBJECTS}
+    models = family_models(cfg, max(len(o) for o in sets.values()))  # the members' budget of the largest set
+    kde, T = models.kde, models.T_kde
     dc = grasp_config(cfg, cfg.test_grasps, cfg.seed + TEST_SEED_OFFSET, val_fraction=0.0)  # experiment 5's test grasps
     print(f"seed {a.seed}, {a.members} members per family, KDE temperature {T:.2f}\n")
     print("| object | grasps | group | share | one-shot box / cyl / ell % | 30-grasp belief box / cyl / ell % |")
     print("|---|---|---|---|---|---|")
-    sets = {}
+    grasps = {}
     for spec, name, cup in OBJECTS:
-        if spec not in sets:
-            objects = load_object_set(spec)
-            sets[spec] = (objects, hand_pool(objects, dc, False),
-                          np.random.SeedSequence([dc.seed, 1]).spawn(len(objects)))  # the rows hand_vectors gives
-        objects, pool, streams = sets[spec]
+        objects = sets[spec]
+        if spec not in grasps:
+            grasps[spec] = hand_vectors(objects, dc, progress=False, contacts=True)
         k = objects.names.index(name)
-        rng = np.random.default_rng(streams[k])
-        C, _ = pool_rows(pool, k, 4, rng)
-        X, valid = grasp_vectors(support_frame(C, objects[k], dc), None, dc, rng=rng)
-        C, LL = C[valid], kde.log_likelihood(X[valid].astype(np.float64)) / T
+        X, C = grasps[spec][k]
+        LL = kde.log_likelihood(X.astype(np.float64)) / T
         groups = {"all": np.ones(len(C), bool)}
         if cup:
             handle, inside = cup_contacts(objects[k].mesh, C)
             groups.update({"handle": handle, "inside (not the handle)": inside & ~handle,
                            "outer wall / bottom only": ~handle & ~inside})
         draw = np.random.default_rng(a.seed + 5)
-        for g, m in groups.items():
-            rows = np.flatnonzero(m)
+        for g, mask in groups.items():
+            rows = np.flatnonzero(mask)
             if len(rows) < 5:
                 continue
             one = 100 * np.bincount(LL[rows].argmax(1), minlength=3) / len(rows)

@@ -24,7 +24,8 @@ from haptic_env.recognizers.calibration import _finite_rows, fit_temperature, se
 from haptic_env.recognizers.kde import KDELikelihood
 from haptic_env.recognizers.mlp import MLPClassifier
 
-__all__ = ["run", "EXPECTED_FAMILY", "FAMILY_OBJECT_TRIALS", "FAMILY_VAL_SEED_OFFSET", "family_temperatures"]
+__all__ = ["run", "EXPECTED_FAMILY", "FAMILY_OBJECT_TRIALS", "FAMILY_VAL_SEED_OFFSET", "family_temperatures",
+           "family_models", "FamilyModels", "grasp_config", "member_grasps"]
 
 #: The family a person would expect for the objects of ``default``, ``ycb10`` and ``kit20`` (None: no clear
 #: family; such objects are listed in experiment 5 but left out of its score).
@@ -89,7 +90,7 @@ def _check_families(members, left_out, cfg: AnalysisConfig, role: str) -> None:
         raise _too_small(cfg, f"no {role} member of {missing} (left out: {sorted(left_out)})")
 
 
-def _grasp_config(cfg: AnalysisConfig, grasps: int, seed: int, **kw) -> DatasetConfig:
+def grasp_config(cfg: AnalysisConfig, grasps: int, seed: int, **kw) -> DatasetConfig:
     """Experiment 5's grasps (of members and objects alike): 4 fingers, scale-normalised, ``cfg``'s normals and family
     source; ``grasps`` per object (approaches with a hand source), ``kw``: more :class:`DatasetConfig` fields."""
     return DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=grasps, normalize_scale=True, seed=seed,
@@ -110,8 +111,63 @@ def member_grasps(members, dc: DatasetConfig, cfg: AnalysisConfig, role: str):
     return ds, left_out
 
 
-def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> None:
+@dataclasses.dataclass(frozen=True)
+class FamilyModels:
+    """Experiment 5's family models (:func:`family_models`) and the member sets they come from.
+
+    Attributes:
+        train_set, val_set, test_set: the training members, the new validation members (the temperatures) and the new
+            test members, each a ``family_set`` of ``cfg``'s generator.
+        fam_of: ``(M,)`` family index (position in ``FAMILIES``) of each training member.
+        left_train, left_val: training / validation members the hand never grasped with 4 fingers (name -> rows).
+        clf, kde: the MLP and the KDE over the three families.
+        T_kde, T_mlp: their temperatures (1.0 each with raw scores).
+    """
+
+    train_set: object
+    val_set: object
+    test_set: object
+    fam_of: np.ndarray
+    left_train: dict
+    left_val: dict
+    clf: MLPClassifier
+    kde: KDELikelihood
+    T_kde: float
+    T_mlp: float
+
+
+def family_models(cfg: AnalysisConfig, n_objects: int) -> FamilyModels:
+    """Train experiment 5's family models as ``cfg`` says: random members (training, validation and test seeds), the
+    training members' grasps (``max(1000, grasps_per_object x n_objects / members)`` each, the budget of an object set
+    of ``n_objects``), an MLP and a KDE over the three families, and their temperatures fitted on the validation
+    members (:func:`family_temperatures`; the KDE's for beliefs of 1 to ``max_grasps`` grasps)."""
     from haptic_env.objects import FAMILIES, family_set
+
+    members = {"scale_range": cfg.family_scale_range, "size_range": cfg.family_size_range, "lying": cfg.family_lying}
+    train_set = family_set(cfg.family_members, np.random.default_rng(cfg.seed), **members)
+    n_held = max(2, cfg.family_members // 3)
+    val_set = family_set(n_held, np.random.default_rng(cfg.seed + FAMILY_VAL_SEED_OFFSET), **members)
+    test_set = family_set(n_held, np.random.default_rng(cfg.seed + TEST_SEED_OFFSET), **members)
+    fam_idx = {f: i for i, f in enumerate(FAMILIES)}
+    per_obj = max(1000, cfg.grasps_per_object * n_objects // max(len(train_set), 1))
+    ds, left_train = member_grasps(train_set, grasp_config(cfg, per_obj, cfg.seed), cfg, "training")
+    fam_of = np.array([fam_idx[train_set.families[nm]] for nm in train_set.names])
+    clf = MLPClassifier(dataclasses.replace(cfg.mlp, progress=False)).fit(ds.X_train, fam_of[ds.y_train], ds.X_val,
+                                                                          fam_of[ds.y_val], n_classes=len(FAMILIES))
+    kde = KDELikelihood(cfg.kde).fit(ds.X_train, fam_of[ds.y_train], ds.X_val, fam_of[ds.y_val], n_classes=len(FAMILIES))
+    # temperatures on new validation members (another seed than training and test)
+    vdc = grasp_config(cfg, cfg.test_grasps, cfg.seed + FAMILY_VAL_SEED_OFFSET, val_fraction=0.0)
+    vds, left_val = member_grasps(val_set, vdc, cfg, "validation")
+    fam_val = np.array([fam_idx[val_set.families[nm]] for nm in val_set.names])
+    T_kde, T_mlp = family_temperatures(kde, clf, vds.X_train.astype(np.float64), fam_val[vds.y_train],
+                                       member=vds.y_train, grasps=cfg.max_grasps,
+                                       rng=np.random.default_rng([cfg.seed, FAMILY_VAL_SEED_OFFSET])) \
+        if cfg.calibrated else (1.0, 1.0)
+    return FamilyModels(train_set, val_set, test_set, fam_of, left_train, left_val, clf, kde, T_kde, T_mlp)
+
+
+def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> None:
+    from haptic_env.objects import FAMILIES
 
     grasps = {"surface": "surface grasps", "geometric": "geometric-hand grasps under random approaches",
               "hand": f"{cfg.family_hand} MuJoCo grasps under random approaches, objects on the table"}[cfg.family_source]
@@ -121,31 +177,15 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
               "" if cfg.family_size_range is None else " x a size factor U({:g}, {:g}) per member".format(
                   *cfg.family_size_range)) + ("; every second cylinder lying" if cfg.family_lying else "")
           + ("; with each contact's height above the table" if cfg.family_heights else "") + f"; {cfg.scores_label})")
-    members = {"scale_range": cfg.family_scale_range, "size_range": cfg.family_size_range, "lying": cfg.family_lying}
-    train_set = family_set(cfg.family_members, np.random.default_rng(cfg.seed), **members)
-    n_held = max(2, cfg.family_members // 3)
-    val_set = family_set(n_held, np.random.default_rng(cfg.seed + FAMILY_VAL_SEED_OFFSET), **members)
-    test_set = family_set(n_held, np.random.default_rng(cfg.seed + TEST_SEED_OFFSET), **members)
+    m = family_models(cfg, len(objects))
+    train_set, test_set, fam_of, left_train, left_val = m.train_set, m.test_set, m.fam_of, m.left_train, m.left_val
+    kde, clf, T_kde, T_mlp = m.kde, m.clf, m.T_kde, m.T_mlp
     fam_idx = {f: i for i, f in enumerate(FAMILIES)}
-    per_obj = max(1000, cfg.grasps_per_object * len(objects) // max(len(train_set), 1))
-    ds, left_train = member_grasps(train_set, _grasp_config(cfg, per_obj, cfg.seed), cfg, "training")
-    fam_of = np.array([fam_idx[train_set.families[nm]] for nm in train_set.names])
-    clf = MLPClassifier(dataclasses.replace(cfg.mlp, progress=False)).fit(ds.X_train, fam_of[ds.y_train], ds.X_val,
-                                                                          fam_of[ds.y_val], n_classes=len(FAMILIES))
-    kde = KDELikelihood(cfg.kde).fit(ds.X_train, fam_of[ds.y_train], ds.X_val, fam_of[ds.y_val], n_classes=len(FAMILIES))
-    # temperatures on new validation members (another seed than training and test)
-    vdc = _grasp_config(cfg, cfg.test_grasps, cfg.seed + FAMILY_VAL_SEED_OFFSET, val_fraction=0.0)
-    vds, left_val = member_grasps(val_set, vdc, cfg, "validation")
-    fam_val = np.array([fam_idx[val_set.families[nm]] for nm in val_set.names])
-    T_kde, T_mlp = family_temperatures(kde, clf, vds.X_train.astype(np.float64), fam_val[vds.y_train],
-                                       member=vds.y_train, grasps=cfg.max_grasps,
-                                       rng=np.random.default_rng([cfg.seed, FAMILY_VAL_SEED_OFFSET])) \
-        if cfg.calibrated else (1.0, 1.0)
 
     def scores(objs):
         if cfg.family_source == "hand":  # an object the hand never grasps with 4 fingers gets no rows
             pool = [X.astype(np.float64) for X in hand_vectors(
-                objs, _grasp_config(cfg, cfg.test_grasps, cfg.seed + TEST_SEED_OFFSET, val_fraction=0.0), progress=False)]
+                objs, grasp_config(cfg, cfg.test_grasps, cfg.seed + TEST_SEED_OFFSET, val_fraction=0.0), progress=False)]
         else:
             pool = fresh_pool(objs, 4, cfg.normals, cfg, normalize_scale=True, **cfg.family_grasps)
         LL = [kde.log_likelihood(X) / T_kde for X in pool]
@@ -171,7 +211,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     held = [k for k, nm in enumerate(train_set.names) if nm not in left_train and len(LLh[k])]
     one_h = np.mean(np.concatenate([PRh[k].argmax(1) == fam_of[k] for k in held]))
     one_kde_h = np.mean(np.concatenate([LLh[k].argmax(1) == fam_of[k] for k in held]))
-    n_tr, n_val, n_te = (len(st) - len(left) for st, left in ((train_set, left_train), (val_set, left_val),
+    n_tr, n_val, n_te = (len(st) - len(left) for st, left in ((train_set, left_train), (m.val_set, left_val),
                                                              (test_set, left_test)))
     if left_train or left_val or left_test:
         rep.p(f"The {cfg.family_hand} grasped some random members with fewer than 4 fingers only (too small or too flat "
