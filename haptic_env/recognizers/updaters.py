@@ -63,6 +63,7 @@ def check_ic_certainty(rule, name: str = "ic_certainty") -> str:
         raise ValueError(f"{name} must be one of {IC_CERTAINTIES}, got {rule!r}")
     return rule
 
+
 #: The certainty ``lambda_s`` at which a recogniser decides (the paper's 0.85); the one default of every threshold.
 DEFAULT_THRESHOLD = 0.85
 
