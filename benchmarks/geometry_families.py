@@ -26,15 +26,16 @@ Run (one process, nice)::
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 
 import numpy as np
 from scipy.special import logsumexp
 
-from haptic_env.dataset import DatasetConfig, build_dataset, hand_vectors
+from haptic_env.dataset import DatasetConfig
 from haptic_env.experiments.config import FAMILY_SOURCES, AnalysisConfig
-from haptic_env.experiments.families import member_grasps
+from haptic_env.experiments.families import family_vectors, grasp_config, member_grasps
 from haptic_env.objects import FAMILIES, family_set
 from haptic_env.recognizers.baselines import make_classifier
 from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
@@ -48,6 +49,12 @@ def fam_labels(objs) -> np.ndarray:
     return np.array([idx[objs.families[n]] for n in objs.names])
 
 
+def grasps(cfg: AnalysisConfig, G: int, seed: int, normals: bool, normalize: bool, **kw) -> DatasetConfig:
+    """Experiment 5's grasps (:func:`~haptic_env.experiments.families.grasp_config`) with this benchmark's sweeps over
+    normals and scale normalisation (which experiment 5 fixes)."""
+    return dataclasses.replace(grasp_config(cfg, G, seed, **kw), normals=normals, normalize_scale=normalize)
+
+
 def member_dataset(objs, dc: DatasetConfig, cfg: AnalysisConfig):
     """The training members' grasps as experiment 5 takes them (:func:`~haptic_env.experiments.families.member_grasps`):
     with a hand source a member the hand never grasps with 4 fingers is left out and named, and a family left without
@@ -59,14 +66,10 @@ def member_dataset(objs, dc: DatasetConfig, cfg: AnalysisConfig):
 
 
 def pool(objs, G, normals, normalize, seed, cfg: AnalysisConfig):
-    """Per-object grasp vectors (float64) from ``cfg``'s family source; with a hand source an object it never grasps
-    with 4 fingers has 0 rows."""
-    dc = DatasetConfig(n_fingers=4, normals=normals, grasps_per_object=G, normalize_scale=normalize, val_fraction=0.0,
-                       seed=seed, **cfg.family_grasps)
-    if cfg.family_source == "hand":
-        return [X.astype(np.float64) for X in hand_vectors(objs, dc, progress=False)]
-    ds = build_dataset(objs, dc, progress=False)
-    return [ds.X_train[ds.y_train == k].astype(np.float64) for k in range(len(objs))]
+    """Per-object grasp vectors (float64) from ``cfg``'s family source
+    (:func:`~haptic_env.experiments.families.family_vectors`); with a hand source an object it never grasps with 4
+    fingers has 0 rows."""
+    return family_vectors(objs, grasps(cfg, G, seed, normals, normalize, val_fraction=0.0), cfg)
 
 
 def family_config(source: str, lo=0.5, hi=1.5, size_range=None, heights=False, lying=False) -> AnalysisConfig:
@@ -103,8 +106,7 @@ def run_cell(lo, hi, normals, normalize, members, G, seed, ms, trials, models, s
     tr = family_set(members, np.random.default_rng(seed), scale_range=(lo, hi), size_range=size_range, lying=lying)
     va = family_set(max(3, members // 2), np.random.default_rng(seed + VAL_MEMBER_SEED), scale_range=(lo, hi),
                     size_range=size_range, lying=lying)
-    ds = member_dataset(tr, DatasetConfig(n_fingers=4, normals=normals, grasps_per_object=G, normalize_scale=normalize,
-                                          seed=seed, **cfg.family_grasps), cfg)
+    ds = member_dataset(tr, grasps(cfg, G, seed, normals, normalize), cfg)
     fm = fam_labels(tr)
     ytr, yva = fm[ds.y_train], fm[ds.y_val]
     new = pool(va, max(200, G // 5), normals, normalize, seed + VAL_MEMBER_SEED, cfg)  # new members
@@ -156,8 +158,7 @@ def size_cell(members, G, seed, size_range, sizes, source, heights=False):
     t0 = time.time()
     cfg = family_config(source, size_range=size_range, heights=heights)
     tr = family_set(members, np.random.default_rng(seed), size_range=size_range)
-    ds = member_dataset(tr, DatasetConfig(n_fingers=4, normals=False, grasps_per_object=G, normalize_scale=True,
-                                          seed=seed, **cfg.family_grasps), cfg)
+    ds = member_dataset(tr, grasps(cfg, G, seed, False, True), cfg)
     fm = fam_labels(tr)
     kde = KDELikelihood(KDEConfig()).fit(ds.X_train, fm[ds.y_train], ds.X_val, fm[ds.y_val], n_classes=3)
     row = {"members": members, "size_range": "-" if size_range is None else f"{size_range[0]:g}-{size_range[1]:g}",

@@ -16,7 +16,6 @@ from scipy.special import softmax
 
 from haptic_env.dataset import DatasetConfig, build_dataset, hand_dataset, hand_vectors
 from haptic_env.experiments.config import TEST_SEED_OFFSET, AnalysisConfig
-from haptic_env.experiments.fresh_grasps import fresh_pool
 from haptic_env.experiments.plots import plot_family_votes
 from haptic_env.experiments.report import Report, mean_std
 from haptic_env.experiments.trials import family_trials, simulate_trials
@@ -25,7 +24,7 @@ from haptic_env.recognizers.kde import KDELikelihood
 from haptic_env.recognizers.mlp import MLPClassifier
 
 __all__ = ["run", "EXPECTED_FAMILY", "FAMILY_OBJECT_TRIALS", "FAMILY_VAL_SEED_OFFSET", "family_temperatures",
-           "family_models", "FamilyModels", "grasp_config", "member_grasps"]
+           "family_models", "FamilyModels", "family_vectors", "grasp_config", "member_grasps"]
 
 #: The family a person would expect for the objects of ``default``, ``ycb10`` and ``kit20`` (None: no clear
 #: family; such objects are listed in experiment 5 but left out of its score).
@@ -95,6 +94,17 @@ def grasp_config(cfg: AnalysisConfig, grasps: int, seed: int, **kw) -> DatasetCo
     source; ``grasps`` per object (approaches with a hand source), ``kw``: more :class:`DatasetConfig` fields."""
     return DatasetConfig(n_fingers=4, normals=cfg.normals, grasps_per_object=grasps, normalize_scale=True, seed=seed,
                          normal_axis=cfg.normal_axis, **cfg.family_grasps, **kw)
+
+
+def family_vectors(objects, dc: DatasetConfig, cfg: AnalysisConfig) -> list[np.ndarray]:
+    """Each object's grasp vectors, float64 ``(G_k, d)``, from ``cfg``'s family source as ``dc`` asks (experiment 5's
+    :func:`grasp_config`): the hand's MuJoCo grasps under ``dc.grasps_per_object`` approaches, of which the 4-finger
+    ones are kept (an object the hand never grasps with 4 fingers gets 0 rows), or the dataset's surface or
+    geometric-hand grasps (``dc.grasps_per_object`` each)."""
+    if cfg.family_source == "hand":
+        return [X.astype(np.float64) for X in hand_vectors(objects, dc, progress=False)]
+    ds = build_dataset(objects, dc, progress=False)
+    return [ds.X_train[ds.y_train == k].astype(np.float64) for k in range(len(objects))]
 
 
 def member_grasps(members, dc: DatasetConfig, cfg: AnalysisConfig, role: str):
@@ -182,12 +192,9 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     kde, clf, T_kde, T_mlp = m.kde, m.clf, m.T_kde, m.T_mlp
     fam_idx = {f: i for i, f in enumerate(FAMILIES)}
 
-    def scores(objs):
-        if cfg.family_source == "hand":  # an object the hand never grasps with 4 fingers gets no rows
-            pool = [X.astype(np.float64) for X in hand_vectors(
-                objs, grasp_config(cfg, cfg.test_grasps, cfg.seed + TEST_SEED_OFFSET, val_fraction=0.0), progress=False)]
-        else:
-            pool = fresh_pool(objs, 4, cfg.normals, cfg, normalize_scale=True, **cfg.family_grasps)
+    def scores(objs):  # test grasps; an object the hand never grasps with 4 fingers gets no rows
+        pool = family_vectors(objs, grasp_config(cfg, cfg.test_grasps, cfg.seed + TEST_SEED_OFFSET, val_fraction=0.0),
+                              cfg)
         LL = [kde.log_likelihood(X) / T_kde for X in pool]
         PR = [softmax(np.log(np.maximum(clf.predict_proba(X), 1e-300)) / T_mlp, axis=1) for X in pool]
         return LL, PR
