@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from .base import GraspObject, ObjectSet, prepare_mesh
+from .base import GraspObject, ObjectSet, prepare_mesh, up_rotation
 
 __all__ = ["DEFAULT_SHAPES", "default_set", "family_set", "FAMILIES", "make_shape"]
 
@@ -223,7 +223,7 @@ def family_set(n_per_family: int, rng: np.random.Generator, families=FAMILIES,
                 s = s * rng.uniform(slo, shi)
             mesh = _family_mesh(fam, s)
             if lying and fam == "elliptic_cylinder" and i % 2 == 1:
-                mesh.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [0.0, 1.0, 0.0]))
+                mesh.vertices = mesh.vertices @ up_rotation("x")  # row vectors: z -> x, the inverse of "x is up"
             mesh, _ = prepare_mesh(mesh, f"{fam}_{i:02d}")
             objs.append(GraspObject(f"{fam}_{i:02d}", mesh, family=fam))
     return ObjectSet("families", objs)
