@@ -1,0 +1,95 @@
+"""The documented commands stay true: every ``--flag`` of a ``haptic-recog``, ``train.py`` or ``benchmarks/*.py``
+command written in the README, CONTRIBUTING, RESULTS and the committed result pages is one its parser accepts.
+
+RESULTS.md gives the exact command of every result; a flag renamed or dropped later would leave a reader a command
+that fails. The parsers are asked for their ``--help`` in this process (argparse and tyro print every option)."""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import io
+import pathlib
+import re
+import runpy
+import subprocess
+import sys
+
+import pytest
+
+from haptic_env.cli import SUBCOMMANDS, main as cli_main
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+FLAG = re.compile(r"(?<![\w-])(--[a-zA-Z][\w.-]*)")
+NEXT = r"(.*?)(?=\bhaptic-recog\s|\bpython\s|$)"  # a command's arguments run up to the next command on its line
+COMMAND = re.compile(r"haptic-recog\s+([a-z][\w-]*)" + NEXT + r"|python\s+(?:-m\s+)?((?:benchmarks/)?[\w/]+\.py)" + NEXT)
+
+
+def documents() -> list[pathlib.Path]:
+    """The tracked Markdown pages that give commands (a clean clone has exactly these)."""
+    out = subprocess.run(["git", "ls-files", "README.md", "CONTRIBUTING.md", "RESULTS.md", "docs/*.md", "results/*.md"],
+                         cwd=ROOT, capture_output=True, text=True)
+    if out.returncode != 0:
+        pytest.skip(f"not a git checkout: {out.stderr.strip()}")
+    return [ROOT / f for f in out.stdout.split()]
+
+
+def commands(text: str):
+    """``(parser key, the command's arguments, the line)`` for each command in ``text``: line continuations joined,
+    a trailing comment and anything after a shell separator dropped."""
+    text = re.sub(r"\\\n\s*", " ", text)
+    for line in text.splitlines():
+        for m in COMMAND.finditer(line):
+            key = ("haptic-recog", m.group(1)) if m.group(1) else (m.group(3),)
+            args = re.split(r"[;&|`#]|\)\s", m.group(2) if m.group(1) else m.group(4))[0]
+            yield key, args, line.strip()
+
+
+def _help_text(key: tuple) -> str:
+    out = io.StringIO()
+    argv = sys.argv
+    try:
+        with contextlib.redirect_stdout(out), pytest.raises(SystemExit):
+            if key[0] == "haptic-recog":
+                cli_main([key[1], "--help"])
+            else:
+                sys.argv = [str(ROOT / key[0]), "--help"]
+                runpy.run_path(str(ROOT / key[0]), run_name="__main__")
+    finally:
+        sys.argv = argv
+    return out.getvalue()
+
+
+@functools.lru_cache(maxsize=None)
+def accepted_flags(key: tuple) -> frozenset:
+    return frozenset(f.rstrip(".") for f in FLAG.findall(_help_text(key))) | {"--help"}
+
+
+def test_commands_parse_continuations_comments_and_separators():
+    text = "x\n```\nhaptic-recog analysis --objects kit8 \\\n    --trials 10   # a note --not-a-flag\n" \
+           "python benchmarks/soak.py --steps 5 && python train.py --seed 1\n```\n"
+    got = [(k, FLAG.findall(a)) for k, a, _ in commands(text)]
+    assert got == [(("haptic-recog", "analysis"), ["--objects", "--trials"]), (("benchmarks/soak.py",), ["--steps"]),
+                   (("train.py",), ["--seed"])]
+
+
+def test_a_wrong_flag_is_found():
+    assert "--trials" in accepted_flags(("haptic-recog", "analysis"))
+    assert "--no-such-flag" not in accepted_flags(("haptic-recog", "analysis"))
+
+
+def test_every_documented_flag_exists():
+    bad = []
+    for doc in documents():
+        for key, args, line in commands(doc.read_text(encoding="utf-8")):
+            if key[0] == "haptic-recog" and key[1] not in SUBCOMMANDS:
+                if FLAG.search(args):  # prose such as "the haptic-recog command" has no flags
+                    bad.append(f"{doc.name}: unknown sub-command {key[1]!r}: {line}")
+                continue
+            if key[0] != "haptic-recog" and not (ROOT / key[0]).is_file():
+                bad.append(f"{doc.name}: no script {key[0]}: {line}")
+                continue
+            flags = accepted_flags(key)
+            bad += [f"{doc.relative_to(ROOT)}: {' '.join(key)} has no {f}: {line[:120]}"
+                    for f in (f.rstrip(".") for f in FLAG.findall(args)) if f not in flags]
+    assert not bad, "\n".join(bad)
