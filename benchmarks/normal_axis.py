@@ -1,8 +1,9 @@
-"""Each normal's second angle in Phi_n: to t2's normal (the paper's) or to the edge ab (``phi(normal_axis="ab")``).
+"""Each normal's angles in Phi_n: the second to t2's normal (the paper's) or to the edge ab (``normal_axis="ab"``), or
+three, to the axes of t1's frame (``normal_axis="frame"``, 6n - 6 values).
 
 One-shot accuracy on fresh test grasps of kNN (k = 15, distance-weighted, standardised), the project's KDE
 (``KDELikelihood``, default config, bandwidth chosen on a 20 % validation split) and the MLP (3 x 256, early
-stopping on a 15 % validation split), trained on the same surface grasps encoded both ways. Needs the shared data
+stopping on a 15 % validation split), trained on the same surface grasps encoded each way. Needs the shared data
 for kit8 (``$HAPTIC_DATA``); ``--objects default`` runs without it.
 
     python benchmarks/normal_axis.py [--objects kit8] [--fingers 4] [--grasps 20000] [--models knn,kde,mlp]

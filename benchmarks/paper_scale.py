@@ -249,14 +249,15 @@ def run_exp2(cell, clf, data: _Data, args) -> dict:
     from haptic_env.recognizers.recognizer import ModelBank, RecognizerConfig, build_recognizer
 
     n, normals, g, _ = cell
-    rc = RecognizerConfig(grasps=DatasetConfig(grasps_per_object=g, val_fraction=args.val_fraction, seed=args.seed),
+    rc = RecognizerConfig(grasps=DatasetConfig(grasps_per_object=g, val_fraction=args.val_fraction, seed=args.seed,
+                                               normal_axis=args.normal_axis),
                           kde=KDEConfig(seed=args.seed))
     t0 = time.perf_counter()
     kde = build_recognizer(data.objects, n, normals, config=rc, models=("kde",), progress=False).models.model(n)[1]
     t_kde = time.perf_counter() - t0
     Xt, yt = data.test(n, normals)
     K = int(yt.max()) + 1
-    bank = ModelBank(normals=normals, n_classes=K)
+    bank = ModelBank(normals=normals, n_classes=K, normal_axis=args.normal_axis)
     bank.add(n, clf, kde)
     LL, PR = pool_scores(bank, [Xt[yt == k] for k in range(K)])
     out = {"kde_seconds": t_kde, "kde_oneshot": float(np.mean(np.concatenate([ll.argmax(1) == k for k, ll in enumerate(LL)]))),

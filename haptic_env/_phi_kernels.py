@@ -28,8 +28,10 @@ AMBIGUOUS = -1  #: a hull face with >= 4 coplanar contacts: triangulate it canon
 BAD_INPUT = -2  #: non-finite contacts, or a zero / non-finite normal: the caller raises the error
 #: ``has_normals`` codes: False / 0 no normals; True / 1 each normal's angles to t1's normal and to t2's (for n = 3:
 #: to the edge ab), the paper's; 2 (:data:`NORMALS_AB`) to t1's normal and to the edge ab at every n
-#: (``phi(normal_axis="ab")``)
+#: (``phi(normal_axis="ab")``); 3 (:data:`NORMALS_FRAME`) to the three axes of t1's frame: its normal, the edge ab and
+#: the in-plane direction perpendicular to ab on the third contact's side (``phi(normal_axis="frame")``, 3 per contact)
 NORMALS_AB = 2
+NORMALS_FRAME = 3
 
 
 @njit(cache=True, inline="always")
@@ -311,7 +313,7 @@ def _chain(P, N, has_normals, tri, tri_edges, n_edges, area, hull, q, order):
         s = _norm(m0, m1, m2)
         if s > 0:
             m0, m1, m2 = m0 / s, m1 / s, m2 / s
-        if n == 3 or has_normals == NORMALS_AB:
+        if n == 3 or has_normals >= NORMALS_AB:
             r0, r1, r2 = ba0, ba1, ba2
         else:
             da0, da1, da2 = _sub(P, order[3], ia)
@@ -320,10 +322,18 @@ def _chain(P, N, has_normals, tri, tri_edges, n_edges, area, hull, q, order):
         if s > 0:
             r0, r1, r2 = r0 / s, r1 / s, r2 / s
         base = 3 * n - 6
-        for j in range(n):
-            o = order[j]
-            q[base + 2 * j] = _angle(N[o, 0], N[o, 1], N[o, 2], m0, m1, m2)
-            q[base + 2 * j + 1] = _angle(N[o, 0], N[o, 1], N[o, 2], r0, r1, r2)
+        if has_normals == NORMALS_FRAME:  # t1's frame: normal m, ab (r) and m x r, towards c within t1
+            p0, p1, p2 = _cross(m0, m1, m2, r0, r1, r2)
+            for j in range(n):
+                o = order[j]
+                q[base + 3 * j] = _angle(N[o, 0], N[o, 1], N[o, 2], m0, m1, m2)
+                q[base + 3 * j + 1] = _angle(N[o, 0], N[o, 1], N[o, 2], r0, r1, r2)
+                q[base + 3 * j + 2] = _angle(N[o, 0], N[o, 1], N[o, 2], p0, p1, p2)
+        else:
+            for j in range(n):
+                o = order[j]
+                q[base + 2 * j] = _angle(N[o, 0], N[o, 1], N[o, 2], m0, m1, m2)
+                q[base + 2 * j + 1] = _angle(N[o, 0], N[o, 1], N[o, 2], r0, r1, r2)
     return 0
 
 

@@ -152,7 +152,8 @@ class Belief:
         self.heights = bool(getattr(recognizer, "heights", False))
         #: each normal's second angle in the recogniser's grasp vectors (``phi(normal_axis=)``)
         self.normal_axis = getattr(recognizer, "normal_axis", "t2")
-        self.feature_dim = feature_dim(self.n_fingers, recognizer.normals, heights=self.heights)
+        self.feature_dim = feature_dim(self.n_fingers, recognizer.normals, heights=self.heights,
+                                       normal_axis=self.normal_axis)
         #: the episode's table height (world z, m); see :meth:`reset`
         self.support_z = 0.0
         #: the recogniser's touch model when its pattern is weighed in, else None (off)

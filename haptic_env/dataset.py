@@ -166,7 +166,7 @@ class DatasetConfig:
     @property
     def feature_dim(self) -> int:
         """Length ``d`` of a grasp vector."""
-        return feature_dim(self.n_fingers, self.normals, heights=self.heights)
+        return feature_dim(self.n_fingers, self.normals, heights=self.heights, normal_axis=self.normal_axis)
 
 
 @dataclass(frozen=True)

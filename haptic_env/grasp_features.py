@@ -30,6 +30,14 @@ Spatial grasps, ``n >= 3`` (:func:`phi`)
     each other. Measured on kit8 surface grasps, n = 4 with normals, 20,000 per object, one-shot: kNN 47.9 -> 57.8 %,
     KDE 46.0 -> 54.5 %, MLP 3x256 58.3 -> 68.4 % (``benchmarks/normal_axis.py``). Same length, ``5n - 6``.
 
+    ``normal_axis="frame"`` (not the paper's) reads each normal in ``t1``'s whole frame: its angles to ``t1``'s
+    normal, to ``ab`` and to the direction in ``t1``'s plane perpendicular to ``ab`` on the third contact's side,
+    ``6n - 6`` values. The two angles of ``"ab"`` (and the paper's at ``n = 3``) leave out on which side of the plane
+    through ``ab`` and ``t1``'s normal a normal points (towards the third contact or away from it): a grasp and the
+    same contacts with each normal mirrored in that plane get one vector. A unit vector needs three angles to be read
+    without that loss and without a jump (an azimuth wraps round). One-shot on kit8 surface grasps, 20,000 per
+    object: see ``benchmarks/normal_axis.py``.
+
 Two contacts, ``n = 2``
     The distance; with normals also each normal's angle to the line between the contacts and the
     signed twist between the normals about that line: ``1`` or ``4`` (``= 5n - 6``) values.
@@ -93,8 +101,9 @@ __all__ = [
 #: Relative tolerance for degeneracy tests (lengths relative to the grasp's diameter).
 DEFAULT_TOL = 1e-7
 
-#: Values of ``phi(normal_axis=...)``: each normal's second angle to t2's normal (the paper's) or to the edge ab.
-NORMAL_AXES = ("t2", "ab")
+#: Values of ``phi(normal_axis=...)``: each normal's second angle to t2's normal (the paper's) or to the edge ab, or
+#: (``"frame"``) its angles to all three axes of t1's frame.
+NORMAL_AXES = ("t2", "ab", "frame")
 
 #: Codes of :attr:`GraspFeatures.reason`.
 DEGENERACY_REASONS = {0: "ok", 1: "coincident contacts", 2: "collinear contacts", 3: "coplanar contacts"}
@@ -114,9 +123,10 @@ class GraspFeatures(NamedTuple):
     reason: np.ndarray  #: ``(B,)`` int8 code into :data:`DEGENERACY_REASONS`
 
 
-def feature_dim(n: int, normals: bool = False, dim: int = 3, heights: bool = False) -> int:
+def feature_dim(n: int, normals: bool = False, dim: int = 3, heights: bool = False, normal_axis: str = "t2") -> int:
     """Length of :math:`\\Phi_n` for ``n`` contacts in ``dim`` (2 or 3) dimensions; ``heights``: plus the ``n``
-    contact heights (:func:`phi` with ``heights=True``, 3-d only)."""
+    contact heights (:func:`phi` with ``heights=True``, 3-d only); ``normal_axis="frame"``: with normals and
+    ``n >= 3``, three angles per normal instead of two."""
     if dim not in (2, 3):
         raise ValueError(f"dim must be 2 or 3, got {dim}")
     if n < 2:
@@ -124,10 +134,12 @@ def feature_dim(n: int, normals: bool = False, dim: int = 3, heights: bool = Fal
     if heights:
         if dim != 3:
             raise ValueError("contact heights need 3-d contacts (dim=3)")
-        return feature_dim(n, normals, dim) + n
+        return feature_dim(n, normals, dim, normal_axis=normal_axis) + n
     if n == 2:
         return (4 if dim == 3 else 3) if normals else 1
     if dim == 3:
+        if normals and check_normal_axis(normal_axis) == "frame":
+            return 6 * n - 6
         return 5 * n - 6 if normals else 3 * n - 6
     return 3 * n - 3 if normals else 2 * n - 3
 
@@ -271,10 +283,12 @@ def phi(contacts, normals=None, *, strict: bool = False, tol: float = DEFAULT_TO
         heights: append the contacts' heights ``z`` in chain order (the contacts must be in the support
             frame; see the module docstring).
         normal_axis: with normals and ``n >= 4``, each normal's second angle is to ``t2``'s normal (``"t2"``, the
-            paper's) or to the edge ``ab`` (``"ab"``); see the module docstring. ``n <= 3`` is the same either way.
+            paper's) or to the edge ``ab`` (``"ab"``; ``n <= 3`` is the same either way); ``"frame"`` (``n >= 3``)
+            adds a third angle per normal. See the module docstring.
 
     Returns:
-        :class:`GraspFeatures` with ``q`` of shape ``(B, feature_dim(n, normals, heights=heights))``
+        :class:`GraspFeatures` with ``q`` of shape ``(B, feature_dim(n, normals, heights=heights,
+        normal_axis=normal_axis))``
         (``(d,)`` etc. for a single grasp).
     """
     check_normal_axis(normal_axis)
@@ -360,15 +374,16 @@ def check_normal_axis(normal_axis) -> str:
 
 
 def normals_code(has_normals: bool, normal_axis: str = "t2") -> int:
-    """The kernels' ``has_normals`` argument: 0 (none), 1 (the paper's second angle, to t2's normal) or 2 (to ab)."""
-    return 0 if not has_normals else (2 if check_normal_axis(normal_axis) == "ab" else 1)
+    """The kernels' ``has_normals`` argument: 0 (none), 1 (the paper's second angle, to t2's normal), 2 (to ab) or 3
+    (three angles, to t1's frame)."""
+    return 0 if not has_normals else {"t2": 1, "ab": 2, "frame": 3}[check_normal_axis(normal_axis)]
 
 
 def _phi_rows(P: np.ndarray, N: np.ndarray | None, tol: float, normal_axis: str = "t2"):
     """``(q, valid, order, reason)`` of a batch ``P (B, n, 3)``, ``n >= 3``, through the compiled kernels."""
     B, n, _ = P.shape
     tri, tri_edges, _, n_edges = _topology(n)
-    q = np.zeros((B, feature_dim(n, N is not None)))
+    q = np.zeros((B, feature_dim(n, N is not None, normal_axis=normal_axis)))
     order = np.empty((B, n), dtype=np.int64)
     reason = np.empty(B, dtype=np.int8)
     valid = np.empty(B, dtype=bool)

@@ -105,7 +105,8 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
                                       f"got {config.backend!r}; use gymnasium.vector.SyncVectorEnv of HapticRecogEnv")
         self.objects, self.object_names, self.backend = self.scene.objects, self.scene.names, self.scene.backend
         self.n_classes, self.action_dim = self.scene.n_classes, self.scene.action_dim
-        self.feature_dim = feature_dim(config.n_fingers, config.normals, heights=config.grasp_heights)
+        self.feature_dim = feature_dim(config.n_fingers, config.normals, heights=config.grasp_heights,
+                                       normal_axis=config.normal_axis)
         self.task = Task(config, self.n_classes, self.feature_dim, self.action_dim,
                          q_bound=max(np.pi, self.scene.diameter * 1.01))
         self.observation_structure, self.obs_slices = self.task.observation_structure, self.task.obs_slices

@@ -217,8 +217,9 @@ def logsumexp_(v):
     return logsumexp(v)
 
 
-def test_a_recogniser_with_normal_axis_ab_is_scored_with_it(env_config, small_recognizer_kwargs):
-    """A recogniser trained on ``DatasetConfig(normal_axis="ab")`` vectors: the belief computes the same Phi (compiled
+@pytest.mark.parametrize("axis", ["ab", "frame"])
+def test_a_recogniser_with_normal_axis_ab_or_frame_is_scored_with_it(env_config, small_recognizer_kwargs, axis):
+    """A recogniser trained on ``DatasetConfig(normal_axis=axis)`` vectors: the belief computes the same Phi (compiled
     and general path alike), and predictions equal updates."""
     import copy as _copy
 
@@ -227,22 +228,22 @@ def test_a_recogniser_with_normal_axis_ab_is_scored_with_it(env_config, small_re
     from haptic_env.objects import load_object_set
 
     kw = _copy.deepcopy(small_recognizer_kwargs)
-    kw["config"]["grasps"]["normal_axis"] = "ab"
+    kw["config"]["grasps"]["normal_axis"] = axis
     cfg = env_config.replace(recognizer_kwargs=kw)
     rec = get_recognizer(load_object_set(cfg.objects), cfg)
-    assert rec.normal_axis == "ab" and rec.config.grasps.normal_axis == "ab"
+    assert rec.normal_axis == axis and rec.config.grasps.normal_axis == axis
     backend = make_backend("geometric", n_fingers=4)
     backend.set_object(load_object_set("default")[2], np.eye(4))
     res = backend.grasp_batch(np.random.default_rng(3).uniform(-1, 1, (40, 4)), np.random.default_rng(4))
     full = np.flatnonzero(res.touched.all(axis=1))[:3]
     belief, general = Belief(rec, "bc-np"), Belief(rec, "bc-np")
     general.compiled = False
-    assert belief.normal_axis == "ab" and rec.grasp_scorer() is not None
+    assert belief.normal_axis == axis and rec.grasp_scorer() is not None
     for i in full:
         q, usable = belief.update(res.contacts[i], res.normals[i], res.touched[i])
         general.update(res.contacts[i], res.normals[i], res.touched[i])
         assert usable
-        np.testing.assert_allclose(q, phi(res.contacts[i], res.normals[i], normal_axis="ab").q, atol=1e-12)
+        np.testing.assert_allclose(q, phi(res.contacts[i], res.normals[i], normal_axis=axis).q, atol=1e-12)
         np.testing.assert_allclose(belief.probs, general.probs, rtol=1e-9, atol=1e-12)
     post, scored = belief.predict_grasps(res.contacts, res.normals, res.touched)
     for p, i in zip(post[:3], scored[:3]):

@@ -588,16 +588,18 @@ def test_grasp_heights_reach_the_recogniser_observation_and_belief(env_config):
         HapticRecogEnv(env_config.replace(grasp_heights=True, recognizer_kwargs=plain)).reset(seed=0)
 
 
-def test_normal_axis_ab_reaches_the_recogniser_and_the_observation(env_config):
-    """normal_axis="ab": the recogniser trains on it, the observed grasp vector is phi(..., normal_axis="ab") of the
-    grasp, compiled and general paths agree; a recogniser built otherwise is refused, and so is a bad value."""
+@pytest.mark.parametrize("axis", ["ab", "frame"])
+def test_normal_axis_ab_or_frame_reaches_the_recogniser_and_the_observation(env_config, axis):
+    """normal_axis="ab" or "frame": the recogniser trains on it, the observed grasp vector is phi(...,
+    normal_axis=axis) of the grasp, compiled and general paths agree; a recogniser built otherwise is refused, and so
+    is a bad value."""
     from haptic_env.grasp_features import phi
 
-    cfg = env_config.replace(normal_axis="ab", threshold=1.0, max_grasps=40)
+    cfg = env_config.replace(normal_axis=axis, threshold=1.0, max_grasps=40)
     fast, slow = HapticRecogEnv(cfg), HapticRecogEnv(cfg)
     fast.reset(seed=6)
     slow.reset(seed=6)
-    assert fast.recognizer.normal_axis == "ab" == fast.belief_state.normal_axis
+    assert fast.recognizer.normal_axis == axis == fast.belief_state.normal_axis
     slow.belief_state.compiled = False
     rng, sl, seen = np.random.default_rng(3), fast.obs_slices, 0
     for _ in range(25):
@@ -607,9 +609,9 @@ def test_normal_axis_ab_reaches_the_recogniser_and_the_observation(env_config):
         np.testing.assert_allclose(obs, obs_slow, rtol=0, atol=1e-6)
         np.testing.assert_allclose(info["belief"], info_slow["belief"], rtol=1e-9, atol=1e-12)
         res = fast._last_result
-        if info["usable"] and res.touched.all():  # the observed vector is the grasp's Phi with normal_axis="ab"
+        if info["usable"] and res.touched.all():  # the observed vector is the grasp's Phi with normal_axis=axis
             seen += 1
-            np.testing.assert_allclose(obs[sl["grasp"]], phi(res.contacts, res.normals, normal_axis="ab").q, atol=1e-5)
+            np.testing.assert_allclose(obs[sl["grasp"]], phi(res.contacts, res.normals, normal_axis=axis).q, atol=1e-5)
         ended = term or trunc
         if ended:
             fast.reset(seed=seen + 100)
@@ -617,8 +619,8 @@ def test_normal_axis_ab_reaches_the_recogniser_and_the_observation(env_config):
     assert seen > 0
     other = {"config": {"grasps": {"grasps_per_object": 1500, "normal_axis": "t2"},
                         "mlp": {"depth": 1, "width": 32, "max_epochs": 1, "progress": False}}, "progress": False}
-    with pytest.raises(ValueError, match="normal_axis='ab'"):
-        HapticRecogEnv(env_config.replace(normal_axis="ab", recognizer_kwargs=other)).reset(seed=0)
+    with pytest.raises(ValueError, match=f"normal_axis={axis!r}"):
+        HapticRecogEnv(env_config.replace(normal_axis=axis, recognizer_kwargs=other)).reset(seed=0)
     with pytest.raises(ValueError, match="normal_axis must be one of .*'t1'"):
         env_config.replace(normal_axis="t1")
 

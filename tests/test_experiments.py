@@ -52,6 +52,8 @@ def test_analysis_with_normal_axis_ab_trains_and_tests_on_it(tmp_path, cache):
     ref = fresh_pool(objs, 4, True, AnalysisConfig(test_grasps=5))
     np.testing.assert_array_equal(pool[0][:, :6], ref[0][:, :6])  # the contacts' part is the paper's
     assert not np.allclose(pool[0][:, 6:], ref[0][:, 6:])
+    frame = fresh_pool(objs, 4, True, AnalysisConfig(normal_axis="frame", test_grasps=5))
+    assert frame[0].shape[1] == 18 and np.allclose(frame[0][:, 6:].reshape(-1, 4, 3)[..., :2].reshape(-1, 8), pool[0][:, 6:])
     out = tmp_path / "out"
     assert main(["analysis", "--out", str(out), "--experiments", "2", "--grasps-per-object", "200", "--test-grasps",
                  "20", "--trials", "10", "--fingers", "4", "--mlp-epochs", "1", "--normal-axis", "ab", "--quiet"]) == 0

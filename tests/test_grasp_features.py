@@ -416,14 +416,51 @@ def test_normal_axis_ab_reads_every_normal_in_t1s_frame(n):
 
 
 @SETTINGS
-@given(seed=st.integers(0, 2**32 - 1), n=st.integers(3, 9), motion=rigid, data=st.data())
-def test_normal_axis_ab_is_invariant_to_rigid_motion_and_finger_order(seed, n, motion, data):
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(3, 9), motion=rigid, data=st.data(),
+       axis=st.sampled_from(["ab", "frame"]))
+def test_normal_axis_ab_and_frame_are_invariant_to_rigid_motion_and_finger_order(seed, n, motion, data, axis):
     P, N = random_grasp(seed, n, normals=True)
     Rm = Rotation.random(random_state=motion[0]).as_matrix()
     perm = np.array(data.draw(st.permutations(range(n))))
-    f = phi(P, N, normal_axis="ab")
-    g = phi((P @ Rm.T + np.array(motion[1]))[:, perm], (N @ Rm.T)[:, perm], normal_axis="ab")
+    f = phi(P, N, normal_axis=axis)
+    g = phi((P @ Rm.T + np.array(motion[1]))[:, perm], (N @ Rm.T)[:, perm], normal_axis=axis)
     np.testing.assert_allclose(f.q, g.q, atol=1e-8)
+
+
+@pytest.mark.parametrize("n", [2, 3, 4, 5, 7])
+def test_normal_axis_frame_reads_each_normal_on_all_three_axes_of_t1(n):
+    """"frame": the contact part and the order are "ab"'s; each normal has three angles, to t1's normal, to ab and
+    to the in-plane direction towards the third contact (6n - 6 values; n = 2 is unchanged). Mirroring every normal
+    in the plane of ab and t1's normal leaves "ab"'s vector as it is and changes "frame"'s third angles to pi - x."""
+    P, N = random_grasp(n, n, batch=300, normals=True)
+    g, h = phi(P, N, normal_axis="ab"), phi(P, N, normal_axis="frame")
+    if n == 2:
+        np.testing.assert_array_equal(h.q, g.q)
+        return
+    assert h.q.shape == (300, feature_dim(n, True, normal_axis="frame")) == (300, 6 * n - 6) and h.valid.all()
+    np.testing.assert_array_equal(h.order, g.order)
+    np.testing.assert_array_equal(h.q[:, : 3 * n - 6], g.q[:, : 3 * n - 6])
+    A = h.q[:, 3 * n - 6:].reshape(300, n, 3)
+    np.testing.assert_allclose(A[..., :2].reshape(300, -1), g.q[:, 3 * n - 6:], atol=1e-12)
+    np.testing.assert_allclose((np.cos(A) ** 2).sum(-1), 1.0, atol=1e-9)  # the three angles of one unit vector
+    Po = np.take_along_axis(P, h.order[..., None], 1)
+    x = Po[:, 1] - Po[:, 0]
+    z = np.cross(x, Po[:, 2] - Po[:, 0])
+    x /= np.linalg.norm(x, axis=1, keepdims=True)
+    z /= np.linalg.norm(z, axis=1, keepdims=True)
+    y = np.cross(z, x)
+    Nu = N / np.linalg.norm(N, axis=-1, keepdims=True)
+    No = np.take_along_axis(Nu, h.order[..., None], 1)
+    np.testing.assert_allclose(A[..., 2], np.arccos(np.clip(np.einsum("gnk,gk->gn", No, y), -1, 1)), atol=1e-7)
+    # the mirrored normals (y -> -y in t1's frame; the contacts stay)
+    M = np.eye(3)[None] - 2 * y[:, :, None] * y[:, None, :]
+    Nm = np.einsum("gij,gnj->gni", M, Nu)
+    np.testing.assert_allclose(phi(P, Nm, normal_axis="ab").q, g.q, atol=1e-7)
+    hm = phi(P, Nm, normal_axis="frame").q[:, 3 * n - 6:].reshape(300, n, 3)
+    np.testing.assert_allclose(hm[..., 2], np.pi - A[..., 2], atol=1e-7)
+    # without normals the setting changes nothing
+    np.testing.assert_array_equal(phi(P, normal_axis="frame").q, phi(P).q)
+    assert feature_dim(n, False, normal_axis="frame") == 3 * n - 6
 
 
 def test_normal_axis_ab_on_coplanar_box_faces_and_bad_values():
@@ -438,6 +475,9 @@ def test_normal_axis_ab_on_coplanar_box_faces_and_bad_values():
     np.testing.assert_allclose(phi(C @ Rm.T, N @ Rm.T, normal_axis="ab").q, g.q, atol=1e-7)
     v = g.valid
     np.testing.assert_allclose(g.q[v, 9:], _angles_in_t1_frame(C[v], N[v], g.order[v]), atol=1e-7)
+    h = phi(C, N, normal_axis="frame")
+    np.testing.assert_allclose(phi(C @ Rm.T, N @ Rm.T, normal_axis="frame").q, h.q, atol=1e-7)
+    np.testing.assert_allclose(h.q[v, 9:].reshape(-1, 5, 3)[..., :2].reshape(v.sum(), -1), g.q[v, 9:], atol=1e-12)
     with pytest.raises(ValueError, match="normal_axis must be one of .*'t3'"):
         phi(C, N, normal_axis="t3")
     with pytest.raises(ValueError, match="normal_axis must be one of .*'AB'"):

@@ -8,7 +8,8 @@ from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
 from haptic_env.recognizers.scorer import GraspScorer
 
 
-@pytest.mark.parametrize("n, normals, axis", [(3, False, "t2"), (4, False, "t2"), (5, True, "t2"), (5, True, "ab")])
+@pytest.mark.parametrize("n, normals, axis", [(3, False, "t2"), (4, False, "t2"), (5, True, "t2"), (5, True, "ab"),
+                                             (3, True, "frame"), (5, True, "frame")])
 def test_scorer_equals_phi_then_kde(n, normals, axis):
     rng = np.random.default_rng(n)
     P = rng.normal(size=(3000, n, 3))

@@ -52,6 +52,7 @@ def _assert_same_step(r1, r2):
      "backend_kwargs": {"contact_noise": 0.002, "normal_noise_deg": 3.0}, "observe_contacts": True},
     {"grasp_heights": True, "scale_range": (0.8, 1.2), "backend_kwargs": {"contact_noise": 0.002}},
     {"normal_axis": "ab", "backend_kwargs": {"contact_noise": 0.002}},
+    {"normal_axis": "frame", "backend_kwargs": {"contact_noise": 0.002}},
 ])
 def test_sub_env_i_equals_a_single_env_seeded_seed_plus_i(env_config, mode, overrides):
     """The documented scheme: reset(seed=s) -> sub-env i is HapticRecogEnv reset(seed=s + i), autoresets continue

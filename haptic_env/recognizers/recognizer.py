@@ -81,9 +81,11 @@ class ModelBank:
     calibrated: bool = True
     #: the grasp vectors carry the contacts' heights (``DatasetConfig.heights``)
     heights: bool = False
+    #: each normal's angles in the grasp vectors (``DatasetConfig.normal_axis``; "frame" has three per normal)
+    normal_axis: str = "t2"
 
     def add(self, z: int, classifier, kde: KDELikelihood | None) -> None:
-        self.entries[feature_dim(z, self.normals, heights=self.heights)] = (z, classifier, kde)
+        self.entries[feature_dim(z, self.normals, heights=self.heights, normal_axis=self.normal_axis)] = (z, classifier, kde)
 
     def with_calibration(self, calibrated: bool) -> ModelBank:
         """The same models (shared, not copied), scored with or without the calibration temperatures."""
@@ -106,7 +108,7 @@ class ModelBank:
 
     def model(self, z: int):
         """``(classifier, kde)`` of the ``z``-finger model."""
-        return self.entries[feature_dim(z, self.normals, heights=self.heights)][1:]
+        return self.entries[feature_dim(z, self.normals, heights=self.heights, normal_axis=self.normal_axis)][1:]
 
     def temperature(self, z: int) -> dict[str, float]:
         """The calibration temperatures of the ``z``-finger models: ``{"kde": T, "classifier": T}`` (1: none)."""
@@ -269,7 +271,8 @@ def build_recognizer(objects, n_fingers: int, normals: bool = True, *, z_values=
             return build_dataset(objs, dcfg, cache=cache, progress=progress)
 
     names = tuple(o.name for o in objects)
-    bank = ModelBank(normals=bool(normals), n_classes=len(names), heights=bool(config.grasps.heights))
+    bank = ModelBank(normals=bool(normals), n_classes=len(names), heights=bool(config.grasps.heights),
+                     normal_axis=config.grasps.normal_axis)
     okey = config_key(_objects_key(objects)) if cache else ""
     root = cache_dir("recognizers") if cache else None
     for z in zs:

@@ -34,16 +34,17 @@ class GraspScorer:
         self.post = post
         if kde.pooled is None:
             raise ValueError("GraspScorer needs a KDE evaluated with method='pooled'")
-        d = feature_dim(n_fingers, normals, heights=heights)
+        d = feature_dim(n_fingers, normals, heights=heights, normal_axis=normal_axis)
         if kde.n_features != d:
             raise ValueError(f"the KDE has {kde.n_features} features, {n_fingers} fingers (normals={normals}, "
                              f"heights={heights}) give {d}")
         self.n_fingers, self.normals, self.kde, self.heights = int(n_fingers), bool(normals), kde, bool(heights)
         self.normal_axis = normal_axis
-        self._normals_code = normals_code(self.normals, normal_axis)  # the kernels' has_normals (0, 1 or 2)
+        self._normals_code = normals_code(self.normals, normal_axis)  # the kernels' has_normals (0-3)
         tri, tri_edges, _, n_edges = _topology(self.n_fingers)
         cfg = kde.config
-        self._phi_args = (tri, tri_edges, n_edges, DEFAULT_TOL, feature_dim(n_fingers, normals), self.heights)
+        self._phi_args = (tri, tri_edges, n_edges, DEFAULT_TOL, feature_dim(n_fingers, normals, normal_axis=normal_axis),
+                          self.heights)
         self._kde_args = (kde.scaler.mean, kde.scaler.std, *kde.pooled.arrays(), kde.pooled_labels,
                           min(cfg.k, kde.pooled.n), float(cfg.eps), kde._norms(), 0.5 / kde.bandwidth**2,
                           cfg.cutoff * kde.bandwidth)

@@ -127,7 +127,7 @@ def subset_vectors(contacts, normals=None, z: int | None = None, *, k: int | Non
             N = None if N is None else N[t]
     n = len(P)
     z = n if z is None else int(z)
-    d = feature_dim(max(z, 2), N is not None, heights=heights)
+    d = feature_dim(max(z, 2), N is not None, heights=heights, normal_axis=normal_axis)
     if n < z or z < 2:
         return np.zeros((0, d))
     if z == n:  # the whole grasp: one row (the common case: an env step)
