@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from haptic_env.grasp_features import NORMAL_AXES
+from haptic_env.grasp_features import NORMAL_AXES, NORMAL_AXIS_WORDS
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD
 
 #: The paper's kit8 one-shot accuracies (%) by (n, normals): the neural-network and nearest-neighbour rows
@@ -100,7 +100,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD)
     p.add_argument("--threads", type=int, default=1, help="torch intra-op threads")
     p.add_argument("--normal-axis", choices=NORMAL_AXES, default="t2",
-                   help="each normal's second angle in Phi_n (n >= 4): to t2's normal (the paper's) or to the edge ab")
+                   help="each normal's second angle in Phi_n (n >= 4): to t2's normal (the paper's) or to the edge ab; "
+                        "frame: three angles per normal, to the axes of t1's frame")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--time-budget", type=float, default=None, help="seconds: start no new cell after this")
     p.add_argument("--force", action="store_true", help="rerun cells that are already done")
@@ -305,8 +306,8 @@ def write_report(out: Path, args, command: str) -> Path:
          f"validation (MLP early stopping, patience {args.patience}, at most {args.max_epochs} epochs, Adam lr {args.lr} "
          f"x {args.lr_decay}/epoch, batch {args.batch_size}, all training rows); {args.threads} torch thread(s); "
          f"settings hash `{h}`. Paper: the NN / kNN rows of its kit8 one-shot table.",
-         *([] if args.normal_axis == "t2" else ["", f"**Phi_n with `normal_axis=\"{args.normal_axis}\"`** (not the paper's): each "
-            "normal's second angle is to the edge ab of t1, not to t2's normal (n >= 4; n = 3 is the same)."]), ""]
+         *([] if args.normal_axis == "t2" else ["", f"**Phi_n with `normal_axis=\"{args.normal_axis}\"`** (not the paper's): "
+                                                    f"{NORMAL_AXIS_WORDS[args.normal_axis]}."]), ""]
     series: dict[tuple, list[dict]] = {}
     for c in cells:
         series.setdefault((c["n"], c["normals"], c["model"]), []).append(c)

@@ -135,7 +135,8 @@ class HapticRecogConfig:
     observation: to the normal of the chain's second facet ``t2`` (``"t2"``, the paper's) or to the edge ``ab`` of its
     first facet (``"ab"``: both angles in ``t1``'s frame, the paper's rule for ``n = 3``; ``DatasetConfig.normal_axis``,
     ``phi(normal_axis=)``). ``"ab"`` carries more about the object: kit8 one-shot at n = 4 rises by about 10 points
-    (RESULTS.md). Same vector length."""
+    (RESULTS.md). Same vector length. ``"frame"``: three angles per normal, to the three axes of ``t1``'s frame
+    (``6n - 6`` values at ``n >= 3``), so that no side of the normal is lost."""
     observe_contacts: bool = False
     """Add the latest grasp's contact points (``"contacts"``, ``3n`` values, m) and, with ``normals``, its contact
     normals (``"contact_normals"``, ``3n``) in the world frame to the observation; 0 for fingers that did not touch.

@@ -96,7 +96,8 @@ class DatasetConfig:
             (the envs' ``"table-yaw"`` poses).
         normal_axis: with normals and ``n >= 4``, each normal's second angle is to ``t2``'s normal (``"t2"``, the
             paper's) or to the edge ``ab`` (``"ab"``: both angles in ``t1``'s frame, as the paper does for
-            ``n = 3``; :func:`~haptic_env.grasp_features.phi`).
+            ``n = 3``); ``"frame"``: three angles per normal, to all three axes of ``t1``'s frame (``6n - 6`` values
+            at ``n >= 3``; :func:`~haptic_env.grasp_features.phi`).
     """
 
     n_fingers: int = 4

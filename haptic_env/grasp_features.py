@@ -94,6 +94,7 @@ __all__ = [
     "surface_area",
     "normalize_scale",
     "NORMAL_AXES",
+    "NORMAL_AXIS_WORDS",
     "check_normal_axis",
     "normals_code",
 ]
@@ -104,6 +105,13 @@ DEFAULT_TOL = 1e-7
 #: Values of ``phi(normal_axis=...)``: each normal's second angle to t2's normal (the paper's) or to the edge ab, or
 #: (``"frame"``) its angles to all three axes of t1's frame.
 NORMAL_AXES = ("t2", "ab", "frame")
+#: Each value of :data:`NORMAL_AXES` in words, for reports.
+NORMAL_AXIS_WORDS = {
+    "t2": "each normal's angles to t1's normal and to t2's (n >= 4; at n = 3 to the edge ab), the paper's",
+    "ab": "each normal's second angle to the edge ab of t1, not to t2's normal (n >= 4; n = 3 is the same)",
+    "frame": "each normal's angles to all three axes of t1's frame (its normal, the edge ab and the in-plane "
+             "direction towards the third contact): 6n - 6 values",
+}
 
 #: Codes of :attr:`GraspFeatures.reason`.
 DEGENERACY_REASONS = {0: "ok", 1: "coincident contacts", 2: "collinear contacts", 3: "coplanar contacts"}

@@ -15,6 +15,7 @@ import numpy as np
 from haptic_env.experiments import calibration, families, oneshot, scaled, sequential, success_vs_grasps, zfinger
 from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.report import Report
+from haptic_env.grasp_features import NORMAL_AXIS_WORDS
 
 __all__ = ["EXPERIMENTS", "run_analysis"]
 
@@ -45,7 +46,7 @@ def run_analysis(cfg: AnalysisConfig, out: str | Path, command: str | None = Non
                   f"KDE {cfg.kde.method} (k={cfg.kde.k}, cutoff {cfg.kde.cutoff} h, factor {cfg.kde.factor}"
                   f"{_select_words(cfg.kde)})."
                   + ("" if cfg.normal_axis == "t2" else f" Phi_n with `normal_axis=\"{cfg.normal_axis}\"` (not the "
-                     "paper's): each normal's second angle to the edge ab of t1, not to t2's normal (n >= 4).")
+                     f"paper's): {NORMAL_AXIS_WORDS[cfg.normal_axis]}.")
                   + (" Experiment 2's BC beliefs use a stop scale chosen on validation trials (the default)."
                      if cfg.uses_stop_scale else "")]
     rng = np.random.default_rng(cfg.seed)

@@ -133,7 +133,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="experiment 5: training members per family (a third as many validation and test members)")
     p.add_argument("--normal-axis", default=d.normal_axis, choices=NORMAL_AXES,
                    help="each normal's second angle in Phi_n (n >= 4): to t2's normal (t2, the paper's) or to the "
-                        "edge ab (ab)")
+                        "edge ab (ab); or three angles per normal, to the axes of t1's frame (frame, n >= 3)")
     p.add_argument("--raw", action="store_true",
                    help="experiments 2-6 on the raw scores (the paper's method), without the calibration temperatures")
     p.add_argument("--ic-certainty", choices=IC_CERTAINTIES, default=d.ic_certainty,

@@ -82,8 +82,9 @@ class AnalysisConfig:
     #: generator stands them all on an end. Matters where the pose on the table does (a hand source)
     family_lying: bool = False
     normals: bool = True  #: experiments 2-6
-    #: each normal's second angle in Phi_n (n >= 4): to t2's normal ("t2", the paper's) or to the edge ab ("ab";
-    #: ``phi(normal_axis=)``), in every experiment's training and test grasps
+    #: each normal's second angle in Phi_n (n >= 4): to t2's normal ("t2", the paper's) or to the edge ab ("ab"), or
+    #: three angles, to the axes of t1's frame ("frame", n >= 3; ``phi(normal_axis=)``), in every experiment's
+    #: training and test grasps
     normal_axis: str = "t2"
     #: experiments 2-6 use the validation-fitted calibration (False: the paper's raw scores, and no stop scale)
     calibrated: bool = True
