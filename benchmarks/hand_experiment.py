@@ -31,7 +31,7 @@ defaults then come from the hand's ``Heights`` env (:data:`HEIGHTS_ENV_IDS`), wh
     python benchmarks/hand_experiment.py [--hands allegro shadow aero] [--queries 10] [--seeds 0 1 2]
         [--max-grasps 30] [--approaches 3000] [--regimes surface hand] [--raw] [--out results/hands]
         [--hand-budget uniform|balanced] [--kde-bandwidth shared|per-class]   # options measured, not the envs'
-        [--touch-weight W] [--heights] [--ic-certainty count|share]
+        [--touch-weight W] [--heights] [--ic-certainty count|share] [--normal-axis t2|ab|frame]
 
 Prints (and with ``--out`` writes ``hand_table.md``) the table with the paper's figure beside each
 cell; the headline is printed last.
@@ -52,6 +52,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from haptic_env import variant_config  # noqa: E402
 from haptic_env.config import HAND_APPROACHES, HapticRecogConfig  # noqa: E402
 from haptic_env.dataset import DatasetConfig, support_frame  # noqa: E402
+from haptic_env.grasp_features import NORMAL_AXES, NORMAL_AXIS_WORDS  # noqa: E402
 from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
 from haptic_env.hand_grasps import BUDGETS, hand_grasp_pool  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
@@ -124,13 +125,13 @@ def run_query(updater, C, N, T, normals: bool, touch=None) -> tuple[int, int, bo
 
 def training_config(regime: str, hand: str, args, calibrate_grasps: int = 1,
                     approaches: int = HAND_APPROACHES, bandwidth: str = "shared") -> RecognizerConfig:
-    heights = bool(getattr(args, "heights", False))
+    heights, axis = bool(getattr(args, "heights", False)), getattr(args, "normal_axis", "t2")
     if regime == "hand":
         g = DatasetConfig(source="hand", hand=hand, grasps_per_object=approaches, seed=0, hand_budget=args.hand_budget,
-                          heights=heights)
+                          heights=heights, normal_axis=axis)
     else:
         g = DatasetConfig(source="surface", grasps_per_object=args.surface_grasps, contact_noise=args.surface_noise,
-                          normal_noise_deg=args.surface_normal_noise, seed=0, heights=heights)
+                          normal_noise_deg=args.surface_normal_noise, seed=0, heights=heights, normal_axis=axis)
     return RecognizerConfig(grasps=g, kde=KDEConfig(calibrate_grasps=calibrate_grasps, bandwidth=bandwidth))
 
 
@@ -201,6 +202,9 @@ def main(argv=None) -> int:
     ap.add_argument("--heights", action="store_true",
                     help="append the contacts' heights above the table to the grasp vectors (DatasetConfig.heights, "
                          "the envs' grasp_heights)")
+    ap.add_argument("--normal-axis", choices=NORMAL_AXES, default="t2",
+                    help="each normal's angles in the grasp vectors (DatasetConfig.normal_axis, the envs' normal_axis): "
+                         "t2 (the paper's), ab, or frame (three per normal)")
     ap.add_argument("--out", type=Path, default=None, help="write hand_table.md here")
     args = ap.parse_args(argv)
     if args.calibrate_grasps is not None and args.calibrate_grasps < 1:
@@ -246,7 +250,8 @@ def main(argv=None) -> int:
     lines = [
         f"YCB-10, {args.queries} queries per object x {len(args.seeds)} {args.split} seeds ({args.seeds}), <= {args.max_grasps} "
         f"random-approach grasps per query, lambda = {args.threshold}, "
-        f"{calib}{'; grasp vectors with the contacts heights above the table (--heights)' if args.heights else ''}. "
+        f"{calib}{'; grasp vectors with the contacts heights above the table (--heights)' if args.heights else ''}"
+        f"{'' if args.normal_axis == 't2' else f'; Phi_n with normal_axis={args.normal_axis!r}: ' + NORMAL_AXIS_WORDS[args.normal_axis]}. "
         "Success = decided and correct at the stop; accuracy = final prediction correct (decided or not). "
         "Mean +- std over the test seeds. Paper: Pisa/IIT SoftHand for the 5-finger rows, real Allegro for the 4-finger rows.",
         "",
