@@ -31,6 +31,7 @@ import numpy as np
 
 from agents.evaluate import evaluate_agents, markdown_table, summarize
 from agents.random_policy import RandomAgent
+from haptic_env.cli import int_in
 
 importlib.import_module("haptic_env")  # registers the envs
 
@@ -64,8 +65,6 @@ def main(argv=None) -> int:
     p = compare_parser(__doc__.splitlines()[0])
     p.add_argument("--turns", type=float, nargs="+", default=[0.5, 1.0], help="turns in units of pi")
     a = p.parse_args(argv)
-    if a.episodes < 1:
-        p.error(f"--episodes must be >= 1, got {a.episodes}")
     agents = [RandomAgent()] + [TurnedAgent(t, k) for t in a.turns for k in (False, True)]
     compare(agents, a, "", "turned policy", argv)
     return 0
@@ -77,7 +76,7 @@ def compare_parser(description: str) -> argparse.ArgumentParser:
     p.add_argument("--env-id", default="HapticRecogMuJoCo-v0")
     p.add_argument("--seeds", type=int, nargs="+", default=[500, 501, 502, 503, 504],
                    help="env seeds (500-504: the hand envs' validation seeds)")
-    p.add_argument("--episodes", type=int, default=40, help="episodes per seed")
+    p.add_argument("--episodes", type=int_in(1), default=40, help="episodes per seed")
     p.add_argument("--out", type=Path, default=None, help="also write the table to this markdown file")
     return p
 

@@ -41,7 +41,7 @@ def main(argv=None) -> int:
         if getattr(args, name) < 1:
             ap.error(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
 
-    from haptic_env.grasping import make_backend
+    from haptic_env.grasping import make_backend, usable_touch
     from haptic_env.hand_grasps import hand_grasp_pool, pool_actions
     from haptic_env.objects import load_object_set
 
@@ -61,7 +61,7 @@ def main(argv=None) -> int:
         cells = []
         for label, contacts, touched in (("replay", got.contacts, got.touched), ("random", C[pick], T[pick])):
             same = (touched == held.touched[k]).all(axis=1).mean()
-            usable = ((touched.sum(1) >= min(3, n)) == (held.touched[k].sum(1) >= min(3, n))).mean()
+            usable = (usable_touch(touched) == usable_touch(held.touched[k])).mean()
             both = touched & held.touched[k]
             dist = 1000 * np.linalg.norm(contacts - held.contacts[k], axis=-1)[both].mean() if both.any() else np.nan
             tot[label].append((same, usable, dist))

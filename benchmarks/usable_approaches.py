@@ -34,7 +34,9 @@ import numpy as np
 
 from agents.random_policy import RandomAgent
 from haptic_env.config import recognizer_kwargs
+from haptic_env.cli import int_in
 from haptic_env.dataset import hand_pool
+from haptic_env.grasping import usable_touch
 from haptic_env.hand_grasps import pool_actions
 
 importlib.import_module("haptic_env")  # registers the envs
@@ -44,7 +46,8 @@ from relative_approaches import compare, compare_parser  # noqa: E402
 
 def cell_rates(env_id: str, bins: int) -> tuple[np.ndarray, np.ndarray, int]:
     """``(complete (B, B, B), usable (B, B, B), grasps)``: the training pool's rate of complete and of usable grasps
-    per (elevation, roll, spread) cell, pooled over the objects and azimuths."""
+    (:func:`~haptic_env.grasping.usable_touch`) per (elevation, roll, spread) cell, pooled over the objects and
+    azimuths."""
     env = gym.make(env_id)
     try:
         dc = recognizer_kwargs(env.unwrapped.config)["config"].grasps
@@ -60,7 +63,7 @@ def cell_rates(env_id: str, bins: int) -> tuple[np.ndarray, np.ndarray, int]:
     flat = np.ravel_multi_index(idx.T, (bins,) * 3)
     n = np.bincount(flat, minlength=bins ** 3).astype(float)
     comp = np.bincount(flat, weights=T.all(1), minlength=bins ** 3) / np.maximum(n, 1)
-    use = np.bincount(flat, weights=T.sum(1) >= 3, minlength=bins ** 3) / np.maximum(n, 1)
+    use = np.bincount(flat, weights=usable_touch(T), minlength=bins ** 3) / np.maximum(n, 1)
     return comp.reshape((bins,) * 3), use.reshape((bins,) * 3), len(A)
 
 
@@ -80,10 +83,8 @@ class CellAgent(RandomAgent):
 
 def main(argv=None) -> int:
     p = compare_parser(__doc__.splitlines()[0])
-    p.add_argument("--bins", type=int, default=6, help="grid cells per approach parameter")
+    p.add_argument("--bins", type=int_in(1), default=6, help="grid cells per approach parameter")
     a = p.parse_args(argv)
-    if a.episodes < 1 or a.bins < 1:
-        p.error(f"--episodes and --bins must be >= 1, got {a.episodes} and {a.bins}")
     comp, use, n = cell_rates(a.env_id, a.bins)
     one = lambda r: np.eye(r.size)[np.argmax(r)]  # noqa: E731
     agents = [RandomAgent(), CellAgent("best-complete", one(comp), a.bins), CellAgent("best-usable", one(use), a.bins),

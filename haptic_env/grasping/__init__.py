@@ -15,6 +15,7 @@ from .base import (
     approach_frame,
     decode_approach,
     make_backend,
+    usable_touch,
     validate_action,
     validate_actions,
 )
@@ -30,6 +31,7 @@ __all__ = [
     "approach_frame",
     "decode_approach",
     "make_backend",
+    "usable_touch",
     "validate_action",
     "validate_actions",
 ]

@@ -46,6 +46,7 @@ __all__ = [
     "approach_frame",
     "validate_pose",
     "support_height",
+    "usable_touch",
     "make_backend",
     "BACKENDS",
 ]
@@ -53,6 +54,13 @@ __all__ = [
 ACTION_DIM = 4
 ACTION_NAMES = ("azimuth", "elevation", "roll", "spread")
 SUPPORTS = ("table", "floating")
+
+
+def usable_touch(touched: np.ndarray) -> np.ndarray:
+    """Which grasps are usable: ``touched (..., n)`` bool -> ``(...)`` bool, at least ``min(3, n)`` fingers touched (a
+    grasp the Phi_n features accept: a polyhedron, or the distance of a 2-finger gripper)."""
+    touched = np.asarray(touched, dtype=bool)
+    return touched.sum(axis=-1) >= min(3, touched.shape[-1])
 
 
 @dataclass(frozen=True)
@@ -80,9 +88,8 @@ class GraspResult:
 
     @property
     def usable(self) -> bool:
-        """At least ``min(3, n)`` fingers touched (a grasp the Phi_n features accept: a polyhedron, or the
-        distance of a 2-finger gripper)."""
-        return self.n_touched >= min(3, len(self.touched))
+        """At least ``min(3, n)`` fingers touched (:func:`usable_touch`)."""
+        return bool(usable_touch(self.touched))
 
 
 @dataclass(frozen=True)
@@ -112,8 +119,8 @@ class GraspBatch:
 
     @property
     def usable(self) -> np.ndarray:
-        """(B,) bool: at least ``min(3, n)`` fingers touched."""
-        return self.touched.sum(axis=1) >= min(3, self.touched.shape[1])
+        """(B,) bool: at least ``min(3, n)`` fingers touched (:func:`usable_touch`)."""
+        return usable_touch(self.touched)
 
     @classmethod
     def stack(cls, results: list[GraspResult]) -> "GraspBatch":

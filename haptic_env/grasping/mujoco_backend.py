@@ -48,6 +48,7 @@ from .base import (
     approach_frame,
     decode_approach,
     support_height,
+    usable_touch,
     validate_action,
     validate_actions,
     validate_pose,
@@ -663,7 +664,7 @@ class MujocoBackend:
                            joint_pos=hand_q, gt_normals=gt_n,
                            info={"steps": steps, "gt_contacts": gt_pts, "tip_sites": sites,
                                  # >= 3 fingertips touch (both for a 2-finger gripper)
-                                 "usable": bool(len(idx) >= min(3, nf)),
+                                 "usable": bool(usable_touch(touched)),
                                  # fingers touching with other links too: their torque normal is biased
                                  "link_contact": sc.finger_link_contacts(exclude_tip=True)})
 
