@@ -313,7 +313,7 @@ def _chain(P, N, has_normals, tri, tri_edges, n_edges, area, hull, q, order):
         s = _norm(m0, m1, m2)
         if s > 0:
             m0, m1, m2 = m0 / s, m1 / s, m2 / s
-        if n == 3 or has_normals >= NORMALS_AB:
+        if n == 3 or has_normals == NORMALS_AB or has_normals == NORMALS_FRAME:  # both read in t1's frame
             r0, r1, r2 = ba0, ba1, ba2
         else:
             da0, da1, da2 = _sub(P, order[3], ia)
