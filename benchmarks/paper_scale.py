@@ -290,6 +290,20 @@ def _label(model: str) -> str:
     return f"MLP {d}x{w}"
 
 
+def _threads(cells: list[dict], args) -> str:
+    """The torch threads the cells trained with (each cell file records its own), e.g. "1 torch thread (2: 1 cell)"."""
+    counts: dict[int, int] = {}
+    for c in cells:
+        t = c.get("threads", args.threads)
+        counts[t] = counts.get(t, 0) + 1
+    if len(counts) <= 1:
+        t = next(iter(counts), args.threads)
+        return f"{t} torch thread{'s' if t != 1 else ''}"
+    (main, _), *rest = sorted(counts.items(), key=lambda kv: -kv[1])
+    return f"{main} torch thread{'s' if main != 1 else ''} (" + ", ".join(
+        f"{t}: {k} cell{'s' if k != 1 else ''}" for t, k in rest) + ")"
+
+
 def write_report(out: Path, args, command: str) -> Path:
     h = settings_hash(args)
     cells = load_cells(out, h)
@@ -304,7 +318,7 @@ def write_report(out: Path, args, command: str) -> Path:
          f"Objects `{args.objects}`; surface grasps; {args.test_grasps} fresh test grasps per object (seed "
          f"{args.seed + TEST_SEED_OFFSET}); {100 * args.val_fraction:.0f} % of each object's grasps held out for "
          f"validation (MLP early stopping, patience {args.patience}, at most {args.max_epochs} epochs, Adam lr {args.lr} "
-         f"x {args.lr_decay}/epoch, batch {args.batch_size}, all training rows); {args.threads} torch thread(s); "
+         f"x {args.lr_decay}/epoch, batch {args.batch_size}, all training rows); {_threads(cells, args)}; "
          f"settings hash `{h}`. Paper: the NN / kNN rows of its kit8 one-shot table.",
          *([] if args.normal_axis == "t2" else ["", f"**Phi_n with `normal_axis=\"{args.normal_axis}\"`** (not the paper's): "
                                                     f"{NORMAL_AXIS_WORDS[args.normal_axis]}."]), ""]
