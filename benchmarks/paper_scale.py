@@ -37,6 +37,7 @@ import shlex
 import signal
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -292,16 +293,9 @@ def _label(model: str) -> str:
 
 def _threads(cells: list[dict], args) -> str:
     """The torch threads the cells trained with (each cell file records its own), e.g. "1 torch thread (2: 1 cell)"."""
-    counts: dict[int, int] = {}
-    for c in cells:
-        t = c.get("threads", args.threads)
-        counts[t] = counts.get(t, 0) + 1
-    if len(counts) <= 1:
-        t = next(iter(counts), args.threads)
-        return f"{t} torch thread{'s' if t != 1 else ''}"
-    (main, _), *rest = sorted(counts.items(), key=lambda kv: -kv[1])
-    return f"{main} torch thread{'s' if main != 1 else ''} (" + ", ".join(
-        f"{t}: {k} cell{'s' if k != 1 else ''}" for t, k in rest) + ")"
+    (main, _), *rest = Counter(c.get("threads", args.threads) for c in cells).most_common() or [(args.threads, 0)]
+    plural = lambda k, word: f"{k} {word}{'s' if k != 1 else ''}"  # noqa: E731
+    return plural(main, "torch thread") + (f" ({', '.join(f'{t}: ' + plural(k, 'cell') for t, k in rest)})" if rest else "")
 
 
 def write_report(out: Path, args, command: str) -> Path:
