@@ -50,6 +50,7 @@ from tqdm import tqdm
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from haptic_env import variant_config  # noqa: E402
+from haptic_env.cli import int_in  # noqa: E402
 from haptic_env.config import HAND_APPROACHES, HapticRecogConfig  # noqa: E402
 from haptic_env.dataset import DatasetConfig, support_frame  # noqa: E402
 from haptic_env.grasp_features import NORMAL_AXES, NORMAL_AXIS_WORDS  # noqa: E402
@@ -180,13 +181,13 @@ def main(argv=None) -> int:
     ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
     ap.add_argument("--max-grasps", type=int, default=30, help="grasps per query at most")
     ap.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD, help="certainty threshold lambda")
-    ap.add_argument("--approaches", type=int, default=None,
+    ap.add_argument("--approaches", type=int_in(1), default=None,
                     help="hand regime: training approaches per object (default: the hand's registered env's "
                          f"setting, HapticRecogConfig.training_grasps, else {HAND_APPROACHES})")
     ap.add_argument("--surface-grasps", type=int, default=20_000, help="surface regime: training grasps per object")
     ap.add_argument("--surface-noise", type=float, default=0.0, help="surface regime: contact noise std (m)")
     ap.add_argument("--surface-normal-noise", type=float, default=0.0, help="surface regime: normal noise (deg)")
-    ap.add_argument("--calibrate-grasps", type=int, default=None,
+    ap.add_argument("--calibrate-grasps", type=int_in(1), default=None,
                     help="fit the KDE temperature for beliefs of 1..K grasps of one object (1: one-shot; default: "
                          "the hand's registered env's setting, HapticRecogConfig.calibrate_grasps)")
     ap.add_argument("--hand-budget", choices=BUDGETS, default="uniform",
@@ -207,12 +208,8 @@ def main(argv=None) -> int:
                          "t2 (the paper's), ab, or frame (three per normal)")
     ap.add_argument("--out", type=Path, default=None, help="write hand_table.md here")
     args = ap.parse_args(argv)
-    if args.calibrate_grasps is not None and args.calibrate_grasps < 1:
-        ap.error(f"--calibrate-grasps must be >= 1, got {args.calibrate_grasps}")
     if args.touch_weight is not None and not (np.isfinite(args.touch_weight) and args.touch_weight >= 0):
         ap.error(f"--touch-weight must be a finite number >= 0, got {args.touch_weight}")
-    if args.approaches is not None and args.approaches < 1:
-        ap.error(f"--approaches must be >= 1, got {args.approaches}")
     if data_dir() is None:
         print("the hand experiment needs the YCB meshes (ycb/ in the shared data folder; set HAPTIC_DATA)")
         return 1

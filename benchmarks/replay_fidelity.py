@@ -28,18 +28,17 @@ import numpy as np
 
 
 def main(argv=None) -> int:
+    from haptic_env.cli import int_in
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--hand", default="allegro")
     ap.add_argument("--objects", default="ycb10")
-    ap.add_argument("--approaches", type=int, default=6000, help="recorded approaches per object of the replay")
+    ap.add_argument("--approaches", type=int_in(1), default=6000, help="recorded approaches per object of the replay")
     ap.add_argument("--replay-seed", type=int, default=1, help="the replay pool's seed (ReplayConfig.pool_seed)")
     ap.add_argument("--pool-seed", type=int, default=500, help="seed of the held-out MuJoCo pool compared with")
-    ap.add_argument("--pool-approaches", type=int, default=300, help="held-out approaches per object")
-    ap.add_argument("--time-approaches", type=int, default=100, help="approaches timed on each backend")
+    ap.add_argument("--pool-approaches", type=int_in(1), default=300, help="held-out approaches per object")
+    ap.add_argument("--time-approaches", type=int_in(1), default=100, help="approaches timed on each backend")
     args = ap.parse_args(argv)
-    for name in ("approaches", "pool_approaches", "time_approaches"):
-        if getattr(args, name) < 1:
-            ap.error(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
 
     from haptic_env.grasping import make_backend, usable_touch
     from haptic_env.hand_grasps import hand_grasp_pool, pool_actions
