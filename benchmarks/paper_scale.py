@@ -42,6 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
+from haptic_env import cli
 from haptic_env.grasp_features import NORMAL_AXES, NORMAL_AXIS_WORDS
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD
 
@@ -95,6 +96,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--lr", type=float, default=3e-3)
     p.add_argument("--lr-decay", type=float, default=0.93)
     p.add_argument("--batch-size", type=int, default=1024)
+    p.add_argument("--weight-decay", type=cli.float_in(0.0), default=0.0, help="weight decay of the MLP's optimiser (default 0: none)")
+    p.add_argument("--decoupled-weight-decay", action="store_true",
+                   help="decay the weights apart from the gradient (AdamW) instead of Adam's L2 penalty")
     p.add_argument("--exp2", action="store_true", help="also run experiment 2 (IC, BC-NP, BC-IP) in the MLP cells")
     p.add_argument("--exp2-max-grasps", type=int, default=20000, help="experiment 2 only up to this many grasps/object")
     p.add_argument("--trials-per-object", type=int, default=1000, help="experiment 2 trials per object (paper: 1000)")
@@ -124,7 +128,9 @@ def settings(args) -> dict:
             "val_fraction": args.val_fraction, "max_epochs": args.max_epochs, "patience": args.patience, "lr": args.lr,
             "lr_decay": args.lr_decay, "batch_size": args.batch_size, "knn_k": args.knn_k, "seed": args.seed,
             "trials_per_object": args.trials_per_object, "threshold": args.threshold,  # --exp2: whether to run, not how
-            **({} if args.normal_axis == "t2" else {"normal_axis": args.normal_axis})}  # the paper's keeps older hashes
+            **({} if args.normal_axis == "t2" else {"normal_axis": args.normal_axis}),  # the defaults keep older hashes
+            **({} if not args.weight_decay else {"weight_decay": args.weight_decay}),
+            **({} if not args.decoupled_weight_decay else {"decoupled_weight_decay": True})}
 
 
 def settings_hash(args) -> str:
@@ -218,6 +224,7 @@ def run_cell(cell, data: _Data, args) -> dict:
         depth, width = NETS[model.removeprefix("mlp-")]
         cfg = MLPConfig(depth=depth, width=width, lr=args.lr, lr_decay=args.lr_decay, batch_size=args.batch_size,
                         max_epochs=args.max_epochs, patience=args.patience, max_train=None, seed=args.seed,
+                        weight_decay=args.weight_decay, decoupled_weight_decay=args.decoupled_weight_decay,
                         threads=args.threads, progress=not args.quiet)
         t0 = time.perf_counter()
         clf = MLPClassifier(cfg).fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val, n_classes=K)
@@ -298,6 +305,12 @@ def _threads(cells: list[dict], args) -> str:
     return plural(main, "torch thread") + (f" ({', '.join(f'{t}: ' + plural(k, 'cell') for t, k in rest)})" if rest else "")
 
 
+def _optimizer(args) -> str:
+    """The MLP's optimiser in words, e.g. "AdamW (weight decay 0.2)"."""
+    name = "AdamW" if args.decoupled_weight_decay else "Adam"
+    return f"{name} (weight decay {args.weight_decay:g})" if args.weight_decay else name
+
+
 def write_report(out: Path, args, command: str) -> Path:
     h = settings_hash(args)
     cells = load_cells(out, h)
@@ -311,7 +324,7 @@ def write_report(out: Path, args, command: str) -> Path:
          "```", *runs, "```", "",
          f"Objects `{args.objects}`; surface grasps; {args.test_grasps} fresh test grasps per object (seed "
          f"{args.seed + TEST_SEED_OFFSET}); {100 * args.val_fraction:.0f} % of each object's grasps held out for "
-         f"validation (MLP early stopping, patience {args.patience}, at most {args.max_epochs} epochs, Adam lr {args.lr} "
+         f"validation (MLP early stopping, patience {args.patience}, at most {args.max_epochs} epochs, {_optimizer(args)} lr {args.lr} "
          f"x {args.lr_decay}/epoch, batch {args.batch_size}, all training rows); {_threads(cells, args)}; "
          f"settings hash `{h}`. Paper: the NN / kNN rows of its kit8 one-shot table.",
          *([] if args.normal_axis == "t2" else ["", f"**Phi_n with `normal_axis=\"{args.normal_axis}\"`** (not the paper's): "

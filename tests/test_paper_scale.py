@@ -73,6 +73,27 @@ def test_bad_flags(paper_scale, tmp_path):
         paper_scale.parse_args(["--out", str(tmp_path), "--nets", "huge"])
     with pytest.raises(SystemExit):
         paper_scale.parse_args(["--out", str(tmp_path), "--fingers", "2"])
+    with pytest.raises(SystemExit):
+        paper_scale.parse_args(["--out", str(tmp_path), "--weight-decay", "-1"])
+
+
+def test_weight_decay_reaches_the_mlp_and_its_own_cells(paper_scale, tmp_path, monkeypatch):
+    """``--weight-decay`` / ``--decoupled-weight-decay`` train the MLP with them, name the optimiser in the report and
+    hash into the cell files (a run with them never resumes a run without); the defaults keep the older hash."""
+    from haptic_env.recognizers import mlp
+
+    seen = []
+    real_fit = mlp.MLPClassifier.fit
+    monkeypatch.setattr(mlp.MLPClassifier, "fit", lambda self, *a, **k: seen.append(self.config) or real_fit(self, *a, **k))
+    out = tmp_path / "ps"
+    base = [*TINY, "--out", str(out), "--grasps", "300", "--no-knn"]
+    assert paper_scale.main(base) == 0
+    assert paper_scale.main([*base, "--weight-decay", "0.2", "--decoupled-weight-decay"]) == 0
+    assert [(c.weight_decay, c.decoupled_weight_decay) for c in seen] == [(0.0, False), (0.2, True)]
+    assert len(list((out / "cells").glob("*.json"))) == 2
+    assert "AdamW (weight decay 0.2) lr" in (out / "results.md").read_text()
+    plain = paper_scale.parse_args(["--out", str(out)])
+    assert not {"weight_decay", "decoupled_weight_decay"} & set(paper_scale.settings(plain))
 
 
 def test_sampling_protocol_rejects_bad_values_first(load_benchmark):

@@ -73,3 +73,26 @@ def test_input_checks(trained):
         MLPConfig(depth=-1)
     with pytest.raises(RuntimeError, match="not fitted"):
         MLPClassifier().predict_proba(np.zeros((1, 2)))
+
+
+def test_decoupled_weight_decay_is_adamw():
+    """``decoupled_weight_decay`` shrinks the weights (smaller than without decay) by another update than the coupled
+    L2 penalty of the same size; a file saved before the option existed loads with it off."""
+    X, y = _toy(np.random.default_rng(3), 600)
+    base = dict(depth=1, width=16, max_epochs=3, patience=3, batch_size=100, lr=1e-2, progress=False, threads=1)
+    plain = MLPClassifier(MLPConfig(**base)).fit(X, y)
+    adamw = MLPClassifier(MLPConfig(**base, weight_decay=0.5, decoupled_weight_decay=True)).fit(X, y)
+    coupled = MLPClassifier(MLPConfig(**base, weight_decay=0.5)).fit(X, y)
+    norm = lambda clf: sum(float(p.detach().norm()) ** 2 for p in clf.net.parameters())  # noqa: E731
+    assert norm(adamw) < norm(plain)
+    assert not np.allclose(adamw.predict_proba(X[:20]), coupled.predict_proba(X[:20]))
+    blob = adamw.to_dict()
+    del blob["config"]["decoupled_weight_decay"]
+    assert MLPClassifier.from_dict(blob).config.decoupled_weight_decay is False
+
+
+@pytest.mark.parametrize("field, value", [("weight_decay", -0.1), ("weight_decay", float("nan")),
+                                          ("lr_decay", 0.0), ("lr_decay", 1.5)])
+def test_bad_optimizer_settings_named(field, value):
+    with pytest.raises(ValueError, match=f"MLPConfig.{field}.*{value}"):
+        MLPConfig(**{field: value})

@@ -18,7 +18,10 @@ class MLPConfig:
     width: int = 256  #: units per hidden layer
     lr: float = 3e-3  #: Adam learning rate (decayed by ``lr_decay`` per epoch)
     lr_decay: float = 0.93
+    #: L2 penalty on the weights, added to the gradient (Adam's ``weight_decay``); with ``decoupled_weight_decay``
+    #: the weights shrink by ``lr * weight_decay`` per step instead (AdamW, Loshchilov & Hutter)
     weight_decay: float = 0.0
+    decoupled_weight_decay: bool = False
     batch_size: int = 1024
     max_epochs: int = 40
     patience: int = 4  #: epochs without validation-loss improvement before stopping
@@ -35,5 +38,9 @@ class MLPConfig:
                 raise ValueError(f"MLPConfig.{name} must be a positive integer, got {v!r}")
         if not (self.lr > 0 and np.isfinite(self.lr)):
             raise ValueError(f"MLPConfig.lr must be positive and finite, got {self.lr!r}")
+        if not (self.weight_decay >= 0 and np.isfinite(self.weight_decay)):
+            raise ValueError(f"MLPConfig.weight_decay must be >= 0 and finite, got {self.weight_decay!r}")
+        if not 0.0 < self.lr_decay <= 1.0:
+            raise ValueError(f"MLPConfig.lr_decay must be in (0, 1], got {self.lr_decay!r}")
         if not 0.0 < self.val_fraction < 1.0:
             raise ValueError(f"MLPConfig.val_fraction must be in (0, 1), got {self.val_fraction!r}")
