@@ -93,8 +93,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--val-fraction", type=float, default=0.15, help="validation share of each object's grasps (paper: 0.15)")
     p.add_argument("--max-epochs", type=int, default=40)
     p.add_argument("--patience", type=int, default=4, help="epochs without validation-loss improvement before stopping")
-    p.add_argument("--lr", type=float, default=3e-3)
-    p.add_argument("--lr-decay", type=float, default=0.93)
+    p.add_argument("--lr", type=cli.float_in(0.0, lo_open=True), default=3e-3)
+    p.add_argument("--lr-decay", type=cli.float_in(0.0, 1.0, lo_open=True), default=0.93, help="learning-rate factor per epoch")
     p.add_argument("--batch-size", type=int, default=1024)
     p.add_argument("--weight-decay", type=cli.float_in(0.0), default=0.0, help="weight decay of the MLP's optimiser (default 0: none)")
     p.add_argument("--decoupled-weight-decay", action="store_true",

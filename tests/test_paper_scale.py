@@ -75,6 +75,9 @@ def test_bad_flags(paper_scale, tmp_path):
         paper_scale.parse_args(["--out", str(tmp_path), "--fingers", "2"])
     with pytest.raises(SystemExit):
         paper_scale.parse_args(["--out", str(tmp_path), "--weight-decay", "-1"])
+    for flag, bad in (("--lr-decay", "0"), ("--lr-decay", "1.5"), ("--lr", "0")):
+        with pytest.raises(SystemExit):
+            paper_scale.parse_args(["--out", str(tmp_path), flag, bad])
 
 
 def test_weight_decay_reaches_the_mlp_and_its_own_cells(paper_scale, tmp_path, monkeypatch):
