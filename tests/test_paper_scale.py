@@ -75,7 +75,9 @@ def test_bad_flags(paper_scale, tmp_path):
         paper_scale.parse_args(["--out", str(tmp_path), "--fingers", "2"])
     with pytest.raises(SystemExit):
         paper_scale.parse_args(["--out", str(tmp_path), "--weight-decay", "-1"])
-    for flag, bad in (("--lr-decay", "0"), ("--lr-decay", "1.5"), ("--lr", "0")):
+    for flag, bad in (("--lr-decay", "0"), ("--lr-decay", "1.5"), ("--lr", "0"), ("--max-epochs", "0"), ("--patience", "0"),
+                      ("--batch-size", "0"), ("--threads", "0"), ("--test-grasps", "0"), ("--knn-k", "0"),
+                      ("--val-fraction", "1"), ("--val-fraction", "-0.1")):
         with pytest.raises(SystemExit):
             paper_scale.parse_args(["--out", str(tmp_path), flag, bad])
 

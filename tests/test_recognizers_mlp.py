@@ -75,7 +75,7 @@ def test_input_checks(trained):
         MLPClassifier().predict_proba(np.zeros((1, 2)))
 
 
-def test_decoupled_weight_decay_is_adamw():
+def test_decoupled_weight_decay():
     """``decoupled_weight_decay`` shrinks the weights (smaller than without decay) by another update than the coupled
     L2 penalty of the same size; a file saved before the option existed loads with it off."""
     X, y = _toy(np.random.default_rng(3), 600)
