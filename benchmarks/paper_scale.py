@@ -99,6 +99,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--weight-decay", type=cli.float_in(0.0), default=0.0, help="weight decay of the MLP's optimiser (default 0: none)")
     p.add_argument("--decoupled-weight-decay", action="store_true",
                    help="decay the weights apart from the gradient (AdamW) instead of Adam's L2 penalty")
+    p.add_argument("--force-closure", type=cli.float_in(0.0, lo_open=True), default=None, metavar="MU",
+                   help="train and test on force-closure surface grasps only, at this friction coefficient (not the "
+                        "paper's stated protocol; DatasetConfig.force_closure)")
     p.add_argument("--exp2", action="store_true", help="also run experiment 2 (IC, BC-NP, BC-IP) in the MLP cells")
     p.add_argument("--exp2-max-grasps", type=int, default=20000, help="experiment 2 only up to this many grasps/object")
     p.add_argument("--trials-per-object", type=int, default=1000, help="experiment 2 trials per object (paper: 1000)")
@@ -130,7 +133,8 @@ def settings(args) -> dict:
             "trials_per_object": args.trials_per_object, "threshold": args.threshold,  # --exp2: whether to run, not how
             **({} if args.normal_axis == "t2" else {"normal_axis": args.normal_axis}),  # the defaults keep older hashes
             **({} if not args.weight_decay else {"weight_decay": args.weight_decay}),
-            **({} if not args.decoupled_weight_decay else {"decoupled_weight_decay": True})}
+            **({} if not args.decoupled_weight_decay else {"decoupled_weight_decay": True}),
+            **({} if args.force_closure is None else {"force_closure": args.force_closure})}
 
 
 def settings_hash(args) -> str:
@@ -177,7 +181,7 @@ class _Data:
         if key not in self._train:
             self._train.clear()
             dc = DatasetConfig(n_fingers=n, normals=normals, grasps_per_object=g, val_fraction=self.args.val_fraction,
-                               normal_axis=self.args.normal_axis,
+                               normal_axis=self.args.normal_axis, force_closure=self.args.force_closure,
                                seed=self.args.seed)
             t0 = time.perf_counter()
             ds = build_dataset(self.objects, dc, progress=False)
@@ -191,7 +195,7 @@ class _Data:
         if key not in self._test:
             self._test.clear()
             dc = DatasetConfig(n_fingers=n, normals=normals, grasps_per_object=self.args.test_grasps, val_fraction=0.0,
-                               normal_axis=self.args.normal_axis,
+                               normal_axis=self.args.normal_axis, force_closure=self.args.force_closure,
                                seed=self.args.seed + TEST_SEED_OFFSET)
             ds = build_dataset(self.objects, dc, progress=False)
             self._test[key] = (ds.X_train.astype(np.float64), ds.y_train)
@@ -259,7 +263,7 @@ def run_exp2(cell, clf, data: _Data, args) -> dict:
 
     n, normals, g, _ = cell
     rc = RecognizerConfig(grasps=DatasetConfig(grasps_per_object=g, val_fraction=args.val_fraction, seed=args.seed,
-                                               normal_axis=args.normal_axis),
+                                               normal_axis=args.normal_axis, force_closure=args.force_closure),
                           kde=KDEConfig(seed=args.seed))
     t0 = time.perf_counter()
     kde = build_recognizer(data.objects, n, normals, config=rc, models=("kde",), progress=False).models.model(n)[1]
@@ -328,7 +332,11 @@ def write_report(out: Path, args, command: str) -> Path:
          f"x {args.lr_decay}/epoch, batch {args.batch_size}, all training rows); {_threads(cells, args)}; "
          f"settings hash `{h}`. Paper: the NN / kNN rows of its kit8 one-shot table.",
          *([] if args.normal_axis == "t2" else ["", f"**Phi_n with `normal_axis=\"{args.normal_axis}\"`** (not the paper's): "
-                                                    f"{NORMAL_AXIS_WORDS[args.normal_axis]}."]), ""]
+                                                    f"{NORMAL_AXIS_WORDS[args.normal_axis]}."]),
+         *([] if args.force_closure is None else ["", f"**Force-closure grasps only** (not the paper's stated protocol): "
+                                                      f"training, validation and test grasps are the random surface grasps "
+                                                      f"in force closure at friction {args.force_closure:g} "
+                                                      "(`DatasetConfig.force_closure`)."]), ""]
     series: dict[tuple, list[dict]] = {}
     for c in cells:
         series.setdefault((c["n"], c["normals"], c["model"]), []).append(c)

@@ -10,7 +10,8 @@ CLI::
 
     python -m haptic_env.cli dataset --objects default --fingers 4 --grasps 20000 [--no-normals]
         [--noise 0.001] [--normal-noise 5] [--normalize-scale] [--scale-range 0.1 5]
-        [--sampling area|centroid] [--val-fraction 0.2] [--out file.npz] [--seed 0] [--no-cache]
+        [--sampling area|centroid] [--force-closure 0.5] [--val-fraction 0.2] [--out file.npz] [--seed 0]
+        [--no-cache]
 """
 
 from __future__ import annotations
@@ -19,13 +20,14 @@ import argparse
 import re
 import time
 import warnings
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 from tqdm.auto import tqdm
 
-from .cache import CacheError, cache_dir, config_key, load_npz, save_npz_atomic
+from .cache import KEY_ONLY_WHEN_SET, CacheError, cache_dir, config_key, load_npz, save_npz_atomic
+from .force_closure import force_closure
 from .grasp_features import check_normal_axis, feature_dim, normalize_scale, phi
 from .grasping.base import support_height
 from .hand_grasps import BUDGETS
@@ -35,6 +37,7 @@ __all__ = [
     "DatasetConfig",
     "GraspDataset",
     "sample_grasps",
+    "held_grasps",
     "approach_grasps",
     "SOURCES",
     "grasp_vectors",
@@ -98,6 +101,10 @@ class DatasetConfig:
             paper's) or to the edge ``ab`` (``"ab"``: both angles in ``t1``'s frame, as the paper does for
             ``n = 3``); ``"frame"``: three angles per normal, to all three axes of ``t1``'s frame (``6n - 6`` values
             at ``n >= 3``; :func:`~haptic_env.grasp_features.phi`).
+        force_closure: with ``source="surface"``, keep only the grasps in force closure at this Coulomb friction
+            coefficient (``> 0``; :func:`~haptic_env.force_closure.force_closure`, its contacts' own normals; needs
+            ``n_fingers >= 3``), training and validation alike. ``None`` (default): every grasp, the paper's stated
+            protocol (``benchmarks/force_closure.py`` compares the two).
     """
 
     n_fingers: int = 4
@@ -117,6 +124,7 @@ class DatasetConfig:
     hand_budget: str = "uniform"
     heights: bool = False
     normal_axis: str = "t2"
+    force_closure: float | None = field(default=None, metadata={KEY_ONLY_WHEN_SET: True})
 
     def __post_init__(self) -> None:
         if int(self.n_fingers) != self.n_fingers or self.n_fingers < 2:
@@ -154,6 +162,17 @@ class DatasetConfig:
             raise ValueError(f"hand must be a hand name or an MJCF path, got {self.hand!r}")
         if not isinstance(self.heights, (bool, np.bool_)):
             raise ValueError(f"heights must be a bool, got {self.heights!r}")
+        if self.force_closure is not None:
+            mu = self.force_closure
+            if isinstance(mu, bool) or not isinstance(mu, (int, float, np.number)) or not np.isfinite(mu) or mu <= 0:
+                raise ValueError(f"force_closure (a friction coefficient) must be a finite number > 0 or None, "
+                                 f"got {mu!r}")
+            if self.source != "surface":
+                raise ValueError(f"force_closure filters surface grasps (source='surface'), got source={self.source!r}")
+            if self.n_fingers < 3:
+                raise ValueError(f"force_closure needs n_fingers >= 3 (two point contacts never are), "
+                                 f"got n_fingers={self.n_fingers}")
+            object.__setattr__(self, "force_closure", float(mu))
 
     def source_key(self) -> str:
         """The identity of the grasp source beyond this config: the hand's physics for ``source="hand"``
@@ -223,6 +242,27 @@ def sample_grasps(
     pts, nrm = obj.sample_surface(int(count) * int(n_fingers), rng, sampling)
     shape = (int(count), int(n_fingers), 3)
     return pts.reshape(shape), nrm.reshape(shape)
+
+
+def held_grasps(
+    obj: GraspObject, count: int, n_fingers: int, rng: np.random.Generator, mu: float, *, sampling: str = "area",
+    chunk: int = 200_000,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The grasps among ``count`` random ones (:func:`sample_grasps`) that are in force closure with friction ``mu``
+    (:func:`~haptic_env.force_closure.force_closure`), drawn ``chunk`` at a time to bound the memory.
+
+    Returns:
+        ``contacts (m, n, 3)`` and inward ``normals (m, n, 3)`` with ``m <= count``.
+    """
+    Cs, Ns = [], []
+    for lo in range(0, int(count), int(chunk)):
+        C, N = sample_grasps(obj, min(int(chunk), int(count) - lo), n_fingers, rng, sampling=sampling)
+        held = force_closure(C, N, mu)
+        Cs.append(C[held])
+        Ns.append(N[held])
+    if not Cs:
+        return np.zeros((0, int(n_fingers), 3)), np.zeros((0, int(n_fingers), 3))
+    return np.concatenate(Cs), np.concatenate(Ns)
 
 
 def approach_grasps(
@@ -334,6 +374,8 @@ def _object_grasps(obj: GraspObject, config: DatasetConfig, rng: np.random.Gener
         if config.source == "geometric":
             C, N = approach_grasps(obj, batch, config.n_fingers, rng, hand_fingers=config.hand_fingers,
                                    support=config.support)
+        elif config.force_closure is not None:
+            C, N = held_grasps(obj, batch, config.n_fingers, rng, config.force_closure, sampling=config.sampling)
         else:
             C, N = sample_grasps(obj, batch, config.n_fingers, rng, sampling=config.sampling)
         X, valid = grasp_vectors(support_frame(C, obj, config), N if config.normals else None, config, rng=rng)
@@ -544,6 +586,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--scale-range", type=float_in(0.0, lo_open=True), nargs=2, metavar=("LO", "HI"), default=None,
                    help="random per-grasp object scale U(LO, HI)")
     p.add_argument("--sampling", choices=SAMPLING_METHODS, default="area", help="surface sampling (default area)")
+    p.add_argument("--force-closure", type=float_in(0.0, lo_open=True), default=None, metavar="MU",
+                   help="surface source: keep only grasps in force closure at this friction coefficient (default: all)")
     p.add_argument("--val-fraction", type=float_in(0.0, 1.0, hi_open=True), default=0.2,
                    help="validation fraction in [0, 1) (default 0.2)")
     p.add_argument("--source", choices=SOURCES, default="surface",
@@ -603,6 +647,7 @@ def _cli_config(args: argparse.Namespace) -> DatasetConfig:
         support=args.support,
         hand=args.hand,
         hand_budget=args.hand_budget,
+        force_closure=args.force_closure,
     )
 
 

@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from haptic_env.cache import CacheError, atomic_write, cache_dir, config_key, load_npz, save_npz_atomic
+from haptic_env.cache import KEY_ONLY_WHEN_SET, CacheError, atomic_write, cache_dir, config_key, load_npz, save_npz_atomic
 
 
 @dataclasses.dataclass(frozen=True)
@@ -21,6 +21,19 @@ def test_config_key_is_stable_and_sensitive():
     assert config_key(Cfg()) != config_key(Cfg(a=2))
     assert config_key(Cfg(), np.arange(3)) != config_key(Cfg(), np.arange(4))
     assert len(config_key(Cfg())) == 16
+
+
+def test_field_added_later_keeps_older_keys_while_unset():
+    @dataclasses.dataclass(frozen=True)
+    class Later:
+        a: int = 1
+        b: tuple[float, float] = (0.1, 5.0)
+        c: float | None = dataclasses.field(default=None, metadata={KEY_ONLY_WHEN_SET: True})
+
+    assert config_key(Later()) == config_key(Cfg())  # the same key as the config without the field
+    assert config_key(Later(a=2)) == config_key(Cfg(a=2))
+    assert config_key(Later(c=0.5)) != config_key(Cfg())  # set, it is part of the key
+    assert config_key(Later(c=0.5)) != config_key(Later(c=0.6))
 
 
 def test_cache_dir_honours_env(tmp_path, monkeypatch):

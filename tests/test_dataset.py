@@ -15,8 +15,10 @@ from haptic_env.dataset import (
     build_dataset,
     dataset_cache_path,
     grasp_vectors,
+    held_grasps,
     sample_grasps,
 )
+from haptic_env.force_closure import force_closure
 from haptic_env.grasp_features import feature_dim, phi
 from haptic_env.objects import load_object_set
 
@@ -98,6 +100,11 @@ def test_tilted_normals_keep_unit_length_and_angle(objects):
         ({"scale_range": (2.0, 1.0)}, "scale_range"),
         ({"sampling": "vertex"}, "sampling"),
         ({"val_fraction": 1.0}, "val_fraction"),
+        ({"force_closure": 0.0}, "force_closure"),
+        ({"force_closure": float("inf")}, "force_closure"),
+        ({"force_closure": "0.5"}, "force_closure"),
+        ({"force_closure": 0.5, "n_fingers": 2}, "n_fingers"),
+        ({"force_closure": 0.5, "source": "geometric"}, "source"),
     ],
 )
 def test_config_validation(kwargs, match):
@@ -181,6 +188,18 @@ def test_cli_dataset_smoke(tmp_path, capsys):
     assert "(hit)" in capsys.readouterr().out
 
 
+def test_cli_dataset_force_closure(capsys):
+    argv = ["dataset", "--objects", "default", "--fingers", "3", "--grasps", "40", "--no-cache", "--quiet"]
+    assert cli_main([*argv, "--force-closure", "0.5"]) == 0
+    assert "X_train (288, 9)" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        cli_main([*argv, "--force-closure", "0"])
+    assert "--force-closure" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        cli_main([*argv[:3], "--fingers", "2", "--force-closure", "0.5"])
+    assert "n_fingers >= 3" in capsys.readouterr().err
+
+
 def test_cli_dataset_folder_and_no_normals(tmp_path, capsys):
     import trimesh
 
@@ -242,3 +261,21 @@ def test_heights_dataset_measures_contacts_from_the_table(objects):
     assert ds.X_train.shape[1] == cfg.feature_dim
     with pytest.raises(ValueError, match="heights must be a bool"):
         DatasetConfig(heights="yes")
+
+
+def test_force_closure_dataset_keeps_held_grasps_and_older_keys(objects):
+    # unset, the new field leaves the cache key of every config made before it existed
+    plain = DatasetConfig(n_fingers=3, grasps_per_object=300, seed=2)
+    assert "force_closure" not in cache_mod._jsonable(plain)
+    assert dataset_cache_path(objects, plain) == dataset_cache_path(objects, DatasetConfig(
+        n_fingers=3, grasps_per_object=300, seed=2, force_closure=None))
+    held = DatasetConfig(n_fingers=3, grasps_per_object=300, seed=2, force_closure=0.5)
+    assert held.force_closure == 0.5 and dataset_cache_path(objects, held) != dataset_cache_path(objects, plain)
+    # held_grasps returns only grasps in force closure, fewer than asked
+    C, N = held_grasps(objects[1], 2000, 3, np.random.default_rng(0), 0.5, chunk=700)
+    assert 0 < len(C) < 2000 and C.shape[1:] == (3, 3) and N.shape == C.shape
+    assert force_closure(C, N, 0.5).all()
+    # the dataset gets its full count from them, and other vectors than the plain one
+    ds, ref = build_dataset(objects, held, progress=False), build_dataset(objects, plain, progress=False)
+    assert ds.counts() == ref.counts() and ds.X_train.shape == ref.X_train.shape
+    assert np.isfinite(ds.X_train).all() and not np.allclose(ds.X_train, ref.X_train)

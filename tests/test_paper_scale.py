@@ -77,7 +77,7 @@ def test_bad_flags(paper_scale, tmp_path):
         paper_scale.parse_args(["--out", str(tmp_path), "--weight-decay", "-1"])
     for flag, bad in (("--lr-decay", "0"), ("--lr-decay", "1.5"), ("--lr", "0"), ("--max-epochs", "0"), ("--patience", "0"),
                       ("--batch-size", "0"), ("--threads", "0"), ("--test-grasps", "0"), ("--knn-k", "0"),
-                      ("--val-fraction", "1"), ("--val-fraction", "-0.1")):
+                      ("--val-fraction", "1"), ("--val-fraction", "-0.1"), ("--force-closure", "0")):
         with pytest.raises(SystemExit):
             paper_scale.parse_args(["--out", str(tmp_path), flag, bad])
 
@@ -99,6 +99,25 @@ def test_weight_decay_reaches_the_mlp_and_its_own_cells(paper_scale, tmp_path, m
     assert "AdamW (weight decay 0.2) lr" in (out / "results.md").read_text()
     plain = paper_scale.parse_args(["--out", str(out)])
     assert not {"weight_decay", "decoupled_weight_decay"} & set(paper_scale.settings(plain))
+
+
+def test_force_closure_reaches_training_and_test_grasps(paper_scale, tmp_path, monkeypatch):
+    """``--force-closure MU`` builds the training and the test grasps with ``DatasetConfig.force_closure = MU``, says
+    so in the report and hashes into the cell files; unset, the settings keep the older hash."""
+    from haptic_env import dataset
+
+    seen = []
+    real = dataset.build_dataset
+    monkeypatch.setattr(dataset, "build_dataset", lambda objs, cfg, **k: seen.append(cfg) or real(objs, cfg, **k))
+    out = tmp_path / "ps"
+    assert paper_scale.main([*TINY, "--out", str(out), "--grasps", "200", "--nets", "", "--test-grasps", "20",
+                             "--force-closure", "0.5"]) == 0
+    assert [c.force_closure for c in seen] == [0.5, 0.5] and {c.grasps_per_object for c in seen} == {200, 20}
+    assert "**Force-closure grasps only**" in (out / "results.md").read_text()
+    plain = paper_scale.parse_args(["--out", str(out)])
+    assert "force_closure" not in paper_scale.settings(plain)
+    assert paper_scale.settings_hash(plain) != paper_scale.settings_hash(
+        paper_scale.parse_args(["--out", str(out), "--force-closure", "0.5"]))
 
 
 def test_sampling_protocol_rejects_bad_values_first(load_benchmark):

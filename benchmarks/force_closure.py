@@ -1,0 +1,175 @@
+"""Force-closure grasps: are grasps that hold an object more telling of it than random surface points, and is the
+force-closure test fast?
+
+1. **Speed and exactness**: :func:`haptic_env.force_closure.force_closure` (a vectorised search for a separating
+   direction, then Qhull on what it cannot reject) against Qhull on every grasp, on the same random surface grasps:
+   the answers must agree on every grasp; the figure is the speed-up, printed last.
+2. **Separability** (with ``--objects``): kNN one-shot accuracy (k = 15, distance-weighted, standardised) on fresh
+   test grasps, training and test grasps both drawn the same way: all random surface grasps (the paper's stated
+   protocol) or only those in force closure at friction ``--mu``; the paper's kNN row beside (kit8).
+3. **Transfer to a hand** (with ``--hand``): the same kNN trained on each kind of ycb10 surface grasp, scored on the
+   hand's complete grasps of ycb10 (its validation pool, seed 500; :mod:`haptic_env.hand_grasps`).
+
+    python benchmarks/force_closure.py [--objects kit8] [--fingers 3,4] [--grasps 3000] [--test-grasps 500]
+        [--mu 0.5] [--hand allegro] [--speed-grasps 3000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+import numpy as np
+
+from haptic_env.cli import float_in, int_in
+
+#: The paper's kit8 kNN one-shot accuracies (%) by (n, normals) (/work/shared/reference/paper_figures.md).
+PAPER_KNN = {(3, True): 70.8, (3, False): 45.6, (4, True): 59.1, (4, False): 56.1, (5, True): 62.2, (5, False): 61.8}
+
+
+def _grasps(objects, n: int, count: int, rng, mu: float | None, bar) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``count`` grasps per object: random surface grasps, or (``mu``) those of them in force closure."""
+    from haptic_env.dataset import held_grasps, sample_grasps
+
+    out = []
+    for obj in objects:
+        if mu is None:
+            out.append(sample_grasps(obj, count, n, rng))
+        else:
+            Cs, Ns, have = [], [], 0
+            while have < count:
+                C, N = held_grasps(obj, 4 * count, n, rng, mu)
+                Cs.append(C)
+                Ns.append(N)
+                have += len(C)
+            out.append((np.concatenate(Cs)[:count], np.concatenate(Ns)[:count]))
+        bar.update()
+    return out
+
+
+def _vectors(pool, n: int, normals: bool):
+    from haptic_env.dataset import DatasetConfig, grasp_vectors
+
+    cfg = DatasetConfig(n_fingers=n, normals=normals)
+    X, y = [], []
+    for k, (C, N) in enumerate(pool):
+        q, valid = grasp_vectors(C, N if normals else None, cfg)
+        X.append(q[valid])
+        y.append(np.full(int(valid.sum()), k))
+    return np.concatenate(X), np.concatenate(y)
+
+
+def _knn(Xtr, ytr, Xte, yte) -> float:
+    from sklearn.neighbors import KNeighborsClassifier
+
+    mu, sd = Xtr.mean(0), Xtr.std(0) + 1e-12
+    return float(KNeighborsClassifier(15, weights="distance").fit((Xtr - mu) / sd, ytr).score((Xte - mu) / sd, yte))
+
+
+def speed(objects, n: int, count: int, mu: float, seed: int) -> float:
+    """Seconds of Qhull-only over seconds of the search + Qhull on ``count`` random grasps per object (printed)."""
+    from haptic_env.dataset import sample_grasps
+    from haptic_env.force_closure import force_closure
+
+    rng = np.random.default_rng(seed)
+    pools = [sample_grasps(o, count, n, rng) for o in objects]
+    t_fast = t_ref = 0.0
+    held = total = 0
+    for C, N in pools:
+        t0 = time.perf_counter()
+        fast = force_closure(C, N, mu)
+        t1 = time.perf_counter()
+        ref = force_closure(C, N, mu, search=False)
+        t_ref += time.perf_counter() - t1
+        t_fast += t1 - t0
+        if not np.array_equal(fast, ref):
+            raise AssertionError(f"the search changed {int((fast != ref).sum())} answers of Qhull's")
+        held += int(ref.sum())
+        total += len(ref)
+    print(f"n = {n}, mu = {mu:g}: {total:,} random surface grasps, {100 * held / total:.1f} % in force closure; "
+          f"Qhull on every grasp {1e6 * t_ref / total:.0f} us/grasp, search + Qhull {1e6 * t_fast / total:.0f} "
+          "us/grasp; the same answer on every grasp")
+    return t_ref / t_fast
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--objects", default="kit8", help="object set of the separability table ('' to skip it)")
+    ap.add_argument("--fingers", default="3,4", help="comma list of finger counts (>= 3)")
+    ap.add_argument("--grasps", type=int_in(50), default=3_000, help="training grasps per object")
+    ap.add_argument("--test-grasps", type=int_in(10), default=500, help="fresh test grasps per object")
+    ap.add_argument("--mu", type=float_in(0.0, lo_open=True), default=0.5, help="friction coefficient")
+    ap.add_argument("--hand", default=None, help="also score ycb10 surface-trained kNN on this hand's grasps")
+    ap.add_argument("--speed-grasps", type=int_in(10), default=3_000, help="grasps per object of the speed check")
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args(argv)
+    try:
+        fingers = [int(x) for x in args.fingers.split(",") if x.strip()]
+    except ValueError:
+        ap.error(f"--fingers: a comma list of integers, got {args.fingers!r}")
+    if not fingers or min(fingers) < 3:
+        ap.error(f"--fingers: finger counts >= 3 (fewer are never in force closure), got {args.fingers!r}")
+    from tqdm.auto import tqdm
+
+    from haptic_env.objects import load_object_set
+
+    t_start = time.perf_counter()
+    if args.objects:
+        objects = load_object_set(args.objects)
+        print(f"## Separability: {args.objects}, kNN (k = 15) one-shot accuracy %, {args.grasps:,} training and "
+              f"{args.test_grasps:,} test grasps per object, force closure at mu = {args.mu:g}\n")
+        print("| n | normals | all surface grasps | force-closure grasps | paper kNN (200,000 grasps/object) |")
+        print("|---|---|---|---|---|")
+        for n in fingers:
+            cells = {}
+            for mu in (None, args.mu):
+                with tqdm(total=2 * len(objects), desc=f"n = {n}, {'force closure' if mu else 'all'}", unit="obj",
+                          leave=False) as bar:
+                    rng = np.random.default_rng([args.seed, n])
+                    train = _grasps(objects, n, args.grasps, rng, mu, bar)
+                    test = _grasps(objects, n, args.test_grasps, rng, mu, bar)
+                for normals in (False, True):
+                    cells[mu, normals] = _knn(*_vectors(train, n, normals), *_vectors(test, n, normals))
+            for normals in (False, True):
+                paper = PAPER_KNN.get((n, normals), "-") if args.objects == "kit8" else "-"
+                print(f"| {n} | {'yes' if normals else 'no'} | {100 * cells[None, normals]:.1f} | "
+                      f"{100 * cells[args.mu, normals]:.1f} | {paper} |", flush=True)
+        se = 100 * np.sqrt(0.25 / (len(objects) * args.test_grasps))
+        print(f"\nbinomial standard error of one cell <= {se:.1f} points\n")
+    if args.hand:
+        from haptic_env.grasping.hands import HandUnavailableError, load_hand
+        from haptic_env.hand_grasps import hand_grasp_pool
+
+        ycb = load_object_set("ycb10")
+        try:
+            pool = hand_grasp_pool(ycb, args.hand, load_hand(args.hand, None).n_fingers, 300, seed=500)
+        except HandUnavailableError as exc:
+            print(f"skipping the hand: {exc}")
+        else:
+            n = pool.touched.shape[-1]
+            print(f"## Transfer: kNN trained on ycb10 surface grasps ({args.grasps:,} per object, n = {n}), scored on "
+                  f"the {args.hand}'s complete grasps of ycb10 (validation pool, 300 approaches per object)\n")
+            print("| normals | all surface grasps | force-closure grasps |")
+            print("|---|---|---|")
+            full = [pool.touched[i].sum(-1) == n for i in range(len(ycb))]
+            queries = [(pool.contacts[i][full[i]], pool.normals[i][full[i]]) for i in range(len(ycb))]
+            res = {}
+            for mu in (None, args.mu):
+                with tqdm(total=len(ycb), desc=f"ycb10, {'force closure' if mu else 'all'}", unit="obj",
+                          leave=False) as bar:
+                    train = _grasps(ycb, n, args.grasps, np.random.default_rng([args.seed, n, 1]), mu, bar)
+                for normals in (False, True):
+                    res[mu, normals] = _knn(*_vectors(train, n, normals), *_vectors(queries, n, normals))
+            for normals in (False, True):
+                print(f"| {'yes' if normals else 'no'} | {100 * res[None, normals]:.1f} | "
+                      f"{100 * res[args.mu, normals]:.1f} |")
+            print(f"\n{int(sum(f.sum() for f in full)):,} complete grasps scored (chance 10 %)\n")
+    ratio = speed(load_object_set(args.objects or "default"), fingers[0], args.speed_grasps, args.mu, args.seed + 1)
+    print(f"({time.perf_counter() - t_start:.0f} s in all)")
+    print(f"HEADLINE: the force-closure test is {ratio:.1f}x faster than Qhull on every grasp, with the same answers")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

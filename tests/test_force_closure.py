@@ -1,0 +1,80 @@
+"""Tests of haptic_env.force_closure: the force-closure test of frictional point contacts."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from haptic_env.dataset import sample_grasps
+from haptic_env.force_closure import force_closure, primitive_wrenches
+from haptic_env.objects import load_object_set
+
+
+def _equator(k: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """``k`` contacts evenly round a unit sphere's equator, normals pointing to its centre."""
+    a = 2 * np.pi * np.arange(k) / k
+    C = np.stack([np.cos(a), np.sin(a), np.zeros(k)], axis=1)
+    return C, -C
+
+
+def test_textbook_grasps():
+    C, N = _equator(3)
+    assert force_closure(C, N, mu=0.5) is True  # three fingers round a ball hold it with friction
+    assert force_closure(C, N, mu=0.0) is False  # frictionless: 3 normals cannot span 6 wrench directions
+    assert force_closure(C, N, mu=0.05) is True  # any friction: squeezing harder makes up for it
+    assert force_closure(C, np.tile([0.0, 0.0, 1.0], (3, 1)), mu=0.5) is False  # all pushing the same way
+    tip = np.vstack([C, [[0.0, 0.0, 1.0]]])
+    assert force_closure(tip, np.vstack([N, [[0.0, 0.0, -1.0]]]), mu=0.5) is True
+    # invariant to moving and scaling the grasp, and to the contacts' order
+    R = np.linalg.qr(np.random.default_rng(0).normal(size=(3, 3)))[0]
+    assert force_closure(3.0 * C @ R.T + [1.0, -2.0, 0.5], N @ R.T, mu=0.5) is True
+    assert force_closure(C[::-1], N[::-1], mu=0.5) is True
+
+
+def test_degenerate_grasps_are_not_in_closure():
+    C, N = _equator(3)
+    assert force_closure(C[:2], N[:2], mu=1.0) is False  # two point contacts never are
+    assert force_closure(np.zeros((3, 3)), N, mu=0.5) is False  # coincident contacts
+    assert force_closure(C, np.zeros((3, 3)), mu=0.5) is False  # zero normals
+    line = np.stack([np.linspace(-1, 1, 3), np.zeros(3), np.zeros(3)], axis=1)
+    assert force_closure(line, np.tile([0.0, 1.0, 0.0], (3, 1)), mu=0.5) is False  # collinear
+    assert force_closure(np.zeros((0, 3, 3)), np.zeros((0, 3, 3)), mu=0.5).shape == (0,)
+
+
+def test_search_gives_qhulls_answers_on_random_grasps():
+    obj = load_object_set("default")["mug"]
+    rng = np.random.default_rng(1)
+    for n in (3, 4):
+        C, N = sample_grasps(obj, 600, n, rng)
+        fast, exact = force_closure(C, N, 0.5), force_closure(C, N, 0.5, search=False)
+        np.testing.assert_array_equal(fast, exact)
+        assert 0 < exact.sum() < len(exact)  # both kinds occur, so the comparison means something
+    # more friction holds more grasps, and every grasp held at mu holds at 2 mu
+    lo, hi = force_closure(C, N, 0.3), force_closure(C, N, 0.6)
+    assert lo.sum() < hi.sum() and not (lo & ~hi).any()
+
+
+def test_wrenches_shape_and_units():
+    C, N = _equator(3)
+    W = primitive_wrenches(C, N, mu=0.5, edges=6)
+    assert W.shape == (18, 6)
+    np.testing.assert_allclose(W[:, :3].reshape(3, 6, 3).mean(axis=1), N, atol=1e-12)  # the edges surround the normal
+    Wb = primitive_wrenches(100.0 * C[None], 7.0 * N[None], mu=0.5, edges=6)  # neither length unit nor |normal| counts
+    np.testing.assert_allclose(Wb[0], W, atol=1e-12)
+
+
+@pytest.mark.parametrize("kwargs,match", [
+    ({"mu": -0.1}, "mu"), ({"mu": float("nan")}, "mu"), ({"edges": 2}, "edges"), ({"edges": 3.5}, "edges"),
+])
+def test_bad_arguments_are_named(kwargs, match):
+    C, N = _equator(3)
+    with pytest.raises(ValueError, match=match):
+        force_closure(C, N, **kwargs)
+
+
+def test_bad_shapes_are_named():
+    C, N = _equator(3)
+    with pytest.raises(ValueError, match="contacts must have shape"):
+        force_closure(C[:, :2], N[:, :2])
+    with pytest.raises(ValueError, match="normals must have the shape"):
+        force_closure(C, N[:2])
