@@ -126,6 +126,14 @@ def test_family_source_is_checked_and_reaches_the_grasps(tmp_path):
         AnalysisConfig(family_lying=1)
     with pytest.raises(ValueError, match="family_heights must be a bool, got 1"):
         AnalysisConfig(family_source="hand", family_heights=1)
+    assert AnalysisConfig(family_force_closure=0.5).family_grasps == {"force_closure": 0.5}
+    from haptic_env.experiments.families import grasp_config
+
+    assert grasp_config(AnalysisConfig(family_force_closure=0.5), 100, 0).force_closure == 0.5  # members and objects
+    with pytest.raises(ValueError, match="family_force_closure filters surface grasps.*got family_source='hand'"):
+        AnalysisConfig(family_source="hand", family_force_closure=0.5)
+    with pytest.raises(ValueError, match="family_force_closure .* must be a finite number > 0 or None, got 0"):
+        AnalysisConfig(family_force_closure=0)
     assert AnalysisConfig(family_scale_range=[1, 2]).family_scale_range == (1.0, 2.0)
     assert AnalysisConfig().family_scale_range == (0.5, 1.5)  # the paper's aspect spread
     with pytest.raises(ValueError, match="family_source must be one of .*'hand'.*got 'allegro'"):
@@ -142,7 +150,8 @@ def test_family_source_is_checked_and_reaches_the_grasps(tmp_path):
         AnalysisConfig(family_hand="")
     for flags in (["--family-source", "allegro"], ["--family-scale-range", "0.75"],
                   ["--family-scale-range", "1,x"], ["--family-scale-range", "0,1"], ["--family-size-range", "2,1"],
-                  ["--family-heights"]):  # heights need the hand's table
+                  ["--family-heights"],  # heights need the hand's table
+                  ["--family-force-closure", "0"], ["--family-source", "hand", "--family-force-closure", "0.5"]):
         with pytest.raises(SystemExit):
             main(["analysis", "--out", str(tmp_path / "bad"), "--experiments", "5", *flags])
         assert not (tmp_path / "bad").exists()

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import shlex
 
+from haptic_env.cli import float_in
 from haptic_env.grasp_features import NORMAL_AXES
 from haptic_env.objects.base import UP_AXES
 from haptic_env.experiments.config import FAMILY_SOURCES, AnalysisConfig
@@ -129,6 +130,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--family-lying", action="store_true",
                    help="experiment 5: every second elliptic cylinder member lies on its side (default: all stand, the "
                         "paper's generator); with --family-source hand the pose on the table changes the grasps")
+    p.add_argument("--family-force-closure", type=float_in(0.0, lo_open=True), default=None, metavar="MU",
+                   help="experiment 5 with --family-source surface: only the grasps in force closure at this friction "
+                        "coefficient, of the members and the objects alike (default: every grasp, the paper's)")
     p.add_argument("--family-members", type=int, default=d.family_members,
                    help="experiment 5: training members per family (a third as many validation and test members)")
     p.add_argument("--normal-axis", default=d.normal_axis, choices=NORMAL_AXES,
@@ -198,6 +202,7 @@ def _run_cli(args) -> int:
             family_size_range=None if args.family_size_range is None else _range(args.family_size_range,
                                                                                  "--family-size-range"),
             family_heights=args.family_heights, family_lying=args.family_lying,
+            family_force_closure=args.family_force_closure,
             calibrated=not args.raw, stop_scale=args.stop_scale, ic_certainty=args.ic_certainty,
             calib_fingers=_ints(args.calib_fingers), calib_fingers_no_normals=_ints(args.calib_fingers_no_normals),
             lambdas=_lambdas(args.lambdas), seed=args.seed,

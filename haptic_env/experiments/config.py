@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from haptic_env.cache import KEY_ONLY_WHEN_SET
 from haptic_env.dataset import DatasetConfig
 from haptic_env.grasp_features import check_normal_axis
 from haptic_env.objects.base import up_rotation
@@ -81,6 +82,9 @@ class AnalysisConfig:
     #: experiment 5: every second elliptic cylinder member lies on its side (``family_set(lying=True)``); the paper's
     #: generator stands them all on an end. Matters where the pose on the table does (a hand source)
     family_lying: bool = False
+    #: experiment 5 with ``family_source="surface"``: keep only the grasps in force closure at this friction coefficient
+    #: (``DatasetConfig.force_closure``), of the members and the objects alike; ``None``: every grasp (the paper's)
+    family_force_closure: float | None = field(default=None, metadata={KEY_ONLY_WHEN_SET: True})
     normals: bool = True  #: experiments 2-6
     #: each normal's second angle in Phi_n (n >= 4): to t2's normal ("t2", the paper's) or to the edge ab ("ab"), or
     #: three angles, to the axes of t1's frame ("frame", n >= 3; ``phi(normal_axis=)``), in every experiment's
@@ -136,6 +140,14 @@ class AnalysisConfig:
             raise ValueError(f"family_heights must be a bool, got {self.family_heights!r}")
         if not isinstance(self.family_lying, bool):
             raise ValueError(f"family_lying must be a bool, got {self.family_lying!r}")
+        if self.family_force_closure is not None:
+            mu = self.family_force_closure
+            if isinstance(mu, bool) or not isinstance(mu, (int, float)) or not np.isfinite(mu) or mu <= 0:
+                raise ValueError(f"family_force_closure (a friction coefficient) must be a finite number > 0 or None, "
+                                 f"got {mu!r}")
+            if self.family_source != "surface":
+                raise ValueError(f"family_force_closure filters surface grasps (family_source='surface'), got "
+                                 f"family_source={self.family_source!r}")
         if self.family_heights and self.family_source != "hand":
             raise ValueError(f"family_heights needs family_source='hand' (objects on the table), got "
                              f"family_source={self.family_source!r}")
@@ -147,7 +159,7 @@ class AnalysisConfig:
             return {"source": "geometric", "support": "floating"}
         if self.family_source == "hand":
             return {"source": "hand", "hand": self.family_hand, "support": "table", "heights": self.family_heights}
-        return {}
+        return {} if self.family_force_closure is None else {"force_closure": self.family_force_closure}
 
     def recognizer_config(self, **kw) -> RecognizerConfig:
         """The :class:`RecognizerConfig` every experiment trains its object models with (``kw``: more

@@ -186,7 +186,9 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
           f"scale-normalised, {grasps}; member axes U({lo:g}, {hi:g}) x 0.08 m" + (
               "" if cfg.family_size_range is None else " x a size factor U({:g}, {:g}) per member".format(
                   *cfg.family_size_range)) + ("; every second cylinder lying" if cfg.family_lying else "")
-          + ("; with each contact's height above the table" if cfg.family_heights else "") + f"; {cfg.scores_label})")
+          + ("; with each contact's height above the table" if cfg.family_heights else "")
+          + ("" if cfg.family_force_closure is None else f"; only grasps in force closure at friction "
+                                                           f"{cfg.family_force_closure:g}") + f"; {cfg.scores_label})")
     m = family_models(cfg, len(objects))
     train_set, test_set, fam_of, left_train, left_val = m.train_set, m.test_set, m.fam_of, m.left_train, m.left_val
     kde, clf, T_kde, T_mlp = m.kde, m.clf, m.T_kde, m.T_mlp
