@@ -67,6 +67,42 @@ def test_analysis_with_normal_axis_ab_trains_and_tests_on_it(tmp_path, cache):
     assert not (tmp_path / "bad").exists()
 
 
+def test_force_closure_reaches_training_test_and_contact_pools(tmp_path, cache):
+    """``--force-closure MU`` trains and tests on force-closure grasps (the recogniser's dataset, the fresh pools, the
+    z-finger experiment's raw contacts) and the report says so; finger counts below 3 are refused before any work."""
+    from haptic_env.experiments.config import AnalysisConfig
+    from haptic_env.experiments.fresh_grasps import contact_pool, fresh_pool
+    from haptic_env.force_closure import force_closure
+    from haptic_env.objects import load_object_set
+
+    cfg = AnalysisConfig(force_closure=0.5, fingers=(3, 4), test_grasps=30)
+    assert cfg.recognizer_config().grasps.force_closure == 0.5 and AnalysisConfig().recognizer_config().grasps.force_closure is None
+    objs = load_object_set("default").subset(["box", "mug"], name="two")
+    held = fresh_pool(objs, 3, False, cfg)
+    assert [len(x) for x in held] == [30, 30] and not np.allclose(held[0], fresh_pool(objs, 3, False, AnalysisConfig(test_grasps=30))[0])
+    (C, N), _ = contact_pool(objs, 4, True, 25, 1, force_closure=0.5)
+    assert C.shape == (25, 4, 3) and force_closure(C, N, 0.5).all()
+    with pytest.raises(ValueError, match=r"force_closure needs every finger count >= 3.*fingers=\(2, 3\)"):
+        AnalysisConfig(force_closure=0.5, fingers=(2, 3))
+    AnalysisConfig(force_closure=0.5, fingers=(2, 3), experiments=(1,))  # experiment 2 does not run: its fingers do not count
+    with pytest.raises(ValueError, match="force_closure .* must be a finite number > 0 or None, got -1"):
+        AnalysisConfig(force_closure=-1)
+    for flags in (["--force-closure", "0.5"], ["--force-closure", "0", "--fingers", "3"]):  # default fingers hold 2
+        with pytest.raises(SystemExit):
+            main(["analysis", "--out", str(tmp_path / "bad"), "--experiments", "2", *flags])
+    assert not (tmp_path / "bad").exists()
+
+
+@pytest.mark.slow
+def test_analysis_with_force_closure_end_to_end(tmp_path, cache):
+    """Experiment 2 on force-closure grasps runs through and its report says so (about a minute: the default set's
+    grasps are drawn until enough are in force closure)."""
+    out = tmp_path / "out"
+    assert main(["analysis", "--out", str(out), "--experiments", "2", "--grasps-per-object", "150", "--test-grasps",
+                 "20", "--trials", "5", "--fingers", "3", "--mlp-epochs", "1", "--force-closure", "0.5", "--quiet"]) == 0
+    assert "**Force-closure grasps only**" in (out / "results.md").read_text()
+
+
 def test_build_recognizer_caches_and_updates(cache):
     from haptic_env.objects import load_object_set
 

@@ -47,6 +47,9 @@ def run_analysis(cfg: AnalysisConfig, out: str | Path, command: str | None = Non
                   f"{_select_words(cfg.kde)})."
                   + ("" if cfg.normal_axis == "t2" else f" Phi_n with `normal_axis=\"{cfg.normal_axis}\"` (not the "
                      f"paper's): {NORMAL_AXIS_WORDS[cfg.normal_axis]}.")
+                  + ("" if cfg.force_closure is None else f" **Force-closure grasps only** (not the paper's stated "
+                     f"protocol): in experiments 1-4, 6 and 7 every training, validation and test grasp is a random "
+                     f"surface grasp in force closure at friction {cfg.force_closure:g}.")
                   + (" Experiment 2's BC beliefs use a stop scale chosen on validation trials (the default)."
                      if cfg.uses_stop_scale else "")]
     rng = np.random.default_rng(cfg.seed)

@@ -130,6 +130,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--family-lying", action="store_true",
                    help="experiment 5: every second elliptic cylinder member lies on its side (default: all stand, the "
                         "paper's generator); with --family-source hand the pose on the table changes the grasps")
+    p.add_argument("--force-closure", type=float_in(0.0, lo_open=True), default=None, metavar="MU",
+                   help="experiments 1-4, 6, 7: only surface grasps in force closure at this friction coefficient, in "
+                        "training and test alike (default: every grasp, the paper's stated protocol; finger counts >= 3)")
     p.add_argument("--family-force-closure", type=float_in(0.0, lo_open=True), default=None, metavar="MU",
                    help="experiment 5 with --family-source surface: only the grasps in force closure at this friction "
                         "coefficient, of the members and the objects alike (default: every grasp, the paper's)")
@@ -202,7 +205,7 @@ def _run_cli(args) -> int:
             family_size_range=None if args.family_size_range is None else _range(args.family_size_range,
                                                                                  "--family-size-range"),
             family_heights=args.family_heights, family_lying=args.family_lying,
-            family_force_closure=args.family_force_closure,
+            family_force_closure=args.family_force_closure, force_closure=args.force_closure,
             calibrated=not args.raw, stop_scale=args.stop_scale, ic_certainty=args.ic_certainty,
             calib_fingers=_ints(args.calib_fingers), calib_fingers_no_normals=_ints(args.calib_fingers_no_normals),
             lambdas=_lambdas(args.lambdas), seed=args.seed,

@@ -90,6 +90,10 @@ class AnalysisConfig:
     #: three angles, to the axes of t1's frame ("frame", n >= 3; ``phi(normal_axis=)``), in every experiment's
     #: training and test grasps
     normal_axis: str = "t2"
+    #: experiments 1-4, 6 and 7: train and test on the surface grasps in force closure at this friction coefficient
+    #: only (``DatasetConfig.force_closure``; every finger count >= 3); ``None``: every random grasp (the paper's stated
+    #: protocol). Experiment 5 has its own (:attr:`family_force_closure`)
+    force_closure: float | None = field(default=None, metadata={KEY_ONLY_WHEN_SET: True})
     #: experiments 2-6 use the validation-fitted calibration (False: the paper's raw scores, and no stop scale)
     calibrated: bool = True
     #: experiment 2: BC-NP and BC-IP divide their calibrated log-likelihoods by a stop scale chosen on validation
@@ -140,6 +144,15 @@ class AnalysisConfig:
             raise ValueError(f"family_heights must be a bool, got {self.family_heights!r}")
         if not isinstance(self.family_lying, bool):
             raise ValueError(f"family_lying must be a bool, got {self.family_lying!r}")
+        if self.force_closure is not None:
+            mu = self.force_closure
+            if isinstance(mu, bool) or not isinstance(mu, (int, float)) or not np.isfinite(mu) or mu <= 0:
+                raise ValueError(f"force_closure (a friction coefficient) must be a finite number > 0 or None, got {mu!r}")
+            used = {"fingers": 2, "oneshot_fingers": 1, "calib_fingers": 7, "calib_fingers_no_normals": 7}
+            for name, exp in used.items():
+                if exp in self.experiments and min(getattr(self, name), default=3) < 3:
+                    raise ValueError(f"force_closure needs every finger count >= 3 (two point contacts are never in "
+                                     f"force closure), got {name}={getattr(self, name)}")
         if self.family_force_closure is not None:
             mu = self.family_force_closure
             if isinstance(mu, bool) or not isinstance(mu, (int, float)) or not np.isfinite(mu) or mu <= 0:
@@ -165,7 +178,7 @@ class AnalysisConfig:
         """The :class:`RecognizerConfig` every experiment trains its object models with (``kw``: more
         :class:`DatasetConfig` fields, e.g. experiment 4's scale range)."""
         grasps = DatasetConfig(grasps_per_object=self.grasps_per_object, seed=self.seed,
-                               **{"normal_axis": self.normal_axis, **kw})
+                               **{"normal_axis": self.normal_axis, "force_closure": self.force_closure, **kw})
         return RecognizerConfig(grasps=grasps, mlp=dataclasses.replace(self.mlp, progress=False), kde=self.kde)
 
     @property

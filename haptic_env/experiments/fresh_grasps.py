@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from haptic_env.dataset import DatasetConfig, build_dataset, sample_grasps
+from haptic_env.dataset import DatasetConfig, build_dataset, held_grasps, sample_grasps
 from haptic_env.experiments.config import TEST_SEED_OFFSET, AnalysisConfig
 
 __all__ = ["fresh_pool", "contact_pool", "pool_scores", "scored_models"]
@@ -22,16 +22,26 @@ def fresh_pool(objects, n: int, normals: bool, cfg: AnalysisConfig, *, seed_offs
     grasps: :data:`~haptic_env.experiments.stop_scale.VALIDATION_SEED_OFFSET`); ``dkw``: more
     :class:`DatasetConfig` fields."""
     dc = DatasetConfig(n_fingers=n, normals=normals, grasps_per_object=cfg.test_grasps if grasps is None else grasps,
-                       val_fraction=0.0, seed=cfg.seed + seed_offset, **{"normal_axis": cfg.normal_axis, **dkw})
+                       val_fraction=0.0, seed=cfg.seed + seed_offset,
+                       **{"normal_axis": cfg.normal_axis, "force_closure": cfg.force_closure, **dkw})
     ds = build_dataset(objects, dc, progress=False)
     return [ds.X_train[ds.y_train == k].astype(np.float64) for k in range(len(objects))]
 
 
-def contact_pool(objects, n: int, normals: bool, count: int, seed: int) -> list[tuple[np.ndarray, np.ndarray | None]]:
-    """Raw ``count`` n-contact surface grasps per object: ``(contacts (G, n, 3), normals (G, n, 3) or None)``."""
+def contact_pool(objects, n: int, normals: bool, count: int, seed: int,
+                 force_closure: float | None = None) -> list[tuple[np.ndarray, np.ndarray | None]]:
+    """Raw ``count`` n-contact surface grasps per object: ``(contacts (G, n, 3), normals (G, n, 3) or None)``; with
+    ``force_closure`` (a friction coefficient) only grasps in force closure (:func:`~haptic_env.dataset.held_grasps`)."""
     out = []
     for k, obj in enumerate(objects):
-        C, N = sample_grasps(obj, count, n, np.random.default_rng([seed, k]))
+        rng = np.random.default_rng([seed, k])
+        if force_closure is None:
+            C, N = sample_grasps(obj, count, n, rng)
+        else:
+            parts = [held_grasps(obj, 4 * count, n, rng, force_closure)]
+            while sum(len(c) for c, _ in parts) < count:
+                parts.append(held_grasps(obj, 4 * count, n, rng, force_closure))
+            C, N = (np.concatenate(a)[:count] for a in zip(*parts))
         out.append((C, N if normals else None))
     return out
 

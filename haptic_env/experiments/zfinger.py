@@ -28,7 +28,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
             for z in SUBSET_SIZES}
     beliefs = {z: Belief(rec, calibrated=cfg.calibrated) for z, rec in recs.items()}  # their subset scoring
     for n in tqdm(cfg.zfinger_hands, desc="exp3 hands", disable=not cfg.progress):
-        raw = contact_pool(objects, n, cfg.normals, max(50, cfg.test_grasps // 2), cfg.seed + TEST_SEED_OFFSET + n)
+        raw = contact_pool(objects, n, cfg.normals, max(50, cfg.test_grasps // 2), cfg.seed + TEST_SEED_OFFSET + n,
+                           cfg.force_closure)
         for z in SUBSET_SIZES:
             if z >= n:
                 continue
