@@ -27,7 +27,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .cache import KEY_ONLY_WHEN_SET, CacheError, cache_dir, config_key, load_npz, save_npz_atomic
-from .force_closure import force_closure
+from .force_closure import check_friction, force_closure
 from .grasp_features import check_normal_axis, feature_dim, normalize_scale, phi
 from .grasping.base import support_height
 from .hand_grasps import BUDGETS
@@ -163,16 +163,13 @@ class DatasetConfig:
         if not isinstance(self.heights, (bool, np.bool_)):
             raise ValueError(f"heights must be a bool, got {self.heights!r}")
         if self.force_closure is not None:
-            mu = self.force_closure
-            if isinstance(mu, bool) or not isinstance(mu, (int, float, np.number)) or not np.isfinite(mu) or mu <= 0:
-                raise ValueError(f"force_closure (a friction coefficient) must be a finite number > 0 or None, "
-                                 f"got {mu!r}")
+            mu = check_friction(self.force_closure)
             if self.source != "surface":
                 raise ValueError(f"force_closure filters surface grasps (source='surface'), got source={self.source!r}")
             if self.n_fingers < 3:
                 raise ValueError(f"force_closure needs n_fingers >= 3 (two point contacts never are), "
                                  f"got n_fingers={self.n_fingers}")
-            object.__setattr__(self, "force_closure", float(mu))
+            object.__setattr__(self, "force_closure", mu)
 
     def source_key(self) -> str:
         """The identity of the grasp source beyond this config: the hand's physics for ``source="hand"``

@@ -30,13 +30,22 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["primitive_wrenches", "force_closure", "DEFAULT_EDGES"]
+__all__ = ["primitive_wrenches", "force_closure", "check_friction", "DEFAULT_EDGES"]
 
 #: Edges of the pyramid that linearises each friction cone.
 DEFAULT_EDGES = 4
 #: Perceptron steps of the rejection search, and grasps per vectorised chunk (bounds its memory).
 _SEARCH_STEPS = 200
 _CHUNK = 50_000
+
+
+def check_friction(value, name: str = "force_closure") -> float:
+    """``value`` as a float if it is a friction coefficient a force-closure filter can use (finite, ``> 0``: with no
+    friction no grasp of fewer than 7 contacts is in closure), else a ``ValueError`` naming ``name`` and the value."""
+    ok = not isinstance(value, bool) and isinstance(value, (int, float, np.number)) and np.isfinite(value) and value > 0
+    if not ok:
+        raise ValueError(f"{name} (a friction coefficient) must be a finite number > 0 or None, got {value!r}")
+    return float(value)
 
 
 def _check(contacts, normals, mu, edges) -> tuple[np.ndarray, np.ndarray, bool]:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from haptic_env.dataset import sample_grasps
-from haptic_env.force_closure import force_closure, primitive_wrenches
+from haptic_env.force_closure import check_friction, force_closure, primitive_wrenches
 from haptic_env.objects import load_object_set
 
 
@@ -78,3 +78,10 @@ def test_bad_shapes_are_named():
         force_closure(C[:, :2], N[:, :2])
     with pytest.raises(ValueError, match="normals must have the shape"):
         force_closure(C, N[:2])
+
+
+def test_check_friction_names_the_setting_and_value():
+    assert check_friction(1) == 1.0 and isinstance(check_friction(np.float32(0.5)), float)
+    for bad in (0, -0.5, float("inf"), float("nan"), True, "0.5", None):
+        with pytest.raises(ValueError, match=r"mu_filter \(a friction coefficient\) must be a finite number > 0"):
+            check_friction(bad, "mu_filter")

@@ -10,6 +10,7 @@ import numpy as np
 
 from haptic_env.cache import KEY_ONLY_WHEN_SET
 from haptic_env.dataset import DatasetConfig
+from haptic_env.force_closure import check_friction
 from haptic_env.grasp_features import check_normal_axis
 from haptic_env.objects.base import up_rotation
 from haptic_env.objects.primitives import FAMILY_SCALE_RANGE
@@ -145,19 +146,14 @@ class AnalysisConfig:
         if not isinstance(self.family_lying, bool):
             raise ValueError(f"family_lying must be a bool, got {self.family_lying!r}")
         if self.force_closure is not None:
-            mu = self.force_closure
-            if isinstance(mu, bool) or not isinstance(mu, (int, float)) or not np.isfinite(mu) or mu <= 0:
-                raise ValueError(f"force_closure (a friction coefficient) must be a finite number > 0 or None, got {mu!r}")
+            check_friction(self.force_closure)
             used = {"fingers": 2, "oneshot_fingers": 1, "calib_fingers": 7, "calib_fingers_no_normals": 7}
             for name, exp in used.items():
                 if exp in self.experiments and min(getattr(self, name), default=3) < 3:
                     raise ValueError(f"force_closure needs every finger count >= 3 (two point contacts are never in "
                                      f"force closure), got {name}={getattr(self, name)}")
         if self.family_force_closure is not None:
-            mu = self.family_force_closure
-            if isinstance(mu, bool) or not isinstance(mu, (int, float)) or not np.isfinite(mu) or mu <= 0:
-                raise ValueError(f"family_force_closure (a friction coefficient) must be a finite number > 0 or None, "
-                                 f"got {mu!r}")
+            check_friction(self.family_force_closure, "family_force_closure")
             if self.family_source != "surface":
                 raise ValueError(f"family_force_closure filters surface grasps (family_source='surface'), got "
                                  f"family_source={self.family_source!r}")
