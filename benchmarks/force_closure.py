@@ -30,20 +30,11 @@ PAPER_KNN = {(3, True): 70.8, (3, False): 45.6, (4, True): 59.1, (4, False): 56.
 
 def _grasps(objects, n: int, count: int, rng, mu: float | None, bar) -> list[tuple[np.ndarray, np.ndarray]]:
     """``count`` grasps per object: random surface grasps, or (``mu``) those of them in force closure."""
-    from haptic_env.dataset import held_grasps, sample_grasps
+    from haptic_env.dataset import draw_held_grasps, sample_grasps
 
     out = []
     for obj in objects:
-        if mu is None:
-            out.append(sample_grasps(obj, count, n, rng))
-        else:
-            Cs, Ns, have = [], [], 0
-            while have < count:
-                C, N = held_grasps(obj, 4 * count, n, rng, mu)
-                Cs.append(C)
-                Ns.append(N)
-                have += len(C)
-            out.append((np.concatenate(Cs)[:count], np.concatenate(Ns)[:count]))
+        out.append(sample_grasps(obj, count, n, rng) if mu is None else draw_held_grasps(obj, count, n, rng, mu))
         bar.update()
     return out
 
@@ -61,10 +52,11 @@ def _vectors(pool, n: int, normals: bool):
 
 
 def _knn(Xtr, ytr, Xte, yte) -> float:
-    from sklearn.neighbors import KNeighborsClassifier
+    """One-shot accuracy of the project's kNN baseline (standardised, k = 15, distance-weighted; every training row)."""
+    from haptic_env.recognizers.baselines import make_classifier
 
-    mu, sd = Xtr.mean(0), Xtr.std(0) + 1e-12
-    return float(KNeighborsClassifier(15, weights="distance").fit((Xtr - mu) / sd, ytr).score((Xte - mu) / sd, yte))
+    clf = make_classifier("knn", max_train=None, n_neighbors=15).fit(Xtr, ytr, n_classes=int(ytr.max()) + 1)
+    return float(np.mean(clf.predict(Xte) == yte))
 
 
 def speed(objects, n: int, count: int, mu: float, seed: int) -> float:

@@ -137,6 +137,12 @@ def settings(args) -> dict:
             **({} if args.force_closure is None else {"force_closure": args.force_closure})}
 
 
+def grasp_fields(args) -> dict:
+    """The :class:`~haptic_env.dataset.DatasetConfig` fields that the flags set for every grasp of the run: training,
+    test and the experiment-2 KDE's alike."""
+    return {"normal_axis": args.normal_axis, "force_closure": args.force_closure}
+
+
 def settings_hash(args) -> str:
     return hashlib.sha256(json.dumps(settings(args), sort_keys=True).encode()).hexdigest()[:10]
 
@@ -181,8 +187,7 @@ class _Data:
         if key not in self._train:
             self._train.clear()
             dc = DatasetConfig(n_fingers=n, normals=normals, grasps_per_object=g, val_fraction=self.args.val_fraction,
-                               normal_axis=self.args.normal_axis, force_closure=self.args.force_closure,
-                               seed=self.args.seed)
+                               seed=self.args.seed, **grasp_fields(self.args))
             t0 = time.perf_counter()
             ds = build_dataset(self.objects, dc, progress=False)
             self._train[key] = (ds, time.perf_counter() - t0)
@@ -195,8 +200,7 @@ class _Data:
         if key not in self._test:
             self._test.clear()
             dc = DatasetConfig(n_fingers=n, normals=normals, grasps_per_object=self.args.test_grasps, val_fraction=0.0,
-                               normal_axis=self.args.normal_axis, force_closure=self.args.force_closure,
-                               seed=self.args.seed + TEST_SEED_OFFSET)
+                               seed=self.args.seed + TEST_SEED_OFFSET, **grasp_fields(self.args))
             ds = build_dataset(self.objects, dc, progress=False)
             self._test[key] = (ds.X_train.astype(np.float64), ds.y_train)
         return self._test[key]
@@ -263,7 +267,7 @@ def run_exp2(cell, clf, data: _Data, args) -> dict:
 
     n, normals, g, _ = cell
     rc = RecognizerConfig(grasps=DatasetConfig(grasps_per_object=g, val_fraction=args.val_fraction, seed=args.seed,
-                                               normal_axis=args.normal_axis, force_closure=args.force_closure),
+                                               **grasp_fields(args)),
                           kde=KDEConfig(seed=args.seed))
     t0 = time.perf_counter()
     kde = build_recognizer(data.objects, n, normals, config=rc, models=("kde",), progress=False).models.model(n)[1]

@@ -38,6 +38,7 @@ __all__ = [
     "GraspDataset",
     "sample_grasps",
     "held_grasps",
+    "draw_held_grasps",
     "approach_grasps",
     "SOURCES",
     "grasp_vectors",
@@ -260,6 +261,22 @@ def held_grasps(
     if not Cs:
         return np.zeros((0, int(n_fingers), 3)), np.zeros((0, int(n_fingers), 3))
     return np.concatenate(Cs), np.concatenate(Ns)
+
+
+def draw_held_grasps(
+    obj: GraspObject, count: int, n_fingers: int, rng: np.random.Generator, mu: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Exactly ``count`` grasps in force closure with friction ``mu``: :func:`held_grasps` of ``4 * count`` random
+    grasps at a time until there are enough (the first ``count`` kept).
+
+    Returns:
+        ``contacts (count, n, 3)`` and inward ``normals (count, n, 3)``.
+    """
+    parts = [held_grasps(obj, 4 * int(count), n_fingers, rng, mu)]
+    while sum(len(C) for C, _ in parts) < count:
+        parts.append(held_grasps(obj, 4 * int(count), n_fingers, rng, mu))
+    C, N = (np.concatenate(a)[: int(count)] for a in zip(*parts))
+    return C, N
 
 
 def approach_grasps(

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from haptic_env.dataset import DatasetConfig, build_dataset, held_grasps, sample_grasps
+from haptic_env.dataset import DatasetConfig, build_dataset, draw_held_grasps, sample_grasps
 from haptic_env.experiments.config import TEST_SEED_OFFSET, AnalysisConfig
 
 __all__ = ["fresh_pool", "contact_pool", "pool_scores", "scored_models"]
@@ -31,17 +31,14 @@ def fresh_pool(objects, n: int, normals: bool, cfg: AnalysisConfig, *, seed_offs
 def contact_pool(objects, n: int, normals: bool, count: int, seed: int,
                  force_closure: float | None = None) -> list[tuple[np.ndarray, np.ndarray | None]]:
     """Raw ``count`` n-contact surface grasps per object: ``(contacts (G, n, 3), normals (G, n, 3) or None)``; with
-    ``force_closure`` (a friction coefficient) only grasps in force closure (:func:`~haptic_env.dataset.held_grasps`)."""
+    ``force_closure`` (a friction coefficient) only grasps in force closure (:func:`~haptic_env.dataset.draw_held_grasps`)."""
     out = []
     for k, obj in enumerate(objects):
         rng = np.random.default_rng([seed, k])
         if force_closure is None:
             C, N = sample_grasps(obj, count, n, rng)
         else:
-            parts = [held_grasps(obj, 4 * count, n, rng, force_closure)]
-            while sum(len(c) for c, _ in parts) < count:
-                parts.append(held_grasps(obj, 4 * count, n, rng, force_closure))
-            C, N = (np.concatenate(a)[:count] for a in zip(*parts))
+            C, N = draw_held_grasps(obj, count, n, rng, force_closure)
         out.append((C, N if normals else None))
     return out
 
