@@ -12,13 +12,29 @@ Canny 1992; Murray, Li & Sastry, *A Mathematical Introduction to Robotic Manipul
 torque's reference point nor its scale ``s`` (here the contacts' largest distance from their centroid, which
 keeps the numbers unit-free) changes the answer.
 
-:func:`force_closure` decides it exactly for the pyramids with Qhull (``scipy.spatial.ConvexHull``). Most
-random grasps are not in closure (about 96 % of three random surface points on kit8 at ``mu = 0.5``), and a
-vectorised search over the whole batch first looks for a direction ``d`` with ``d . w < 0`` for every
-primitive wrench ``w`` (a perceptron on the wrenches): such a ``d`` proves that the origin is outside the
-hull, so the search only ever rejects grasps that are not in closure, and every grasp it cannot reject goes to
-Qhull. ``benchmarks/force_closure.py`` checks the answers against Qhull alone on every grasp and gives the
-speed-up.
+Three methods give the same answer for the pyramids (``method=``); ``benchmarks/force_closure.py`` checks each
+against Qhull on every grasp and gives the speed-ups:
+
+``"qhull"``
+    Qhull (``scipy.spatial.ConvexHull``) on each grasp's wrenches: the reference.
+``"search"``
+    Most random grasps are not in closure (about 95 % of three random surface points on kit8 at ``mu = 0.5``).
+    A vectorised search over the whole batch first looks for a direction ``d`` with ``d . w < 0`` for every
+    primitive wrench ``w`` (a perceptron on the wrenches): such a ``d`` proves that the origin is outside the
+    hull, so the search only ever rejects grasps that are not in closure, and every grasp it cannot reject goes
+    to Qhull.
+``"plane"`` (three contacts only)
+    Three non-collinear contacts are in force closure exactly when their plane cuts every friction pyramid
+    through its inside and the planar grasp with the pyramids' sections (2-d friction sectors) is in force
+    closure in that plane (Li, Liu & Cai, *On computing three-finger force-closure grasps of 2-D and 3-D
+    objects*, IEEE T-RA 19(1), 2003): a wrench needs out-of-plane contact forces that the three contacts' 3 x 3
+    system fixes, so a purely planar wrench is resisted by in-plane forces alone, and large enough internal
+    in-plane forces inside the sectors absorb any out-of-plane part. The planar test asks whether six wrenches
+    in :math:`R^3` positively span it: they do not exactly when a direction is on one side of all six, and if
+    one is, one is also among the 15 normals ``w_i x w_j`` of pairs of them (an extreme ray of the dual cone).
+    All of it is vectorised over the batch, with no per-grasp loop.
+
+``"auto"`` (the default) is ``"plane"`` for three contacts and ``"search"`` otherwise.
 
 Degenerate grasps
     Coincident or collinear contacts, ``n <= 2`` (two point contacts cannot resist a torque about the line
@@ -30,10 +46,12 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["primitive_wrenches", "force_closure", "check_friction", "DEFAULT_EDGES"]
+__all__ = ["primitive_wrenches", "force_closure", "check_friction", "DEFAULT_EDGES", "METHODS"]
 
 #: Edges of the pyramid that linearises each friction cone.
 DEFAULT_EDGES = 4
+#: The ways :func:`force_closure` decides (module docstring); all give the same answer.
+METHODS = ("auto", "plane", "search", "qhull")
 #: Perceptron steps of the rejection search, and grasps per vectorised chunk (bounds its memory).
 _SEARCH_STEPS = 200
 _CHUNK = 50_000
@@ -114,6 +132,48 @@ def _separable(W: np.ndarray) -> np.ndarray:
     return found
 
 
+def _plane_closure(W: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """``(B,)`` force closure of three-contact grasps by the planar reduction (module docstring).
+
+    Args:
+        W: ``(B, 3 * edges, 6)`` primitive wrenches, contact-major (their force parts are the pyramid edges).
+        C: ``(B, 3, 3)`` contacts.
+    """
+    B, E = W.shape[0], W.shape[1] // 3
+    F = W[..., :3].reshape(B, 3, E, 3)  # each contact's pyramid edges, in cyclic order
+    a, b = C[:, 1] - C[:, 0], C[:, 2] - C[:, 0]
+    m = np.cross(a, b)
+    mn = np.linalg.norm(m, axis=-1)
+    ok = mn > 1e-9 * np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1)  # collinear or coincident: False
+    m = m / np.maximum(mn, 1e-300)[:, None]
+    s = np.einsum("bcek,bk->bce", F, m)  # each edge's side of the contact plane
+    change = (s > 0) != np.roll(s > 0, -1, axis=-1)  # edges k and k + 1 on opposite sides
+    ok &= (change.sum(axis=-1) == 2).all(axis=-1)  # the plane cuts every pyramid through its inside
+    ends = []
+    for k in (change.argmax(axis=-1), E - 1 - change[..., ::-1].argmax(axis=-1)):  # the sector's two edges
+        kn = (k + 1) % E
+        fa, fb = (np.take_along_axis(F, i[..., None, None], axis=2)[:, :, 0] for i in (k, kn))
+        sa, sb = (np.abs(np.take_along_axis(s, i[..., None], axis=2)) for i in (k, kn))
+        ends.append(sa * fb + sb * fa)  # where the face between edges k and k + 1 crosses the plane
+    R = np.stack(ends, axis=2)  # (B, 3, 2, 3)
+    u = a / np.maximum(np.linalg.norm(a, axis=-1), 1e-300)[:, None]
+    v = np.cross(m, u)
+    P = C - C.mean(axis=1, keepdims=True)
+    P /= np.maximum(np.linalg.norm(P, axis=-1).max(axis=1), 1e-300)[:, None, None]
+    pu, pv = np.einsum("bck,bk->bc", P, u)[..., None], np.einsum("bck,bk->bc", P, v)[..., None]
+    ru, rv = np.einsum("bcjk,bk->bcj", R, u), np.einsum("bcjk,bk->bcj", R, v)
+    w = np.stack([ru, rv, pu * rv - pv * ru], axis=-1).reshape(B, 6, 3)  # planar wrenches (force, torque)
+    w /= np.maximum(np.linalg.norm(w, axis=-1, keepdims=True), 1e-300)
+    i, j = np.triu_indices(6, 1)
+    D = np.cross(w[:, i], w[:, j])  # (B, 15, 3): the candidate separating directions
+    dn = np.linalg.norm(D, axis=-1)
+    dots = np.einsum("bpk,bmk->bpm", D, w)
+    tol = 1e-9 * dn[..., None]
+    valid = dn > 1e-9
+    one_side = valid & ((dots >= -tol).all(axis=-1) | (dots <= tol).all(axis=-1))
+    return ok & valid.any(axis=1) & ~one_side.any(axis=1)
+
+
 def _hull_contains_origin(w: np.ndarray) -> bool:
     from scipy.spatial import ConvexHull, QhullError
 
@@ -125,7 +185,7 @@ def _hull_contains_origin(w: np.ndarray) -> bool:
 
 
 def force_closure(contacts, normals, mu: float = 0.5, edges: int = DEFAULT_EDGES, *,
-                  search: bool = True) -> np.ndarray | bool:
+                  method: str = "auto") -> np.ndarray | bool:
     """Whether each grasp is in force closure with friction ``mu`` (module docstring).
 
     Args:
@@ -133,19 +193,30 @@ def force_closure(contacts, normals, mu: float = 0.5, edges: int = DEFAULT_EDGES
         normals: inward normals, the shape of ``contacts``.
         mu: Coulomb friction coefficient, ``>= 0``.
         edges: edges of each friction pyramid (inscribed in the cone), ``>= 3``.
-        search: reject grasps with a separating direction before Qhull (the same answers, faster);
-            ``False`` runs Qhull on every grasp (the reference the benchmark compares with).
+        method: one of :data:`METHODS`, all with the same answers: ``"plane"`` (three contacts only) and
+            ``"search"`` are fast, ``"qhull"`` runs Qhull on every grasp (the reference the benchmark compares
+            with), ``"auto"`` picks ``"plane"`` at three contacts and ``"search"`` otherwise.
 
     Returns:
         ``(B,)`` bool, or a bool for a single grasp.
     """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     W = primitive_wrenches(contacts, normals, mu, edges)
     single = W.ndim == 2
     W = W[None] if single else W
+    n = W.shape[1] // int(edges)
+    if method == "plane" and n != 3:
+        raise ValueError(f"method 'plane' decides three-contact grasps only, got {n} contacts")
     out = np.zeros(W.shape[0], dtype=bool)
+    if method in ("plane", "auto") and n == 3:
+        C = np.asarray(contacts, dtype=np.float64).reshape(W.shape[0], 3, 3)
+        for lo in range(0, W.shape[0], _CHUNK):
+            out[lo:lo + _CHUNK] = _plane_closure(W[lo:lo + _CHUNK], C[lo:lo + _CHUNK])
+        return bool(out[0]) if single else out
     for lo in range(0, W.shape[0], _CHUNK):
         Wc = W[lo:lo + _CHUNK]
-        todo = np.flatnonzero(~_separable(Wc)) if search else np.arange(len(Wc))
+        todo = np.flatnonzero(~_separable(Wc)) if method != "qhull" else np.arange(len(Wc))
         for i in todo:
             out[lo + i] = _hull_contains_origin(Wc[i])
     return bool(out[0]) if single else out

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 import pytest
 
 from haptic_env.dataset import sample_grasps
 from haptic_env.force_closure import check_friction, force_closure, primitive_wrenches
+
+force_closure_ = force_closure
 from haptic_env.objects import load_object_set
 
 
@@ -17,7 +21,9 @@ def _equator(k: int = 3) -> tuple[np.ndarray, np.ndarray]:
     return C, -C
 
 
-def test_textbook_grasps():
+@pytest.mark.parametrize("method", ["auto", "search", "qhull"])
+def test_textbook_grasps(method):
+    force_closure = partial(force_closure_, method=method)
     C, N = _equator(3)
     assert force_closure(C, N, mu=0.5) is True  # three fingers round a ball hold it with friction
     assert force_closure(C, N, mu=0.0) is False  # frictionless: 3 normals cannot span 6 wrench directions
@@ -31,7 +37,9 @@ def test_textbook_grasps():
     assert force_closure(C[::-1], N[::-1], mu=0.5) is True
 
 
-def test_degenerate_grasps_are_not_in_closure():
+@pytest.mark.parametrize("method", ["auto", "search", "qhull"])
+def test_degenerate_grasps_are_not_in_closure(method):
+    force_closure = partial(force_closure_, method=method)
     C, N = _equator(3)
     assert force_closure(C[:2], N[:2], mu=1.0) is False  # two point contacts never are
     assert force_closure(np.zeros((3, 3)), N, mu=0.5) is False  # coincident contacts
@@ -41,17 +49,37 @@ def test_degenerate_grasps_are_not_in_closure():
     assert force_closure(np.zeros((0, 3, 3)), np.zeros((0, 3, 3)), mu=0.5).shape == (0,)
 
 
-def test_search_gives_qhulls_answers_on_random_grasps():
+def test_fast_methods_give_qhulls_answers_on_random_grasps():
     obj = load_object_set("default")["mug"]
     rng = np.random.default_rng(1)
     for n in (3, 4):
         C, N = sample_grasps(obj, 600, n, rng)
-        fast, exact = force_closure(C, N, 0.5), force_closure(C, N, 0.5, search=False)
-        np.testing.assert_array_equal(fast, exact)
+        exact = force_closure(C, N, 0.5, method="qhull")
+        np.testing.assert_array_equal(force_closure(C, N, 0.5, method="search"), exact)
+        np.testing.assert_array_equal(force_closure(C, N, 0.5), exact)
         assert 0 < exact.sum() < len(exact)  # both kinds occur, so the comparison means something
     # more friction holds more grasps, and every grasp held at mu holds at 2 mu
     lo, hi = force_closure(C, N, 0.3), force_closure(C, N, 0.6)
     assert lo.sum() < hi.sum() and not (lo & ~hi).any()
+
+
+@pytest.mark.parametrize("mu,edges", [(0.2, 3), (0.5, 4), (1.0, 4), (0.5, 8)])
+def test_plane_reduction_gives_qhulls_answers_at_three_contacts(mu, edges):
+    """The planar reduction (three contacts) on grasps of every kind: most out of closure, enough in it."""
+    rng = np.random.default_rng(2)
+    objects = load_object_set("default")
+    C, N = (np.concatenate(a) for a in zip(*(sample_grasps(o, 300, 3, rng) for o in objects)))
+    exact = force_closure(C, N, mu, edges, method="qhull")
+    np.testing.assert_array_equal(force_closure(C, N, mu, edges, method="plane"), exact)
+    assert exact.sum() >= 10 and (~exact).sum() >= 10
+
+
+def test_plane_reduction_refuses_other_finger_counts_and_bad_methods():
+    C, N = _equator(4)
+    with pytest.raises(ValueError, match="three-contact grasps only, got 4"):
+        force_closure(C, N, method="plane")
+    with pytest.raises(ValueError, match="method must be one of .* got 'lp'"):
+        force_closure(C, N, method="lp")
 
 
 def test_wrenches_shape_and_units():
