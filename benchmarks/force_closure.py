@@ -163,8 +163,8 @@ def main(argv=None) -> int:
             print(f"\n{int(sum(f.sum() for f in full)):,} complete grasps scored (chance 10 %)\n")
     ratio = speed(load_object_set(args.objects or "default"), fingers[0], args.speed_grasps, args.mu, args.seed + 1)
     print(f"({time.perf_counter() - t_start:.0f} s in all)")
-    print(f"HEADLINE: the force-closure test (n = {fingers[0]}) is {ratio:.1f}x faster than Qhull on every grasp, with the "
-          "same answers")
+    print(f"HEADLINE: the force-closure test (n = {fingers[0]}) is {ratio:.1f}x faster than Qhull on every grasp, "
+          "with the same answers")
     return 0
 
 

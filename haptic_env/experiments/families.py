@@ -190,23 +190,21 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
           + ("" if cfg.family_force_closure is None else f"; only grasps in force closure at friction "
                                                            f"{cfg.family_force_closure:g}") + f"; {cfg.scores_label})")
     m = family_models(cfg, len(objects))
-    train_set, test_set, fam_of, left_train, left_val = m.train_set, m.test_set, m.fam_of, m.left_train, m.left_val
-    kde, clf, T_kde, T_mlp = m.kde, m.clf, m.T_kde, m.T_mlp
     fam_idx = {f: i for i, f in enumerate(FAMILIES)}
 
     def scores(objs):  # test grasps; an object the hand never grasps with 4 fingers gets no rows
         pool = family_vectors(objs, grasp_config(cfg, cfg.test_grasps, cfg.seed + TEST_SEED_OFFSET, val_fraction=0.0),
                               cfg)
-        LL = [kde.log_likelihood(X) / T_kde for X in pool]
-        PR = [softmax(np.log(np.maximum(clf.predict_proba(X), 1e-300)) / T_mlp, axis=1) for X in pool]
+        LL = [m.kde.log_likelihood(X) / m.T_kde for X in pool]
+        PR = [softmax(np.log(np.maximum(m.clf.predict_proba(X), 1e-300)) / m.T_mlp, axis=1) for X in pool]
         return LL, PR
 
-    LL, PR = scores(test_set)
-    left_test = {nm: 0 for nm, L in zip(test_set.names, LL) if len(L) == 0}  # the hand never grasped them
-    _check_families(test_set, left_test, cfg, "test")
+    LL, PR = scores(m.test_set)
+    left_test = {nm: 0 for nm, L in zip(m.test_set.names, LL) if len(L) == 0}  # the hand never grasped them
+    _check_families(m.test_set, left_test, cfg, "test")
     kept = [k for k, L in enumerate(LL) if len(L)]
     LL, PR = [LL[k] for k in kept], [PR[k] for k in kept]
-    fam_test = np.array([fam_idx[test_set.families[test_set.names[k]]] for k in kept])
+    fam_test = np.array([fam_idx[m.test_set.families[m.test_set.names[k]]] for k in kept])
     rows = []
     for kind in ("ic", "bc-np"):
         res = simulate_trials(LL, PR, kind, trials=cfg.trials, max_grasps=cfg.max_grasps, threshold=cfg.threshold, rng=rng,
@@ -216,22 +214,22 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
                      mean_std(res["grasps"].mean(), res["grasps"].std(), 2)])
     one = np.mean(np.concatenate([p.argmax(1) == fam_test[k] for k, p in enumerate(PR)]))
     one_kde = np.mean(np.concatenate([L.argmax(1) == fam_test[k] for k, L in enumerate(LL)]))
-    LLh, PRh = scores(train_set)  # fresh grasps (test seed) of the training members: held-back family grasps
-    held = [k for k, nm in enumerate(train_set.names) if nm not in left_train and len(LLh[k])]
-    one_h = np.mean(np.concatenate([PRh[k].argmax(1) == fam_of[k] for k in held]))
-    one_kde_h = np.mean(np.concatenate([LLh[k].argmax(1) == fam_of[k] for k in held]))
-    n_tr, n_val, n_te = (len(st) - len(left) for st, left in ((train_set, left_train), (m.val_set, left_val),
-                                                             (test_set, left_test)))
-    if left_train or left_val or left_test:
+    LLh, PRh = scores(m.train_set)  # fresh grasps (test seed) of the training members: held-back family grasps
+    held = [k for k, nm in enumerate(m.train_set.names) if nm not in m.left_train and len(LLh[k])]
+    one_h = np.mean(np.concatenate([PRh[k].argmax(1) == m.fam_of[k] for k in held]))
+    one_kde_h = np.mean(np.concatenate([LLh[k].argmax(1) == m.fam_of[k] for k in held]))
+    n_tr, n_val, n_te = (len(st) - len(left) for st, left in ((m.train_set, m.left_train), (m.val_set, m.left_val),
+                                                             (m.test_set, left_test)))
+    if m.left_train or m.left_val or left_test:
         rep.p(f"The {cfg.family_hand} grasped some random members with fewer than 4 fingers only (too small or too flat "
-              f"for it); they are left out: training {sorted(left_train)}, validation {sorted(left_val)}, test "
-              f"{sorted(left_test)}.")
+              f"for it); they are left out: training {sorted(m.left_train)}, validation {sorted(m.left_val)}, "
+              f"test {sorted(left_test)}.")
     rep.p(f"Held-back grasps of the {n_tr} training members (fresh, test seed): one-shot family accuracy MLP "
           f"{100 * one_h:.1f} %, KDE argmax {100 * one_kde_h:.1f} % (chance 33.3 %).")
     rep.p(f"Held-out family members ({n_te} new random boxes/cylinders/ellipsoids, test seed); one-shot "
           f"family accuracy MLP {100 * one:.1f} %, KDE argmax {100 * one_kde:.1f} % (chance 33.3 %). Temperatures "
-          f"fitted on {n_val} validation members: KDE {T_kde:.2f} (for beliefs of 1-{cfg.max_grasps} grasps of one "
-          f"member), MLP {T_mlp:.2f} (one-shot). {cfg.trials} trials, "
+          f"fitted on {n_val} validation members: KDE {m.T_kde:.2f} (for beliefs of 1-{cfg.max_grasps} grasps of one "
+          f"member), MLP {m.T_mlp:.2f} (one-shot). {cfg.trials} trials, "
           f"lambda = {cfg.threshold}, at most {cfg.max_grasps} grasps; success = family right at the stop.")
     rep.table(["updater", "family success %", "decided %", "grasps"], rows)
     LL, PR = scores(objects)
