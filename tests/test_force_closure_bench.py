@@ -15,7 +15,7 @@ def test_tables_and_headline(load_benchmark, capsys):
         cells = [c.strip() for c in row.strip("|").split("|")]
         assert all(0.0 <= float(v) <= 100.0 for v in cells[2:4]) and cells[4] == "-"  # no paper figure off kit8
     assert "the same answer on every grasp" in out
-    assert out.strip().splitlines()[-1].startswith("HEADLINE: the force-closure test is ")
+    assert out.strip().splitlines()[-1].startswith("HEADLINE: the force-closure test (n = 3) is ")
 
 
 @pytest.mark.parametrize("argv,word", [(["--fingers", "2"], "--fingers"), (["--fingers", "a"], "--fingers"),
