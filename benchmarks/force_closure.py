@@ -7,12 +7,13 @@ force-closure test fast?
    answers must agree on every grasp; the figure is the default method's speed-up, printed last.
 2. **Separability** (with ``--objects``): kNN one-shot accuracy (k = 15, distance-weighted, standardised) on fresh
    test grasps, training and test grasps both drawn the same way: all random surface grasps (the paper's stated
-   protocol) or only those in force closure at friction ``--mu``; the paper's kNN row beside (kit8).
+   protocol) or only those in force closure at friction ``--mu`` (and, with ``--min-epsilon``, only those of them
+   whose Ferrari-Canny epsilon quality reaches it); the paper's kNN row beside (kit8).
 3. **Transfer to a hand** (with ``--hand``): the same kNN trained on each kind of ycb10 surface grasp, scored on the
    hand's complete grasps of ycb10 (its validation pool, seed 500; :mod:`haptic_env.hand_grasps`).
 
     python benchmarks/force_closure.py [--objects kit8] [--fingers 3,4] [--grasps 3000] [--test-grasps 500]
-        [--mu 0.5] [--hand allegro] [--speed-grasps 3000]
+        [--mu 0.5] [--min-epsilon 0.077] [--hand allegro] [--speed-grasps 3000]
 """
 
 from __future__ import annotations
@@ -29,13 +30,25 @@ from haptic_env.cli import float_in, int_in
 PAPER_KNN = {(3, True): 70.8, (3, False): 45.6, (4, True): 59.1, (4, False): 56.1, (5, True): 62.2, (5, False): 61.8}
 
 
-def _grasps(objects, n: int, count: int, rng, mu: float | None, bar) -> list[tuple[np.ndarray, np.ndarray]]:
-    """``count`` grasps per object: random surface grasps, or (``mu``) those of them in force closure."""
+def _grasps(objects, n: int, count: int, rng, mu: float | None, bar,
+            min_epsilon: float = 0.0) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``count`` grasps per object: random surface grasps, or (``mu``) those of them in force closure, and of those
+    (``min_epsilon > 0``) the ones whose epsilon quality reaches ``min_epsilon``."""
     from haptic_env.dataset import draw_held_grasps, sample_grasps
+    from haptic_env.force_closure import epsilon_quality
 
     out = []
     for obj in objects:
-        out.append(sample_grasps(obj, count, n, rng) if mu is None else draw_held_grasps(obj, count, n, rng, mu))
+        if mu is None:
+            out.append(sample_grasps(obj, count, n, rng))
+        else:
+            parts, got = [], 0
+            while got < count:
+                C, N = draw_held_grasps(obj, count, n, rng, mu)
+                good = epsilon_quality(C, N, mu) >= min_epsilon if min_epsilon > 0 else np.ones(len(C), bool)
+                parts.append((C[good], N[good]))
+                got += int(good.sum())
+            out.append(tuple(np.concatenate(a)[:count] for a in zip(*parts)))
         bar.update()
     return out
 
@@ -96,6 +109,8 @@ def main(argv=None) -> int:
     ap.add_argument("--grasps", type=int_in(50), default=3_000, help="training grasps per object")
     ap.add_argument("--test-grasps", type=int_in(10), default=500, help="fresh test grasps per object")
     ap.add_argument("--mu", type=float_in(0.0, lo_open=True), default=0.5, help="friction coefficient")
+    ap.add_argument("--min-epsilon", type=float_in(0.0), default=0.0,
+                    help="also a column of force-closure grasps whose epsilon quality reaches this (0: none)")
     ap.add_argument("--hand", default=None, help="also score ycb10 surface-trained kNN on this hand's grasps")
     ap.add_argument("--speed-grasps", type=int_in(10), default=3_000, help="grasps per object of the speed check")
     ap.add_argument("--seed", type=int, default=0)
@@ -115,22 +130,25 @@ def main(argv=None) -> int:
         objects = load_object_set(args.objects)
         print(f"## Separability: {args.objects}, kNN (k = 15) one-shot accuracy %, {args.grasps:,} training and "
               f"{args.test_grasps:,} test grasps per object, force closure at mu = {args.mu:g}\n")
-        print("| n | normals | all surface grasps | force-closure grasps | paper kNN (200,000 grasps/object) |")
-        print("|---|---|---|---|---|")
+        kinds = [("all", None, 0.0), ("force closure", args.mu, 0.0)]
+        if args.min_epsilon:
+            kinds.append((f"epsilon >= {args.min_epsilon:g}", args.mu, args.min_epsilon))
+        extra = f" force closure, epsilon quality >= {args.min_epsilon:g} |" if args.min_epsilon else ""
+        print(f"| n | normals | all surface grasps | force-closure grasps |{extra} paper kNN (200,000 grasps/object) |")
+        print("|---|---|---|---|" + ("---|" if extra else "") + "---|")
         for n in fingers:
             cells = {}
-            for mu in (None, args.mu):
-                with tqdm(total=2 * len(objects), desc=f"n = {n}, {'force closure' if mu else 'all'}", unit="obj",
-                          leave=False) as bar:
+            for name, mu, eps in kinds:
+                with tqdm(total=2 * len(objects), desc=f"n = {n}, {name}", unit="obj", leave=False) as bar:
                     rng = np.random.default_rng([args.seed, n])
-                    train = _grasps(objects, n, args.grasps, rng, mu, bar)
-                    test = _grasps(objects, n, args.test_grasps, rng, mu, bar)
+                    train = _grasps(objects, n, args.grasps, rng, mu, bar, eps)
+                    test = _grasps(objects, n, args.test_grasps, rng, mu, bar, eps)
                 for normals in (False, True):
-                    cells[mu, normals] = _knn(*_vectors(train, n, normals), *_vectors(test, n, normals))
+                    cells[name, normals] = _knn(*_vectors(train, n, normals), *_vectors(test, n, normals))
             for normals in (False, True):
                 paper = PAPER_KNN.get((n, normals), "-") if args.objects == "kit8" else "-"
-                print(f"| {n} | {'yes' if normals else 'no'} | {100 * cells[None, normals]:.1f} | "
-                      f"{100 * cells[args.mu, normals]:.1f} | {paper} |", flush=True)
+                row = " | ".join(f"{100 * cells[name, normals]:.1f}" for name, _, _ in kinds)
+                print(f"| {n} | {'yes' if normals else 'no'} | {row} | {paper} |", flush=True)
         se = 100 * np.sqrt(0.25 / (len(objects) * args.test_grasps))
         print(f"\nbinomial standard error of one cell <= {se:.1f} points\n")
     if args.hand:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from haptic_env.dataset import sample_grasps
-from haptic_env.force_closure import check_friction, force_closure, primitive_wrenches
+from haptic_env.force_closure import check_friction, epsilon_quality, force_closure, primitive_wrenches
 
 force_closure_ = force_closure
 from haptic_env.objects import load_object_set
@@ -80,6 +80,49 @@ def test_plane_reduction_refuses_other_finger_counts_and_bad_methods():
         force_closure(C, N, method="plane")
     with pytest.raises(ValueError, match="method must be one of .* got 'lp'"):
         force_closure(C, N, method="lp")
+
+
+def test_epsilon_quality_is_positive_exactly_in_closure_and_bounded_by_the_support_function():
+    obj = load_object_set("default")["mug"]
+    C, N = sample_grasps(obj, 300, 4, np.random.default_rng(2))
+    eps = epsilon_quality(C, N, 0.5)
+    held = force_closure(C, N, 0.5)
+    assert eps.shape == (300,) and 0 < held.sum() < 300
+    np.testing.assert_array_equal(eps > 0, held)
+    # the largest origin-centred ball in the hull is no wider than the hull's support in any direction
+    W = primitive_wrenches(C[held], N[held], 0.5)
+    d = np.random.default_rng(3).normal(size=(4000, 6))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    support = np.einsum("bmk,dk->bdm", W, d).max(axis=2).min(axis=1)
+    assert np.all(eps[held] <= support + 1e-12)
+    # and, checked by linear programs (is p a convex combination of the wrenches?) on a few grasps: the ball of
+    # radius eps lies in the hull in random directions, and just beyond eps the hull ends in the nearest facet's
+    from scipy.optimize import linprog
+    from scipy.spatial import ConvexHull
+
+    def inside(w, p):
+        return linprog(np.zeros(len(w)), A_eq=np.vstack([w.T, np.ones(len(w))]), b_eq=np.append(p, 1.0),
+                       bounds=(0, None), method="highs").status == 0
+
+    for w, e in list(zip(W, eps[held]))[:4]:
+        assert all(inside(w, 0.999 * e * u) for u in d[:20])
+        eq = ConvexHull(w).equations
+        nearest = eq[np.argmax(eq[:, -1]), :-1]
+        assert inside(w, 0.999 * e * nearest) and not inside(w, 1.001 * e * nearest)
+
+
+def test_epsilon_quality_of_textbook_grasps():
+    C, N = _equator(3)
+    q = epsilon_quality(C, N, 0.5)
+    assert isinstance(q, float) and q > 0
+    assert epsilon_quality(C, N, 0.2) < q  # less friction, a weaker grasp
+    assert epsilon_quality(C, N, 0.0) == 0.0 and epsilon_quality(C[:2], N[:2], 0.5) == 0.0
+    assert epsilon_quality(3.0 * C + [1.0, -2.0, 0.5], N, 0.5) == pytest.approx(q)  # size and place do not matter
+    # a rotation turns the pyramids about their normals (their edges follow the frame), so within their spread only
+    R = np.linalg.qr(np.random.default_rng(0).normal(size=(3, 3)))[0]
+    assert epsilon_quality(C @ R.T, N @ R.T, 0.5) == pytest.approx(q, rel=0.15)
+    with pytest.raises(ValueError, match="mu"):
+        epsilon_quality(C, N, -1.0)
 
 
 def test_wrenches_shape_and_units():

@@ -18,8 +18,21 @@ def test_tables_and_headline(load_benchmark, capsys):
     assert out.strip().splitlines()[-1].startswith("HEADLINE: the force-closure test (n = 3) is ")
 
 
+def test_epsilon_column(load_benchmark, capsys):
+    load_benchmark("force_closure").main(["--objects", "default", "--fingers", "4", "--grasps", "60",
+                                          "--test-grasps", "15", "--speed-grasps", "30", "--min-epsilon", "0.05"])
+    out = capsys.readouterr().out
+    assert "| force closure, epsilon quality >= 0.05 |" in out
+    rows = [line for line in out.splitlines() if line.startswith("| 4 |")]
+    assert len(rows) == 2
+    for row in rows:
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        assert len(cells) == 6 and all(0.0 <= float(v) <= 100.0 for v in cells[2:5]) and cells[5] == "-"
+
+
 @pytest.mark.parametrize("argv,word", [(["--fingers", "2"], "--fingers"), (["--fingers", "a"], "--fingers"),
-                                       (["--mu", "0"], "--mu"), (["--grasps", "5"], "--grasps")])
+                                       (["--mu", "0"], "--mu"), (["--grasps", "5"], "--grasps"),
+                                       (["--min-epsilon", "-1"], "--min-epsilon")])
 def test_bad_arguments_are_named(load_benchmark, capsys, argv, word):
     with pytest.raises(SystemExit):
         load_benchmark("force_closure").main(argv)
