@@ -48,6 +48,9 @@ def _grasps(objects, n: int, count: int, rng, mu: float | None, bar,
                 good = epsilon_quality(C, N, mu) >= min_epsilon if min_epsilon > 0 else np.ones(len(C), bool)
                 parts.append((C[good], N[good]))
                 got += int(good.sum())
+                if got == 0 and len(parts) >= 10:
+                    raise SystemExit(f"--min-epsilon {min_epsilon:g}: none of {10 * count:,} force-closure grasps of "
+                                     f"{obj.name} reaches it (n = {n}, mu = {mu:g})")
             out.append(tuple(np.concatenate(a)[:count] for a in zip(*parts)))
         bar.update()
     return out

@@ -30,6 +30,12 @@ def test_epsilon_column(load_benchmark, capsys):
         assert len(cells) == 6 and all(0.0 <= float(v) <= 100.0 for v in cells[2:5]) and cells[5] == "-"
 
 
+def test_an_epsilon_no_grasp_reaches_is_named(load_benchmark):
+    with pytest.raises(SystemExit, match="--min-epsilon 5"):
+        load_benchmark("force_closure").main(["--objects", "default", "--fingers", "3", "--grasps", "50",
+                                              "--test-grasps", "10", "--speed-grasps", "10", "--min-epsilon", "5"])
+
+
 @pytest.mark.parametrize("argv,word", [(["--fingers", "2"], "--fingers"), (["--fingers", "a"], "--fingers"),
                                        (["--mu", "0"], "--mu"), (["--grasps", "5"], "--grasps"),
                                        (["--min-epsilon", "-1"], "--min-epsilon")])
