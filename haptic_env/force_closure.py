@@ -40,6 +40,14 @@ against Qhull on every grasp and gives the speed-ups:
 the largest origin-centred ball inside the hull of the primitive wrenches, i.e. the smallest wrench (in these
 units) that the grasp resists with at most unit total normal force; 0 where the grasp is not in closure.
 
+The pyramids' frame
+    Each pyramid's edges are turned about its normal by a tangent basis built from the coordinate axis least
+    aligned with the normal, so they follow the object's frame: a rotation of the grasp turns them, and a grasp near
+    the edge of closure can move in or out of it. Measured on 6,000 random 3-contact grasps of the default mug at
+    ``mu = 0.5`` (387 in closure with 4 edges), a random rotation changed 98 answers on average (5 rotations);
+    with 8 edges 23, with 16 edges 3.4. The answers are exact for the pyramids; the cone they stand for is
+    rotation-invariant, so more ``edges`` approach it.
+
 Degenerate grasps
     Coincident or collinear contacts, ``n <= 2`` (two point contacts cannot resist a torque about the line
     through them), ``mu = 0`` with fewer than 7 contacts, a zero normal: their wrenches do not span
@@ -235,8 +243,9 @@ def epsilon_quality(contacts, normals, mu: float = 0.5, edges: int = DEFAULT_EDG
     Returns:
         ``(B,)`` float ``>= 0`` (a float for a single grasp), in the units of :func:`primitive_wrenches` (unit normal
         force components, torques divided by the contacts' largest distance from their centroid), so that it does
-        not depend on the object's size. It moves a little with a rotation of the grasp (up to about 10 % at four
-        edges), which turns the pyramids about their normals.
+        not depend on the object's size. A rotation of the grasp turns the pyramids (the module docstring's
+        "The pyramids' frame") and changes it: by a median 31 % (n = 3) and 16 % (n = 4) on random grasps of the
+        default mug in closure, at four edges.
     """
     from scipy.spatial import ConvexHull
 
