@@ -7,13 +7,14 @@ force-closure test fast?
    answers must agree on every grasp; the figure is the default method's speed-up, printed last.
 2. **Separability** (with ``--objects``): kNN one-shot accuracy (k = 15, distance-weighted, standardised) on fresh
    test grasps, training and test grasps both drawn the same way: all random surface grasps (the paper's stated
-   protocol) or only those in force closure at friction ``--mu`` (and, with ``--min-epsilon``, only those of them
-   whose Ferrari-Canny epsilon quality reaches it); the paper's kNN row beside (kit8).
+   protocol) or only those in force closure at friction ``--mu`` with ``--edges``-edge pyramids (and, with
+   ``--min-epsilon``, only those of them whose Ferrari-Canny epsilon quality reaches it); the paper's kNN row
+   beside (kit8).
 3. **Transfer to a hand** (with ``--hand``): the same kNN trained on each kind of ycb10 surface grasp, scored on the
    hand's complete grasps of ycb10 (its validation pool, seed 500; :mod:`haptic_env.hand_grasps`).
 
     python benchmarks/force_closure.py [--objects kit8] [--fingers 3,4] [--grasps 3000] [--test-grasps 500]
-        [--mu 0.5] [--min-epsilon 0.077] [--hand allegro] [--speed-grasps 3000]
+        [--mu 0.5] [--edges 4] [--min-epsilon 0.077] [--hand allegro] [--speed-grasps 3000]
 """
 
 from __future__ import annotations
@@ -30,10 +31,10 @@ from haptic_env.cli import float_in, int_in
 PAPER_KNN = {(3, True): 70.8, (3, False): 45.6, (4, True): 59.1, (4, False): 56.1, (5, True): 62.2, (5, False): 61.8}
 
 
-def _grasps(objects, n: int, count: int, rng, mu: float | None, bar,
-            min_epsilon: float = 0.0) -> list[tuple[np.ndarray, np.ndarray]]:
-    """``count`` grasps per object: random surface grasps, or (``mu``) those of them in force closure, and of those
-    (``min_epsilon > 0``) the ones whose epsilon quality reaches ``min_epsilon``."""
+def _grasps(objects, n: int, count: int, rng, mu: float | None, bar, min_epsilon: float = 0.0,
+            edges: int = 4) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``count`` grasps per object: random surface grasps, or (``mu``) those of them in force closure (pyramids of
+    ``edges`` edges), and of those (``min_epsilon > 0``) the ones whose epsilon quality reaches ``min_epsilon``."""
     from haptic_env.dataset import draw_held_grasps, sample_grasps
     from haptic_env.force_closure import epsilon_quality
 
@@ -44,8 +45,8 @@ def _grasps(objects, n: int, count: int, rng, mu: float | None, bar,
         else:
             parts, got = [], 0
             while got < count:
-                C, N = draw_held_grasps(obj, count, n, rng, mu)
-                good = epsilon_quality(C, N, mu) >= min_epsilon if min_epsilon > 0 else np.ones(len(C), bool)
+                C, N = draw_held_grasps(obj, count, n, rng, mu, edges=edges)
+                good = epsilon_quality(C, N, mu, edges) >= min_epsilon if min_epsilon > 0 else np.ones(len(C), bool)
                 parts.append((C[good], N[good]))
                 got += int(good.sum())
                 if got == 0 and len(parts) >= 10:
@@ -112,6 +113,8 @@ def main(argv=None) -> int:
     ap.add_argument("--grasps", type=int_in(50), default=3_000, help="training grasps per object")
     ap.add_argument("--test-grasps", type=int_in(10), default=500, help="fresh test grasps per object")
     ap.add_argument("--mu", type=float_in(0.0, lo_open=True), default=0.5, help="friction coefficient")
+    ap.add_argument("--edges", type=int_in(3), default=4,
+                    help="edges of each friction pyramid in the separability table (more: closer to the cone)")
     ap.add_argument("--min-epsilon", type=float_in(0.0), default=0.0,
                     help="also a column of force-closure grasps whose epsilon quality reaches this (0: none)")
     ap.add_argument("--hand", default=None, help="also score ycb10 surface-trained kNN on this hand's grasps")
@@ -132,7 +135,8 @@ def main(argv=None) -> int:
     if args.objects:
         objects = load_object_set(args.objects)
         print(f"## Separability: {args.objects}, kNN (k = 15) one-shot accuracy %, {args.grasps:,} training and "
-              f"{args.test_grasps:,} test grasps per object, force closure at mu = {args.mu:g}\n")
+              f"{args.test_grasps:,} test grasps per object, force closure at mu = {args.mu:g} "
+              f"({args.edges}-edge pyramids)\n")
         kinds = [("all", None, 0.0), ("force closure", args.mu, 0.0)]
         if args.min_epsilon:
             kinds.append((f"epsilon >= {args.min_epsilon:g}", args.mu, args.min_epsilon))
@@ -144,8 +148,8 @@ def main(argv=None) -> int:
             for name, mu, eps in kinds:
                 with tqdm(total=2 * len(objects), desc=f"n = {n}, {name}", unit="obj", leave=False) as bar:
                     rng = np.random.default_rng([args.seed, n])
-                    train = _grasps(objects, n, args.grasps, rng, mu, bar, eps)
-                    test = _grasps(objects, n, args.test_grasps, rng, mu, bar, eps)
+                    train = _grasps(objects, n, args.grasps, rng, mu, bar, eps, args.edges)
+                    test = _grasps(objects, n, args.test_grasps, rng, mu, bar, eps, args.edges)
                 for normals in (False, True):
                     cells[name, normals] = _knn(*_vectors(train, n, normals), *_vectors(test, n, normals))
             for normals in (False, True):

@@ -275,6 +275,8 @@ def test_force_closure_dataset_keeps_held_grasps_and_older_keys(objects):
     C, N = held_grasps(objects[1], 2000, 3, np.random.default_rng(0), 0.5, chunk=700)
     assert 0 < len(C) < 2000 and C.shape[1:] == (3, 3) and N.shape == C.shape
     assert force_closure(C, N, 0.5).all()
+    C16, N16 = held_grasps(objects[1], 2000, 3, np.random.default_rng(0), 0.5, edges=16)  # finer pyramids
+    assert force_closure(C16, N16, 0.5, 16).all() and len(C16) != len(C)
     # the dataset gets its full count from them, and other vectors than the plain one
     ds, ref = build_dataset(objects, held, progress=False), build_dataset(objects, plain, progress=False)
     assert ds.counts() == ref.counts() and ds.X_train.shape == ref.X_train.shape
