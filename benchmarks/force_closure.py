@@ -77,7 +77,7 @@ def _knn(Xtr, ytr, Xte, yte) -> float:
     return float(np.mean(clf.predict(Xte) == yte))
 
 
-def speed(objects, n: int, count: int, mu: float, seed: int) -> float:
+def speed(objects, n: int, count: int, mu: float, seed: int, edges: int = 4) -> float:
     """Seconds of Qhull-only over seconds of the default method on ``count`` random grasps per object; every
     method's time per grasp printed."""
     from haptic_env.dataset import sample_grasps
@@ -92,7 +92,7 @@ def speed(objects, n: int, count: int, mu: float, seed: int) -> float:
         answers = {}
         for m in methods:
             t0 = time.perf_counter()
-            answers[m] = force_closure(C, N, mu, method=m)
+            answers[m] = force_closure(C, N, mu, edges, method=m)
             seconds[m] += time.perf_counter() - t0
         for m in methods[1:]:
             if not np.array_equal(answers[m], answers["qhull"]):
@@ -101,7 +101,7 @@ def speed(objects, n: int, count: int, mu: float, seed: int) -> float:
         held += int(answers["qhull"].sum())
         total += len(answers["qhull"])
     per = ", ".join(f"{m} {1e6 * t / total:.1f} us/grasp" for m, t in seconds.items())
-    print(f"n = {n}, mu = {mu:g}: {total:,} random surface grasps, {100 * held / total:.1f} % in force closure; "
+    print(f"n = {n}, mu = {mu:g}, {edges}-edge pyramids: {total:,} random surface grasps, {100 * held / total:.1f} % in force closure; "
           f"{per}; the same answer on every grasp")
     return seconds["qhull"] / seconds["plane" if n == 3 else "search"]
 
@@ -186,7 +186,8 @@ def main(argv=None) -> int:
                 print(f"| {'yes' if normals else 'no'} | {100 * res[None, normals]:.1f} | "
                       f"{100 * res[args.mu, normals]:.1f} |")
             print(f"\n{int(sum(f.sum() for f in full)):,} complete grasps scored (chance 10 %)\n")
-    ratio = speed(load_object_set(args.objects or "default"), fingers[0], args.speed_grasps, args.mu, args.seed + 1)
+    ratio = speed(load_object_set(args.objects or "default"), fingers[0], args.speed_grasps, args.mu, args.seed + 1,
+                  args.edges)
     print(f"({time.perf_counter() - t_start:.0f} s in all)")
     print(f"HEADLINE: the force-closure test (n = {fingers[0]}) is {ratio:.1f}x faster than Qhull on every grasp, "
           "with the same answers")
