@@ -26,13 +26,14 @@ import time
 import numpy as np
 
 from haptic_env.cli import float_in, int_in
+from haptic_env.force_closure import DEFAULT_EDGES
 
 #: The paper's kit8 kNN one-shot accuracies (%) by (n, normals) (/work/shared/reference/paper_figures.md).
 PAPER_KNN = {(3, True): 70.8, (3, False): 45.6, (4, True): 59.1, (4, False): 56.1, (5, True): 62.2, (5, False): 61.8}
 
 
 def _grasps(objects, n: int, count: int, rng, mu: float | None, bar, min_epsilon: float = 0.0,
-            edges: int = 4) -> list[tuple[np.ndarray, np.ndarray]]:
+            edges: int = DEFAULT_EDGES) -> list[tuple[np.ndarray, np.ndarray]]:
     """``count`` grasps per object: random surface grasps, or (``mu``) those of them in force closure (pyramids of
     ``edges`` edges), and of those (``min_epsilon > 0``) the ones whose epsilon quality reaches ``min_epsilon``."""
     from haptic_env.dataset import draw_held_grasps, sample_grasps
@@ -77,7 +78,7 @@ def _knn(Xtr, ytr, Xte, yte) -> float:
     return float(np.mean(clf.predict(Xte) == yte))
 
 
-def speed(objects, n: int, count: int, mu: float, seed: int, edges: int = 4) -> float:
+def speed(objects, n: int, count: int, mu: float, seed: int, edges: int = DEFAULT_EDGES) -> float:
     """Seconds of Qhull-only over seconds of the default method on ``count`` random grasps per object; every
     method's time per grasp printed."""
     from haptic_env.dataset import sample_grasps
@@ -113,7 +114,7 @@ def main(argv=None) -> int:
     ap.add_argument("--grasps", type=int_in(50), default=3_000, help="training grasps per object")
     ap.add_argument("--test-grasps", type=int_in(10), default=500, help="fresh test grasps per object")
     ap.add_argument("--mu", type=float_in(0.0, lo_open=True), default=0.5, help="friction coefficient")
-    ap.add_argument("--edges", type=int_in(3), default=4,
+    ap.add_argument("--edges", type=int_in(3), default=DEFAULT_EDGES,
                     help="edges of each friction pyramid in the separability table (more: closer to the cone)")
     ap.add_argument("--min-epsilon", type=float_in(0.0), default=0.0,
                     help="also a column of force-closure grasps whose epsilon quality reaches this (0: none)")
