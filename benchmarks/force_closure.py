@@ -102,8 +102,8 @@ def speed(objects, n: int, count: int, mu: float, seed: int, edges: int = DEFAUL
         held += int(answers["qhull"].sum())
         total += len(answers["qhull"])
     per = ", ".join(f"{m} {1e6 * t / total:.1f} us/grasp" for m, t in seconds.items())
-    print(f"n = {n}, mu = {mu:g}, {edges}-edge pyramids: {total:,} random surface grasps, {100 * held / total:.1f} % in force closure; "
-          f"{per}; the same answer on every grasp")
+    print(f"n = {n}, mu = {mu:g}, {edges}-edge pyramids: {total:,} random surface grasps, {100 * held / total:.1f} % "
+          f"in force closure; {per}; the same answer on every grasp")
     return seconds["qhull"] / seconds["plane" if n == 3 else "search"]
 
 
@@ -138,12 +138,11 @@ def main(argv=None) -> int:
         print(f"## Separability: {args.objects}, kNN (k = 15) one-shot accuracy %, {args.grasps:,} training and "
               f"{args.test_grasps:,} test grasps per object, force closure at mu = {args.mu:g} "
               f"({args.edges}-edge pyramids)\n")
-        kinds = [("all", None, 0.0), ("force closure", args.mu, 0.0)]
+        kinds = [("all surface grasps", None, 0.0), ("force-closure grasps", args.mu, 0.0)]  # (column, mu, epsilon)
         if args.min_epsilon:
-            kinds.append((f"epsilon >= {args.min_epsilon:g}", args.mu, args.min_epsilon))
-        extra = f" force closure, epsilon quality >= {args.min_epsilon:g} |" if args.min_epsilon else ""
-        print(f"| n | normals | all surface grasps | force-closure grasps |{extra} paper kNN (200,000 grasps/object) |")
-        print("|---|---|---|---|" + ("---|" if extra else "") + "---|")
+            kinds.append((f"force closure, epsilon quality >= {args.min_epsilon:g}", args.mu, args.min_epsilon))
+        print("| n | normals | " + " | ".join(name for name, _, _ in kinds) + " | paper kNN (200,000 grasps/object) |")
+        print("|---|---|" + "---|" * len(kinds) + "---|")
         for n in fingers:
             cells = {}
             for name, mu, eps in kinds:
