@@ -12,15 +12,18 @@ explains it: the same kNN (``k`` = 1, 15, 50 on standardised grasp vectors) on k
 Training ``--grasps`` per object (seed 1), ``--test-grasps`` fresh ones per object (seed 2), ``n`` fingers with or
 without normals.
 
-At ``n = 3`` two more rows use the authors' public code's grasp vector on the paper's protocol (decimated meshes,
-face centres): its ``sample_grasp`` sorts the chosen face indices, and its ``parameterize_grasp`` takes the
-triangle from its longest edge in that cyclic order and appends the normals' angles in that index order, so the
-vector depends on the mesh's face order, which this project's Phi_n does not. The rows compare the face order
-("their order") with a random one (shuffled): a difference would be information that a real hand does not have.
+Two more rows use the authors' public code's grasp vector on the paper's protocol (decimated meshes, face
+centres): its ``sample_grasp`` sorts the chosen face indices; at ``n = 3`` its ``parameterize_grasp`` takes the
+triangle from its longest edge in that cyclic order and appends the normals' angles in that index order
+(:func:`authors_n3`), and at ``n >= 4`` it walks a strip of hull facets in Qhull's order from the largest
+(:func:`authors_chain`), so the vector depends on the mesh's face order, which this project's Phi_n does not. The
+rows compare the face order ("their order") with a random one (shuffled): a difference would be information that a
+real hand does not have. ``--force-closure MU`` keeps only grasps in force closure in every row.
 
 Needs the shared data (kit/) and ``pip install -e ".[bench]"`` (fast-simplification).
 
-    python benchmarks/sampling_protocol.py [--fingers 3] [--no-normals] [--grasps 20000] [--faces 800]
+    python benchmarks/sampling_protocol.py [--fingers 3] [--no-normals] [--grasps 20000] [--faces 800] \
+        [--force-closure MU]
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ import sys
 import time
 
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 
 
 def main(argv=None) -> int:
@@ -39,9 +43,13 @@ def main(argv=None) -> int:
     ap.add_argument("--grasps", type=int, default=20_000, help="training grasps per object")
     ap.add_argument("--test-grasps", type=int, default=1_000, help="test grasps per object")
     ap.add_argument("--faces", type=int, default=800, help="faces of the decimated meshes")
+    ap.add_argument("--force-closure", type=float, default=None, metavar="MU",
+                    help="keep only grasps in force closure with this friction, in every row (default: every grasp)")
     args = ap.parse_args(argv)
     if args.fingers < 3 or args.grasps < 50 or args.test_grasps < 1 or args.faces < 20:
         ap.error(f"need --fingers >= 3, --grasps >= 50, --test-grasps >= 1, --faces >= 20; got {vars(args)}")
+    if args.force_closure is not None and not args.force_closure > 0:
+        ap.error(f"--force-closure must be > 0, got {args.force_closure}")
     try:
         import fast_simplification
     except ImportError:
@@ -49,7 +57,7 @@ def main(argv=None) -> int:
     import trimesh
     from sklearn.neighbors import KNeighborsClassifier
 
-    from haptic_env.dataset import DatasetConfig, grasp_vectors, sample_grasps
+    from haptic_env.dataset import DatasetConfig, grasp_vectors, held_grasps, sample_grasps
     from haptic_env.objects import load_object_set
     from haptic_env.objects.base import GraspObject
 
@@ -68,13 +76,20 @@ def main(argv=None) -> int:
         rng = np.random.default_rng(seed)
         X, y = [], []
         for k, obj in enumerate(objs):
-            C, N = sample_grasps(obj, count, args.fingers, rng, sampling=method)
+            if args.force_closure is None:
+                C, N = sample_grasps(obj, count, args.fingers, rng, sampling=method)
+            else:
+                parts = []
+                while sum(len(c) for c, _ in parts) < count:
+                    parts.append(held_grasps(obj, 4 * count, args.fingers, rng, args.force_closure, sampling=method))
+                C, N = (np.concatenate(a)[:count] for a in zip(*parts))
             q, valid = grasp_vectors(C, N if normals else None, cfg, rng=rng)
             X.append(q[valid])
             y.append(np.full(int(valid.sum()), k))
         return np.concatenate(X), np.concatenate(y)
 
-    print(f"kit8, n = {args.fingers}, {'with' if normals else 'without'} normals, {args.grasps:,} training and "
+    held = "" if args.force_closure is None else f", only grasps in force closure at friction {args.force_closure}"
+    print(f"kit8, n = {args.fingers}, {'with' if normals else 'without'} normals{held}, {args.grasps:,} training and "
           f"{args.test_grasps:,} test grasps per object; decimated meshes: {[len(o.mesh.faces) for o in decimated]} "
           "faces\n")
     print("| meshes | contacts | kNN k = 1 | k = 15 | k = 50 |")
@@ -91,17 +106,17 @@ def main(argv=None) -> int:
             best[mesh_label, label] = max(accs)
             print(f"| {mesh_label} | {label} | " + " | ".join(f"{100 * a:.1f} %" for a in accs)
                   + f" |  <!-- {time.perf_counter() - t0:.0f} s -->", flush=True)
-    if args.fingers == 3:
-        for order in ("their order (sorted face indices)", "shuffled"):
-            t0 = time.perf_counter()
-            Xtr, ytr = authors_data(decimated, args.grasps, 1, sort=order != "shuffled", normals=normals)
-            Xte, yte = authors_data(decimated, args.test_grasps, 2, sort=order != "shuffled", normals=normals)
-            mu, sd = Xtr.mean(0), Xtr.std(0) + 1e-12
-            accs = [(KNeighborsClassifier(k).fit((Xtr - mu) / sd, ytr).predict((Xte - mu) / sd) == yte).mean()
-                    for k in (1, 15, 50)]
-            print(f"| decimated ({args.faces} faces) | centres of uniform faces, the authors' vector, {order} | "
-                  + " | ".join(f"{100 * a:.1f} %" for a in accs) + f" |  <!-- {time.perf_counter() - t0:.0f} s -->",
-                  flush=True)
+    for order in ("their order (sorted face indices)", "shuffled"):
+        t0 = time.perf_counter()
+        Xtr, ytr, Xte, yte = (a for seed, count in ((1, args.grasps), (2, args.test_grasps))
+                              for a in authors_data(decimated, count, args.fingers, seed, sort=order != "shuffled",
+                                                    normals=normals, mu=args.force_closure))
+        mu, sd = Xtr.mean(0), Xtr.std(0) + 1e-12
+        accs = [(KNeighborsClassifier(k).fit((Xtr - mu) / sd, ytr).predict((Xte - mu) / sd) == yte).mean()
+                for k in (1, 15, 50)]
+        print(f"| decimated ({args.faces} faces) | centres of uniform faces, the authors' vector, {order} | "
+              + " | ".join(f"{100 * a:.1f} %" for a in accs) + f" |  <!-- {time.perf_counter() - t0:.0f} s -->",
+              flush=True)
     ours = best["full (about 25,000 faces)", "area-uniform points"]
     paper = best[f"decimated ({args.faces} faces)", "centres of uniform faces"]
     print(f"\nthe paper's sampling, best k: {100 * paper:.1f} % against this project's {100 * ours:.1f} % "
@@ -135,23 +150,104 @@ def authors_n3(X: np.ndarray, N: np.ndarray | None) -> np.ndarray:
     return np.stack(q, axis=1)
 
 
-def authors_data(objs, count: int, seed: int, *, sort: bool, normals: bool) -> tuple[np.ndarray, np.ndarray]:
-    """``count`` 3-finger grasps per object sampled as the authors' code does (3 distinct uniformly chosen faces, their
-    centres and inward normals; indices sorted when ``sort``, else in random order) through :func:`authors_n3`."""
+def authors_chain(X: np.ndarray, N: np.ndarray | None) -> np.ndarray | None:
+    """The authors' public ``parameterize_grasp`` (``normalize=False``) for ``n >= 4`` contacts, one grasp: ``X, N
+    (n, 3)`` in their order -> ``(3n - 6,)`` or ``(5n - 6,)``, or None where their code rejects the grasp (Qhull
+    fails, or the hull has fewer than ``n`` facets: a contact inside it).
+
+    Written from the description of their code, not copied: the facets in Qhull's order, starting at the
+    largest; its vertices turned to start at its longest edge ``v0 v1`` in Qhull's cyclic order; then a strip of
+    facets, each the other facet on the edge ``(c1, c2)`` of the current ``(c0, c1, c2)`` (on ``v0 v1`` first, which
+    gives ``(v0, v1, k)``). Each facet adds its interior angles at ``c0`` and ``c1``, the first its longest edge, every
+    later one the dot product of its scaled normal with the previous facet's (the scaled normal is ``(c1 - c0) x
+    (c2 - c0) / (|c1 - c0| |c2 - c0|)``, as in their code). With normals, each contact *in the input order* adds the
+    angles of its normal to the first two facets' scaled normals. So the vector depends on the input order through
+    Qhull's facet order and orientation, and its normal part directly."""
+    n = len(X)
+    try:
+        tris = ConvexHull(X).simplices
+    except QhullError:
+        return None
+    if len(tris) < n:
+        return None
+
+    def scaled_normal(P):
+        a, b = P[1] - P[0], P[2] - P[0]
+        return np.cross(a, b) / (np.linalg.norm(a) * np.linalg.norm(b))
+
+    def angle(a, b):
+        return np.arccos(np.clip(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)), -1.0, 1.0))
+
+    def other_facet(i, j, cur):
+        """The facet on edge ``(i, j)`` that is not ``cur``, and its vertex off that edge."""
+        on_edge = [t for t in tris if i in t and j in t]
+        t = on_edge[1] if set(on_edge[0]) == set(cur) else on_edge[0]
+        return int(next(v for v in t if v != i and v != j))
+
+    P = X[tris]
+    areas = np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
+    tris = np.roll(tris, -int(np.argmax(areas)), axis=0)
+    cur = tris[0]
+    D = np.linalg.norm(X[cur] - X[np.roll(cur, -1)], axis=1)
+    cur = np.roll(cur, -int(np.argmax(D)))
+    q, axes, prev = [], [], None
+    for j in range(n - 2):
+        P = X[cur]
+        q += [angle(P[2] - P[0], P[1] - P[0]), angle(P[0] - P[1], P[2] - P[1])]
+        nt = scaled_normal(P)
+        axes.append(nt)
+        if j == 0:
+            q.append(D.max())
+            cur = np.array([cur[0], cur[1], other_facet(cur[0], cur[1], cur)])
+        else:
+            q.append(nt @ prev)
+            cur = np.array([cur[1], cur[2], other_facet(cur[1], cur[2], cur)])
+        prev = nt
+    if N is not None:
+        for m in range(n):
+            q += [np.arccos(np.clip(axes[0] @ N[m], -1, 1)), np.arccos(np.clip(axes[1] @ N[m], -1, 1))]
+    return np.asarray(q)
+
+
+def authors_data(objs, count: int, n: int, seed: int, *, sort: bool, normals: bool,
+                 mu: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``count`` grasps of ``n`` contacts per object sampled as the authors' code does (``n`` distinct uniformly chosen
+    faces, their centres and inward normals; indices sorted when ``sort``, else in random order; with ``mu`` only
+    grasps in force closure, :func:`~haptic_env.force_closure.force_closure`) through :func:`authors_n3` (``n = 3``)
+    or :func:`authors_chain` (grasps that it rejects are drawn again, as their loop does)."""
+    from haptic_env.force_closure import force_closure
+
     rng = np.random.default_rng(seed)
     X, y = [], []
     for k, obj in enumerate(objs):
         F = len(obj.mesh.faces)
-        idx = rng.integers(0, F, size=(count, 3))
-        while (bad := (idx[:, 0] == idx[:, 1]) | (idx[:, 1] == idx[:, 2]) | (idx[:, 0] == idx[:, 2])).any():
-            idx[bad] = rng.integers(0, F, size=(int(bad.sum()), 3))
-        if sort:
-            idx = np.sort(idx, axis=1)
-        C = np.asarray(obj.mesh.triangles_center)[idx]
-        Nn = -np.asarray(obj.mesh.face_normals)[idx] if normals else None
-        X.append(authors_n3(C, Nn))
+        centres, inward = np.asarray(obj.mesh.triangles_center), -np.asarray(obj.mesh.face_normals)
+        rows = []
+        while sum(len(r) for r in rows) < count:
+            m = 2 * (count - sum(len(r) for r in rows)) + 100
+            idx = _distinct(rng, F, m, n)
+            if sort:
+                idx = np.sort(idx, axis=1)
+            C, Nn = centres[idx], inward[idx]
+            if mu is not None:
+                held = force_closure(C, Nn, mu)
+                C, Nn = C[held], Nn[held]
+            if n == 3:
+                rows.append(authors_n3(C, Nn if normals else None))
+            else:
+                vs = [authors_chain(c, nn if normals else None) for c, nn in zip(C, Nn)]
+                rows.append(np.array([v for v in vs if v is not None]).reshape(-1, (5 if normals else 3) * n - 6))
+        X.append(np.concatenate(rows)[:count])
         y.append(np.full(count, k))
     return np.concatenate(X), np.concatenate(y)
+
+
+def _distinct(rng: np.random.Generator, F: int, m: int, n: int) -> np.ndarray:
+    """``(m, n)`` face indices, distinct within each row, uniform (rows with a repeat drawn again)."""
+    idx = rng.integers(0, F, size=(m, n))
+    while (bad := (np.sort(idx, axis=1)[:, 1:] == np.sort(idx, axis=1)[:, :-1]).any(axis=1)).any():
+        idx[bad] = rng.integers(0, F, size=(int(bad.sum()), n))
+    return idx
 
 
 if __name__ == "__main__":

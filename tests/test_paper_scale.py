@@ -122,7 +122,7 @@ def test_force_closure_reaches_training_and_test_grasps(paper_scale, tmp_path, m
 
 def test_sampling_protocol_rejects_bad_values_first(load_benchmark):
     protocol = load_benchmark("sampling_protocol")
-    for bad in (["--fingers", "2"], ["--grasps", "10"], ["--faces", "4"]):
+    for bad in (["--fingers", "2"], ["--grasps", "10"], ["--faces", "4"], ["--force-closure", "0"]):
         with pytest.raises(SystemExit):
             protocol.main(bad)
 
@@ -154,3 +154,40 @@ def test_sampling_protocol_authors_vector(load_benchmark):
     np.testing.assert_allclose(sp.authors_n3(np.roll(X, 1, axis=1), np.roll(N, 1, axis=1))[:, :3], q[:, :3], atol=1e-12)
     rev = sp.authors_n3(X[:, ::-1], N[:, ::-1])
     np.testing.assert_allclose(rev[:, [1, 0, 2]], q[:, :3], atol=1e-12)
+
+
+def test_sampling_protocol_authors_chain(load_benchmark):
+    """The authors' vector for n >= 4 (``authors_chain``): 3n - 6 / 5n - 6 values; the largest hull facet from its
+    longest edge, then the other facet on that edge, with the dot product of the two scaled facet normals (written
+    out here for both cyclic orientations Qhull may give the first facet); rejected when Qhull fails (coplanar
+    contacts) or a contact lies inside the hull, as their code rejects it."""
+    sp = load_benchmark("sampling_protocol")
+    rng = np.random.default_rng(3)
+
+    def ang(a, b):
+        return np.arccos(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)))
+
+    def scaled(P):
+        return np.cross(P[1] - P[0], P[2] - P[0]) / (np.linalg.norm(P[1] - P[0]) * np.linalg.norm(P[2] - P[0]))
+
+    for _ in range(20):
+        X = rng.normal(size=(4, 3))
+        N = rng.normal(size=(4, 3))
+        N /= np.linalg.norm(N, axis=1, keepdims=True)
+        q = sp.authors_chain(X, None)
+        assert q.shape == (6,) and sp.authors_chain(X, N).shape == (14,)
+        t1 = max(((0, 1, 2), (0, 1, 3), (0, 2, 3), (1, 2, 3)),
+                 key=lambda f: np.linalg.norm(np.cross(X[f[1]] - X[f[0]], X[f[2]] - X[f[0]])))
+        a, b = max(((i, j) for i in t1 for j in t1 if i < j), key=lambda e: np.linalg.norm(X[e[0]] - X[e[1]]))
+        c, k = next(v for v in t1 if v not in (a, b)), next(v for v in range(4) if v not in t1)
+        candidates = []
+        for v0, v1 in ((a, b), (b, a)):  # the first facet's cyclic orientation is Qhull's
+            P1, P2 = X[[v0, v1, c]], X[[v0, v1, k]]
+            candidates.append([ang(P1[2] - P1[0], P1[1] - P1[0]), ang(P1[0] - P1[1], P1[2] - P1[1]),
+                               np.linalg.norm(X[a] - X[b]), ang(P2[2] - P2[0], P2[1] - P2[0]),
+                               ang(P2[0] - P2[1], P2[2] - P2[1]), scaled(P2) @ scaled(P1)])
+        assert any(np.allclose(q, cand, atol=1e-10) for cand in candidates)
+    square = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
+    assert sp.authors_chain(square, None) is None  # coplanar: Qhull fails
+    inside = np.array([[2.0, 0, 0], [0, 2, 0], [0, 0, 2], [-1, -1, -1], [0, 0, 0]])
+    assert sp.authors_chain(inside, None) is None  # the fifth contact lies inside the hull of the other four
