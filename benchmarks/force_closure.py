@@ -7,14 +7,15 @@ force-closure test fast?
    answers must agree on every grasp; the figure is the default method's speed-up, printed last.
 2. **Separability** (with ``--objects``): kNN one-shot accuracy (k = 15, distance-weighted, standardised) on fresh
    test grasps, training and test grasps both drawn the same way: all random surface grasps (the paper's stated
-   protocol) or only those in force closure at friction ``--mu`` with ``--edges``-edge pyramids (and, with
+   protocol) or only those in force closure at friction ``--mu`` with ``--edges``-edge pyramids turned by
+   ``--frame`` (the object's axes or the grasp's own; :data:`haptic_env.force_closure.FRAMES`) (and, with
    ``--min-epsilon``, only those of them whose Ferrari-Canny epsilon quality reaches it); the paper's kNN row
    beside (kit8).
 3. **Transfer to a hand** (with ``--hand``): the same kNN trained on each kind of ycb10 surface grasp, scored on the
    hand's complete grasps of ycb10 (its validation pool, seed 500; :mod:`haptic_env.hand_grasps`).
 
     python benchmarks/force_closure.py [--objects kit8] [--fingers 3,4] [--grasps 3000] [--test-grasps 500]
-        [--mu 0.5] [--edges 4] [--min-epsilon 0.077] [--hand allegro] [--speed-grasps 3000]
+        [--mu 0.5] [--edges 4] [--frame axes] [--min-epsilon 0.077] [--hand allegro] [--speed-grasps 3000]
 """
 
 from __future__ import annotations
@@ -26,16 +27,17 @@ import time
 import numpy as np
 
 from haptic_env.cli import float_in, int_in
-from haptic_env.force_closure import DEFAULT_EDGES
+from haptic_env.force_closure import DEFAULT_EDGES, FRAMES
 
 #: The paper's kit8 kNN one-shot accuracies (%) by (n, normals) (/work/shared/reference/paper_figures.md).
 PAPER_KNN = {(3, True): 70.8, (3, False): 45.6, (4, True): 59.1, (4, False): 56.1, (5, True): 62.2, (5, False): 61.8}
 
 
 def _grasps(objects, n: int, count: int, rng, mu: float | None, bar, min_epsilon: float = 0.0,
-            edges: int = DEFAULT_EDGES) -> list[tuple[np.ndarray, np.ndarray]]:
+            edges: int = DEFAULT_EDGES, frame: str = FRAMES[0]) -> list[tuple[np.ndarray, np.ndarray]]:
     """``count`` grasps per object: random surface grasps, or (``mu``) those of them in force closure (pyramids of
-    ``edges`` edges), and of those (``min_epsilon > 0``) the ones whose epsilon quality reaches ``min_epsilon``."""
+    ``edges`` edges turned by ``frame``), and of those (``min_epsilon > 0``) the ones whose epsilon quality reaches
+    ``min_epsilon``."""
     from haptic_env.dataset import draw_held_grasps, sample_grasps
     from haptic_env.force_closure import epsilon_quality
 
@@ -46,8 +48,9 @@ def _grasps(objects, n: int, count: int, rng, mu: float | None, bar, min_epsilon
         else:
             parts, got = [], 0
             while got < count:
-                C, N = draw_held_grasps(obj, count, n, rng, mu, edges=edges)
-                good = epsilon_quality(C, N, mu, edges) >= min_epsilon if min_epsilon > 0 else np.ones(len(C), bool)
+                C, N = draw_held_grasps(obj, count, n, rng, mu, edges=edges, frame=frame)
+                good = (epsilon_quality(C, N, mu, edges, frame=frame) >= min_epsilon if min_epsilon > 0
+                        else np.ones(len(C), bool))
                 parts.append((C[good], N[good]))
                 got += int(good.sum())
                 if got == 0 and len(parts) >= 10:
@@ -78,7 +81,8 @@ def _knn(Xtr, ytr, Xte, yte) -> float:
     return float(np.mean(clf.predict(Xte) == yte))
 
 
-def speed(objects, n: int, count: int, mu: float, seed: int, edges: int = DEFAULT_EDGES) -> float:
+def speed(objects, n: int, count: int, mu: float, seed: int, edges: int = DEFAULT_EDGES,
+          frame: str = FRAMES[0]) -> float:
     """Seconds of Qhull-only over seconds of the default method on ``count`` random grasps per object; every
     method's time per grasp printed."""
     from haptic_env.dataset import sample_grasps
@@ -93,7 +97,7 @@ def speed(objects, n: int, count: int, mu: float, seed: int, edges: int = DEFAUL
         answers = {}
         for m in methods:
             t0 = time.perf_counter()
-            answers[m] = force_closure(C, N, mu, edges, method=m)
+            answers[m] = force_closure(C, N, mu, edges, method=m, frame=frame)
             seconds[m] += time.perf_counter() - t0
         for m in methods[1:]:
             if not np.array_equal(answers[m], answers["qhull"]):
@@ -102,8 +106,8 @@ def speed(objects, n: int, count: int, mu: float, seed: int, edges: int = DEFAUL
         held += int(answers["qhull"].sum())
         total += len(answers["qhull"])
     per = ", ".join(f"{m} {1e6 * t / total:.1f} us/grasp" for m, t in seconds.items())
-    print(f"n = {n}, mu = {mu:g}, {edges}-edge pyramids: {total:,} random surface grasps, {100 * held / total:.1f} % "
-          f"in force closure; {per}; the same answer on every grasp")
+    print(f"n = {n}, mu = {mu:g}, {edges}-edge pyramids ({frame} frame): {total:,} random surface grasps, "
+          f"{100 * held / total:.1f} % in force closure; {per}; the same answer on every grasp")
     return seconds["qhull"] / seconds["plane" if n == 3 else "search"]
 
 
@@ -116,6 +120,9 @@ def main(argv=None) -> int:
     ap.add_argument("--mu", type=float_in(0.0, lo_open=True), default=0.5, help="friction coefficient")
     ap.add_argument("--edges", type=int_in(3), default=DEFAULT_EDGES,
                     help="edges of each friction pyramid in the separability table (more: closer to the cone)")
+    ap.add_argument("--frame", choices=FRAMES, default=FRAMES[0],
+                    help="how each pyramid of the separability table is turned about its normal: by the object's "
+                         "axes, or towards the grasp's centroid (the same answer in any frame)")
     ap.add_argument("--min-epsilon", type=float_in(0.0), default=0.0,
                     help="also a column of force-closure grasps whose epsilon quality reaches this (0: none)")
     ap.add_argument("--hand", default=None, help="also score ycb10 surface-trained kNN on this hand's grasps")
@@ -137,7 +144,7 @@ def main(argv=None) -> int:
         objects = load_object_set(args.objects)
         print(f"## Separability: {args.objects}, kNN (k = 15) one-shot accuracy %, {args.grasps:,} training and "
               f"{args.test_grasps:,} test grasps per object, force closure at mu = {args.mu:g} "
-              f"({args.edges}-edge pyramids)\n")
+              f"({args.edges}-edge pyramids, {args.frame} frame)\n")
         kinds = [("all surface grasps", None, 0.0), ("force-closure grasps", args.mu, 0.0)]  # (column, mu, epsilon)
         if args.min_epsilon:
             kinds.append((f"force closure, epsilon quality >= {args.min_epsilon:g}", args.mu, args.min_epsilon))
@@ -148,8 +155,8 @@ def main(argv=None) -> int:
             for name, mu, eps in kinds:
                 with tqdm(total=2 * len(objects), desc=f"n = {n}, {name}", unit="obj", leave=False) as bar:
                     rng = np.random.default_rng([args.seed, n])
-                    train = _grasps(objects, n, args.grasps, rng, mu, bar, eps, args.edges)
-                    test = _grasps(objects, n, args.test_grasps, rng, mu, bar, eps, args.edges)
+                    train = _grasps(objects, n, args.grasps, rng, mu, bar, eps, args.edges, args.frame)
+                    test = _grasps(objects, n, args.test_grasps, rng, mu, bar, eps, args.edges, args.frame)
                 for normals in (False, True):
                     cells[name, normals] = _knn(*_vectors(train, n, normals), *_vectors(test, n, normals))
             for normals in (False, True):
@@ -187,7 +194,7 @@ def main(argv=None) -> int:
                       f"{100 * res[args.mu, normals]:.1f} |")
             print(f"\n{int(sum(f.sum() for f in full)):,} complete grasps scored (chance 10 %)\n")
     ratio = speed(load_object_set(args.objects or "default"), fingers[0], args.speed_grasps, args.mu, args.seed + 1,
-                  args.edges)
+                  args.edges, args.frame)
     print(f"({time.perf_counter() - t_start:.0f} s in all)")
     print(f"HEADLINE: the force-closure test (n = {fingers[0]}) is {ratio:.1f}x faster than Qhull on every grasp, "
           "with the same answers")

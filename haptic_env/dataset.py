@@ -27,7 +27,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .cache import KEY_ONLY_WHEN_SET, CacheError, cache_dir, config_key, load_npz, save_npz_atomic
-from .force_closure import DEFAULT_EDGES, check_friction, force_closure
+from .force_closure import DEFAULT_EDGES, FRAMES, check_friction, force_closure
 from .grasp_features import check_normal_axis, feature_dim, normalize_scale, phi
 from .grasping.base import support_height
 from .hand_grasps import BUDGETS
@@ -244,11 +244,11 @@ def sample_grasps(
 
 def held_grasps(
     obj: GraspObject, count: int, n_fingers: int, rng: np.random.Generator, mu: float, *, sampling: str = "area",
-    chunk: int = 200_000, edges: int = DEFAULT_EDGES,
+    chunk: int = 200_000, edges: int = DEFAULT_EDGES, frame: str = FRAMES[0],
 ) -> tuple[np.ndarray, np.ndarray]:
     """The grasps among ``count`` random ones (:func:`sample_grasps`) that are in force closure with friction ``mu``
-    (:func:`~haptic_env.force_closure.force_closure`, pyramids of ``edges`` edges), drawn ``chunk`` at a time to
-    bound the memory.
+    (:func:`~haptic_env.force_closure.force_closure`, pyramids of ``edges`` edges turned by ``frame``), drawn
+    ``chunk`` at a time to bound the memory.
 
     Returns:
         ``contacts (m, n, 3)`` and inward ``normals (m, n, 3)`` with ``m <= count``.
@@ -256,7 +256,7 @@ def held_grasps(
     Cs, Ns = [], []
     for lo in range(0, int(count), int(chunk)):
         C, N = sample_grasps(obj, min(int(chunk), int(count) - lo), n_fingers, rng, sampling=sampling)
-        held = force_closure(C, N, mu, edges)
+        held = force_closure(C, N, mu, edges, frame=frame)
         Cs.append(C[held])
         Ns.append(N[held])
     if not Cs:
@@ -265,17 +265,18 @@ def held_grasps(
 
 
 def draw_held_grasps(
-    obj: GraspObject, count: int, n_fingers: int, rng: np.random.Generator, mu: float, *, edges: int = DEFAULT_EDGES
+    obj: GraspObject, count: int, n_fingers: int, rng: np.random.Generator, mu: float, *, edges: int = DEFAULT_EDGES,
+    frame: str = FRAMES[0],
 ) -> tuple[np.ndarray, np.ndarray]:
     """Exactly ``count`` grasps in force closure with friction ``mu``: :func:`held_grasps` of ``4 * count`` random
-    grasps at a time until there are enough (the first ``count`` kept; ``edges``: the pyramids' edges).
+    grasps at a time until there are enough (the first ``count`` kept; ``edges``, ``frame``: the pyramids').
 
     Returns:
         ``contacts (count, n, 3)`` and inward ``normals (count, n, 3)``.
     """
-    parts = [held_grasps(obj, 4 * int(count), n_fingers, rng, mu, edges=edges)]
+    parts = [held_grasps(obj, 4 * int(count), n_fingers, rng, mu, edges=edges, frame=frame)]
     while sum(len(C) for C, _ in parts) < count:
-        parts.append(held_grasps(obj, 4 * int(count), n_fingers, rng, mu, edges=edges))
+        parts.append(held_grasps(obj, 4 * int(count), n_fingers, rng, mu, edges=edges, frame=frame))
     C, N = (np.concatenate(a)[: int(count)] for a in zip(*parts))
     return C, N
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from haptic_env.dataset import sample_grasps
-from haptic_env.force_closure import check_friction, epsilon_quality, force_closure, primitive_wrenches
+from haptic_env.force_closure import FRAMES, check_friction, epsilon_quality, force_closure, primitive_wrenches
 
 force_closure_ = force_closure
 from haptic_env.objects import load_object_set
@@ -137,6 +137,7 @@ def test_wrenches_shape_and_units():
 
 @pytest.mark.parametrize("kwargs,match", [
     ({"mu": -0.1}, "mu"), ({"mu": float("nan")}, "mu"), ({"edges": 2}, "edges"), ({"edges": 3.5}, "edges"),
+    ({"frame": "object"}, "frame"),
 ])
 def test_bad_arguments_are_named(kwargs, match):
     C, N = _equator(3)
@@ -157,3 +158,41 @@ def test_check_friction_names_the_setting_and_value():
     for bad in (0, -0.5, float("inf"), float("nan"), True, "0.5", None):
         with pytest.raises(ValueError, match=r"mu_filter \(a friction coefficient\) must be a finite number > 0"):
             check_friction(bad, "mu_filter")
+
+
+@pytest.mark.parametrize("n", [3, 4])
+def test_grasp_frame_follows_the_grasp_alone(n):
+    """``frame="grasp"``: the answers and qualities of random mug grasps do not change under a rotation and move of
+    the grasp or a new contact order, where the axes' pyramids change many answers (the module docstring's
+    figures); every method agrees with Qhull; each pyramid's first edge leans towards the centroid."""
+    mug = load_object_set("default")["mug"]
+    rng = np.random.default_rng(n)
+    C, N = sample_grasps(mug, 3000 if n == 3 else 1000, n, rng)
+    R = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    R *= np.sign(np.linalg.det(R))
+    moved, perm = (C @ R.T + [0.2, -0.1, 0.3], N @ R.T), rng.permutation(n)
+    base = force_closure(C, N, 0.5, frame="grasp")
+    assert 0 < base.sum() < len(base)
+    assert np.array_equal(force_closure(*moved, 0.5, frame="grasp"), base)
+    assert np.array_equal(force_closure(C[:, perm], N[:, perm], 0.5, frame="grasp"), base)
+    assert np.array_equal(force_closure(C, N, 0.5, method="qhull", frame="grasp"), base)
+    assert not np.array_equal(force_closure(*moved, 0.5), force_closure(C, N, 0.5))  # the axes' frame: not so
+    held = np.flatnonzero(base)[:20]
+    np.testing.assert_allclose(epsilon_quality(moved[0][held], moved[1][held], 0.5, frame="grasp"),
+                               epsilon_quality(C[held], N[held], 0.5, frame="grasp"), rtol=1e-7)
+    W = primitive_wrenches(C[:1], N[:1], 0.5, edges=4, frame="grasp")[0]
+    first = W.reshape(n, 4, 6)[:, 0, :3] - N[0]  # each pyramid's first edge minus its normal: mu t1
+    towards = C[0].mean(axis=0) - C[0]
+    towards -= (towards * N[0]).sum(axis=1, keepdims=True) * N[0]
+    np.testing.assert_allclose(first, 0.5 * towards / np.linalg.norm(towards, axis=1, keepdims=True), atol=1e-12)
+    assert FRAMES[0] == "axes"  # the default, which the committed force-closure results used
+
+
+def test_grasp_frame_falls_back_where_the_centroid_is_along_the_normal():
+    """Contacts round a ball whose normals point straight at the contacts' centroid have no tangential direction
+    to it: the axes' basis, the same wrenches, finite, still in closure."""
+    C, N = _equator(3)
+    ball = np.vstack([C, [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]]])
+    W = primitive_wrenches(ball, -ball, 0.5, frame="grasp")
+    assert np.isfinite(W).all() and force_closure(ball, -ball, 0.5, frame="grasp") is True
+    np.testing.assert_allclose(W, primitive_wrenches(ball, -ball, 0.5, frame="axes"), atol=1e-12)

@@ -21,9 +21,9 @@ def test_tables_and_headline(load_benchmark, capsys):
 def test_epsilon_column(load_benchmark, capsys):
     load_benchmark("force_closure").main(["--objects", "default", "--fingers", "4", "--grasps", "60",
                                           "--test-grasps", "15", "--speed-grasps", "30", "--min-epsilon", "0.05",
-                                          "--edges", "6"])
+                                          "--edges", "6", "--frame", "grasp"])
     out = capsys.readouterr().out
-    assert "(6-edge pyramids)" in out
+    assert "(6-edge pyramids, grasp frame)" in out
     assert "| force closure, epsilon quality >= 0.05 |" in out
     rows = [line for line in out.splitlines() if line.startswith("| 4 |")]
     assert len(rows) == 2
@@ -40,7 +40,8 @@ def test_an_epsilon_no_grasp_reaches_is_named(load_benchmark):
 
 @pytest.mark.parametrize("argv,word", [(["--fingers", "2"], "--fingers"), (["--fingers", "a"], "--fingers"),
                                        (["--mu", "0"], "--mu"), (["--grasps", "5"], "--grasps"),
-                                       (["--min-epsilon", "-1"], "--min-epsilon"), (["--edges", "2"], "--edges")])
+                                       (["--min-epsilon", "-1"], "--min-epsilon"), (["--edges", "2"], "--edges"),
+                                       (["--frame", "object"], "--frame")])
 def test_bad_arguments_are_named(load_benchmark, capsys, argv, word):
     with pytest.raises(SystemExit):
         load_benchmark("force_closure").main(argv)
