@@ -277,6 +277,12 @@ def epsilon_quality(contacts, normals, mu: float = 0.5, edges: int = DEFAULT_EDG
     single = W.ndim == 2
     W = W[None] if single else W
     out = np.zeros(W.shape[0])
-    for i in np.flatnonzero(_closure(W, contacts, int(edges), "auto")):
-        out[i] = max(0.0, _hull_margin(W[i]))
+    if W.shape[1] == 3 * int(edges):  # the exact planar test first, Qhull on the grasps in closure
+        todo = np.flatnonzero(_closure(W, contacts, int(edges), "auto"))
+    else:  # Qhull once on each grasp the search cannot reject: its margin decides closure and is the quality
+        todo = np.concatenate([np.zeros(0, int)] + [lo + np.flatnonzero(~_separable(W[lo:lo + _CHUNK]))
+                                                    for lo in range(0, W.shape[0], _CHUNK)])
+    for i in todo:
+        margin = _hull_margin(W[i])
+        out[i] = margin if margin > 1e-9 else 0.0
     return float(out[0]) if single else out
