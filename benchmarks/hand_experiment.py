@@ -59,7 +59,7 @@ from haptic_env.hand_grasps import BUDGETS, hand_grasp_pool  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 from haptic_env.recognizers import KDEConfig, RecognizerConfig, build_recognizer  # noqa: E402
 from haptic_env.recognizers.kde import BANDWIDTHS  # noqa: E402
-from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, IC_CERTAINTIES  # noqa: E402
+from haptic_env.recognizers.updaters import DEFAULT_IC_CERTAINTY, DEFAULT_THRESHOLD, IC_CERTAINTIES  # noqa: E402
 
 #: hand -> (fingers, normals settings); the paper: Allegro with and without normals, 5-finger hands without.
 SETUPS = {"allegro": (4, (True, False)), "shadow": (5, (False,)), "aero": (5, (False,))}
@@ -198,7 +198,7 @@ def main(argv=None) -> int:
                     help="hand regime, BC-NP rows: weight of the touch-pattern log-likelihood (HapticRecogConfig."
                          "touch_weight; default: the hand's registered env's setting; 0: off)")
     ap.add_argument("--raw", action="store_true", help="the paper's raw scores (no calibration temperatures)")
-    ap.add_argument("--ic-certainty", choices=IC_CERTAINTIES, default="count",
+    ap.add_argument("--ic-certainty", choices=IC_CERTAINTIES, default=DEFAULT_IC_CERTAINTY,
                     help="the IC rows' certainty: count (ours, default) or share (the authors' code)")
     ap.add_argument("--heights", action="store_true",
                     help="append the contacts' heights above the table to the grasp vectors (DatasetConfig.heights, "

@@ -54,7 +54,7 @@ import numpy as np
 
 from haptic_env.grasp_features import feature_dim
 from haptic_env.recognizers.touch import check_touch_weight
-from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS
+from haptic_env.recognizers.updaters import DEFAULT_IC_CERTAINTY, DEFAULT_THRESHOLD, UPDATERS
 from haptic_env.recognizers.zfinger import check_min_fingers, check_subset_k, subset_weight
 
 if TYPE_CHECKING:
@@ -122,7 +122,7 @@ class Belief:
     def __init__(self, recognizer, kind: str = "bc-np", threshold: float = DEFAULT_THRESHOLD, *,
                  calibrated: bool = True, z_fingers: int | None = None, score_subsets: bool = False,
                  touch_weight: float = 0.0, subset_k: int | None = None, min_fingers: int | None = None,
-                 ic_certainty: str = "count"):
+                 ic_certainty: str = DEFAULT_IC_CERTAINTY):
         if kind not in UPDATERS:
             raise ValueError(f"unknown updater kind {kind!r}; choose one of {UPDATERS}")
         if score_subsets and z_fingers is None:

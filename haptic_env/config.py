@@ -19,7 +19,7 @@ import numpy as np
 
 from haptic_env.grasp_features import check_normal_axis
 from haptic_env.recognizers.touch import check_touch_weight
-from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS, check_ic_certainty
+from haptic_env.recognizers.updaters import DEFAULT_IC_CERTAINTY, DEFAULT_THRESHOLD, UPDATERS, check_ic_certainty
 from haptic_env.recognizers.zfinger import check_min_fingers, check_subset_k
 from haptic_env.scene import POSE_MODES
 from haptic_env.task import REWARD_KINDS
@@ -56,7 +56,7 @@ class HapticRecogConfig:
     updater: str = "bc-np"
     """Belief update, one of ``haptic_env.recognizers.UPDATERS``: "bc-np" | "bc-ip" | "ic" | "ic-full"
     (``Recognizer.make_updater(kind=...)``)."""
-    ic_certainty: str = "count"
+    ic_certainty: str = DEFAULT_IC_CERTAINTY
     """With ``updater="ic"``: how IC's scores become its certainty, "count" (``max S / k``) or "share" (the last
     winner's share of the winners' scores once it reaches 0.6, from the second grasp on: the authors' public code;
     ``IterativeClassification``). Other updaters ignore it."""

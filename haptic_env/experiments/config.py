@@ -18,7 +18,7 @@ from haptic_env.recognizers.baselines import CLASSIFIERS
 from haptic_env.recognizers.kde import KDEConfig
 from haptic_env.recognizers.mlp import MLPConfig
 from haptic_env.recognizers.recognizer import RecognizerConfig
-from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS, check_ic_certainty
+from haptic_env.recognizers.updaters import DEFAULT_IC_CERTAINTY, DEFAULT_THRESHOLD, UPDATERS, check_ic_certainty
 
 __all__ = ["AnalysisConfig", "TEST_SEED_OFFSET", "KINDS", "MAIN_KINDS", "PAPER", "FAMILY_SOURCES"]
 
@@ -103,7 +103,7 @@ class AnalysisConfig:
     stop_scale: bool = True
     #: IC's certainty rule in every experiment (:data:`~haptic_env.recognizers.updaters.IC_CERTAINTIES`): ``"count"``,
     #: ``max S / k``; ``"share"``, the winner's share of the summed winner scores as the authors' public code has it
-    ic_certainty: str = "count"
+    ic_certainty: str = DEFAULT_IC_CERTAINTY
     calib_fingers: tuple[int, ...] = (3, 4, 5, 8)  #: experiment 7, with normals
     calib_fingers_no_normals: tuple[int, ...] = (4,)  #: experiment 7, without normals
     lambdas: tuple[float, ...] = (0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95)  #: experiment 7

@@ -19,7 +19,7 @@ from typing import Iterable
 
 import numpy as np
 
-from haptic_env.recognizers.updaters import BeliefUpdater, make_updater
+from haptic_env.recognizers.updaters import DEFAULT_IC_CERTAINTY, BeliefUpdater, make_updater
 
 __all__ = ["scores_updater", "run_trial", "simulate_trials", "incomplete_trials", "family_trials", "summarize",
            "confusion"]
@@ -32,7 +32,8 @@ class _Classes:
         self.n_classes = k
 
 
-def scores_updater(kind: str, n_classes: int, threshold: float, ic_certainty: str = "count") -> BeliefUpdater:
+def scores_updater(kind: str, n_classes: int, threshold: float,
+                   ic_certainty: str = DEFAULT_IC_CERTAINTY) -> BeliefUpdater:
     """An updater of ``kind`` over ``n_classes`` classes, fed through ``update_scores`` only; ``ic_certainty``: IC's
     certainty rule (:data:`~haptic_env.recognizers.updaters.IC_CERTAINTIES`; other kinds ignore it)."""
     return make_updater(kind, classifier=_Classes(n_classes), likelihood=_Classes(n_classes), threshold=threshold,
@@ -66,7 +67,7 @@ def _rows(LL: np.ndarray, PR: np.ndarray, order) -> Iterable[tuple[np.ndarray, n
 
 def simulate_trials(log_lik: list[np.ndarray], proba: list[np.ndarray], kind: str, *, trials: int, max_grasps: int,
                     threshold: float, rng: np.random.Generator, fixed_steps: bool = False,
-                    ic_certainty: str = "count") -> dict:
+                    ic_certainty: str = DEFAULT_IC_CERTAINTY) -> dict:
     """Trials on uniformly drawn objects, each drawing test grasps without replacement from its object's pool
     (with replacement when the pool holds fewer than ``max_grasps``).
 
@@ -105,7 +106,7 @@ def simulate_trials(log_lik: list[np.ndarray], proba: list[np.ndarray], kind: st
 
 def incomplete_trials(pools: dict[int, tuple[list[np.ndarray], list[np.ndarray]]], p: np.ndarray, kind: str, *,
                       trials: int, max_grasps: int, threshold: float, rng: np.random.Generator,
-                      ic_certainty: str = "count") -> dict:
+                      ic_certainty: str = DEFAULT_IC_CERTAINTY) -> dict:
     """Trials of incomplete grasps: per trial a uniformly drawn object; per grasp a finger count ``z`` drawn
     with probabilities ``p`` over ``sorted(pools)`` and one of the object's ``z``-finger test grasps (with
     replacement). ``pools[z] = (log_lik, proba)`` per object, as for :func:`simulate_trials`.
@@ -132,7 +133,8 @@ def incomplete_trials(pools: dict[int, tuple[list[np.ndarray], list[np.ndarray]]
 
 
 def family_trials(LL: np.ndarray, PR: np.ndarray, kind: str, *, trials: int, max_grasps: int, threshold: float,
-                  rng: np.random.Generator, ic_certainty: str = "count") -> tuple[np.ndarray, int, np.ndarray]:
+                  rng: np.random.Generator,
+                  ic_certainty: str = DEFAULT_IC_CERTAINTY) -> tuple[np.ndarray, int, np.ndarray]:
     """``trials`` runs of ``kind`` on ONE object's test pool (``LL``/``PR``: ``(G, C)``, at most ``max_grasps``
     of its grasps without replacement per trial): the class votes ``(C,)`` (prediction at the stop), how many
     decided, and the grasps used ``(trials,)``."""

@@ -47,12 +47,14 @@ import numpy as np
 from numba import njit
 
 __all__ = ["BeliefUpdater", "IterativeClassification", "BayesianUpdater", "BCNP", "BCIP", "make_updater", "UPDATERS",
-           "DEFAULT_THRESHOLD", "IC_CERTAINTIES", "check_ic_certainty", "bayes_steps"]
+           "DEFAULT_THRESHOLD", "IC_CERTAINTIES", "DEFAULT_IC_CERTAINTY", "check_ic_certainty", "bayes_steps"]
 
 #: Every belief-updater kind (the env, the recogniser and the experiments take these names).
 UPDATERS = ("ic", "ic-full", "bc-np", "bc-ip")
 #: How IC turns its scores into a certainty (:class:`IterativeClassification`): ours, or the authors' code's.
 IC_CERTAINTIES = ("count", "share")
+#: IC's certainty rule wherever one is not given (the env, the analyses, the benchmarks).
+DEFAULT_IC_CERTAINTY = IC_CERTAINTIES[0]
 #: ``"share"``: below this winner score the certainty is the score itself (the authors' code's 0.6).
 SHARE_FROM = 0.6
 
@@ -251,7 +253,7 @@ class IterativeClassification(BeliefUpdater):
     """
 
     def __init__(self, classifier, threshold: float = DEFAULT_THRESHOLD, *, full: bool = False,
-                 n_classes: int | None = None, certainty: str = "count"):
+                 n_classes: int | None = None, certainty: str = DEFAULT_IC_CERTAINTY):
         check_ic_certainty(certainty, "IC certainty")
         if full and certainty != "count":
             raise ValueError(f"IC certainty {certainty!r} is defined for winner-only IC ('ic'), not 'ic-full'")
@@ -428,7 +430,7 @@ class BCIP(BayesianUpdater):
 
 
 def make_updater(kind: str, *, classifier=None, likelihood=None, threshold: float = DEFAULT_THRESHOLD,
-                 ic_certainty: str = "count", **kw) -> BeliefUpdater:
+                 ic_certainty: str = DEFAULT_IC_CERTAINTY, **kw) -> BeliefUpdater:
     """An updater by name (:data:`UPDATERS`), given the models it needs. ``ic_certainty``: IC's certainty rule
     (:data:`IC_CERTAINTIES`), which only ``"ic"`` takes; the other kinds ignore it."""
     if kind not in UPDATERS:
