@@ -27,7 +27,7 @@ import time
 import numpy as np
 
 from haptic_env.cli import float_in, int_in
-from haptic_env.force_closure import DEFAULT_EDGES, FRAMES
+from haptic_env.force_closure import DEFAULT_EDGES, DEFAULT_MU, FRAMES
 
 #: The paper's kit8 kNN one-shot accuracies (%) by (n, normals) (/work/shared/reference/paper_figures.md).
 PAPER_KNN = {(3, True): 70.8, (3, False): 45.6, (4, True): 59.1, (4, False): 56.1, (5, True): 62.2, (5, False): 61.8}
@@ -117,7 +117,7 @@ def main(argv=None) -> int:
     ap.add_argument("--fingers", default="3,4", help="comma list of finger counts (>= 3)")
     ap.add_argument("--grasps", type=int_in(50), default=3_000, help="training grasps per object")
     ap.add_argument("--test-grasps", type=int_in(10), default=500, help="fresh test grasps per object")
-    ap.add_argument("--mu", type=float_in(0.0, lo_open=True), default=0.5, help="friction coefficient")
+    ap.add_argument("--mu", type=float_in(0.0, lo_open=True), default=DEFAULT_MU, help="friction coefficient")
     ap.add_argument("--edges", type=int_in(3), default=DEFAULT_EDGES,
                     help="edges of each friction pyramid in the separability table (more: closer to the cone)")
     ap.add_argument("--frame", choices=FRAMES, default=FRAMES[0],

@@ -62,11 +62,13 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["primitive_wrenches", "force_closure", "epsilon_quality", "check_friction", "DEFAULT_EDGES", "METHODS",
-           "FRAMES"]
+__all__ = ["primitive_wrenches", "force_closure", "epsilon_quality", "check_friction", "DEFAULT_EDGES", "DEFAULT_MU",
+           "METHODS", "FRAMES"]
 
 #: Edges of the pyramid that linearises each friction cone.
 DEFAULT_EDGES = 4
+#: The Coulomb friction coefficient where none is given (the force-closure results were measured at it).
+DEFAULT_MU = 0.5
 #: The ways :func:`force_closure` decides (module docstring); all give the same answer.
 METHODS = ("auto", "plane", "search", "qhull")
 #: How each pyramid is turned about its normal (module docstring, "The pyramids' frame"); the first is the default.
@@ -214,7 +216,7 @@ def _hull_margin(w: np.ndarray) -> float:
     return -float(hull.equations[:, -1].max())
 
 
-def force_closure(contacts, normals, mu: float = 0.5, edges: int = DEFAULT_EDGES, *,
+def force_closure(contacts, normals, mu: float = DEFAULT_MU, edges: int = DEFAULT_EDGES, *,
                   method: str = "auto", frame: str = FRAMES[0]) -> np.ndarray | bool:
     """Whether each grasp is in force closure with friction ``mu`` (module docstring).
 
@@ -259,7 +261,7 @@ def _closure(W: np.ndarray, contacts, edges: int, method: str) -> np.ndarray:
     return out
 
 
-def epsilon_quality(contacts, normals, mu: float = 0.5, edges: int = DEFAULT_EDGES, *,
+def epsilon_quality(contacts, normals, mu: float = DEFAULT_MU, edges: int = DEFAULT_EDGES, *,
                     frame: str = FRAMES[0]) -> np.ndarray | float:
     """Ferrari and Canny's epsilon quality of each grasp (module docstring): 0 where it is not in force closure.
 
