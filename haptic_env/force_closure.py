@@ -50,7 +50,10 @@ The pyramids' frame (``frame=``, :data:`FRAMES`)
     (the tangential part of the direction from the contact to it; where that vanishes, the axes' basis), so the
     answers and qualities follow the grasp alone: the same after any rotation or translation of the grasp and any
     order of its contacts. The answers are exact for the pyramids either way; the cone they stand for is
-    rotation-invariant, so more ``edges`` approach it.
+    rotation-invariant, so more ``edges`` approach it. What grasps the two frames keep tell the objects apart equally
+    well: kNN one-shot on kit8 force-closure grasps (3,000 per object, mu 0.5) 42.2 / 54.9 % at n = 3 without / with
+    normals and 32.4 / 48.0 % at n = 4 with the grasp's frame, against 42.1 / 55.7 / 33.2 / 47.8 % with the axes,
+    within the 0.8-point standard error (``docs/results/force_closure/benchmark_grasp_frame.md``).
 
 Degenerate grasps
     Coincident or collinear contacts, ``n <= 2`` (two point contacts cannot resist a torque about the line
