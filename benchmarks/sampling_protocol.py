@@ -20,10 +20,14 @@ triangle from its longest edge in that cyclic order and appends the normals' ang
 rows compare the face order ("their order") with a random one (shuffled): a difference would be information that a
 real hand does not have. ``--force-closure MU`` keeps only grasps in force closure in every row.
 
+``--curve SIZES`` prints, instead of the table, the kNN's accuracy against training grasps per object on the
+decimated meshes, face centres against area-uniform points: the paper's candidate contacts are a finite set (one
+per face) that its training and test grasps share, which a large training set could cover.
+
 Needs the shared data (kit/) and ``pip install -e ".[bench]"`` (fast-simplification).
 
     python benchmarks/sampling_protocol.py [--fingers 3] [--no-normals] [--grasps 20000] [--faces 800] \
-        [--force-closure MU]
+        [--force-closure MU] [--curve 5000,20000,50000,200000]
 """
 
 from __future__ import annotations
@@ -45,7 +49,16 @@ def main(argv=None) -> int:
     ap.add_argument("--faces", type=int, default=800, help="faces of the decimated meshes")
     ap.add_argument("--force-closure", type=float, default=None, metavar="MU",
                     help="keep only grasps in force closure with this friction, in every row (default: every grasp)")
+    ap.add_argument("--curve", default=None, metavar="SIZES",
+                    help="instead of the table: kNN accuracy against training grasps per object (comma list), on the "
+                         "decimated meshes, face centres against area-uniform points")
     args = ap.parse_args(argv)
+    try:
+        curve = sorted({int(x) for x in args.curve.split(",")}) if args.curve is not None else None
+    except ValueError:
+        ap.error(f"--curve: a comma list of grasp counts, got {args.curve!r}")
+    if curve is not None and (not curve or curve[0] < 50):
+        ap.error(f"--curve: grasp counts >= 50, got {args.curve!r}")
     if args.fingers < 3 or args.grasps < 50 or args.test_grasps < 1 or args.faces < 20:
         ap.error(f"need --fingers >= 3, --grasps >= 50, --test-grasps >= 1, --faces >= 20; got {vars(args)}")
     if args.force_closure is not None and not args.force_closure > 0:
@@ -88,6 +101,14 @@ def main(argv=None) -> int:
             y.append(np.full(int(valid.sum()), k))
         return np.concatenate(X), np.concatenate(y)
 
+    def knn(Xtr, ytr, Xte, yte) -> list[float]:
+        """One-shot accuracy of the kNN at k = 1, 15, 50 on grasp vectors standardised by the training set."""
+        mu, sd = Xtr.mean(0), Xtr.std(0) + 1e-12
+        return [float((KNeighborsClassifier(k).fit((Xtr - mu) / sd, ytr).predict((Xte - mu) / sd) == yte).mean())
+                for k in (1, 15, 50)]
+
+    if curve is not None:
+        return _curve(decimated, curve, data, knn, args)
     held = "" if args.force_closure is None else f", only grasps in force closure at friction {args.force_closure}"
     print(f"kit8, n = {args.fingers}, {'with' if normals else 'without'} normals{held}, {args.grasps:,} training and "
           f"{args.test_grasps:,} test grasps per object; decimated meshes: {[len(o.mesh.faces) for o in decimated]} "
@@ -100,9 +121,7 @@ def main(argv=None) -> int:
             t0 = time.perf_counter()
             Xtr, ytr = data(objs, method, args.grasps, 1)
             Xte, yte = data(objs, method, args.test_grasps, 2)
-            mu, sd = Xtr.mean(0), Xtr.std(0) + 1e-12
-            accs = [(KNeighborsClassifier(k).fit((Xtr - mu) / sd, ytr).predict((Xte - mu) / sd) == yte).mean()
-                    for k in (1, 15, 50)]
+            accs = knn(Xtr, ytr, Xte, yte)
             best[mesh_label, label] = max(accs)
             print(f"| {mesh_label} | {label} | " + " | ".join(f"{100 * a:.1f} %" for a in accs)
                   + f" |  <!-- {time.perf_counter() - t0:.0f} s -->", flush=True)
@@ -111,9 +130,7 @@ def main(argv=None) -> int:
         Xtr, ytr, Xte, yte = (a for seed, count in ((1, args.grasps), (2, args.test_grasps))
                               for a in authors_data(decimated, count, args.fingers, seed, sort=order != "shuffled",
                                                     normals=normals, mu=args.force_closure))
-        mu, sd = Xtr.mean(0), Xtr.std(0) + 1e-12
-        accs = [(KNeighborsClassifier(k).fit((Xtr - mu) / sd, ytr).predict((Xte - mu) / sd) == yte).mean()
-                for k in (1, 15, 50)]
+        accs = knn(Xtr, ytr, Xte, yte)
         print(f"| decimated ({args.faces} faces) | centres of uniform faces, the authors' vector, {order} | "
               + " | ".join(f"{100 * a:.1f} %" for a in accs) + f" |  <!-- {time.perf_counter() - t0:.0f} s -->",
               flush=True)
@@ -121,6 +138,28 @@ def main(argv=None) -> int:
     paper = best[f"decimated ({args.faces} faces)", "centres of uniform faces"]
     print(f"\nthe paper's sampling, best k: {100 * paper:.1f} % against this project's {100 * ours:.1f} % "
           f"({100 * (paper - ours):+.1f} points)")
+    return 0
+
+
+def _curve(decimated, sizes: list[int], data, knn, args) -> int:
+    """kNN one-shot accuracy against training grasps per object on the decimated meshes, face centres (the paper's
+    protocol: a finite set of candidate contacts that training and test grasps share) against area-uniform points;
+    each method's largest training set drawn once (seed 1) and cut to each size, the same fresh test grasps (seed
+    2)."""
+    held = "" if args.force_closure is None else f", only grasps in force closure at friction {args.force_closure}"
+    print(f"kit8, n = {args.fingers}, {'without' if args.no_normals else 'with'} normals{held}; meshes decimated to "
+          f"{args.faces} faces; {args.test_grasps:,} test grasps per object; kNN one-shot accuracy, best of k = 1, 15, "
+          "50\n")
+    print("| contacts | " + " | ".join(f"{m:,} / object" for m in sizes) + " |")
+    print("|---|" + "---|" * len(sizes))
+    for method, label in (("area", "area-uniform points"), ("centroid", "centres of uniform faces")):
+        Xall, yall = data(decimated, method, sizes[-1], 1)
+        Xte, yte = data(decimated, method, args.test_grasps, 2)
+        cells = []
+        for m in sizes:
+            rows = np.concatenate([np.flatnonzero(yall == k)[:m] for k in range(len(decimated))])
+            cells.append(max(knn(Xall[rows], yall[rows], Xte, yte)))
+        print(f"| {label} | " + " | ".join(f"{100 * a:.1f} %" for a in cells) + " |", flush=True)
     return 0
 
 
