@@ -107,16 +107,17 @@ def main(argv=None) -> int:
         return [float((KNeighborsClassifier(k).fit((Xtr - mu) / sd, ytr).predict((Xte - mu) / sd) == yte).mean())
                 for k in (1, 15, 50)]
 
-    if curve is not None:
-        return _curve(decimated, curve, data, knn, args)
     held = "" if args.force_closure is None else f", only grasps in force closure at friction {args.force_closure}"
+    if curve is not None:
+        return _curve(decimated, curve, data, knn, args, held)
     print(f"kit8, n = {args.fingers}, {'with' if normals else 'without'} normals{held}, {args.grasps:,} training and "
           f"{args.test_grasps:,} test grasps per object; decimated meshes: {[len(o.mesh.faces) for o in decimated]} "
           "faces\n")
     print("| meshes | contacts | kNN k = 1 | k = 15 | k = 50 |")
     print("|---|---|---|---|---|")
     best = {}
-    for mesh_label, objs in (("full (about 25,000 faces)", list(objects)), (f"decimated ({args.faces} faces)", decimated)):
+    meshes = (("full (about 25,000 faces)", list(objects)), (f"decimated ({args.faces} faces)", decimated))
+    for mesh_label, objs in meshes:
         for method, label in (("area", "area-uniform points"), ("centroid", "centres of uniform faces")):
             t0 = time.perf_counter()
             Xtr, ytr = data(objs, method, args.grasps, 1)
@@ -141,12 +142,11 @@ def main(argv=None) -> int:
     return 0
 
 
-def _curve(decimated, sizes: list[int], data, knn, args) -> int:
+def _curve(decimated, sizes: list[int], data, knn, args, held: str) -> int:
     """kNN one-shot accuracy against training grasps per object on the decimated meshes, face centres (the paper's
     protocol: a finite set of candidate contacts that training and test grasps share) against area-uniform points;
     each method's largest training set drawn once (seed 1) and cut to each size, the same fresh test grasps (seed
-    2)."""
-    held = "" if args.force_closure is None else f", only grasps in force closure at friction {args.force_closure}"
+    2); ``held``: the force-closure words of the title."""
     print(f"kit8, n = {args.fingers}, {'without' if args.no_normals else 'with'} normals{held}; meshes decimated to "
           f"{args.faces} faces; {args.test_grasps:,} test grasps per object; kNN one-shot accuracy, best of k = 1, 15, "
           "50\n")
