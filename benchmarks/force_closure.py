@@ -29,9 +29,6 @@ import numpy as np
 from haptic_env.cli import float_in, int_in
 from haptic_env.force_closure import DEFAULT_EDGES, DEFAULT_MU, FRAMES
 
-#: The paper's kit8 kNN one-shot accuracies (%) by (n, normals) (/work/shared/reference/paper_figures.md).
-PAPER_KNN = {(3, True): 70.8, (3, False): 45.6, (4, True): 59.1, (4, False): 56.1, (5, True): 62.2, (5, False): 61.8}
-
 
 def _grasps(objects, n: int, count: int, rng, mu: float | None, bar, min_epsilon: float = 0.0,
             edges: int = DEFAULT_EDGES, frame: str = FRAMES[0]) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -137,6 +134,7 @@ def main(argv=None) -> int:
         ap.error(f"--fingers: finger counts >= 3 (fewer are never in force closure), got {args.fingers!r}")
     from tqdm.auto import tqdm
 
+    from haptic_env.experiments.config import PAPER_KNN  # imports the analyses (torch): only when run
     from haptic_env.objects import load_object_set
 
     t_start = time.perf_counter()

@@ -43,13 +43,9 @@ from pathlib import Path
 import numpy as np
 
 from haptic_env import cli
+from haptic_env.experiments.config import PAPER_KNN, PAPER_NN
 from haptic_env.grasp_features import NORMAL_AXES, NORMAL_AXIS_WORDS
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD
-
-#: The paper's kit8 one-shot accuracies (%) by (n, normals): the neural-network and nearest-neighbour rows
-#: (/work/shared/reference/paper_figures.md, "One-shot accuracy (%) by classifier (kit8)").
-PAPER_NN = {(3, True): 86.0, (3, False): 47.0, (4, True): 80.7, (4, False): 62.4, (5, True): 83.7, (5, False): 71.1}
-PAPER_KNN = {(3, True): 70.8, (3, False): 45.6, (4, True): 59.1, (4, False): 56.1, (5, True): 62.2, (5, False): 61.8}
 
 #: Network sizes: hidden layers x units.
 NETS = {"default": (3, 256), "paper": (7, 500)}

@@ -27,7 +27,7 @@ per face) that its training and test grasps share, which a large training set co
 Needs the shared data (kit/) and ``pip install -e ".[bench]"`` (fast-simplification).
 
     python benchmarks/sampling_protocol.py [--fingers 3] [--no-normals] [--grasps 20000] [--faces 800] \
-        [--force-closure MU] [--curve 5000,20000,50000,200000]
+        [--force-closure MU] [--curve 5000,20000,50000,200000 [--plot curve.png]]
 """
 
 from __future__ import annotations
@@ -52,6 +52,8 @@ def main(argv=None) -> int:
     ap.add_argument("--curve", default=None, metavar="SIZES",
                     help="instead of the table: kNN accuracy against training grasps per object (comma list), on the "
                          "decimated meshes, face centres against area-uniform points")
+    ap.add_argument("--plot", default=None, metavar="PNG",
+                    help="with --curve: also draw the curves, with the paper's kNN, into this PNG file")
     args = ap.parse_args(argv)
     try:
         curve = sorted({int(x) for x in args.curve.split(",")}) if args.curve is not None else None
@@ -59,6 +61,8 @@ def main(argv=None) -> int:
         ap.error(f"--curve: a comma list of grasp counts, got {args.curve!r}")
     if curve is not None and (not curve or curve[0] < 50):
         ap.error(f"--curve: grasp counts >= 50, got {args.curve!r}")
+    if args.plot is not None and curve is None:
+        ap.error("--plot draws the --curve: give --curve too")
     if args.fingers < 3 or args.grasps < 50 or args.test_grasps < 1 or args.faces < 20:
         ap.error(f"need --fingers >= 3, --grasps >= 50, --test-grasps >= 1, --faces >= 20; got {vars(args)}")
     if args.force_closure is not None and not args.force_closure > 0:
@@ -152,6 +156,7 @@ def _curve(decimated, sizes: list[int], data, knn, args, held: str) -> int:
           "50\n")
     print("| contacts | " + " | ".join(f"{m:,} / object" for m in sizes) + " |")
     print("|---|" + "---|" * len(sizes))
+    curves = {}
     for method, label in (("area", "area-uniform points"), ("centroid", "centres of uniform faces")):
         Xall, yall = data(decimated, method, sizes[-1], 1)
         Xte, yte = data(decimated, method, args.test_grasps, 2)
@@ -159,7 +164,28 @@ def _curve(decimated, sizes: list[int], data, knn, args, held: str) -> int:
         for m in sizes:
             rows = np.concatenate([np.flatnonzero(yall == k)[:m] for k in range(len(decimated))])
             cells.append(max(knn(Xall[rows], yall[rows], Xte, yte)))
+        curves[label] = cells
         print(f"| {label} | " + " | ".join(f"{100 * a:.1f} %" for a in cells) + " |", flush=True)
+    if args.plot is not None:
+        from matplotlib.figure import Figure  # no pyplot: no global backend switch
+
+        from haptic_env.experiments.config import PAPER_KNN
+
+        fig = Figure(figsize=(6, 4))
+        ax = fig.subplots()
+        for label, cells in curves.items():
+            ax.plot(sizes, [100 * a for a in cells], "o-", label=f"{label} (800-face meshes)")
+        paper = PAPER_KNN.get((args.fingers, not args.no_normals))
+        if paper is not None:
+            ax.axhline(paper, ls="--", color="grey", label="the paper's kNN (200,000 / object)")
+        ax.set_xscale("log")
+        ax.set_xlabel("training grasps per object")
+        ax.set_ylabel("kNN one-shot accuracy, % (best k)")
+        ax.set_title(f"kit8, n = {args.fingers}, {'without' if args.no_normals else 'with'} normals{held}", fontsize=9)
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        fig.savefig(args.plot, dpi=110)
+        print(f"\nplot: {args.plot}")
     return 0
 
 

@@ -123,7 +123,7 @@ def test_force_closure_reaches_training_and_test_grasps(paper_scale, tmp_path, m
 def test_sampling_protocol_rejects_bad_values_first(load_benchmark):
     protocol = load_benchmark("sampling_protocol")
     for bad in (["--fingers", "2"], ["--grasps", "10"], ["--faces", "4"], ["--force-closure", "0"],
-                ["--curve", "a"], ["--curve", "10"]):
+                ["--curve", "a"], ["--curve", "10"], ["--plot", "x.png"]):
         with pytest.raises(SystemExit):
             protocol.main(bad)
 

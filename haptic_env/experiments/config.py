@@ -20,7 +20,8 @@ from haptic_env.recognizers.mlp import MLPConfig
 from haptic_env.recognizers.recognizer import RecognizerConfig
 from haptic_env.recognizers.updaters import DEFAULT_IC_CERTAINTY, DEFAULT_THRESHOLD, UPDATERS, check_ic_certainty
 
-__all__ = ["AnalysisConfig", "TEST_SEED_OFFSET", "KINDS", "MAIN_KINDS", "PAPER", "FAMILY_SOURCES"]
+__all__ = ["AnalysisConfig", "TEST_SEED_OFFSET", "KINDS", "MAIN_KINDS", "PAPER", "PAPER_NN", "PAPER_KNN",
+           "FAMILY_SOURCES"]
 
 #: Test grasps are fresh samples from seed ``seed + TEST_SEED_OFFSET``, never training data.
 TEST_SEED_OFFSET = 7919
@@ -39,6 +40,10 @@ PAPER = {
     "mlp_oneshot_n3_normals": 86.0,
     "bcnp_grasps_n4_normals": 3.37,
 }
+#: The paper's kit8 one-shot accuracies (%) at 200,000 grasps per object by (n, normals): its neural-network and
+#: nearest-neighbour rows (``../shared/reference/paper_figures.md``, "One-shot accuracy (%) by classifier (kit8)").
+PAPER_NN = {(3, True): 86.0, (3, False): 47.0, (4, True): 80.7, (4, False): 62.4, (5, True): 83.7, (5, False): 71.1}
+PAPER_KNN = {(3, True): 70.8, (3, False): 45.6, (4, True): 59.1, (4, False): 56.1, (5, True): 62.2, (5, False): 61.8}
 
 
 @dataclass(frozen=True)
