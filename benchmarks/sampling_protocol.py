@@ -74,7 +74,7 @@ def main(argv=None) -> int:
     import trimesh
     from sklearn.neighbors import KNeighborsClassifier
 
-    from haptic_env.dataset import DatasetConfig, grasp_vectors, held_grasps, sample_grasps
+    from haptic_env.dataset import DatasetConfig, draw_held_grasps, grasp_vectors, sample_grasps
     from haptic_env.objects import load_object_set
     from haptic_env.objects.base import GraspObject
 
@@ -96,10 +96,7 @@ def main(argv=None) -> int:
             if args.force_closure is None:
                 C, N = sample_grasps(obj, count, args.fingers, rng, sampling=method)
             else:
-                parts = []
-                while sum(len(c) for c, _ in parts) < count:
-                    parts.append(held_grasps(obj, 4 * count, args.fingers, rng, args.force_closure, sampling=method))
-                C, N = (np.concatenate(a)[:count] for a in zip(*parts))
+                C, N = draw_held_grasps(obj, count, args.fingers, rng, args.force_closure, sampling=method)
             q, valid = grasp_vectors(C, N if normals else None, cfg, rng=rng)
             X.append(q[valid])
             y.append(np.full(int(valid.sum()), k))
@@ -287,10 +284,11 @@ def authors_data(objs, count: int, n: int, seed: int, *, sort: bool, normals: bo
     for k, obj in enumerate(objs):
         F = len(obj.mesh.faces)
         centres, inward = np.asarray(obj.mesh.triangles_center), -np.asarray(obj.mesh.face_normals)
-        rows = []
-        while sum(len(r) for r in rows) < count:
-            m = 2 * (count - sum(len(r) for r in rows)) + 100
-            idx = _distinct(rng, F, m, n)
+        rows, rejects = [], n > 3 or mu is not None  # whether a drawn grasp can be dropped
+        while (missing := count - sum(len(r) for r in rows)) > 0:
+            # exactly the missing grasps where none is dropped: the earlier n = 3 version's draw, so its committed
+            # rows reproduce; twice as many (and 100) where some are
+            idx = _distinct(rng, F, 2 * missing + 100 if rejects else missing, n)
             if sort:
                 idx = np.sort(idx, axis=1)
             C, Nn = centres[idx], inward[idx]
@@ -310,9 +308,12 @@ def authors_data(objs, count: int, n: int, seed: int, *, sort: bool, normals: bo
 def _distinct(rng: np.random.Generator, F: int, m: int, n: int) -> np.ndarray:
     """``(m, n)`` face indices, distinct within each row, uniform (rows with a repeat drawn again)."""
     idx = rng.integers(0, F, size=(m, n))
-    while (bad := (np.sort(idx, axis=1)[:, 1:] == np.sort(idx, axis=1)[:, :-1]).any(axis=1)).any():
+    while True:
+        s = np.sort(idx, axis=1)
+        bad = (s[:, 1:] == s[:, :-1]).any(axis=1)
+        if not bad.any():
+            return idx
         idx[bad] = rng.integers(0, F, size=(int(bad.sum()), n))
-    return idx
 
 
 if __name__ == "__main__":

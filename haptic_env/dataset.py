@@ -265,18 +265,19 @@ def held_grasps(
 
 
 def draw_held_grasps(
-    obj: GraspObject, count: int, n_fingers: int, rng: np.random.Generator, mu: float, *, edges: int = DEFAULT_EDGES,
-    frame: str = FRAMES[0],
+    obj: GraspObject, count: int, n_fingers: int, rng: np.random.Generator, mu: float, *, sampling: str = "area",
+    edges: int = DEFAULT_EDGES, frame: str = FRAMES[0],
 ) -> tuple[np.ndarray, np.ndarray]:
     """Exactly ``count`` grasps in force closure with friction ``mu``: :func:`held_grasps` of ``4 * count`` random
-    grasps at a time until there are enough (the first ``count`` kept; ``edges``, ``frame``: the pyramids').
+    grasps at a time until there are enough (the first ``count`` kept; ``sampling``: the surface sampling method;
+    ``edges``, ``frame``: the pyramids').
 
     Returns:
         ``contacts (count, n, 3)`` and inward ``normals (count, n, 3)``.
     """
-    parts = [held_grasps(obj, 4 * int(count), n_fingers, rng, mu, edges=edges, frame=frame)]
+    parts = [held_grasps(obj, 4 * int(count), n_fingers, rng, mu, sampling=sampling, edges=edges, frame=frame)]
     while sum(len(C) for C, _ in parts) < count:
-        parts.append(held_grasps(obj, 4 * int(count), n_fingers, rng, mu, edges=edges, frame=frame))
+        parts.append(held_grasps(obj, 4 * int(count), n_fingers, rng, mu, sampling=sampling, edges=edges, frame=frame))
     C, N = (np.concatenate(a)[: int(count)] for a in zip(*parts))
     return C, N
 

@@ -131,18 +131,17 @@ def primitive_wrenches(contacts, normals, mu: float, edges: int = DEFAULT_EDGES,
     a[np.arange(N.shape[0])[:, None], np.arange(N.shape[1]), np.argmin(np.abs(N), axis=-1)] = 1.0
     t1 = np.cross(N, a)
     t1 /= np.maximum(np.linalg.norm(t1, axis=-1, keepdims=True), 1e-300)
+    r = C - C.mean(axis=1, keepdims=True)  # each contact from the centroid
+    s = np.linalg.norm(r, axis=-1).max(axis=1)  # the grasp's size
     if frame == "grasp":  # towards the centroid, along the tangent plane, where that direction exists
-        g = C.mean(axis=1, keepdims=True) - C
+        g = -r
         g -= (g * N).sum(axis=-1, keepdims=True) * N
         gn = np.linalg.norm(g, axis=-1, keepdims=True)
-        size = np.linalg.norm(C - C.mean(axis=1, keepdims=True), axis=-1).max(axis=1)[:, None, None]
-        t1 = np.where(gn > 1e-9 * size, g / np.maximum(gn, 1e-300), t1)
+        t1 = np.where(gn > 1e-9 * s[:, None, None], g / np.maximum(gn, 1e-300), t1)
     t2 = np.cross(N, t1)
     ang = 2.0 * np.pi * np.arange(int(edges)) / int(edges)
     f = N[..., None, :] + mu * (np.cos(ang)[:, None] * t1[..., None, :] + np.sin(ang)[:, None] * t2[..., None, :])
     f *= (nn > 0)[..., None, :]
-    r = C - C.mean(axis=1, keepdims=True)
-    s = np.linalg.norm(r, axis=-1).max(axis=1)
     r = np.divide(r, s[:, None, None], out=np.zeros_like(r), where=s[:, None, None] > 0)
     W = np.concatenate([f, np.cross(np.broadcast_to(r[..., None, :], f.shape), f)], axis=-1)
     W = W.reshape(C.shape[0], C.shape[1] * int(edges), 6)
