@@ -230,6 +230,35 @@ def test_scale_without_a_mesh_copy_matches_a_scaled_object():
     copied.close()
 
 
+def test_scene_spec_is_the_moved_scaled_scene_with_the_grasp_as_keyframes():
+    """``scene_spec`` exports the scene as the backend last placed it (a known mesh moved and scaled in the compiled
+    model only): the exported model's "grasp" keyframe is the backend's final state, fingertip sites included."""
+    import mujoco
+    from scipy.spatial.transform import Rotation
+
+    cyl = _cyl()
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_euler("z", 0.7).as_matrix()
+    T[:3, 3] = [0.02, -0.01, 0.0]
+    be = make_backend("mujoco", 4, hand="generic")
+    be.set_object(cyl, np.eye(4))
+    be.set_object(cyl, T, scale=1.2)  # the same compiled scene, moved and scaled
+    a = np.array([0.2, 0.4, -0.3, 0.5])
+    spec, res = be.scene_spec(a, np.random.default_rng(0))
+    m = spec.compile()
+    d = mujoco.MjData(m)
+    sc = be.scene
+    np.testing.assert_allclose(m.body_pos[m.body("object").id], T[:3, 3])
+    np.testing.assert_allclose(m.body_quat[m.body("object").id], sc.model.body_quat[sc.obj_body_id])
+    np.testing.assert_allclose(m.geom_aabb[sc.obj_geom_ids], sc.model.geom_aabb[sc.obj_geom_ids], atol=1e-6)
+    mujoco.mj_resetDataKeyframe(m, d, m.key("grasp").id)
+    mujoco.mj_forward(m, d)
+    np.testing.assert_allclose(d.site_xpos[sc.site_ids], res.info["tip_sites"], atol=1e-9)
+    assert [m.key(i).name for i in range(m.nkey)] == ["approach", "grasp"]
+    assert be.grasp(a, np.random.default_rng(0)).touched.tolist() == res.touched.tolist()  # the backend is unchanged
+    be.close()
+
+
 def test_tip_touched_is_tip_contacts_touched(generic):
     """The closing loop's cheap check agrees with the full contact read, with and without contacts."""
     sc = generic._require()

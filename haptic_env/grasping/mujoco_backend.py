@@ -309,6 +309,25 @@ class GraspScene:
                 lo, hi = m.jnt_range[j] if m.jnt_limited[j] else (-np.inf, np.inf)
                 d.qpos[m.jnt_qposadr[j]] = np.clip(ctrl[a], lo, hi)
 
+    def export_spec(self, keys: dict[str, dict[str, np.ndarray]] | None = None) -> mujoco.MjSpec:
+        """A copy of the scene as an ``MjSpec`` (``.to_xml()`` for MuJoCo's viewer): the object where
+        :meth:`place_object` and :meth:`scale_object` put it, and a keyframe per entry of ``keys``
+        (name -> ``qpos``, ``ctrl``, ``mpos``, ``mquat`` arrays of this model's sizes). Compiled once, so a bad
+        keyframe raises here."""
+        m = self.model
+        spec = self.spec.copy()
+        body = spec.body("object")
+        body.pos, body.quat = m.body_pos[self.obj_body_id].copy(), m.body_quat[self.obj_body_id].copy()
+        scale = self._unscaled[5] if hasattr(self, "_unscaled") else 1.0
+        for i in range(len(self.object_geom_names)):
+            spec.mesh(f"obj_piece{i}").scale = [scale] * 3
+        if self._table_geom >= 0:
+            spec.geom("table").pos = m.geom_pos[self._table_geom].copy()
+        for name, key in (keys or {}).items():
+            spec.add_key(name=name, **{k: np.asarray(v, dtype=np.float64).ravel() for k, v in key.items()})
+        spec.compile()
+        return spec
+
     def set_mount(self, pos: np.ndarray, R: np.ndarray) -> None:
         self.data.mocap_pos[0] = pos
         self.data.mocap_quat[0] = quat_from_matrix(R)
@@ -667,6 +686,23 @@ class MujocoBackend:
                                  "usable": bool(usable_touch(touched)),
                                  # fingers touching with other links too: their torque normal is biased
                                  "link_contact": sc.finger_link_contacts(exclude_tip=True)})
+
+    def scene_spec(self, action: np.ndarray, rng: np.random.Generator) -> tuple[mujoco.MjSpec, GraspResult]:
+        """The current object's grasp scene as an ``MjSpec`` (``.to_xml()`` opens in MuJoCo's viewer), with the
+        grasp along ``action`` as two keyframes: ``"approach"``, the open hand at its pre-grasp pose with the
+        closing targets set (press play: it closes on the object; every finger closes to its target, without the
+        backend's stop at the first fingertip contact), and ``"grasp"``, the state this backend read the grasp
+        from (the returned result)."""
+        res = self.grasp(action, rng)
+        sc = self._require()
+        d = sc.data
+        mount = {"mpos": d.mocap_pos.copy(), "mquat": d.mocap_quat.copy()}
+        grasp = {"qpos": d.qpos.copy(), "ctrl": d.ctrl.copy(), **mount}
+        open_u, close_u = self._ctrls(float(decode_approach(validate_action(action, self.action_dim),
+                                                            self.config.support).spread))
+        sc.reset(open_u)
+        approach = {"qpos": d.qpos.copy(), "ctrl": close_u, **mount}
+        return sc.export_spec({"approach": approach, "grasp": grasp}), res
 
     def grasp_batch(self, actions: np.ndarray, rng: np.random.Generator) -> GraspBatch:
         a = validate_actions(actions, self.action_dim)
