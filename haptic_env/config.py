@@ -103,7 +103,8 @@ class HapticRecogConfig:
     (:data:`HAND_APPROACHES` for "hand", ``DatasetConfig``'s for the others). The Allegro env uses 6,000: twice the
     default lifted BC-NP's success at the stop on validation grasps in fewer grasps (RESULTS.md), and its grasps
     are fast enough to keep the first make under 5 minutes. The Shadow and Aero envs use 6,000 too (validated the
-    same way); their first makes take 294 and 271-300 s on 2 idle cores."""
+    same way); their first makes take 4-10 minutes on 2 idle cores, depending on the machine's MuJoCo speed
+    (RESULTS.md, "Speed and build time of the hand envs"; half the approaches cost the Shadow validation success)."""
     kde_method: str = "pooled"
     """How the belief update evaluates the per-object KDEs (``KDEConfig.method``) unless ``recognizer_kwargs``
     sets its own: "pooled" (one neighbour search over all objects' training vectors: a compiled k-d tree, ~25 us per grasp),
