@@ -17,6 +17,7 @@ SUBCOMMANDS: dict[str, str] = {
     "analysis": "haptic_env.experiments.cli",
     "evaluate": "agents.evaluate",
     "sweep": "haptic_env.sweep.cli",
+    "scene": "haptic_env.assets",
 }
 
 

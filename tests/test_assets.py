@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 from setuptools import find_packages
 
-from haptic_env.assets import ASSETS, HAND_FILES, SCENE_FILE, asset_path, write_assets
-from haptic_env.grasping.hands import generic_hand
+from haptic_env.assets import ASSETS, HAND_FILES, SCENE_FILE, asset_path, grasp_scene, write_assets
+from haptic_env.cli import main
+from haptic_env.grasping.hands import HandUnavailableError, generic_hand
 
 ROOT = Path(__file__).resolve().parents[1]
 REGENERATE = "the file and the code disagree: regenerate the assets with `python -m haptic_env.assets`"
@@ -80,6 +81,54 @@ def test_write_assets_rebuilds_the_same_files(tmp_path):
         for kind, count in (("body", "nbody"), ("joint", "njnt"), ("actuator", "nu"), ("key", "nkey")):
             assert names(new, kind, getattr(new, count)) == names(old, kind, getattr(old, count)), REGENERATE
     assert not list(tmp_path.glob(".*.tmp"))  # atomic writes leave no temporary files
+
+
+def test_scene_command_writes_a_scene_that_opens_anywhere(tmp_path, capsys, monkeypatch):
+    out = tmp_path / "can.xml"
+    assert main(["scene", "--object", "can", "--action", "0,0.8,0,0.5", "--out", str(out)]) == 0
+    assert "fingertips touch can" in capsys.readouterr().out
+    monkeypatch.chdir(tmp_path.parent)  # loaded from another folder
+    m = mujoco.MjModel.from_xml_path(str(out))
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, m.key("grasp").id)
+    mujoco.mj_forward(m, d)
+    assert len(tips_touching(m, d)) >= 3
+    assert out.stat().st_mode & 0o777 == 0o644
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--object", "nope"], r"no object 'nope' in the set 'default'; it has \['box'"),
+    (["--action", "0,1"], r"--action must be 4 comma-separated numbers, got '0,1'"),
+    (["--action", "0,a,0,0"], r"--action must be 4 comma-separated numbers"),
+    (["--action", "0,2,0,0"], r"elevation\) = 2.0 is outside \[-1, 1\]"),
+])
+def test_scene_command_names_bad_input(argv, message, capsys, tmp_path):
+    out = tmp_path / "s.xml"
+    with pytest.raises(SystemExit) as exc:
+        main(["scene", *argv, "--out", str(out)])
+    assert exc.value.code == 2
+    import re
+
+    assert re.search(message, capsys.readouterr().err)
+    assert not out.exists()  # nothing half-written
+
+
+def test_scene_command_refuses_a_folder(tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        main(["scene", "--out", str(tmp_path)])
+    assert "is a folder" in capsys.readouterr().err
+
+
+def test_a_menagerie_hand_scene_references_its_meshes_by_absolute_path(tmp_path, monkeypatch):
+    try:
+        xml, res = grasp_scene("allegro", "default", "can", (0.0, 0.8, 0.0, 0.5))
+    except HandUnavailableError as exc:
+        pytest.skip(f"allegro hand unavailable (menagerie data absent, no download): {exc}")
+    path = tmp_path / "allegro.xml"
+    path.write_text(xml)
+    monkeypatch.chdir(tmp_path)
+    m = mujoco.MjModel.from_xml_path(str(path))
+    assert m.nmesh > 0 and res.contacts.shape == (4, 3)
 
 
 def test_asset_path_names_a_missing_file():

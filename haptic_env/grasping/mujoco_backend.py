@@ -35,6 +35,7 @@ import os
 import time
 from collections import OrderedDict
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -313,9 +314,15 @@ class GraspScene:
         """A copy of the scene as an ``MjSpec`` (``.to_xml()`` for MuJoCo's viewer): the object where
         :meth:`place_object` and :meth:`scale_object` put it, and a keyframe per entry of ``keys``
         (name -> ``qpos``, ``ctrl``, ``mpos``, ``mquat`` arrays of this model's sizes). Compiled once, so a bad
-        keyframe raises here."""
+        keyframe raises here. The hand's mesh and texture files are referenced by absolute path, so the file
+        written by ``to_xml`` opens from any folder."""
         m = self.model
         spec = self.spec.copy()
+        home = Path(self.hand.spec.modelfiledir or ".")
+        for items, sub in ((spec.meshes, self.hand.spec.meshdir), (spec.textures, self.hand.spec.texturedir)):
+            for item in items:
+                if item.file and not Path(item.file).is_absolute():
+                    item.file = str((home / (sub or "") / item.file).resolve())
         body = spec.body("object")
         body.pos, body.quat = m.body_pos[self.obj_body_id].copy(), m.body_quat[self.obj_body_id].copy()
         scale = self._unscaled[5] if hasattr(self, "_unscaled") else 1.0
