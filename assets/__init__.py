@@ -123,9 +123,11 @@ def _run_cli(args) -> int:
         raise UsageError(f"--action must be 4 comma-separated numbers, got {args.action!r}")
     if args.out.is_dir():
         raise UsageError(f"--out {args.out} is a folder; give a file name such as {args.out / SCENE_FILE}")
+    from haptic_env.grasping.hands import HandUnavailableError
+
     try:
         xml, res = grasp_scene(args.hand, args.objects, args.object, action, args.fingers)
-    except ValueError as exc:
+    except (ValueError, FileNotFoundError, HandUnavailableError) as exc:  # bad values, data or hand not found
         raise UsageError(str(exc)) from exc
     _write(args.out, xml)
     print(f"{args.out}: {int(res.touched.sum())} of {len(res.touched)} fingertips touch {args.object}; "

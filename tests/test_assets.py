@@ -113,6 +113,13 @@ def test_scene_command_names_bad_input(argv, message, capsys, tmp_path):
     assert not out.exists()  # nothing half-written
 
 
+def test_scene_command_names_missing_data(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("HAPTIC_DATA", str(tmp_path))  # no kit/ there
+    with pytest.raises(SystemExit) as exc:
+        main(["scene", "--objects", "kit8", "--object", "GreenCup", "--out", str(tmp_path / "s.xml")])
+    assert exc.value.code == 2 and "KIT meshes missing" in capsys.readouterr().err
+
+
 def test_scene_command_refuses_a_folder(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["scene", "--out", str(tmp_path)])
