@@ -19,6 +19,7 @@ scene for any hand and object (:func:`grasp_scene`).
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -125,6 +126,8 @@ def _run_cli(args) -> int:
         raise UsageError(f"--out {args.out} is a folder; give a file name such as {args.out / SCENE_FILE}")
     from haptic_env.grasping.hands import HandUnavailableError
 
+    print(f"grasping {args.object!r} of {args.objects!r} with the {args.hand!r} hand (the first use of a mesh without "
+          "convex pieces decomposes it with CoACD, cached: seconds to a minute) ...", file=sys.stderr, flush=True)
     try:
         xml, res = grasp_scene(args.hand, args.objects, args.object, action, args.fingers)
     except (ValueError, FileNotFoundError, HandUnavailableError) as exc:  # bad values, data or hand not found
