@@ -22,7 +22,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-PAPER_KNN_NO_NORMALS = {3: 45.6, 4: 56.1, 5: 61.8}  # kit8, the paper's nearest-neighbour row without normals
+from benchmarks.sampling_protocol import knn_accuracy  # noqa: E402
 
 
 def span_mask(contacts: np.ndarray, max_span: float, min_sep: float) -> np.ndarray:
@@ -76,10 +76,10 @@ def main(argv=None) -> int:
         ap.error(f"need --fingers >= 3, --grasps >= 50, --test-grasps >= 1; got {vars(args)}")
     if min(spans) <= 0 or min(seps) < 0 or max(seps) > min(spans):
         ap.error(f"need --spans > 0 and 0 <= --min-seps <= every span; got {args.spans!r}, {args.min_seps!r}")
-    from sklearn.neighbors import KNeighborsClassifier
     from tqdm import tqdm
 
     from haptic_env.dataset import DatasetConfig
+    from haptic_env.experiments.config import PAPER_KNN  # imports the analyses (torch): only when run
     from haptic_env.objects import load_object_set
 
     objects = load_object_set(args.objects)
@@ -101,10 +101,8 @@ def main(argv=None) -> int:
             ytr.append(np.full(args.grasps, k))
             yte.append(np.full(args.test_grasps, k))
         Xtr, Xte, ytr, yte = map(np.concatenate, (Xtr, Xte, ytr, yte))
-        mu, sd = Xtr.mean(0), Xtr.std(0) + 1e-12
-        acc = [100 * float((KNeighborsClassifier(k).fit((Xtr - mu) / sd, ytr).predict((Xte - mu) / sd) == yte).mean())
-               for k in (15, 50)]
-        paper = PAPER_KNN_NO_NORMALS.get(n) if args.objects == "kit8" else None
+        acc = [100 * a for a in knn_accuracy(Xtr, ytr, Xte, yte, ks=(15, 50))]
+        paper = PAPER_KNN.get((n, False)) if args.objects == "kit8" else None
         lines.append(f"| {n} | {'any' if np.isinf(span) else f'<= {span:g} m'} | {'any' if sep == 0 else f'>= {sep:g} m'}"
                      f" | {acc[0]:.1f} % | {acc[1]:.1f} % | {'-' if paper is None else f'{paper} %'} |"
                      f"  <!-- {time.perf_counter() - t0:.0f} s -->")

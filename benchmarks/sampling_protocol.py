@@ -72,8 +72,6 @@ def main(argv=None) -> int:
     except ImportError:
         ap.error("the decimated meshes need fast-simplification: pip install -e \".[bench]\"")
     import trimesh
-    from sklearn.neighbors import KNeighborsClassifier
-
     from haptic_env.dataset import DatasetConfig, draw_held_grasps, grasp_vectors, sample_grasps
     from haptic_env.objects import load_object_set
     from haptic_env.objects.base import GraspObject
@@ -102,15 +100,9 @@ def main(argv=None) -> int:
             y.append(np.full(int(valid.sum()), k))
         return np.concatenate(X), np.concatenate(y)
 
-    def knn(Xtr, ytr, Xte, yte) -> list[float]:
-        """One-shot accuracy of the kNN at k = 1, 15, 50 on grasp vectors standardised by the training set."""
-        mu, sd = Xtr.mean(0), Xtr.std(0) + 1e-12
-        return [float((KNeighborsClassifier(k).fit((Xtr - mu) / sd, ytr).predict((Xte - mu) / sd) == yte).mean())
-                for k in (1, 15, 50)]
-
     held = "" if args.force_closure is None else f", only grasps in force closure at friction {args.force_closure}"
     if curve is not None:
-        return _curve(decimated, curve, data, knn, args, held)
+        return _curve(decimated, curve, data, args, held)
     print(f"kit8, n = {args.fingers}, {'with' if normals else 'without'} normals{held}, {args.grasps:,} training and "
           f"{args.test_grasps:,} test grasps per object; decimated meshes: {[len(o.mesh.faces) for o in decimated]} "
           "faces\n")
@@ -123,7 +115,7 @@ def main(argv=None) -> int:
             t0 = time.perf_counter()
             Xtr, ytr = data(objs, method, args.grasps, 1)
             Xte, yte = data(objs, method, args.test_grasps, 2)
-            accs = knn(Xtr, ytr, Xte, yte)
+            accs = knn_accuracy(Xtr, ytr, Xte, yte)
             best[mesh_label, label] = max(accs)
             print(f"| {mesh_label} | {label} | " + " | ".join(f"{100 * a:.1f} %" for a in accs)
                   + f" |  <!-- {time.perf_counter() - t0:.0f} s -->", flush=True)
@@ -132,7 +124,7 @@ def main(argv=None) -> int:
         Xtr, ytr, Xte, yte = (a for seed, count in ((1, args.grasps), (2, args.test_grasps))
                               for a in authors_data(decimated, count, args.fingers, seed, sort=order != "shuffled",
                                                     normals=normals, mu=args.force_closure))
-        accs = knn(Xtr, ytr, Xte, yte)
+        accs = knn_accuracy(Xtr, ytr, Xte, yte)
         print(f"| decimated ({args.faces} faces) | centres of uniform faces, the authors' vector, {order} | "
               + " | ".join(f"{100 * a:.1f} %" for a in accs) + f" |  <!-- {time.perf_counter() - t0:.0f} s -->",
               flush=True)
@@ -143,7 +135,16 @@ def main(argv=None) -> int:
     return 0
 
 
-def _curve(decimated, sizes: list[int], data, knn, args, held: str) -> int:
+def knn_accuracy(Xtr, ytr, Xte, yte, ks=(1, 15, 50)) -> list[float]:
+    """One-shot accuracy of the kNN at each ``k`` of ``ks`` on grasp vectors standardised by the training set."""
+    from sklearn.neighbors import KNeighborsClassifier
+
+    mu, sd = Xtr.mean(0), Xtr.std(0) + 1e-12
+    return [float((KNeighborsClassifier(k).fit((Xtr - mu) / sd, ytr).predict((Xte - mu) / sd) == yte).mean())
+            for k in ks]
+
+
+def _curve(decimated, sizes: list[int], data, args, held: str) -> int:
     """kNN one-shot accuracy against training grasps per object on the decimated meshes, face centres (the paper's
     protocol: a finite set of candidate contacts that training and test grasps share) against area-uniform points;
     each method's largest training set drawn once (seed 1) and cut to each size, the same fresh test grasps (seed
@@ -160,7 +161,7 @@ def _curve(decimated, sizes: list[int], data, knn, args, held: str) -> int:
         cells = []
         for m in sizes:
             rows = np.concatenate([np.flatnonzero(yall == k)[:m] for k in range(len(decimated))])
-            cells.append(max(knn(Xall[rows], yall[rows], Xte, yte)))
+            cells.append(max(knn_accuracy(Xall[rows], yall[rows], Xte, yte)))
         curves[label] = cells
         print(f"| {label} | " + " | ".join(f"{100 * a:.1f} %" for a in cells) + " |", flush=True)
     if args.plot is not None:

@@ -700,13 +700,13 @@ class MujocoBackend:
         closing targets set (press play: it closes on the object; every finger closes to its target, without the
         backend's stop at the first fingertip contact), and ``"grasp"``, the state this backend read the grasp
         from (the returned result)."""
-        res = self.grasp(action, rng)
+        a = validate_action(action, self.action_dim)
+        res = self.grasp(a, rng)
         sc = self._require()
         d = sc.data
         mount = {"mpos": d.mocap_pos.copy(), "mquat": d.mocap_quat.copy()}
         grasp = {"qpos": d.qpos.copy(), "ctrl": d.ctrl.copy(), **mount}
-        open_u, close_u = self._ctrls(float(decode_approach(validate_action(action, self.action_dim),
-                                                            self.config.support).spread))
+        open_u, close_u = self._ctrls(float(decode_approach(a, self.config.support).spread))
         sc.reset(open_u)
         approach = {"qpos": d.qpos.copy(), "ctrl": close_u, **mount}
         return sc.export_spec({"approach": approach, "grasp": grasp}), res
