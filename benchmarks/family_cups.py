@@ -98,9 +98,9 @@ def main(argv=None):
                          mlp=dataclasses.replace(AnalysisConfig().mlp, max_epochs=2), progress=False)
     sets = {spec: load_object_set(spec) for spec, _, _ in OBJECTS}
     models = family_models(cfg, max(len(o) for o in sets.values()))  # the members' budget of the largest set
-    kde, T = models.kde, models.T_kde
     dc = grasp_config(cfg, cfg.test_grasps, cfg.seed + TEST_SEED_OFFSET, val_fraction=0.0)  # experiment 5's test grasps
-    print(f"seed {a.seed}, {a.members} members per family, KDE temperature {T:.2f}\n")
+    print(f"seed {a.seed}, {a.members} members per family, KDE temperature {models.T_kde:.2f}, outlier floor "
+          f"q = {models.floor_q:g}\n")
     print("| object | grasps | group | share | one-shot box / cyl / ell % | 30-grasp belief box / cyl / ell % |")
     print("|---|---|---|---|---|---|")
     grasps = {}
@@ -110,7 +110,7 @@ def main(argv=None):
             grasps[spec] = hand_vectors(objects, dc, progress=False, contacts=True)
         k = objects.names.index(name)
         X, C = grasps[spec][k]
-        LL = kde.log_likelihood(X.astype(np.float64)) / T
+        LL = models.tempered(models.kde.log_likelihood(X.astype(np.float64)))  # experiment 5's BC-NP scores
         groups = {"all": np.ones(len(C), bool)}
         if cup:
             handle, inside = cup_contacts(objects[k].mesh, C)

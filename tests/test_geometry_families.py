@@ -111,6 +111,58 @@ def test_family_temperature_for_beliefs_of_one_member_is_hotter_when_a_member_mi
         family_temperatures(_Fixed(S), _Fixed(S), np.zeros((len(S), 6)), fam, grasps=0)
 
 
+class _Lookup:
+    """A family KDE whose log-likelihood of grasp vector ``x`` is row ``int(x[0])`` of a table."""
+
+    def __init__(self, table):
+        self.table = np.asarray(table, dtype=np.float64)
+
+    def log_likelihood(self, X):
+        return self.table[np.asarray(X)[:, 0].astype(int)]
+
+
+def test_floored_lifts_only_what_lies_far_below_the_floor():
+    from haptic_env.experiments.families import floored
+
+    S = np.array([[-1.0, -2.0, -60.0], [-50.0, -40.0, -45.0], [-np.inf, -3.0, -np.inf]])
+    assert np.array_equal(floored(S, -np.inf), S)  # no floor: the scores as they were, bit for bit
+    F = floored(S, -10.0)
+    assert np.allclose(F, np.logaddexp(S, -10.0))
+    assert np.allclose(F[0, :2], S[0, :2], atol=1e-3) and abs(F[0, 2] + 10.0) < 1e-9  # likely grasps keep theirs
+    assert np.ptp(F[1]) < 1e-4 and np.ptp(S[1]) == 10.0  # a grasp unlike every family: (almost) no evidence left
+    assert np.isfinite(F).all()
+
+
+def test_family_floor_is_chosen_on_validation_members_and_helps_where_grasps_mislead():
+    """Each validation member gives mostly grasps typical of its family and some far below every family's density
+    that lean hard towards a wrong family (a cup's handle): the summed belief is misled, a floor removes the lean,
+    and the floor chosen on these members is one; members without such grasps get at most the lowest candidate, and
+    a single candidate 0 is no floor."""
+    from haptic_env.experiments.families import family_floor
+
+    rng = np.random.default_rng(0)
+    member = np.repeat(np.arange(6), 100)
+    fam = member // 2
+    typical = np.eye(3)[fam] * 1.0 - 5.0 + rng.normal(0, 0.7, (600, 3))  # log-likelihoods around -5, right a bit
+    odd = rng.random(600) < 0.3
+    outlier = np.full((600, 3), -40.0)
+    outlier[np.arange(600), (fam + 1) % 3] = -30.0  # far below every family, leaning 10 nats to a wrong one
+    table = np.where(odd[:, None], outlier, typical)
+    held_table = np.eye(3)[np.arange(300) % 3] * 1.0 - 5.0 + rng.normal(0, 0.7, (300, 3))
+    kde = _Lookup(np.vstack([table, held_table]))
+    X, X_held = np.arange(600)[:, None], 600 + np.arange(300)[:, None]
+    y_held = np.arange(300) % 3
+    q, c = family_floor(kde, X_held, y_held, X, fam, member, quantiles=(0.0, 0.01, 0.1), grasps=10, seed=0)
+    assert q > 0 and -12 < c < -3
+    clean = _Lookup(np.vstack([typical, held_table]))
+    q0, c0 = family_floor(clean, X_held, y_held, X, fam, member, quantiles=(0.0, 0.01, 0.1), grasps=10, seed=0)
+    assert q0 <= 0.01
+    assert family_floor(kde, X_held, y_held, X, fam, member, quantiles=(0.0,), grasps=10, seed=0) == (0.0, -np.inf)
+    for bad in ((), (0.0, 1.0), (-0.1,)):
+        with pytest.raises(ValueError, match="quantiles must be a non-empty list in"):
+            family_floor(kde, X_held, y_held, X, fam, member, quantiles=bad, grasps=10, seed=0)
+
+
 def test_family_source_is_checked_and_reaches_the_grasps(tmp_path):
     from haptic_env.cli import main
     from haptic_env.experiments.config import AnalysisConfig
@@ -148,10 +200,16 @@ def test_family_source_is_checked_and_reaches_the_grasps(tmp_path):
         AnalysisConfig(family_size_range=(0, 1))
     with pytest.raises(ValueError, match="family_hand must be a hand name"):
         AnalysisConfig(family_hand="")
+    assert AnalysisConfig().family_floors == (0.0, 0.01, 0.03, 0.1, 0.2)
+    assert AnalysisConfig(family_floors=[0, 0.5]).family_floors == (0.0, 0.5)
+    for bad in ((), (1.0,), (-0.1, 0.0), ("0",)):
+        with pytest.raises(ValueError, match="family_floors must be a non-empty tuple of quantiles in"):
+            AnalysisConfig(family_floors=bad)
     for flags in (["--family-source", "allegro"], ["--family-scale-range", "0.75"],
                   ["--family-scale-range", "1,x"], ["--family-scale-range", "0,1"], ["--family-size-range", "2,1"],
                   ["--family-heights"],  # heights need the hand's table
-                  ["--family-force-closure", "0"], ["--family-source", "hand", "--family-force-closure", "0.5"]):
+                  ["--family-force-closure", "0"], ["--family-source", "hand", "--family-force-closure", "0.5"],
+                  ["--family-floors", "0,x"], ["--family-floors", ","], ["--family-floors", "1"]):
         with pytest.raises(SystemExit):
             main(["analysis", "--out", str(tmp_path / "bad"), "--experiments", "5", *flags])
         assert not (tmp_path / "bad").exists()
@@ -191,6 +249,7 @@ def test_experiment_5_reports_held_back_and_new_members_and_the_object_votes(tmp
     for name in ("box", "can", "apple", "hammer"):
         assert f"\n| {name} |" in text
     assert "BC-NP's majority vote is the expected family for" in text
+    assert "KDE outlier floor: " in text and "chosen from [0.0, 0.01, 0.03, 0.1, 0.2] on the validation members" in text
     assert "Plot: `family_votes.png`." in text and (out / "family_votes.png").stat().st_size > 5000
 
 

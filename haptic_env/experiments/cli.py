@@ -40,14 +40,24 @@ def _corrections(text: str) -> tuple[str, ...]:
         raise UsageError(str(exc)) from None
 
 
-def _lambdas(text: str) -> tuple[float, ...]:
+def _numbers(text: str, flag: str) -> tuple[float, ...]:
+    """``"a,b,..."`` -> ``(a, b, ...)``: a usage error naming ``flag`` if a value is not a number or none is given."""
     from haptic_env.cli import UsageError
 
     try:
         out = tuple(float(x) for x in text.split(",") if x.strip())
     except ValueError:
-        raise UsageError(f"--lambdas: expected comma-separated numbers, got {text!r}") from None
-    if not out or any(not 0 < x <= 1 for x in out):
+        raise UsageError(f"{flag}: expected comma-separated numbers, got {text!r}") from None
+    if not out:
+        raise UsageError(f"{flag}: expected comma-separated numbers, got {text!r}")
+    return out
+
+
+def _lambdas(text: str) -> tuple[float, ...]:
+    from haptic_env.cli import UsageError
+
+    out = _numbers(text, "--lambdas")
+    if any(not 0 < x <= 1 for x in out):
         raise UsageError(f"--lambdas: thresholds must be in (0, 1], got {text!r}")
     return out
 
@@ -136,6 +146,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--family-force-closure", type=float_in(0.0, lo_open=True), default=None, metavar="MU",
                    help="experiment 5 with --family-source surface: only the grasps in force closure at this friction "
                         "coefficient, of the members and the objects alike (default: every grasp, the paper's)")
+    p.add_argument("--family-floors", default=",".join(f"{q:g}" for q in d.family_floors), metavar="Q,...",
+                   help="experiment 5 (calibrated scores): the family KDE's outlier floors to choose from on the "
+                        "validation members, as quantiles of the true family's log-likelihood on held-back member "
+                        "grasps (0: none; '0' turns the floor off)")
     p.add_argument("--family-members", type=int, default=d.family_members,
                    help="experiment 5: training members per family (a third as many validation and test members)")
     p.add_argument("--normal-axis", default=d.normal_axis, choices=NORMAL_AXES,
@@ -205,6 +219,7 @@ def _run_cli(args) -> int:
             family_size_range=None if args.family_size_range is None else _range(args.family_size_range,
                                                                                  "--family-size-range"),
             family_heights=args.family_heights, family_lying=args.family_lying,
+            family_floors=_numbers(args.family_floors, "--family-floors"),
             family_force_closure=args.family_force_closure, force_closure=args.force_closure,
             calibrated=not args.raw, stop_scale=args.stop_scale, ic_certainty=args.ic_certainty,
             calib_fingers=_ints(args.calib_fingers), calib_fingers_no_normals=_ints(args.calib_fingers_no_normals),

@@ -91,6 +91,12 @@ class AnalysisConfig:
     #: experiment 5 with ``family_source="surface"``: keep only the grasps in force closure at this friction coefficient
     #: (``DatasetConfig.force_closure``), of the members and the objects alike; ``None``: every grasp (the paper's)
     family_force_closure: float | None = field(default=None, metadata={KEY_ONLY_WHEN_SET: True})
+    #: experiment 5 with calibrated scores: the outlier floors of the family KDE to choose from on the validation
+    #: members (``families.family_floor``): each the quantile ``q`` of the true family's log-likelihood on held-back
+    #: training-member grasps below which a grasp's log-likelihoods are lifted (``families.floored``), so that a grasp
+    #: unlike every family (a cup's handle) moves the belief little; ``q = 0``: no floor. ``(0.0,)``: never (before
+    #: 2026-12-04; raw scores never have one)
+    family_floors: tuple[float, ...] = (0.0, 0.01, 0.03, 0.1, 0.2)
     normals: bool = True  #: experiments 2-6
     #: each normal's second angle in Phi_n (n >= 4): to t2's normal ("t2", the paper's) or to the edge ab ("ab"), or
     #: three angles, to the axes of t1's frame ("frame", n >= 3; ``phi(normal_axis=)``), in every experiment's
@@ -148,6 +154,11 @@ class AnalysisConfig:
             object.__setattr__(self, "family_size_range", tuple(float(v) for v in sz))
         if not isinstance(self.family_heights, bool):
             raise ValueError(f"family_heights must be a bool, got {self.family_heights!r}")
+        fl = tuple(self.family_floors)
+        if not fl or not all(isinstance(q, (int, float)) and 0.0 <= q < 1.0 for q in fl):
+            raise ValueError(f"family_floors must be a non-empty tuple of quantiles in [0, 1), "
+                             f"got {self.family_floors!r}")
+        object.__setattr__(self, "family_floors", tuple(float(q) for q in fl))
         if not isinstance(self.family_lying, bool):
             raise ValueError(f"family_lying must be a bool, got {self.family_lying!r}")
         if self.force_closure is not None:

@@ -19,12 +19,13 @@ from haptic_env.experiments.config import TEST_SEED_OFFSET, AnalysisConfig
 from haptic_env.experiments.plots import plot_family_votes
 from haptic_env.experiments.report import Report, mean_std
 from haptic_env.experiments.trials import family_trials, simulate_trials
-from haptic_env.recognizers.calibration import _finite_rows, fit_temperature, sequence_scores
+from haptic_env.recognizers.calibration import _finite_rows, fit_temperature, sequence_scores, tempered_nll
 from haptic_env.recognizers.kde import KDELikelihood
 from haptic_env.recognizers.mlp import MLPClassifier
 
 __all__ = ["run", "EXPECTED_FAMILY", "FAMILY_OBJECT_TRIALS", "FAMILY_VAL_SEED_OFFSET", "family_temperatures",
-           "family_models", "FamilyModels", "family_vectors", "grasp_config", "member_grasps"]
+           "family_floor", "floored", "family_models", "FamilyModels", "family_vectors", "grasp_config",
+           "member_grasps"]
 
 #: The family a person would expect for the objects of ``default``, ``ycb10`` and ``kit20`` (None: no clear
 #: family; such objects are listed in experiment 5 but left out of its score).
@@ -47,8 +48,15 @@ FAMILY_OBJECT_TRIALS = 10
 FAMILY_VAL_SEED_OFFSET = 1000
 
 
+def floored(S: np.ndarray, floor: float) -> np.ndarray:
+    """Log-likelihoods ``S`` with an outlier floor: ``log(exp(S) + exp(floor))`` elementwise (``floor = -inf``: ``S``
+    unchanged). A grasp unlike every family's training grasps (all its log-likelihoods far below ``floor``) then
+    gives every family about the same score, so it moves a belief little instead of by the ratio of tail densities."""
+    return np.logaddexp(S, floor)
+
+
 def family_temperatures(kde, clf, X, fam, *, member=None, grasps: int = 1,
-                        rng: np.random.Generator | None = None) -> tuple[float, float]:
+                        rng: np.random.Generator | None = None, floor: float = -np.inf) -> tuple[float, float]:
     """Calibration temperatures ``(T_kde, T_mlp)`` of family models, fitted on grasps ``X`` of NEW validation
     members with families ``fam`` (the models' own temperatures are fitted on held-back grasps of the training
     members, which overstates how well a family model knows an unseen member).
@@ -57,21 +65,49 @@ def family_temperatures(kde, clf, X, fam, *, member=None, grasps: int = 1,
     (``member``: the validation member of each row; sums drawn with ``rng``,
     :func:`~haptic_env.recognizers.calibration.sequence_scores`): a member unlike its family's training members
     keeps looking like another family grasp after grasp, so a belief summed over its grasps is over-confident by
-    more than one grasp's temperature corrects. The MLP's stays one-shot (IC averages, it does not sum)."""
+    more than one grasp's temperature corrects. The MLP's stays one-shot (IC averages, it does not sum).
+    ``floor``: the KDE's outlier floor (:func:`floored`), applied before the fit."""
     if not (isinstance(grasps, (int, np.integer)) and grasps >= 1):
         raise ValueError(f"family_temperatures: grasps must be an int >= 1, got {grasps!r}")
-    S = _finite_rows(kde.log_likelihood(X))
+    S = _finite_rows(floored(kde.log_likelihood(X), floor))
     fam = np.asarray(fam)
     if grasps > 1:
         if member is None or rng is None:
             raise ValueError("family_temperatures: grasps > 1 needs the member of each row and an rng")
-        member = np.asarray(member)
-        parts = [sequence_scores(S[member == m], fam[member == m], grasps, rng) for m in np.unique(member)]
-        T_kde = fit_temperature(np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]))
+        T_kde = fit_temperature(*_member_sequences(S, fam, np.asarray(member), grasps, rng))
     else:
         T_kde = fit_temperature(S, fam)
     T_mlp = fit_temperature(np.log(np.maximum(clf.predict_proba(X), 1e-300)), fam)
     return float(T_kde), float(T_mlp)
+
+
+def _member_sequences(S, fam, member, grasps: int, rng) -> tuple[np.ndarray, np.ndarray]:
+    """Scores of beliefs over 1 .. ``grasps`` grasps of ONE member (:func:`sequence_scores` per member), stacked."""
+    parts = [sequence_scores(S[member == m], fam[member == m], grasps, rng) for m in np.unique(member)]
+    return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+
+
+def family_floor(kde, X_held, y_held, X, fam, member, *, quantiles, grasps: int, seed) -> tuple[float, float]:
+    """Experiment 5's outlier floor (:func:`floored`), chosen on NEW validation members: for each ``q`` in
+    ``quantiles`` the floor is the ``q``-quantile of the true family's log-likelihood on held-back grasps of the
+    TRAINING members ``X_held`` / ``y_held`` (``q = 0``: no floor), and the ``q`` whose floored, sequence-tempered
+    beliefs of 1 .. ``grasps`` grasps of one validation member (``X``, ``fam``, ``member``; as
+    :func:`family_temperatures` fits them) have the lowest NLL wins (the first on a tie). Each candidate draws the
+    same sums (``seed``). Returns ``(q, floor)``."""
+    if not quantiles or any(not (0.0 <= q < 1.0) for q in quantiles):
+        raise ValueError(f"family_floor: quantiles must be a non-empty list in [0, 1), got {quantiles!r}")
+    L = kde.log_likelihood(X_held)
+    true = L[np.arange(len(L)), np.asarray(y_held)]
+    true = true[np.isfinite(true)]
+    S, fam, member = kde.log_likelihood(X), np.asarray(fam), np.asarray(member)
+    best = None
+    for q in quantiles:
+        c = float(np.quantile(true, q)) if q > 0 else -np.inf
+        Sq, Y = _member_sequences(_finite_rows(floored(S, c)), fam, member, grasps, np.random.default_rng(seed))
+        nll = tempered_nll(Sq, Y, fit_temperature(Sq, Y))
+        if best is None or nll < best[0]:
+            best = (nll, float(q), c)
+    return best[1], best[2]
 
 
 def _too_small(cfg: AnalysisConfig, what: str) -> RuntimeError:
@@ -132,6 +168,8 @@ class FamilyModels:
         left_train, left_val: training / validation members the hand never grasped with 4 fingers (name -> rows).
         clf, kde: the MLP and the KDE over the three families.
         T_kde, T_mlp: their temperatures (1.0 each with raw scores).
+        floor_q, floor: the KDE's outlier floor (:func:`floored`, :func:`family_floor`): the quantile chosen on the
+            validation members and its log-likelihood level (``0`` and ``-inf``: none, as with raw scores).
     """
 
     train_set: object
@@ -144,6 +182,14 @@ class FamilyModels:
     kde: KDELikelihood
     T_kde: float
     T_mlp: float
+    floor_q: float = 0.0
+    floor: float = -np.inf
+
+    def tempered(self, S: np.ndarray) -> np.ndarray:
+        """``(G, 3)`` the family KDE's log-likelihoods ``S`` (``kde.log_likelihood``) as experiment 5's beliefs use
+        them: floored (:func:`floored`) and divided by ``T_kde``. The floor keeps their order, but grasps far below
+        it may tie: take one-shot argmaxes from ``S``."""
+        return floored(S, self.floor) / self.T_kde
 
 
 def family_models(cfg: AnalysisConfig, n_objects: int) -> FamilyModels:
@@ -169,11 +215,14 @@ def family_models(cfg: AnalysisConfig, n_objects: int) -> FamilyModels:
     vdc = grasp_config(cfg, cfg.test_grasps, cfg.seed + FAMILY_VAL_SEED_OFFSET, val_fraction=0.0)
     vds, left_val = member_grasps(val_set, vdc, cfg, "validation")
     fam_val = np.array([fam_idx[val_set.families[nm]] for nm in val_set.names])
-    T_kde, T_mlp = family_temperatures(kde, clf, vds.X_train.astype(np.float64), fam_val[vds.y_train],
-                                       member=vds.y_train, grasps=cfg.max_grasps,
-                                       rng=np.random.default_rng([cfg.seed, FAMILY_VAL_SEED_OFFSET])) \
-        if cfg.calibrated else (1.0, 1.0)
-    return FamilyModels(train_set, val_set, test_set, fam_of, left_train, left_val, clf, kde, T_kde, T_mlp)
+    if not cfg.calibrated:  # the paper's raw scores: no temperatures, no floor
+        return FamilyModels(train_set, val_set, test_set, fam_of, left_train, left_val, clf, kde, 1.0, 1.0)
+    Xv, fv, seed = vds.X_train.astype(np.float64), fam_val[vds.y_train], [cfg.seed, FAMILY_VAL_SEED_OFFSET]
+    q, floor = family_floor(kde, ds.X_val, fam_of[ds.y_val], Xv, fv, vds.y_train, quantiles=cfg.family_floors,
+                            grasps=cfg.max_grasps, seed=seed)
+    T_kde, T_mlp = family_temperatures(kde, clf, Xv, fv, member=vds.y_train, grasps=cfg.max_grasps,
+                                       rng=np.random.default_rng(seed), floor=floor)
+    return FamilyModels(train_set, val_set, test_set, fam_of, left_train, left_val, clf, kde, T_kde, T_mlp, q, floor)
 
 
 def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> None:
@@ -195,15 +244,15 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     def scores(objs):  # test grasps; an object the hand never grasps with 4 fingers gets no rows
         pool = family_vectors(objs, grasp_config(cfg, cfg.test_grasps, cfg.seed + TEST_SEED_OFFSET, val_fraction=0.0),
                               cfg)
-        LL = [m.kde.log_likelihood(X) / m.T_kde for X in pool]
+        raw = [m.kde.log_likelihood(X) for X in pool]
         PR = [softmax(np.log(np.maximum(m.clf.predict_proba(X), 1e-300)) / m.T_mlp, axis=1) for X in pool]
-        return LL, PR
+        return [m.tempered(R) for R in raw], PR, raw
 
-    LL, PR = scores(m.test_set)
+    LL, PR, raw = scores(m.test_set)
     left_test = {nm: 0 for nm, L in zip(m.test_set.names, LL) if len(L) == 0}  # the hand never grasped them
     _check_families(m.test_set, left_test, cfg, "test")
     kept = [k for k, L in enumerate(LL) if len(L)]
-    LL, PR = [LL[k] for k in kept], [PR[k] for k in kept]
+    LL, PR, raw = [LL[k] for k in kept], [PR[k] for k in kept], [raw[k] for k in kept]
     fam_test = np.array([fam_idx[m.test_set.families[m.test_set.names[k]]] for k in kept])
     rows = []
     for kind in ("ic", "bc-np"):
@@ -213,8 +262,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
         rows.append([kind, f"{100 * ok.mean():.1f}", f"{100 * res['decided'].mean():.1f}",
                      mean_std(res["grasps"].mean(), res["grasps"].std(), 2)])
     one = np.mean(np.concatenate([p.argmax(1) == fam_test[k] for k, p in enumerate(PR)]))
-    one_kde = np.mean(np.concatenate([L.argmax(1) == fam_test[k] for k, L in enumerate(LL)]))
-    LLh, PRh = scores(m.train_set)  # fresh grasps (test seed) of the training members: held-back family grasps
+    one_kde = np.mean(np.concatenate([R.argmax(1) == fam_test[k] for k, R in enumerate(raw)]))
+    _, PRh, LLh = scores(m.train_set)  # fresh grasps (test seed) of the training members: held-back family grasps
     held = [k for k, nm in enumerate(m.train_set.names) if nm not in m.left_train and len(LLh[k])]
     one_h = np.mean(np.concatenate([PRh[k].argmax(1) == m.fam_of[k] for k in held]))
     one_kde_h = np.mean(np.concatenate([LLh[k].argmax(1) == m.fam_of[k] for k in held]))
@@ -229,10 +278,13 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     rep.p(f"Held-out family members ({n_te} new random boxes/cylinders/ellipsoids, test seed); one-shot "
           f"family accuracy MLP {100 * one:.1f} %, KDE argmax {100 * one_kde:.1f} % (chance 33.3 %). Temperatures "
           f"fitted on {n_val} validation members: KDE {m.T_kde:.2f} (for beliefs of 1-{cfg.max_grasps} grasps of one "
-          f"member), MLP {m.T_mlp:.2f} (one-shot). {cfg.trials} trials, "
+          f"member), MLP {m.T_mlp:.2f} (one-shot). KDE outlier floor: "
+          + ("none" if m.floor_q == 0 else f"the {m.floor_q:g}-quantile of the true family's log-likelihood on "
+             f"held-back training-member grasps ({m.floor:.2f})") + f", chosen from {list(cfg.family_floors)} on "
+          f"the validation members. {cfg.trials} trials, "
           f"lambda = {cfg.threshold}, at most {cfg.max_grasps} grasps; success = family right at the stop.")
     rep.table(["updater", "family success %", "decided %", "grasps"], rows)
-    LL, PR = scores(objects)
+    LL, PR, _ = scores(objects)
     ntr = FAMILY_OBJECT_TRIALS
     short = {"box": "box", "elliptic_cylinder": "cyl", "ellipsoid": "ell"}
     rows, hits, labelled, ic_dec, ic_all = [], 0, 0, 0, 0
