@@ -94,8 +94,8 @@ class AnalysisConfig:
     #: experiment 5 with calibrated scores: the outlier floors of the family KDE to choose from on the validation
     #: members (``families.family_floor``): each the quantile ``q`` of the true family's log-likelihood on held-back
     #: training-member grasps below which a grasp's log-likelihoods are lifted (``families.floored``), so that a grasp
-    #: unlike every family (a cup's handle) moves the belief little; ``q = 0``: no floor. ``(0.0,)``: never (before
-    #: 2026-12-04; raw scores never have one)
+    #: unlike every family moves the belief little; ``q = 0``: no floor. ``(0.0,)``: never (before 2026-12-04; raw
+    #: scores never have one)
     family_floors: tuple[float, ...] = (0.0, 0.01, 0.03, 0.1, 0.2)
     normals: bool = True  #: experiments 2-6
     #: each normal's second angle in Phi_n (n >= 4): to t2's normal ("t2", the paper's) or to the edge ab ("ab"), or
