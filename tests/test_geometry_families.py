@@ -158,6 +158,10 @@ def test_family_floor_is_chosen_on_validation_members_and_helps_where_grasps_mis
     q0, c0 = family_floor(clean, X_held, y_held, X, fam, member, quantiles=(0.0, 0.01, 0.1), grasps=10, seed=0)
     assert q0 <= 0.01
     assert family_floor(kde, X_held, y_held, X, fam, member, quantiles=(0.0,), grasps=10, seed=0) == (0.0, -np.inf)
+    nowhere = _Lookup(np.vstack([table, np.full((300, 3), -np.inf)]))  # no held-back grasp fits its own family
+    with pytest.raises(ValueError, match="no held-back grasp has a finite log-likelihood under its own family"):
+        family_floor(nowhere, X_held, y_held, X, fam, member, quantiles=(0.0, 0.1), grasps=10, seed=0)
+    assert family_floor(nowhere, X_held, y_held, X, fam, member, quantiles=(0.0,), grasps=10, seed=0)[0] == 0.0
     for bad in ((), (0.0, 1.0), (-0.1,)):
         with pytest.raises(ValueError, match="quantiles must be a non-empty list in"):
             family_floor(kde, X_held, y_held, X, fam, member, quantiles=bad, grasps=10, seed=0)

@@ -99,6 +99,9 @@ def family_floor(kde, X_held, y_held, X, fam, member, *, quantiles, grasps: int,
     L = kde.log_likelihood(X_held)
     true = L[np.arange(len(L)), np.asarray(y_held)]
     true = true[np.isfinite(true)]
+    if len(true) == 0 and any(q > 0 for q in quantiles):
+        raise ValueError(f"family_floor: no held-back grasp has a finite log-likelihood under its own family "
+                         f"({len(L)} grasps), so no floor quantile exists")
     S, fam, member = kde.log_likelihood(X), np.asarray(fam), np.asarray(member)
     best = None
     for q in quantiles:
