@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from haptic_env.experiments.config import AnalysisConfig
-from haptic_env.experiments.families import FAMILY_VAL_SEED_OFFSET, grasp_config, member_grasps
+from haptic_env.experiments.families import FAMILY_VAL_SEED_OFFSET, floored, grasp_config, member_grasps
 from haptic_env.objects import FAMILIES, family_set
 from haptic_env.recognizers.calibration import fit_temperature, sequence_scores, tempered_nll
 from haptic_env.recognizers.kde import KDELikelihood
@@ -103,9 +103,9 @@ def main(argv=None):
         for q in floors:
             c = np.quantile(held[np.arange(len(yva)), yva], q) if q > 0 else -np.inf
             r = {"factor": f if f != "auto" else f"auto ({float(kde.factor[0]):g})", "floor": q,
-                 "held_1": 100 * np.mean(np.logaddexp(held, c).argmax(1) == yva)}
+                 "held_1": 100 * np.mean(floored(held, c).argmax(1) == yva)}
             for name, (X, fam, member) in new.items():
-                LL = np.logaddexp(raw[name], c)
+                LL = floored(raw[name], c)
                 r[f"{name}_1"] = 100 * np.mean(LL.argmax(1) == fam)
                 rng = np.random.default_rng([a.seed, 7])
                 for m in (10, 30):
