@@ -34,9 +34,9 @@ from pathlib import Path
 import numpy as np
 
 from haptic_env.experiments.config import AnalysisConfig
-from haptic_env.experiments.families import FAMILY_VAL_SEED_OFFSET, floored, grasp_config, member_grasps
+from haptic_env.experiments.families import (FAMILY_VAL_SEED_OFFSET, floored, grasp_config, member_grasps,
+                                             sequence_fit)
 from haptic_env.objects import FAMILIES, family_set
-from haptic_env.recognizers.calibration import fit_temperature, sequence_scores, tempered_nll
 from haptic_env.recognizers.kde import KDELikelihood
 
 CHECK_SEED_OFFSET = 2000  # set B: new members no experiment uses
@@ -110,13 +110,9 @@ def main(argv=None):
                 rng = np.random.default_rng([a.seed, 7])
                 for m in (10, 30):
                     r[f"{name}_vote{m}"] = votes(LL, fam, member, m, a.trials, rng)
-                if name == "A":  # the criterion: NLL of the sequence-calibrated posteriors, as experiment 5 fits T
-                    parts = [sequence_scores(LL[member == i], fam[member == i], cfg.max_grasps,
-                                             np.random.default_rng([a.seed, FAMILY_VAL_SEED_OFFSET]))
-                             for i in np.unique(member)]
-                    S, Y = np.concatenate([q[0] for q in parts]), np.concatenate([q[1] for q in parts])
-                    r["A_T"] = fit_temperature(S, Y)
-                    r["A_nll"] = tempered_nll(S, Y, r["A_T"])
+                if name == "A":  # experiment 5's criterion (family_floor): the sequence-calibrated beliefs' NLL
+                    r["A_T"], r["A_nll"] = sequence_fit(LL, fam, member, grasps=cfg.max_grasps,
+                                                        seed=[a.seed, FAMILY_VAL_SEED_OFFSET])
             rows.append(r)
             print(r, file=sys.stderr, flush=True)
     best = min(rows, key=lambda r: r["A_nll"])

@@ -24,7 +24,7 @@ from haptic_env.recognizers.kde import KDELikelihood
 from haptic_env.recognizers.mlp import MLPClassifier
 
 __all__ = ["run", "EXPECTED_FAMILY", "FAMILY_OBJECT_TRIALS", "FAMILY_VAL_SEED_OFFSET", "family_temperatures",
-           "family_floor", "floored", "family_models", "FamilyModels", "family_vectors", "grasp_config",
+           "family_floor", "floored", "sequence_fit", "family_models", "FamilyModels", "family_vectors", "grasp_config",
            "member_grasps"]
 
 #: The family a person would expect for the objects of ``default``, ``ycb10`` and ``kit20`` (None: no clear
@@ -102,15 +102,24 @@ def family_floor(kde, X_held, y_held, X, fam, member, *, quantiles, grasps: int,
     if len(true) == 0 and any(q > 0 for q in quantiles):
         raise ValueError(f"family_floor: no held-back grasp has a finite log-likelihood under its own family "
                          f"({len(L)} grasps), so no floor quantile exists")
-    S, fam, member = kde.log_likelihood(X), np.asarray(fam), np.asarray(member)
+    S = kde.log_likelihood(X)
     best = None
     for q in quantiles:
         c = float(np.quantile(true, q)) if q > 0 else -np.inf
-        Sq, Y = _member_sequences(_finite_rows(floored(S, c)), fam, member, grasps, np.random.default_rng(seed))
-        nll = tempered_nll(Sq, Y, fit_temperature(Sq, Y))
+        nll = sequence_fit(floored(S, c), fam, member, grasps=grasps, seed=seed)[1]
         if best is None or nll < best[0]:
             best = (nll, float(q), c)
     return best[1], best[2]
+
+
+def sequence_fit(S, fam, member, *, grasps: int, seed) -> tuple[float, float]:
+    """``(T, nll)``: the temperature of beliefs of 1 .. ``grasps`` grasps of ONE member fitted on the KDE scores ``S``
+    of validation grasps (``fam``: each row's family, ``member``: its member; sums drawn with ``default_rng(seed)``,
+    as :func:`family_temperatures` draws them), and those beliefs' NLL at ``T``: :func:`family_floor`'s criterion."""
+    Sq, Y = _member_sequences(_finite_rows(S), np.asarray(fam), np.asarray(member), grasps,
+                              np.random.default_rng(seed))
+    T = fit_temperature(Sq, Y)
+    return float(T), float(tempered_nll(Sq, Y, T))
 
 
 def _too_small(cfg: AnalysisConfig, what: str) -> RuntimeError:
