@@ -1,0 +1,124 @@
+"""Could a hand's MuJoCo grasp end sooner? Closing-step caps below the hand's own, against its default grasps.
+
+Every grasp of the MuJoCo backend closes the fingers for at most ``HandDescription.max_steps`` physics steps (the
+rest test, all joint speeds under ``MujocoConfig.rest_qvel``, may end it sooner). The 5-finger envs' first ``make``
+is these grasps (60,000 per hand), so a grasp that could stop earlier with the same readout would shorten it in
+proportion. This benchmark grasps the same random approaches to ycb10 with the hand's default and with lower caps
+(``MujocoConfig.max_steps``), interleaved per object, one process, and reports per cap: the share of grasps that
+close until the cap (the others came to rest), the grasps/s as a ratio to the default's from the same run, how often
+the same fingertips touch, and how far the touching fingertips' contact points and torque-derived normals move
+(median / 90th percentile over fingertips that touch in both).
+
+    OMP_NUM_THREADS=1 python benchmarks/closing_time.py [--approaches 20] [--hands shadow,aero,allegro]
+
+Headline figure last: the speed-up of the fastest cap that keeps the grasps (the same fingertips touch in at least
+99 % of them, contacts within 1 mm and normals within 2 degrees at the 90th percentile).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+import numpy as np
+
+from haptic_env.grasping import make_backend
+from haptic_env.grasping.hands import HandUnavailableError
+from haptic_env.objects import data_dir, load_object_set
+
+N_FINGERS = {"allegro": 4, "shadow": 5, "aero": 5, "robotiq": 2}
+#: caps tried per hand (its default: allegro 60, shadow 75, aero 200, robotiq 300 steps)
+CAPS = {"allegro": (30, 40, 50), "shadow": (30, 40, 50, 60), "aero": (60, 100, 140, 170), "robotiq": (100, 200)}
+
+
+def grasps(hand: str, objects, approaches: int, caps) -> dict:
+    """The same random approaches (``approaches`` per object) grasped with each closing-step cap in ``caps`` (None:
+    the hand's own), interleaved per object so that load drifts hit every cap alike. Per cap: ``touched (G, n)``,
+    ``contacts (G, n, 3)``, ``normals (G, n, 3)``, ``steps (G,)`` (closing steps taken), ``cap`` and ``seconds``."""
+    backends = {c: make_backend("mujoco", n_fingers=N_FINGERS[hand], hand=hand, support="table", normals=True,
+                                max_steps=c) for c in caps}
+    out = {c: {"touched": [], "contacts": [], "normals": [], "steps": [], "seconds": 0.0} for c in caps}
+    for k in range(len(objects)):
+        acts = np.random.default_rng([7, k]).uniform(-1, 1, (approaches, 4))
+        for c, be in backends.items():
+            be.set_object(objects[k])
+            be.grasp(acts[0], np.random.default_rng(0))  # warm-up (scene build)
+            t = time.perf_counter()
+            for a in acts:
+                r = be.grasp(a, np.random.default_rng(0))
+                out[c]["touched"].append(r.touched)
+                out[c]["contacts"].append(r.contacts)
+                out[c]["normals"].append(r.normals)
+                out[c]["steps"].append(r.info["steps"])
+            out[c]["seconds"] += time.perf_counter() - t
+    for c, be in backends.items():
+        out[c]["cap"] = be.config.max_steps or be.hand.max_steps
+        be.close()
+    return {c: {k: v if k in ("seconds", "cap") else np.array(v) for k, v in o.items()} for c, o in out.items()}
+
+
+def differences(a: dict, b: dict) -> tuple[float, np.ndarray, np.ndarray]:
+    """Between two runs of the same approaches: the share of grasps whose fingertips touch alike, and over the
+    fingertips that touch in both the contact-point distances (m) and the normals' angles (degrees)."""
+    same = float(np.mean((a["touched"] == b["touched"]).all(axis=1)))
+    both = a["touched"] & b["touched"]
+    dist = np.linalg.norm(a["contacts"] - b["contacts"], axis=-1)[both]
+    cos = np.sum(a["normals"] * b["normals"], axis=-1)[both]
+    return same, dist, np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
+def _p90(x: np.ndarray) -> float:
+    return float(np.quantile(x, 0.9)) if x.size else 0.0
+
+
+def _q(x: np.ndarray, scale: float, digits: int) -> str:
+    return f"{scale * np.median(x):.{digits}f} / {scale * np.quantile(x, 0.9):.{digits}f}" if x.size else "-"
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--approaches", type=int, default=20, help="random approaches per object")
+    ap.add_argument("--hands", default="shadow,aero,allegro")
+    args = ap.parse_args(argv)
+    if args.approaches < 1:
+        sys.exit(f"--approaches must be >= 1, got {args.approaches}")
+    hands = args.hands.split(",")
+    bad = [h for h in hands if h not in CAPS]
+    if bad:
+        sys.exit(f"--hands: unknown hand(s) {bad}; choose from {sorted(CAPS)}")
+    if data_dir() is None:
+        sys.exit("needs the shared data (ycb10 meshes and MuJoCo Menagerie): set HAPTIC_DATA / MENAGERIE_ROOT")
+    objects = load_object_set("ycb10")
+    print(f"ycb10, {args.approaches} random approaches per object, one process")
+    print("| hand | closing steps (cap) | grasps at the cap | grasps/s | speed vs the default | "
+          "same fingertips touch | contact diff median / p90 (mm) | normal diff median / p90 (deg) |")
+    print("|---|---|---|---|---|---|---|---|")
+    headline = []
+    for hand in hands:
+        try:
+            res = grasps(hand, objects, args.approaches, (None, *CAPS[hand]))
+        except HandUnavailableError as exc:
+            print(f"| {hand} | skipped: {exc} |")
+            continue
+        base = res[None]
+        G = len(base["touched"])
+        cap0 = base["cap"]
+        print(f"| {hand} | default ({cap0}) | {np.mean(base['steps'] >= cap0):.3f} | {G / base['seconds']:.1f} | "
+              f"1.00x | 1.000 | - | - |", flush=True)
+        best = (1.0, "default")
+        for cap in CAPS[hand]:
+            r = res[cap]
+            same, dist, ang = differences(r, base)
+            ratio = base["seconds"] / r["seconds"]
+            print(f"| {hand} | {cap} | {np.mean(r['steps'] >= cap):.3f} | {G / r['seconds']:.1f} | {ratio:.2f}x | "
+                  f"{same:.3f} | {_q(dist, 1000, 2)} | {_q(ang, 1, 1)} |", flush=True)
+            if same >= 0.99 and _p90(dist) <= 1e-3 and _p90(ang) <= 2.0 and ratio > best[0]:
+                best = (ratio, str(cap))
+        headline.append(f"{hand} {best[0]:.2f}x ({best[1]} steps)")
+    print("\nspeed-up of the fastest cap that keeps the grasps (same fingertips in >= 99 %, p90 contact diff <= 1 mm, "
+          "p90 normal diff <= 2 deg): " + ", ".join(headline))
+
+
+if __name__ == "__main__":
+    main()
