@@ -28,26 +28,31 @@ from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 N_FINGERS = {"allegro": 4, "shadow": 5, "aero": 5, "robotiq": 2}
 
 
-def run(hand: str, objects, approaches: int, solvers: tuple[str, ...]) -> dict[str, dict]:
+def run(hand: str, objects, approaches: int, variants: dict) -> dict:
+    """The same random approaches (``approaches`` per object) grasped by one MuJoCo backend per variant (label ->
+    more ``make_backend`` keywords, e.g. ``{"solver": "CG"}`` or ``{"max_steps": 40}``), interleaved per object so
+    that load drifts hit every variant alike. Per label: ``touched (G, n)``, ``contacts (G, n, 3)``, ``normals
+    (G, n, 3)``, ``steps (G,)`` (closing steps taken), ``cap`` (the closing-step cap), ``seconds`` and ``gps``."""
     nf = N_FINGERS[hand]
-    backends = {s: make_backend("mujoco", n_fingers=nf, hand=hand, support="table", normals=True, solver=s)
-                for s in solvers}
-    out = {s: {"seconds": 0.0, "contacts": [], "touched": []} for s in solvers}
+    backends = {v: make_backend("mujoco", n_fingers=nf, hand=hand, support="table", normals=True, **kw)
+                for v, kw in variants.items()}
+    keys = ("touched", "contacts", "normals", "steps")
+    out = {v: {"seconds": 0.0, **{k: [] for k in keys}} for v in variants}
     for k in tqdm(range(len(objects)), desc=hand, leave=False):
         acts = np.random.default_rng([7, k]).uniform(-1, 1, (approaches, 4))
-        for s, be in backends.items():
+        for v, be in backends.items():
             be.set_object(objects[k])
             be.grasp(acts[0], np.random.default_rng(0))  # warm-up (scene build)
             t = time.perf_counter()
             for a in acts:
                 r = be.grasp(a, np.random.default_rng(0))
-                out[s]["contacts"].append(r.contacts)
-                out[s]["touched"].append(r.touched)
-            out[s]["seconds"] += time.perf_counter() - t
-    for s, be in backends.items():
+                for key, x in zip(keys, (r.touched, r.contacts, r.normals, r.info["steps"])):
+                    out[v][key].append(x)
+            out[v]["seconds"] += time.perf_counter() - t
+    for v, be in backends.items():
+        out[v].update({key: np.array(out[v][key]) for key in keys}, cap=be.config.max_steps or be.hand.max_steps)
+        out[v]["gps"] = len(out[v]["touched"]) / out[v]["seconds"]
         be.close()
-        out[s]["contacts"], out[s]["touched"] = np.array(out[s]["contacts"]), np.array(out[s]["touched"])
-        out[s]["gps"] = len(out[s]["touched"]) / out[s]["seconds"]
     return out
 
 
@@ -67,7 +72,7 @@ def main(argv=None) -> None:
     headline = []
     for hand in args.hands.split(","):
         try:
-            res = run(hand, objects, args.approaches, solvers)
+            res = run(hand, objects, args.approaches, {s: {"solver": s} for s in solvers})
         except HandUnavailableError as exc:
             print(f"| {hand} | skipped: {exc} |")
             continue

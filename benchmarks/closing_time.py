@@ -19,43 +19,18 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
+from pathlib import Path
 
 import numpy as np
 
-from haptic_env.grasping import make_backend
-from haptic_env.grasping.hands import HandUnavailableError
-from haptic_env.objects import data_dir, load_object_set
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-N_FINGERS = {"allegro": 4, "shadow": 5, "aero": 5, "robotiq": 2}
+from bench_grasp_solver import run  # noqa: E402  (the same approaches per variant, interleaved per object)
+
+from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
+from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 #: caps tried per hand (its default: allegro 60, shadow 75, aero 200, robotiq 300 steps)
 CAPS = {"allegro": (30, 40, 50), "shadow": (30, 40, 50, 60), "aero": (60, 100, 140, 170), "robotiq": (100, 200)}
-
-
-def grasps(hand: str, objects, approaches: int, caps) -> dict:
-    """The same random approaches (``approaches`` per object) grasped with each closing-step cap in ``caps`` (None:
-    the hand's own), interleaved per object so that load drifts hit every cap alike. Per cap: ``touched (G, n)``,
-    ``contacts (G, n, 3)``, ``normals (G, n, 3)``, ``steps (G,)`` (closing steps taken), ``cap`` and ``seconds``."""
-    backends = {c: make_backend("mujoco", n_fingers=N_FINGERS[hand], hand=hand, support="table", normals=True,
-                                max_steps=c) for c in caps}
-    out = {c: {"touched": [], "contacts": [], "normals": [], "steps": [], "seconds": 0.0} for c in caps}
-    for k in range(len(objects)):
-        acts = np.random.default_rng([7, k]).uniform(-1, 1, (approaches, 4))
-        for c, be in backends.items():
-            be.set_object(objects[k])
-            be.grasp(acts[0], np.random.default_rng(0))  # warm-up (scene build)
-            t = time.perf_counter()
-            for a in acts:
-                r = be.grasp(a, np.random.default_rng(0))
-                out[c]["touched"].append(r.touched)
-                out[c]["contacts"].append(r.contacts)
-                out[c]["normals"].append(r.normals)
-                out[c]["steps"].append(r.info["steps"])
-            out[c]["seconds"] += time.perf_counter() - t
-    for c, be in backends.items():
-        out[c]["cap"] = be.config.max_steps or be.hand.max_steps
-        be.close()
-    return {c: {k: v if k in ("seconds", "cap") else np.array(v) for k, v in o.items()} for c, o in out.items()}
 
 
 def differences(a: dict, b: dict) -> tuple[float, np.ndarray, np.ndarray]:
@@ -97,7 +72,7 @@ def main(argv=None) -> None:
     headline = []
     for hand in hands:
         try:
-            res = grasps(hand, objects, args.approaches, (None, *CAPS[hand]))
+            res = run(hand, objects, args.approaches, {c: {"max_steps": c} for c in (None, *CAPS[hand])})
         except HandUnavailableError as exc:
             print(f"| {hand} | skipped: {exc} |")
             continue
