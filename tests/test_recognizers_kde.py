@@ -83,6 +83,20 @@ def test_auto_bandwidth_picks_from_grid_and_state_round_trip():
     assert np.allclose(again.log_likelihood(q), kde.log_likelihood(q), atol=1e-4)
 
 
+@pytest.mark.parametrize("method", ["tree", "pooled"])
+def test_a_loaded_kde_scores_exactly_as_the_fitted_one(method):
+    """The cache keeps the training vectors as fitted: float32 copies built other search trees, and the approximate
+    search (eps = 2) then found other neighbours, so an env's later makes scored differently from its first."""
+    rng = np.random.default_rng(9)
+    X, y = _blobs(rng, n=2000, d=4, k=4)
+    kde = KDELikelihood(KDEConfig(method=method)).fit(X, y, X[::5] + 0.05, y[::5])
+    again = KDELikelihood.from_state(kde.config, kde.state())
+    q = np.concatenate([X[rng.choice(len(X), 300)] + rng.normal(scale=0.5, size=(300, 4)),
+                        rng.uniform(-12, 12, size=(300, 4))])  # near the data and far from it
+    assert np.array_equal(again.log_likelihood(q), kde.log_likelihood(q))
+    assert np.array_equal(again.calibrate_scores(again.log_likelihood(q)), kde.calibrate_scores(kde.log_likelihood(q)))
+
+
 def test_kde_errors():
     with pytest.raises(ValueError, match="method"):
         KDEConfig(method="fast")

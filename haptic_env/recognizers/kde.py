@@ -449,8 +449,8 @@ class KDELikelihood:
         elif self.correction is not None:
             out.update(kde_corr_W=self.correction.W, kde_corr_b=self.correction.b,
                        kde_corr_floor=np.array(self.correction.floor))
-        for c, z in enumerate(self.data):
-            out[f"kde_data_{c}"] = z.astype(np.float32)
+        for c, z in enumerate(self.data):  # float64 as fitted: a loaded KDE scores exactly as this one (with float32
+            out[f"kde_data_{c}"] = z      # copies, the approximate searches built other trees and found other neighbours)
         return out
 
     @classmethod

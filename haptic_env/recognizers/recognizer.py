@@ -35,7 +35,8 @@ from haptic_env.recognizers.zfinger import ZFingerUpdater, subset_vectors
 
 __all__ = ["RecognizerConfig", "ModelBank", "Recognizer", "build_recognizer", "models_for", "MODELS", "RECOGNIZER_VERSION"]
 
-RECOGNIZER_VERSION = 3  # 2: calibration temperatures; one cache file per model; 3: the KDE's learned correction
+RECOGNIZER_VERSION = 4  # 2: calibration temperatures; one cache file per model; 3: the KDE's learned correction;
+#                         4: the KDE's training vectors stored in float64, as fitted (float32 copies scored differently)
 
 
 @dataclass(frozen=True)
