@@ -48,7 +48,7 @@ def _p90(x: np.ndarray) -> float:
 
 
 def _q(x: np.ndarray, scale: float, digits: int) -> str:
-    return f"{scale * np.median(x):.{digits}f} / {scale * np.quantile(x, 0.9):.{digits}f}" if x.size else "-"
+    return f"{scale * np.median(x):.{digits}f} / {scale * _p90(x):.{digits}f}" if x.size else "-"
 
 
 def main(argv=None) -> None:

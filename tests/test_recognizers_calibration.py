@@ -81,7 +81,7 @@ def test_kde_fits_and_stores_its_temperature():
     assert kde.correction is not None and 0.5 < kde.temperature < 2.0
     back = KDELikelihood.from_state(kde.config, kde.state())
     S = kde.log_likelihood(Xv[:50])
-    # (the stored training vectors are float32: equal up to that rounding)
+    # (the training vectors are stored as fitted; exact equality: test_recognizers_kde.py's round-trip test)
     np.testing.assert_allclose(back.calibrate_scores(back.log_likelihood(Xv[:50])), kde.calibrate_scores(S), rtol=1e-5)
     assert KDELikelihood(KDEConfig(method="dense", calibrate=False)).fit(X, y, Xv, yv).temperature == 1.0
     assert KDELikelihood(KDEConfig(method="dense")).fit(X, y).temperature == 1.0  # no validation set: none
@@ -242,7 +242,7 @@ def test_kde_power_correction_is_stored_and_chosen_by_auto_only_where_it_helps()
     q = Xv[:20]
     assert again.correction == power.correction and again.temperature == power.temperature
     np.testing.assert_allclose(again.calibrate_scores(again.log_likelihood(q)),
-                               power.calibrate_scores(power.log_likelihood(q)), atol=1e-5)  # float32 storage
+                               power.calibrate_scores(power.log_likelihood(q)), atol=1e-5)
     auto = KDELikelihood(KDEConfig(method="dense", correct="auto", correct_candidates=("matrix", "power"))
                          ).fit(X, y, Xv, yv)
     kind = {type(None): False, PowerCorrection: "power"}.get(type(auto.correction), True)

@@ -449,8 +449,10 @@ class KDELikelihood:
         elif self.correction is not None:
             out.update(kde_corr_W=self.correction.W, kde_corr_b=self.correction.b,
                        kde_corr_floor=np.array(self.correction.floor))
-        for c, z in enumerate(self.data):  # float64 as fitted: a loaded KDE scores exactly as this one (with float32
-            out[f"kde_data_{c}"] = z      # copies, the approximate searches built other trees and found other neighbours)
+        # the vectors as fitted (float64), so that a loaded KDE scores exactly as this one: with float32 copies the
+        # approximate searches built other trees and found other neighbours
+        for c, z in enumerate(self.data):
+            out[f"kde_data_{c}"] = z
         return out
 
     @classmethod
@@ -466,7 +468,7 @@ class KDELikelihood:
             kde.correction = PowerCorrection(float(arrays["kde_power_p"]), float(arrays["kde_power_cap"]))
         c = 0
         while f"kde_data_{c}" in arrays:
-            kde.data.append(arrays[f"kde_data_{c}"].astype(np.float64))
+            kde.data.append(np.asarray(arrays[f"kde_data_{c}"], dtype=np.float64))  # stored float64: no copy
             c += 1
         kde.n_classes = c
         # (K,) per class; a cache written before per-class bandwidths holds one shared value
