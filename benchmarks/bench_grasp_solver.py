@@ -30,11 +30,12 @@ N_FINGERS = {"allegro": 4, "shadow": 5, "aero": 5, "robotiq": 2}
 
 def run(hand: str, objects, approaches: int, variants: dict) -> dict:
     """The same random approaches (``approaches`` per object) grasped by one MuJoCo backend per variant (label ->
-    more ``make_backend`` keywords, e.g. ``{"solver": "CG"}`` or ``{"max_steps": 40}``), interleaved per object so
-    that load drifts hit every variant alike. Per label: ``touched (G, n)``, ``contacts (G, n, 3)``, ``normals
-    (G, n, 3)``, ``steps (G,)`` (closing steps taken), ``cap`` (the closing-step cap), ``seconds`` and ``gps``."""
+    more ``make_backend`` keywords, e.g. ``{"solver": "CG"}``, ``{"max_steps": 40}``, or ``{"hand": desc}`` for a
+    modified :class:`HandDescription` of the hand), interleaved per object so that load drifts hit every variant
+    alike. Per label: ``touched (G, n)``, ``contacts (G, n, 3)``, ``normals (G, n, 3)``, ``steps (G,)`` (closing
+    steps taken), ``cap`` (the closing-step cap), ``seconds`` and ``gps``."""
     nf = N_FINGERS[hand]
-    backends = {v: make_backend("mujoco", n_fingers=nf, hand=hand, support="table", normals=True, **kw)
+    backends = {v: make_backend("mujoco", **{"n_fingers": nf, "hand": hand, "support": "table", "normals": True, **kw})
                 for v, kw in variants.items()}
     keys = ("touched", "contacts", "normals", "steps")
     out = {v: {"seconds": 0.0, **{k: [] for k in keys}} for v in variants}

@@ -19,18 +19,49 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_grasp_solver import run  # noqa: E402  (the same approaches per variant, interleaved per object)
+from bench_grasp_solver import N_FINGERS, run  # noqa: E402  (the same approaches per variant, interleaved per object)
 
-from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
+from haptic_env.grasping.hands import HandDescription, HandUnavailableError, load_hand  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 #: caps tried per hand (its default: allegro 60, shadow 75, aero 200, robotiq 300 steps)
 CAPS = {"allegro": (30, 40, 50), "shadow": (30, 40, 50, 60), "aero": (60, 100, 140, 170), "robotiq": (100, 200)}
+#: caps tried with ``--gains`` (None: the hand's default)
+GAIN_CAPS = {"allegro": (None, 40, 30), "shadow": (None, 40, 30), "aero": (None, 120, 100, 60),
+             "robotiq": (None, 200, 100)}
+
+
+def scaled_gains(desc: HandDescription, factor: float) -> HandDescription:
+    """A copy of ``desc`` whose position-like actuators (fixed gain, affine bias with ``-kp`` on the length) have
+    their stiffness ``kp`` times ``factor``: the same targets, reached sooner. Velocity terms, force ranges and
+    other actuators are unchanged, and so is ``desc``.
+
+    Raises:
+        ValueError: ``factor`` is not a finite number > 0.
+    """
+    if not (np.isfinite(factor) and factor > 0):
+        raise ValueError(f"factor must be a finite number > 0, got {factor!r}")
+    spec = desc.spec.copy()
+    for a in spec.actuators:
+        if a.gaintype == mujoco.mjtGain.mjGAIN_FIXED and a.biastype == mujoco.mjtBias.mjBIAS_AFFINE \
+                and a.gainprm[0] > 0 and a.biasprm[1] < 0:
+            a.gainprm[0] *= factor
+            a.biasprm[1] *= factor
+    return replace(desc, spec=spec, name=f"{desc.name}_kp{factor:g}")
+
+
+def touch_shares(touched: np.ndarray) -> tuple[float, float]:
+    """``touched (G, n)`` -> the shares of grasps where every fingertip touches and where at least
+    ``min(3, n)`` do."""
+    k = touched.sum(axis=1)
+    return float(np.mean(k == touched.shape[1])), float(np.mean(k >= min(3, touched.shape[1])))
 
 
 def differences(a: dict, b: dict) -> tuple[float, np.ndarray, np.ndarray]:
@@ -55,9 +86,16 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--approaches", type=int, default=20, help="random approaches per object")
     ap.add_argument("--hands", default="shadow,aero,allegro")
+    ap.add_argument("--gains", default="", help="comma-separated factors on the actuators' kp, e.g. 2,4 (none: off)")
     args = ap.parse_args(argv)
     if args.approaches < 1:
         sys.exit(f"--approaches must be >= 1, got {args.approaches}")
+    try:
+        gains = [float(g) for g in args.gains.split(",") if g.strip()]
+    except ValueError:
+        sys.exit(f"--gains must be comma-separated numbers, got {args.gains!r}")
+    if any(not (np.isfinite(g) and g > 0) for g in gains):
+        sys.exit(f"--gains must be numbers > 0, got {args.gains!r}")
     hands = args.hands.split(",")
     bad = [h for h in hands if h not in CAPS]
     if bad:
@@ -66,29 +104,33 @@ def main(argv=None) -> None:
         sys.exit("needs the shared data (ycb10 meshes and MuJoCo Menagerie): set HAPTIC_DATA / MENAGERIE_ROOT")
     objects = load_object_set("ycb10")
     print(f"ycb10, {args.approaches} random approaches per object, one process")
-    print("| hand | closing steps (cap) | grasps at the cap | grasps/s | speed vs the default | "
-          "same fingertips touch | contact diff median / p90 (mm) | normal diff median / p90 (deg) |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| hand | kp | closing steps (cap) | grasps at the cap | grasps/s | speed vs the default | "
+          "same fingertips touch | contact diff median / p90 (mm) | normal diff median / p90 (deg) | "
+          "complete grasps | >= 3 fingertips |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     headline = []
     for hand in hands:
+        variants = {(1.0, c): {"max_steps": c} for c in (None, *CAPS[hand])}
         try:
-            res = run(hand, objects, args.approaches, {c: {"max_steps": c} for c in (None, *CAPS[hand])})
+            if gains:
+                desc = load_hand(hand, N_FINGERS[hand])
+                variants.update({(g, c): {"hand": scaled_gains(desc, g), "max_steps": c}
+                                 for g in gains for c in GAIN_CAPS[hand]})
+            res = run(hand, objects, args.approaches, variants)
         except HandUnavailableError as exc:
             print(f"| {hand} | skipped: {exc} |")
             continue
-        base = res[None]
+        base = res[(1.0, None)]
         G = len(base["touched"])
-        cap0 = base["cap"]
-        print(f"| {hand} | default ({cap0}) | {np.mean(base['steps'] >= cap0):.3f} | {G / base['seconds']:.1f} | "
-              f"1.00x | 1.000 | - | - |", flush=True)
         best = (1.0, "default")
-        for cap in CAPS[hand]:
-            r = res[cap]
+        for (g, cap), r in res.items():
             same, dist, ang = differences(r, base)
             ratio = base["seconds"] / r["seconds"]
-            print(f"| {hand} | {cap} | {np.mean(r['steps'] >= cap):.3f} | {G / r['seconds']:.1f} | {ratio:.2f}x | "
-                  f"{same:.3f} | {_q(dist, 1000, 2)} | {_q(ang, 1, 1)} |", flush=True)
-            if same >= 0.99 and _p90(dist) <= 1e-3 and _p90(ang) <= 2.0 and ratio > best[0]:
+            label = f"default ({r['cap']})" if cap is None else str(cap)
+            print(f"| {hand} | x{g:g} | {label} | {np.mean(r['steps'] >= r['cap']):.3f} | {G / r['seconds']:.1f} | "
+                  f"{ratio:.2f}x | {same:.3f} | {_q(dist, 1000, 2)} | {_q(ang, 1, 1)} | "
+                  + " | ".join(f"{x:.3f}" for x in touch_shares(r["touched"])) + " |", flush=True)
+            if g == 1.0 and same >= 0.99 and _p90(dist) <= 1e-3 and _p90(ang) <= 2.0 and ratio > best[0]:
                 best = (ratio, str(cap))
         headline.append(f"{hand} {best[0]:.2f}x ({best[1]} steps)")
     print("\nspeed-up of the fastest cap that keeps the grasps (same fingertips in >= 99 %, p90 contact diff <= 1 mm, "

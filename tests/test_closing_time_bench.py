@@ -28,3 +28,34 @@ def test_bad_arguments_fail_before_any_grasp(load_benchmark):
         bench.main(["--hands", "shadow,nohand"])
     with pytest.raises(SystemExit, match="approaches"):
         bench.main(["--approaches", "0"])
+
+
+def test_scaled_gains_stiffens_position_actuators_of_a_copy(load_benchmark):
+    bench = load_benchmark("closing_time")
+    from haptic_env.grasping.hands import load_hand
+
+    desc = load_hand("generic", 3)
+    before = [(a.gainprm[0], a.biasprm[1]) for a in desc.spec.actuators]
+    fast = bench.scaled_gains(desc, 2.5)
+    after = [(a.gainprm[0], a.biasprm[1]) for a in fast.spec.actuators]
+    assert before == [(a.gainprm[0], a.biasprm[1]) for a in desc.spec.actuators]  # the original is untouched
+    assert before and all(kp > 0 and b < 0 for kp, b in before)  # the generic hand's actuators are position servos
+    np.testing.assert_allclose(np.array(after), 2.5 * np.array(before))
+    assert fast.name == f"{desc.name}_kp2.5" and fast.tips == desc.tips
+    with pytest.raises(ValueError, match="factor"):
+        bench.scaled_gains(desc, 0.0)
+
+
+def test_touch_shares_count_complete_and_three_finger_grasps(load_benchmark):
+    bench = load_benchmark("closing_time")
+    touched = np.array([[1, 1, 1, 1], [1, 1, 1, 0], [1, 1, 0, 0], [0, 0, 0, 0]], dtype=bool)
+    assert bench.touch_shares(touched) == (0.25, 0.5)
+    assert bench.touch_shares(np.array([[1, 1], [1, 0]], dtype=bool)) == (0.5, 0.5)  # a gripper: both pads
+
+
+def test_bad_gains_fail_before_any_grasp(load_benchmark):
+    bench = load_benchmark("closing_time")
+    with pytest.raises(SystemExit, match="gains"):
+        bench.main(["--gains", "2,x"])
+    with pytest.raises(SystemExit, match="gains"):
+        bench.main(["--gains", "0"])
