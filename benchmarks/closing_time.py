@@ -40,8 +40,9 @@ GAIN_CAPS = {"allegro": (None, 40, 30), "shadow": (None, 40, 30), "aero": (None,
 
 def scaled_gains(desc: HandDescription, factor: float) -> HandDescription:
     """A copy of ``desc`` whose position-like actuators (fixed gain, affine bias with ``-kp`` on the length) have
-    their stiffness ``kp`` times ``factor``: the same targets, reached sooner. Velocity terms, force ranges and
-    other actuators are unchanged, and so is ``desc``.
+    their stiffness ``kp`` times ``factor``: the same targets, pulled towards harder (whether the fingers then close
+    sooner is what the benchmark measures). Velocity terms, force ranges and other actuators are unchanged, and so
+    is ``desc``.
 
     Raises:
         ValueError: ``factor`` is not a finite number > 0.
