@@ -122,13 +122,12 @@ def main(argv=None) -> None:
             print(f"| {hand} | skipped: {exc} |")
             continue
         base = res[(1.0, None)]
-        G = len(base["touched"])
         best = (1.0, "default")
         for (g, cap), r in res.items():
             same, dist, ang = differences(r, base)
-            ratio = base["seconds"] / r["seconds"]
+            ratio = r["gps"] / base["gps"]  # the same approaches: the ratio of their times
             label = f"default ({r['cap']})" if cap is None else str(cap)
-            print(f"| {hand} | x{g:g} | {label} | {np.mean(r['steps'] >= r['cap']):.3f} | {G / r['seconds']:.1f} | "
+            print(f"| {hand} | x{g:g} | {label} | {np.mean(r['steps'] >= r['cap']):.3f} | {r['gps']:.1f} | "
                   f"{ratio:.2f}x | {same:.3f} | {_q(dist, 1000, 2)} | {_q(ang, 1, 1)} | "
                   + " | ".join(f"{x:.3f}" for x in touch_shares(r["touched"])) + " |", flush=True)
             if g == 1.0 and same >= 0.99 and _p90(dist) <= 1e-3 and _p90(ang) <= 2.0 and ratio > best[0]:
