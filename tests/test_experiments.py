@@ -253,3 +253,39 @@ def test_incomplete_trials_draw_like_the_reference_loop(kind):
     succ, used = _incomplete_reference(pools, p, kind, 50, 6, 0.8, np.random.default_rng(3))
     assert np.array_equal(got["success"], succ) and np.array_equal(got["grasps"], used)
     assert 1 < used.mean() < 6  # some trials stop early, some run out
+
+
+@pytest.mark.parametrize("kw, message", [
+    ({"trials": -1}, r"trials must be an int >= 1, got -1"),
+    ({"max_grasps": 0}, r"max_grasps must be an int >= 1, got 0"),
+    ({"test_grasps": 2.5}, r"test_grasps must be an int >= 1, got 2.5"),
+    ({"grasps_per_object": True}, r"grasps_per_object must be an int >= 1, got True"),
+    ({"seed": -3}, r"seed must be an int >= 0, got -3"),
+    ({"threshold": 1.5}, r"threshold must be in \(0, 1\], got 1.5"),
+    ({"experiments": ()}, r"experiments must be a non-empty tuple"),
+    ({"fingers": (1, 4)}, r"fingers must be a tuple of ints >= 2, got \(1, 4\)"),
+    ({"zfinger_hands": (3,)}, r"zfinger_hands must be a tuple of ints >= 4, got \(3,\)"),
+    ({"classifiers": ("mlp", "svm")}, r"unknown classifier\(s\) \['svm'\]"),
+    ({"incomplete_pn": ((3, 0.5), (3, 0.5))}, r"incomplete_pn must be .* one per finger count"),
+    ({"scale_range": (2.0, 1.0)}, r"scale_range must be \(lo, hi\) with 0 < lo <= hi, got \(2.0, 1.0\)"),
+    ({"lambdas": (0.5, 2.0)}, r"lambdas must be .* in \(0, 1\], got \(0.5, 2.0\)"),
+    ({"ece_bins": 0}, r"ece_bins must be an int >= 1, got 0"),
+    ({"baseline_max_train": 0}, r"baseline_max_train must be None or an int >= 1, got 0"),
+    ({"units": "furlong"}, r"unknown units 'furlong'"),
+])
+def test_analysis_config_names_a_bad_setting(kw, message):
+    """Every count, tuple and probability of the analysis is checked when its config is made, before any grasp."""
+    from haptic_env.experiments.config import AnalysisConfig
+
+    with pytest.raises(ValueError, match=message):
+        AnalysisConfig(**kw)
+
+
+def test_analysis_cli_refuses_a_bad_count_before_any_work(tmp_path, capsys):
+    for flags, said in ((["--trials", "-1"], "trials must be an int >= 1, got -1"),
+                        (["--max-grasps", "0"], "max_grasps must be an int >= 1, got 0"),
+                        (["--classifiers", "mlp,svm"], "unknown classifier(s) ['svm']")):
+        with pytest.raises(SystemExit):
+            main(["analysis", "--out", str(tmp_path / "bad"), *flags])
+        assert said in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()

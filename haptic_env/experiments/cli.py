@@ -198,7 +198,6 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def _run_cli(args) -> int:
     from haptic_env.cli import UsageError
     from haptic_env.experiments.analysis import EXPERIMENTS, run_analysis
-    from haptic_env.recognizers.baselines import CLASSIFIERS
     from haptic_env.recognizers.kde import KDEConfig
     from haptic_env.recognizers.mlp import MLPConfig
 
@@ -235,9 +234,6 @@ def _run_cli(args) -> int:
         raise
     except ValueError as exc:
         raise UsageError(str(exc)) from None
-    for c in cfg.classifiers:
-        if c not in CLASSIFIERS:
-            raise SystemExit(f"unknown classifier {c!r}; choose from {CLASSIFIERS}")
     bad = [e for e in cfg.experiments if e not in EXPERIMENTS]
     if bad:
         raise UsageError(f"--experiments: unknown experiment(s) {bad}; choose from {sorted(EXPERIMENTS)}")

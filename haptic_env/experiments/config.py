@@ -13,6 +13,7 @@ from haptic_env.dataset import DatasetConfig
 from haptic_env.force_closure import check_friction
 from haptic_env.grasp_features import check_normal_axis
 from haptic_env.objects.base import up_rotation
+from haptic_env.objects.loaders import unit_scale
 from haptic_env.objects.primitives import FAMILY_SCALE_RANGE
 from haptic_env.recognizers.baselines import CLASSIFIERS
 from haptic_env.recognizers.kde import KDEConfig
@@ -134,7 +135,9 @@ class AnalysisConfig:
 
     def __post_init__(self):
         up_rotation(self.up)  # names a bad axis
+        unit_scale(self.units)  # names bad units
         check_normal_axis(self.normal_axis)
+        self._check_counts()
         if not (isinstance(self.family_members, int) and self.family_members >= 1):
             raise ValueError(f"family_members must be an int >= 1, got {self.family_members!r}")
         check_ic_certainty(self.ic_certainty)
@@ -176,6 +179,44 @@ class AnalysisConfig:
         if self.family_heights and self.family_source != "hand":
             raise ValueError(f"family_heights needs family_source='hand' (objects on the table), got "
                              f"family_source={self.family_source!r}")
+
+    def _check_counts(self) -> None:
+        """The counts, tuples and probabilities, each named with its bad value (before any grasp is made)."""
+        def is_int(v):
+            return isinstance(v, (int, np.integer)) and not isinstance(v, bool)
+
+        for name in ("grasps_per_object", "test_grasps", "trials", "max_grasps", "ece_bins"):
+            if not (is_int(getattr(self, name)) and getattr(self, name) >= 1):
+                raise ValueError(f"{name} must be an int >= 1, got {getattr(self, name)!r}")
+        if not (is_int(self.seed) and self.seed >= 0):
+            raise ValueError(f"seed must be an int >= 0, got {self.seed!r}")
+        if not (isinstance(self.threshold, (int, float)) and 0.0 < self.threshold <= 1.0):
+            raise ValueError(f"threshold must be in (0, 1], got {self.threshold!r}")
+        if self.baseline_max_train is not None and not (is_int(self.baseline_max_train) and self.baseline_max_train >= 1):
+            raise ValueError(f"baseline_max_train must be None or an int >= 1, got {self.baseline_max_train!r}")
+        if not self.experiments or not all(is_int(e) for e in self.experiments):
+            raise ValueError(f"experiments must be a non-empty tuple of experiment numbers, got {self.experiments!r}")
+        # experiment 3 scores 3- and 4-finger subsets of an n-finger hand, so a hand needs n >= 4
+        for name, lo in (("fingers", 2), ("oneshot_fingers", 2), ("calib_fingers", 2), ("calib_fingers_no_normals", 2),
+                         ("zfinger_hands", 4)):
+            if not all(is_int(n) and n >= lo for n in getattr(self, name)):  # empty: the experiment skips it
+                raise ValueError(f"{name} must be a tuple of ints >= {lo}, got {getattr(self, name)!r}")
+        bad = [c for c in self.classifiers if c not in CLASSIFIERS]
+        if not self.classifiers or bad:
+            raise ValueError(f"classifiers: unknown classifier(s) {bad}; choose from {CLASSIFIERS}" if bad else
+                             f"classifiers must name at least one of {CLASSIFIERS}, got {self.classifiers!r}")
+        pn = tuple(tuple(zp) for zp in self.incomplete_pn)
+        if (not pn or not all(len(zp) == 2 and is_int(zp[0]) and zp[0] >= 2 and isinstance(zp[1], (int, float))
+                                 and np.isfinite(zp[1]) and zp[1] > 0 for zp in pn)
+                or len({zp[0] for zp in pn}) != len(pn)):
+            raise ValueError(f"incomplete_pn must be (finger count >= 2, probability > 0) pairs, one per finger count, "
+                             f"got {self.incomplete_pn!r}")
+        lo_hi = tuple(self.scale_range)
+        if len(lo_hi) != 2 or not all(isinstance(v, (int, float)) and np.isfinite(v) for v in lo_hi) \
+                or not 0 < lo_hi[0] <= lo_hi[1]:
+            raise ValueError(f"scale_range must be (lo, hi) with 0 < lo <= hi, got {self.scale_range!r}")
+        if not self.lambdas or not all(isinstance(v, (int, float)) and 0.0 < v <= 1.0 for v in self.lambdas):
+            raise ValueError(f"lambdas must be a non-empty tuple of thresholds in (0, 1], got {self.lambdas!r}")
 
     @property
     def family_grasps(self) -> dict:
