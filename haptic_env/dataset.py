@@ -132,6 +132,8 @@ class DatasetConfig:
             raise ValueError(f"n_fingers must be an int >= 2, got {self.n_fingers!r}")
         if int(self.grasps_per_object) != self.grasps_per_object or self.grasps_per_object < 1:
             raise ValueError(f"grasps_per_object must be an int >= 1, got {self.grasps_per_object!r}")
+        if not (isinstance(self.seed, (int, np.integer)) and not isinstance(self.seed, bool) and self.seed >= 0):
+            raise ValueError(f"seed must be an int >= 0, got {self.seed!r}")
         for fname in ("contact_noise", "normal_noise_deg"):
             v = getattr(self, fname)
             if not np.isfinite(v) or v < 0:

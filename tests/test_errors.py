@@ -89,6 +89,18 @@ def test_bad_recognizer_settings_fail_at_make(bad, match):
         gym.make("HapticRecog-v0", **bad)
 
 
+@pytest.mark.parametrize("cls, bad, match", [
+    ("DatasetConfig", {"seed": -1}, "seed must be an int >= 0, got -1"),
+    ("MLPConfig", {"max_train": 0}, "MLPConfig.max_train must be None or an int >= 1, got 0"),
+])
+def test_bad_grasp_and_mlp_settings_fail_when_made(cls, bad, match):
+    from haptic_env.dataset import DatasetConfig
+    from haptic_env.recognizers.mlp_config import MLPConfig
+
+    with pytest.raises(ValueError, match=match):
+        {"DatasetConfig": DatasetConfig, "MLPConfig": MLPConfig}[cls](**bad)
+
+
 def test_kde_methods_accepted_by_the_env_exist():
     from haptic_env.recognizers.kde import _METHODS
 
@@ -238,6 +250,10 @@ def test_truncated_recognizer_json_is_rebuilt(tmp_path, monkeypatch):
     (["evaluate", "--agents", "ppo=/no/model.zip"], "model file /no/model.zip does not exist"),
     (["evaluate", "--episodes", "0"], "argument --episodes: must be >= 1"),
     (["evaluate", "--env-id", "Nope-v0"], "argument --env-id: invalid choice"),
+    (["analysis", "--out", "/nonexistent/out", "--trials", "-1"], "trials must be an int >= 1, got -1"),
+    (["analysis", "--out", "/nonexistent/out", "--max-grasps", "0"], "max_grasps must be an int >= 1, got 0"),
+    (["analysis", "--out", "/nonexistent/out", "--classifiers", "mlp,svm"], r"unknown classifier\(s\) \['svm'\]"),
+    (["analysis", "--out", "/nonexistent/out", "--threshold", "2"], r"threshold must be in \(0, 1\], got 2.0"),
 ])
 def test_cli_bad_values_are_one_line_usage_errors(argv, match, capsys):
     import re

@@ -280,12 +280,3 @@ def test_analysis_config_names_a_bad_setting(kw, message):
     with pytest.raises(ValueError, match=message):
         AnalysisConfig(**kw)
 
-
-def test_analysis_cli_refuses_a_bad_count_before_any_work(tmp_path, capsys):
-    for flags, said in ((["--trials", "-1"], "trials must be an int >= 1, got -1"),
-                        (["--max-grasps", "0"], "max_grasps must be an int >= 1, got 0"),
-                        (["--classifiers", "mlp,svm"], "unknown classifier(s) ['svm']")):
-        with pytest.raises(SystemExit):
-            main(["analysis", "--out", str(tmp_path / "bad"), *flags])
-        assert said in capsys.readouterr().err
-    assert not (tmp_path / "bad").exists()

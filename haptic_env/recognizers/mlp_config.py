@@ -36,6 +36,8 @@ class MLPConfig:
             v = getattr(self, name)
             if not isinstance(v, (int, np.integer)) or v < (0 if name == "depth" else 1):
                 raise ValueError(f"MLPConfig.{name} must be a positive integer, got {v!r}")
+        if self.max_train is not None and not (isinstance(self.max_train, (int, np.integer)) and self.max_train >= 1):
+            raise ValueError(f"MLPConfig.max_train must be None or an int >= 1, got {self.max_train!r}")
         if not (self.lr > 0 and np.isfinite(self.lr)):
             raise ValueError(f"MLPConfig.lr must be positive and finite, got {self.lr!r}")
         if not (self.weight_decay >= 0 and np.isfinite(self.weight_decay)):
