@@ -121,6 +121,12 @@ def parse_args(argv: list[str] | None = None) -> Args:
             _usage_error(f"argument {flag}: not valid JSON ({exc.msg}): {text!r}")
         if not isinstance(value, dict):
             _usage_error(f"argument {flag}: expected a JSON object ({{...}}), got {text!r}")
+    from agents.sb3 import check_hyperparams
+
+    try:
+        check_hyperparams(args.algo, json.loads(args.hyperparams))
+    except ValueError as exc:
+        _usage_error(f"argument --hyperparams: {exc}")
     try:
         env_config(args)
     except (TypeError, ValueError, FileNotFoundError) as exc:

@@ -25,7 +25,7 @@ from typing import Any, Callable
 import numpy as np
 
 __all__ = ["ALGOS", "DEFAULT_HYPERPARAMS", "make_vec_env", "build_model", "load_model", "train", "SB3Agent",
-           "TrainingInterrupted", "latest_checkpoint", "checkpoint_extras", "close_vec_env"]
+           "TrainingInterrupted", "latest_checkpoint", "checkpoint_extras", "close_vec_env", "check_hyperparams"]
 
 ALGOS = ("ppo", "sac")
 
@@ -108,10 +108,26 @@ def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.
     return venv
 
 
+#: ``build_model``'s own arguments to the SB3 class, which hyperparams may not set
+_SET_BY_BUILD = ("policy", "env", "seed", "tensorboard_log", "verbose", "device")
+
+
+def check_hyperparams(algo: str, hyperparams: dict) -> None:
+    """A ``ValueError`` naming every key of ``hyperparams`` that the SB3 ``algo`` class does not take (or that
+    :func:`build_model` sets itself), before any env or run file is made."""
+    import inspect
+
+    taken = set(inspect.signature(_algo_class(algo).__init__).parameters) - {"self", *_SET_BY_BUILD}
+    bad = sorted(set(hyperparams) - taken)
+    if bad:
+        raise ValueError(f"unknown {algo.upper()} hyperparameter(s) {bad}; valid: {sorted(taken)}")
+
+
 def build_model(algo: str, venv, seed: int = 0, log_dir: str | os.PathLike | None = None, verbose: int = 0,
                 **hyperparams: Any):
     """A fresh PPO/SAC model on ``venv`` (:data:`DEFAULT_HYPERPARAMS` updated with ``hyperparams``)."""
     cls = _algo_class(algo)
+    check_hyperparams(algo, hyperparams)
     params = {**DEFAULT_HYPERPARAMS[algo.lower()], **hyperparams}
     tb = str(Path(log_dir) / "tb") if log_dir is not None else None
     return cls("MlpPolicy", venv, seed=seed, tensorboard_log=tb, verbose=verbose, device="cpu", **params)

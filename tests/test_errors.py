@@ -115,7 +115,7 @@ def test_one_object_set_fails_at_make(tmp_path, haptic_cache):
     before = sorted(p.name for p in haptic_cache.rglob("*"))
     with pytest.raises(ValueError, match="1 object.*at least 2"):
         gym.make("HapticRecog-v0", objects=str(folder))
-    with pytest.raises(ValueError, match="at least 2"):
+    with pytest.raises(ValueError, match=r"bad families spec 'families:0'.*N >= 1"):
         HapticRecogConfig(objects="families:0")
     assert sorted(p.name for p in haptic_cache.rglob("*")) == before  # nothing trained or cached
 
@@ -246,6 +246,8 @@ def test_truncated_recognizer_json_is_rebuilt(tmp_path, monkeypatch):
     (["evaluate", "--env-kwargs", "[1, 2]"], "argument --env-kwargs: expected a JSON object"),
     (["evaluate", "--env-kwargs", '{"nope": 1}'], r"--env-kwargs: unknown HapticRecogConfig field\(s\) \['nope'\]"),
     (["evaluate", "--env-kwargs", '{"kde_method": "nope"}'], "--env-kwargs: kde_method"),
+    (["evaluate", "--env-kwargs", '{"objects": "nosuch"}'], "--env-kwargs: unknown object set 'nosuch'"),
+    (["analysis", "--out", "/nonexistent/out", "--objects", "nosuch"], "unknown object set 'nosuch'"),
     (["evaluate", "--agents", "robot"], "--agents: unknown agent spec 'robot'"),
     (["evaluate", "--agents", "ppo=/no/model.zip"], "model file /no/model.zip does not exist"),
     (["evaluate", "--episodes", "0"], "argument --episodes: must be >= 1"),
@@ -289,6 +291,8 @@ def test_dataset_out_folder_fails_before_the_work(tmp_path, capsys):
     (["--hyperparams", "[]"], "argument --hyperparams: expected a JSON object"),
     (["--env-kwargs", '{"reward": "money"}'], "env settings: reward must be one of"),
     (["--resume", "/no/ckpt.zip"], "argument --resume: checkpoint /no/ckpt.zip does not exist"),
+    (["--hyperparams", '{"lr": 1}'], "argument --hyperparams: unknown PPO hyperparameter(s) ['lr']"),
+    (["--env.objects", "nosuch"], "unknown object set 'nosuch'"),
 ])
 def test_train_bad_flags_fail_at_once_without_run_files(argv, match, tmp_path):
     run_dir = tmp_path / "run"

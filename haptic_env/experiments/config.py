@@ -13,7 +13,7 @@ from haptic_env.dataset import DatasetConfig
 from haptic_env.force_closure import check_friction
 from haptic_env.grasp_features import check_normal_axis
 from haptic_env.objects.base import up_rotation
-from haptic_env.objects.loaders import unit_scale
+from haptic_env.objects.loaders import check_object_spec, unit_scale
 from haptic_env.objects.primitives import FAMILY_SCALE_RANGE
 from haptic_env.recognizers.baselines import CLASSIFIERS
 from haptic_env.recognizers.kde import KDEConfig
@@ -136,6 +136,7 @@ class AnalysisConfig:
     def __post_init__(self):
         up_rotation(self.up)  # names a bad axis
         unit_scale(self.units)  # names bad units
+        check_object_spec(self.objects)  # names an unknown set before any work
         check_normal_axis(self.normal_axis)
         self._check_counts()
         if not (isinstance(self.family_members, int) and self.family_members >= 1):

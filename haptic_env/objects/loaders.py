@@ -32,7 +32,7 @@ from .base import GraspObject, ObjectSet, prepare_mesh, up_rotation
 from .primitives import default_set, family_set
 
 __all__ = ["data_dir", "load_object_set", "load_folder", "MeshLoadError", "KIT8", "MESH_SUFFIXES", "unit_scale",
-           "object_count"]
+           "object_count", "check_object_spec", "NAMED_SETS"]
 
 #: The KIT meshes' up axis (a bottle's axis, a cup's opening): y, as their extents show.
 KIT_UP = "y"
@@ -200,26 +200,22 @@ def _kit(root: Path, names: tuple[str, ...] | None, set_name: str) -> ObjectSet:
 def object_count(spec: str | Path = "default", *, data_dir: str | Path | None = None,
                  units: str | float = "m", up: str = "z") -> int | None:
     """How many objects :func:`load_object_set` would return for ``spec``, without reading any mesh (a folder
-    listing at most); None when that is not known cheaply (named data sets, missing folders: loading them
-    raises its own error). Takes the same arguments as ``load_object_set``, and rejects a bad ``up`` as it does."""
+    listing at most); None when that is not known cheaply (named data sets: loading them raises its own error if
+    their data is missing). Takes the same arguments as ``load_object_set``, and rejects a bad ``up`` and an unknown
+    spec (:func:`check_object_spec`) as it does."""
     up_rotation(up)
-    s = str(spec)
+    s = check_object_spec(spec)
     if s == "default":
         from .primitives import DEFAULT_SHAPES
 
         return len(DEFAULT_SHAPES)
     if s == "families" or s.startswith("families:"):
-        try:
-            return 3 * (int(s.split(":", 1)[1]) if ":" in s else 10)
-        except ValueError:
-            return None
+        return 3 * (int(s.split(":", 1)[1]) if ":" in s else 10)
     if s == "kit8":
         return len(KIT8)
     if s in ("kit20", "ycb10"):
         return None
-    p = Path(s).expanduser()
-    if not p.is_dir():
-        return None
+    p = Path(s).expanduser()  # an existing folder (check_object_spec)
     files = [f for f in p.iterdir() if f.is_file() and f.suffix.lower() in MESH_SUFFIXES]
     if files:
         return len(files)
@@ -239,17 +235,11 @@ def load_object_set(spec: str | Path = "default", *, data_dir: str | Path | None
             table as they should; named sets use their known axis (KIT: y) and ignore it.
     """
     up_rotation(up)  # a bad axis is named first, whatever the spec
-    s = str(spec)
+    s = check_object_spec(spec)
     if s == "default":
         return default_set()
     if s == "families" or s.startswith("families:"):
-        n = 10
-        if ":" in s:
-            try:
-                n = int(s.split(":", 1)[1])
-            except ValueError:
-                raise ValueError(f"bad families spec {s!r}; expected 'families' or 'families:N'") from None
-        return family_set(n, np.random.default_rng(0))
+        return family_set(int(s.split(":", 1)[1]) if ":" in s else 10, np.random.default_rng(0))
     if s in ("kit8", "kit20", "ycb10"):
         root = Path(data_dir).expanduser() if data_dir is not None else globals()["data_dir"](required=True)
         if not root.is_dir():
@@ -262,8 +252,26 @@ def load_object_set(spec: str | Path = "default", *, data_dir: str | Path | None
         if not ycb.is_dir():
             raise FileNotFoundError(f"YCB meshes missing: {ycb} does not exist; {_DATA_HELP}")
         return load_folder(ycb, units="m", name="ycb10")
-    p = Path(s).expanduser()
-    if p.is_dir():
-        return load_folder(p, units=units, up=up)
+    return load_folder(Path(s).expanduser(), units=units, up=up)
+
+
+#: The object sets :func:`load_object_set` knows by name (besides ``families:N`` and folders).
+NAMED_SETS = ("default", "families", "kit8", "kit20", "ycb10")
+
+
+def check_object_spec(spec: str | Path) -> str:
+    """``spec`` as :func:`load_object_set` reads it, checked without loading anything: a named set, ``families:N``
+    (``N >= 1``) or an existing folder; otherwise a ``ValueError`` that names it. (Whether a named file set's data is
+    there is checked when it loads.)"""
+    s = str(spec)
+    if s in NAMED_SETS:
+        return s
+    if s.startswith("families:"):
+        n = s.split(":", 1)[1]
+        if not (n.isdigit() and int(n) >= 1):
+            raise ValueError(f"bad families spec {s!r}; expected 'families' or 'families:N' with N >= 1")
+        return s
+    if Path(s).expanduser().is_dir():
+        return s
     raise ValueError(f"unknown object set {s!r}: expected 'default', 'families[:N]', 'kit8', 'kit20', "
                      "'ycb10' or an existing folder of STL/OBJ/PLY files")
