@@ -107,7 +107,7 @@ def parse_args(argv: list[str] | None = None) -> Args:
         _usage_error(f"argument --env-id: unknown env {env_id!r}; choose from {list(ENV_VARIANTS)}")
     try:  # --env.* start from the variant's whole config, so that a flag changes a field the variant sets too
         args = tyro.cli(Args, args=argv, default=Args(env_id=env_id, env=variant_config(env_id)),
-                        description=__doc__.splitlines()[0])
+                        description=__doc__.split("\n\n")[0])
     except (TypeError, ValueError, FileNotFoundError) as exc:  # HapticRecogConfig's validation of --env.*
         _usage_error(f"env settings: {exc}")
     for name, lo in _MINIMUM.items():

@@ -559,6 +559,8 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False):
         m, _, samples = rest.partition(":")
         if kind not in ("greedy", "greedy-env", "greedy-blind", "greedy-env-blind"):
             raise ValueError(f"unknown agent spec {spec!r}; use greedy[-env][-blind][:M[:S]]")
+        if not all(v.isdigit() for v in (m, samples) if v):
+            raise ValueError(f"agent spec {spec!r}: M and S must be whole numbers (greedy[-env][-blind][:M[:S]])")
         agent = GreedyInfoGainAgent(n_candidates=int(m) if m else 16, n_samples=int(samples) if samples else 1, seed=seed,
                                     simulate="env" if kind.startswith("greedy-env") else "geometric",
                                     pose_known=not kind.endswith("-blind"))
@@ -608,7 +610,8 @@ def add_parser(subparsers) -> None:
     p.add_argument("--out", default="outputs/eval")
     p.add_argument("--learning-curves", nargs="*", default=[], metavar="NAME=LOG_DIR",
                    help="training log dirs (agents/sb3 layout) to plot learning curves from")
-    p.set_defaults(func=_main)
+    p.set_defaults(func=_main, interrupt_note="every finished agent-seed block is saved; the same command resumes "
+                                             "from them")
 
 
 def _main(args) -> int:

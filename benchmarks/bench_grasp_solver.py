@@ -58,7 +58,7 @@ def run(hand: str, objects, approaches: int, variants: dict) -> dict:
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--approaches", type=int, default=30, help="random approaches per object and solver")
     ap.add_argument("--hands", default="shadow,allegro,aero,robotiq")
     ap.add_argument("--solvers", default="Newton,CG,PGS", help="the first is the baseline")

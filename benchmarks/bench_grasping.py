@@ -89,7 +89,7 @@ def usable_fraction(backend: str, objects, n_approaches: int, seed: int, **cfg) 
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--approaches", type=int, default=20, help="random approaches per object (mujoco)")
     ap.add_argument("--geo-approaches", type=int, default=500, help="random approaches per object (geometric)")
     ap.add_argument("--hands", default="generic,allegro,shadow,aero,robotiq")

@@ -32,7 +32,7 @@ from haptic_env.recognizers.kde import KDELikelihood  # noqa: E402
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--objects", default="default")
     p.add_argument("--units", default="m")
     p.add_argument("--fingers", type=int, default=4)

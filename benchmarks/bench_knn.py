@@ -74,7 +74,7 @@ def per_query(fn, Z: np.ndarray, repeats: int) -> float:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--grasps", type=int, default=100_000, help="training grasps per object in the pooled tree")
     ap.add_argument("--queries", type=int, default=2000, help="held-out grasps queried one at a time")
     ap.add_argument("--repeats", type=int, default=5)

@@ -75,7 +75,7 @@ def rate(fn, C, N, batch: int, repeats: int) -> float:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--grasps", type=int, default=200_000, help="grasps per n (the large batch)")
     ap.add_argument("--fingers", default="2,3,4,8")
     ap.add_argument("--batches", default="1,64,200000", help="batch sizes (small ones timed on fewer grasps)")

@@ -86,7 +86,7 @@ def low_dimensional(objs, grasps: int = 10_000, queries: int = 200) -> None:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--grasps", type=int, default=200_000, help="training grasps per object in the KDE")
     ap.add_argument("--queries", type=int, default=300, help="timed updates (held-out grasps)")
     ap.add_argument("--dense-queries", type=int, default=30, help="timed dense updates (slow)")

@@ -27,7 +27,7 @@ sys.path.insert(0, str(ROOT))
 
 
 def main(argv: list[str] | None = None) -> dict:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--jobs", type=int, default=4)
     ap.add_argument("--grasps", type=int, default=100_000, help="grasps per object of each dataset job")
     ap.add_argument("--fingers", type=int, default=4)

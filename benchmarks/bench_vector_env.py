@@ -92,7 +92,7 @@ def _time_sync(B: int, cfg, mode, seconds: float) -> float:
 
 
 def main(argv=None) -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--sizes", type=int, nargs="+", default=[1, 8, 64, 256])
     p.add_argument("--seconds", type=float, default=2.0, help="timed seconds per configuration and round")
     p.add_argument("--rounds", type=int, default=3)

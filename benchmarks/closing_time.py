@@ -84,7 +84,7 @@ def _q(x: np.ndarray, scale: float, digits: int) -> str:
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--approaches", type=int, default=20, help="random approaches per object")
     ap.add_argument("--hands", default="shadow,aero,allegro")
     ap.add_argument("--gains", default="", help="comma-separated factors on the actuators' kp, e.g. 2,4 (none: off)")

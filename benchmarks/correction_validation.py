@@ -41,7 +41,7 @@ def argmax_accuracy(S: list[np.ndarray], m: int, rng: np.random.Generator, draws
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--objects", default="default")
     ap.add_argument("--fingers", default="4,5,8")
     ap.add_argument("--no-normals", action="store_true")

@@ -42,7 +42,7 @@ def _nll(S: np.ndarray, y: np.ndarray) -> float:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--objects", default="default")
     p.add_argument("--fingers", type=int, default=4)
     p.add_argument("--no-normals", action="store_true")

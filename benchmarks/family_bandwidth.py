@@ -103,7 +103,7 @@ def cell(key: str, v) -> str:
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--members", type=int, default=40)
     p.add_argument("--factors", default=",".join(str(f) for f in FACTORS),

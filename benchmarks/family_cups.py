@@ -88,7 +88,7 @@ def cup_contacts(mesh: trimesh.Trimesh, C: np.ndarray) -> tuple[np.ndarray, np.n
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--members", type=int, default=40)
     p.add_argument("--no-floor", action="store_true", help="without experiment 5's outlier floor (--family-floors 0)")

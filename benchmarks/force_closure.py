@@ -109,7 +109,7 @@ def speed(objects, n: int, count: int, mu: float, seed: int, edges: int = DEFAUL
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--objects", default="kit8", help="object set of the separability table ('' to skip it)")
     ap.add_argument("--fingers", default="3,4", help="comma list of finger counts (>= 3)")
     ap.add_argument("--grasps", type=int_in(50), default=3_000, help="training grasps per object")

@@ -176,7 +176,7 @@ def size_cell(members, G, seed, size_range, sizes, source, heights=False):
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--sweep", choices=("spread", "norm", "members", "one", "sizes"), default="spread")
     p.add_argument("--members", type=int, default=10)
     p.add_argument("--grasps", type=int, default=3000, help="grasps per training member (20 %% held back)")

@@ -57,7 +57,7 @@ def run_hand(hand, objects, n_approaches: int, seed: int, **cfg) -> dict:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--approaches", type=int, default=20, help="random approaches per object")
     ap.add_argument("--hands", default="allegro,shadow,aero,robotiq,generic3,generic4,generic5,generic6")
     ap.add_argument("--no-named", action="store_true", help="leave out the hand-tuned named hands")

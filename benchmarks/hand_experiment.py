@@ -169,7 +169,7 @@ def evaluate(rec, pools, objects, n: int, normals: bool, args, touch_weight: flo
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--hands", nargs="+", default=list(SETUPS),
                     help=f"hands of {list(SETUPS)}; NAME=MODEL grasps with another model of that hand, e.g. "
                          "shadow=shadow_hand/right_hand (the automatic path of the Menagerie file)")

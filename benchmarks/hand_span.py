@@ -56,7 +56,7 @@ def draw(obj, count: int, n: int, rng: np.random.Generator, max_span: float, min
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--fingers", default="4,5", help="finger counts, comma list (>= 3)")
     ap.add_argument("--grasps", type=int, default=20_000, help="training grasps per object")
     ap.add_argument("--test-grasps", type=int, default=1_000, help="test grasps per object")

@@ -78,7 +78,7 @@ def one_shot(train: tuple[dict, np.ndarray], tests: list[tuple[dict, np.ndarray]
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--hands", nargs="+", default=list(SETUPS), choices=list(SETUPS))
     ap.add_argument("--approaches", type=int, default=6000, help="training pool approaches per object (the envs')")
     ap.add_argument("--validation-seeds", type=int, nargs="+", default=[500, 501, 502])

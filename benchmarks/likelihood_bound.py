@@ -51,7 +51,7 @@ def bc_np(S: list[np.ndarray], trials: int) -> tuple[str, float]:
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--objects", default="default")
     ap.add_argument("--fingers", type=int, default=2, help="grasp vectors without normals (the cells in question)")
     ap.add_argument("--bound", choices=("histogram", "data"), default="histogram")

@@ -19,7 +19,7 @@ import numpy as np
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--objects", default="kit8")
     ap.add_argument("--fingers", type=int, default=4)
     ap.add_argument("--grasps", type=int, default=20_000, help="training grasps per object")

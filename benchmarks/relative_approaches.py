@@ -62,7 +62,7 @@ class TurnedAgent(RandomAgent):
 
 
 def main(argv=None) -> int:
-    p = compare_parser(__doc__.splitlines()[0])
+    p = compare_parser(__doc__.split("\n\n")[0])
     p.add_argument("--turns", type=float, nargs="+", default=[0.5, 1.0], help="turns in units of pi")
     a = p.parse_args(argv)
     agents = [RandomAgent()] + [TurnedAgent(t, k) for t in a.turns for k in (False, True)]

@@ -30,7 +30,7 @@ import numpy as np
 def main(argv=None) -> int:
     from haptic_env.cli import int_in
 
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--hand", default="allegro")
     ap.add_argument("--objects", default="ycb10")
     ap.add_argument("--approaches", type=int_in(1), default=6000, help="recorded approaches per object of the replay")

@@ -41,7 +41,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--fingers", type=int, default=3)
     ap.add_argument("--no-normals", action="store_true")
     ap.add_argument("--grasps", type=int, default=20_000, help="training grasps per object")

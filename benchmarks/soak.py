@@ -159,7 +159,7 @@ def table(rows: list[tuple[str, dict[str, Any]]]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--steps", type=int, default=100_000, help="measured steps per variant (default 100000)")
     p.add_argument("--warmup", type=int, default=2000, help="steps before the first RSS reading (default 2000)")
     p.add_argument("--variants", nargs="+", default=["all"],

@@ -50,7 +50,7 @@ def posterior_floor(LL: np.ndarray, eps: float) -> np.ndarray:
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--objects", default="kit8")
     p.add_argument("--no-normals", action="store_true")
     p.add_argument("--fingers", default="3,4,5")

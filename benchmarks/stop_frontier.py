@@ -108,7 +108,7 @@ def replay(L: np.ndarray, scales: np.ndarray, threshold: float) -> tuple[np.ndar
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--hands", nargs="+", default=["allegro"], choices=list(SETUPS))
     ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
     ap.add_argument("--split", choices=["validation", "test"], default="validation",

@@ -82,7 +82,7 @@ class CellAgent(RandomAgent):
 
 
 def main(argv=None) -> int:
-    p = compare_parser(__doc__.splitlines()[0])
+    p = compare_parser(__doc__.split("\n\n")[0])
     p.add_argument("--bins", type=int_in(1), default=6, help="grid cells per approach parameter")
     a = p.parse_args(argv)
     comp, use, n = cell_rates(a.env_id, a.bins)

@@ -75,7 +75,7 @@ def json_object(text: str) -> dict:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="haptic-recog", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="haptic-recog", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
     for name, module in SUBCOMMANDS.items():
         importlib.import_module(module).add_parser(sub)
@@ -97,6 +97,10 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except (UsageError, cli.UsageError) as exc:
         getattr(args, "_cli_parser", parser).error(str(exc))  # prints usage + one error line, exits 2
+    except KeyboardInterrupt:  # Ctrl-C: one line (and what a rerun keeps, where the sub-command says), not a traceback
+        note = getattr(args, "interrupt_note", "")
+        print(f"haptic-recog {args.command}: interrupted" + (f"; {note}" if note else ""), file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

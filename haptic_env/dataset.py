@@ -639,7 +639,11 @@ def _run_cli(args: argparse.Namespace) -> int:
     try:
         objects = load_object_set(args.objects, units=args.units, up=args.up)
         config = _cli_config(args)
-    except (ValueError, TypeError, FileNotFoundError) as exc:  # bad --objects / --units / value combinations
+        if config.source == "hand":  # an unknown --hand is named before any grasp
+            from haptic_env.grasping.hands import load_hand
+
+            load_hand(config.hand, None)
+    except (ValueError, TypeError, FileNotFoundError) as exc:  # bad --objects / --units / --hand / combinations
         raise UsageError(str(exc)) from exc
     ds = build_dataset(objects, config, cache=not args.no_cache, progress=not args.quiet)
     if args.out is not None:

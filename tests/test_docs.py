@@ -93,3 +93,17 @@ def test_every_documented_flag_exists():
             bad += [f"{doc.relative_to(ROOT)}: {' '.join(key)} has no {f}: {line[:120]}"
                     for f in (f.rstrip(".") for f in FLAG.findall(args)) if f not in flags]
     assert not bad, "\n".join(bad)
+
+
+@pytest.mark.slow
+def test_readme_python_blocks_run(tmp_path, monkeypatch):
+    """The README's Python examples run as pasted, in order, in one namespace (a later block may use an earlier
+    one's imports), on the embedded default set: a snippet that rots fails here (about a minute, a fresh cache)."""
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")
+    blocks = re.findall(r"```python\n(.*?)```", (ROOT / "README.md").read_text(), flags=re.S)
+    assert blocks, "the README has no Python example"
+    namespace: dict = {}
+    for i, block in enumerate(blocks):
+        with contextlib.redirect_stdout(io.StringIO()):
+            exec(compile(block, f"README.md python block {i + 1}", "exec"), namespace)

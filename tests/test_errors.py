@@ -242,6 +242,7 @@ def test_truncated_recognizer_json_is_rebuilt(tmp_path, monkeypatch):
     (["dataset", "--val-fraction", "1.5"], "argument --val-fraction"),
     (["dataset", "--noise", "nan"], "argument --noise"),
     (["dataset", "--objects", "/no/such/folder"], "unknown object set '/no/such/folder'"),
+    (["dataset", "--source", "hand", "--hand", "/no/hand.xml"], "MJCF hand file /no/hand.xml does not exist"),
     (["evaluate", "--env-kwargs", "notjson"], "argument --env-kwargs: not valid JSON"),
     (["evaluate", "--env-kwargs", "[1, 2]"], "argument --env-kwargs: expected a JSON object"),
     (["evaluate", "--env-kwargs", '{"nope": 1}'], r"--env-kwargs: unknown HapticRecogConfig field\(s\) \['nope'\]"),
@@ -303,3 +304,17 @@ def test_train_bad_flags_fail_at_once_without_run_files(argv, match, tmp_path):
     tyro_box = lines[-1].startswith("╰")  # tyro's own parse errors: a box ending in "--help"
     assert "Traceback" not in proc.stderr and (match in lines[-1] or tyro_box and match in proc.stderr), proc.stderr
     assert not run_dir.exists()
+
+
+def test_ctrl_c_in_a_subcommand_is_one_line_saying_what_a_rerun_keeps(monkeypatch, capsys):
+    import agents.evaluate as ev
+    from haptic_env.cli import main
+
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(ev, "_main", interrupted)  # the parser is built inside main, so it takes this one
+    assert main(["evaluate", "--episodes", "1"]) == 130
+    err = capsys.readouterr().err
+    assert err.strip() == ("haptic-recog evaluate: interrupted; every finished agent-seed block is saved; the same "
+                           "command resumes from them")

@@ -101,7 +101,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
     d = AnalysisConfig()
     p = subparsers.add_parser("analysis", help="reproduce the paper's recognition analysis on an object set",
-                              description=experiments.__doc__.splitlines()[0])
+                              description=experiments.__doc__.split("\n\n")[0])
     p.add_argument("--objects", default=d.objects, help="default | families[:N] | kit8 | kit20 | ycb10 | folder")
     p.add_argument("--data-dir", default=None, help="shared data folder (default: $HAPTIC_DATA or ../shared/data)")
     p.add_argument("--units", default="m", help="units of a folder's meshes")

@@ -71,13 +71,13 @@ def data_dir(required: bool = False) -> Path | None:
             raise FileNotFoundError(msg)
         warnings.warn(msg, stacklevel=2)
         return None
-    for base in (_repo_root(), Path.cwd()):
-        p = base.parent / "shared" / "data"
+    places = list(dict.fromkeys(base.resolve().parent / "shared" / "data" for base in (_repo_root(), Path.cwd())))
+    for p in places:
         if p.is_dir():
             return p.resolve()
     if required:
-        raise FileNotFoundError(f"no data folder found (looked at $HAPTIC_DATA, {_repo_root().parent / 'shared' / 'data'}, "
-                                f"{Path.cwd().parent / 'shared' / 'data'}); {_DATA_HELP}")
+        raise FileNotFoundError(f"no data folder found (looked at $HAPTIC_DATA, {', '.join(map(str, places))}); "
+                                f"{_DATA_HELP}")
     return None
 
 
