@@ -13,13 +13,13 @@ which ends at 1.4) trades recognition of held-back member grasps against new mem
 For each factor: one-shot accuracy on held-back member grasps, on A and B; BC-NP's vote (argmax of summed
 log-likelihoods of m grasps of one member) on A and B; and the NLL on A of the sequence-calibrated posteriors
 (the temperature fitted on A for beliefs of 1-30 grasps, as experiment 5 fits it), the selection criterion.
-``--floors`` adds the outlier floor experiment 5 now chooses (``families.family_floor``): each log-likelihood
-lifted to at least about the ``q``-quantile of the true family's log-likelihood on held-back member grasps, so that a
-grasp unlike every family moves the belief little. ``--bias`` adds, per row, a per-family offset on each grasp's
-floored log-likelihood (:func:`fit_bias`, fitted jointly with the sequence temperature on A; ellipsoid's fixed at 0),
-a correction of a lean towards one family, and B's votes with it. The experiment-5 settings are the reported row's (Allegro grasps,
-no normals, 40 members, size factor U(0.7, 1.6), 1,000 approaches per member). Run (the pools are built once, about
-7 minutes on 2 cores per seed, then cached)::
+``--floors`` adds the outlier floor experiment 5 now chooses (``families.family_floor``): each log-likelihood lifted to
+at least about the ``q``-quantile of the true family's log-likelihood on held-back member grasps, so that a grasp unlike
+every family moves the belief little. ``--bias`` adds, per row, a per-family offset on each grasp's floored
+log-likelihood (:func:`fit_bias`, fitted jointly with the sequence temperature on A; ellipsoid's fixed at 0), a
+correction of a lean towards one family, and B's votes with it. The experiment-5 settings are the reported row's
+(Allegro grasps, no normals, 40 members, size factor U(0.7, 1.6), 1,000 approaches per member). Run (the pools are built
+once, about 7 minutes on 2 cores per seed, then cached)::
 
     OMP_NUM_THREADS=1 python benchmarks/family_bandwidth.py --seed 0 --out docs/results/families/bandwidth_seed0.md
     OMP_NUM_THREADS=1 python benchmarks/family_bandwidth.py --seed S --factors auto --floors 0,0.01,0.03,0.1,0.2,0.3

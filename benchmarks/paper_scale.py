@@ -73,7 +73,8 @@ def _bools(text: str) -> list[bool]:
 
 
 def parse_args(argv=None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter,
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter,
                                 epilog="\n".join(__doc__.splitlines()[1:]))
     p.add_argument("--out", required=True, help="output folder (cells/, results.md, results.json, PNG)")
     p.add_argument("--objects", default="kit8", help="object set (default kit8: the paper's 8 KIT meshes)")

@@ -193,7 +193,8 @@ class AnalysisConfig:
             raise ValueError(f"seed must be an int >= 0, got {self.seed!r}")
         if not (isinstance(self.threshold, (int, float)) and 0.0 < self.threshold <= 1.0):
             raise ValueError(f"threshold must be in (0, 1], got {self.threshold!r}")
-        if self.baseline_max_train is not None and not (is_int(self.baseline_max_train) and self.baseline_max_train >= 1):
+        cap = self.baseline_max_train
+        if cap is not None and not (is_int(cap) and cap >= 1):
             raise ValueError(f"baseline_max_train must be None or an int >= 1, got {self.baseline_max_train!r}")
         if not self.experiments or not all(is_int(e) for e in self.experiments):
             raise ValueError(f"experiments must be a non-empty tuple of experiment numbers, got {self.experiments!r}")

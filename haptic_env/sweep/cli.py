@@ -29,7 +29,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     from .spec import KINDS
 
     p = subparsers.add_parser("sweep", help="run a sweep spec (train/evaluate/dataset/analysis jobs) on Ray",
-                              description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter,
+                              description=__doc__.split("\n\n")[0],
+                              formatter_class=argparse.RawDescriptionHelpFormatter,
                               epilog="\n".join(__doc__.split("\n")[3:]))
     p.add_argument("spec", type=Path, help="TOML sweep spec (see haptic_env/sweep/spec.py; examples in sweeps/)")
     p.add_argument("--out", type=Path, default=None, help="sweep folder (default: the spec's out, else "
