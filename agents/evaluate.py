@@ -643,6 +643,16 @@ def _main(args) -> int:
         except ValueError as exc:
             raise UsageError(f"--agents: {exc}") from exc
     make_env = lambda: haptic_env.make(env_id=args.env_id, **kwargs)  # noqa: E731  (overrides the variant's fields)
+    models = [(spec, a.model) for spec, a in zip(args.agents, agents) if hasattr(a, "model")]
+    if models:  # a model trained on another env or other settings: said before any episode
+        probe = make_env()
+        shape = probe.observation_space.shape
+        probe.close()
+        for spec, model in models:
+            if model.observation_space.shape != shape:
+                raise UsageError(f"--agents {spec}: the model observes {model.observation_space.shape[0]} values, but "
+                                 f"{args.env_id} with --env-kwargs {kwargs} gives {shape[0]} (trained on another env "
+                                 f"or other settings?)")
     t0 = time.time()
     store = out / ".partial"
     keys = [_block_key(spec, args, kwargs) for spec in args.agents]

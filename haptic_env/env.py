@@ -100,7 +100,14 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     An object drawn uniformly from the set (or ``options={"object": name_or_index}``), a random pose
     (``pose="table-yaw"``: a uniform yaw about the world z axis with the object's bounding-box centre at the
     origin; ``"so3"``: a uniform rotation), an optional uniform random scale (``scale_range``), and the
-    belief at the uniform prior.
+    belief at the uniform prior. A forced object skips the object draw, so ``reset(seed=s, options={"object": o})``
+    gives another pose than ``reset(seed=s)`` even where that draws ``o``.
+
+    ## Copies
+    ``pickle`` and ``copy.deepcopy`` rebuild the env from its constructor arguments (Gymnasium's ``EzPickle``, which
+    :class:`~gymnasium.vector.AsyncVectorEnv` relies on): the settings are kept, the episode is not, so a copy
+    needs its own ``reset`` before ``step`` (its error says so). Branching rollouts from mid-episode are not
+    supported.
 
     ## Episode End
     ### Termination
@@ -130,7 +137,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         env = gym.make("HapticRecog-v0")                                  # defaults
         env = gym.make("HapticRecog-v0", config=HapticRecogConfig(n_fingers=3, normals=False))
         env = gym.make("HapticRecog-v0", grasp_cost=0.01, reward="entropy-reduction")
-        env = haptic_env.make(HapticRecogConfig(max_grasps=50))            # also sets max_episode_steps
+        env = haptic_env.make(HapticRecogConfig(max_grasps=50))            # the env truncates after 50 grasps
 
     Every field, its default and its meaning: :class:`~haptic_env.config.HapticRecogConfig` (each field's
     docstring; ``python train.py --help`` lists them as ``--env.<field>``).
@@ -222,8 +229,14 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         return self._grasps
 
     # ------------------------------------------------------------------------------- gym API
+    def __setstate__(self, state):
+        super().__setstate__(state)  # EzPickle: a new env from the constructor arguments
+        self._rebuilt = True
+
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
+        if options is not None and not isinstance(options, dict):
+            raise ValueError(f"reset options must be a dict such as {{'object': 'mug'}} or None, got {options!r}")
         options = dict(options or {})
         unknown = set(options) - {"object"}
         if unknown:
@@ -242,7 +255,9 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
 
     def step(self, action):
         if self._belief is None:
-            raise RuntimeError("call reset() before step()")
+            raise RuntimeError("call reset() before step()" + (
+                " (this env is a copy or an unpickled env: those are rebuilt from the constructor arguments and keep "
+                "the settings, not the episode)" if getattr(self, "_rebuilt", False) else ""))
         if self._episode_over:  # Gymnasium: stepping a finished episode is undefined; refuse it clearly
             raise RuntimeError(f"the episode is over (it ended after grasp {self._grasps}: terminated at the threshold or "
                                f"truncated at max_grasps={self.config.max_grasps}); call reset() before step()")
@@ -311,6 +326,8 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         try:
             a = np.asarray(action)
             is_complex = a.dtype.kind == "c"  # a float cast would silently drop the imaginary part
+            if a.dtype.kind not in "fiuc":  # strings, bools, objects: numpy would cast them to numbers silently
+                raise TypeError(f"non-numeric dtype {a.dtype}")  # -> the ValueError below, naming the action
             if not is_complex:
                 a = a.astype(np.float64, copy=False)
         except (TypeError, ValueError, OverflowError) as exc:  # OverflowError: a Python int beyond float range

@@ -180,6 +180,8 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None):
         """Reset the sub-envs (all, or ``options["reset_mask"]``); seeding scheme in the module docstring."""
         B = self.num_envs
+        if options is not None and not isinstance(options, dict):
+            raise ValueError(f"reset options must be a dict such as {{'object': 'mug'}} or None, got {options!r}")
         options = dict(options or {})
         unknown = set(options) - {"object", "reset_mask"}
         if unknown:
@@ -198,7 +200,13 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
         elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
             seeds = [int(seed) + i for i in range(B)]
         else:
+            if isinstance(seed, (bool, np.bool_, str, bytes)) or not hasattr(seed, "__len__"):
+                raise ValueError(f"reset: seed must be None, an int or a sequence of {B} ints or None, got {seed!r}")
             seeds = list(seed)
+            if not all(x is None or isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_))
+                       for x in seeds):
+                raise ValueError(f"reset: seed must be None, an int or a sequence of {B} ints or None, got {seed!r}")
+            seeds = [None if x is None else int(x) for x in seeds]
             if len(seeds) != B:
                 raise ValueError(f"reset: {len(seeds)} seeds for {B} sub-envs")
         which = options.get("object")
@@ -431,6 +439,8 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
             a = np.asarray(actions)
             if a.dtype.kind == "c":
                 raise ValueError(f"actions must be real numbers, got complex values {actions!r}")
+            if a.dtype.kind not in "fiu":  # strings, bools, objects: numpy would cast them to numbers silently
+                raise TypeError(f"non-numeric dtype {a.dtype}")
             a = a.astype(np.float64)
         except (TypeError, OverflowError) as exc:
             raise ValueError(f"actions must be a numeric array of shape ({B}, {A}), got {actions!r}") from exc

@@ -55,6 +55,48 @@ def test_complex_actions_are_rejected_naming_the_value(env_config, action):
         env.step(action)
 
 
+@pytest.mark.parametrize("action", [["0", "0", "0", "0"], [True, False, True, False], np.array([None] * 4)])
+def test_non_numeric_actions_are_rejected_not_cast(env_config, action):
+    env = HapticRecogEnv(env_config)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"action must be a numeric array of shape \(4,\)"):
+        env.step(action)
+
+
+def test_bad_reset_arguments_are_named(env_config):
+    from haptic_env.vector_env import HapticRecogVectorEnv
+
+    env = HapticRecogEnv(env_config)
+    with pytest.raises(ValueError, match="reset options must be a dict .* got 'mug'"):
+        env.reset(options="mug")
+    venv = HapticRecogVectorEnv(2, config=env_config)
+    for seed in (True, [1.5, 2], "ab"):
+        with pytest.raises(ValueError, match="seed must be None, an int or a sequence of 2 ints"):
+            venv.reset(seed=seed)
+    first = venv.reset(seed=np.array([3, 4]))[0]  # numpy integers are seeds too
+    assert np.array_equal(first, venv.reset(seed=3)[0])
+    with pytest.raises(ValueError, match=r"actions must be a numeric array of shape \(2, 4\)"):
+        venv.step(np.ones((2, 4), dtype=bool))
+    venv.close()
+
+
+def test_a_copy_keeps_the_settings_and_says_it_has_no_episode(env_config):
+    import copy
+    import pickle
+
+    env = HapticRecogEnv(env_config.replace(grasp_cost=0.07))
+    env.reset(seed=4)
+    env.step(np.zeros(4, np.float32))
+    for clone in (copy.deepcopy(env), pickle.loads(pickle.dumps(env))):
+        assert clone.config == env.config
+        with pytest.raises(RuntimeError, match="copy or an unpickled env.*keep the settings, not the episode"):
+            clone.step(np.zeros(4, np.float32))
+        clone.reset(seed=4)
+        clone.step(np.zeros(4, np.float32))
+    with pytest.raises(RuntimeError, match=r"^call reset\(\) before step\(\)$"):
+        HapticRecogEnv(env_config).step(np.zeros(4, np.float32))
+
+
 def test_ic_belief_sums_to_one_and_keeps_its_certainty(env_config):
     env = HapticRecogEnv(env_config.replace(updater="ic", threshold=0.95))
     obs, info = env.reset(seed=0)
@@ -252,6 +294,9 @@ def test_truncated_recognizer_json_is_rebuilt(tmp_path, monkeypatch):
     (["evaluate", "--agents", "robot"], "--agents: unknown agent spec 'robot'"),
     (["evaluate", "--agents", "ppo=/no/model.zip"], "model file /no/model.zip does not exist"),
     (["evaluate", "--episodes", "0"], "argument --episodes: must be >= 1"),
+    (["evaluate", "--agents", "ppo=results/hands/ppo_frame_models/ppo_frame_s0.zip", "--out", "/nonexistent/out"],
+     "the model observes 38 values, but HapticRecog-v0 with --env-kwargs {} gives 33"),
+    (["evaluate", "--agents", "greedy:abc"], "agent spec 'greedy:abc': M and S must be whole numbers"),
     (["evaluate", "--env-id", "Nope-v0"], "argument --env-id: invalid choice"),
     (["analysis", "--out", "/nonexistent/out", "--trials", "-1"], "trials must be an int >= 1, got -1"),
     (["analysis", "--out", "/nonexistent/out", "--max-grasps", "0"], "max_grasps must be an int >= 1, got 0"),
