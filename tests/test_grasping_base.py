@@ -86,3 +86,41 @@ def test_support_height_is_the_lowest_posed_vertex():
         support_height(np.zeros((0, 3)))
     with pytest.raises(ValueError, match="4x4"):
         support_height(V, np.eye(3))
+
+
+def test_validate_pose_agrees_with_numpys_rigid_check_near_its_tolerances():
+    """validate_pose checks in Python floats (a reset needs two): it accepts exactly the poses that numpy's
+    ``allclose(R R^T, I, atol=1e-6)``, ``det R >= 0`` and ``allclose(T[3], e4)`` accept, also near the tolerances."""
+    from scipy.spatial.transform import Rotation
+
+    from haptic_env.grasping.base import validate_pose
+
+    def numpy_accepts(T):
+        R = T[:3, :3]
+        return bool(np.allclose(R @ R.T, np.eye(3), atol=1e-6) and np.linalg.det(R) >= 0
+                    and np.allclose(T[3], [0, 0, 0, 1]))
+
+    rng = np.random.default_rng(0)
+    accepted = 0
+    for i in range(2000):
+        T = np.eye(4)
+        T[:3, :3] = Rotation.random(random_state=i).as_matrix()
+        T[:3, 3] = rng.normal(size=3)
+        kind = i % 5
+        if kind == 1:
+            T[:3, :3] += rng.normal(size=(3, 3)) * 10 ** rng.uniform(-8, -4)  # around the orthonormality tolerance
+        elif kind == 2:
+            T[:3, :3] *= -1  # a reflection
+        elif kind == 3:
+            T[3, :3] += rng.normal(size=3) * 10 ** rng.uniform(-10, -6)
+        elif kind == 4:
+            T[3, 3] += rng.normal() * 10 ** rng.uniform(-7, -3)
+        try:
+            validate_pose(T)
+            ours = True
+        except ValueError as exc:
+            assert "rigid transform" in str(exc)
+            ours = False
+        assert ours == numpy_accepts(T), T
+        accepted += ours
+    assert 0.3 < accepted / 2000 < 0.7  # both sides of the tolerances were probed
