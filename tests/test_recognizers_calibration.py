@@ -69,6 +69,20 @@ def test_reliability_bins_count_every_row():
     assert np.all((r["confidence"][ok] >= r["edges"][:-1][ok]) & (r["confidence"][ok] <= r["edges"][1:][ok]))
 
 
+def test_reliability_bins_are_half_open_at_every_edge():
+    """A confidence of exactly k / 10 opens bin k, for every k (numpy's linspace put 0.3, 0.6 and 0.7 a hair above
+    themselves, so those three once fell into the bin below); 1.0 is in the last bin."""
+    conf = np.arange(1, 11) / 10  # 0.1 .. 1.0
+    P = np.stack([conf, 1.0 - conf], axis=1)  # two classes: the max is conf from 0.5 on
+    r = reliability(P[4:], np.zeros(6, dtype=int), bins=10)  # 0.5, 0.6, 0.7, 0.8, 0.9, 1.0
+    assert r["count"].tolist() == [0, 0, 0, 0, 0, 1, 1, 1, 1, 2]
+    assert np.allclose(r["confidence"][5:9], [0.5, 0.6, 0.7, 0.8])
+    r = reliability(np.array([[0.3, 0.3, 0.4]]), np.array([2]), bins=10)  # three classes: a max of 0.4
+    assert r["count"].tolist() == [0, 0, 0, 0, 1, 0, 0, 0, 0, 0]
+    r = reliability(np.array([[0.3, 0.35, 0.35], [0.3, 0.3, 0.3]]), np.array([1, 0]), bins=10)  # maxima 0.35, 0.3
+    assert r["count"].tolist() == [0, 0, 0, 2, 0, 0, 0, 0, 0, 0]
+
+
 def test_kde_fits_and_stores_its_temperature():
     # two overlapping classes in 8 dimensions: a KDE on few points is over-confident (T > 1)
     X, y, Xv, yv = _two_gaussians(np.random.default_rng(2), 400, 300, d=8, shift=0.5)

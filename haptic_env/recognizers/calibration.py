@@ -334,15 +334,15 @@ def select_correction(scores, y, *, calibrate_grasps: int = 1, horizon: int = SE
 
 
 def reliability(proba, y, bins: int = 10) -> dict[str, np.ndarray]:
-    """Reliability diagram data of ``proba (B, K)``: per equal-width confidence bin, the mean
-    confidence, the accuracy and the count (``nan`` for empty bins)."""
+    """Reliability diagram data of ``proba (B, K)``: per equal-width confidence bin ``[k / bins, (k + 1) / bins)``
+    (the last one closed), the mean confidence, the accuracy and the count (``nan`` for empty bins)."""
     P, Y = _check(proba, y)
     if not (isinstance(bins, (int, np.integer)) and bins >= 1):
         raise ValueError(f"bins must be an int >= 1, got {bins!r}")
     conf = P.max(axis=1)
     hit = (P.argmax(axis=1) == Y).astype(np.float64)
-    edges = np.linspace(0.0, 1.0, bins + 1)
-    which = np.clip(np.searchsorted(edges, conf, side="right") - 1, 0, bins - 1)
+    edges = np.arange(bins + 1) / bins  # each edge the double nearest k / bins (linspace puts 0.3 a hair above 0.3)
+    which = np.clip(np.searchsorted(edges, conf, side="right") - 1, 0, bins - 1)  # bins [k / bins, (k + 1) / bins)
     count = np.bincount(which, minlength=bins).astype(np.float64)
     with np.errstate(invalid="ignore", divide="ignore"):
         mean_conf = np.bincount(which, conf, bins) / count
