@@ -26,10 +26,11 @@ __all__ = ["phi_one", "phi_checked", "phi_on_hull", "phi_rows", "phi2_prepare", 
 
 AMBIGUOUS = -1  #: a hull face with >= 4 coplanar contacts: triangulate it canonically, then phi_on_hull
 BAD_INPUT = -2  #: non-finite contacts, or a zero / non-finite normal: the caller raises the error
-#: ``has_normals`` codes: False / 0 no normals; True / 1 each normal's angles to t1's normal and to t2's (for n = 3:
-#: to the edge ab), the paper's; 2 (:data:`NORMALS_AB`) to t1's normal and to the edge ab at every n
-#: (``phi(normal_axis="ab")``); 3 (:data:`NORMALS_FRAME`) to the three axes of t1's frame: its normal, the edge ab and
-#: the in-plane direction perpendicular to ab on the third contact's side (``phi(normal_axis="frame")``, 3 per contact)
+#: ``has_normals`` codes: False / 0 no normals; True / 1 each normal's angles to t1's normal and to the normal of the
+#: triangle (a, b, order[3]) (for n = 3: to the edge ab), the paper's; 2 (:data:`NORMALS_AB`) to t1's normal and to the
+#: edge ab at every n (``phi(normal_axis="ab")``); 3 (:data:`NORMALS_FRAME`) to the three axes of t1's frame: its
+#: normal, the edge ab and the in-plane direction perpendicular to ab on the third contact's side
+#: (``phi(normal_axis="frame")``, 3 per contact)
 NORMALS_AB = 2
 NORMALS_FRAME = 3
 

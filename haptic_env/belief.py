@@ -22,10 +22,11 @@ Which grasps update the belief: a grasp with all ``n`` fingers touching, scored 
 ``z_fingers`` also an incomplete grasp of ``t >= z`` touching fingers, by the ``t``-finger model; with
 ``score_subsets`` every grasp of ``t >= z`` touching fingers through its ``z``-subsets by the ``z``-finger model,
 and with ``min_fingers = m`` also one of ``m <= t < z``, by the ``t``-finger model.
-The ``C(t, z)`` subsets of one grasp share its contacts, so a Bayesian belief counts them as at most ``subset_k``
-(the paper's Algorithm 4 scores ``k = 4`` random subsets): their summed log-likelihood is multiplied by
-``min(1, subset_k / C(t, z))``, the expected sum of ``subset_k`` random ones, without the draw (``None``: the plain
-product over all of them, Algorithm 3). With ``z = 3`` this changes nothing for 4 fingers (``C(4, 3) = 4``).
+The ``C(t, z)`` subsets of one grasp share its contacts, so a Bayesian belief counts them as at most ``subset_k`` (the
+paper's Algorithm 4 scores ``k = 4`` random subsets): their summed log-likelihood is multiplied by
+``min(1, subset_k / m)``, ``m`` the subsets scored (``C(t, z)`` unless some are degenerate), the expected sum of
+``subset_k`` random ones, without the draw (``None``: the plain product over all of them, Algorithm 3). With ``z = 3``
+this changes nothing for 4 fingers (``C(4, 3) = 4``).
 A recogniser whose grasp vectors carry the contacts' heights above the table (``DatasetConfig.heights``) reads
 the contacts in the support frame: the belief holds the episode's table height ``support_z`` (world z, set by
 ``reset``; :func:`~haptic_env.grasping.base.support_height`) and subtracts it from every grasp it scores.

@@ -74,10 +74,11 @@ class HapticRecogConfig:
     grasps carry no contact information, as in the paper's z-finger scoring. Without ``score_subsets`` this is what
     ``z_fingers=min_fingers`` does, so it is refused there."""
     subset_k: int | None = 4
-    """With ``score_subsets``: the subsets one Bayes step counts at most. The ``C(t, z)`` subsets of a grasp share
-    its contacts; their summed log-likelihood is multiplied by ``min(1, subset_k / C(t, z))``, the expectation of
-    the paper's Algorithm 4 (``k = 4`` random subsets) without the draw. 4 (the paper's): no change for 4 fingers
-    and z = 3; None: the product over all subsets (over-confident with 5 fingers: RESULTS.md)."""
+    """With ``score_subsets``: the subsets one Bayes step counts at most. The ``C(t, z)`` subsets of a grasp share its
+    contacts; their summed log-likelihood is multiplied by ``min(1, subset_k / m)``, ``m`` the subsets scored
+    (``C(t, z)`` unless some are degenerate), the expectation of the paper's Algorithm 4 (``k = 4`` random subsets)
+    without the draw. 4 (the paper's): no change for 4 fingers and z = 3; None: the product over all subsets
+    (over-confident with 5 fingers: RESULTS.md)."""
     threshold: float = DEFAULT_THRESHOLD
     """Certainty :math:`\\lambda` at which the episode terminates (the recogniser has decided)."""
     reward: str = "true-posterior-gain"
@@ -133,11 +134,12 @@ class HapticRecogConfig:
     vector. Needs ``pose="table-yaw"`` and the table support."""
     normal_axis: str = "t2"
     """Each contact normal's second angle in :math:`\\Phi_n` (``n >= 4``, with normals), for the recogniser and the
-    observation: to the normal of the chain's second facet ``t2`` (``"t2"``, the paper's) or to the edge ``ab`` of its
-    first facet (``"ab"``: both angles in ``t1``'s frame, the paper's rule for ``n = 3``; ``DatasetConfig.normal_axis``,
-    ``phi(normal_axis=)``). ``"ab"`` carries more about the object: kit8 one-shot at n = 4 rises by about 10 points
-    (RESULTS.md). Same vector length. ``"frame"``: three angles per normal, to the three axes of ``t1``'s frame
-    (``6n - 6`` values at ``n >= 3``), so that no side of the normal is lost."""
+    observation: to the normal of the triangle on ``ab`` and the chain's fourth contact (``"t2"``, the paper's; the
+    chain's second facet ``t2`` when that lies on ``ab``) or to the edge ``ab`` of its first facet (``"ab"``: both
+    angles in ``t1``'s frame, the paper's rule for ``n = 3``; ``DatasetConfig.normal_axis``, ``phi(normal_axis=)``).
+    ``"ab"`` carries more about the object: kit8 one-shot at n = 4 rises by about 10 points (RESULTS.md). Same vector
+    length. ``"frame"``: three angles per normal, to the three axes of ``t1``'s frame (``6n - 6`` values at ``n >= 3``),
+    so that no side of the normal is lost."""
     observe_contacts: bool = False
     """Add the latest grasp's contact points (``"contacts"``, ``3n`` values, m) and, with ``normals``, its contact
     normals (``"contact_normals"``, ``3n``) in the world frame to the observation; 0 for fingers that did not touch.

@@ -10,18 +10,22 @@ Spatial grasps, ``n >= 3`` (:func:`phi`)
 
     1. ``t1`` is the largest-area hull facet and ``d = ab`` its longest edge, with ``a`` the
        endpoint of the larger interior angle of ``t1``: values ``|ab|, angle_a(t1), angle_b(t1)``.
-    2. ``t2`` is the other hull facet on ``ab``; each further facet is the largest-area hull facet
-       that shares an edge with an already visited facet and adds one new contact. A facet adds
-       its two interior angles at the shared edge (earlier contact of the chain first) and the
-       signed dihedral angle (radians, in ``(-pi, pi]``) from the facet it is attached to.
+    2. Each further facet, from the second on, is the largest-area hull facet that shares an edge with an
+       already visited facet and adds one new contact; the second (``t2``) is thus the largest facet next to
+       ``t1`` on any of its three edges, not necessarily on ``ab``, and adds the fourth contact ``d``. A facet
+       adds its two interior angles at the shared edge (earlier contact of the chain first) and the signed
+       dihedral angle (radians, in ``(-pi, pi]``) from the facet it is attached to. Facets of exactly equal
+       area (a measure-zero case, e.g. a square pyramid's side and base halves) are ranked by rounding, so
+       there the vector may depend on the pose or the finger order.
     3. Contacts that are no hull vertex (inside the polyhedron; possible on concave objects) are
        attached to ``ab`` of ``t1`` as a virtual facet with the same three values, taken in the
        order of their angle at ``a``.
 
     That is ``3 + 3 (n - 3) = 3n - 6`` values, and the contact order is that of the chain, never the
     input order. With normals, each contact (in chain order) adds its angle to the normal of
-    ``t1`` and to the normal of ``t2`` (for ``n = 3``: to ``t1``'s normal and to the direction of
-    ``ab``): ``5n - 6`` values.
+    ``t1`` and to the normal of the triangle ``(a, b, d)`` on ``ab`` and the chain's fourth contact (``t2`` itself
+    when the second facet lies on ``ab``; for ``n = 3``: to ``t1``'s normal and to the direction of ``ab``):
+    ``5n - 6`` values.
 
     ``normal_axis="ab"`` (not the paper's; the default ``"t2"`` is) takes each normal's second angle to ``ab``
     at every ``n``, as the paper does for ``n = 3``, so both angles are read in ``t1``'s own frame. With
