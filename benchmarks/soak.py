@@ -98,6 +98,8 @@ def soak(env_id: str, overrides: dict[str, Any], steps: int, warmup: int = 2000,
     torch.set_num_threads(1)
     import haptic_env
 
+    if steps < 2 or warmup < 1:  # the start mark is the last warm-up step
+        raise ValueError(f"soak needs steps >= 2 and warmup >= 1, got {steps} and {warmup}")
     env = haptic_env.make(env_id=env_id, **overrides)
     rng = np.random.default_rng(seed)
     low, high = env.action_space.low, env.action_space.high
@@ -170,8 +172,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, default=None, help="also write the markdown table here")
     p.add_argument("--child", default=None, help=argparse.SUPPRESS)
     args = p.parse_args(argv)
-    if args.steps < 2 or args.warmup < 0:
-        p.error("--steps must be >= 2 and --warmup >= 0")
+    if args.steps < 2 or args.warmup < 1:  # the RSS and time marks start at the last warm-up step
+        p.error(f"--steps must be >= 2 and --warmup >= 1, got {args.steps} and {args.warmup}")
     allv = variants()
     if args.child:
         _child(args.child, args.steps, args.warmup, args.seed)

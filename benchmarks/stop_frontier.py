@@ -24,7 +24,9 @@ With ``--heights`` the grasp vectors carry the contacts' heights above the table
 ``Heights`` env's (``hand_experiment.py --heights``).
 
 Scale 1 is the registered env's belief; the script checks that its replay reproduces the hand table's updaters
-exactly there (the same stops and predictions), before it reports anything.
+exactly there (the same stops and predictions), before it reports anything, for every hand without z-subsets and for
+the 4-finger Allegro with them. A 5-finger hand's z = 3 replay is not checked: the env counts its C(5, 3) = 10 subsets
+as the paper's k = 4 (``subset_k``), which the hand table's updater (the product over all subsets) does not.
 
     python benchmarks/stop_frontier.py [--hands allegro] [--split validation] [--seeds 0 1 2] [--queries 10]
         [--scales 0.5 0.7 1 1.4 2 3 4 6] [--heights] [--out docs/results/stop_frontier]

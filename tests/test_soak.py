@@ -50,3 +50,9 @@ def test_soak_benchmark_variants_cover_the_registered_envs(load_benchmark):
     assert set(ENV_VARIANTS) <= set(names)
     assert {"scale_range", "pose=so3", "z_fingers=3", "updater=ic", "updater=bc-ip"} <= set(names)
     assert not soak.is_geometric("HapticRecogMuJoCo-v0") and soak.is_geometric("scale_range")
+
+
+def test_soak_refuses_no_warmup_before_any_step(load_benchmark):
+    soak = load_benchmark("soak")
+    with pytest.raises(ValueError, match="warmup >= 1, got 10 and 0"):
+        soak.soak("HapticRecog-v0", {}, steps=10, warmup=0)
