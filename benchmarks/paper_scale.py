@@ -366,11 +366,14 @@ def write_report(out: Path, args, command: str) -> Path:
     e2 = [c for c in cells if "exp2" in c]
     if e2:
         L += ["", f"## Experiment 2 at lambda = {args.threshold} (calibrated scores, {args.trials_per_object} trials "
-              "per object, at most 30 grasps): success % / mean grasps", "",
+              "per object, at most 30 grasps): success % ± its binomial standard error / mean grasps", "",
               "| n | normals | model | grasps/obj | KDE one-shot % | IC | BC-NP | BC-IP |", "|---" * 8 + "|"]
         for c in e2:
             x = c["exp2"]
-            f = lambda k: f"{x[k]['success']:.1f} / {x[k]['grasps']:.2f}"  # noqa: E731
+            def f(k):
+                se = f" ± {x[k]['success_se']:.1f}" if "success_se" in x[k] else ""  # older results.json: none
+                return f"{x[k]['success']:.1f}{se} / {x[k]['grasps']:.2f}"
+
             L.append(f"| {c['n']} | {'yes' if c['normals'] else 'no'} | {_label(c['model'])} | {c['grasps_per_object']:,} | "
                      f"{100 * x['kde_oneshot']:.1f} | {f('ic')} | {f('bc-np')} | {f('bc-ip')} |")
     L += ["", "Plot: `accuracy_vs_grasps.png`; every cell's numbers (training history, per-object accuracy): "
