@@ -199,10 +199,8 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
             seeds = [None] * B
         elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
             seeds = [int(seed) + i for i in range(B)]
-        else:
-            if isinstance(seed, (bool, np.bool_, str, bytes)) or not hasattr(seed, "__len__"):
-                raise ValueError(f"reset: seed must be None, an int or a sequence of {B} ints or None, got {seed!r}")
-            seeds = list(seed)
+        else:  # a sequence of seeds; anything else (a bool, a float, a string) fails the check as one bad seed
+            seeds = list(seed) if hasattr(seed, "__len__") and not isinstance(seed, (str, bytes)) else [seed]
             if not all(x is None or isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_))
                        for x in seeds):
                 raise ValueError(f"reset: seed must be None, an int or a sequence of {B} ints or None, got {seed!r}")

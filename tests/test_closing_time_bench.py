@@ -22,12 +22,13 @@ def test_differences_compare_only_fingertips_that_touch_in_both(load_benchmark):
     np.testing.assert_allclose(np.sort(ang), [0.0, 0.0, 90.0])
 
 
-def test_bad_arguments_fail_before_any_grasp(load_benchmark):
+@pytest.mark.parametrize("argv, match", [(["--hands", "shadow,nohand"], "unknown hand"),
+                                         (["--approaches", "0"], "approaches"),
+                                         (["--gains", "2,x"], "gains"), (["--gains", "0"], "gains")])
+def test_bad_arguments_fail_before_any_grasp(load_benchmark, argv, match):
     bench = load_benchmark("closing_time")
-    with pytest.raises(SystemExit, match="unknown hand"):
-        bench.main(["--hands", "shadow,nohand"])
-    with pytest.raises(SystemExit, match="approaches"):
-        bench.main(["--approaches", "0"])
+    with pytest.raises(SystemExit, match=match):
+        bench.main(argv)
 
 
 def test_scaled_gains_stiffens_position_actuators_of_a_copy(load_benchmark):
@@ -51,11 +52,3 @@ def test_touch_shares_count_complete_and_three_finger_grasps(load_benchmark):
     touched = np.array([[1, 1, 1, 1], [1, 1, 1, 0], [1, 1, 0, 0], [0, 0, 0, 0]], dtype=bool)
     assert bench.touch_shares(touched) == (0.25, 0.5)
     assert bench.touch_shares(np.array([[1, 1], [1, 0]], dtype=bool)) == (0.5, 0.5)  # a gripper: both pads
-
-
-def test_bad_gains_fail_before_any_grasp(load_benchmark):
-    bench = load_benchmark("closing_time")
-    with pytest.raises(SystemExit, match="gains"):
-        bench.main(["--gains", "2,x"])
-    with pytest.raises(SystemExit, match="gains"):
-        bench.main(["--gains", "0"])
