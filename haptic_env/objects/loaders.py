@@ -210,7 +210,7 @@ def object_count(spec: str | Path = "default", *, data_dir: str | Path | None = 
 
         return len(DEFAULT_SHAPES)
     if s == "families" or s.startswith("families:"):
-        return 3 * (int(s.split(":", 1)[1]) if ":" in s else 10)
+        return 3 * _family_members(s)
     if s == "kit8":
         return len(KIT8)
     if s in ("kit20", "ycb10"):
@@ -239,7 +239,7 @@ def load_object_set(spec: str | Path = "default", *, data_dir: str | Path | None
     if s == "default":
         return default_set()
     if s == "families" or s.startswith("families:"):
-        return family_set(int(s.split(":", 1)[1]) if ":" in s else 10, np.random.default_rng(0))
+        return family_set(_family_members(s), np.random.default_rng(0))
     if s in ("kit8", "kit20", "ycb10"):
         root = Path(data_dir).expanduser() if data_dir is not None else globals()["data_dir"](required=True)
         if not root.is_dir():
@@ -253,6 +253,11 @@ def load_object_set(spec: str | Path = "default", *, data_dir: str | Path | None
             raise FileNotFoundError(f"YCB meshes missing: {ycb} does not exist; {_DATA_HELP}")
         return load_folder(ycb, units="m", name="ycb10")
     return load_folder(Path(s).expanduser(), units=units, up=up)
+
+
+def _family_members(spec: str) -> int:
+    """The members per family of a checked ``families[:N]`` spec (:func:`check_object_spec`): ``N``, else 10."""
+    return int(spec.split(":", 1)[1]) if ":" in spec else 10
 
 
 #: The object sets :func:`load_object_set` knows by name (besides ``families:N`` and folders).
