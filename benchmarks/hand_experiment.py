@@ -81,6 +81,11 @@ PAPER = {
 }
 
 
+def _sd(x: np.ndarray) -> float:
+    """The sample standard deviation over seeds (ddof = 1; 0 for one seed)."""
+    return float(np.std(x, ddof=min(1, len(x) - 1)))
+
+
 def query_pools(objects, hand: str, n: int, split: str, seeds, queries: int, max_grasps: int) -> tuple[list, float] | None:
     """The query pools of ``split`` (``"test"``: pool seeds ``1000 + s``; ``"validation"``: ``500 + s``), one per seed
     with ``queries x max_grasps`` random-approach grasps per object, and their usable rate (>= 3 touching
@@ -250,7 +255,8 @@ def main(argv=None) -> int:
         f"{calib}{'; grasp vectors with the contacts heights above the table (--heights)' if args.heights else ''}"
         f"{'' if args.normal_axis == 't2' else f'; Phi_n with normal_axis={args.normal_axis!r}: ' + NORMAL_AXIS_WORDS[args.normal_axis]}. "
         "Success = decided and correct at the stop; accuracy = final prediction correct (decided or not). "
-        "Mean +- std over the test seeds. Paper: Pisa/IIT SoftHand for the 5-finger rows, real Allegro for the 4-finger rows.",
+        "Mean +- sample std (ddof = 1) over the test seeds. Paper: Pisa/IIT SoftHand for the 5-finger rows, real Allegro "
+        "for the 4-finger rows.",
         "",
         "| hand | fingers | normals | training | method | success % | accuracy % | grasps | paper (success % / grasps) | "
         "usable grasps | T (KDE / MLP) | K | training grasps / object | touch w |",
@@ -260,9 +266,9 @@ def main(argv=None) -> int:
         paper = PAPER[label].get(cols[(n, normals)])
         lines.append(
             f"| {hand} | {n} | {'yes' if normals else 'no'} | {regime} | {label} | "
-            f"{100 * r['success'].mean():.1f} +- {100 * r['success'].std():.1f} | "
-            f"{100 * r['accuracy'].mean():.1f} +- {100 * r['accuracy'].std():.1f} | "
-            f"{r['grasps'].mean():.2f} +- {r['grasps'].std():.2f} | {paper[0]} / {paper[1]} | {usable:.2f} | "
+            f"{100 * r['success'].mean():.1f} +- {100 * _sd(r['success']):.1f} | "
+            f"{100 * r['accuracy'].mean():.1f} +- {100 * _sd(r['accuracy']):.1f} | "
+            f"{r['grasps'].mean():.2f} +- {_sd(r['grasps']):.2f} | {paper[0]} / {paper[1]} | {usable:.2f} | "
             f"{temps['kde']:.2f} / {temps['classifier']:.2f} | {K} | {data:,} | {w:g} |")
     text = "\n".join(lines)
     print("\n" + text)
@@ -271,9 +277,9 @@ def main(argv=None) -> int:
     if rows:  # a cell fixed in advance: the first BC-NP row (the first hand and regime asked for), not the best one
         head = next((r for r in rows if r[4] == "BC-NP"), rows[0])
         s, g = head[5]["success"], head[5]["grasps"]
-        print(f"HEADLINE: {head[4]} success at the stop {100 * s.mean():.1f} +- {100 * s.std():.1f} % in "
-              f"{g.mean():.2f} +- {g.std():.2f} grasps ({head[0]}, {head[3]} training, "
-              f"{'with' if head[2] else 'without'} normals; mean +- std over {len(s)} seeds)")
+        print(f"HEADLINE: {head[4]} success at the stop {100 * s.mean():.1f} +- {100 * _sd(s):.1f} % in "
+              f"{g.mean():.2f} +- {_sd(g):.2f} grasps ({head[0]}, {head[3]} training, "
+              f"{'with' if head[2] else 'without'} normals; mean +- sample std over {len(s)} seeds)")
     return 0
 
 

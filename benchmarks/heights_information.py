@@ -107,7 +107,7 @@ def main(argv=None) -> int:
                         cells.append("-")
                         continue
                     acc = one_shot(tr, te, name)
-                    cells.append(f"{100 * acc.mean():.1f} +- {100 * acc.std():.1f} %")
+                    cells.append(f"{100 * acc.mean():.1f} +- {100 * np.std(acc, ddof=min(1, len(acc) - 1)):.1f} %")
                     if name == "phi":
                         base = acc.mean()
                     if name == "phi+heights":
@@ -116,8 +116,8 @@ def main(argv=None) -> int:
                 lines.append(f"| {hand} | {'yes' if normals else 'no'} | {what} | " + " | ".join(cells) + " |")
                 print(lines[-1], flush=True)
     text = (f"k-NN one-shot accuracy (15 neighbours), training pool seed 0 ({args.approaches} approaches per object), "
-            f"validation pools {args.validation_seeds} ({args.queries} approaches per object each); mean +- std over "
-            "the validation pools.\n\n" + "\n".join(lines))
+            f"validation pools {args.validation_seeds} ({args.queries} approaches per object each); mean +- sample std "
+            "over the validation pools.\n\n" + "\n".join(lines))
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
         cmd = "python benchmarks/heights_information.py " + " ".join(sys.argv[1:] if argv is None else argv)

@@ -189,14 +189,15 @@ def main(argv=None) -> int:
     lines = [f"YCB-10, {args.queries} queries per object x {len(args.seeds)} {args.split} pool seeds {args.seeds}, "
              f"<= {args.max_grasps} random-approach grasps per query, lambda = {args.threshold}. Scale s multiplies "
              "the calibrated per-grasp log-likelihood of the hand's registered env (s = 1; checked against the hand "
-             "table's updaters). Success = decided and correct at the stop, mean +- std over the pool seeds. Floor: "
-             "1 / usable rate, the mean grasps to the first grasp with >= 3 touching fingertips.", "",
+             "table's updaters). Success = decided and correct at the stop, mean +- sample std over the pool seeds. "
+             "Floor: 1 / usable rate, the mean grasps to the first grasp with >= 3 touching fingertips.", "",
              "| hand | normals | method | paper (success % / grasps) | floor (grasps) | " +
              " | ".join(f"s = {s:g}" for s in scales) + " |",
              "|---|---|---|---|---|" + "---|" * len(scales)]
     for hand, normals, method, usable, S, Gr in results:
         paper = PAPER[method][cols[(SETUPS[hand][0], normals)]]
-        cells = [f"{100 * S[i].mean():.1f} +- {100 * S[i].std():.1f} % / {Gr[i].mean():.2f}" for i in range(len(scales))]
+        cells = [f"{100 * S[i].mean():.1f} +- {100 * np.std(S[i], ddof=min(1, len(S[i]) - 1)):.1f} % / "
+                 f"{Gr[i].mean():.2f}" for i in range(len(scales))]
         lines.append(f"| {hand} | {'yes' if normals else 'no'} | {method} | {paper[0]} / {paper[1]} | "
                      f"{1 / usable:.2f} | " + " | ".join(cells) + " |")
     text = "\n".join(lines)
