@@ -66,3 +66,22 @@ def load_benchmark():
         return mod
 
     return load
+
+
+@pytest.fixture
+def usage_error(capsys):
+    """``usage_error(fn, *args, match=REGEX)``: ``fn(*args)`` must exit as a command line's usage error (argparse's
+    exit status 2) whose message matches ``match``; so a crash for another reason, or another flag's error, fails.
+    Returns the message."""
+    import re
+
+    def check(fn, *args, match: str) -> str:
+        capsys.readouterr()  # drop what came before
+        with pytest.raises(SystemExit) as exc:
+            fn(*args)
+        err = capsys.readouterr().err
+        assert exc.value.code == 2, (exc.value.code, err)
+        assert re.search(match, err), (match, err)
+        return err
+
+    return check

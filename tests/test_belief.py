@@ -134,8 +134,16 @@ def test_subset_scores_are_the_rows_of_each_grasps_subsets(recognizer):
         L, P = belief.scores(Q)
         np.testing.assert_allclose(ll[g], L.sum(0), rtol=1e-10)
         np.testing.assert_allclose(pr[g], P.mean(0), rtol=1e-10)
-    ll2, _, _ = belief.subset_scores(C, N, 3, k=2, rng=np.random.default_rng(0))
-    assert ll2.shape == ll.shape
+    # k = 2 random subsets per grasp: the two drawn from the same generator (an independent random order per grasp)
+    ll2, pr2, _ = belief.subset_scores(C, N, 3, k=2, rng=np.random.default_rng(0))
+    subsets = list(combinations(range(4), 3))
+    pick = np.argsort(np.random.default_rng(0).random((5, len(subsets))), axis=1)[:, :2]
+    for g in range(5):
+        Q = np.concatenate([recognizer.features(C[g][list(subsets[i])], N[g][list(subsets[i])]) for i in pick[g]])
+        L, P = belief.scores(Q)
+        np.testing.assert_allclose(ll2[g], L.sum(0), rtol=1e-10)
+        np.testing.assert_allclose(pr2[g], P.mean(0), rtol=1e-6)  # the MLP in float32, another batch size
+    assert not np.allclose(ll2, ll)  # two of the four subsets, not all of them
 
 
 def test_importing_the_kde_or_the_updaters_does_not_load_torch():

@@ -346,13 +346,19 @@ def test_z_finger_models_score_incomplete_grasps_and_subsets(env_config):
     # z-subset scoring: each scored grasp gives C(t, z) rows of the z-finger model
     env = HapticRecogEnv(env_config.replace(z_fingers=z, score_subsets=True))
     env.reset(seed=1)
+    from itertools import combinations
+    from math import comb
+
     res = env.backend.grasp(np.zeros(4), np.random.default_rng(0))
     _, Q = env.grasp_rows(res.contacts, res.normals, res.touched)
     t = int(res.touched.sum())
-    if Q is not None:
-        from math import comb
-
-        assert Q.shape[1] == feature_dim(z, env_config.normals) and len(Q) <= comb(t, z)
+    assert t == n and Q is not None and Q.shape == (comb(t, z), feature_dim(z, env_config.normals))
+    # the rows are Phi_z of each z-subset of the (complete) grasp, in some order
+    rec = env.unwrapped.recognizer
+    N = res.normals
+    expected = np.concatenate([rec.features(res.contacts[list(s)], None if N is None else N[list(s)])
+                               for s in combinations(range(t), z)])
+    np.testing.assert_allclose(np.sort(Q, axis=0), np.sort(expected, axis=0), rtol=1e-9, atol=1e-12)
 
 
 @pytest.mark.parametrize("z", [None, "n-1"])
@@ -632,9 +638,23 @@ def test_greedy_look_ahead_with_grasp_heights(env_config):
     agent = GreedyInfoGainAgent(n_candidates=4, n_samples=2, seed=0)
     obs, _ = env.reset(seed=1)
     agent.reset(env)
+    base = env.unwrapped
+    tables = [base.scene.support_height(k, base.pose) for k in range(base.n_classes)]
+    assert len(set(tables)) > 1  # the objects stand on tables at different heights: a shared one would be wrong
+    belief, seen = base.belief_state, []
+    predict = belief.predict_grasps
+
+    def spy(*args, support_z=None):  # each hypothesis's simulated grasps are measured from its own table
+        seen.append(support_z)
+        return predict(*args, support_z=support_z)
+
+    belief.predict_grasps = spy
     for _ in range(3):
+        seen.clear()
         obs, r, term, trunc, info = env.step(agent.act(obs, env))
         assert np.isfinite(r) and agent.last_scores.shape == (4,)
+        assert seen and all(any(z == pytest.approx(t) for t in tables) for z in seen)
+        assert len(set(seen)) == len(seen)  # one call per active hypothesis, each with its own table
         if term or trunc:
             break
 

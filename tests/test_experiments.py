@@ -16,7 +16,7 @@ def cache(tmp_path, monkeypatch):
     return tmp_path / "cache"
 
 
-def test_analysis_cli_smoke(tmp_path, cache):
+def test_analysis_cli_smoke(tmp_path, cache, usage_error):
     out = tmp_path / "out"
     rc = main(["analysis", "--out", str(out), "--experiments", "1,2,6", "--grasps-per-object", "200",
                "--test-grasps", "20", "--trials", "10", "--fingers", "4", "--oneshot-fingers", "4",
@@ -31,14 +31,14 @@ def test_analysis_cli_smoke(tmp_path, cache):
     from haptic_env.experiments.config import AnalysisConfig
     kde = AnalysisConfig().kde  # the analyses' default: the posterior criterion, both corrections weighed
     assert (kde.select, kde.correct, kde.correct_candidates) == ("posterior", "auto", ("matrix", "power"))
-    with pytest.raises(SystemExit):
-        main(["analysis", "--out", str(tmp_path / "bad"), "--kde-select", "median"])
-    with pytest.raises(SystemExit):
-        main(["analysis", "--out", str(tmp_path / "bad"), "--kde-corrections", "matrix,isotonic"])
+    usage_error(main, ["analysis", "--out", str(tmp_path / "bad"), "--kde-select", "median"],
+                match="--kde-select: invalid choice: 'median'")
+    usage_error(main, ["analysis", "--out", str(tmp_path / "bad"), "--kde-corrections", "matrix,isotonic"],
+                match=r"--kde-corrections must be distinct names of .*'isotonic'")
     assert not (tmp_path / "bad").exists()
 
 
-def test_analysis_with_normal_axis_ab_trains_and_tests_on_it(tmp_path, cache):
+def test_analysis_with_normal_axis_ab_trains_and_tests_on_it(tmp_path, cache, usage_error):
     """``--normal-axis ab`` reaches the training and the fresh test grasps alike (a one-shot cell learns them) and
     the report says so; a bad value is refused before anything is written."""
     from haptic_env.experiments.config import AnalysisConfig
@@ -62,12 +62,12 @@ def test_analysis_with_normal_axis_ab_trains_and_tests_on_it(tmp_path, cache):
     assert "factor auto by the calibrated posterior's validation NLL" in text  # the analyses' default criterion
     with pytest.raises(ValueError, match="normal_axis must be one of .*'t3'"):
         AnalysisConfig(normal_axis="t3")
-    with pytest.raises(SystemExit):
-        main(["analysis", "--out", str(tmp_path / "bad"), "--normal-axis", "t3"])
+    usage_error(main, ["analysis", "--out", str(tmp_path / "bad"), "--normal-axis", "t3"],
+                match="--normal-axis: invalid choice: 't3'")
     assert not (tmp_path / "bad").exists()
 
 
-def test_force_closure_reaches_training_test_and_contact_pools(tmp_path, cache):
+def test_force_closure_reaches_training_test_and_contact_pools(tmp_path, cache, usage_error):
     """``--force-closure MU`` trains and tests on force-closure grasps (the recogniser's dataset, the fresh pools, the
     z-finger experiment's raw contacts) and the report says so; finger counts below 3 are refused before any work."""
     from haptic_env.experiments.config import AnalysisConfig
@@ -87,9 +87,9 @@ def test_force_closure_reaches_training_test_and_contact_pools(tmp_path, cache):
     AnalysisConfig(force_closure=0.5, fingers=(2, 3), experiments=(1,))  # experiment 2 does not run: its fingers do not count
     with pytest.raises(ValueError, match="force_closure .* must be a finite number > 0 or None, got -1"):
         AnalysisConfig(force_closure=-1)
-    for flags in (["--force-closure", "0.5"], ["--force-closure", "0", "--fingers", "3"]):  # default fingers hold 2
-        with pytest.raises(SystemExit):
-            main(["analysis", "--out", str(tmp_path / "bad"), "--experiments", "2", *flags])
+    for flags, match in ((["--force-closure", "0.5"], r"force_closure needs every finger count >= 3"),  # default: 2..10
+                         (["--force-closure", "0", "--fingers", "3"], "--force-closure: must be a finite number")):
+        usage_error(main, ["analysis", "--out", str(tmp_path / "bad"), "--experiments", "2", *flags], match=match)
     assert not (tmp_path / "bad").exists()
 
 
@@ -192,7 +192,7 @@ def test_simulate_trials_reports_decided():
     assert np.array_equal(res["decided"], res["truth"] == 0)
 
 
-def test_ic_certainty_reaches_the_trials_and_is_checked(tmp_path):
+def test_ic_certainty_reaches_the_trials_and_is_checked(tmp_path, usage_error):
     """``AnalysisConfig.ic_certainty`` / ``--ic-certainty``: the authors' share rule stops IC sooner than the count
     rule on the same draws; a bad rule is refused by name before any work."""
     from haptic_env.experiments.config import AnalysisConfig
@@ -208,8 +208,8 @@ def test_ic_certainty_reaches_the_trials_and_is_checked(tmp_path):
     assert "IC certainty" not in AnalysisConfig().scores_label
     with pytest.raises(ValueError, match=r"ic_certainty must be one of \('count', 'share'\), got 'sum'"):
         AnalysisConfig(ic_certainty="sum")
-    with pytest.raises(SystemExit):
-        main(["analysis", "--out", str(tmp_path / "bad"), "--ic-certainty", "sum"])
+    usage_error(main, ["analysis", "--out", str(tmp_path / "bad"), "--ic-certainty", "sum"],
+                match="--ic-certainty: invalid choice: 'sum'")
     assert not (tmp_path / "bad").exists()
 
 

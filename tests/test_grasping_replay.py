@@ -125,7 +125,7 @@ def test_env_on_the_replay_backend(small_recognizer_kwargs):
         env.close()
 
 
-def test_fidelity_benchmark_runs_on_the_generic_hand(load_benchmark, capsys):
+def test_fidelity_benchmark_runs_on_the_generic_hand(load_benchmark, capsys, usage_error):
     """benchmarks/replay_fidelity.py on a small pool: the replay of a pool's own approaches (same seed) is exact."""
     fidelity = load_benchmark("replay_fidelity")
     assert fidelity.main(["--hand", "generic", "--objects", "default", "--approaches", "6", "--replay-seed", "4",
@@ -133,8 +133,7 @@ def test_fidelity_benchmark_runs_on_the_generic_hand(load_benchmark, capsys):
     out = capsys.readouterr().out
     assert "| **mean** | **100 %** | **100 %** | **0.0** |" in out  # the held-out pool is the replay's own
     assert out.strip().splitlines()[-1].startswith("replay backend: ")
-    with pytest.raises(SystemExit):
-        fidelity.main(["--approaches", "0"])
+    usage_error(fidelity.main, ["--approaches", "0"], match="--approaches: must be >= 1, got 0")
 
 
 def test_the_allegro_physics_turns_with_the_object():

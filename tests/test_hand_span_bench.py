@@ -21,12 +21,11 @@ def test_span_mask_keeps_exactly_the_grasps_within_span_and_apart(load_benchmark
         bench.span_mask(C, 0.1, 0.2)
 
 
-def test_a_tiny_run_writes_its_table(load_benchmark, tmp_path, capsys):
+def test_a_tiny_run_writes_its_table(load_benchmark, tmp_path, capsys, usage_error):
     bench = load_benchmark("hand_span")
     out = tmp_path / "span.md"
     assert bench.main(["--objects", "default", "--fingers", "4", "--grasps", "60", "--test-grasps", "10",
                        "--spans", "inf,0.12", "--min-seps", "0.01", "--out", str(out)]) == 0
     rows = [line for line in out.read_text().splitlines() if line.startswith("| 4 |")]
     assert len(rows) == 2 and "<= 0.12 m" in rows[1] and ">= 0.01 m" in rows[0]
-    with pytest.raises(SystemExit):
-        bench.main(["--spans", "0.1", "--min-seps", "0.2"])
+    usage_error(bench.main, ["--spans", "0.1", "--min-seps", "0.2"], match="0 <= --min-seps <= every span")
