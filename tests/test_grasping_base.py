@@ -63,7 +63,7 @@ def test_roll_rotates_thumb_about_axis():
 def test_make_backend_unknown_name_and_bad_config():
     with pytest.raises(ValueError, match="unknown grasp backend 'magic'"):
         make_backend("magic")
-    with pytest.raises(TypeError):
+    with pytest.raises(TypeError, match="unexpected keyword argument 'no_such_option'"):
         make_backend("geometric", 4, no_such_option=1)
     with pytest.raises(ValueError, match="n_fingers"):
         make_backend("geometric", 1)
