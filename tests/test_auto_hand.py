@@ -7,6 +7,8 @@ and the Menagerie hands where the shared data is present - goes through the same
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import pytest
 import trimesh
@@ -231,13 +233,32 @@ def test_synergy_holds_rotation_and_closes_coupled_fingers(tmp_path):
     assert cp.closing == {f"a_f{i}": 3.0 for i in range(3)} and not cp.held
 
 
-def test_given_tips_and_cache(tmp_path):
+def test_given_tips_and_cache(tmp_path, monkeypatch):
+    """Given tips are kept; the probe's result is written to ``<cache>/auto_hands/<hand>-<key>.json`` and a second
+    call with the same tips reads it back (the probe and the standoff trial would raise) and gives the same hand;
+    without the tips the key differs and the hand is probed again."""
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path / "cache"))  # an empty cache of this test's own
     path = _write(tmp_path, "g4", generic_hand(4).spec)
     tips = ("f0_tip", "f1_tip", "f2_tip", "f3_tip")
     d1 = make_backend("mujoco", 4, hand=path, hand_kwargs=(("tips", tips),)).hand
     assert d1.tips == tips and report(d1).tips_given
+    (cached,) = (tmp_path / "cache" / "auto_hands").glob("*.json")
+    assert cached.name.startswith("g4-")
+    stored = cached.read_text()
+
+    def probe(*args, **kwargs):
+        raise AssertionError("probed again: the cached result was not used")
+
+    module = sys.modules[auto_hand.__module__]
+    monkeypatch.setattr(module, "_synergy", probe)
+    monkeypatch.setattr(module, "standoff_trial", probe)
     d2 = auto_hand(path, tips)  # from the cache: same result
-    assert d2.close_ctrl == d1.close_ctrl and np.allclose(d2.approach_axis, d1.approach_axis)
+    assert d2.tips == tips and report(d2).tips_given
+    assert d2.close_ctrl == d1.close_ctrl and d2.open_ctrl == d1.open_ctrl and d2.max_steps == d1.max_steps
+    assert np.allclose(d2.approach_axis, d1.approach_axis) and d2.standoff == d1.standoff
+    assert cached.read_text() == stored  # read, not rewritten
+    with pytest.raises(AssertionError, match="probed again"):
+        auto_hand(path)  # detected tips: another cache entry
 
 
 def _spec_without(kind: str) -> mujoco.MjSpec:
@@ -282,10 +303,38 @@ def test_later_pass_closes_a_joint_that_acts_only_once_half_closed(tmp_path):
     assert rep.tips[-1] == "th_tip"
 
 
+def _best_standoff(trial: dict[str, float]) -> float:
+    """The standoff a trial ``{"%.4f" candidate: usable rate}`` should pick, worked out here: the candidate with the
+    highest rate, of tied ones the larger back-off; no trial (the tips do not reach forward): 0."""
+    return max((rate, float(st)) for st, rate in trial.items())[1] if trial else 0.0
+
+
 def test_approach_axis_leans_to_the_palm_normal(tmp_path):
+    """The flat hand's approach axis is within 30 degrees of its palm normal; its tips reach forward, so a standoff
+    trial runs, and the standoff is the trial's best candidate."""
     rep = report(auto_hand(_write(tmp_path, "flat", flat_hand()), cache=False))
     tilt = np.degrees(np.arccos(np.clip(np.dot(rep.approach_axis, [0, 0, 1]), -1, 1)))
     assert tilt < 30, (tilt, rep.approach_axis)
+    assert len(rep.standoff_trial) == 3 and np.isclose(rep.standoff, _best_standoff(rep.standoff_trial), atol=5e-5)
+
+
+@pytest.mark.parametrize("rates, best", [((0.5, 0.75, 0.75), 1), ((0.75, 0.75, 0.5), 0), ((0.8, 0.8, 0.8), 0),
+                                         ((0.2, 0.3, 0.9), 2), ((0.6, 0.9, 0.3), 1)])
+def test_standoff_trial_picks_the_best_rate_ties_to_the_larger(rates, best, tmp_path, monkeypatch):
+    """With the trial's usable rates set here, the standoff is the candidate (the tips' reach, half of it, 0) with
+    the highest rate, of tied ones the larger (``best``: its index), and the report keeps the rates."""
+    calls = []
+
+    def trial(desc, candidates):
+        calls.append(list(candidates))
+        return np.array(rates)
+
+    monkeypatch.setattr(sys.modules[auto_hand.__module__], "standoff_trial", trial)
+    rep = report(auto_hand(_write(tmp_path, "flat", flat_hand()), cache=False))
+    (cands,) = calls
+    assert len(cands) == 3 and cands[0] > 0 and np.isclose(cands[1], cands[0] / 2) and cands[2] == 0.0
+    assert rep.standoff_trial == {f"{c:.4f}": r for c, r in zip(cands, rates)}
+    assert rep.standoff == cands[best] and np.isclose(rep.standoff, _best_standoff(rep.standoff_trial), atol=5e-5)
 
 
 def test_pads_and_finger_couplings(tmp_path):
@@ -296,8 +345,7 @@ def test_pads_and_finger_couplings(tmp_path):
     assert not [e for e in desc.spec.equalities if e.type == mujoco.mjtEq.mjEQ_JOINT]
     for pos, r in desc.tip_sites:  # a pad: its site at the plate's centre, radius half its thickness
         assert np.allclose(pos, 0, atol=1e-9) and np.isclose(r, 0.002)
-    assert rep.standoff_trial == {} or rep.standoff in [float(k) for k in rep.standoff_trial] or \
-        any(np.isclose(rep.standoff, float(k), atol=1e-4) for k in rep.standoff_trial)
+    assert np.isclose(rep.standoff, _best_standoff(rep.standoff_trial), atol=5e-5), str(rep)
     # the equality carries the left finger's only drive: kept
     kept = auto_hand(_write(tmp_path, "grip1", gripper(mirror_only=True)), cache=False)
     assert report(kept).relaxed == () and [e for e in kept.spec.equalities if e.type == mujoco.mjtEq.mjEQ_JOINT]

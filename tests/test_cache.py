@@ -43,9 +43,13 @@ def test_cache_dir_honours_env(tmp_path, monkeypatch):
 
 
 def test_npz_round_trip(tmp_path):
+    """Every array saved comes back under its own name with its values, shape and dtype, and nothing else does."""
     p = save_npz_atomic(tmp_path / "d.npz", x=np.arange(5), y=np.eye(2))
     out = load_npz(p, required=("x", "y"))
+    assert sorted(out) == ["x", "y"]
     np.testing.assert_array_equal(out["x"], np.arange(5))
+    np.testing.assert_array_equal(out["y"], np.eye(2))
+    assert out["x"].dtype == np.arange(5).dtype and out["y"].dtype == np.float64 and out["y"].shape == (2, 2)
 
 
 def test_failed_write_leaves_nothing(tmp_path):

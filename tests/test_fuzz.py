@@ -8,12 +8,13 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import re
 import warnings
 
 import numpy as np
 import pytest
 import trimesh
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
@@ -46,9 +47,31 @@ values = st.one_of(
 )
 
 
+#: How the messages word a field whose name they do not spell out ("unknown object set 'x'", "object set '' has 0
+#: object(s)": the ``objects`` field).
+FIELD_WORDS = {"objects": "object set"}
+
+
+def _says(text: str, msg: str) -> bool:
+    """``text`` is in ``msg`` as a whole token (no word character either side) and has at least 3 characters: an
+    empty string, "1" or a one-letter name is inside almost any message and names nothing."""
+    return len(text) >= 3 and re.search(rf"(?<!\w){re.escape(text)}(?!\w)", msg) is not None
+
+
 def _names(exc: BaseException, field: str, value) -> bool:
+    """The error's message names ``field`` (its repr, or in quotes as Python's unknown-keyword message prints it, or
+    the name, or its wording in :data:`FIELD_WORDS`, as a whole word) or ``value`` (its repr, its text's repr or its
+    text, as a whole token), or, for a mapping ``value``, one of its keys or their values ("support must be 'table' or
+    'floating'" for ``backend_kwargs={"support": None}``); every match needs at least 3 characters, so that no short
+    name or value is found by accident, and None, True and False count only in quotes (the messages say "must be
+    None or ...", "score_subsets=True needs ...")."""
     msg = str(exc)
-    return any(s in msg for s in (field, repr(field), repr(value), str(value), repr(str(value))))
+    if any(_says(s, msg) for s in (repr(field), f"'{field}'", field, FIELD_WORDS.get(field, ""))):
+        return True
+    bare = () if value is None or isinstance(value, (bool, np.bool_)) else (repr(value), str(value))
+    if any(_says(s, msg) for s in (repr(str(value)), *bare)):
+        return True
+    return isinstance(value, dict) and any(_names(exc, str(k), v) for k, v in value.items())
 
 
 # ----------------------------------------------------------------------------------------- configs
@@ -81,11 +104,32 @@ def _check_config(cfg, field, value, env_config):
         e.close()
 
 
+def test_names_needs_a_real_mention():
+    """``_names`` (the fuzz tests' check of an error message) finds a field or value only where the message names it:
+    an empty string, a one-letter name or a short value that happens to be inside the message does not count."""
+    assert _names(ValueError("threshold must be in (0, 1], got 1.5"), "threshold", 1.5)
+    assert _names(ValueError("must be in (0, 1], got 1.5"), "threshold", 1.5)
+    assert _names(TypeError("HapticRecogConfig.__init__() got an unexpected keyword argument 'e'"), "e", 1)
+    assert _names(TypeError("got an unexpected keyword argument '\x1f'"), "\x1f", None)
+    assert _names(ValueError("unknown object set '': expected 'default'"), "objects", "")
+    assert _names(ValueError("support must be 'table' or 'floating', got None"), "backend_kwargs", {"support": None})
+    assert _names(ValueError("unknown object set 'True': expected 'default'"), "spec", True)
+    assert not _names(ValueError("pose must be one of ('so3', 'table-yaw')"), "reward", "")
+    assert not _names(ValueError("must be a mapping (dict), got 2"), "a", 1)
+    assert not _names(ValueError("threshold must be in (0, 1], got 0"), "x", 1)
+    assert not _names(ValueError("score_subsets=True needs z_fingers"), "normals", True)
+    assert not _names(ValueError("z_fingers must be None or in [2, n_fingers=4), got 5"), "subset_k", None)
+    assert not _names(ValueError("unknown HapticRecogConfig field(s); valid: ['backend', 'pose']"), "e", "end")
+
+
 @FAST
 @given(field=st.one_of(st.sampled_from(FIELDS), st.text(min_size=1, max_size=10)), value=values)
+@example(field="pose", value="")  # an empty value is in every message: the message must name the field
+@example(field="e", value=1)  # a one-letter unknown name is in almost every message: it must be quoted
+@example(field="max_grasps", value=0)  # so is a short number: the message must name the field
 def test_fuzz_config_fields(env_config, field, value):
     """``HapticRecogConfig(**{field: value})`` and ``.replace(...)``: a working config or a ValueError / TypeError
-    whose message names the field or the value (unknown names included)."""
+    whose message names the field or the value (unknown names included; see :func:`_names`)."""
     for make in (lambda: env_config.replace(**{field: value}), lambda: HapticRecogConfig(**{field: value})):
         try:
             cfg = make()

@@ -290,15 +290,34 @@ def test_members_the_hand_cannot_grasp_are_left_out_and_a_family_without_members
     assert (hds.X_train[:, 6:] >= -1e-6).all() and (hds.X_train[:, 6:].max(1) > 0.1).all()  # above the table
 
 
-def test_family_votes_plot_draws_every_object_including_one_without_grasps(tmp_path):
+def test_family_votes_plot_draws_every_object_including_one_without_grasps(tmp_path, monkeypatch):
     """The votes plot takes one ``(K, F)`` vote matrix per updater; an object without grasps (a zero row) is drawn
-    empty and labelled, not skipped, so the rows line up with the table."""
+    empty and labelled, not skipped, so the rows line up with the table: the figure handed to ``_save`` has one
+    panel per updater whose y tick labels are all the objects in order, whose bars in each row add up to that
+    object's votes, and which writes "no grasps to vote on (expected: ...)" on the empty row only."""
     from matplotlib.image import imread
 
-    from haptic_env.experiments.plots import plot_family_votes
+    from haptic_env.experiments import plots
 
+    saved = []
+    real_save = plots._save
+    monkeypatch.setattr(plots, "_save", lambda fig, path: (saved.append(fig), real_save(fig, path)))
+    names = ["box", "cube", "ring"]
     votes = {"IC": np.array([[10, 0, 0], [0, 0, 0], [2, 3, 5]]), "BC-NP": np.array([[5, 5, 0], [0, 0, 0], [0, 0, 10]])}
     path = tmp_path / "votes.png"
-    plot_family_votes(["box", "cube", "ring"], ["box", "box", None], votes, FAMILIES, "'x'", path)
+    plots.plot_family_votes(names, ["box", "box", None], votes, FAMILIES, "'x'", path)
     img = imread(path)
     assert img.ndim == 3 and img.shape[0] >= 250 and img.shape[1] > img.shape[0]
+    (fig,) = saved
+    panels = [ax for ax in fig.axes if ax.get_title().endswith(" votes, 'x'")]
+    assert [ax.get_title() for ax in panels] == ["IC votes, 'x'", "BC-NP votes, 'x'"]
+    assert [t.get_text() for t in panels[0].get_yticklabels()] == names  # the shared y axis, labelled on the left
+    for ax, V in zip(panels, votes.values()):
+        np.testing.assert_array_equal(ax.get_yticks(), [0, 1, 2])
+        assert [ax.yaxis.get_major_formatter()(y, i) for i, y in enumerate(ax.get_yticks())] == names
+        rows = np.zeros(len(names))
+        for bar in ax.patches:
+            rows[round(bar.get_y() + bar.get_height() / 2)] += bar.get_width()
+        np.testing.assert_allclose(rows, V.sum(1))
+        notes = [(t.get_text(), t.get_position()[1]) for t in ax.texts]
+        assert notes == [("no grasps to vote on (expected: box)", 1)]
