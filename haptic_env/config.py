@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from haptic_env.grasp_features import check_normal_axis
+from haptic_env.numbers import finite_number
 from haptic_env.recognizers.touch import check_touch_weight
 from haptic_env.recognizers.updaters import DEFAULT_IC_CERTAINTY, DEFAULT_THRESHOLD, UPDATERS, check_ic_certainty
 from haptic_env.recognizers.zfinger import check_min_fingers, check_subset_k
@@ -182,8 +183,8 @@ class HapticRecogConfig:
             raise ValueError(f"pose must be one of {POSE_MODES}, got {self.pose!r}")
         if not (isinstance(self.threshold, (int, float)) and 0.0 < self.threshold <= 1.0):
             raise ValueError(f"threshold must be in (0, 1], got {self.threshold!r}")
-        if not (isinstance(self.grasp_cost, (int, float, np.integer, np.floating))
-                and math.isfinite(self.grasp_cost) and self.grasp_cost >= 0.0):
+        cost = finite_number(self.grasp_cost)
+        if cost is None or cost < 0.0:
             raise ValueError(f"grasp_cost must be a finite number >= 0, got {self.grasp_cost!r}")
         if not isinstance(self.max_grasps, (int, np.integer)) or self.max_grasps < 1:
             raise ValueError(f"max_grasps must be an int >= 1, got {self.max_grasps!r}")

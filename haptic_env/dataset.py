@@ -31,6 +31,7 @@ from .force_closure import DEFAULT_EDGES, FRAMES, check_friction, force_closure
 from .grasp_features import check_normal_axis, feature_dim, normalize_scale, phi
 from .grasping.base import support_height
 from .hand_grasps import BUDGETS
+from .numbers import finite_number
 from .objects import SAMPLING_METHODS, UP_AXES, GraspObject, ObjectSet, load_object_set
 
 __all__ = [
@@ -136,7 +137,8 @@ class DatasetConfig:
             raise ValueError(f"seed must be an int >= 0, got {self.seed!r}")
         for fname in ("contact_noise", "normal_noise_deg"):
             v = getattr(self, fname)
-            if not np.isfinite(v) or v < 0:
+            f = finite_number(v)
+            if f is None or f < 0:
                 raise ValueError(f"{fname} must be finite and >= 0, got {v!r}")
         if self.scale_range is not None:
             sr = tuple(float(v) for v in self.scale_range)

@@ -65,6 +65,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from haptic_env.numbers import finite_number
+
 __all__ = ["primitive_wrenches", "force_closure", "epsilon_quality", "check_friction", "DEFAULT_EDGES", "DEFAULT_MU",
            "METHODS", "FRAMES"]
 
@@ -84,10 +86,10 @@ _CHUNK = 50_000
 def check_friction(value, name: str = "force_closure") -> float:
     """``value`` as a float if it is a friction coefficient a force-closure filter can use (finite, ``> 0``: with no
     friction no grasp of fewer than 7 contacts is in closure), else a ``ValueError`` naming ``name`` and the value."""
-    ok = not isinstance(value, bool) and isinstance(value, (int, float, np.number)) and np.isfinite(value) and value > 0
-    if not ok:
+    f = finite_number(value)
+    if f is None or f <= 0:
         raise ValueError(f"{name} (a friction coefficient) must be a finite number > 0 or None, got {value!r}")
-    return float(value)
+    return f
 
 
 def _check(contacts, normals, mu, edges, frame) -> tuple[np.ndarray, np.ndarray, bool]:

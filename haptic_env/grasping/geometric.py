@@ -34,6 +34,8 @@ from typing import Any, NamedTuple
 import numpy as np
 import trimesh
 
+from haptic_env.numbers import finite_number
+
 from . import _geometric_kernels as gk
 from .base import (
     ACTION_DIM,
@@ -78,9 +80,11 @@ class GeometricConfig:
             raise ValueError(f"support must be 'table' or 'floating', got {self.support!r}")
         for name in ("contact_noise", "normal_noise_deg", "table_clearance"):
             v = getattr(self, name)
-            if not np.isfinite(v) or v < 0:
+            f = finite_number(v)
+            if f is None or f < 0:
                 raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
-        if not np.isfinite(self.margin) or self.margin <= 1.0:
+        margin = finite_number(self.margin)
+        if margin is None or margin <= 1.0:
             raise ValueError(f"margin must be > 1, got {self.margin!r}")
         if not np.isfinite(self.reach) or self.reach <= 0:
             raise ValueError(f"reach must be > 0, got {self.reach!r}")

@@ -42,6 +42,8 @@ import numpy as np
 
 import mujoco
 
+from haptic_env.numbers import finite_number
+
 from .base import (
     ACTION_DIM,
     GraspBatch,
@@ -106,8 +108,14 @@ class MujocoConfig:
             v = getattr(self, name)
             if v is None and name == "timestep":
                 continue
-            if not np.isfinite(v) or v <= 0:
+            f = finite_number(v)
+            if f is None or f <= 0:
                 raise ValueError(f"{name} must be > 0, got {v!r}")
+        for name in ("contact_noise", "normal_noise_deg"):
+            v = getattr(self, name)
+            f = finite_number(v)
+            if f is None or f < 0:
+                raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
         if self.max_steps is not None and (int(self.max_steps) != self.max_steps or self.max_steps < 1):
             raise ValueError(f"max_steps must be an int >= 1 or None, got {self.max_steps!r}")
 

@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from haptic_env.numbers import finite_number
+
 __all__ = ["MAX_TOUCH_FINGERS", "TouchModel", "check_touch_weight", "touch_patterns"]
 
 #: fingers a pattern table may have (``2 ** n`` patterns per object)
@@ -33,10 +35,10 @@ MAX_TOUCH_FINGERS = 16
 
 def check_touch_weight(w) -> float:
     """``w`` as a float; a ``ValueError`` naming it unless it is a finite number >= 0 (0: the pattern is off)."""
-    if isinstance(w, bool) or not isinstance(w, (int, float, np.integer, np.floating)) or not (
-            np.isfinite(w) and w >= 0):
+    f = finite_number(w)
+    if f is None or f < 0:
         raise ValueError(f"touch_weight must be a finite number >= 0, got {w!r}")
-    return float(w)
+    return f
 
 
 def touch_patterns(touched) -> np.ndarray:

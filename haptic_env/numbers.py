@@ -1,0 +1,26 @@
+"""What a setting accepts as a real number: the one check behind the configs' numeric fields.
+
+``np.isfinite`` alone is not that check: it raises numpy's own ``TypeError`` (naming neither the field nor the
+value) for a string or for a Python ``int`` beyond int64, and it takes ``True`` as 1. The configs call
+:func:`finite_number` first and then raise their own ``ValueError`` naming the field and the value.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["finite_number"]
+
+
+def finite_number(value) -> float | None:
+    """``value`` as a float if it is a finite real number (``int``, ``float`` or a numpy scalar of either, of any
+    size, not ``bool``), else None (strings, ``bool``, arrays, NaN, +-inf, and ints too large for a float)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        return None
+    try:
+        f = float(value)
+    except OverflowError:
+        return None
+    return f if math.isfinite(f) else None
