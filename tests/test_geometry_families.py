@@ -15,10 +15,9 @@ def test_family_set_scale_range():
     wide = family_set(3, np.random.default_rng(0))  # default range still (0.5, 1.5) x 0.08 m
     e = np.concatenate([o.mesh.extents for o in wide])
     assert e.min() >= 0.04 - 1e-6 and e.max() <= 0.12 + 1e-6 and e.max() - e.min() > 0.02
-    with pytest.raises(ValueError):
-        family_set(1, np.random.default_rng(0), scale_range=(0.0, 1.0))
-    with pytest.raises(ValueError):
-        family_set(1, np.random.default_rng(0), scale_range=(1.5, 0.5))
+    for bad in ((0.0, 1.0), (1.5, 0.5)):
+        with pytest.raises(ValueError, match=r"scale_range must be \(lo, hi\) with 0 < lo <= hi"):
+            family_set(1, np.random.default_rng(0), scale_range=bad)
 
 
 def test_family_set_size_range_scales_each_member_as_a_whole():
@@ -167,7 +166,7 @@ def test_family_floor_is_chosen_on_validation_members_and_helps_where_grasps_mis
             family_floor(kde, X_held, y_held, X, fam, member, quantiles=bad, grasps=10, seed=0)
 
 
-def test_family_source_is_checked_and_reaches_the_grasps(tmp_path):
+def test_family_source_is_checked_and_reaches_the_grasps(tmp_path, usage_error):
     from haptic_env.cli import main
     from haptic_env.experiments.config import AnalysisConfig
 
@@ -209,13 +208,19 @@ def test_family_source_is_checked_and_reaches_the_grasps(tmp_path):
     for bad in ((), (1.0,), (-0.1, 0.0), ("0",)):
         with pytest.raises(ValueError, match="family_floors must be a non-empty tuple of quantiles in"):
             AnalysisConfig(family_floors=bad)
-    for flags in (["--family-source", "allegro"], ["--family-scale-range", "0.75"],
-                  ["--family-scale-range", "1,x"], ["--family-scale-range", "0,1"], ["--family-size-range", "2,1"],
-                  ["--family-heights"],  # heights need the hand's table
-                  ["--family-force-closure", "0"], ["--family-source", "hand", "--family-force-closure", "0.5"],
-                  ["--family-floors", "0,x"], ["--family-floors", ","], ["--family-floors", "1"]):
-        with pytest.raises(SystemExit):
-            main(["analysis", "--out", str(tmp_path / "bad"), "--experiments", "5", *flags])
+    for flags, match in ((["--family-source", "allegro"], "--family-source: invalid choice: 'allegro'"),
+                         (["--family-scale-range", "0.75"], "--family-scale-range: expected LO,HI, got '0.75'"),
+                         (["--family-scale-range", "1,x"], "--family-scale-range: expected LO,HI, got '1,x'"),
+                         (["--family-scale-range", "0,1"], r"family_scale_range must be \(lo, hi\) with 0 < lo"),
+                         (["--family-size-range", "2,1"], r"family_size_range must be None or \(lo, hi\)"),
+                         (["--family-heights"], "family_heights needs family_source='hand'"),  # the hand's table
+                         (["--family-force-closure", "0"], "--family-force-closure: must be a finite number"),
+                         (["--family-source", "hand", "--family-force-closure", "0.5"],
+                          "family_force_closure filters surface grasps"),
+                         (["--family-floors", "0,x"], "--family-floors: expected comma-separated numbers, got '0,x'"),
+                         (["--family-floors", ","], "--family-floors: expected comma-separated numbers, got ','"),
+                         (["--family-floors", "1"], r"family_floors must be a non-empty tuple of quantiles")):
+        usage_error(main, ["analysis", "--out", str(tmp_path / "bad"), "--experiments", "5", *flags], match=match)
         assert not (tmp_path / "bad").exists()
 
 
