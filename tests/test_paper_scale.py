@@ -68,18 +68,12 @@ def test_interrupt_keeps_finished_cells(paper_scale, tmp_path, monkeypatch):
     assert len(list((out / "cells").glob("*.json"))) == 2
 
 
-def test_bad_flags(paper_scale, tmp_path):
-    with pytest.raises(SystemExit):
-        paper_scale.parse_args(["--out", str(tmp_path), "--nets", "huge"])
-    with pytest.raises(SystemExit):
-        paper_scale.parse_args(["--out", str(tmp_path), "--fingers", "2"])
-    with pytest.raises(SystemExit):
-        paper_scale.parse_args(["--out", str(tmp_path), "--weight-decay", "-1"])
-    for flag, bad in (("--lr-decay", "0"), ("--lr-decay", "1.5"), ("--lr", "0"), ("--max-epochs", "0"), ("--patience", "0"),
+def test_bad_flags(paper_scale, tmp_path, usage_error):
+    for flag, bad in (("--nets", "huge"), ("--fingers", "2"), ("--weight-decay", "-1"), ("--lr-decay", "0"),
+                      ("--lr-decay", "1.5"), ("--lr", "0"), ("--max-epochs", "0"), ("--patience", "0"),
                       ("--batch-size", "0"), ("--threads", "0"), ("--test-grasps", "0"), ("--knn-k", "0"),
                       ("--val-fraction", "1"), ("--val-fraction", "-0.1"), ("--force-closure", "0")):
-        with pytest.raises(SystemExit):
-            paper_scale.parse_args(["--out", str(tmp_path), flag, bad])
+        usage_error(paper_scale.parse_args, ["--out", str(tmp_path), flag, bad], match=f"error: (argument )?{flag}: ")
 
 
 def test_weight_decay_reaches_the_mlp_and_its_own_cells(paper_scale, tmp_path, monkeypatch):
@@ -120,12 +114,17 @@ def test_force_closure_reaches_training_and_test_grasps(paper_scale, tmp_path, m
         paper_scale.parse_args(["--out", str(out), "--force-closure", "0.5"]))
 
 
-def test_sampling_protocol_rejects_bad_values_first(load_benchmark):
+def test_sampling_protocol_rejects_bad_values_first(load_benchmark, usage_error):
+    """Each bad value is refused by its own message (before the decimation, which needs fast-simplification)."""
     protocol = load_benchmark("sampling_protocol")
-    for bad in (["--fingers", "2"], ["--grasps", "10"], ["--faces", "4"], ["--force-closure", "0"],
-                ["--curve", "a"], ["--curve", "10"], ["--plot", "x.png"]):
-        with pytest.raises(SystemExit):
-            protocol.main(bad)
+    for bad, match in ((["--fingers", "2"], "--fingers must be >= 3, got 2"),
+                       (["--grasps", "10"], "--grasps must be >= 50, got 10"),
+                       (["--faces", "4"], "--faces must be >= 20, got 4"),
+                       (["--test-grasps", "0"], "--test-grasps must be >= 1, got 0"),
+                       (["--force-closure", "0"], "--force-closure must be > 0"),
+                       (["--curve", "a"], "--curve: a comma list"), (["--curve", "10"], "--curve: grasp counts >= 50"),
+                       (["--plot", "x.png"], "--plot draws the --curve")):
+        usage_error(protocol.main, bad, match=match)
 
 
 def test_sampling_protocol_authors_vector(load_benchmark):
@@ -192,3 +191,18 @@ def test_sampling_protocol_authors_chain(load_benchmark):
     assert sp.authors_chain(square, None) is None  # coplanar: Qhull fails
     inside = np.array([[2.0, 0, 0], [0, 2, 0], [0, 0, 2], [-1, -1, -1], [0, 0, 0]])
     assert sp.authors_chain(inside, None) is None  # the fifth contact lies inside the hull of the other four
+
+
+def test_sampling_protocol_chooses_k_on_validation(load_benchmark):
+    """A row's ``k`` is the one best on the validation grasps, not on the test grasps: one class-1 training point
+    inside class 0's interval makes k = 1 right on a validation query labelled 1 there and wrong on a test query
+    labelled 0 at the same place, where k = 15 and 50 are right."""
+    sp = load_benchmark("sampling_protocol")
+    rng = np.random.default_rng(0)
+    X = np.concatenate([rng.uniform(0, 1, 100), [0.5], rng.uniform(5, 6, 100)])[:, None]
+    y = np.array([0] * 100 + [1] * 101)
+    here = np.array([[0.5]])
+    accs, j = sp.validated_knn((X, y), (here, np.array([1])), (here, np.array([0])))
+    assert (accs, j) == ([0.0, 1.0, 1.0], 0)  # k = 1 chosen, and its test accuracy is the row's figure
+    assert sp.knn_accuracy(X, y, here, np.array([0])) == accs
+    assert "**0.0 %** | 100.0 % | 100.0 % | 1" == sp._cells(accs, j)
