@@ -30,6 +30,7 @@ def test_configs_name_a_bad_number(bad):
                         (lambda: DatasetConfig(normal_noise_deg=bad), "normal_noise_deg"),
                         (lambda: GeometricConfig(contact_noise=bad), "contact_noise"),
                         (lambda: GeometricConfig(margin=bad), "margin"),
+                        (lambda: GeometricConfig(reach=bad), "reach"),
                         (lambda: MujocoConfig(contact_noise=bad), "contact_noise"),
                         (lambda: MujocoConfig(rest_qvel=bad), "rest_qvel"),
                         (lambda: check_friction(bad), "force_closure"),

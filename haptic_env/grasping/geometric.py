@@ -86,7 +86,8 @@ class GeometricConfig:
         margin = finite_number(self.margin)
         if margin is None or margin <= 1.0:
             raise ValueError(f"margin must be > 1, got {self.margin!r}")
-        if not np.isfinite(self.reach) or self.reach <= 0:
+        reach = finite_number(self.reach)
+        if reach is None or reach <= 0:
             raise ValueError(f"reach must be > 0, got {self.reach!r}")
         if not 0.0 < self.min_spread <= 1.0:
             raise ValueError(f"min_spread must be in (0, 1], got {self.min_spread!r}")
