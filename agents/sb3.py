@@ -211,6 +211,7 @@ def _run_guard(save_path: Path, algo: str, checkpoint_freq: int, max_minutes: fl
             self.stopped = False  # learn() was stopped early (not: reached total_timesteps)
             self._safe: int | None = None
             self._saved_at = -1
+            self.saving = False  # inside save(): a signal now is deferred to its end
 
         def request_stop(self, reason: str, signum: int | None = None) -> None:
             if self.stop_reason is None:
@@ -246,19 +247,44 @@ def _run_guard(save_path: Path, algo: str, checkpoint_freq: int, max_minutes: fl
                 self.model.num_timesteps = self._safe
 
         def save(self) -> Path:
-            """Save the model (and replay buffer / VecNormalize) as ``<algo>_<num_timesteps>_steps.zip``."""
+            """Save the model (and replay buffer / VecNormalize) as ``<algo>_<num_timesteps>_steps.zip``.
+
+            Each file is written under a temporary name and moved into place, the model's zip last: a checkpoint
+            :func:`latest_checkpoint` finds is whole, with its extras. A signal during the save waits for it
+            (``saving``, read by :func:`_stop_on_signals`)."""
             self.num_timesteps = self.model.num_timesteps  # the file names use it
             path = Path(self._checkpoint_path(extension="zip"))
             if self._saved_at != self.num_timesteps:
-                self.model.save(path)
-                if getattr(self.model, "replay_buffer", None) is not None:
-                    self.model.save_replay_buffer(self._checkpoint_path("replay_buffer_", extension="pkl"))
-                if self.model.get_vec_normalize_env() is not None:
-                    self.model.get_vec_normalize_env().save(self._checkpoint_path("vecnormalize_", extension="pkl"))
+                self.saving = True
+                try:
+                    if getattr(self.model, "replay_buffer", None) is not None:
+                        _save_atomic(self._checkpoint_path("replay_buffer_", extension="pkl"),
+                                     self.model.save_replay_buffer)
+                    if self.model.get_vec_normalize_env() is not None:
+                        _save_atomic(self._checkpoint_path("vecnormalize_", extension="pkl"),
+                                     self.model.get_vec_normalize_env().save)
+                    _save_atomic(path, self.model.save)
+                finally:
+                    self.saving = False
                 self._saved_at = self.num_timesteps
             return path
 
     return RunGuard()
+
+
+def _save_atomic(path, save) -> None:
+    """``save(tmp)`` into a temporary file beside ``path`` (a name no checkpoint search matches), then move it to
+    ``path``: a kill mid-write leaves no file under the final name. ``save`` is an SB3 saver taking a path
+    (``model.save``, ``save_replay_buffer``, ``VecNormalize.save``); the temporary name keeps the final suffix,
+    which SB3 would otherwise append."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
+    try:
+        save(str(tmp))
+        os.replace(tmp, path)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
 
 
 @contextlib.contextmanager
@@ -273,6 +299,8 @@ def _stop_on_signals(guard):
 
     def handler(signum, frame):
         if guard.stop_reason is not None and guard.signum is not None:
+            if guard.saving:  # a checkpoint being written: let it finish (the run stops right after)
+                return
             raise KeyboardInterrupt
         guard.request_stop(signal.Signals(signum).name, signum)
 
@@ -335,7 +363,10 @@ def train(algo: str, venv, total_timesteps: int, log_dir: str | os.PathLike, *, 
                 venv = loaded
         model = load_model(resume, algo, env=venv)
         model.tensorboard_log = str(log_dir / "tb")
-        if "replay_buffer" in extras and hasattr(model, "load_replay_buffer"):
+        if hasattr(model, "load_replay_buffer"):  # SAC: without its buffer it would go on as another run
+            if "replay_buffer" not in extras:
+                raise ValueError(f"checkpoint {resume} has no replay buffer beside it ({Path(resume).name} from a run "
+                                 "killed while saving?); resume from an earlier checkpoint, or delete this one")
             model.load_replay_buffer(str(extras["replay_buffer"]))
     else:
         model = build_model(algo, venv, seed=seed, log_dir=log_dir, verbose=verbose, **hyperparams)
@@ -365,7 +396,11 @@ def train(algo: str, venv, total_timesteps: int, log_dir: str | os.PathLike, *, 
         if guard.stopped:  # time limit: a checkpoint to resume from, and the final model
             guard.save()
         path = log_dir / f"{algo}_final.zip"
-        model.save(str(path))
+        guard.saving = True  # a signal now lets the final model finish
+        try:
+            _save_atomic(path, model.save)
+        finally:
+            guard.saving = False
     return model, path
 
 

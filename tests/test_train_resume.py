@@ -216,3 +216,39 @@ def test_vecnormalize_stats_are_checkpointed_and_resumed(env_config, tmp_path):
     assert model.num_timesteps == 192
     assert v.obs_rms.count >= saved + 64  # continued from the saved statistics
     assert load_from_pkl(tmp_path / "checkpoints" / "ppo_vecnormalize_192_steps.pkl").obs_rms.count >= saved + 64
+
+
+def test_checkpoints_are_written_whole_extras_first(env_config, tmp_path, monkeypatch):
+    """A save killed mid-write leaves no file under a checkpoint's name (``latest_checkpoint`` never picks a torn
+    one); the SAC replay buffer is written before the model's zip, so a zip found has its buffer; and resuming SAC
+    from a zip without its buffer is refused instead of going on as another run."""
+    from agents import sb3
+
+    def torn(path):  # a saver killed after writing half its file
+        with open(path, "wb") as fh:
+            fh.write(b"PK\x03\x04half")
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        sb3._save_atomic(tmp_path / "ppo_64_steps.zip", torn)
+    assert list(tmp_path.iterdir()) == [] and sb3.latest_checkpoint(tmp_path) is None
+
+    cfg = env_config.replace(max_grasps=10)
+    order = []
+    real = sb3._save_atomic
+    monkeypatch.setattr(sb3, "_save_atomic", lambda path, save: (order.append(Path(path).name), real(path, save)))
+    venv = sb3.make_vec_env(cfg, n_envs=1, vec="dummy")
+    sb3.train("sac", venv, 64, tmp_path / "run", checkpoint_freq=32, learning_starts=16, batch_size=16,
+              buffer_size=500, train_freq=8, gradient_steps=1)
+    venv.close()
+    assert order[:2] == ["sac_replay_buffer_32_steps.pkl", "sac_32_steps.zip"] and order[-1] == "sac_final.zip"
+    ckpt = sb3.latest_checkpoint(tmp_path / "run", "sac")
+    assert ckpt.name == "sac_64_steps.zip" and set(sb3.checkpoint_extras(ckpt)) == {"replay_buffer"}
+    assert not list((tmp_path / "run").rglob(".*tmp*"))
+    sb3.checkpoint_extras(ckpt)["replay_buffer"].unlink()
+    venv = sb3.make_vec_env(cfg, n_envs=1, vec="dummy")
+    try:
+        with pytest.raises(ValueError, match="has no replay buffer beside it"):
+            sb3.train("sac", venv, 96, tmp_path / "run", checkpoint_freq=32, resume=ckpt)
+    finally:
+        venv.close()
