@@ -78,8 +78,8 @@ class Args:
     recognizer_kwargs, backend_kwargs, object_kwargs)."""
     hyperparams: str = "{}"
     """JSON dict of algorithm hyper-parameters, merged into ``agents.sb3.DEFAULT_HYPERPARAMS[algo]``."""
-    progress_bar: bool = False
-    """Show SB3's progress bar."""
+    progress_bar: bool = field(default_factory=lambda: sys.stderr.isatty())
+    """Show SB3's progress bar (default: when stderr is a terminal, not in a log file)."""
     verbose: int = 0
     """SB3 verbosity."""
 

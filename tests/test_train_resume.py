@@ -211,8 +211,8 @@ def test_vecnormalize_stats_are_checkpointed_and_resumed(env_config, tmp_path):
     assert set(extras) == {"vecnormalize"} and extras["vecnormalize"].name == "ppo_vecnormalize_128_steps.pkl"
     saved = load_from_pkl(extras["vecnormalize"]).obs_rms.count
     v = venv()
-    model, _ = sb3.train("ppo", v, 192, tmp_path, checkpoint_freq=64, resume=ckpt, **hp)
-    v.close()
+    model, _ = sb3.train("ppo", v, 192, tmp_path, checkpoint_freq=64, resume=ckpt, progress_bar=True, **hp)
+    v.close()  # (with SB3's progress bar, which needs rich: train.py shows it in a terminal)
     assert model.num_timesteps == 192
     assert v.obs_rms.count >= saved + 64  # continued from the saved statistics
     assert load_from_pkl(tmp_path / "checkpoints" / "ppo_vecnormalize_192_steps.pkl").obs_rms.count >= saved + 64
