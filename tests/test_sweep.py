@@ -387,3 +387,28 @@ def test_two_node_cluster(tmp_path, haptic_cache):
     node_ids = {attempts(j.run_dir(out))[0]["node"] for j in spec.jobs if j.kind == "command"}
     assert len(node_ids) == 2, node_ids
     assert (out / "report.md").is_file() and (out / "leaderboard.png").is_file()
+
+
+def test_a_retried_train_job_reuses_a_finished_model_and_resumes_otherwise(tmp_path, monkeypatch):
+    """A train job whose earlier attempt saved the final model (but died before the job's ``done.json``) returns it
+    without training again; with only checkpoints, the retry runs train.py with ``--resume``."""
+    from haptic_env.sweep import jobs
+
+    p = {"algo": "ppo", "env_id": "HapticRecog-v0", "total_timesteps": 256, "n_envs": 1, "vec": "dummy", "seed": 0,
+         "checkpoint_freq": 128, "max_minutes": 0, "env_kwargs": {}, "hyperparams": {}}
+    runs = []
+
+    def run_logged(cmd, log, cwd, pidfile):
+        runs.append(cmd)
+        (tmp_path / "ppo_final.zip").write_bytes(b"model")
+        return 0
+
+    monkeypatch.setattr(jobs, "_run_logged", run_logged)
+    (tmp_path / "checkpoints").mkdir()
+    (tmp_path / "checkpoints" / "ppo_128_steps.zip").write_bytes(b"checkpoint")
+    out = jobs._train(p, tmp_path, 2, {})
+    assert len(runs) == 1 and runs[0][-2:] == ["--resume", str(tmp_path)]
+    assert out["resumed_from"].endswith("ppo_128_steps.zip")
+    out = jobs._train(p, tmp_path, 3, {})
+    assert len(runs) == 1 and out == {"model": str(tmp_path / "ppo_final.zip"), "resumed_from": None,
+                                      "reused_final_model": True}

@@ -192,13 +192,15 @@ def _train(p: dict[str, Any], run_dir: Path, attempt: int, job: dict[str, Any]) 
         raise FileNotFoundError(f"{TRAIN_PY} not found: train jobs need the haptic-recog source checkout")
     _wait_previous(run_dir / "train.pid")
     final = run_dir / f"{p['algo']}_final.zip"
+    if final.is_file():  # an earlier attempt finished training but not the job (train.py writes it whole, last)
+        return {"model": str(final), "resumed_from": None, "reused_final_model": True}
     cmd = [sys.executable, str(TRAIN_PY), "--algo", p["algo"], "--env-id", p["env_id"],
            "--total-timesteps", str(p["total_timesteps"]), "--n-envs", str(p["n_envs"]), "--vec", p["vec"],
            "--seed", str(p["seed"]), "--run-dir", str(run_dir), "--checkpoint-freq", str(p["checkpoint_freq"]),
            "--max-minutes", str(p["max_minutes"]), "--env-kwargs", json.dumps(p["env_kwargs"]),
            "--hyperparams", json.dumps(p["hyperparams"])]
     resumed = latest_checkpoint(run_dir, p["algo"])
-    if resumed is not None and not final.is_file():
+    if resumed is not None:
         cmd += ["--resume", str(run_dir)]
     log = run_dir / "train.log"
     rc = _run_logged(cmd, log, cwd=TRAIN_PY.parent, pidfile=run_dir / "train.pid")
