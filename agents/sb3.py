@@ -68,6 +68,11 @@ def _env_fn(config, rank: int, monitor_dir: str | None, env_id: str, monitor_suf
     return _init
 
 
+#: ``make_vec_env(vec=...)`` (and ``train.py --vec``): one process per env, all in this process, or the native
+#: batched vector env (``haptic_env.vector_env``)
+VEC_KINDS = ("subproc", "dummy", "native")
+
+
 def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.PathLike | None = None,
                  vec: str = "subproc", env_id: str = "HapticRecog-v0", monitor_suffix: str = ""):
     """``n_envs`` monitored copies of the env. ``vec="subproc"`` runs each in its own process (which ignores
@@ -77,7 +82,7 @@ def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.
 
     from haptic_env.env import HapticRecogConfig, get_recognizer
 
-    if vec not in ("subproc", "dummy", "native"):
+    if vec not in VEC_KINDS:
         raise ValueError(f"vec must be 'subproc', 'dummy' or 'native', got {vec!r}")
     config = config or HapticRecogConfig()
     monitor_dir = None

@@ -92,6 +92,18 @@ def test_a_changed_env_variant_is_a_new_job(monkeypatch):
     ({"name": "x", "env_ids": ["HapticRecog-v0"], "agent": [{"name": "typo"}]}, "baseline agent"),
     ({"name": "x", "agent": [{"name": "random"}]}, "without any env"),
     ({"name": "x", "dataset": [{"fingers": [1]}]}, "n_fingers"),
+    # a trained agent's and an analysis job's settings: refused at load, not on a worker hours later
+    ({"name": "x", "env_ids": ["HapticRecog-v0"], "agent": [{"name": "p", "algo": "ppo", "vec": "bogus"}]},
+     r"agent\[0\].vec: expected one of \('subproc', 'dummy', 'native'\), got 'bogus'"),
+    ({"name": "x", "env_ids": ["HapticRecog-v0"], "agent": [{"name": "p", "algo": "ppo", "max_minutes": -5}]},
+     r"max_minutes: expected a number >= 0 \(0: no limit\), got -5"),
+    ({"name": "x", "env_ids": ["HapticRecog-v0"],
+      "agent": [{"name": "s", "algo": "sac", "hyperparams": {"bogus_key": 1}}]},
+     r"hyperparams: unknown SAC hyperparameter\(s\) \['bogus_key'\]"),
+    ({"name": "x", "analysis": [{"flags": {"no_such_flag": 3}}]}, "unrecognized arguments: --no-such-flag 3"),
+    ({"name": "x", "analysis": [{"flags": {"trials": 0}}]}, r"analysis\[0\].flags: trials must be an int >= 1, got 0"),
+    ({"name": "x", "analysis": [{"flags": {"experiments": "2", "force_closure": 0.5}}]},
+     "force_closure needs every finger count >= 3"),
 ])
 def test_bad_specs_are_one_line_errors(doc, match):
     with pytest.raises(SpecError, match=match):
@@ -412,3 +424,15 @@ def test_a_retried_train_job_reuses_a_finished_model_and_resumes_otherwise(tmp_p
     out = jobs._train(p, tmp_path, 3, {})
     assert len(runs) == 1 and out == {"model": str(tmp_path / "ppo_final.zip"), "resumed_from": None,
                                       "reused_final_model": True}
+
+
+def test_analysis_argv_spells_the_flags_as_the_job_runs_them():
+    """An analysis job's flags as ``haptic-recog`` arguments: true -> the bare flag, false -> left out, a list ->
+    comma-joined, ``--quiet`` added unless given (the same list the spec checks at load)."""
+    from haptic_env.sweep.spec import analysis_argv
+
+    flags = {"experiments": "2", "fingers": [3, 4], "no_normals": True, "raw": False}
+    assert analysis_argv("kit8", flags, "/o") == ["analysis", "--out", "/o", "--objects", "kit8", "--experiments", "2",
+                                                  "--fingers", "3,4", "--no-normals", "--quiet"]
+    assert analysis_argv("kit8", {"quiet": True}, "/o")[-1] == "--quiet"
+    assert analysis_argv("kit8", {"quiet": True}, "/o").count("--quiet") == 1

@@ -196,8 +196,20 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def _run_cli(args) -> int:
+    from haptic_env.experiments.analysis import run_analysis
+
+    cfg = config_from_args(args)
+    path = run_analysis(cfg, args.out, command=_equivalent_command(args))
+    print(path.read_text())
+    print(f"wrote {path}")
+    return 0
+
+
+def config_from_args(args) -> AnalysisConfig:
+    """The :class:`AnalysisConfig` of parsed ``analysis`` arguments; a bad setting is a
+    :class:`~haptic_env.cli.UsageError` (also used by sweep specs, to check an analysis job's flags at load)."""
     from haptic_env.cli import UsageError
-    from haptic_env.experiments.analysis import EXPERIMENTS, run_analysis
+    from haptic_env.experiments.analysis import EXPERIMENTS
     from haptic_env.recognizers.kde import KDEConfig
     from haptic_env.recognizers.mlp import MLPConfig
 
@@ -237,7 +249,4 @@ def _run_cli(args) -> int:
     bad = [e for e in cfg.experiments if e not in EXPERIMENTS]
     if bad:
         raise UsageError(f"--experiments: unknown experiment(s) {bad}; choose from {sorted(EXPERIMENTS)}")
-    path = run_analysis(cfg, args.out, command=_equivalent_command(args))
-    print(path.read_text())
-    print(f"wrote {path}")
-    return 0
+    return cfg

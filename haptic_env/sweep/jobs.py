@@ -252,16 +252,10 @@ def _dataset(p: dict[str, Any], run_dir: Path, attempt: int, job: dict[str, Any]
 
 
 def _analysis(p: dict[str, Any], run_dir: Path, attempt: int, job: dict[str, Any]) -> dict[str, Any]:
+    from haptic_env.sweep.spec import analysis_argv
+
     out = run_dir / "analysis"
-    cmd = [sys.executable, "-m", "haptic_env.cli", "analysis", "--out", str(out), "--objects", str(p["objects"])]
-    for k, v in p["flags"].items():
-        flag = "--" + k.replace("_", "-")
-        if v is True:
-            cmd.append(flag)
-        elif v is not False:
-            cmd += [flag, ",".join(map(str, v)) if isinstance(v, list) else str(v)]
-    if "quiet" not in p["flags"]:
-        cmd.append("--quiet")
+    cmd = [sys.executable, "-m", "haptic_env.cli", *analysis_argv(p["objects"], p["flags"], out)]
     log = run_dir / "analysis.log"
     rc = _run_logged(cmd, log)
     if rc != 0:

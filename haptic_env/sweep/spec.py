@@ -145,6 +145,38 @@ def _int(v: Any, where: str, lo: int = 0) -> int:
     return v
 
 
+def _train_vec(v: Any, where: str) -> str:
+    """A trained agent's ``vec``: what ``train.py --vec`` takes (checked here, not hours later on a worker)."""
+    from agents.sb3 import VEC_KINDS
+
+    if v not in VEC_KINDS:
+        raise SpecError(f"{where}.vec: expected one of {VEC_KINDS}, got {v!r}")
+    return v
+
+
+def _minutes(v: Any, where: str) -> float:
+    """A trained agent's ``max_minutes``: a number >= 0 (0: no time limit)."""
+    from haptic_env.numbers import finite_number
+
+    f = finite_number(v)
+    if f is None or f < 0:
+        raise SpecError(f"{where}.max_minutes: expected a number >= 0 (0: no limit), got {v!r}")
+    return f
+
+
+def _hyperparams(algo: str, hp: Any, where: str) -> dict[str, Any]:
+    """A trained agent's ``hyperparams``: a table of keys its SB3 class takes (``agents.sb3.check_hyperparams``)."""
+    from agents.sb3 import check_hyperparams
+
+    if not isinstance(hp, dict):
+        raise SpecError(f"{where}.hyperparams: expected a table, got {hp!r}")
+    try:
+        check_hyperparams(algo, hp)
+    except ValueError as exc:
+        raise SpecError(f"{where}.hyperparams: {exc}") from None
+    return hp
+
+
 def _envs(doc: dict) -> dict[str, tuple[str, dict[str, Any]]]:
     from haptic_env import ENV_VARIANTS, variant_config
 
@@ -218,9 +250,10 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
                 train = Job("train", f"{env}/{name}/seed{s}", {
                     "algo": a["algo"], "env_id": env_id, "env_variant": variant, "env_kwargs": kwargs, "seed": s,
                     "total_timesteps": _int(a.get("total_timesteps", 200_000), f"{where}.total_timesteps", 1),
-                    "n_envs": n_envs, "vec": a.get("vec", "dummy" if n_envs == 1 else "subproc"),
+                    "n_envs": n_envs, "vec": _train_vec(a.get("vec", "dummy" if n_envs == 1 else "subproc"), where),
                     "checkpoint_freq": _int(a.get("checkpoint_freq", 20_000), f"{where}.checkpoint_freq", 1),
-                    "max_minutes": float(a.get("max_minutes", 0.0)), "hyperparams": a.get("hyperparams", {}),
+                    "max_minutes": _minutes(a.get("max_minutes", 0.0), where),
+                    "hyperparams": _hyperparams(a["algo"], a.get("hyperparams", {}), where),
                 }, cpus=float(a.get("cpus", n_envs)))
                 jobs.append(train)
                 deps = (train.id,)
@@ -256,6 +289,39 @@ def _dataset_jobs(doc: dict) -> list[Job]:
     return jobs
 
 
+def analysis_argv(objects: str, flags: dict[str, Any], out) -> list[str]:
+    """``haptic-recog`` arguments of an analysis job: ``analysis --out OUT --objects OBJECTS`` and its ``flags``
+    (``key = true``: the bare flag; a list: comma-joined), ``--quiet`` unless the flags say otherwise."""
+    argv = ["analysis", "--out", str(out), "--objects", str(objects)]
+    for k, v in flags.items():
+        flag = "--" + k.replace("_", "-")
+        if v is True:
+            argv.append(flag)
+        elif v is not False:
+            argv += [flag, ",".join(map(str, v)) if isinstance(v, list) else str(v)]
+    return argv if "quiet" in flags else [*argv, "--quiet"]
+
+
+def _check_analysis_flags(objects: str, flags: dict[str, Any], where: str) -> None:
+    """The job's flags parsed and turned into an ``AnalysisConfig`` as ``haptic-recog analysis`` will, so that a
+    bad flag or value is a :class:`SpecError` now, not a failed job after its retries."""
+    import contextlib
+    import io
+
+    from haptic_env.cli import UsageError, build_parser
+    from haptic_env.experiments.cli import config_from_args
+
+    err = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(err):
+            args = build_parser().parse_args(analysis_argv(objects, flags, "unused"))
+        config_from_args(args)
+    except SystemExit:
+        raise SpecError(f"{where}.flags: {err.getvalue().strip().splitlines()[-1]}") from None
+    except UsageError as exc:
+        raise SpecError(f"{where}.flags: {exc}") from None
+
+
 def _analysis_jobs(doc: dict, datasets: list[Job]) -> list[Job]:
     """One job per object set; it waits for the spec's dataset jobs of that set (the analysis then reads their
     grasps from the cache instead of generating them a second time)."""
@@ -268,6 +334,7 @@ def _analysis_jobs(doc: dict, datasets: list[Job]) -> list[Job]:
             raise SpecError(f"{where}: flags must be a table of `haptic-recog analysis` flags other than "
                             f"--out and --objects, got {flags!r}")
         for objects in _as_list(t.get("objects", "default")):
+            _check_analysis_flags(objects, flags, where)
             label = _safe(t.get("name", objects)) + ("" if "name" not in t else f"/{_safe(objects)}")
             deps = tuple(d.id for d in datasets if d.params["objects"] == objects)
             jobs.append(Job("analysis", label, {"objects": objects, "flags": flags}, deps=deps,
