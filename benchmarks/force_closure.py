@@ -132,6 +132,16 @@ def main(argv=None) -> int:
         ap.error(f"--fingers: a comma list of integers, got {args.fingers!r}")
     if not fingers or min(fingers) < 3:
         ap.error(f"--fingers: finger counts >= 3 (fewer are never in force closure), got {args.fingers!r}")
+    hand = None
+    if args.hand:  # resolved before the tables, so that a typo does not wait for them
+        from haptic_env.grasping.hands import HandUnavailableError, load_hand
+
+        try:
+            hand = load_hand(args.hand, None)
+        except HandUnavailableError as exc:
+            print(f"the hand's transfer will be skipped: {exc}")
+        except ValueError as exc:
+            ap.error(f"--hand: {exc}")
     from tqdm.auto import tqdm
 
     from haptic_env.experiments.config import PAPER_KNN  # imports the analyses (torch): only when run
@@ -163,13 +173,13 @@ def main(argv=None) -> int:
                 print(f"| {n} | {'yes' if normals else 'no'} | {row} | {paper} |", flush=True)
         se = 100 * np.sqrt(0.25 / (len(objects) * args.test_grasps))
         print(f"\nbinomial standard error of one cell <= {se:.1f} points\n")
-    if args.hand:
-        from haptic_env.grasping.hands import HandUnavailableError, load_hand
+    if hand is not None:
+        from haptic_env.grasping.hands import HandUnavailableError
         from haptic_env.hand_grasps import hand_grasp_pool
 
         ycb = load_object_set("ycb10")
         try:
-            pool = hand_grasp_pool(ycb, args.hand, load_hand(args.hand, None).n_fingers, 300, seed=500)
+            pool = hand_grasp_pool(ycb, args.hand, hand.n_fingers, 300, seed=500)
         except HandUnavailableError as exc:
             print(f"skipping the hand: {exc}")
         else:

@@ -215,6 +215,9 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if args.touch_weight is not None and not (np.isfinite(args.touch_weight) and args.touch_weight >= 0):
         ap.error(f"--touch-weight must be a finite number >= 0, got {args.touch_weight}")
+    for spec in args.hands:  # every name checked before the first hand's pools are built
+        if spec.partition("=")[0] not in SETUPS:
+            ap.error(f"--hands: unknown hand {spec.partition('=')[0]!r}; choose from {list(SETUPS)}")
     if data_dir() is None:
         print("the hand experiment needs the YCB meshes (ycb/ in the shared data folder; set HAPTIC_DATA)")
         return 1
@@ -223,8 +226,6 @@ def main(argv=None) -> int:
     for spec in args.hands:
         name, _, hand = spec.partition("=")
         hand = hand or name
-        if name not in SETUPS:
-            ap.error(f"--hands: unknown hand {name!r}; choose from {list(SETUPS)}")
         n, normal_settings = SETUPS[name]
         got = query_pools(objects, hand, n, args.split, args.seeds, args.queries, args.max_grasps)
         if got is None:

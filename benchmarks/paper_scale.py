@@ -119,6 +119,18 @@ def parse_args(argv=None) -> argparse.Namespace:
         p.error(f"--nets: unknown {bad}; choose from {sorted(NETS)}")
     if min(args.fingers, default=3) < 3:
         p.error("--fingers: n >= 3")
+    if min(args.grasps, default=1) < 2:  # each cell splits its grasps into training and validation
+        p.error(f"--grasps: counts >= 2 per object, got {args.grasps}")
+    if args.trials_per_object < 1:
+        p.error(f"--trials-per-object: must be >= 1, got {args.trials_per_object}")
+    if not 0.0 < args.threshold <= 1.0:
+        p.error(f"--threshold: must be in (0, 1], got {args.threshold}")
+    from haptic_env.objects.loaders import check_object_spec
+
+    try:
+        check_object_spec(args.objects)
+    except ValueError as exc:
+        p.error(f"--objects: {exc}")
     return args
 
 
@@ -449,10 +461,10 @@ def main(argv=None) -> int:
     cells = cell_list(args)
     todo = [c for c in cells if args.force or not cell_path(out, c, h).exists()]
     print(f"{len(cells)} cells, {len(cells) - len(todo)} done, {len(todo)} to run (settings {h})", flush=True)
+    objects = load_object_set(args.objects, data_dir=args.data_dir)  # missing data: an error before any file
     out.mkdir(parents=True, exist_ok=True)
     with open(out / "commands.txt", "a") as fh:
         fh.write(command + "\n")
-    objects = load_object_set(args.objects, data_dir=args.data_dir)
     data = _Data(objects, args)
     t_start = time.perf_counter()
     prev = signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))

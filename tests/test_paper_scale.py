@@ -72,7 +72,8 @@ def test_bad_flags(paper_scale, tmp_path, usage_error):
     for flag, bad in (("--nets", "huge"), ("--fingers", "2"), ("--weight-decay", "-1"), ("--lr-decay", "0"),
                       ("--lr-decay", "1.5"), ("--lr", "0"), ("--max-epochs", "0"), ("--patience", "0"),
                       ("--batch-size", "0"), ("--threads", "0"), ("--test-grasps", "0"), ("--knn-k", "0"),
-                      ("--val-fraction", "1"), ("--val-fraction", "-0.1"), ("--force-closure", "0")):
+                      ("--val-fraction", "1"), ("--val-fraction", "-0.1"), ("--force-closure", "0"),
+                      ("--grasps", "0"), ("--trials-per-object", "0"), ("--threshold", "1.5"), ("--objects", "nope")):
         usage_error(paper_scale.parse_args, ["--out", str(tmp_path), flag, bad], match=f"error: (argument )?{flag}: ")
 
 
