@@ -376,8 +376,12 @@ def write_report(records: Sequence[EpisodeRecord], out: str | Path, max_grasps: 
         "the fraction of episodes decided and correct within tau grasps.\n")
     curves = {r["agent"]: success_curve([e for e in records if e.agent == r["agent"]], max_grasps).tolist()
               for r in rows}
-    paths["json"].write_text(json.dumps({"summary": rows, "success_vs_grasps": curves, "rliable": agg}, indent=2))
-    with open(paths["csv"], "w", newline="") as fh:
+    from haptic_env.cache import atomic_write
+
+    # whole or not at all: a later sweep report reads these back (--prior-report)
+    with atomic_write(paths["json"], "w") as fh:
+        fh.write(json.dumps({"summary": rows, "success_vs_grasps": curves, "rliable": agg}, indent=2))
+    with atomic_write(paths["csv"], "w") as fh:
         w = csv.DictWriter(fh, fieldnames=list(asdict(records[0]).keys()))
         w.writeheader()
         for r in records:
