@@ -111,6 +111,9 @@ def main(argv=None) -> int:
           "faces\n")
     print("| meshes | contacts | kNN k = 1 | k = 15 | k = 50 | k chosen on validation |")
     print("|---|---|---|---|---|---|")
+    from tqdm.auto import tqdm
+
+    bar = tqdm(total=6, desc="rows", unit="row", file=sys.stderr)  # a row takes seconds to minutes
     chosen = {}
     meshes = (("full (about 25,000 faces)", list(objects)), (f"decimated ({args.faces} faces)", decimated))
     for mesh_label, objs in meshes:
@@ -122,6 +125,7 @@ def main(argv=None) -> int:
             chosen[mesh_label, label] = accs[j], len(test[1])
             print(f"| {mesh_label} | {label} | {_cells(accs, j)} |  <!-- {time.perf_counter() - t0:.0f} s -->",
                   flush=True)
+            bar.update()
     for order in ("their order (sorted face indices)", "shuffled"):
         t0 = time.perf_counter()
         train, val, test = (authors_data(decimated, count, args.fingers, seed, sort=order != "shuffled",
@@ -130,6 +134,8 @@ def main(argv=None) -> int:
         accs, j = validated_knn(train, val, test)
         print(f"| decimated ({args.faces} faces) | centres of uniform faces, the authors' vector, {order} | "
               f"{_cells(accs, j)} |  <!-- {time.perf_counter() - t0:.0f} s -->", flush=True)
+        bar.update()
+    bar.close()
     (ours, n_ours), (paper, n_paper) = (chosen["full (about 25,000 faces)", "area-uniform points"],
                                         chosen[f"decimated ({args.faces} faces)", "centres of uniform faces"])
     se = 100 * np.hypot(*(np.sqrt(p * (1 - p) / m) for p, m in ((ours, n_ours), (paper, n_paper))))

@@ -150,8 +150,8 @@ def family_vectors(objects, dc: DatasetConfig, cfg: AnalysisConfig) -> list[np.n
     ones are kept (an object the hand never grasps with 4 fingers gets 0 rows), or the dataset's surface or
     geometric-hand grasps (``dc.grasps_per_object`` each)."""
     if cfg.family_source == "hand":
-        return [X.astype(np.float64) for X in hand_vectors(objects, dc, progress=False)]
-    ds = build_dataset(objects, dc, progress=False)
+        return [X.astype(np.float64) for X in hand_vectors(objects, dc, progress=cfg.progress)]
+    ds = build_dataset(objects, dc, progress=cfg.progress)
     return [ds.X_train[ds.y_train == k].astype(np.float64) for k in range(len(objects))]
 
 
@@ -160,9 +160,9 @@ def member_grasps(members, dc: DatasetConfig, cfg: AnalysisConfig, role: str):
     the hand does not grasp with 4 fingers (too small or too flat for it) is left out; a family left without members
     gets an error that says which setting to change."""
     if cfg.family_source != "hand":
-        return build_dataset(members, dc, progress=False), {}
+        return build_dataset(members, dc, progress=cfg.progress), {}
     try:
-        ds, left_out = hand_dataset(members, dc, progress=False)
+        ds, left_out = hand_dataset(members, dc, progress=cfg.progress)
     except RuntimeError as e:
         raise _too_small(cfg, f"none of the {len(members)} {role} members") from e
     _check_families(members, left_out, cfg, role)
