@@ -1,6 +1,9 @@
 """The paper's experiments (haptic_env/experiments): the analysis CLI on a tiny configuration (default objects, generated
 in code), the trial runner, calibration summaries; and build_recognizer, which they train through."""
 
+import dataclasses
+import json
+
 import numpy as np
 import pytest
 
@@ -280,3 +283,48 @@ def test_analysis_config_names_a_bad_setting(kw, message):
     with pytest.raises(ValueError, match=message):
         AnalysisConfig(**kw)
 
+
+
+def test_an_interrupted_analysis_resumes_after_its_finished_experiments(tmp_path, monkeypatch):
+    """After each experiment the report, the finished experiments and the rng's state are saved; the same settings
+    in the same folder skip what finished and give the report of an uninterrupted run (the rng continues from the
+    saved state); other settings start over; a completed run leaves no state behind."""
+    import haptic_env.experiments.analysis as analysis
+    from haptic_env.experiments.config import AnalysisConfig
+
+    calls, fail = [], {"at": None}
+
+    def fake(e):
+        def run(objects, cfg, rep, rng):
+            calls.append(e)
+            if fail["at"] == e:
+                raise KeyboardInterrupt
+            rep.h(f"experiment {e}")
+            rep.p(f"draw {rng.random():.12f}")  # what an rng restored wrongly would change
+        return type("Fake", (), {"run": staticmethod(run)})
+
+    monkeypatch.setattr(analysis, "EXPERIMENTS", {e: fake(e) for e in (1, 2, 3)})
+    monkeypatch.setattr(analysis.time, "perf_counter", lambda: 0.0)  # the report's "_experiment e: 0 s_" lines
+    cfg = AnalysisConfig(experiments=(1, 2, 3), progress=False)
+    whole = analysis.run_analysis(cfg, tmp_path / "whole").read_text()
+    assert calls == [1, 2, 3] and not (tmp_path / "whole" / analysis.STATE_FILE).exists()
+
+    calls.clear()
+    fail["at"] = 3
+    with pytest.raises(KeyboardInterrupt):
+        analysis.run_analysis(cfg, tmp_path / "cut")
+    state = json.loads((tmp_path / "cut" / analysis.STATE_FILE).read_text())
+    assert calls == [1, 2, 3] and state["done"] == [1, 2]
+    calls.clear()
+    fail["at"] = None
+    assert analysis.run_analysis(cfg, tmp_path / "cut").read_text() == whole and calls == [3]
+    assert not (tmp_path / "cut" / analysis.STATE_FILE).exists()
+
+    calls.clear()
+    fail["at"] = 2
+    with pytest.raises(KeyboardInterrupt):
+        analysis.run_analysis(cfg, tmp_path / "other")
+    calls.clear()
+    fail["at"] = None
+    analysis.run_analysis(dataclasses.replace(cfg, seed=1), tmp_path / "other")
+    assert calls == [1, 2, 3]  # another seed: nothing of the saved run is reused

@@ -2,10 +2,18 @@
 
 Experiments share one rng (seeded by ``cfg.seed``), drawn in the order they run, and the recognisers that
 :func:`~haptic_env.recognizers.build_recognizer` caches.
+
+An interrupted run resumes: after each experiment, ``out/.analysis_state.json`` keeps the report so far, the
+finished experiments and the rng's state (written atomically). The same settings in the same folder skip the
+finished experiments and draw what follows from the saved state, so the report is the one an uninterrupted run
+writes. The file is removed when the run completes; other settings start over.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
+import json
 import time
 from pathlib import Path
 from types import ModuleType
@@ -37,6 +45,16 @@ def run_analysis(cfg: AnalysisConfig, out: str | Path, command: str | None = Non
     out.mkdir(parents=True, exist_ok=True)
     objects = load_object_set(cfg.objects, data_dir=cfg.data_dir, units=cfg.units, up=cfg.up)
     rep = Report(out)
+    rng = np.random.default_rng(cfg.seed)
+    state_path, key = out / STATE_FILE, settings_key(cfg)
+    state = _load_state(state_path, key)
+    if state is not None:
+        rep.lines, done = state["lines"], state["done"]
+        rng.bit_generator.state = state["rng"]
+        if cfg.progress:
+            print(f"resuming {out}: experiment(s) {done} finished earlier (delete {state_path} to start over)",
+                  flush=True)
+        return _run(cfg, objects, rep, rng, done, state_path, key)
     rep.lines = [f"# Recognition analysis: `{cfg.objects}` ({len(objects)} objects: {', '.join(objects.names)})", ""]
     if command:
         rep.lines += ["```", command, "```", ""]
@@ -52,13 +70,47 @@ def run_analysis(cfg: AnalysisConfig, out: str | Path, command: str | None = Non
                      f"surface grasp in force closure at friction {cfg.force_closure:g}.")
                   + (" Experiment 2's BC beliefs use a stop scale chosen on validation trials (the default)."
                      if cfg.uses_stop_scale else "")]
-    rng = np.random.default_rng(cfg.seed)
+    return _run(cfg, objects, rep, rng, [], state_path, key)
+
+
+#: the resume state of an unfinished run, in its output folder
+STATE_FILE = ".analysis_state.json"
+
+
+def settings_key(cfg: AnalysisConfig) -> str:
+    """What a run's results depend on (every setting but ``progress``), hashed: a saved state resumes only a run
+    with the same key."""
+    fields = {k: v for k, v in dataclasses.asdict(cfg).items() if k != "progress"}
+    return hashlib.sha256(json.dumps(fields, sort_keys=True, default=repr).encode()).hexdigest()[:16]
+
+
+def _load_state(path: Path, key: str) -> dict | None:
+    """The saved state of an unfinished run with these settings, or None (none, other settings, unreadable)."""
+    try:
+        state = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    return state if isinstance(state, dict) and state.get("key") == key else None
+
+
+def _run(cfg, objects, rep: Report, rng, done: list[int], state_path: Path, key: str) -> Path:
+    """The experiments not in ``done``, each followed by the report and the resume state; the state file is removed
+    at the end."""
+    from haptic_env.cache import atomic_write
+
     for e in cfg.experiments:
+        if e in done:
+            continue
         t0 = time.perf_counter()
         EXPERIMENTS[e].run(objects, cfg, rep, rng)
         rep.p(f"_experiment {e}: {time.perf_counter() - t0:.0f} s_")
         rep.write()
-    return rep.write()
+        done = [*done, e]
+        with atomic_write(state_path, "w") as fh:
+            json.dump({"key": key, "done": done, "rng": rng.bit_generator.state, "lines": rep.lines}, fh)
+    path = rep.write()
+    state_path.unlink(missing_ok=True)
+    return path
 
 
 def _select_words(kde) -> str:

@@ -191,7 +191,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--kde-method", default=d.kde.method, choices=("tree", "pooled", "dense", "subsample"))
     p.add_argument("--seed", type=int, default=d.seed)
     p.add_argument("--quiet", action="store_true", help="no progress bars")
-    p.set_defaults(func=_run_cli)
+    p.set_defaults(func=_run_cli, interrupt_note="finished experiments are saved; the same command resumes after them")
     return p
 
 
