@@ -12,6 +12,9 @@ env steps of uniformly random actions, resetting at every termination / truncati
 filled), at the middle and at the end; steps/s counts everything after the warm-up, resets included.
 Runs on ONE core per child (OMP/MKL/torch threads = 1), one child at a time.
 
+With ``--out``, each finished variant is kept beside it (``.<out>.partial.json``) until the table is written: the
+same command resumes after an interruption, running only the variants that had not finished.
+
 Target: no crash, RSS growth after the warm-up <= 20 MB per variant over 100,000 steps. Exit status 1
 if any variant crashed or grew more. Not in CI (hours for the MuJoCo variant); the short version is the
 slow test ``tests/test_soak.py``. The headline is the last line.
@@ -25,9 +28,11 @@ for _v in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
 import argparse  # noqa: E402
+import collections  # noqa: E402
 import json  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
+import threading  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
@@ -132,20 +137,60 @@ def _child(name: str, steps: int, warmup: int, seed: int) -> None:
     print("SOAK-RESULT " + json.dumps(soak(env_id, kw, steps, warmup, seed)), flush=True)
 
 
+def child_command(name: str, steps: int, warmup: int, seed: int) -> list[str]:
+    """The command line of one variant's child process."""
+    return [sys.executable, str(Path(__file__).resolve()), "--child", name, "--steps", str(steps),
+            "--warmup", str(warmup), "--seed", str(seed)]
+
+
 def run_variant(name: str, steps: int, warmup: int, seed: int, timeout: float | None) -> dict[str, Any]:
-    """One variant in a child process: its result, or ``{"error": ...}`` (crash, timeout)."""
-    cmd = [sys.executable, str(Path(__file__).resolve()), "--child", name, "--steps", str(steps),
-           "--warmup", str(warmup), "--seed", str(seed)]
+    """One variant in a child process: its result, or ``{"error": ...}`` (crash, timeout). The child's stderr (its
+    progress bars) is passed through as it comes."""
+    proc = subprocess.Popen(child_command(name, steps, warmup, seed), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    out, err = [], collections.deque(maxlen=200)  # the child's stdout; the end of its stderr, for a crash's line
+
+    def pump(stream, keep, echo):
+        for chunk in iter(lambda: stream.read(512), ""):
+            keep.append(chunk)
+            if echo:  # the child's progress bars (a hand's grasp pool takes minutes) reach the terminal
+                sys.stderr.write(chunk)
+                sys.stderr.flush()
+
+    threads = [threading.Thread(target=pump, args=a, daemon=True)
+               for a in ((proc.stdout, out, False), (proc.stderr, err, True))]
+    for t in threads:
+        t.start()
     try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=ROOT)
+        proc.wait(timeout=timeout)
     except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
         return {"error": f"timed out after {timeout:.0f} s"}
-    for line in proc.stdout.splitlines():
+    finally:
+        for t in threads:
+            t.join(timeout=5)
+    for line in "".join(out).splitlines():
         if line.startswith("SOAK-RESULT "):
             return json.loads(line[len("SOAK-RESULT "):])
-    tail = (proc.stderr.strip().splitlines() or ["(no output)"])[-1]
+    tail = ("".join(err).replace("\r", "\n").strip().splitlines() or ["(no output)"])[-1]
     what = f"killed by signal {-proc.returncode}" if proc.returncode < 0 else f"exit status {proc.returncode}"
     return {"error": f"crashed ({what}): {tail}"}
+
+
+def _load_partial(path: Path | None, key: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """The variants an interrupted run with the same settings finished (``{}``: none, other settings, unreadable)."""
+    try:
+        doc = json.loads(path.read_text()) if path is not None else {}
+    except (OSError, ValueError):
+        return {}
+    return doc.get("results", {}) if isinstance(doc, dict) and doc.get("key") == key else {}
+
+
+def _save_partial(path: Path, key: dict[str, Any], results: dict[str, dict[str, Any]]) -> None:
+    from haptic_env.cache import atomic_write
+
+    with atomic_write(path, "w") as fh:
+        json.dump({"key": key, "results": results}, fh)
 
 
 def table(rows: list[tuple[str, dict[str, Any]]]) -> str:
@@ -190,14 +235,25 @@ def main(argv: list[str] | None = None) -> int:
             p.error(f"unknown variant {v!r}; choose from all, geometric, {', '.join(allv)}")
     names = list(dict.fromkeys(names))
     rows: list[tuple[str, dict[str, Any]]] = []
+    # with --out, each finished variant is kept beside it: the same command resumes after an interruption
+    partial = None if args.out is None else args.out.with_name(f".{args.out.name}.partial.json")
+    run_key = {"steps": args.steps, "warmup": args.warmup, "seed": args.seed, "timeout": args.timeout}
+    saved = _load_partial(partial, run_key)
     for name in names:
         reason = skip_reason(name)
         if reason:
             print(f"[soak] {name}: {reason}", flush=True)
             rows.append((name, {"skipped": reason}))
             continue
+        if name in saved:
+            print(f"[soak] {name}: finished earlier ({partial})", flush=True)
+            rows.append((name, saved[name]))
+            continue
         print(f"[soak] {name}: {args.steps} steps after {args.warmup} warm-up ...", flush=True)
         r = run_variant(name, args.steps, args.warmup, args.seed, args.timeout or None)
+        if partial is not None and "error" not in r:
+            saved[name] = r
+            _save_partial(partial, run_key, saved)
         if "error" in r:
             print(f"[soak] {name}: {r['error']}", flush=True)
         else:
@@ -210,6 +266,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.out is not None:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(md + "\n")
+        partial.unlink(missing_ok=True)
     ran = [(n, r) for n, r in rows if "skipped" not in r]
     crashed = [n for n, r in ran if "error" in r]
     ok = [(n, r) for n, r in ran if "error" not in r]
