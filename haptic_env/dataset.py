@@ -474,13 +474,24 @@ def build_dataset(
     G = config.grasps_per_object
     n_val = int(round(config.val_fraction * G))
     Xtr, Ytr, Xva, Yva = [], [], [], []
+    # force-closure grasps are slow (hours at the paper's scale): each object's split is kept until the set is saved,
+    # so an interrupted build resumes at the first object not done (each object has its own random stream)
+    parts = path is not None and config.force_closure is not None
     bar = tqdm(objects, desc=f"grasps ({config.n_fingers} fingers)", unit="obj", disable=not progress)
     for k, (obj, ss) in enumerate(zip(bar, streams)):
-        rng = np.random.default_rng(ss)
-        X = _object_grasps(obj, config, rng)
-        perm = rng.permutation(G)
-        Xva.append(X[perm[:n_val]])
-        Xtr.append(X[perm[n_val:]])
+        part = _part_path(path, k) if parts else None
+        done = _load_part(part)
+        if done is not None:
+            xtr, xva = done
+        else:
+            rng = np.random.default_rng(ss)
+            X = _object_grasps(obj, config, rng)
+            perm = rng.permutation(G)
+            xva, xtr = X[perm[:n_val]], X[perm[n_val:]]
+            if part is not None:
+                save_npz_atomic(part, X_train=xtr, X_val=xva)
+        Xva.append(xva)
+        Xtr.append(xtr)
         Yva.append(np.full(n_val, k, dtype=np.int64))
         Ytr.append(np.full(G - n_val, k, dtype=np.int64))
     ds = GraspDataset(
@@ -493,7 +504,27 @@ def build_dataset(
         cache_path=path,
     )
     _save_dataset(ds)
+    if parts:
+        for k in range(len(objects)):
+            _part_path(path, k).unlink(missing_ok=True)
     return ds
+
+
+def _part_path(path: Path, k: int) -> Path:
+    """Where object ``k``'s finished split waits while the data set at ``path`` is built (hidden, beside it)."""
+    return path.with_name(f".{path.stem}.obj{k}.npz")
+
+
+def _load_part(part: Path | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """An object's saved ``(X_train, X_val)``, or None (none, or unreadable: then it is generated again)."""
+    if part is None or not part.exists():
+        return None
+    try:
+        arrays = load_npz(part, required=("X_train", "X_val"))
+    except CacheError as exc:
+        warnings.warn(f"{exc}; generating that object again", RuntimeWarning, stacklevel=3)
+        return None
+    return arrays["X_train"], arrays["X_val"]
 
 
 def _save_dataset(ds: GraspDataset) -> None:

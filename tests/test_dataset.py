@@ -281,3 +281,36 @@ def test_force_closure_dataset_keeps_held_grasps_and_older_keys(objects):
     ds, ref = build_dataset(objects, held, progress=False), build_dataset(objects, plain, progress=False)
     assert ds.counts() == ref.counts() and ds.X_train.shape == ref.X_train.shape
     assert np.isfinite(ds.X_train).all() and not np.allclose(ds.X_train, ref.X_train)
+
+
+def test_an_interrupted_force_closure_dataset_resumes_at_its_first_unfinished_object(objects, tmp_path, monkeypatch):
+    """Force-closure grasps are slow, so each object's split is kept while the set builds: a build interrupted at the
+    third object resumes there and gives the uninterrupted build's arrays; the parts are gone once the set is saved."""
+    import haptic_env.dataset as dataset
+
+    cfg = DatasetConfig(n_fingers=3, grasps_per_object=120, seed=4, force_closure=0.5)
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path / "whole"))
+    whole = build_dataset(objects, cfg, progress=False)
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path / "cut"))
+    real, made = dataset._object_grasps, []
+
+    def grasps(obj, config, rng):
+        if len(made) == 2 and not made_once:
+            raise KeyboardInterrupt
+        made.append(obj.name)
+        return real(obj, config, rng)
+
+    made_once = False
+    monkeypatch.setattr(dataset, "_object_grasps", grasps)
+    with pytest.raises(KeyboardInterrupt):
+        build_dataset(objects, cfg, progress=False)
+    path = dataset_cache_path(objects, cfg)
+    assert not path.exists() and sorted(p.name for p in path.parent.glob(f".{path.stem}.obj*.npz")) == [
+        f".{path.stem}.obj0.npz", f".{path.stem}.obj1.npz"]
+    made_once = True
+    made.clear()
+    ds = build_dataset(objects, cfg, progress=False)
+    assert made == list(objects.names[2:])  # the first two came from their parts
+    for a in ("X_train", "y_train", "X_val", "y_val"):
+        np.testing.assert_array_equal(getattr(ds, a), getattr(whole, a))
+    assert path.exists() and not list(path.parent.glob(".*obj*.npz"))
