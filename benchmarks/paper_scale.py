@@ -170,6 +170,11 @@ def cell_path(out: Path, cell, h: str) -> Path:
     return out / "cells" / f"{cell_name(cell)}-{h}.json"
 
 
+def fit_state_path(out: Path, cell, h: str) -> Path:
+    """Where an MLP cell's unfinished fit keeps its epoch state (hidden; removed when the fit ends)."""
+    return out / "cells" / f".{cell_name(cell)}-{h}.fit.pt"
+
+
 def write_json_atomic(path: Path, obj) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
@@ -215,7 +220,7 @@ class _Data:
         return self._test[key]
 
 
-def run_cell(cell, data: _Data, args) -> dict:
+def run_cell(cell, data: _Data, args, checkpoint: Path | None = None) -> dict:
     n, normals, g, model = cell
     t_all = time.perf_counter()
     ds, t_data = data.train(n, normals, g)
@@ -244,7 +249,8 @@ def run_cell(cell, data: _Data, args) -> dict:
                         weight_decay=args.weight_decay, decoupled_weight_decay=args.decoupled_weight_decay,
                         threads=args.threads, progress=not args.quiet)
         t0 = time.perf_counter()
-        clf = MLPClassifier(cfg).fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val, n_classes=K)
+        # an interrupted fit resumes from its last epoch (a 7 x 500 cell at 200k grasps trains for hours)
+        clf = MLPClassifier(cfg).fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val, n_classes=K, checkpoint=checkpoint)
         res["train_seconds"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         pred = clf.predict(Xt)
@@ -476,7 +482,7 @@ def main(argv=None) -> int:
                 print(f"time budget of {args.time_budget:.0f} s spent: stopping before {cell_name(cell)}", flush=True)
                 break
             bar.set_postfix_str(cell_name(cell))
-            res = run_cell(cell, data, args)
+            res = run_cell(cell, data, args, checkpoint=fit_state_path(out, cell, h))
             write_json_atomic(cell_path(out, cell, h), res)
             tqdm.write(f"{cell_name(cell)}: {100 * res['accuracy']:.1f} % ({res['seconds']:.0f} s)")
             write_report(out, args, command)

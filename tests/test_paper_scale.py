@@ -52,11 +52,12 @@ def test_interrupt_keeps_finished_cells(paper_scale, tmp_path, monkeypatch):
     real = paper_scale.run_cell
     calls = []
 
-    def flaky(cell, data, args):
+    def flaky(cell, data, args, checkpoint=None):
         calls.append(cell)
         if len(calls) == 2:
             raise KeyboardInterrupt
-        return real(cell, data, args)
+        assert checkpoint == paper_scale.fit_state_path(out, cell, paper_scale.settings_hash(args))
+        return real(cell, data, args, checkpoint=checkpoint)
 
     monkeypatch.setattr(paper_scale, "run_cell", flaky)
     assert paper_scale.main([*TINY, "--out", str(out), "--grasps", "300", "--no-knn", "--nets", "default"]
@@ -66,6 +67,7 @@ def test_interrupt_keeps_finished_cells(paper_scale, tmp_path, monkeypatch):
     monkeypatch.setattr(paper_scale, "run_cell", real)
     assert paper_scale.main([*TINY, "--out", str(out), "--no-knn", "--grasps", "300,400"]) == 0
     assert len(list((out / "cells").glob("*.json"))) == 2
+    assert not list((out / "cells").glob(".*.fit.pt"))  # each fit's epoch state goes when the fit ends
 
 
 def test_bad_flags(paper_scale, tmp_path, usage_error):

@@ -96,3 +96,40 @@ def test_decoupled_weight_decay():
 def test_bad_optimizer_settings_named(field, value):
     with pytest.raises(ValueError, match=f"MLPConfig.{field}.*{value}"):
         MLPConfig(**{field: value})
+
+
+def test_an_interrupted_fit_resumes_from_its_epoch_checkpoint(tmp_path, monkeypatch):
+    """``fit(checkpoint=...)`` keeps the training state after every epoch: a fit interrupted in its third epoch and
+    called again goes on from the second and ends with the uninterrupted fit's weights and history; the file is gone
+    at the end, and a file of other data is not used."""
+    import haptic_env.recognizers.mlp as mlp_mod
+
+    rng = np.random.default_rng(0)
+    X, y = rng.normal(size=(600, 5)), rng.integers(0, 3, 600)
+    X[np.arange(600), y] += 1.5
+    cfg = MLPConfig(depth=1, width=16, max_epochs=5, patience=10, batch_size=64, progress=False, seed=3)
+    whole = MLPClassifier(cfg).fit(X, y)
+    ckpt = tmp_path / "fit.pt"
+    real, seen = MLPClassifier._evaluate, []
+
+    def evaluate(self, Xv, yv):
+        seen.append(1)
+        if len(seen) == 3 and not resumed:
+            raise KeyboardInterrupt  # in the third epoch, after its training
+        return real(self, Xv, yv)
+
+    resumed = False
+    monkeypatch.setattr(MLPClassifier, "_evaluate", evaluate)
+    with pytest.raises(KeyboardInterrupt):
+        MLPClassifier(cfg).fit(X, y, checkpoint=ckpt)
+    assert torch.load(ckpt, weights_only=False)["epoch"] == 1
+    resumed, seen[:] = True, []
+    again = MLPClassifier(cfg).fit(X, y, checkpoint=ckpt)
+    assert len(seen) == 3 and not ckpt.exists()  # epochs 3-5 only
+    assert again.history == whole.history
+    for k, v in whole.net.state_dict().items():
+        torch.testing.assert_close(again.net.state_dict()[k], v, rtol=0, atol=0)
+    mlp_mod._save_fit_state(ckpt, {"key": "another fit", "epoch": 4})
+    seen[:] = []
+    MLPClassifier(cfg).fit(X, y, checkpoint=ckpt)
+    assert len(seen) == 5

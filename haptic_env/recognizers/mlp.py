@@ -16,7 +16,9 @@ Everything random (initialisation, validation split, mini-batch order) comes fro
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import io
+import json
 import os
 from pathlib import Path
 
@@ -58,6 +60,35 @@ def _network(d: int, k: int, depth: int, width: int) -> nn.Sequential:
     return nn.Sequential(*layers)
 
 
+def _fit_key(cfg: MLPConfig, X, y, X_val, y_val, n_classes: int) -> str:
+    """What a fit's result depends on: its config and its data (hashed), for :meth:`MLPClassifier.fit`'s
+    ``checkpoint``."""
+    h = hashlib.sha256(json.dumps(dataclasses.asdict(cfg), sort_keys=True, default=repr).encode())
+    for a in (X, y, X_val, y_val):
+        a = np.ascontiguousarray(a)
+        h.update(f"{a.dtype}{a.shape}".encode())
+        h.update(a.tobytes())
+    h.update(str(n_classes).encode())
+    return h.hexdigest()[:16]
+
+
+def _save_fit_state(path: Path, state: dict) -> None:
+    """``torch.save`` of a fit's state, atomically."""
+    with atomic_write(path) as fh:
+        torch.save(state, fh)
+
+
+def _load_fit_state(path: Path, key: str) -> dict | None:
+    """The saved state of a fit with this key, or None (none, another fit's, unreadable)."""
+    if not path.exists():
+        return None
+    try:
+        state = torch.load(path, weights_only=False)
+    except Exception:  # a file torch cannot read: start the fit over
+        return None
+    return state if isinstance(state, dict) and state.get("key") == key else None
+
+
 class MLPClassifier:
     """ReLU MLP with stored standardisation; ``fit``/``predict_proba``/``save``/``load``."""
 
@@ -84,12 +115,18 @@ class MLPClassifier:
             raise RuntimeError("MLPClassifier is not fitted; call fit() or MLPClassifier.load()")
 
     # ------------------------------------------------------------------------------ training
-    def fit(self, X, y, X_val=None, y_val=None, *, n_classes: int | None = None) -> MLPClassifier:
+    def fit(self, X, y, X_val=None, y_val=None, *, n_classes: int | None = None,
+            checkpoint: str | os.PathLike | None = None) -> MLPClassifier:
         """Train on ``X (N, d)``, ``y (N,)`` (class indices); early stopping on ``(X_val, y_val)``.
 
         Without an explicit validation set, ``config.val_fraction`` of ``X`` is held out. After training,
         :attr:`temperature` is fitted on the validation logits (:func:`~.calibration.fit_temperature`);
         ``predict_proba`` stays raw, :class:`~.recognizer.ModelBank` applies the temperature.
+
+        ``checkpoint``: a file that keeps the training state after every epoch (written atomically; removed when
+        the fit ends). A fit interrupted and called again with the same file, config and data goes on from its last
+        finished epoch and ends with the weights an uninterrupted fit gives. A file of another config or data (its
+        fingerprint differs) is ignored and overwritten.
         """
         cfg = self.config
         set_torch_threads(cfg.threads)
@@ -127,8 +164,22 @@ class MLPClassifier:
         lossf = nn.CrossEntropyLoss()
         best, best_state, bad = np.inf, None, 0
         self.history = {"train_loss": [], "val_loss": [], "val_acc": []}
-        bar = tqdm(range(cfg.max_epochs), desc=f"MLP {cfg.depth}x{cfg.width}", disable=not cfg.progress, leave=False)
-        for _epoch in bar:
+        start, key = 0, None
+        if checkpoint is not None:
+            checkpoint = Path(checkpoint)
+            key = _fit_key(cfg, X, y, X_val, y_val, self.n_classes)
+            saved = _load_fit_state(checkpoint, key)
+            if saved is not None:
+                self.net.load_state_dict(saved["net"])
+                opt.load_state_dict(saved["opt"])
+                sched.load_state_dict(saved["sched"])
+                gen.set_state(saved["gen"])
+                best, best_state, bad, self.history = saved["best"], saved["best_state"], saved["bad"], saved["history"]
+                start = saved["epoch"] + 1
+        stopped = start > 0 and bad >= cfg.patience  # the saved run had stopped early already
+        bar = tqdm(range(start, cfg.max_epochs) if not stopped else (), desc=f"MLP {cfg.depth}x{cfg.width}",
+                   disable=not cfg.progress, leave=False, initial=start, total=cfg.max_epochs)
+        for epoch in bar:
             self.net.train()
             order = torch.randperm(len(Xt), generator=gen)
             tot = 0.0
@@ -150,14 +201,21 @@ class MLPClassifier:
                 best_state = {k: v.detach().clone() for k, v in self.net.state_dict().items()}
             else:
                 bad += 1
-                if bad >= cfg.patience:
-                    break
+            if checkpoint is not None:
+                _save_fit_state(checkpoint, {"key": key, "epoch": epoch, "net": self.net.state_dict(),
+                                             "opt": opt.state_dict(), "sched": sched.state_dict(),
+                                             "gen": gen.get_state(), "best": best, "best_state": best_state,
+                                             "bad": bad, "history": self.history})
+            if bad >= cfg.patience:
+                break
         if best_state is not None:
             self.net.load_state_dict(best_state)
         self.net.eval()
         with torch.no_grad():  # temperature scaling on the validation logits (calibration.fit_temperature)
             logits = torch.cat([self.net(Xv[lo : lo + 65536]) for lo in range(0, len(Xv), 65536)])
         self.temperature = fit_temperature(logits.double().numpy(), y_val)
+        if checkpoint is not None:
+            checkpoint.unlink(missing_ok=True)
         return self
 
     @torch.no_grad()
