@@ -223,6 +223,7 @@ def _run_guard(save_path: Path, algo: str, checkpoint_freq: int, max_minutes: fl
                 self.stop_reason, self.signum = reason, signum
 
         def _on_training_start(self) -> None:
+            self._t_start = time.monotonic()
             self._deadline = time.monotonic() + 60.0 * max_minutes if max_minutes else None
             self._safe = self.model.num_timesteps
             self._next = (self._safe // self.save_freq + 1) * self.save_freq
@@ -230,8 +231,11 @@ def _run_guard(save_path: Path, algo: str, checkpoint_freq: int, max_minutes: fl
         def _on_rollout_start(self) -> None:
             self._safe = self.model.num_timesteps
             if self._safe >= self._next:
-                self.save()
+                path = self.save()
                 self._next = (self._safe // self.save_freq + 1) * self.save_freq
+                # a line per checkpoint: progress in a log file, where no progress bar is drawn
+                print(f"[train] {self._safe} steps, {time.monotonic() - self._t_start:.0f} s: saved {path.name}",
+                      flush=True)
 
         def _on_step(self) -> bool:
             if self.stop_reason is None and self._deadline is not None and time.monotonic() >= self._deadline:
