@@ -19,6 +19,7 @@ import contextlib
 import os
 import re
 import time
+import warnings
 from pathlib import Path
 from typing import Any, Callable
 
@@ -386,8 +387,10 @@ def train(algo: str, venv, total_timesteps: int, log_dir: str | os.PathLike, *, 
         model._num_timesteps_at_start = model.num_timesteps  # learn() sets it too; kept when it has nothing to do
         if remaining > 0:
             try:
-                model.learn(total_timesteps=remaining, callback=guard, reset_num_timesteps=resume is None,
-                            tb_log_name=algo, progress_bar=progress_bar)
+                with warnings.catch_warnings():  # SB3's bar is tqdm.rich, which warns that it is experimental
+                    warnings.filterwarnings("ignore", message="rich is experimental")
+                    model.learn(total_timesteps=remaining, callback=guard, reset_num_timesteps=resume is None,
+                                tb_log_name=algo, progress_bar=progress_bar)
             except (EOFError, BrokenPipeError, ConnectionResetError) as exc:
                 by = f"stopped by {guard.stop_reason}; " if guard.signum is not None else ""
                 failure = (f"{by}an env worker died ({type(exc).__name__})",
