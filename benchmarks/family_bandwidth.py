@@ -122,7 +122,7 @@ def main(argv=None):
     floors = tuple(float(v) for v in a.floors.split(","))
     t0 = time.time()
     cfg = AnalysisConfig(experiments=(5,), normals=False, family_source="hand", family_members=a.members,
-                         family_size_range=(0.7, 1.6), grasps_per_object=1000, seed=a.seed, progress=False)
+                         family_size_range=(0.7, 1.6), grasps_per_object=1000, seed=a.seed)
     kw = {"scale_range": cfg.family_scale_range, "size_range": cfg.family_size_range}
     train = family_set(cfg.family_members, np.random.default_rng(cfg.seed), **kw)
     n_new = max(2, cfg.family_members // 3)
