@@ -25,6 +25,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from haptic_env.cli import output_path  # noqa: E402
+
 
 def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -32,7 +34,7 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--grasps", type=int, default=100_000, help="grasps per object of each dataset job")
     ap.add_argument("--fingers", type=int, default=4)
     ap.add_argument("--num-cpus", type=int, default=2)
-    ap.add_argument("--out", type=Path, default=None, help="also write the numbers to this JSON file")
+    ap.add_argument("--out", type=output_path("file"), default=None, help="also write the numbers to this JSON file")
     args = ap.parse_args(argv)
 
     from haptic_env.sweep import parse_spec

@@ -32,12 +32,12 @@ import argparse
 import dataclasses
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 from scipy.optimize import minimize
 from scipy.special import log_softmax
 
+from haptic_env.cli import output_path
 from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.families import (FAMILY_VAL_SEED_OFFSET, floored, grasp_config, member_grasps,
                                              sequence_fit)
@@ -116,7 +116,7 @@ def main(argv=None):
                    help="also fit per-family offsets with the sequence temperature on A (fit_bias) and give B's votes "
                         "with them")
     p.add_argument("--trials", type=int, default=600, help="vote draws per vote column")
-    p.add_argument("--out", type=Path, default=None, help="also write the table (markdown) here")
+    p.add_argument("--out", type=output_path("file"), default=None, help="also write the table (markdown) here")
     a = p.parse_args(argv)
     factors = tuple(v if v == "auto" else float(v) for v in a.factors.split(","))
     floors = tuple(float(v) for v in a.floors.split(","))

@@ -50,7 +50,7 @@ from tqdm import tqdm
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from haptic_env import variant_config  # noqa: E402
-from haptic_env.cli import int_in  # noqa: E402
+from haptic_env.cli import int_in, output_path  # noqa: E402
 from haptic_env.config import HAND_APPROACHES, HapticRecogConfig  # noqa: E402
 from haptic_env.dataset import DatasetConfig, support_frame  # noqa: E402
 from haptic_env.grasp_features import NORMAL_AXES, NORMAL_AXIS_WORDS  # noqa: E402
@@ -211,7 +211,7 @@ def main(argv=None) -> int:
     ap.add_argument("--normal-axis", choices=NORMAL_AXES, default="t2",
                     help="each normal's angles in the grasp vectors (DatasetConfig.normal_axis, the envs' normal_axis): "
                          "t2 (the paper's), ab, or frame (three per normal)")
-    ap.add_argument("--out", type=Path, default=None, help="write hand_table.md here")
+    ap.add_argument("--out", type=output_path("folder"), default=None, help="write hand_table.md here")
     args = ap.parse_args(argv)
     if args.touch_weight is not None and not (np.isfinite(args.touch_weight) and args.touch_weight >= 0):
         ap.error(f"--touch-weight must be a finite number >= 0, got {args.touch_weight}")

@@ -23,6 +23,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.sampling_protocol import knn_accuracy  # noqa: E402
+from haptic_env.cli import output_path  # noqa: E402
 
 
 def span_mask(contacts: np.ndarray, max_span: float, min_sep: float) -> np.ndarray:
@@ -63,7 +64,7 @@ def main(argv=None) -> int:
     ap.add_argument("--spans", default="inf,0.15,0.12,0.10", help="largest pairwise contact distances (m), comma list")
     ap.add_argument("--min-seps", default="0,0.02", help="smallest pairwise contact distances (m), comma list")
     ap.add_argument("--objects", default="kit8")
-    ap.add_argument("--out", type=Path, default=None, help="also write the table to this markdown file")
+    ap.add_argument("--out", type=output_path("file"), default=None, help="also write the table to this markdown file")
     args = ap.parse_args(argv)
     try:
         fingers = [int(x) for x in args.fingers.split(",")]

@@ -28,6 +28,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from haptic_env.cli import output_path  # noqa: E402
 from haptic_env.dataset import DatasetConfig, support_frame  # noqa: E402
 from haptic_env.grasp_features import phi  # noqa: E402
 from haptic_env.hand_grasps import hand_grasp_pool, pool_actions, pool_rows  # noqa: E402
@@ -83,7 +84,7 @@ def main(argv=None) -> int:
     ap.add_argument("--approaches", type=int, default=6000, help="training pool approaches per object (the envs')")
     ap.add_argument("--validation-seeds", type=int, nargs="+", default=[500, 501, 502])
     ap.add_argument("--queries", type=int, default=300, help="approaches per object of each validation pool")
-    ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--out", type=output_path("folder"), default=None)
     args = ap.parse_args(argv)
     if data_dir() is None:
         print("needs the YCB meshes and the menagerie hands (set HAPTIC_DATA and MENAGERIE_ROOT)")

@@ -40,6 +40,8 @@ from typing import Any  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
+from haptic_env.cli import output_path  # noqa: E402
+
 #: name -> (env id, config overrides); the options run on the default geometric env
 OPTION_VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
     "scale_range": ("HapticRecog-v0", {"scale_range": (0.8, 1.2)}),
@@ -214,7 +216,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--max-growth-mb", type=float, default=20.0, help="RSS growth bound after the warm-up (MiB)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--timeout", type=float, default=0.0, help="seconds per variant (0: none)")
-    p.add_argument("--out", type=Path, default=None, help="also write the markdown table here")
+    p.add_argument("--out", type=output_path("file"), default=None, help="also write the markdown table here")
     p.add_argument("--child", default=None, help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.steps < 2 or args.warmup < 1:  # the RSS and time marks start at the last warm-up step

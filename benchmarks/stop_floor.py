@@ -25,11 +25,11 @@ import argparse
 import dataclasses
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 from scipy.special import log_softmax
 
+from haptic_env.cli import output_path
 from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.families import floored
 from haptic_env.experiments.fresh_grasps import fresh_pool
@@ -58,7 +58,7 @@ def main(argv=None):
     p.add_argument("--eps", default=",".join(f"{e:g}" for e in EPS), help="posterior floors (0: none)")
     p.add_argument("--threshold", type=float, default=0.85)
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--out", type=Path, default=None, help="also write the table (markdown) here")
+    p.add_argument("--out", type=output_path("file"), default=None, help="also write the table (markdown) here")
     a = p.parse_args(argv)
     eps_grid = tuple(float(v) for v in a.eps.split(","))
     for e in eps_grid:

@@ -48,6 +48,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.hand_experiment import (PAPER, SETUPS, env_config, query_pools, run_query, training_config,  # noqa: E402
                                         write_table)
+from haptic_env.cli import output_path  # noqa: E402
 from haptic_env.config import HAND_APPROACHES  # noqa: E402
 from haptic_env.dataset import support_frame  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
@@ -123,7 +124,7 @@ def main(argv=None) -> int:
                     help="multipliers of the calibrated per-grasp log-likelihood (1: the env's belief)")
     ap.add_argument("--heights", action="store_true",
                     help="grasp vectors with the contacts' heights above the table (the hands' Heights envs)")
-    ap.add_argument("--out", type=Path, default=None, help="write frontier.md and frontier.png here")
+    ap.add_argument("--out", type=output_path("folder"), default=None, help="write frontier.md and frontier.png here")
     args = ap.parse_args(argv)
     bad = [s for s in args.scales if not (np.isfinite(s) and s > 0)]
     if bad:

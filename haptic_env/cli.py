@@ -9,7 +9,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import os
 import sys
+from pathlib import Path
 
 # name -> module that defines add_parser(subparsers) and sets func on its parser
 SUBCOMMANDS: dict[str, str] = {
@@ -58,6 +60,29 @@ def float_in(lo: float | None = None, hi: float | None = None, *, lo_open: bool 
             raise argparse.ArgumentTypeError(f"must be a finite number in {left}{lo if lo is not None else '-inf'}, "
                                              f"{hi if hi is not None else 'inf'}{right}, got {text}")
         return v
+
+    return parse
+
+
+def output_path(kind: str = "file"):
+    """argparse ``type``: a ``Path`` that a long run can write at its end, checked now without creating anything:
+    ``kind="file"``: not an existing folder; ``kind="folder"``: not an existing file; and the nearest existing
+    folder above it is writable (a typo fails at once, not after the run)."""
+    if kind not in ("file", "folder"):
+        raise ValueError(f"kind must be 'file' or 'folder', got {kind!r}")
+
+    def parse(text: str) -> Path:
+        path = Path(text)
+        if kind == "file" and path.is_dir():
+            raise argparse.ArgumentTypeError(f"{text} is a folder; give a file name")
+        if kind == "folder" and path.exists() and not path.is_dir():
+            raise argparse.ArgumentTypeError(f"{text} is a file; give a folder")
+        above = path.absolute().parent
+        while not above.exists():
+            above = above.parent
+        if not above.is_dir() or not os.access(above, os.W_OK | os.X_OK):
+            raise argparse.ArgumentTypeError(f"cannot create {text}: {above} is not a writable folder")
+        return path
 
     return parse
 

@@ -371,3 +371,24 @@ def test_ctrl_c_in_a_subcommand_is_one_line_saying_what_a_rerun_keeps(monkeypatc
     err = capsys.readouterr().err
     assert err.strip() == ("haptic-recog evaluate: interrupted; every finished agent-seed block is saved; the same "
                            "command resumes from them")
+
+
+def test_output_path_refuses_what_a_long_run_could_not_write_at_its_end(tmp_path):
+    """``cli.output_path``: a file output that is a folder, a folder output that is a file, or a path under a file,
+    is refused when parsed (nothing is created); a path in folders still to make is accepted."""
+    import argparse
+
+    from haptic_env.cli import output_path
+
+    a_file = tmp_path / "f.txt"
+    a_file.write_text("x")
+    with pytest.raises(argparse.ArgumentTypeError, match="is a folder; give a file name"):
+        output_path("file")(str(tmp_path))
+    with pytest.raises(argparse.ArgumentTypeError, match="is a file; give a folder"):
+        output_path("folder")(str(a_file))
+    with pytest.raises(argparse.ArgumentTypeError, match=r"cannot create .*f.txt is not a writable folder"):
+        output_path("file")(str(a_file / "sub" / "out.md"))
+    assert output_path("file")(str(tmp_path / "new" / "deeper" / "out.md")) == tmp_path / "new" / "deeper" / "out.md"
+    assert not (tmp_path / "new").exists()
+    with pytest.raises(ValueError, match="kind must be"):
+        output_path("dir")
