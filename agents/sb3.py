@@ -81,11 +81,12 @@ def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.
     ``<rank><suffix>.monitor.csv`` (a resumed run writes a new segment, e.g. ``.part2``, keeping the old ones)."""
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
-    from haptic_env.env import HapticRecogConfig, get_recognizer
+    from haptic_env import variant_config
+    from haptic_env.env import get_recognizer
 
     if vec not in VEC_KINDS:
         raise ValueError(f"vec must be 'subproc', 'dummy' or 'native', got {vec!r}")
-    config = config or HapticRecogConfig()
+    config = config or variant_config(env_id)  # no config: the registered env's own (not the defaults)
     monitor_dir = None
     if log_dir is not None:
         monitor_dir = str(Path(log_dir) / "monitor")

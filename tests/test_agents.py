@@ -339,3 +339,20 @@ def test_cli_evaluate_is_registered():
 
     args = build_parser().parse_args(["evaluate", "--agents", "random", "--episodes", "2", "--seeds", "0"])
     assert args.episodes == 2 and callable(args.func)
+
+
+def test_make_vec_env_without_a_config_builds_the_registered_env(monkeypatch):
+    """``make_vec_env(env_id=...)`` without a config makes that env's own config (``variant_config``), not the
+    defaults with the id attached (which built the default objects for ``HapticRecogKIT-v0``)."""
+    from agents import sb3
+
+    seen = []
+
+    def env_fn(config, rank, *args, **kwargs):
+        seen.append(config)
+        raise RuntimeError("stop before building")
+
+    monkeypatch.setattr(sb3, "_env_fn", env_fn)
+    with pytest.raises(RuntimeError, match="stop before building"):
+        sb3.make_vec_env(None, n_envs=1, vec="dummy", env_id="HapticRecogKIT-v0")
+    assert seen[0] == haptic_env.variant_config("HapticRecogKIT-v0") and seen[0].objects == "kit8"

@@ -156,8 +156,8 @@ class GraspScene:
     """Simulator wrapper: object + hand on a mocap mount. Physics only, no task logic."""
 
     def __init__(self, hand: HandDescription, pieces: list | None, pose: np.ndarray, *, table_z: float | None,
-                 timestep: float = 0.002, friction: float = 0.5, joint_frictionloss: float | None = 0.0,
-                 solver: str | None = None) -> None:
+                 timestep: float, friction: float, joint_frictionloss: float | None = 0.0,
+                 solver: str | None = None) -> None:  # timestep, friction: MujocoConfig's (the one default of each)
         self.hand = hand
         spec = mujoco.MjSpec()
         spec.modelname = "grasp_scene"
