@@ -44,6 +44,14 @@ def test_shipped_specs_expand():
     assert n["paper_data"] == 2 * 9 * 2 + 2
 
 
+def test_every_baseline_agent_that_evaluate_builds_is_a_valid_sweep_agent():
+    """The sweep checks a baseline agent's name with evaluate's own parser (make_agent): greedy-env, the blind
+    look-aheads and greedy:M:S are accepted as they are by ``haptic-recog evaluate``."""
+    for name in ("random", "greedy", "greedy:8", "greedy:8:2", "greedy-env", "greedy-blind", "greedy-env-blind:16:4"):
+        spec = parse_spec({"name": "x", "env_ids": ["HapticRecog-v0"], "agent": [{"name": name}]})
+        assert [j.params["spec"] for j in spec.jobs] == [name]
+
+
 def test_grid_expansion_keys_and_dependencies():
     doc = {"name": "g", "seeds": [0, 1], "env_ids": ["HapticRecog-v0", "HapticRecogKIT-v0"],
            "agent": [{"name": "random"}, {"name": "ppo", "algo": "ppo", "total_timesteps": 1000}],
@@ -89,7 +97,8 @@ def test_a_changed_env_variant_is_a_new_job(monkeypatch):
     ({"name": "x", "env_ids": ["HapticRecog-v0"], "env_kwargs": {"max_grasps": 0}, "agent": [{"name": "random"}]},
      "max_grasps"),
     ({"name": "x", "env_ids": ["HapticRecog-v0"], "agent": [{"name": "ppo", "algo": "dqn"}]}, "algo"),
-    ({"name": "x", "env_ids": ["HapticRecog-v0"], "agent": [{"name": "typo"}]}, "baseline agent"),
+    ({"name": "x", "env_ids": ["HapticRecog-v0"], "agent": [{"name": "typo"}]}, "baseline agent: unknown agent spec"),
+    ({"name": "x", "env_ids": ["HapticRecog-v0"], "agent": [{"name": "greedy:x"}]}, "M and S must be whole numbers"),
     ({"name": "x", "agent": [{"name": "random"}]}, "without any env"),
     ({"name": "x", "dataset": [{"fingers": [1]}]}, "n_fingers"),
     # a trained agent's and an analysis job's settings: refused at load, not on a worker hours later

@@ -236,9 +236,14 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
             raise SpecError(f"{where}: algo must be 'ppo' or 'sac', got {a['algo']!r}")
         if not trained:
             spec = a.get("spec", a["name"])
-            if not (spec in ("random", "greedy") or re.fullmatch(r"greedy:\d+", spec) or spec.endswith(".zip")):
-                raise SpecError(f"{where}: a baseline agent is random, greedy or greedy:M (or a model .zip via "
-                                f"spec), got {spec!r}; give algo = \"ppo\"/\"sac\" for a trained agent")
+            if not spec.endswith(".zip"):  # what the evaluate job will build, checked by the one parser of specs
+                from agents.evaluate import make_agent
+
+                try:
+                    make_agent(spec)
+                except ValueError as exc:
+                    raise SpecError(f"{where}: a baseline agent: {exc} (or a model .zip via spec); give algo = "
+                                    "\"ppo\"/\"sac\" for a trained agent") from None
         for env, s in product(envs, a_seeds):
             env_id, kwargs = envs[env]
             # the registered variant's own settings belong to the job: when a release changes what an env id
