@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from haptic_env import cli
+from haptic_env.cache import atomic_write
 from haptic_env.experiments.config import PAPER_KNN, PAPER_NN
 from haptic_env.grasp_features import NORMAL_AXES, NORMAL_AXIS_WORDS
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD
@@ -176,13 +177,8 @@ def fit_state_path(out: Path, cell, h: str) -> Path:
 
 
 def write_json_atomic(path: Path, obj) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "w") as fh:
+    with atomic_write(path, "w") as fh:
         json.dump(obj, fh, indent=1, sort_keys=True)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
 
 
 # ------------------------------------------------------------------------------------------------ running
@@ -399,9 +395,8 @@ def write_report(out: Path, args, command: str) -> Path:
     notes = out / "notes.md"
     if notes.exists():
         L += ["", notes.read_text().rstrip(), ""]
-    with open(out / ".results.md.tmp", "w") as fh:
+    with atomic_write(out / "results.md", "w") as fh:
         fh.write("\n".join(L))
-    os.replace(out / ".results.md.tmp", out / "results.md")
     write_json_atomic(out / "results.json", {"command": command, "settings": settings(args), "settings_hash": h,
                                              "paper_nn": {f"n{k[0]}-{'w' if k[1] else 'wo'}": v for k, v in PAPER_NN.items()},
                                              "cells": cells})

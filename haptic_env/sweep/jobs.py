@@ -71,9 +71,10 @@ def _log(run_dir: Path, **rec: Any) -> None:
 
 
 def _write_json_atomic(path: Path, obj: Any) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(json.dumps(obj, indent=2, default=str))
-    os.replace(tmp, path)
+    from haptic_env.cache import atomic_write
+
+    with atomic_write(path, "w") as fh:
+        fh.write(json.dumps(obj, indent=2, default=str))
 
 
 def execute(job: dict[str, Any], run_dir: str, *deps: Any) -> dict[str, Any]:
@@ -227,14 +228,14 @@ def _evaluate(p: dict[str, Any], run_dir: Path, attempt: int, job: dict[str, Any
     for s in p["env_seeds"]:
         records += run_episodes(agent, lambda: haptic_env.make(env_id=p["env_id"], **p["env_kwargs"]),
                                 p["episodes"], s, agent_seed=p["seed"])
+    from haptic_env.cache import atomic_write
+
     path = run_dir / "episodes.csv"
-    tmp = path.with_name(f".episodes.{os.getpid()}.tmp")
-    with open(tmp, "w", newline="") as fh:
+    with atomic_write(path, "w") as fh:
         w = csv.DictWriter(fh, fieldnames=list(asdict(records[0])))
         w.writeheader()
         for r in records:
             w.writerow(asdict(r))
-    os.replace(tmp, path)
     return {"episodes": len(records), "csv": str(path)}
 
 
