@@ -58,7 +58,11 @@ class Args:
     """Vector env: one process per env ("subproc"), all in this process ("dummy"), or the native vector env
     (haptic_env.vector_env: all envs stepped in one batched call, geometric backend; "native")."""
     seed: int = 0
-    """Seeds python, numpy, torch and the envs (env ``rank`` gets ``seed + rank``)."""
+    """Seeds python, numpy, torch and the envs (see ``--env-seed``)."""
+    env_seed: int = -1
+    """The first env's seed (env ``rank`` gets ``env_seed + rank``). -1: ``10000 + 1000 * seed``, apart from the
+    evaluation seeds (test 0-4, validation 500-504, sweeps 1000-1002), so that no training env replays an evaluation
+    seed's episodes. Runs before 2026-12-04 used ``seed + rank``: ``--env-seed SEED`` repeats them."""
     run_dir: str = "runs/ppo"
     """Where the run's files go."""
     checkpoint_freq: int = 20_000
@@ -85,7 +89,13 @@ class Args:
 
 
 #: (field, minimum) of the run settings checked at parse time
-_MINIMUM = {"total_timesteps": 1, "n_envs": 1, "checkpoint_freq": 1, "max_minutes": 0.0, "torch_threads": 1, "seed": 0}
+_MINIMUM = {"total_timesteps": 1, "n_envs": 1, "checkpoint_freq": 1, "max_minutes": 0.0, "torch_threads": 1, "seed": 0,
+            "env_seed": -1}
+
+
+def env_seed(args: Args) -> int:
+    """The first training env's seed: ``--env-seed``, or by default one apart from every evaluation seed."""
+    return args.env_seed if args.env_seed >= 0 else 10_000 + 1_000 * args.seed
 
 
 def _usage_error(message: str):
@@ -183,7 +193,7 @@ def main(argv: list[str] | None = None) -> Path:
 
     from agents import sb3
 
-    # explicit seeding: python, numpy, torch; the envs are seeded seed + rank by make_vec_env
+    # explicit seeding: python, numpy, torch; env rank r is seeded env_seed(args) + r by make_vec_env
     random.seed(args.seed)
     np.random.seed(args.seed)  # only for third-party code that still uses the global RNG
     torch.manual_seed(args.seed)
@@ -196,11 +206,12 @@ def main(argv: list[str] | None = None) -> Path:
     suffix = "" if part == 1 else f".part{part}"
     (run_dir / f"args{suffix}.json").write_text(json.dumps(
         {**{f.name: getattr(args, f.name) for f in dataclasses.fields(args) if f.name != "env"},
+         "first_env_seed": env_seed(args),
          "env_config": {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(config).items()}},
         indent=2, default=str))
 
     t0 = time.time()
-    venv = sb3.make_vec_env(config, n_envs=args.n_envs, seed=args.seed, log_dir=run_dir, vec=args.vec,
+    venv = sb3.make_vec_env(config, n_envs=args.n_envs, seed=env_seed(args), log_dir=run_dir, vec=args.vec,
                             env_id=args.env_id, monitor_suffix=suffix)
     torch.set_num_threads(args.torch_threads)  # again: building a recogniser (MLP fit) may have changed it
     print(f"[train] {args.algo} on {args.env_id} ({args.n_envs} envs, {venv.observation_space.shape[0]}-dim obs, "

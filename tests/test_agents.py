@@ -356,3 +356,12 @@ def test_make_vec_env_without_a_config_builds_the_registered_env(monkeypatch):
     with pytest.raises(RuntimeError, match="stop before building"):
         sb3.make_vec_env(None, n_envs=1, vec="dummy", env_id="HapticRecogKIT-v0")
     assert seen[0] == haptic_env.variant_config("HapticRecogKIT-v0") and seen[0].objects == "kit8"
+
+
+def test_training_envs_are_seeded_apart_from_the_evaluation_seeds():
+    """train.py's envs start at 10000 + 1000 * seed by default (no training env replays the episodes of a test
+    seed 0-4, a validation seed 500-504 or a sweep seed 1000-1002); --env-seed gives the earlier seed + rank."""
+    import train
+
+    assert [train.env_seed(train.parse_args(["--seed", str(s)])) for s in (0, 1, 2)] == [10_000, 11_000, 12_000]
+    assert train.env_seed(train.parse_args(["--seed", "2", "--env-seed", "2"])) == 2
