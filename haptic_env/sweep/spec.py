@@ -209,6 +209,7 @@ def _envs(doc: dict) -> dict[str, tuple[str, dict[str, Any]]]:
 
 
 def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
+    from agents.sb3 import training_env_seed
     from haptic_env import ENV_VARIANTS
 
     agents = doc.get("agent", [])
@@ -254,6 +255,8 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
                 n_envs = _int(a.get("n_envs", 1), f"{where}.n_envs", 1)
                 train = Job("train", f"{env}/{name}/seed{s}", {
                     "algo": a["algo"], "env_id": env_id, "env_variant": variant, "env_kwargs": kwargs, "seed": s,
+                    # how the training envs are seeded is part of the job: jobs trained the earlier way train again
+                    "env_seed": training_env_seed(s),
                     "total_timesteps": _int(a.get("total_timesteps", 200_000), f"{where}.total_timesteps", 1),
                     "n_envs": n_envs, "vec": _train_vec(a.get("vec", "dummy" if n_envs == 1 else "subproc"), where),
                     "checkpoint_freq": _int(a.get("checkpoint_freq", 20_000), f"{where}.checkpoint_freq", 1),
