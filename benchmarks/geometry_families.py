@@ -35,13 +35,13 @@ from scipy.special import logsumexp
 
 from haptic_env.dataset import DatasetConfig
 from haptic_env.experiments.config import FAMILY_SOURCES, AnalysisConfig
-from haptic_env.experiments.families import family_vectors, grasp_config, member_grasps
+from haptic_env.experiments.families import FAMILY_VAL_SEED_OFFSET, family_vectors, grasp_config, member_grasps
 from haptic_env.objects import FAMILIES, family_set
 from haptic_env.recognizers.baselines import make_classifier
 from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
 from haptic_env.recognizers.mlp import MLPClassifier, MLPConfig
 
-VAL_MEMBER_SEED = 1000  # new members for validation (the analysis' test members use seed + 7919)
+VAL_MEMBER_SEED = FAMILY_VAL_SEED_OFFSET  # new members for validation (experiment 5's; its test members: + 7919)
 
 
 def fam_labels(objs) -> np.ndarray:

@@ -44,7 +44,7 @@ import numpy as np
 
 from haptic_env import cli
 from haptic_env.cache import atomic_write
-from haptic_env.experiments.config import PAPER_KNN, PAPER_NN
+from haptic_env.experiments.config import PAPER_KNN, PAPER_NN, TEST_SEED_OFFSET  # the analyses' test grasps' seed
 from haptic_env.grasp_features import NORMAL_AXES, NORMAL_AXIS_WORDS
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD
 
@@ -52,8 +52,6 @@ from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD
 NETS = {"default": (3, 256), "paper": (7, 500)}
 #: Cell files of another format are ignored.
 CELL_VERSION = 1
-#: Test grasps come from this seed offset (as the analysis' experiments: haptic_env.experiments.config).
-TEST_SEED_OFFSET = 7919
 
 
 def _ints(text: str) -> list[int]:

@@ -29,7 +29,7 @@ from tqdm.auto import tqdm
 from .cache import KEY_ONLY_WHEN_SET, CacheError, cache_dir, config_key, load_npz, save_npz_atomic
 from .force_closure import DEFAULT_EDGES, FRAMES, check_friction, force_closure
 from .grasp_features import check_normal_axis, feature_dim, normalize_scale, phi
-from .grasping.base import support_height
+from .grasping.base import SUPPORTS, support_height
 from .hand_grasps import BUDGETS
 from .numbers import finite_number
 from .objects import SAMPLING_METHODS, UP_AXES, GraspObject, ObjectSet, load_object_set
@@ -156,7 +156,7 @@ class DatasetConfig:
             int(self.hand_fingers) != self.hand_fingers or self.hand_fingers < self.n_fingers
         ):
             raise ValueError(f"hand_fingers must be an int >= n_fingers={self.n_fingers}, got {self.hand_fingers!r}")
-        if self.support not in ("table", "floating"):
+        if self.support not in SUPPORTS:
             raise ValueError(f"support must be 'table' or 'floating', got {self.support!r}")
         if self.hand_budget not in BUDGETS:
             raise ValueError(f"hand_budget must be one of {BUDGETS}, got {self.hand_budget!r}")
@@ -650,7 +650,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="hand source: allegro | shadow | aero | robotiq | generic | an MJCF path")
     p.add_argument("--hand-fingers", type=int_in(2, 20), default=None,
                    help="geometric / hand source: fingers of the simulated hand (default --fingers)")
-    p.add_argument("--support", choices=("table", "floating"), default="table",
+    p.add_argument("--support", choices=SUPPORTS, default="table",
                    help="geometric / hand source: approaches from the upper hemisphere (table) or the sphere")
     p.add_argument("--hand-budget", choices=BUDGETS, default=DatasetConfig.hand_budget,
                    help="hand source: the same approaches for every object, or the same total spread towards the "

@@ -39,6 +39,7 @@ from haptic_env.numbers import finite_number
 from . import _geometric_kernels as gk
 from .base import (
     ACTION_DIM,
+    SUPPORTS,
     GraspBatch,
     GraspResult,
     approach_frame,
@@ -76,7 +77,7 @@ class GeometricConfig:
     def __post_init__(self) -> None:
         if not (isinstance(self.n_fingers, (int, np.integer)) and 2 <= self.n_fingers <= 16):
             raise ValueError(f"n_fingers must be an integer in [2, 16], got {self.n_fingers!r}")
-        if self.support not in ("table", "floating"):
+        if self.support not in SUPPORTS:
             raise ValueError(f"support must be 'table' or 'floating', got {self.support!r}")
         for name in ("contact_noise", "normal_noise_deg", "table_clearance"):
             v = getattr(self, name)

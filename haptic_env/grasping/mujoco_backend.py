@@ -46,6 +46,7 @@ from haptic_env.numbers import finite_number
 
 from .base import (
     ACTION_DIM,
+    SUPPORTS,
     GraspBatch,
     GraspResult,
     approach_frame,
@@ -96,7 +97,7 @@ class MujocoConfig:
     collision: CollisionConfig = CollisionConfig()
 
     def __post_init__(self) -> None:
-        if self.support not in ("table", "floating"):
+        if self.support not in SUPPORTS:
             raise ValueError(f"support must be 'table' or 'floating', got {self.support!r}")
         if self.solver is not None and self.solver not in SOLVERS:
             raise ValueError(f"solver must be one of {tuple(SOLVERS)}, got {self.solver!r}")

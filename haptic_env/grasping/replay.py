@@ -36,7 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .base import ACTION_DIM, GraspBatch, GraspResult, validate_action, validate_actions, validate_pose
+from .base import (ACTION_DIM, SUPPORTS, GraspBatch, GraspResult, validate_action, validate_actions,
+                   validate_pose)
 
 __all__ = ["ReplayConfig", "ReplayBackend", "approach_embedding"]
 
@@ -62,7 +63,7 @@ class ReplayConfig:
             raise ValueError(f"approaches must be an int >= 1, got {self.approaches!r}")
         if isinstance(self.pool_seed, bool) or not isinstance(self.pool_seed, (int, np.integer)) or self.pool_seed < 0:
             raise ValueError(f"pool_seed must be an int >= 0, got {self.pool_seed!r}")
-        if self.support not in ("table", "floating"):
+        if self.support not in SUPPORTS:
             raise ValueError(f"support must be 'table' or 'floating', got {self.support!r}")
         if isinstance(self.neighbours, bool) or not (isinstance(self.neighbours, (int, np.integer))
                                                       and 1 <= self.neighbours <= self.approaches):
