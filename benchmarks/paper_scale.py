@@ -54,10 +54,6 @@ NETS = {"default": (3, 256), "paper": (7, 500)}
 CELL_VERSION = 1
 
 
-def _ints(text: str) -> list[int]:
-    return [int(float(x)) for x in text.split(",") if x.strip()]
-
-
 def _bools(text: str) -> list[bool]:
     out = []
     for w in text.split(","):
@@ -78,9 +74,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--out", required=True, help="output folder (cells/, results.md, results.json, PNG)")
     p.add_argument("--objects", default="kit8", help="object set (default kit8: the paper's 8 KIT meshes)")
     p.add_argument("--data-dir", default=None, help="shared data folder (default: $HAPTIC_DATA)")
-    p.add_argument("--fingers", type=_ints, default=[3, 4, 5], help="finger counts n (comma list)")
+    p.add_argument("--fingers", type=cli.int_list, default=(3, 4, 5), help="finger counts n (comma list)")
     p.add_argument("--normals", type=_bools, default=[True, False], help="yes,no: with and/or without normals")
-    p.add_argument("--grasps", type=_ints, default=[5000, 20000, 50000, 200000],
+    p.add_argument("--grasps", type=cli.int_list, default=(5000, 20000, 50000, 200000),
                    help="training grasps per object (train + validation; paper: 200000)")
     p.add_argument("--nets", default="default,paper", help=f"MLP sizes among {sorted(NETS)} (comma list; empty: none)")
     p.add_argument("--no-knn", action="store_true", help="skip the nearest-neighbour cells")

@@ -64,6 +64,41 @@ def float_in(lo: float | None = None, hi: float | None = None, *, lo_open: bool 
     return parse
 
 
+def parse_int_list(text: str) -> tuple[int, ...]:
+    """``"2-4,7"`` -> ``(2, 3, 4, 7)``: whole numbers and ranges ``a-b``, comma-separated (``2e5`` is 200000); a
+    ``ValueError`` naming the text for anything else (``3.5``, ``x``, ``4-2``)."""
+    def whole(word: str) -> int:
+        try:
+            v = float(word)
+        except ValueError:
+            v = float("nan")
+        if not (v == v and v == int(v) and abs(v) < 2**53):
+            raise ValueError(f"expected a comma list of whole numbers or ranges a-b, got {text!r}")
+        return int(v)
+
+    out: list[int] = []
+    for part in (p.strip() for p in text.split(",")):
+        if not part:
+            continue
+        lo, sep, hi = part.partition("-") if not part.startswith("-") else ("", "", "")
+        if sep:
+            a, b = whole(lo), whole(hi)
+            if b < a:
+                raise ValueError(f"range {part!r} runs backwards in {text!r}")
+            out += range(a, b + 1)
+        else:
+            out.append(whole(part))
+    return tuple(out)
+
+
+def int_list(text: str) -> tuple[int, ...]:
+    """argparse ``type``: :func:`parse_int_list` (a bad list is a one-line error naming the flag)."""
+    try:
+        return parse_int_list(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def output_path(kind: str = "file"):
     """argparse ``type``: a ``Path`` that a long run can write at its end, checked now without creating anything:
     ``kind="file"``: not an existing folder; ``kind="folder"``: not an existing file; and the nearest existing

@@ -6,6 +6,7 @@ import os
 import signal
 import subprocess
 import sys
+import re
 import time
 import warnings
 
@@ -392,3 +393,18 @@ def test_output_path_refuses_what_a_long_run_could_not_write_at_its_end(tmp_path
     assert not (tmp_path / "new").exists()
     with pytest.raises(ValueError, match="kind must be"):
         output_path("dir")
+
+
+def test_int_lists_have_one_parser_that_refuses_what_is_not_whole():
+    """``cli.parse_int_list``: the analyses' and paper_scale's comma lists ("2-4,7", "2e5"); "3.5" is refused instead
+    of being cut to 3 (paper_scale's own parser did that), and so are words and backward ranges."""
+    import argparse
+
+    from haptic_env.cli import int_list, parse_int_list
+
+    assert parse_int_list("2-4,7") == (2, 3, 4, 7) and parse_int_list("2e5, 3") == (200000, 3)
+    for bad in ("3.5", "x", "1-x", "4-2"):
+        with pytest.raises(ValueError, match=re.escape(repr(bad))):
+            parse_int_list(bad)
+    with pytest.raises(argparse.ArgumentTypeError, match="whole numbers"):
+        int_list("3.5")

@@ -18,15 +18,10 @@ __all__ = ["add_parser"]
 
 
 def _ints(text: str) -> tuple[int, ...]:
-    """``"2-4,7"`` -> ``(2, 3, 4, 7)``."""
-    out = []
-    for part in text.split(","):
-        if "-" in part:
-            a, b = part.split("-")
-            out += list(range(int(a), int(b) + 1))
-        elif part:
-            out.append(int(part))
-    return tuple(out)
+    """``"2-4,7"`` -> ``(2, 3, 4, 7)`` (:func:`haptic_env.cli.parse_int_list`)."""
+    from haptic_env.cli import parse_int_list
+
+    return parse_int_list(text)
 
 
 def _corrections(text: str) -> tuple[str, ...]:
