@@ -32,6 +32,7 @@ from haptic_env.experiments.trials import simulate_trials  # noqa: E402
 from haptic_env.objects import load_object_set  # noqa: E402
 from haptic_env.recognizers.calibration import fit_correction, fit_temperature, sequence_scores, tempered_nll  # noqa: E402
 from haptic_env.recognizers.recognizer import build_recognizer  # noqa: E402
+from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD  # noqa: E402
 
 
 def argmax_accuracy(S: list[np.ndarray], m: int, rng: np.random.Generator, draws: int = 200) -> float:
@@ -51,7 +52,8 @@ def main(argv=None) -> None:
     normals = not args.no_normals
     cfg = AnalysisConfig(progress=False)
     K = len(objects)
-    print(f"{args.objects}, normals={normals}; validation halves A (fit) / B (trials); BC-NP at lambda 0.85")
+    print(f"{args.objects}, normals={normals}; validation halves A (fit) / B (trials); BC-NP at lambda "
+          f"{DEFAULT_THRESHOLD}")
     print("| n | scores | BC-NP success % | grasps | held-out one-shot NLL | argmax after 1 / 5 / 10 / 30 grasps % |")
     print("|---|---|---|---|---|---|")
     last = None
@@ -76,7 +78,7 @@ def main(argv=None) -> None:
         for name, f in variants.items():
             Bs = [f(b) for b in B]
             r = simulate_trials(Bs, [np.full_like(b, 1.0 / K) for b in Bs], "bc-np", trials=args.trials, max_grasps=30,
-                                threshold=0.85, rng=np.random.default_rng(2))
+                                threshold=DEFAULT_THRESHOLD, rng=np.random.default_rng(2))
             succ = 100 * np.mean(r["success"] & r["decided"])
             acc = " / ".join(f"{100 * argmax_accuracy(Bs, m, np.random.default_rng(3)):.1f}" for m in (1, 5, 10, 30))
             nll = tempered_nll(np.concatenate(Bs), yB, 1.0)

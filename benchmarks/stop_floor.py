@@ -37,6 +37,7 @@ from haptic_env.experiments.stop_scale import (STOP_SCALES, VALIDATION_GRASPS, V
                                                VALIDATION_TRIALS, fit_stop_scale)
 from haptic_env.objects import load_object_set
 from haptic_env.recognizers.recognizer import build_recognizer
+from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD
 
 CHECK_SEED_OFFSET = 2500  # set B: fresh grasps no experiment uses
 EPS = (0.0, 0.001, 0.003, 0.01, 0.03, 0.1)
@@ -56,7 +57,7 @@ def main(argv=None):
     p.add_argument("--fingers", default="3,4,5")
     p.add_argument("--grasps-per-object", type=int, default=200_000)
     p.add_argument("--eps", default=",".join(f"{e:g}" for e in EPS), help="posterior floors (0: none)")
-    p.add_argument("--threshold", type=float, default=0.85)
+    p.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=output_path("file"), default=None, help="also write the table (markdown) here")
     a = p.parse_args(argv)
