@@ -300,3 +300,19 @@ def test_solver_choice_gives_the_same_grasps():
         assert np.allclose(a.contacts, b.contacts, atol=1e-4)
     with pytest.raises(ValueError, match="solver must be one of"):
         make_backend("mujoco", 4, hand="generic", solver="cg")
+
+
+def test_a_menagerie_hand_from_the_data_folder_leaves_the_environment_alone(monkeypatch):
+    """With ``MENAGERIE_ROOT`` unset, a Menagerie hand is read from the data folder's ``menagerie/`` and the folder
+    is passed to ``mujoco-menagerie`` directly: the process environment (and so every later subprocess) is unchanged."""
+    import os
+
+    from haptic_env.grasping.hands import load_hand
+    from haptic_env.objects import data_dir
+
+    d = data_dir()
+    if d is None or not (d / "menagerie" / "wonik_allegro").is_dir():
+        pytest.skip("needs the shared data's menagerie/ (../shared/data or $HAPTIC_DATA)")
+    monkeypatch.delenv("MENAGERIE_ROOT", raising=False)
+    assert load_hand("allegro", None).n_fingers == 4
+    assert "MENAGERIE_ROOT" not in os.environ

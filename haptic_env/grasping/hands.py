@@ -143,16 +143,20 @@ def generic_hand(n_fingers: int = 4, *, finger_length: float = 0.12, palm_radius
 
 # ------------------------------------------------------------------------------------- menagerie
 def _menagerie_spec(robot: str, entry: str) -> mujoco.MjSpec:
+    """``robot``'s MJCF ``entry`` through ``mujoco-menagerie``: from ``$MENAGERIE_ROOT`` if set, else from the data
+    folder's ``menagerie/`` if it holds the robot (passed to the package, not put into the process environment), else
+    as the package finds it (its cache, or a download)."""
+    root = None
     if not os.environ.get("MENAGERIE_ROOT"):
         from ..objects import data_dir
 
         d = data_dir()
         if d is not None and (d / "menagerie" / robot).is_dir():
-            os.environ["MENAGERIE_ROOT"] = str(d / "menagerie")
+            root = d / "menagerie"
     try:
         import mujoco_menagerie as mm
 
-        return mm.get(robot).spec(entry)
+        return mm.get(robot).spec(entry, None if root is None else mm.Cache(root=root))
     except Exception as exc:  # missing data + no network, unknown robot, bad files ...
         raise HandUnavailableError(
             f"cannot load MuJoCo Menagerie hand {robot!r}/{entry!r} ({type(exc).__name__}: {exc}). "
