@@ -21,7 +21,7 @@ from haptic_env.belief import Belief, get_recognizer
 from haptic_env.config import HapticRecogConfig
 from haptic_env.grasp_features import feature_dim
 from haptic_env.recognizers.updaters import UPDATERS
-from haptic_env.scene import POSE_MODES, Scene, random_pose
+from haptic_env.scene import POSE_MODES, Scene, random_pose, reset_options
 from haptic_env.task import REWARD_KINDS, Task
 
 __all__ = [
@@ -235,12 +235,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        if options is not None and not isinstance(options, dict):
-            raise ValueError(f"reset options must be a dict such as {{'object': 'mug'}} or None, got {options!r}")
-        options = dict(options or {})
-        unknown = set(options) - {"object"}
-        if unknown:
-            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid: ['object']")
+        options = reset_options(options, ("object",))
         self.scene.reset(self.np_random, options.get("object"))
         if self._belief is None:
             self._belief = Belief.from_config(self.objects, self.config, self.recognizer)

@@ -15,7 +15,7 @@ import numpy as np
 if TYPE_CHECKING:
     from haptic_env.config import HapticRecogConfig
 
-__all__ = ["Scene", "POSE_MODES", "random_pose"]
+__all__ = ["Scene", "POSE_MODES", "random_pose", "reset_options"]
 
 #: "table-yaw": a uniform yaw about the world z axis; "so3": a uniform random rotation.
 POSE_MODES = ("table-yaw", "so3")
@@ -177,3 +177,15 @@ class Scene:
         close = getattr(self.backend, "close", None)
         if callable(close):
             close()
+
+
+def reset_options(options, valid: tuple[str, ...]) -> dict[str, Any]:
+    """A ``reset(options=...)`` argument as a new dict: None gives ``{}``; anything but a dict, or a key not in
+    ``valid``, is a ``ValueError`` naming it (the single env's and the native vector env's one check)."""
+    if options is not None and not isinstance(options, dict):
+        raise ValueError(f"reset options must be a dict such as {{'object': 'mug'}} or None, got {options!r}")
+    options = dict(options or {})
+    unknown = set(options) - set(valid)
+    if unknown:
+        raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid: {list(valid)}")
+    return options

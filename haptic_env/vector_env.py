@@ -54,7 +54,7 @@ from gymnasium.vector.utils import batch_space
 from haptic_env.belief import Belief, check_grasp_vectors, get_recognizer
 from haptic_env.config import HapticRecogConfig
 from haptic_env.grasp_features import feature_dim
-from haptic_env.scene import Scene
+from haptic_env.scene import Scene, reset_options
 from haptic_env.task import Task, entropy, touched_rows
 
 __all__ = ["HapticRecogVectorEnv", "make_vector_env"]
@@ -180,12 +180,7 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None):
         """Reset the sub-envs (all, or ``options["reset_mask"]``); seeding scheme in the module docstring."""
         B = self.num_envs
-        if options is not None and not isinstance(options, dict):
-            raise ValueError(f"reset options must be a dict such as {{'object': 'mug'}} or None, got {options!r}")
-        options = dict(options or {})
-        unknown = set(options) - {"object", "reset_mask"}
-        if unknown:
-            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid: ['object', 'reset_mask']")
+        options = reset_options(options, ("object", "reset_mask"))
         mask = options.get("reset_mask")
         if mask is None:
             mask = np.ones(B, dtype=bool)
