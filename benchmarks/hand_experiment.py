@@ -81,8 +81,8 @@ PAPER = {
 }
 
 
-def _sd(x: np.ndarray) -> float:
-    """The sample standard deviation over seeds (ddof = 1; 0 for one seed)."""
+def seed_std(x: np.ndarray) -> float:
+    """The sample standard deviation over seeds (ddof = 1; 0 for one seed): the "+-" of the hand benchmarks."""
     return float(np.std(x, ddof=min(1, len(x) - 1)))
 
 
@@ -267,9 +267,9 @@ def main(argv=None) -> int:
         paper = PAPER[label].get(cols[(n, normals)])
         lines.append(
             f"| {hand} | {n} | {'yes' if normals else 'no'} | {regime} | {label} | "
-            f"{100 * r['success'].mean():.1f} +- {100 * _sd(r['success']):.1f} | "
-            f"{100 * r['accuracy'].mean():.1f} +- {100 * _sd(r['accuracy']):.1f} | "
-            f"{r['grasps'].mean():.2f} +- {_sd(r['grasps']):.2f} | {paper[0]} / {paper[1]} | {usable:.2f} | "
+            f"{100 * r['success'].mean():.1f} +- {100 * seed_std(r['success']):.1f} | "
+            f"{100 * r['accuracy'].mean():.1f} +- {100 * seed_std(r['accuracy']):.1f} | "
+            f"{r['grasps'].mean():.2f} +- {seed_std(r['grasps']):.2f} | {paper[0]} / {paper[1]} | {usable:.2f} | "
             f"{temps['kde']:.2f} / {temps['classifier']:.2f} | {K} | {data:,} | {w:g} |")
     text = "\n".join(lines)
     print("\n" + text)
@@ -278,8 +278,8 @@ def main(argv=None) -> int:
     if rows:  # a cell fixed in advance: the first BC-NP row (the first hand and regime asked for), not the best one
         head = next((r for r in rows if r[4] == "BC-NP"), rows[0])
         s, g = head[5]["success"], head[5]["grasps"]
-        print(f"HEADLINE: {head[4]} success at the stop {100 * s.mean():.1f} +- {100 * _sd(s):.1f} % in "
-              f"{g.mean():.2f} +- {_sd(g):.2f} grasps ({head[0]}, {head[3]} training, "
+        print(f"HEADLINE: {head[4]} success at the stop {100 * s.mean():.1f} +- {100 * seed_std(s):.1f} % in "
+              f"{g.mean():.2f} +- {seed_std(g):.2f} grasps ({head[0]}, {head[3]} training, "
               f"{'with' if head[2] else 'without'} normals; mean +- sample std over {len(s)} seeds)")
     return 0
 

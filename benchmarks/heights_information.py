@@ -28,6 +28,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from benchmarks.hand_experiment import seed_std  # noqa: E402
 from haptic_env.cli import output_path  # noqa: E402
 from haptic_env.dataset import DatasetConfig, support_frame  # noqa: E402
 from haptic_env.grasp_features import phi  # noqa: E402
@@ -108,7 +109,7 @@ def main(argv=None) -> int:
                         cells.append("-")
                         continue
                     acc = one_shot(tr, te, name)
-                    cells.append(f"{100 * acc.mean():.1f} +- {100 * np.std(acc, ddof=min(1, len(acc) - 1)):.1f} %")
+                    cells.append(f"{100 * acc.mean():.1f} +- {100 * seed_std(acc):.1f} %")
                     if name == "phi":
                         base = acc.mean()
                     if name == "phi+heights":

@@ -46,8 +46,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.hand_experiment import (PAPER, SETUPS, env_config, query_pools, run_query, training_config,  # noqa: E402
-                                        write_table)
+from benchmarks.hand_experiment import (PAPER, SETUPS, env_config, query_pools, run_query, seed_std,  # noqa: E402
+                                        training_config, write_table)
 from haptic_env.cli import output_path  # noqa: E402
 from haptic_env.config import HAND_APPROACHES  # noqa: E402
 from haptic_env.dataset import support_frame  # noqa: E402
@@ -197,8 +197,8 @@ def main(argv=None) -> int:
              "|---|---|---|---|---|" + "---|" * len(scales)]
     for hand, normals, method, usable, S, Gr in results:
         paper = PAPER[method][cols[(SETUPS[hand][0], normals)]]
-        cells = [f"{100 * S[i].mean():.1f} +- {100 * np.std(S[i], ddof=min(1, len(S[i]) - 1)):.1f} % / "
-                 f"{Gr[i].mean():.2f}" for i in range(len(scales))]
+        cells = [f"{100 * S[i].mean():.1f} +- {100 * seed_std(S[i]):.1f} % / {Gr[i].mean():.2f}"
+                 for i in range(len(scales))]
         lines.append(f"| {hand} | {'yes' if normals else 'no'} | {method} | {paper[0]} / {paper[1]} | "
                      f"{1 / usable:.2f} | " + " | ".join(cells) + " |")
     text = "\n".join(lines)
