@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import pickle
 import re
 import time
 import warnings
@@ -278,9 +279,10 @@ def _run_guard(save_path: Path, algo: str, checkpoint_freq: int, max_minutes: fl
                     if getattr(self.model, "replay_buffer", None) is not None:
                         _save_atomic(self._checkpoint_path("replay_buffer_", extension="pkl"),
                                      self.model.save_replay_buffer)
-                    if self.model.get_vec_normalize_env() is not None:
+                    vec_normalize = self.model.get_vec_normalize_env()
+                    if vec_normalize is not None:  # what VecNormalize.save writes (it takes a path only)
                         _save_atomic(self._checkpoint_path("vecnormalize_", extension="pkl"),
-                                     self.model.get_vec_normalize_env().save)
+                                     lambda fh: pickle.dump(vec_normalize, fh))
                     _save_atomic(path, self.model.save)
                 finally:
                     self.saving = False
@@ -291,18 +293,13 @@ def _run_guard(save_path: Path, algo: str, checkpoint_freq: int, max_minutes: fl
 
 
 def _save_atomic(path, save) -> None:
-    """``save(tmp)`` into a temporary file beside ``path`` (a name no checkpoint search matches), then move it to
-    ``path``: a kill mid-write leaves no file under the final name. ``save`` is an SB3 saver taking a path
-    (``model.save``, ``save_replay_buffer``, ``VecNormalize.save``); the temporary name keeps the final suffix,
-    which SB3 would otherwise append."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
-    try:
-        save(str(tmp))
-        os.replace(tmp, path)
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
+    """``save(fh)`` into ``path`` through :func:`haptic_env.cache.atomic_write` (a hidden temporary file that no
+    checkpoint search matches, moved into place when whole): a kill mid-write leaves no file under the final name.
+    ``save`` writes a binary file object: SB3's ``model.save`` and ``save_replay_buffer`` take one."""
+    from haptic_env.cache import atomic_write
+
+    with atomic_write(path) as fh:
+        save(fh)
 
 
 @contextlib.contextmanager

@@ -224,9 +224,8 @@ def test_checkpoints_are_written_whole_extras_first(env_config, tmp_path, monkey
     from a zip without its buffer is refused instead of going on as another run."""
     from agents import sb3
 
-    def torn(path):  # a saver killed after writing half its file
-        with open(path, "wb") as fh:
-            fh.write(b"PK\x03\x04half")
+    def torn(fh):  # a saver killed after writing half its file
+        fh.write(b"PK\x03\x04half")
         raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):

@@ -12,7 +12,6 @@ writes. The file is removed when the run completes; other settings start over.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import time
 from pathlib import Path
@@ -78,10 +77,11 @@ STATE_FILE = ".analysis_state.json"
 
 
 def settings_key(cfg: AnalysisConfig) -> str:
-    """What a run's results depend on (every setting but ``progress``), hashed: a saved state resumes only a run
-    with the same key."""
-    fields = {k: v for k, v in dataclasses.asdict(cfg).items() if k != "progress"}
-    return hashlib.sha256(json.dumps(fields, sort_keys=True, default=repr).encode()).hexdigest()[:16]
+    """What a run's results depend on (every setting but ``progress``), hashed (:func:`~haptic_env.cache.config_key`):
+    a saved state resumes only a run with the same key."""
+    from haptic_env.cache import config_key
+
+    return config_key(dataclasses.replace(cfg, progress=False))
 
 
 def _load_state(path: Path, key: str) -> dict | None:

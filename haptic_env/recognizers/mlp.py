@@ -16,9 +16,7 @@ Everything random (initialisation, validation split, mini-batch order) comes fro
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import io
-import json
 import os
 from pathlib import Path
 
@@ -27,7 +25,7 @@ import torch
 from torch import nn
 from tqdm.auto import tqdm
 
-from haptic_env.cache import CacheError, atomic_write
+from haptic_env.cache import CacheError, atomic_write, config_key
 from haptic_env.recognizers.calibration import fit_temperature
 from haptic_env.recognizers.mlp_config import MLPConfig
 from haptic_env.recognizers.preprocess import Standardizer
@@ -61,15 +59,10 @@ def _network(d: int, k: int, depth: int, width: int) -> nn.Sequential:
 
 
 def _fit_key(cfg: MLPConfig, X, y, X_val, y_val, n_classes: int) -> str:
-    """What a fit's result depends on: its config and its data (hashed), for :meth:`MLPClassifier.fit`'s
-    ``checkpoint``."""
-    h = hashlib.sha256(json.dumps(dataclasses.asdict(cfg), sort_keys=True, default=repr).encode())
-    for a in (X, y, X_val, y_val):
-        a = np.ascontiguousarray(a)
-        h.update(f"{a.dtype}{a.shape}".encode())
-        h.update(a.tobytes())
-    h.update(str(n_classes).encode())
-    return h.hexdigest()[:16]
+    """What a fit's result depends on: its config and its data (their shapes, dtypes and bytes), hashed
+    (:func:`~haptic_env.cache.config_key`), for :meth:`MLPClassifier.fit`'s ``checkpoint``."""
+    data = [np.asarray(a) for a in (X, y, X_val, y_val)]
+    return config_key(cfg, n_classes, [(a.shape, str(a.dtype)) for a in data], *data)
 
 
 def _save_fit_state(path: Path, state: dict) -> None:
