@@ -205,16 +205,17 @@ def main(argv: list[str] | None = None) -> Path:
     run_dir = Path(args.run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     config = env_config(args)
+    first_env_seed = env_seed(args)
     part = _next_part(run_dir) if args.resume else 1  # a resumed run keeps the earlier args and Monitor files
     suffix = "" if part == 1 else f".part{part}"
     (run_dir / f"args{suffix}.json").write_text(json.dumps(
         {**{f.name: getattr(args, f.name) for f in dataclasses.fields(args) if f.name != "env"},
-         "first_env_seed": env_seed(args),
+         "first_env_seed": first_env_seed,
          "env_config": {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(config).items()}},
         indent=2, default=str))
 
     t0 = time.time()
-    venv = sb3.make_vec_env(config, n_envs=args.n_envs, seed=env_seed(args), log_dir=run_dir, vec=args.vec,
+    venv = sb3.make_vec_env(config, n_envs=args.n_envs, seed=first_env_seed, log_dir=run_dir, vec=args.vec,
                             env_id=args.env_id, monitor_suffix=suffix)
     torch.set_num_threads(args.torch_threads)  # again: building a recogniser (MLP fit) may have changed it
     print(f"[train] {args.algo} on {args.env_id} ({args.n_envs} envs, {venv.observation_space.shape[0]}-dim obs, "

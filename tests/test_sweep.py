@@ -416,7 +416,7 @@ def test_a_retried_train_job_reuses_a_finished_model_and_resumes_otherwise(tmp_p
     from haptic_env.sweep import jobs
 
     p = {"algo": "ppo", "env_id": "HapticRecog-v0", "total_timesteps": 256, "n_envs": 1, "vec": "dummy", "seed": 0,
-         "checkpoint_freq": 128, "max_minutes": 0, "env_kwargs": {}, "hyperparams": {}}
+         "env_seed": 10_000, "checkpoint_freq": 128, "max_minutes": 0, "env_kwargs": {}, "hyperparams": {}}
     runs = []
 
     def run_logged(cmd, log, cwd, pidfile):

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import shlex
 
-from haptic_env.cli import float_in
+from haptic_env.cli import float_in, parse_int_list
 from haptic_env.grasp_features import NORMAL_AXES
 from haptic_env.objects.base import UP_AXES
 from haptic_env.experiments.config import FAMILY_SOURCES, AnalysisConfig
@@ -15,13 +15,6 @@ from haptic_env.recognizers.kde import SELECTS
 from haptic_env.recognizers.updaters import IC_CERTAINTIES
 
 __all__ = ["add_parser"]
-
-
-def _ints(text: str) -> tuple[int, ...]:
-    """``"2-4,7"`` -> ``(2, 3, 4, 7)`` (:func:`haptic_env.cli.parse_int_list`)."""
-    from haptic_env.cli import parse_int_list
-
-    return parse_int_list(text)
 
 
 def _corrections(text: str) -> tuple[str, ...]:
@@ -214,12 +207,12 @@ def config_from_args(args) -> AnalysisConfig:
     args.stop_scale = not args.raw if args.stop_scale is None else args.stop_scale  # spelled out in the command
     try:  # a bad setting gets the usage message, not a traceback
         cfg = AnalysisConfig(
-            objects=args.objects, data_dir=args.data_dir, units=args.units, up=args.up, experiments=_ints(args.experiments),
+            objects=args.objects, data_dir=args.data_dir, units=args.units, up=args.up, experiments=parse_int_list(args.experiments),
             grasps_per_object=args.grasps_per_object, test_grasps=args.test_grasps, trials=args.trials,
-            max_grasps=args.max_grasps, threshold=args.threshold, fingers=_ints(args.fingers),
-            oneshot_fingers=_ints(args.oneshot_fingers),
+            max_grasps=args.max_grasps, threshold=args.threshold, fingers=parse_int_list(args.fingers),
+            oneshot_fingers=parse_int_list(args.oneshot_fingers),
             classifiers=tuple(c for c in args.classifiers.split(",") if c), baseline_max_train=args.baseline_max_train,
-            zfinger_hands=_ints(args.zfinger_hands), normals=not args.no_normals, normal_axis=args.normal_axis,
+            zfinger_hands=parse_int_list(args.zfinger_hands), normals=not args.no_normals, normal_axis=args.normal_axis,
             family_source=args.family_source, family_members=args.family_members, family_hand=args.family_hand,
             family_scale_range=_range(args.family_scale_range, "--family-scale-range"),
             family_size_range=None if args.family_size_range is None else _range(args.family_size_range,
@@ -228,7 +221,7 @@ def config_from_args(args) -> AnalysisConfig:
             family_floors=_numbers(args.family_floors, "--family-floors"),
             family_force_closure=args.family_force_closure, force_closure=args.force_closure,
             calibrated=not args.raw, stop_scale=args.stop_scale, ic_certainty=args.ic_certainty,
-            calib_fingers=_ints(args.calib_fingers), calib_fingers_no_normals=_ints(args.calib_fingers_no_normals),
+            calib_fingers=parse_int_list(args.calib_fingers), calib_fingers_no_normals=parse_int_list(args.calib_fingers_no_normals),
             lambdas=_lambdas(args.lambdas), seed=args.seed,
             mlp=MLPConfig(depth=args.mlp_depth, width=args.mlp_width, max_epochs=args.mlp_epochs, patience=3,
                           max_train=args.mlp_max_train, seed=args.seed),

@@ -197,7 +197,7 @@ def _train(p: dict[str, Any], run_dir: Path, attempt: int, job: dict[str, Any]) 
         return {"model": str(final), "resumed_from": None, "reused_final_model": True}
     cmd = [sys.executable, str(TRAIN_PY), "--algo", p["algo"], "--env-id", p["env_id"],
            "--total-timesteps", str(p["total_timesteps"]), "--n-envs", str(p["n_envs"]), "--vec", p["vec"],
-           "--seed", str(p["seed"]), "--env-seed", str(p.get("env_seed", p["seed"])), "--run-dir", str(run_dir),
+           "--seed", str(p["seed"]), "--env-seed", str(p["env_seed"]), "--run-dir", str(run_dir),
            "--checkpoint-freq", str(p["checkpoint_freq"]),
            "--max-minutes", str(p["max_minutes"]), "--env-kwargs", json.dumps(p["env_kwargs"]),
            "--hyperparams", json.dumps(p["hyperparams"])]
