@@ -207,7 +207,8 @@ def config_from_args(args) -> AnalysisConfig:
     args.stop_scale = not args.raw if args.stop_scale is None else args.stop_scale  # spelled out in the command
     try:  # a bad setting gets the usage message, not a traceback
         cfg = AnalysisConfig(
-            objects=args.objects, data_dir=args.data_dir, units=args.units, up=args.up, experiments=parse_int_list(args.experiments),
+            objects=args.objects, data_dir=args.data_dir, units=args.units, up=args.up,
+            experiments=parse_int_list(args.experiments),
             grasps_per_object=args.grasps_per_object, test_grasps=args.test_grasps, trials=args.trials,
             max_grasps=args.max_grasps, threshold=args.threshold, fingers=parse_int_list(args.fingers),
             oneshot_fingers=parse_int_list(args.oneshot_fingers),
@@ -221,7 +222,8 @@ def config_from_args(args) -> AnalysisConfig:
             family_floors=_numbers(args.family_floors, "--family-floors"),
             family_force_closure=args.family_force_closure, force_closure=args.force_closure,
             calibrated=not args.raw, stop_scale=args.stop_scale, ic_certainty=args.ic_certainty,
-            calib_fingers=parse_int_list(args.calib_fingers), calib_fingers_no_normals=parse_int_list(args.calib_fingers_no_normals),
+            calib_fingers=parse_int_list(args.calib_fingers),
+            calib_fingers_no_normals=parse_int_list(args.calib_fingers_no_normals),
             lambdas=_lambdas(args.lambdas), seed=args.seed,
             mlp=MLPConfig(depth=args.mlp_depth, width=args.mlp_width, max_epochs=args.mlp_epochs, patience=3,
                           max_train=args.mlp_max_train, seed=args.seed),
