@@ -39,15 +39,9 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["GreedyInfoGainAgent", "entropy_rows"]
+from haptic_env.task import entropy
 
-
-def entropy_rows(P: np.ndarray) -> np.ndarray:
-    """Shannon entropy (nats) of each row of ``P (B, K)``."""
-    P = np.asarray(P, dtype=np.float64)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.where(P > 0, P * np.log(np.where(P > 0, P, 1.0)), 0.0)
-    return -t.sum(axis=-1)
+__all__ = ["GreedyInfoGainAgent"]
 
 
 class GreedyInfoGainAgent:
@@ -116,7 +110,7 @@ class GreedyInfoGainAgent:
         cands = self._rng.uniform(space.low, space.high, size=(M,) + space.shape)
         belief = base.belief_state  # the env's Belief: predictions only, its state is not changed
         b = np.asarray(belief.probs, dtype=np.float64)
-        H0 = float(entropy_rows(b[None])[0])
+        H0 = entropy(b)
         active = np.flatnonzero(b >= self.min_weight)
         if active.size == 0:
             active = np.array([int(np.argmax(b))])
@@ -134,7 +128,7 @@ class GreedyInfoGainAgent:
                                                        support_z=self._support_z[k])
             H = np.full(M * S, H0)
             if scored.size:
-                H[scored] = entropy_rows(posteriors)
+                H[scored] = entropy(posteriors)
             expected += wk * H.reshape(M, S).mean(axis=1)
         self.last_scores = expected
         return cands[int(np.argmin(expected))].astype(space.dtype)

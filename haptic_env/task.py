@@ -30,11 +30,13 @@ __all__ = ["Task", "REWARD_KINDS", "entropy", "touched_rows"]
 REWARD_KINDS = ("true-posterior-gain", "max-posterior-gain", "entropy-reduction")
 
 
-def entropy(p: np.ndarray) -> float:
-    """Shannon entropy (nats) of a probability vector."""
+def entropy(p: np.ndarray) -> float | np.ndarray:
+    """Shannon entropy (nats) of probability vectors along the last axis of ``p (..., K)``: shape ``(...)``, a float
+    for one vector. Zero entries add nothing (``0 log 0 = 0``)."""
     p = np.asarray(p, dtype=np.float64)
-    nz = p[p > 0]
-    return float(-(nz * np.log(nz)).sum())
+    with np.errstate(divide="ignore", invalid="ignore"):
+        h = -np.where(p > 0, p * np.log(np.where(p > 0, p, 1.0)), 0.0).sum(axis=-1)
+    return float(h) if h.ndim == 0 else h
 
 
 def touched_rows(x: np.ndarray, touched: np.ndarray, bound: float) -> np.ndarray:

@@ -385,7 +385,7 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
             return new[ar, targets] - old[ar, targets]
         if kind == "max-posterior-gain":
             return new.max(axis=1) - old.max(axis=1)
-        return np.array([entropy(o) - entropy(nw) for o, nw in zip(old, new)])
+        return entropy(old) - entropy(new)
 
     def _observations(self) -> np.ndarray:
         obs = np.empty((self.num_envs,) + self.single_observation_space.shape, dtype=np.float32)

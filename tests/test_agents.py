@@ -12,9 +12,10 @@ import pytest
 import haptic_env
 from agents.evaluate import (EpisodeRecord, confusion, errors_markdown, evaluate_agents, plot_learning_curves,
                              summarize, write_report)
-from agents.greedy import GreedyInfoGainAgent, entropy_rows
+from agents.greedy import GreedyInfoGainAgent
 from agents.random_policy import RandomAgent
 from haptic_env.belief import Belief, get_recognizer
+from haptic_env.task import entropy
 
 
 def test_random_and_greedy_complete_episodes(env_config):
@@ -95,7 +96,7 @@ def test_greedy_prediction_matches_the_updater(env_config):
     for q, p in zip(Q, pred):
         u = copy.deepcopy(belief)  # reference: really update a copy
         np.testing.assert_allclose(p, u.update_rows(q), rtol=1e-12, atol=1e-15)
-    assert np.all(entropy_rows(pred) >= 0)
+    assert np.all(entropy(pred) >= 0)
     # several rows per grasp (z-subset scoring): rows 0-1 are one grasp, row 2 another
     pred = belief.predict([Q[:2], Q[2:]])
     np.testing.assert_allclose(pred[0], copy.deepcopy(belief).update_rows(Q[:2]), rtol=1e-12, atol=1e-15)
@@ -117,7 +118,7 @@ def test_greedy_picks_the_lowest_expected_entropy(env_config):
     a = agent.act(obs, env)
     assert a.shape == env.action_space.shape and env.action_space.contains(a)
     assert agent.last_scores.shape == (12,)
-    assert np.all(agent.last_scores <= entropy_rows(env.unwrapped.belief[None])[0] + 1e-9)
+    assert np.all(agent.last_scores <= entropy(env.unwrapped.belief) + 1e-9)
     # the candidates, drawn again from the agent's seed (a known pose draws nothing else): the action is the one with
     # the lowest expected entropy, and the scores differ, so the choice is not a tie broken by position
     space = env.action_space
