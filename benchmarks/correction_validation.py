@@ -32,7 +32,7 @@ from haptic_env.experiments.trials import simulate_trials  # noqa: E402
 from haptic_env.objects import load_object_set  # noqa: E402
 from haptic_env.recognizers.calibration import fit_correction, fit_temperature, sequence_scores, tempered_nll  # noqa: E402
 from haptic_env.recognizers.recognizer import build_recognizer  # noqa: E402
-from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD  # noqa: E402
+from haptic_env.recognizers.updaters import DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD  # noqa: E402
 
 
 def argmax_accuracy(S: list[np.ndarray], m: int, rng: np.random.Generator, draws: int = 200) -> float:
@@ -77,8 +77,9 @@ def main(argv=None) -> None:
         res = {}
         for name, f in variants.items():
             Bs = [f(b) for b in B]
-            r = simulate_trials(Bs, [np.full_like(b, 1.0 / K) for b in Bs], "bc-np", trials=args.trials, max_grasps=30,
-                                threshold=DEFAULT_THRESHOLD, rng=np.random.default_rng(2))
+            r = simulate_trials(Bs, [np.full_like(b, 1.0 / K) for b in Bs], "bc-np", trials=args.trials,
+                                max_grasps=DEFAULT_MAX_GRASPS, threshold=DEFAULT_THRESHOLD,
+                                rng=np.random.default_rng(2))
             succ = 100 * np.mean(r["success"] & r["decided"])
             acc = " / ".join(f"{100 * argmax_accuracy(Bs, m, np.random.default_rng(3)):.1f}" for m in (1, 5, 10, 30))
             nll = tempered_nll(np.concatenate(Bs), yB, 1.0)

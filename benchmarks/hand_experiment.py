@@ -59,7 +59,8 @@ from haptic_env.hand_grasps import BUDGETS, hand_grasp_pool  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 from haptic_env.recognizers import KDEConfig, RecognizerConfig, build_recognizer  # noqa: E402
 from haptic_env.recognizers.kde import BANDWIDTHS  # noqa: E402
-from haptic_env.recognizers.updaters import DEFAULT_IC_CERTAINTY, DEFAULT_THRESHOLD, IC_CERTAINTIES  # noqa: E402
+from haptic_env.recognizers.updaters import (DEFAULT_IC_CERTAINTY, DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD,  # noqa: E402
+                                             IC_CERTAINTIES)
 
 #: hand -> (fingers, normals settings); the paper: Allegro with and without normals, 5-finger hands without.
 SETUPS = {"allegro": (4, (True, False)), "shadow": (5, (False,)), "aero": (5, (False,))}
@@ -184,7 +185,7 @@ def main(argv=None) -> int:
     ap.add_argument("--split", choices=["test", "validation"], default="test",
                     help="query pools: test (seeds 1000 + s, for reporting) or validation (500 + s, for tuning)")
     ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
-    ap.add_argument("--max-grasps", type=int, default=30, help="grasps per query at most")
+    ap.add_argument("--max-grasps", type=int, default=DEFAULT_MAX_GRASPS, help="grasps per query at most")
     ap.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD, help="certainty threshold lambda")
     ap.add_argument("--approaches", type=int_in(1), default=None,
                     help="hand regime: training approaches per object (default: the hand's registered env's "

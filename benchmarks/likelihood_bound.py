@@ -37,14 +37,14 @@ from haptic_env.experiments.trials import simulate_trials  # noqa: E402
 from haptic_env.objects import load_object_set  # noqa: E402
 from haptic_env.recognizers.kde import KDEConfig, KDELikelihood  # noqa: E402
 from haptic_env.recognizers.recognizer import build_recognizer  # noqa: E402
-from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD  # noqa: E402
+from haptic_env.recognizers.updaters import DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD  # noqa: E402
 
 
 def bc_np(S: list[np.ndarray], trials: int) -> tuple[str, float]:
     """BC-NP on per-object score rows ``S[k] (m_k, K)``: a line with the success right at the stop, decided and correct,
     mean grasps and one-shot accuracy; and the success right at the stop (%)."""
     K = len(S)
-    r = simulate_trials(S, [np.full_like(s, 1.0 / K) for s in S], "bc-np", trials=trials, max_grasps=30,
+    r = simulate_trials(S, [np.full_like(s, 1.0 / K) for s in S], "bc-np", trials=trials, max_grasps=DEFAULT_MAX_GRASPS,
                         threshold=DEFAULT_THRESHOLD, rng=np.random.default_rng(2))
     one = np.mean(np.concatenate([np.argmax(s, 1) == k for k, s in enumerate(S)]))
     return (f"right at the stop {100 * np.mean(r['success']):.1f} %, decided and correct "
@@ -69,7 +69,7 @@ def main(argv=None) -> None:
     ds = build_dataset(objects, dcfg, progress=False)
     Xv = [ds.X_val[ds.y_val == k].astype(np.float64) for k in range(K)]
     print(f"{args.objects}, {n} fingers without normals; {sum(len(x) for x in Xv)} validation grasps, "
-          f"{args.trials} BC-NP trials, lambda {DEFAULT_THRESHOLD}, at most 30 grasps")
+          f"{args.trials} BC-NP trials, lambda {DEFAULT_THRESHOLD}, at most {DEFAULT_MAX_GRASPS} grasps")
     t0 = time.perf_counter()
     big = build_dataset(objects, dataclasses.replace(dcfg, grasps_per_object=args.big, seed=12345), progress=False)
     best = 0.0

@@ -46,7 +46,7 @@ from haptic_env import cli
 from haptic_env.cache import atomic_write
 from haptic_env.experiments.config import PAPER_KNN, PAPER_NN, TEST_SEED_OFFSET  # the analyses' test grasps' seed
 from haptic_env.grasp_features import NORMAL_AXES, NORMAL_AXIS_WORDS
-from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD
+from haptic_env.recognizers.updaters import DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD
 
 #: Network sizes: hidden layers x units.
 NETS = {"default": (3, 256), "paper": (7, 500)}
@@ -286,7 +286,8 @@ def run_exp2(cell, clf, data: _Data, args) -> dict:
            "temperatures": bank.temperature(n)}
     for i, kind in enumerate(("ic", "bc-np", "bc-ip")):
         rng = np.random.default_rng([args.seed, n, int(normals), g, i])
-        r = simulate_trials(LL, PR, kind, trials=args.trials_per_object * K, max_grasps=30, threshold=args.threshold, rng=rng)
+        r = simulate_trials(LL, PR, kind, trials=args.trials_per_object * K, max_grasps=DEFAULT_MAX_GRASPS,
+                            threshold=args.threshold, rng=rng)
         sr, se, gm, gs = summarize(r)
         out[kind] = {"success": sr, "success_se": se, "grasps": gm, "grasps_std": gs,
                      "decided": float(np.mean(r["decided"]))}

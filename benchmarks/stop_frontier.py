@@ -53,7 +53,7 @@ from haptic_env.config import HAND_APPROACHES  # noqa: E402
 from haptic_env.dataset import support_frame  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 from haptic_env.recognizers import build_recognizer, models_for  # noqa: E402
-from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD  # noqa: E402
+from haptic_env.recognizers.updaters import DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD  # noqa: E402
 from haptic_env.recognizers.zfinger import subset_vectors, subset_weight  # noqa: E402
 
 METHODS = ("BC-NP", "BC-NP, z=3")
@@ -118,7 +118,7 @@ def main(argv=None) -> int:
                     help="query pools: validation (pool seeds 500 + s, the default: for choosing) or test (1000 + s)")
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="pool seeds (spread: std over them)")
     ap.add_argument("--queries", type=int, default=10, help="queries per object and seed")
-    ap.add_argument("--max-grasps", type=int, default=30)
+    ap.add_argument("--max-grasps", type=int, default=DEFAULT_MAX_GRASPS)
     ap.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD, help="certainty threshold lambda")
     ap.add_argument("--scales", type=float, nargs="+", default=[0.5, 0.7, 1.0, 1.4, 2.0, 3.0, 4.0, 6.0, 10.0],
                     help="multipliers of the calibrated per-grasp log-likelihood (1: the env's belief)")

@@ -20,7 +20,8 @@ import numpy as np
 from haptic_env.grasp_features import check_normal_axis
 from haptic_env.numbers import finite_number
 from haptic_env.recognizers.touch import check_touch_weight
-from haptic_env.recognizers.updaters import DEFAULT_IC_CERTAINTY, DEFAULT_THRESHOLD, UPDATERS, check_ic_certainty
+from haptic_env.recognizers.updaters import (DEFAULT_IC_CERTAINTY, DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD, UPDATERS,
+                                             check_ic_certainty)
 from haptic_env.recognizers.zfinger import check_min_fingers, check_subset_k
 from haptic_env.scene import POSE_MODES
 from haptic_env.task import REWARD_KINDS
@@ -90,7 +91,7 @@ class HapticRecogConfig:
     """"table-yaw": uniform yaw about the world z axis; "so3": uniform random rotation."""
     scale_range: tuple[float, float] | None = None
     """Uniform random object scale per episode, or None (scale 1)."""
-    max_grasps: int = 30
+    max_grasps: int = DEFAULT_MAX_GRASPS
     """Grasps per episode before truncation (the env truncates itself: the one source of the episode length; the
     registered envs have no ``max_episode_steps``); also normalises the grasp count in the observation."""
     recognizer_source: str = "auto"

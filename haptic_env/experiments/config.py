@@ -19,7 +19,8 @@ from haptic_env.recognizers.baselines import CLASSIFIERS
 from haptic_env.recognizers.kde import KDEConfig
 from haptic_env.recognizers.mlp import MLPConfig
 from haptic_env.recognizers.recognizer import RecognizerConfig
-from haptic_env.recognizers.updaters import DEFAULT_IC_CERTAINTY, DEFAULT_THRESHOLD, UPDATERS, check_ic_certainty
+from haptic_env.recognizers.updaters import (DEFAULT_IC_CERTAINTY, DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD, UPDATERS,
+                                             check_ic_certainty)
 
 __all__ = ["AnalysisConfig", "TEST_SEED_OFFSET", "KINDS", "MAIN_KINDS", "PAPER", "PAPER_NN", "PAPER_KNN",
            "FAMILY_SOURCES"]
@@ -59,7 +60,7 @@ class AnalysisConfig:
     grasps_per_object: int = 10_000
     test_grasps: int = 400  #: fresh test grasps per object
     trials: int = 200
-    max_grasps: int = 30
+    max_grasps: int = DEFAULT_MAX_GRASPS
     threshold: float = DEFAULT_THRESHOLD
     fingers: tuple[int, ...] = (2, 3, 4, 5, 6, 7, 8, 9, 10)  #: experiment 2
     oneshot_fingers: tuple[int, ...] = (3, 4, 5)  #: experiment 1

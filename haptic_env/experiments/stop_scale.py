@@ -25,6 +25,7 @@ import numpy as np
 from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.fresh_grasps import fresh_pool, pool_scores
 from haptic_env.experiments.trials import simulate_trials
+from haptic_env.recognizers.updaters import DEFAULT_MAX_GRASPS
 
 __all__ = ["STOP_SCALES", "VALIDATION_SEED_OFFSET", "VALIDATION_GRASPS", "VALIDATION_TRIALS", "fit_stop_scale",
            "fit_cell_stop_scales", "scaled"]
@@ -45,7 +46,7 @@ def scaled(log_lik: Sequence[np.ndarray], s: float) -> list[np.ndarray]:
 
 def fit_stop_scale(log_lik: Sequence[np.ndarray], proba: Sequence[np.ndarray], threshold: float, *,
                    kind: str = "bc-np", scales: Sequence[float] = STOP_SCALES, trials: int = VALIDATION_TRIALS,
-                   max_grasps: int = 30,
+                   max_grasps: int = DEFAULT_MAX_GRASPS,
                    rng: np.random.Generator) -> tuple[tuple[float, float, float], list[tuple[float, float, float]]]:
     """The stop scale of ``kind``'s belief on validation scores.
 

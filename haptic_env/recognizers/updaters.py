@@ -47,7 +47,8 @@ import numpy as np
 from numba import njit
 
 __all__ = ["BeliefUpdater", "IterativeClassification", "BayesianUpdater", "BCNP", "BCIP", "make_updater", "UPDATERS",
-           "DEFAULT_THRESHOLD", "IC_CERTAINTIES", "DEFAULT_IC_CERTAINTY", "check_ic_certainty", "bayes_steps"]
+           "DEFAULT_THRESHOLD", "DEFAULT_MAX_GRASPS", "IC_CERTAINTIES", "DEFAULT_IC_CERTAINTY", "check_ic_certainty",
+           "bayes_steps"]
 
 #: Every belief-updater kind (the env, the recogniser and the experiments take these names).
 UPDATERS = ("ic", "ic-full", "bc-np", "bc-ip")
@@ -68,6 +69,8 @@ def check_ic_certainty(rule, name: str = "ic_certainty") -> str:
 
 #: The certainty ``lambda_s`` at which a recogniser decides (the paper's 0.85); the one default of every threshold.
 DEFAULT_THRESHOLD = 0.85
+#: Grasps an episode or a simulated trial takes at most before it ends undecided; the one default of every cap.
+DEFAULT_MAX_GRASPS = 30
 
 
 def _check_threshold(threshold: float) -> float:
