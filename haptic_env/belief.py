@@ -56,7 +56,7 @@ import numpy as np
 from haptic_env.grasp_features import feature_dim
 from haptic_env.recognizers.touch import check_touch_weight
 from haptic_env.recognizers.updaters import DEFAULT_IC_CERTAINTY, DEFAULT_THRESHOLD, UPDATERS
-from haptic_env.recognizers.zfinger import check_min_fingers, check_subset_k, subset_weight
+from haptic_env.recognizers.zfinger import DEFAULT_SUBSET_K, check_min_fingers, check_subset_k, subset_weight
 
 if TYPE_CHECKING:
     from haptic_env.config import HapticRecogConfig
@@ -112,8 +112,8 @@ class Belief:
         score_subsets: score every grasp of ``t >= z_fingers`` touching fingers through its ``z_fingers``-subsets.
         min_fingers: with ``score_subsets``, also score a grasp of ``min_fingers <= t < z_fingers`` touching fingers
             by the ``t``-finger model; None: ``z_fingers`` (such grasps carry no contact information).
-        subset_k: with ``score_subsets``, the subsets a Bayesian step counts at most (see the module docstring);
-            None: all of them.
+        subset_k: with ``score_subsets``, the subsets a Bayesian step counts at most (see the module docstring; the
+            paper's 4, as the env config's); None: all of them, the plain product of Algorithm 3.
         touch_weight: ``w`` of the touch-pattern log-likelihood added at every grasp
             (:mod:`~haptic_env.recognizers.touch`; BC-NP only, and the recogniser needs its ``touch`` model);
             0: off, the paper's method.
@@ -122,7 +122,7 @@ class Belief:
 
     def __init__(self, recognizer, kind: str = "bc-np", threshold: float = DEFAULT_THRESHOLD, *,
                  calibrated: bool = True, z_fingers: int | None = None, score_subsets: bool = False,
-                 touch_weight: float = 0.0, subset_k: int | None = None, min_fingers: int | None = None,
+                 touch_weight: float = 0.0, subset_k: int | None = DEFAULT_SUBSET_K, min_fingers: int | None = None,
                  ic_certainty: str = DEFAULT_IC_CERTAINTY):
         if kind not in UPDATERS:
             raise ValueError(f"unknown updater kind {kind!r}; choose one of {UPDATERS}")

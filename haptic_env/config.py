@@ -22,7 +22,7 @@ from haptic_env.numbers import finite_number
 from haptic_env.recognizers.touch import check_touch_weight
 from haptic_env.recognizers.updaters import (DEFAULT_IC_CERTAINTY, DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD, UPDATERS,
                                              check_ic_certainty)
-from haptic_env.recognizers.zfinger import check_min_fingers, check_subset_k
+from haptic_env.recognizers.zfinger import DEFAULT_SUBSET_K, check_min_fingers, check_subset_k
 from haptic_env.scene import POSE_MODES
 from haptic_env.task import REWARD_KINDS
 
@@ -75,7 +75,7 @@ class HapticRecogConfig:
     ``t``-finger model (its touching contacts as one grasp; the recogniser then also has those models). None: such
     grasps carry no contact information, as in the paper's z-finger scoring. Without ``score_subsets`` this is what
     ``z_fingers=min_fingers`` does, so it is refused there."""
-    subset_k: int | None = 4
+    subset_k: int | None = DEFAULT_SUBSET_K
     """With ``score_subsets``: the subsets one Bayes step counts at most. The ``C(t, z)`` subsets of a grasp share its
     contacts; their summed log-likelihood is multiplied by ``min(1, subset_k / m)``, ``m`` the subsets scored
     (``C(t, z)`` unless some are degenerate), the expectation of the paper's Algorithm 4 (``k = 4`` random subsets)

@@ -22,7 +22,7 @@ import numpy as np
 from haptic_env.grasp_features import feature_dim, normalize_scale, phi
 
 __all__ = ["subsets", "subset_vectors", "grasp_vectors_for", "ZFingerUpdater", "sample_finger_counts", "check_subset_k",
-           "check_min_fingers"]
+           "check_min_fingers", "DEFAULT_SUBSET_K"]
 
 
 def subsets(n: int, z: int, k: int | None = None, rng: np.random.Generator | None = None) -> np.ndarray:
@@ -47,6 +47,11 @@ def subsets(n: int, z: int, k: int | None = None, rng: np.random.Generator | Non
     while len(seen) < k:
         seen.add(tuple(sorted(rng.choice(n, size=z, replace=False).tolist())))
     return np.array(sorted(seen), dtype=np.int64)
+
+
+#: The subsets one Bayes step of z-subset scoring counts at most: the paper's ``k = 4`` (Algorithm 4); the one default
+#: of ``HapticRecogConfig.subset_k`` and ``Belief(subset_k=)``.
+DEFAULT_SUBSET_K = 4
 
 
 def check_subset_k(k) -> int | None:
