@@ -94,9 +94,9 @@ _MINIMUM = {"total_timesteps": 1, "n_envs": 1, "checkpoint_freq": 1, "max_minute
 
 
 def env_seed(args: Args) -> int:
-    """The first training env's seed: ``--env-seed``, or by default ``agents.sb3.training_env_seed(seed)``, apart from
-    every evaluation seed."""
-    from agents.sb3 import training_env_seed
+    """The first training env's seed: ``--env-seed``, or by default ``haptic_env.splits.training_env_seed(seed)``, apart
+    from every evaluation seed."""
+    from haptic_env.splits import training_env_seed
 
     return args.env_seed if args.env_seed >= 0 else training_env_seed(args.seed)
 

@@ -598,6 +598,7 @@ def _block_key(spec: str, args, kwargs: dict) -> str:
 def add_parser(subparsers) -> None:
     from haptic_env import ENV_VARIANTS
     from haptic_env.cli import int_in, json_object
+    from haptic_env.splits import ENV_TEST_SEEDS
 
     p = subparsers.add_parser("evaluate", help="evaluate agents on HapticRecog (table + plots)",
                               description=__doc__.split("\n\n")[0])
@@ -606,7 +607,7 @@ def add_parser(subparsers) -> None:
                         "without the object's pose) | "
                         "NAME=model.zip (ppo=..., sac=...)")
     p.add_argument("--episodes", type=int_in(1), default=40, help="episodes per seed")
-    p.add_argument("--seeds", type=int_in(0), nargs="+", default=[0, 1, 2, 3, 4])
+    p.add_argument("--seeds", type=int_in(0), nargs="+", default=list(ENV_TEST_SEEDS))
     p.add_argument("--stochastic", action="store_true",
                    help="SB3 agents sample actions from their policy (seeded per env seed) instead of the mean action")
     p.add_argument("--env-id", default="HapticRecog-v0", choices=list(ENV_VARIANTS))

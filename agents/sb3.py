@@ -70,13 +70,6 @@ def _env_fn(config, rank: int, monitor_dir: str | None, env_id: str, monitor_suf
     return _init
 
 
-def training_env_seed(seed: int) -> int:
-    """The first training env's seed for training seed ``seed`` (env ``rank`` gets it ``+ rank``): apart from every
-    evaluation seed (test 0-4, validation 500-504, sweeps 1000-1002), so that no training env replays the episode
-    draws of an evaluation seed."""
-    return 10_000 + 1_000 * int(seed)
-
-
 #: ``make_vec_env(vec=...)`` (and ``train.py --vec``): one process per env, all in this process, or the native
 #: batched vector env (``haptic_env.vector_env``)
 VEC_KINDS = ("subproc", "dummy", "native")

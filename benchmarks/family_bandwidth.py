@@ -39,10 +39,10 @@ from scipy.special import log_softmax
 
 from haptic_env.cli import output_path
 from haptic_env.experiments.config import AnalysisConfig
-from haptic_env.experiments.families import (FAMILY_VAL_SEED_OFFSET, floored, grasp_config, member_grasps,
-                                             sequence_fit)
+from haptic_env.experiments.families import floored, grasp_config, member_grasps, sequence_fit
 from haptic_env.objects import FAMILIES, family_set
 from haptic_env.recognizers.kde import KDELikelihood
+from haptic_env.splits import FAMILY_VAL_SEED_OFFSET
 
 CHECK_SEED_OFFSET = 2000  # set B: new members no experiment uses
 FACTORS = ("auto", 0.18, 0.25, 0.35, 0.5, 0.7, 1.0, 1.4, 2.0, 2.8, 4.0, 5.6, 8.0)

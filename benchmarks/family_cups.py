@@ -25,9 +25,10 @@ import numpy as np
 import trimesh
 
 from haptic_env.dataset import hand_vectors
-from haptic_env.experiments.config import TEST_SEED_OFFSET, AnalysisConfig
+from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.families import family_models, grasp_config
 from haptic_env.objects import load_object_set
+from haptic_env.splits import TEST_SEED_OFFSET
 
 #: (object set, object, a cup?) in the order of the table
 OBJECTS = (("default", "mug", True), ("kit20", "GreenCup", True), ("kit20", "WhiteCup", True), ("ycb10", "025_mug", True),

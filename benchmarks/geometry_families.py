@@ -35,11 +35,12 @@ from scipy.special import logsumexp
 
 from haptic_env.dataset import DatasetConfig
 from haptic_env.experiments.config import FAMILY_SOURCES, AnalysisConfig
-from haptic_env.experiments.families import FAMILY_VAL_SEED_OFFSET, family_vectors, grasp_config, member_grasps
+from haptic_env.experiments.families import family_vectors, grasp_config, member_grasps
 from haptic_env.objects import FAMILIES, family_set
 from haptic_env.recognizers.baselines import make_classifier
 from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
 from haptic_env.recognizers.mlp import MLPClassifier, MLPConfig
+from haptic_env.splits import FAMILY_VAL_SEED_OFFSET
 
 VAL_MEMBER_SEED = FAMILY_VAL_SEED_OFFSET  # new members for validation (experiment 5's; its test members: + 7919)
 

@@ -61,6 +61,7 @@ from haptic_env.recognizers import KDEConfig, RecognizerConfig, build_recognizer
 from haptic_env.recognizers.kde import BANDWIDTHS  # noqa: E402
 from haptic_env.recognizers.updaters import (DEFAULT_IC_CERTAINTY, DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD,  # noqa: E402
                                              IC_CERTAINTIES)
+from haptic_env.splits import hand_pool_seed  # noqa: E402
 
 #: hand -> (fingers, normals settings); the paper: Allegro with and without normals, 5-finger hands without.
 SETUPS = {"allegro": (4, (True, False)), "shadow": (5, (False,)), "aero": (5, (False,))}
@@ -91,9 +92,8 @@ def query_pools(objects, hand: str, n: int, split: str, seeds, queries: int, max
     """The query pools of ``split`` (``"test"``: pool seeds ``1000 + s``; ``"validation"``: ``500 + s``), one per seed
     with ``queries x max_grasps`` random-approach grasps per object, and their usable rate (>= 3 touching
     fingertips); None (said on stdout) when the hand cannot be loaded."""
-    base = 1000 if split == "test" else 500
     try:
-        pools = [hand_grasp_pool(objects, hand, n, queries * max_grasps, seed=base + s) for s in seeds]
+        pools = [hand_grasp_pool(objects, hand, n, queries * max_grasps, seed=hand_pool_seed(split, s)) for s in seeds]
     except HandUnavailableError as exc:
         print(f"skipping {hand}: {exc}")
         return None

@@ -32,6 +32,8 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from haptic_env.splits import ENV_VALIDATION_SEEDS  # noqa: E402
+
 MODES = ("zero", "yaw")
 
 
@@ -93,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--parts", nargs="+", default=["contacts", "contact_normals"])
     ap.add_argument("--modes", nargs="+", default=list(MODES), choices=MODES)
     ap.add_argument("--episodes", type=int, default=40)
-    ap.add_argument("--seeds", type=int, nargs="+", default=[500, 501, 502, 503, 504])
+    ap.add_argument("--seeds", type=int, nargs="+", default=list(ENV_VALIDATION_SEEDS))
     ap.add_argument("--out", default="results/obs_ablation")
     args = ap.parse_args(argv)
     kwargs = json.loads(args.env_kwargs)

@@ -33,11 +33,11 @@ from haptic_env.cli import output_path
 from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.families import floored
 from haptic_env.experiments.fresh_grasps import fresh_pool
-from haptic_env.experiments.stop_scale import (STOP_SCALES, VALIDATION_GRASPS, VALIDATION_SEED_OFFSET,
-                                               VALIDATION_TRIALS, fit_stop_scale)
+from haptic_env.experiments.stop_scale import STOP_SCALES, VALIDATION_GRASPS, VALIDATION_TRIALS, fit_stop_scale
 from haptic_env.objects import load_object_set
 from haptic_env.recognizers.recognizer import build_recognizer
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD
+from haptic_env.splits import VALIDATION_SEED_OFFSET
 
 CHECK_SEED_OFFSET = 2500  # set B: fresh grasps no experiment uses
 EPS = (0.0, 0.001, 0.003, 0.01, 0.03, 0.1)

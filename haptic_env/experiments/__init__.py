@@ -38,9 +38,10 @@ Default settings finish in minutes on 2 cores; the paper's protocol is
 from haptic_env.experiments.analysis import EXPERIMENTS, run_analysis
 from haptic_env.experiments.calibration import calibration_summary, oneshot_posterior
 from haptic_env.experiments.cli import add_parser
-from haptic_env.experiments.config import PAPER, TEST_SEED_OFFSET, AnalysisConfig
+from haptic_env.experiments.config import PAPER, AnalysisConfig
 from haptic_env.experiments.families import EXPECTED_FAMILY, family_temperatures
 from haptic_env.experiments.trials import family_trials, incomplete_trials, run_trial, simulate_trials
+from haptic_env.splits import TEST_SEED_OFFSET
 
 __all__ = [
     "AnalysisConfig", "run_analysis", "EXPERIMENTS", "add_parser", "PAPER", "TEST_SEED_OFFSET",

@@ -15,7 +15,7 @@ import numpy as np
 from scipy.special import softmax
 from tqdm.auto import tqdm
 
-from haptic_env.experiments.config import MAIN_KINDS, TEST_SEED_OFFSET, AnalysisConfig
+from haptic_env.experiments.config import MAIN_KINDS, AnalysisConfig
 from haptic_env.experiments.fresh_grasps import fresh_pool, pool_scores
 from haptic_env.experiments.plots import plot_lambda_sweep, plot_reliability
 from haptic_env.experiments.report import Report, kde_temperature, mean_std
@@ -23,6 +23,7 @@ from haptic_env.experiments.stop_scale import fit_cell_stop_scales, scaled
 from haptic_env.experiments.trials import simulate_trials
 from haptic_env.recognizers.calibration import _finite_rows, expected_calibration_error
 from haptic_env.recognizers.recognizer import build_recognizer
+from haptic_env.splits import TEST_SEED_OFFSET
 
 __all__ = ["run", "oneshot_posterior", "calibration_summary", "cell_name"]
 

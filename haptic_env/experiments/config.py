@@ -22,11 +22,9 @@ from haptic_env.recognizers.recognizer import RecognizerConfig
 from haptic_env.recognizers.updaters import (DEFAULT_IC_CERTAINTY, DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD, UPDATERS,
                                              check_ic_certainty)
 
-__all__ = ["AnalysisConfig", "TEST_SEED_OFFSET", "KINDS", "MAIN_KINDS", "PAPER", "PAPER_NN", "PAPER_KNN",
+__all__ = ["AnalysisConfig", "KINDS", "MAIN_KINDS", "PAPER", "PAPER_NN", "PAPER_KNN",
            "FAMILY_SOURCES"]
 
-#: Test grasps are fresh samples from seed ``seed + TEST_SEED_OFFSET``, never training data.
-TEST_SEED_OFFSET = 7919
 #: The updaters of experiments 2 and 6: every kind.
 KINDS = UPDATERS
 #: IC, BC-NP and BC-IP: the updaters of experiments 3, 4 and 7.

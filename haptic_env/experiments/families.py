@@ -15,15 +15,16 @@ import numpy as np
 from scipy.special import softmax
 
 from haptic_env.dataset import DatasetConfig, build_dataset, hand_dataset, hand_vectors
-from haptic_env.experiments.config import TEST_SEED_OFFSET, AnalysisConfig
+from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.plots import plot_family_votes
 from haptic_env.experiments.report import Report, mean_std
 from haptic_env.experiments.trials import family_trials, simulate_trials
 from haptic_env.recognizers.calibration import _finite_rows, fit_temperature, sequence_scores, tempered_nll
 from haptic_env.recognizers.kde import KDELikelihood
 from haptic_env.recognizers.mlp import MLPClassifier
+from haptic_env.splits import FAMILY_VAL_SEED_OFFSET, TEST_SEED_OFFSET
 
-__all__ = ["run", "EXPECTED_FAMILY", "FAMILY_OBJECT_TRIALS", "FAMILY_VAL_SEED_OFFSET", "family_temperatures",
+__all__ = ["run", "EXPECTED_FAMILY", "FAMILY_OBJECT_TRIALS", "family_temperatures",
            "family_floor", "floored", "sequence_fit", "family_models", "FamilyModels", "family_vectors", "grasp_config",
            "member_grasps"]
 
@@ -43,9 +44,6 @@ EXPECTED_FAMILY = {
 }
 #: Trials per object of experiment 5's object table (the paper's GraspNet-style table).
 FAMILY_OBJECT_TRIALS = 10
-#: Seed offset of the validation family members that experiment 5's calibration temperatures are fitted on
-#: (the test members use ``TEST_SEED_OFFSET``).
-FAMILY_VAL_SEED_OFFSET = 1000
 
 
 def floored(S: np.ndarray, floor: float) -> np.ndarray:

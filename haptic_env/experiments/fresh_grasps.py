@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from haptic_env.dataset import DatasetConfig, build_dataset, draw_held_grasps, sample_grasps
-from haptic_env.experiments.config import TEST_SEED_OFFSET, AnalysisConfig
+from haptic_env.experiments.config import AnalysisConfig
+from haptic_env.splits import TEST_SEED_OFFSET
 
 __all__ = ["fresh_pool", "contact_pool", "pool_scores", "scored_models"]
 
@@ -19,7 +20,7 @@ def fresh_pool(objects, n: int, normals: bool, cfg: AnalysisConfig, *, seed_offs
                grasps: int | None = None, **dkw) -> list[np.ndarray]:
     """Fresh grasp vectors: list over objects of ``(G, d)``; by default the test grasps (``cfg.test_grasps``
     each, seed ``cfg.seed + TEST_SEED_OFFSET``). ``seed_offset`` and ``grasps`` draw another pool (validation
-    grasps: :data:`~haptic_env.experiments.stop_scale.VALIDATION_SEED_OFFSET`); ``dkw``: more
+    grasps: :data:`~haptic_env.splits.VALIDATION_SEED_OFFSET`); ``dkw``: more
     :class:`DatasetConfig` fields."""
     dc = DatasetConfig(n_fingers=n, normals=normals, grasps_per_object=cfg.test_grasps if grasps is None else grasps,
                        val_fraction=0.0, seed=cfg.seed + seed_offset,

@@ -12,11 +12,12 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from haptic_env.dataset import build_dataset
-from haptic_env.experiments.config import TEST_SEED_OFFSET, AnalysisConfig
+from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.fresh_grasps import fresh_pool
 from haptic_env.experiments.report import Report
 from haptic_env.recognizers.baselines import make_classifier
 from haptic_env.recognizers.recognizer import build_recognizer
+from haptic_env.splits import TEST_SEED_OFFSET
 
 __all__ = ["run", "baseline_train_cap"]
 

@@ -13,10 +13,11 @@ from haptic_env.experiments.config import KINDS, AnalysisConfig
 from haptic_env.experiments.fresh_grasps import fresh_pool, pool_scores, scored_models
 from haptic_env.experiments.plots import plot_confusion, plot_sequential_vs_fingers
 from haptic_env.experiments.report import Report, kde_temperature, mean_std
-from haptic_env.experiments.stop_scale import (STOP_SCALES, VALIDATION_GRASPS, VALIDATION_SEED_OFFSET, VALIDATION_TRIALS,
-                                               fit_cell_stop_scales, scaled)
+from haptic_env.experiments.stop_scale import (STOP_SCALES, VALIDATION_GRASPS, VALIDATION_TRIALS, fit_cell_stop_scales,
+                                               scaled)
 from haptic_env.experiments.trials import confusion, simulate_trials, summarize
 from haptic_env.recognizers.recognizer import build_recognizer
+from haptic_env.splits import VALIDATION_SEED_OFFSET
 
 __all__ = ["run"]
 

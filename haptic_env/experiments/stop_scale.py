@@ -26,14 +26,13 @@ from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.fresh_grasps import fresh_pool, pool_scores
 from haptic_env.experiments.trials import simulate_trials
 from haptic_env.recognizers.updaters import DEFAULT_MAX_GRASPS
+from haptic_env.splits import VALIDATION_SEED_OFFSET
 
-__all__ = ["STOP_SCALES", "VALIDATION_SEED_OFFSET", "VALIDATION_GRASPS", "VALIDATION_TRIALS", "fit_stop_scale",
+__all__ = ["STOP_SCALES", "VALIDATION_GRASPS", "VALIDATION_TRIALS", "fit_stop_scale",
            "fit_cell_stop_scales", "scaled"]
 
 #: The scales weighed (1 among them: the calibrated belief unchanged).
 STOP_SCALES = (0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.15, 1.3, 1.5, 2.0)
-#: Validation grasps are fresh samples from seed ``seed + VALIDATION_SEED_OFFSET`` (the test grasps': 7919).
-VALIDATION_SEED_OFFSET = 500
 #: Fresh validation grasps per object, and validation trials per scale.
 VALIDATION_GRASPS = 1_500
 VALIDATION_TRIALS = 3_000

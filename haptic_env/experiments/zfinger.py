@@ -7,12 +7,13 @@ from __future__ import annotations
 import numpy as np
 from tqdm.auto import tqdm
 
-from haptic_env.experiments.config import MAIN_KINDS, TEST_SEED_OFFSET, AnalysisConfig
+from haptic_env.experiments.config import MAIN_KINDS, AnalysisConfig
 from haptic_env.belief import Belief
 from haptic_env.experiments.fresh_grasps import contact_pool, fresh_pool, pool_scores, scored_models
 from haptic_env.experiments.report import Report, mean_std
 from haptic_env.experiments.trials import incomplete_trials, simulate_trials, summarize
 from haptic_env.recognizers.recognizer import build_recognizer
+from haptic_env.splits import TEST_SEED_OFFSET
 
 __all__ = ["run", "SUBSET_SIZES"]
 

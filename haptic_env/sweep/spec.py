@@ -209,8 +209,8 @@ def _envs(doc: dict) -> dict[str, tuple[str, dict[str, Any]]]:
 
 
 def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
-    from agents.sb3 import training_env_seed
     from haptic_env import ENV_VARIANTS
+    from haptic_env.splits import SWEEP_ENV_SEEDS, training_env_seed
 
     agents = doc.get("agent", [])
     if agents and not envs:
@@ -218,7 +218,7 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
     ev = doc.get("evaluate", {})
     _check_keys(ev, _EVALUATE, "evaluate")
     episodes = _int(ev.get("episodes", 20), "evaluate.episodes", 1)
-    env_seeds = [_int(s, "evaluate.env_seeds") for s in _as_list(ev.get("env_seeds", [1000, 1001, 1002]))]
+    env_seeds = [_int(s, "evaluate.env_seeds") for s in _as_list(ev.get("env_seeds", list(SWEEP_ENV_SEEDS)))]
     eval_cpus = float(ev.get("cpus", 1))
     jobs: list[Job] = []
     names = set()
