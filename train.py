@@ -217,7 +217,6 @@ def main(argv: list[str] | None = None) -> Path:
     t0 = time.time()
     venv = sb3.make_vec_env(config, n_envs=args.n_envs, seed=first_env_seed, log_dir=run_dir, vec=args.vec,
                             env_id=args.env_id, monitor_suffix=suffix)
-    torch.set_num_threads(args.torch_threads)  # again: building a recogniser (MLP fit) may have changed it
     print(f"[train] {args.algo} on {args.env_id} ({args.n_envs} envs, {venv.observation_space.shape[0]}-dim obs, "
           f"{venv.action_space.shape[0]}-dim action); envs ready in {time.time() - t0:.1f} s", flush=True)
     t0 = time.time()

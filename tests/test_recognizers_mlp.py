@@ -38,6 +38,24 @@ def test_training_is_seeded_and_leaves_global_rng_alone(trained):
     assert np.allclose(again.predict_proba(X[:50]), clf.predict_proba(X[:50]), atol=1e-5)
 
 
+def test_fit_trains_on_its_threads_and_gives_the_callers_back(monkeypatch):
+    import haptic_env.recognizers.mlp as mlp
+
+    seen = []
+    train_epoch = MLPClassifier._fit
+    monkeypatch.setattr(MLPClassifier, "_fit", lambda self, *a, **k: (seen.append(torch.get_num_threads()),
+                                                                      train_epoch(self, *a, **k))[1])
+    before = torch.get_num_threads()
+    want = 1 if before != 1 else 2
+    X, y = _toy(np.random.default_rng(0), 300)
+    MLPClassifier(MLPConfig(depth=1, width=8, max_epochs=1, progress=False, threads=want)).fit(X, y)
+    assert seen == [want] and torch.get_num_threads() == before
+    with pytest.raises(ValueError, match="torch threads must be >= 1, got 0"):
+        with mlp.torch_threads(0):
+            pass
+    assert torch.get_num_threads() == before
+
+
 def test_save_load_round_trip(trained, tmp_path):
     clf, _ = trained
     path = clf.save(tmp_path / "m.pt")

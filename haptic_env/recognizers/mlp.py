@@ -18,6 +18,8 @@ from __future__ import annotations
 import dataclasses
 import io
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -31,21 +33,28 @@ from haptic_env.recognizers.mlp_config import MLPConfig
 from haptic_env.recognizers.preprocess import Standardizer
 from haptic_env.recognizers.preprocess import check_xy as _check_xy
 
-__all__ = ["MLPConfig", "MLPClassifier", "FORMAT_VERSION", "set_torch_threads", "Standardizer"]
+__all__ = ["MLPConfig", "MLPClassifier", "FORMAT_VERSION", "torch_threads", "Standardizer"]
 
 #: Version of the file written by :meth:`MLPClassifier.save`.
 FORMAT_VERSION = 1
 
 
-def set_torch_threads(n: int | None = None) -> int:
-    """Use ``n`` intra-op threads (default: ``$HAPTIC_TORCH_THREADS`` or all cores, at most 8)."""
+@contextmanager
+def torch_threads(n: int | None = None) -> Iterator[int]:
+    """Run the block with ``n`` torch intra-op threads (default: ``$HAPTIC_TORCH_THREADS`` or all cores, at most 8),
+    then give the process back the count it had: a fit does not change its caller's threads."""
     if n is None:
         n = int(os.environ.get("HAPTIC_TORCH_THREADS", min(8, os.cpu_count() or 1)))
     if n < 1:
         raise ValueError(f"torch threads must be >= 1, got {n}")
-    if torch.get_num_threads() != n:
+    before = torch.get_num_threads()
+    if before != n:
         torch.set_num_threads(n)
-    return n
+    try:
+        yield n
+    finally:
+        if torch.get_num_threads() != before:
+            torch.set_num_threads(before)
 
 
 def _network(d: int, k: int, depth: int, width: int) -> nn.Sequential:
@@ -121,8 +130,11 @@ class MLPClassifier:
         finished epoch and ends with the weights an uninterrupted fit gives. A file of another config or data (its
         fingerprint differs) is ignored and overwritten.
         """
+        with torch_threads(self.config.threads):
+            return self._fit(X, y, X_val, y_val, n_classes=n_classes, checkpoint=checkpoint)
+
+    def _fit(self, X, y, X_val, y_val, *, n_classes: int | None, checkpoint: str | os.PathLike | None) -> MLPClassifier:
         cfg = self.config
-        set_torch_threads(cfg.threads)
         X, y = _check_xy(X, y)
         rng = np.random.default_rng(cfg.seed)
         if cfg.max_train is not None and len(X) > cfg.max_train:

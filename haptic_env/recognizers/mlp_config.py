@@ -28,7 +28,7 @@ class MLPConfig:
     max_train: int | None = None  #: train on a random subsample of at most this many rows
     val_fraction: float = 0.1  #: used only when no explicit validation set is given to ``fit``
     seed: int = 0
-    threads: int | None = None  #: torch intra-op threads (None: see :func:`set_torch_threads`)
+    threads: int | None = None  #: torch intra-op threads (None: see :func:`~.mlp.torch_threads`)
     progress: bool = True
 
     def __post_init__(self):
