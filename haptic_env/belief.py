@@ -49,6 +49,7 @@ The recognisers themselves are built (or loaded from the cache) once per process
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -63,11 +64,14 @@ if TYPE_CHECKING:
 
 __all__ = ["Belief", "get_recognizer", "check_grasp_vectors"]
 
-_RECOGNIZERS: dict[str, Any] = {}
+#: Recognisers kept in memory per process (the envs of one process share them; each is on disk too).
+MAX_RECOGNIZERS = 4
+_RECOGNIZERS: OrderedDict[str, Any] = OrderedDict()  # least recently used first
 
 
 def get_recognizer(objects, config: HapticRecogConfig):
-    """The recogniser for ``objects`` and ``config`` (built/cached on disk once, then memoised per process)."""
+    """The recogniser for ``objects`` and ``config`` (built/cached on disk once, then memoised per process: the last
+    :data:`MAX_RECOGNIZERS` used stay in memory, so a long process that goes through many configs stays flat)."""
     from haptic_env.cache import config_key
     from haptic_env.config import recognizer_kwargs
 
@@ -78,9 +82,14 @@ def get_recognizer(objects, config: HapticRecogConfig):
 
     kwargs.setdefault("models", models_for(config.updater))  # BC-NP: the KDE only
     key = config_key(objects.name, tuple(objects.names), config.n_fingers, config.normals, z_values, kwargs)
-    if key not in _RECOGNIZERS:
-        _RECOGNIZERS[key] = build_recognizer(objects, config.n_fingers, config.normals, z_values=z_values, **kwargs)
-    return _RECOGNIZERS[key]
+    if key in _RECOGNIZERS:
+        _RECOGNIZERS.move_to_end(key)
+        return _RECOGNIZERS[key]
+    rec = build_recognizer(objects, config.n_fingers, config.normals, z_values=z_values, **kwargs)
+    _RECOGNIZERS[key] = rec
+    while len(_RECOGNIZERS) > MAX_RECOGNIZERS:
+        _RECOGNIZERS.popitem(last=False)
+    return rec
 
 
 def check_grasp_vectors(recognizer, config: HapticRecogConfig) -> None:

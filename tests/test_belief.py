@@ -279,3 +279,22 @@ def test_ic_certainty_reaches_the_belief_and_the_env_config(recognizer, env_conf
     assert env_config.replace(updater="ic", ic_certainty="share").ic_certainty == "share"
     with pytest.raises(ValueError, match=r"ic_certainty must be one of \('count', 'share'\), got 'sum'"):
         env_config.replace(ic_certainty="sum")
+
+
+def test_the_process_keeps_the_last_recognisers_used(env_config, monkeypatch):
+    import haptic_env.belief as belief
+    import haptic_env.recognizers as recognizers
+
+    from haptic_env.objects import load_object_set
+
+    objects = load_object_set(env_config.objects)
+    configs = [env_config.replace(n_fingers=n) for n in (2, 3, 4, 5, 6)]
+    built = []
+    monkeypatch.setattr(recognizers, "build_recognizer", lambda *a, **k: built.append(k) or object())
+    monkeypatch.setattr(belief, "_RECOGNIZERS", type(belief._RECOGNIZERS)())
+    first = [get_recognizer(objects, c) for c in configs[:4]]
+    assert get_recognizer(objects, configs[0]) is first[0] and len(built) == 4  # memoised, now the most recent
+    get_recognizer(objects, configs[4])  # a fifth: the least recently used (n = 3) goes
+    assert len(belief._RECOGNIZERS) == belief.MAX_RECOGNIZERS == 4
+    assert get_recognizer(objects, configs[0]) is first[0] and len(built) == 5
+    assert get_recognizer(objects, configs[1]) is not first[1] and len(built) == 6  # n = 3 built again
