@@ -10,7 +10,6 @@ Defaults that other modules share come from their owners: the threshold and the 
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -18,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from haptic_env.grasp_features import check_normal_axis
-from haptic_env.numbers import finite_number
+from haptic_env.numbers import finite_number, positive_range
 from haptic_env.recognizers.touch import check_touch_weight
 from haptic_env.recognizers.updaters import (DEFAULT_IC_CERTAINTY, DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD, UPDATERS,
                                              check_ic_certainty)
@@ -197,12 +196,7 @@ class HapticRecogConfig:
         check_min_fingers(self.min_fingers, self.z_fingers, self.score_subsets)
         check_subset_k(self.subset_k)
         if self.scale_range is not None:
-            try:
-                lo, hi = (float(v) for v in self.scale_range)
-            except (TypeError, ValueError) as exc:
-                raise ValueError(f"scale_range must be (lo, hi) with 0 < lo <= hi, got {self.scale_range!r}") from exc
-            if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo <= hi):
-                raise ValueError(f"scale_range must be (lo, hi) with 0 < lo <= hi, got {self.scale_range!r}")
+            positive_range(self.scale_range, "scale_range")
         if self.grasp_heights and (self.pose != "table-yaw"
                                    or dict(self.backend_kwargs).get("support", "table") != "table"):
             raise ValueError(f"grasp_heights=True needs objects resting on the table, turned about the vertical only "

@@ -31,7 +31,7 @@ from .force_closure import DEFAULT_EDGES, FRAMES, check_friction, force_closure
 from .grasp_features import check_normal_axis, feature_dim, normalize_scale, phi
 from .grasping.base import SUPPORTS, support_height
 from .hand_grasps import BUDGETS
-from .numbers import finite_number
+from .numbers import finite_number, positive_range
 from .objects import SAMPLING_METHODS, UP_AXES, GraspObject, ObjectSet, load_object_set
 
 __all__ = [
@@ -141,10 +141,7 @@ class DatasetConfig:
             if f is None or f < 0:
                 raise ValueError(f"{fname} must be finite and >= 0, got {v!r}")
         if self.scale_range is not None:
-            sr = tuple(float(v) for v in self.scale_range)
-            if len(sr) != 2 or not all(np.isfinite(sr)) or not 0 < sr[0] <= sr[1]:
-                raise ValueError(f"scale_range must be (lo, hi) with 0 < lo <= hi, got {self.scale_range!r}")
-            object.__setattr__(self, "scale_range", sr)
+            object.__setattr__(self, "scale_range", positive_range(self.scale_range, "scale_range"))
         check_normal_axis(self.normal_axis)
         if self.sampling not in SAMPLING_METHODS:
             raise ValueError(f"sampling must be one of {SAMPLING_METHODS}, got {self.sampling!r}")

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-__all__ = ["finite_number"]
+__all__ = ["finite_number", "positive_range"]
 
 
 def finite_number(value) -> float | None:
@@ -24,3 +24,16 @@ def finite_number(value) -> float | None:
     except OverflowError:
         return None
     return f if math.isfinite(f) else None
+
+
+def positive_range(value, name: str) -> tuple[float, float]:
+    """``value`` as ``(lo, hi)`` floats with ``0 < lo <= hi``, both finite real numbers (:func:`finite_number`); else a
+    ``ValueError`` naming ``name`` and the value (a scalar, a string, a pair of another length, NaN or inf, ...)."""
+    try:
+        pair = tuple(value)
+    except TypeError:
+        pair = ()
+    lo_hi = tuple(finite_number(v) for v in pair) if len(pair) == 2 else (None, None)
+    if None in lo_hi or not 0.0 < lo_hi[0] <= lo_hi[1]:
+        raise ValueError(f"{name} must be (lo, hi) with 0 < lo <= hi, got {value!r}")
+    return lo_hi

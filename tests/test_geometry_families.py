@@ -199,7 +199,7 @@ def test_family_source_is_checked_and_reaches_the_grasps(tmp_path, usage_error):
         AnalysisConfig(family_scale_range=(2.0, 1.0))
     assert AnalysisConfig().family_size_range is None  # the paper's generator
     assert AnalysisConfig(family_size_range=[0.7, 1.6]).family_size_range == (0.7, 1.6)
-    with pytest.raises(ValueError, match=r"family_size_range must be None or \(lo, hi\).*got \(0, 1\)"):
+    with pytest.raises(ValueError, match=r"family_size_range must be \(lo, hi\) with 0 < lo <= hi, got \(0, 1\)"):
         AnalysisConfig(family_size_range=(0, 1))
     with pytest.raises(ValueError, match="family_hand must be a hand name"):
         AnalysisConfig(family_hand="")
@@ -212,7 +212,8 @@ def test_family_source_is_checked_and_reaches_the_grasps(tmp_path, usage_error):
                          (["--family-scale-range", "0.75"], "--family-scale-range: expected LO,HI, got '0.75'"),
                          (["--family-scale-range", "1,x"], "--family-scale-range: expected LO,HI, got '1,x'"),
                          (["--family-scale-range", "0,1"], r"family_scale_range must be \(lo, hi\) with 0 < lo"),
-                         (["--family-size-range", "2,1"], r"family_size_range must be None or \(lo, hi\)"),
+                         (["--family-size-range", "2,1"],
+                          r"family_size_range must be \(lo, hi\) with 0 < lo <= hi, got \(2.0, 1.0\)"),
                          (["--family-heights"], "family_heights needs family_source='hand'"),  # the hand's table
                          (["--family-force-closure", "0"], "--family-force-closure: must be a finite number"),
                          (["--family-source", "hand", "--family-force-closure", "0.5"],

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from haptic_env.numbers import finite_number
+from haptic_env.numbers import finite_number, positive_range
 
 
 def test_finite_number():
@@ -47,3 +47,30 @@ def test_mujoco_config_refuses_negative_noise():
     for field in ("contact_noise", "normal_noise_deg"):
         with pytest.raises(ValueError, match=f"{field} must be finite and >= 0, got -0.1"):
             MujocoConfig(**{field: -0.1})
+
+
+def test_positive_range():
+    assert positive_range((1, np.float32(2.5)), "r") == (1.0, 2.5) and positive_range([0.5, 0.5], "r") == (0.5, 0.5)
+    for bad in ((1,), (1, 2, 3), 3, "ab", None, (True, 2), ("1", 2), (0, 1), (2, 1), (1, math.inf), (math.nan, 1),
+                (1, 10**400)):
+        with pytest.raises(ValueError, match=r"^r must be \(lo, hi\) with 0 < lo <= hi, got "):
+            positive_range(bad, "r")
+
+
+@pytest.mark.parametrize("bad", [(1.0, math.inf), (True, 2.0), ("1", "2"), 0.5])
+def test_every_range_setting_is_checked_alike(bad):
+    from haptic_env.config import HapticRecogConfig
+    from haptic_env.dataset import DatasetConfig
+    from haptic_env.experiments.config import AnalysisConfig
+    from haptic_env.objects.primitives import family_set
+
+    rng = np.random.default_rng(0)
+    for make, field in ((lambda: HapticRecogConfig(scale_range=bad), "scale_range"),
+                        (lambda: DatasetConfig(scale_range=bad), "scale_range"),
+                        (lambda: AnalysisConfig(scale_range=bad), "scale_range"),
+                        (lambda: AnalysisConfig(family_scale_range=bad), "family_scale_range"),
+                        (lambda: AnalysisConfig(family_size_range=bad), "family_size_range"),
+                        (lambda: family_set(1, rng, scale_range=bad), "scale_range"),
+                        (lambda: family_set(1, rng, size_range=bad), "size_range")):
+        with pytest.raises(ValueError, match=rf"^{field} must be \(lo, hi\) with 0 < lo <= hi"):
+            make()

@@ -12,6 +12,7 @@ from haptic_env.cache import KEY_ONLY_WHEN_SET
 from haptic_env.dataset import DatasetConfig
 from haptic_env.force_closure import check_friction
 from haptic_env.grasp_features import check_normal_axis
+from haptic_env.numbers import positive_range
 from haptic_env.objects.base import up_rotation
 from haptic_env.objects.loaders import check_object_spec, unit_scale
 from haptic_env.objects.primitives import FAMILY_SCALE_RANGE
@@ -145,16 +146,9 @@ class AnalysisConfig:
             raise ValueError(f"family_source must be one of {FAMILY_SOURCES}, got {self.family_source!r}")
         if not isinstance(self.family_hand, str) or not self.family_hand:
             raise ValueError(f"family_hand must be a hand name, got {self.family_hand!r}")
-        sr = tuple(self.family_scale_range)
-        if len(sr) != 2 or not all(isinstance(v, (int, float)) and np.isfinite(v) for v in sr) or not 0 < sr[0] <= sr[1]:
-            raise ValueError(f"family_scale_range must be (lo, hi) with 0 < lo <= hi, got {self.family_scale_range!r}")
-        object.__setattr__(self, "family_scale_range", tuple(float(v) for v in sr))
+        object.__setattr__(self, "family_scale_range", positive_range(self.family_scale_range, "family_scale_range"))
         if self.family_size_range is not None:
-            sz = tuple(self.family_size_range)
-            if len(sz) != 2 or not all(isinstance(v, (int, float)) and np.isfinite(v) for v in sz) or not 0 < sz[0] <= sz[1]:
-                raise ValueError(f"family_size_range must be None or (lo, hi) with 0 < lo <= hi, "
-                                 f"got {self.family_size_range!r}")
-            object.__setattr__(self, "family_size_range", tuple(float(v) for v in sz))
+            object.__setattr__(self, "family_size_range", positive_range(self.family_size_range, "family_size_range"))
         if not isinstance(self.family_heights, bool):
             raise ValueError(f"family_heights must be a bool, got {self.family_heights!r}")
         fl = tuple(self.family_floors)
@@ -212,10 +206,7 @@ class AnalysisConfig:
                 or len({zp[0] for zp in pn}) != len(pn)):
             raise ValueError(f"incomplete_pn must be (finger count >= 2, probability > 0) pairs, one per finger count, "
                              f"got {self.incomplete_pn!r}")
-        lo_hi = tuple(self.scale_range)
-        if len(lo_hi) != 2 or not all(isinstance(v, (int, float)) and np.isfinite(v) for v in lo_hi) \
-                or not 0 < lo_hi[0] <= lo_hi[1]:
-            raise ValueError(f"scale_range must be (lo, hi) with 0 < lo <= hi, got {self.scale_range!r}")
+        positive_range(self.scale_range, "scale_range")
         if not self.lambdas or not all(isinstance(v, (int, float)) and 0.0 < v <= 1.0 for v in self.lambdas):
             raise ValueError(f"lambdas must be a non-empty tuple of thresholds in (0, 1], got {self.lambdas!r}")
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
+from ..numbers import positive_range
 from .base import GraspObject, ObjectSet, prepare_mesh, up_rotation
 
 __all__ = ["DEFAULT_SHAPES", "default_set", "family_set", "FAMILIES", "make_shape"]
@@ -208,13 +209,9 @@ def family_set(n_per_family: int, rng: np.random.Generator, families=FAMILIES,
         raise ValueError(f"n_per_family must be >= 1, got {n_per_family}")
     if not isinstance(lying, (bool, np.bool_)):
         raise ValueError(f"lying must be a bool, got {lying!r}")
-    lo, hi = (float(v) for v in scale_range)
-    if not 0 < lo <= hi:
-        raise ValueError(f"scale_range must be (lo, hi) with 0 < lo <= hi, got {scale_range!r}")
+    lo, hi = positive_range(scale_range, "scale_range")
     if size_range is not None:
-        slo, shi = (float(v) for v in size_range)
-        if not 0 < slo <= shi:
-            raise ValueError(f"size_range must be (lo, hi) with 0 < lo <= hi, got {size_range!r}")
+        slo, shi = positive_range(size_range, "size_range")
     objs = []
     for fam in families:
         for i in range(int(n_per_family)):
