@@ -1,4 +1,5 @@
-"""What a setting accepts as a real number: the one check behind the configs' numeric fields.
+"""What a setting accepts as a real number, a whole number, a yes/no flag or a range: the checks behind the configs'
+fields.
 
 ``np.isfinite`` alone is not that check: it raises numpy's own ``TypeError`` (naming neither the field nor the
 value) for a string or for a Python ``int`` beyond int64, and it takes ``True`` as 1. The configs call
@@ -11,7 +12,7 @@ import math
 
 import numpy as np
 
-__all__ = ["finite_number", "positive_range"]
+__all__ = ["finite_number", "whole_number", "flag", "positive_range"]
 
 
 def finite_number(value) -> float | None:
@@ -24,6 +25,23 @@ def finite_number(value) -> float | None:
     except OverflowError:
         return None
     return f if math.isfinite(f) else None
+
+
+def whole_number(value) -> int | None:
+    """``value`` as an int if it is a whole number (``int`` or a numpy integer scalar, not ``bool``), else None (floats
+    such as ``4.0``, strings, ``bool``, None, arrays). The caller checks the bounds and raises its own ``ValueError``
+    naming the field, as with :func:`finite_number`."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        return None
+    return int(value)
+
+
+def flag(value) -> bool | None:
+    """``value`` as a bool if it is ``bool`` or a numpy bool scalar, else None (``0``/``1``, strings such as
+    ``"false"``, None): a yes/no setting is never read by truthiness."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    return None
 
 
 def positive_range(value, name: str) -> tuple[float, float]:

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from haptic_env.numbers import finite_number, positive_range
+from haptic_env.numbers import finite_number, flag, positive_range, whole_number
 
 
 def test_finite_number():
@@ -74,3 +74,13 @@ def test_every_range_setting_is_checked_alike(bad):
                         (lambda: family_set(1, rng, size_range=bad), "size_range")):
         with pytest.raises(ValueError, match=rf"^{field} must be \(lo, hi\) with 0 < lo <= hi"):
             make()
+
+
+def test_whole_number_and_flag():
+    for ok in (0, -3, 2**70, np.int8(4), np.uint64(7)):
+        assert whole_number(ok) == int(ok) and type(whole_number(ok)) is int
+    for bad in (4.0, np.float64(2), "4", True, np.bool_(True), None, [1], np.array([1])):
+        assert whole_number(bad) is None, bad
+    assert flag(True) is True and flag(np.bool_(False)) is False
+    for bad in (0, 1, 1.0, "false", "true", None, [True]):
+        assert flag(bad) is None, bad
