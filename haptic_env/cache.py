@@ -118,7 +118,7 @@ def _jsonable(obj: Any) -> Any:
         return [_jsonable(v) for v in obj]
     if isinstance(obj, np.ndarray):
         return hashlib.sha1(np.ascontiguousarray(obj).tobytes()).hexdigest()
-    if isinstance(obj, (np.integer, np.floating)):
+    if isinstance(obj, (np.integer, np.floating, np.bool_)):  # the key of the Python scalar
         return obj.item()
     if isinstance(obj, Path):
         return str(obj)

@@ -21,6 +21,9 @@ def test_config_key_is_stable_and_sensitive():
     assert config_key(Cfg()) != config_key(Cfg(a=2))
     assert config_key(Cfg(), np.arange(3)) != config_key(Cfg(), np.arange(4))
     assert len(config_key(Cfg())) == 16
+    # numpy scalars key as the Python scalars they stand for (np.bool_ had been keyed by its repr)
+    assert config_key(np.int64(3), np.float32(0.5), np.bool_(True)) == config_key(3, 0.5, True)
+    assert config_key(np.bool_(True)) != config_key(np.bool_(False))
 
 
 def test_field_added_later_keeps_older_keys_while_unset():
