@@ -65,7 +65,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from haptic_env.numbers import finite_number
+from haptic_env.numbers import finite_number, whole_number
 
 __all__ = ["primitive_wrenches", "force_closure", "epsilon_quality", "check_friction", "DEFAULT_EDGES", "DEFAULT_MU",
            "METHODS", "FRAMES"]
@@ -102,9 +102,10 @@ def _check(contacts, normals, mu, edges, frame) -> tuple[np.ndarray, np.ndarray,
         raise ValueError(f"contacts must have shape (B, n, 3) or (n, 3), got {np.shape(contacts)}")
     if N.shape != C.shape:
         raise ValueError(f"normals must have the shape of contacts {C.shape}, got {np.shape(normals)}")
-    if not (np.isfinite(mu) and mu >= 0):
+    f = finite_number(mu)  # not check_friction: mu = 0 (frictionless) is allowed here
+    if f is None or f < 0:
         raise ValueError(f"mu (the friction coefficient) must be finite and >= 0, got {mu!r}")
-    if int(edges) != edges or edges < 3:
+    if whole_number(edges) is None or edges < 3:
         raise ValueError(f"edges must be an int >= 3, got {edges!r}")
     if frame not in FRAMES:
         raise ValueError(f"frame (the pyramids' frame) must be one of {FRAMES}, got {frame!r}")

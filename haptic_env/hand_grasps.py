@@ -42,6 +42,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .cache import CacheError, cache_dir, clean_stale_tmp, config_key, load_npz, save_npz_atomic
+from .numbers import whole_number
 
 __all__ = ["HandGraspPool", "hand_grasp_pool", "pool_actions", "pool_rows", "pool_cache_path", "hand_physics_key",
            "CHUNK", "BUDGETS", "balanced_counts", "parts_dir"]
@@ -130,7 +131,7 @@ def balanced_counts(complete_rate, approaches: int, *, lo: float = 0.5, hi: floa
     r = np.asarray(complete_rate, dtype=np.float64)
     if r.ndim != 1 or len(r) == 0 or not np.all((r >= 0) & (r <= 1)):
         raise ValueError(f"complete_rate must be a non-empty (K,) array of fractions in [0, 1], got {complete_rate!r}")
-    if int(approaches) != approaches or approaches < 1:
+    if whole_number(approaches) is None or approaches < 1:
         raise ValueError(f"approaches must be an int >= 1, got {approaches!r}")
     if not 0 < lo <= 1 <= hi:
         raise ValueError(f"need 0 < lo <= 1 <= hi, got lo={lo!r}, hi={hi!r}")
@@ -225,7 +226,7 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
     """
     if not isinstance(hand, str):
         raise TypeError(f"hand must be a hand name or an MJCF path (a cache key), got {type(hand).__name__}")
-    if int(approaches) != approaches or approaches < 1:
+    if whole_number(approaches) is None or approaches < 1:
         raise ValueError(f"approaches must be an int >= 1, got {approaches!r}")
     if budget not in BUDGETS:
         raise ValueError(f"budget must be one of {BUDGETS}, got {budget!r}")

@@ -21,6 +21,7 @@ import numpy as np
 import trimesh
 
 from ..cache import cache_dir, config_key, load_npz, save_npz_atomic
+from ..numbers import finite_number, whole_number
 
 __all__ = ["CollisionConfig", "convex_pieces"]
 
@@ -44,8 +45,25 @@ class CollisionConfig:
     def __post_init__(self) -> None:
         if self.method not in ("auto", "coacd", "hull", "files"):
             raise ValueError(f"collision method must be auto|coacd|hull|files, got {self.method!r}")
-        if not 0.0 < self.threshold <= 1.0:
+        threshold = finite_number(self.threshold)
+        if threshold is None or not 0.0 < threshold <= 1.0:
             raise ValueError(f"coacd threshold must be in (0, 1], got {self.threshold!r}")
+        # coacd takes these as C ints (seed unsigned): a larger value would wrap silently
+        for name, lo, hi in _INT_FIELDS:
+            v = getattr(self, name)
+            i = whole_number(v)
+            if i is None or not (lo <= i < hi or (name == "max_convex_hull" and i == -1)):
+                rng = f"in [{lo}, {hi - 1}]" + (" or -1 (no cap)" if name == "max_convex_hull" else "")
+                raise ValueError(f"{name} must be an int {rng}, got {v!r}")
+        tol = finite_number(self.convex_tol)
+        if tol is None or tol < 0:
+            raise ValueError(f"convex_tol must be finite and >= 0, got {self.convex_tol!r}")
+
+
+#: CollisionConfig's integer fields and their bounds ``[lo, hi)`` (a convex piece needs 4 vertices)
+_INT_FIELDS = (("max_convex_hull", 1, 2**31), ("max_ch_vertex", 4, 2**31), ("preprocess_resolution", 1, 2**31),
+               ("resolution", 1, 2**31), ("mcts_iterations", 1, 2**31), ("mcts_nodes", 1, 2**31),
+               ("mcts_max_depth", 1, 2**31), ("seed", 0, 2**32))
 
 
 def _mesh_hash(mesh: trimesh.Trimesh) -> str:

@@ -28,13 +28,14 @@ Fingertip order: fingers ``0..n-2`` then the thumb last (like the Allegro hand: 
 from __future__ import annotations
 
 from collections import OrderedDict
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
 import trimesh
 
-from haptic_env.numbers import finite_number
+from haptic_env.numbers import finite_number, flag
 
 from . import _geometric_kernels as gk
 from .base import (
@@ -79,6 +80,8 @@ class GeometricConfig:
             raise ValueError(f"n_fingers must be an integer in [2, 16], got {self.n_fingers!r}")
         if self.support not in SUPPORTS:
             raise ValueError(f"support must be 'table' or 'floating', got {self.support!r}")
+        if flag(self.normals) is None:
+            raise ValueError(f"normals must be a bool, got {self.normals!r}")
         for name in ("contact_noise", "normal_noise_deg", "table_clearance"):
             v = getattr(self, name)
             f = finite_number(v)
@@ -90,10 +93,15 @@ class GeometricConfig:
         reach = finite_number(self.reach)
         if reach is None or reach <= 0:
             raise ValueError(f"reach must be > 0, got {self.reach!r}")
-        if not 0.0 < self.min_spread <= 1.0:
+        spread = finite_number(self.min_spread)
+        if spread is None or not 0.0 < spread <= 1.0:
             raise ValueError(f"min_spread must be in (0, 1], got {self.min_spread!r}")
-        curl = np.asarray(self.curl_deg, dtype=np.float64)
-        if curl.ndim != 1 or len(curl) < self.n_fingers or not np.all((curl >= 0) & (curl < 90)):
+        # a sequence (the backend slices it) of finite numbers: not strings, which np.asarray would take, nor bools
+        v = self.curl_deg
+        seq = isinstance(v, Sequence) and not isinstance(v, (str, bytes))
+        seq = seq or (isinstance(v, np.ndarray) and v.ndim == 1)
+        curl = [finite_number(a) for a in v] if seq else []
+        if len(curl) < self.n_fingers or not all(a is not None and 0 <= a < 90 for a in curl):
             raise ValueError(f"curl_deg needs >= n_fingers={self.n_fingers} angles in [0, 90) degrees "
                              f"(fingers first, thumb last), got {self.curl_deg!r}")
 

@@ -42,7 +42,7 @@ import numpy as np
 
 import mujoco
 
-from haptic_env.numbers import finite_number
+from haptic_env.numbers import finite_number, flag, whole_number
 
 from .base import (
     ACTION_DIM,
@@ -97,8 +97,12 @@ class MujocoConfig:
     collision: CollisionConfig = CollisionConfig()
 
     def __post_init__(self) -> None:
+        if self.n_fingers is not None and (whole_number(self.n_fingers) is None or self.n_fingers < 2):
+            raise ValueError(f"n_fingers must be an int >= 2 or None, got {self.n_fingers!r}")
         if self.support not in SUPPORTS:
             raise ValueError(f"support must be 'table' or 'floating', got {self.support!r}")
+        if flag(self.normals) is None:
+            raise ValueError(f"normals must be a bool, got {self.normals!r}")
         if self.solver is not None and self.solver not in SOLVERS:
             raise ValueError(f"solver must be one of {tuple(SOLVERS)}, got {self.solver!r}")
         if self.torque_source not in ("actuator", "constraint"):
@@ -112,12 +116,16 @@ class MujocoConfig:
             f = finite_number(v)
             if f is None or f <= 0:
                 raise ValueError(f"{name} must be > 0, got {v!r}")
-        for name in ("contact_noise", "normal_noise_deg"):
+        # friction 0 is a frictionless contact (MuJoCo clamps it to its mjMINMU); squeeze 0 closes fully
+        for name in ("contact_noise", "normal_noise_deg", "squeeze", "friction", "joint_frictionloss", "standoff"):
             v = getattr(self, name)
+            if v is None and name in ("joint_frictionloss", "standoff"):
+                continue
             f = finite_number(v)
             if f is None or f < 0:
-                raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
-        if self.max_steps is not None and (int(self.max_steps) != self.max_steps or self.max_steps < 1):
+                none = " or None" if name in ("joint_frictionloss", "standoff") else ""
+                raise ValueError(f"{name} must be finite and >= 0{none}, got {v!r}")
+        if self.max_steps is not None and (whole_number(self.max_steps) is None or self.max_steps < 1):
             raise ValueError(f"max_steps must be an int >= 1 or None, got {self.max_steps!r}")
 
 

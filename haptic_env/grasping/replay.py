@@ -36,6 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from haptic_env.numbers import flag, whole_number
+
 from .base import (ACTION_DIM, SUPPORTS, GraspBatch, GraspResult, validate_action, validate_actions,
                    validate_pose)
 
@@ -56,6 +58,11 @@ class ReplayConfig:
     progress: bool = True  #: progress bar while recording a pool that is not cached
 
     def __post_init__(self) -> None:
+        if self.n_fingers is not None and (whole_number(self.n_fingers) is None or self.n_fingers < 2):
+            raise ValueError(f"n_fingers must be an int >= 2 or None, got {self.n_fingers!r}")
+        for name in ("normals", "progress"):
+            if flag(getattr(self, name)) is None:
+                raise ValueError(f"{name} must be a bool, got {getattr(self, name)!r}")
         if not isinstance(self.hand, str) or not self.hand:
             raise ValueError(f"hand must be a hand name or an MJCF path, got {self.hand!r}")
         if isinstance(self.approaches, bool) or not (isinstance(self.approaches, (int, np.integer))

@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from haptic_env.numbers import finite_number, flag
+
 from .base import ACTION_DIM, GraspBatch, GraspResult, validate_action, validate_actions, validate_pose
 
 __all__ = ["UniformConfig", "UniformBackend"]
@@ -28,9 +30,12 @@ class UniformConfig:
     def __post_init__(self) -> None:
         if not (isinstance(self.n_fingers, (int, np.integer)) and 2 <= self.n_fingers <= 16):
             raise ValueError(f"n_fingers must be an integer in [2, 16], got {self.n_fingers!r}")
+        if flag(self.normals) is None:
+            raise ValueError(f"normals must be a bool, got {self.normals!r}")
         if self.sampling not in ("area", "centroid"):
             raise ValueError(f"sampling must be 'area' or 'centroid', got {self.sampling!r}")
-        if not np.isfinite(self.contact_noise) or self.contact_noise < 0:
+        noise = finite_number(self.contact_noise)
+        if noise is None or noise < 0:
             raise ValueError(f"contact_noise must be finite and >= 0, got {self.contact_noise!r}")
 
 

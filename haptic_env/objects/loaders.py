@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from ..numbers import finite_number
 from .base import GraspObject, ObjectSet, prepare_mesh, up_rotation
 from .primitives import default_set, family_set
 
@@ -88,11 +89,10 @@ def unit_scale(units: str | float) -> float:
             return _UNITS[units.strip().lower()]
         except KeyError:
             raise ValueError(f"unknown units {units!r}; expected one of {list(_UNITS)} or a positive number") from None
-    try:
-        f = float(units)
-    except (TypeError, ValueError):
-        raise ValueError(f"units must be 'm', 'cm', 'mm' or a positive number, got {units!r}") from None
-    if not np.isfinite(f) or f <= 0:
+    if isinstance(units, (bool, np.bool_)) or not isinstance(units, (int, float, np.integer, np.floating)):
+        raise ValueError(f"units must be 'm', 'cm', 'mm' or a positive number, got {units!r}")
+    f = finite_number(units)  # None for NaN, inf and ints beyond a float
+    if f is None or f <= 0:
         raise ValueError(f"units factor must be positive and finite, got {units!r}")
     return f
 

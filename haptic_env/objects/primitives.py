@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from ..numbers import positive_range
+from ..numbers import positive_range, whole_number
 from .base import GraspObject, ObjectSet, prepare_mesh, up_rotation
 
 __all__ = ["DEFAULT_SHAPES", "default_set", "family_set", "FAMILIES", "make_shape"]
@@ -205,8 +205,8 @@ def family_set(n_per_family: int, rng: np.random.Generator, families=FAMILIES,
             lying cylinder differently; a box or an ellipsoid on another face is just another member (its three
             factors are drawn alike). The draws and the other members are those of ``lying=False``.
     """
-    if int(n_per_family) < 1:
-        raise ValueError(f"n_per_family must be >= 1, got {n_per_family}")
+    if whole_number(n_per_family) is None or n_per_family < 1:
+        raise ValueError(f"n_per_family must be an int >= 1, got {n_per_family!r}")
     if not isinstance(lying, (bool, np.bool_)):
         raise ValueError(f"lying must be a bool, got {lying!r}")
     lo, hi = positive_range(scale_range, "scale_range")
