@@ -27,6 +27,8 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.special import log_softmax
 
+from haptic_env.numbers import whole_number
+
 __all__ = ["fit_temperature", "sequence_scores", "tempered_nll", "expected_calibration_error", "reliability",
            "T_BOUNDS", "ScoreCorrection", "fit_correction", "select_correction", "SELECT_GRASPS", "PowerCorrection",
            "fit_power", "P_BOUNDS", "CORRECTIONS", "check_corrections", "select_calibration"]
@@ -235,7 +237,7 @@ def sequence_scores(scores, y, max_grasps: int, rng: np.random.Generator) -> tup
         largest class's row count (``S (M, K)``, ``M = max_grasps * m * classes``), and their classes ``Y (M,)``.
     """
     S, Y = _check(scores, y)
-    if not (isinstance(max_grasps, (int, np.integer)) and max_grasps >= 1):
+    if (whole_number(max_grasps) or 0) < 1:
         raise ValueError(f"max_grasps must be an int >= 1, got {max_grasps!r}")
     if max_grasps == 1 or len(Y) == 0:
         return S, Y
@@ -337,7 +339,7 @@ def reliability(proba, y, bins: int = 10) -> dict[str, np.ndarray]:
     """Reliability diagram data of ``proba (B, K)``: per equal-width confidence bin ``[k / bins, (k + 1) / bins)``
     (the last one closed), the mean confidence, the accuracy and the count (``nan`` for empty bins)."""
     P, Y = _check(proba, y)
-    if not (isinstance(bins, (int, np.integer)) and bins >= 1):
+    if (whole_number(bins) or 0) < 1:
         raise ValueError(f"bins must be an int >= 1, got {bins!r}")
     conf = P.max(axis=1)
     hit = (P.argmax(axis=1) == Y).astype(np.float64)

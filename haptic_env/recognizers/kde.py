@@ -71,6 +71,7 @@ import numpy as np
 from scipy.special import logsumexp
 from scipy.spatial import cKDTree
 
+from haptic_env.numbers import finite_number, flag, whole_number
 from haptic_env.recognizers.calibration import (CORRECTIONS, PowerCorrection, ScoreCorrection, check_corrections,
                                                 fit_temperature, select_calibration, sequence_scores)
 from haptic_env.recognizers.knn import KDTree, pooled_log_density
@@ -133,9 +134,14 @@ class KDEConfig:
     def __post_init__(self):
         if self.method not in _METHODS:
             raise ValueError(f"KDEConfig.method must be one of {_METHODS}, got {self.method!r}")
-        if self.correct not in (True, False, "auto", *CORRECTIONS):
+        correct = flag(self.correct)
+        if correct is not None:  # np.bool_ kept as a Python bool: the fit tells True from "matrix" by identity
+            object.__setattr__(self, "correct", correct)
+        elif not (isinstance(self.correct, str) and self.correct in ("auto", *CORRECTIONS)):
             raise ValueError(f"KDEConfig.correct must be True, False, 'auto' or one of {tuple(CORRECTIONS)}, got "
                              f"{self.correct!r}")
+        if flag(self.calibrate) is None:
+            raise ValueError(f"KDEConfig.calibrate must be True or False, got {self.calibrate!r}")
         check_corrections(self.correct_candidates, "KDEConfig.correct_candidates", allow_empty=False)
         if self.bandwidth not in BANDWIDTHS:
             raise ValueError(f"KDEConfig.bandwidth must be one of {BANDWIDTHS}, got {self.bandwidth!r}")
@@ -147,16 +153,22 @@ class KDEConfig:
         if isinstance(self.factor, str):
             if self.factor != "auto":
                 raise ValueError(f"KDEConfig.factor must be a positive number or 'auto', got {self.factor!r}")
-        elif not (self.factor > 0 and np.isfinite(self.factor)):
+        elif not (finite_number(self.factor) or 0) > 0:
             raise ValueError(f"KDEConfig.factor must be positive and finite, got {self.factor!r}")
-        if not self.factor_grid or min(self.factor_grid) <= 0:
+        grid = self.factor_grid
+        if not (isinstance(grid, (tuple, list)) and grid and all((finite_number(f) or 0) > 0 for f in grid)):
             raise ValueError(f"KDEConfig.factor_grid must hold positive factors, got {self.factor_grid!r}")
-        if not (isinstance(self.n_calibrate, (int, np.integer)) and self.n_calibrate >= 1):
-            raise ValueError(f"KDEConfig.n_calibrate must be an int >= 1, got {self.n_calibrate!r}")
-        if not (isinstance(self.calibrate_grasps, (int, np.integer)) and self.calibrate_grasps >= 1):
-            raise ValueError(f"KDEConfig.calibrate_grasps must be an int >= 1, got {self.calibrate_grasps!r}")
-        if self.k < 1 or self.k_max < 1 or self.cutoff <= 0 or self.max_samples < 1 or self.eps < 0:
-            raise ValueError(f"KDEConfig needs k >= 1, k_max >= 1, cutoff > 0, max_samples >= 1, eps >= 0; got {self}")
+        for name in ("n_calibrate", "calibrate_grasps", "k", "k_max", "max_samples", "select_samples", "n_select"):
+            v = getattr(self, name)
+            if (whole_number(v) or 0) < 1:
+                raise ValueError(f"KDEConfig.{name} must be an int >= 1, got {v!r}")
+        seed, eps = whole_number(self.seed), finite_number(self.eps)
+        if seed is None or seed < 0:
+            raise ValueError(f"KDEConfig.seed must be an int >= 0, got {self.seed!r}")
+        if not (finite_number(self.cutoff) or 0) > 0:
+            raise ValueError(f"KDEConfig.cutoff must be a finite number > 0, got {self.cutoff!r}")
+        if eps is None or eps < 0:
+            raise ValueError(f"KDEConfig.eps must be a finite number >= 0, got {self.eps!r}")
 
 
 def scott_bandwidth(n: int, d: int) -> float:

@@ -24,6 +24,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from haptic_env.numbers import finite_number, whole_number
+
 __all__ = ["KDTree", "pooled_log_density", "log_density_row", "workspace"]
 
 _LEFT, _START, _END, _DIM = 0, 1, 2, 3  # columns of KDTree.nodes; the right child is left + 1; leaves: left = -1
@@ -36,8 +38,8 @@ class KDTree:
         X = np.ascontiguousarray(X, dtype=np.float64)
         if X.ndim != 2 or len(X) == 0:
             raise ValueError(f"KDTree needs a non-empty (N, d) array, got shape {X.shape}")
-        if leafsize < 1:
-            raise ValueError(f"leafsize must be >= 1, got {leafsize}")
+        if (whole_number(leafsize) or 0) < 1:
+            raise ValueError(f"leafsize must be an int >= 1, got {leafsize!r}")
         order, nodes, split = _build(X, int(leafsize))
         self.indices = order  #: tree position -> row of X
         self.data = np.ascontiguousarray(X[order], dtype=np.float32)  #: vectors in tree order
@@ -50,8 +52,11 @@ class KDTree:
         Z = np.ascontiguousarray(Z, dtype=np.float64)
         if Z.ndim != 2 or Z.shape[1] != self.m:
             raise ValueError(f"queries must have shape (B, {self.m}), got {Z.shape}")
-        if not 1 <= k <= self.n:
-            raise ValueError(f"k must be in [1, {self.n}], got {k}")
+        if not 1 <= (whole_number(k) or 0) <= self.n:
+            raise ValueError(f"k must be in [1, {self.n}], got {k!r}")
+        e = finite_number(eps)
+        if e is None or e < 0:
+            raise ValueError(f"eps must be a finite number >= 0, got {eps!r}")
         d2, pos = _query(*self.arrays(), Z, int(k), float(eps))
         return np.sqrt(d2), self.indices[pos]
 

@@ -28,6 +28,7 @@ from torch import nn
 from tqdm.auto import tqdm
 
 from haptic_env.cache import CacheError, atomic_write, config_key
+from haptic_env.numbers import whole_number
 from haptic_env.recognizers.calibration import fit_temperature
 from haptic_env.recognizers.mlp_config import MLPConfig
 from haptic_env.recognizers.preprocess import Standardizer
@@ -44,9 +45,13 @@ def torch_threads(n: int | None = None) -> Iterator[int]:
     """Run the block with ``n`` torch intra-op threads (default: ``$HAPTIC_TORCH_THREADS`` or all cores, at most 8),
     then give the process back the count it had: a fit does not change its caller's threads."""
     if n is None:
-        n = int(os.environ.get("HAPTIC_TORCH_THREADS", min(8, os.cpu_count() or 1)))
-    if n < 1:
-        raise ValueError(f"torch threads must be >= 1, got {n}")
+        env = os.environ.get("HAPTIC_TORCH_THREADS")
+        try:
+            n = min(8, os.cpu_count() or 1) if env is None else int(env)
+        except ValueError:
+            raise ValueError(f"HAPTIC_TORCH_THREADS must be an int >= 1, got {env!r}") from None
+    if (whole_number(n) or 0) < 1:
+        raise ValueError(f"torch threads must be >= 1, got {n!r}")
     before = torch.get_num_threads()
     if before != n:
         torch.set_num_threads(n)

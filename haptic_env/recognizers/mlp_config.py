@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
+from haptic_env.numbers import finite_number, flag, whole_number
 
 __all__ = ["MLPConfig"]
 
@@ -34,15 +34,25 @@ class MLPConfig:
     def __post_init__(self):
         for name in ("depth", "width", "batch_size", "max_epochs", "patience"):
             v = getattr(self, name)
-            if not isinstance(v, (int, np.integer)) or v < (0 if name == "depth" else 1):
+            n = whole_number(v)
+            if n is None or n < (0 if name == "depth" else 1):
                 raise ValueError(f"MLPConfig.{name} must be a positive integer, got {v!r}")
-        if self.max_train is not None and not (isinstance(self.max_train, (int, np.integer)) and self.max_train >= 1):
+        if self.max_train is not None and (whole_number(self.max_train) or 0) < 1:
             raise ValueError(f"MLPConfig.max_train must be None or an int >= 1, got {self.max_train!r}")
-        if not (self.lr > 0 and np.isfinite(self.lr)):
+        if not (finite_number(self.lr) or 0) > 0:
             raise ValueError(f"MLPConfig.lr must be positive and finite, got {self.lr!r}")
-        if not (self.weight_decay >= 0 and np.isfinite(self.weight_decay)):
+        wd = finite_number(self.weight_decay)
+        if wd is None or wd < 0:
             raise ValueError(f"MLPConfig.weight_decay must be >= 0 and finite, got {self.weight_decay!r}")
-        if not 0.0 < self.lr_decay <= 1.0:
+        if not 0.0 < (finite_number(self.lr_decay) or 0) <= 1.0:
             raise ValueError(f"MLPConfig.lr_decay must be in (0, 1], got {self.lr_decay!r}")
-        if not 0.0 < self.val_fraction < 1.0:
+        if not 0.0 < (finite_number(self.val_fraction) or 0) < 1.0:
             raise ValueError(f"MLPConfig.val_fraction must be in (0, 1), got {self.val_fraction!r}")
+        seed = whole_number(self.seed)
+        if seed is None or seed < 0:
+            raise ValueError(f"MLPConfig.seed must be an int >= 0, got {self.seed!r}")
+        if self.threads is not None and (whole_number(self.threads) or 0) < 1:
+            raise ValueError(f"MLPConfig.threads must be None or an int >= 1, got {self.threads!r}")
+        for name in ("decoupled_weight_decay", "progress"):
+            if flag(getattr(self, name)) is None:
+                raise ValueError(f"MLPConfig.{name} must be True or False, got {getattr(self, name)!r}")

@@ -76,7 +76,7 @@ class TouchModel:
         T = np.asarray(touched)
         if T.ndim != 3 or T.shape[0] < 1 or T.shape[1] < 1:
             raise ValueError(f"touched must have shape (K, A, n) with K, A >= 1, got {T.shape}")
-        if not (np.isfinite(alpha) and alpha > 0):
+        if not (finite_number(alpha) or 0) > 0:
             raise ValueError(f"alpha must be a finite number > 0, got {alpha!r}")
         K, A, n = T.shape
         counts = np.full(K, A) if counts is None else np.asarray(counts)

@@ -46,6 +46,8 @@ from abc import ABC, abstractmethod
 import numpy as np
 from numba import njit
 
+from haptic_env.numbers import finite_number, whole_number
+
 __all__ = ["BeliefUpdater", "IterativeClassification", "BayesianUpdater", "BCNP", "BCIP", "make_updater", "UPDATERS",
            "DEFAULT_THRESHOLD", "DEFAULT_MAX_GRASPS", "IC_CERTAINTIES", "DEFAULT_IC_CERTAINTY", "check_ic_certainty",
            "bayes_steps"]
@@ -74,9 +76,10 @@ DEFAULT_MAX_GRASPS = 30
 
 
 def _check_threshold(threshold: float) -> float:
-    if not (0.0 < threshold <= 1.0):
+    t = finite_number(threshold)
+    if t is None or not 0.0 < t <= 1.0:
         raise ValueError(f"threshold (lambda_s) must be in (0, 1], got {threshold!r}")
-    return float(threshold)
+    return t
 
 
 _OK, _NO_INFORMATION, _NAN = 0, 1, 2
@@ -163,8 +166,8 @@ def _grouped(Q, starts) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _check_weight(weight) -> float:
-    w = float(weight)
-    if not (w > 0 and math.isfinite(w)):
+    w = finite_number(weight)
+    if w is None or not w > 0:
         raise ValueError(f"weight must be positive and finite, got {weight!r}")
     return w
 
@@ -184,8 +187,8 @@ class BeliefUpdater(ABC):
     kind: str = ""
 
     def __init__(self, n_classes: int, threshold: float = DEFAULT_THRESHOLD):
-        if n_classes < 2:
-            raise ValueError(f"an updater needs at least 2 classes, got {n_classes}")
+        if (whole_number(n_classes) or 0) < 2:
+            raise ValueError(f"an updater needs at least 2 classes, got {n_classes!r}")
         self.n_classes = int(n_classes)
         self.threshold = _check_threshold(threshold)
         self.n_grasps = 0
@@ -326,7 +329,7 @@ class BayesianUpdater(BeliefUpdater):
         """
         if combine not in ("product", "mean"):
             raise ValueError(f"combine must be 'product' or 'mean', got {combine!r}")
-        if max_log_ratio is not None and not max_log_ratio > 0:
+        if max_log_ratio is not None and not (max_log_ratio == math.inf or (finite_number(max_log_ratio) or 0) > 0):
             raise ValueError(f"max_log_ratio must be positive or None, got {max_log_ratio!r}")
         self.likelihood = likelihood
         self.combine = combine
@@ -369,9 +372,10 @@ class BayesianUpdater(BeliefUpdater):
         """One grasp's rows ``q (d,)`` or ``(m, d)``; ``weight`` (> 0) multiplies their combined log-likelihood (a
         tempered step: z-subset scoring counts ``C(t, z)`` correlated subsets as ``k``, see
         :class:`~haptic_env.belief.Belief`)."""
+        w = _check_weight(weight)  # before the model runs: a bad weight (True, '2') is refused, not read as a number
         Q = _rows(q)
         L = self.likelihood.log_likelihood(Q) if len(Q) else np.zeros((0, self.n_classes))
-        return self.update_scores(log_lik=L if weight == 1.0 else _check_weight(weight) * L)
+        return self.update_scores(log_lik=L if w == 1.0 else w * L)
 
     def predict(self, Q, starts=None, weights=None) -> np.ndarray:
         """:meth:`BeliefUpdater.predict` in one likelihood call and one batched Bayes step (:func:`bayes_steps`);
@@ -398,7 +402,7 @@ class BCIP(BayesianUpdater):
     kind = "bc-ip"
 
     def __init__(self, classifier, likelihood, threshold: float = DEFAULT_THRESHOLD, *, eps: float = 1e-4, **kw):
-        if not 0 < eps < 1:
+        if not 0 < (finite_number(eps) or 0) < 1:
             raise ValueError(f"eps must be in (0, 1), got {eps!r}")
         self.classifier = classifier
         self.eps = float(eps)
