@@ -78,6 +78,14 @@ class EpisodeRecord:
     predicted: str = ""  # the object predicted at the stop ("" in episodes.csv files written before it was kept)
 
 
+def _check_episodes(n_episodes) -> None:
+    """``n_episodes`` must be a whole number >= 1 (2.5 is not cut to 2, nor True taken as 1)."""
+    from haptic_env.numbers import whole_number
+
+    if (whole_number(n_episodes) or 0) < 1:
+        raise ValueError(f"n_episodes must be an int >= 1, got {n_episodes!r}")
+
+
 def run_episodes(agent, make_env: Callable[[], Any], n_episodes: int, seed: int,
                  progress: Callable[[int], None] | None = None, agent_seed: int | None = None) -> list[EpisodeRecord]:
     """Run ``n_episodes`` of ``agent`` on a fresh env from ``make_env()``, seeded with ``seed``.
@@ -86,8 +94,7 @@ def run_episodes(agent, make_env: Callable[[], Any], n_episodes: int, seed: int,
     too, so that agents compared on one env seed share their random numbers; with ``agent_seed`` it is seeded
     with ``SeedSequence([seed, agent_seed])`` instead, so that the runs of one agent with different seeds differ
     (the objects and poses still depend on ``seed`` alone)."""
-    if n_episodes < 1:
-        raise ValueError(f"n_episodes must be >= 1, got {n_episodes}")
+    _check_episodes(n_episodes)
     if agent_seed is None:
         own = seed
     else:
@@ -126,6 +133,7 @@ def evaluate_agents(agents: Sequence[Any], make_env: Callable[[], Any], n_episod
     env it runs in changes (:func:`_main` hashes the command's arguments and model files into it)."""
     from tqdm.auto import tqdm
 
+    _check_episodes(n_episodes)
     seeds = list(seeds)
     if store is not None and (keys is None or len(keys) != len(agents)):
         raise ValueError(f"store needs one key per agent ({len(agents)}), got {keys!r}")

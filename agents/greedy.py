@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from haptic_env.numbers import finite_number, flag, whole_number
 from haptic_env.task import entropy
 
 __all__ = ["GreedyInfoGainAgent"]
@@ -52,16 +53,20 @@ class GreedyInfoGainAgent:
     def __init__(self, n_candidates: int = 16, n_samples: int = 1, min_weight: float = 1e-3,
                  seed: int | None = None, backend_kwargs: dict[str, Any] | None = None, simulate: str = "geometric",
                  pose_known: bool = True):
-        if n_candidates < 1 or n_samples < 1:
-            raise ValueError(f"n_candidates and n_samples must be >= 1, got {n_candidates}, {n_samples}")
+        for name, v in (("n_candidates", n_candidates), ("n_samples", n_samples)):
+            if (whole_number(v) or 0) < 1:  # 2.7 is not cut to 2, nor True taken as 1
+                raise ValueError(f"{name} must be an int >= 1, got {v!r}")
         if simulate not in ("geometric", "env"):
             raise ValueError(f"simulate must be 'geometric' or 'env', got {simulate!r}")
         if simulate == "env" and backend_kwargs is not None:
             raise ValueError("backend_kwargs applies to simulate='geometric' only; simulate='env' uses the env's own")
         self.simulate = simulate
-        self.pose_known = bool(pose_known)
-        if not 0 <= min_weight < 1:
-            raise ValueError(f"min_weight must be in [0, 1), got {min_weight}")
+        if flag(pose_known) is None:
+            raise ValueError(f"pose_known must be True or False, got {pose_known!r}")
+        self.pose_known = flag(pose_known)
+        w = finite_number(min_weight)
+        if w is None or not 0 <= w < 1:
+            raise ValueError(f"min_weight must be in [0, 1), got {min_weight!r}")
         self.n_candidates = int(n_candidates)
         self.n_samples = int(n_samples)
         self.min_weight = float(min_weight)

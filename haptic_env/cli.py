@@ -27,14 +27,29 @@ class UsageError(ValueError):
     """A bad command-line value found after parsing: :func:`main` reports it as a one-line usage error."""
 
 
+def whole_text(text: str) -> int | None:
+    """The whole number ``text`` spells, or None: an integer as ``int`` reads it (``"200000"``, ``"1_000"``, any
+    size), or a number ``float`` reads (``"2e5"``, ``"4.0"``) that is whole and below 2**53 in size (so exact); not
+    ``"3.5"``, ``"nan"``, ``"inf"`` or words. The one rule of :func:`int_in` and :func:`parse_int_list`."""
+    try:
+        return int(text)
+    except (TypeError, ValueError):
+        pass
+    try:
+        v = float(text)
+    except (TypeError, ValueError):
+        return None
+    return int(v) if v == v and abs(v) < 2**53 and v == int(v) else None
+
+
 def int_in(lo: int, hi: int | None = None):
-    """argparse ``type``: an integer in ``[lo, hi]`` (a bad value is a one-line error naming the flag)."""
+    """argparse ``type``: an integer in ``[lo, hi]`` (a bad value is a one-line error naming the flag); any form
+    :func:`whole_text` reads (``2e5`` is 200000), as in the comma lists of :func:`parse_int_list`."""
 
     def parse(text: str) -> int:
-        try:
-            v = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        v = whole_text(text)
+        if v is None:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}")
         if v < lo or (hi is not None and v > hi):
             rng = f"in [{lo}, {hi}]" if hi is not None else f">= {lo}"
             raise argparse.ArgumentTypeError(f"must be {rng}, got {v}")
@@ -65,16 +80,13 @@ def float_in(lo: float | None = None, hi: float | None = None, *, lo_open: bool 
 
 
 def parse_int_list(text: str) -> tuple[int, ...]:
-    """``"2-4,7"`` -> ``(2, 3, 4, 7)``: whole numbers and ranges ``a-b``, comma-separated (``2e5`` is 200000); a
-    ``ValueError`` naming the text for anything else (``3.5``, ``x``, ``4-2``)."""
+    """``"2-4,7"`` -> ``(2, 3, 4, 7)``: whole numbers (:func:`whole_text`: ``2e5`` is 200000) and ranges ``a-b``,
+    comma-separated; a ``ValueError`` naming the text for anything else (``3.5``, ``x``, ``4-2``)."""
     def whole(word: str) -> int:
-        try:
-            v = float(word)
-        except ValueError:
-            v = float("nan")
-        if not (v == v and v == int(v) and abs(v) < 2**53):
+        v = whole_text(word)
+        if v is None:
             raise ValueError(f"expected a comma list of whole numbers or ranges a-b, got {text!r}")
-        return int(v)
+        return v
 
     out: list[int] = []
     for part in (p.strip() for p in text.split(",")):

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from haptic_env.grasp_features import check_normal_axis
-from haptic_env.numbers import finite_number, positive_range
+from haptic_env.numbers import finite_number, flag, positive_range, whole_number
 from haptic_env.recognizers.touch import check_touch_weight
 from haptic_env.recognizers.updaters import (DEFAULT_IC_CERTAINTY, DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD, UPDATERS,
                                              check_ic_certainty)
@@ -152,15 +152,17 @@ class HapticRecogConfig:
     JSON-style dict (``{"grasps": {"grasps_per_object": 5000}, "mlp": {"max_epochs": 5}}``)."""
 
     def __post_init__(self) -> None:
-        for name in ("normals", "score_subsets", "calibrated", "observe_contacts", "grasp_heights"):  # bool("no") is True: take real booleans only
-            if not isinstance(getattr(self, name), (bool, np.bool_)):
-                raise TypeError(f"{name} must be True or False, got {getattr(self, name)!r}")
-        if not isinstance(self.calibrate_grasps, (int, np.integer)) or self.calibrate_grasps < 1:
+        for name in ("normals", "score_subsets", "calibrated", "observe_contacts", "grasp_heights"):
+            b = flag(getattr(self, name))  # bool("no") is True: take real booleans only (numpy's too, as a bool)
+            if b is None:
+                raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
+            object.__setattr__(self, name, b)  # np.True_ keys as True (the caches hash the flags)
+        k = whole_number(self.calibrate_grasps)
+        if k is None or k < 1:
             raise ValueError(f"calibrate_grasps must be an int >= 1, got {self.calibrate_grasps!r}")
-        if self.training_grasps is not None and (isinstance(self.training_grasps, bool) or not (
-                isinstance(self.training_grasps, (int, np.integer)) and self.training_grasps >= 1)):
+        if self.training_grasps is not None and (whole_number(self.training_grasps) or 0) < 1:
             raise ValueError(f"training_grasps must be None or an int >= 1, got {self.training_grasps!r}")
-        if not isinstance(self.n_fingers, (int, np.integer)) or self.n_fingers < 2:
+        if (whole_number(self.n_fingers) or 0) < 2:
             raise ValueError(f"n_fingers must be an int >= 2 (2: a gripper, q is the contact distance), "
                              f"got {self.n_fingers!r}")
         if self.recognizer_source not in RECOGNIZER_SOURCES:
@@ -181,15 +183,18 @@ class HapticRecogConfig:
             raise ValueError(f"reward must be one of {REWARD_KINDS}, got {self.reward!r}")
         if self.pose not in POSE_MODES:
             raise ValueError(f"pose must be one of {POSE_MODES}, got {self.pose!r}")
-        if not (isinstance(self.threshold, (int, float)) and 0.0 < self.threshold <= 1.0):
+        t = finite_number(self.threshold)
+        if t is None or not 0.0 < t <= 1.0:
             raise ValueError(f"threshold must be in (0, 1], got {self.threshold!r}")
+        if isinstance(self.threshold, np.generic):  # a Python int or float stays as given
+            object.__setattr__(self, "threshold", t)
         cost = finite_number(self.grasp_cost)
         if cost is None or cost < 0.0:
             raise ValueError(f"grasp_cost must be a finite number >= 0, got {self.grasp_cost!r}")
-        if not isinstance(self.max_grasps, (int, np.integer)) or self.max_grasps < 1:
+        m = whole_number(self.max_grasps)
+        if m is None or m < 1:
             raise ValueError(f"max_grasps must be an int >= 1, got {self.max_grasps!r}")
-        if self.z_fingers is not None and not (isinstance(self.z_fingers, (int, np.integer))
-                                               and 2 <= self.z_fingers < self.n_fingers):
+        if self.z_fingers is not None and not 2 <= (whole_number(self.z_fingers) or 0) < self.n_fingers:
             raise ValueError(f"z_fingers must be None or in [2, n_fingers={self.n_fingers}), got {self.z_fingers!r}")
         if self.score_subsets and self.z_fingers is None:
             raise ValueError("score_subsets=True needs z_fingers (the subset size)")

@@ -31,7 +31,7 @@ from .force_closure import DEFAULT_EDGES, FRAMES, check_friction, force_closure
 from .grasp_features import check_normal_axis, feature_dim, normalize_scale, phi
 from .grasping.base import SUPPORTS, support_height
 from .hand_grasps import BUDGETS
-from .numbers import finite_number, positive_range
+from .numbers import finite_number, flag, positive_range, whole_number
 from .objects import SAMPLING_METHODS, UP_AXES, GraspObject, ObjectSet, load_object_set
 
 __all__ = [
@@ -129,12 +129,16 @@ class DatasetConfig:
     force_closure: float | None = field(default=None, metadata={KEY_ONLY_WHEN_SET: True})
 
     def __post_init__(self) -> None:
-        if int(self.n_fingers) != self.n_fingers or self.n_fingers < 2:
-            raise ValueError(f"n_fingers must be an int >= 2, got {self.n_fingers!r}")
-        if int(self.grasps_per_object) != self.grasps_per_object or self.grasps_per_object < 1:
-            raise ValueError(f"grasps_per_object must be an int >= 1, got {self.grasps_per_object!r}")
-        if not (isinstance(self.seed, (int, np.integer)) and not isinstance(self.seed, bool) and self.seed >= 0):
-            raise ValueError(f"seed must be an int >= 0, got {self.seed!r}")
+        for fname, lo in (("n_fingers", 2), ("grasps_per_object", 1), ("seed", 0)):
+            v = whole_number(getattr(self, fname))
+            if v is None or v < lo:
+                raise ValueError(f"{fname} must be an int >= {lo}, got {getattr(self, fname)!r}")
+            object.__setattr__(self, fname, v)  # a numpy int as the Python int (the same cache key)
+        for fname in ("normals", "normalize_scale", "heights"):  # read by truthiness: bool("false") is True
+            b = flag(getattr(self, fname))
+            if b is None:
+                raise ValueError(f"{fname} must be a bool, got {getattr(self, fname)!r}")
+            object.__setattr__(self, fname, b)  # np.True_ keys as True
         for fname in ("contact_noise", "normal_noise_deg"):
             v = getattr(self, fname)
             f = finite_number(v)
@@ -145,14 +149,17 @@ class DatasetConfig:
         check_normal_axis(self.normal_axis)
         if self.sampling not in SAMPLING_METHODS:
             raise ValueError(f"sampling must be one of {SAMPLING_METHODS}, got {self.sampling!r}")
-        if not 0.0 <= self.val_fraction < 1.0:
+        vf = finite_number(self.val_fraction)
+        if vf is None or not 0.0 <= vf < 1.0:
             raise ValueError(f"val_fraction must be in [0, 1), got {self.val_fraction!r}")
         if self.source not in SOURCES:
             raise ValueError(f"source must be one of {SOURCES}, got {self.source!r}")
-        if self.hand_fingers is not None and (
-            int(self.hand_fingers) != self.hand_fingers or self.hand_fingers < self.n_fingers
-        ):
-            raise ValueError(f"hand_fingers must be an int >= n_fingers={self.n_fingers}, got {self.hand_fingers!r}")
+        if self.hand_fingers is not None:
+            hf = whole_number(self.hand_fingers)
+            if hf is None or hf < self.n_fingers:
+                raise ValueError(f"hand_fingers must be an int >= n_fingers={self.n_fingers}, "
+                                 f"got {self.hand_fingers!r}")
+            object.__setattr__(self, "hand_fingers", hf)
         if self.support not in SUPPORTS:
             raise ValueError(f"support must be 'table' or 'floating', got {self.support!r}")
         if self.hand_budget not in BUDGETS:
@@ -162,8 +169,6 @@ class DatasetConfig:
                              f"(source={self.source!r})")
         if self.hand is not None and not isinstance(self.hand, str):
             raise ValueError(f"hand must be a hand name or an MJCF path, got {self.hand!r}")
-        if not isinstance(self.heights, (bool, np.bool_)):
-            raise ValueError(f"heights must be a bool, got {self.heights!r}")
         if self.force_closure is not None:
             mu = check_friction(self.force_closure)
             if self.source != "surface":
@@ -236,8 +241,11 @@ def sample_grasps(
     Returns:
         ``contacts (count, n, 3)`` in metres and inward unit ``normals (count, n, 3)``.
     """
-    if int(n_fingers) != n_fingers or n_fingers < 1:
+    if (whole_number(n_fingers) or 0) < 1:
         raise ValueError(f"n_fingers must be an int >= 1, got {n_fingers!r}")
+    c = whole_number(count)
+    if c is None or c < 0:
+        raise ValueError(f"count must be an int >= 0, got {count!r}")
     pts, nrm = obj.sample_surface(int(count) * int(n_fingers), rng, sampling)
     shape = (int(count), int(n_fingers), 3)
     return pts.reshape(shape), nrm.reshape(shape)
@@ -574,7 +582,7 @@ def hand_dataset(objects: ObjectSet, config: DatasetConfig, *, progress: bool = 
     Returns the dataset (labels stay the positions in ``objects``; a left-out object has no rows) and the left-out
     objects with their row counts, so that a caller can report them (a family of random members, say, where the
     hand cannot grasp every member). Raises if no object is left."""
-    if not (isinstance(min_rows, (int, np.integer)) and min_rows >= 1):
+    if (whole_number(min_rows) or 0) < 1:
         raise ValueError(f"hand_dataset: min_rows must be an int >= 1, got {min_rows!r}")
     ds, left_out = _split_hand_rows(objects, config, progress, min_rows)
     if ds is None:

@@ -277,7 +277,7 @@ def test_observe_contacts_appends_world_frame_contacts(env_config):
             o2, _ = env.reset(seed=6, options={"object": "ring"})
             assert not o2[base:].any()
     assert partial  # the ring leaves fingers off the object: the zeroing is exercised
-    with pytest.raises(TypeError, match="observe_contacts"):
+    with pytest.raises(ValueError, match="observe_contacts must be True or False, got 'yes'"):
         env_config.replace(observe_contacts="yes")
     no_normals = _make(env_config.replace(observe_contacts=True, normals=False)).unwrapped
     assert "contact_normals" not in no_normals.observation_structure

@@ -19,6 +19,7 @@ from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.plots import plot_family_votes
 from haptic_env.experiments.report import Report, mean_std
 from haptic_env.experiments.trials import family_trials, simulate_trials
+from haptic_env.numbers import finite_number, whole_number
 from haptic_env.recognizers.calibration import _finite_rows, fit_temperature, sequence_scores, tempered_nll
 from haptic_env.recognizers.kde import KDELikelihood
 from haptic_env.recognizers.mlp import MLPClassifier
@@ -65,7 +66,7 @@ def family_temperatures(kde, clf, X, fam, *, member=None, grasps: int = 1,
     keeps looking like another family grasp after grasp, so a belief summed over its grasps is over-confident by
     more than one grasp's temperature corrects. The MLP's stays one-shot (IC averages, it does not sum).
     ``floor``: the KDE's outlier floor (:func:`floored`), applied before the fit."""
-    if not (isinstance(grasps, (int, np.integer)) and grasps >= 1):
+    if (whole_number(grasps) or 0) < 1:
         raise ValueError(f"family_temperatures: grasps must be an int >= 1, got {grasps!r}")
     S = _finite_rows(floored(kde.log_likelihood(X), floor))
     fam = np.asarray(fam)
@@ -92,7 +93,8 @@ def family_floor(kde, X_held, y_held, X, fam, member, *, quantiles, grasps: int,
     beliefs of 1 .. ``grasps`` grasps of one validation member (``X``, ``fam``, ``member``; as
     :func:`family_temperatures` fits them) have the lowest NLL wins (the first on a tie). Each candidate draws the
     same sums (``seed``). Returns ``(q, floor)``."""
-    if not quantiles or any(not (0.0 <= q < 1.0) for q in quantiles):
+    qs = [finite_number(q) for q in quantiles]
+    if not qs or any(q is None or not 0.0 <= q < 1.0 for q in qs):
         raise ValueError(f"family_floor: quantiles must be a non-empty list in [0, 1), got {quantiles!r}")
     L = kde.log_likelihood(X_held)
     true = L[np.arange(len(L)), np.asarray(y_held)]

@@ -25,6 +25,7 @@ import numpy as np
 from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.fresh_grasps import fresh_pool, pool_scores
 from haptic_env.experiments.trials import simulate_trials
+from haptic_env.numbers import finite_number
 from haptic_env.recognizers.updaters import DEFAULT_MAX_GRASPS
 from haptic_env.splits import VALIDATION_SEED_OFFSET
 
@@ -59,11 +60,16 @@ def fit_stop_scale(log_lik: Sequence[np.ndarray], proba: Sequence[np.ndarray], t
         ``chosen`` is the row of the qualifying scale with the fewest mean grasps, or when none qualifies the
         row of ``s = 1`` (``(1.0, nan, nan)`` if 1 was not weighed).
     """
-    if not 0.0 < threshold <= 1.0:
+    t = finite_number(threshold)
+    if t is None or not 0.0 < t <= 1.0:
         raise ValueError(f"threshold must be in (0, 1], got {threshold!r}")
-    bad = [s for s in scales if not (np.isfinite(s) and s > 0)]
-    if bad or not len(scales):
-        raise ValueError(f"scales must be positive and finite, got {tuple(scales)!r}")
+    try:
+        scales = tuple(scales)
+    except TypeError:
+        raise ValueError(f"scales must be positive and finite, got {scales!r}") from None
+    bad = [s for s in scales if (finite_number(s) or 0.0) <= 0.0]
+    if bad or not scales:
+        raise ValueError(f"scales must be positive and finite, got {scales!r}")
     state = rng.bit_generator.state
     table = []
     for s in scales:

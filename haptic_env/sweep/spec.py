@@ -145,6 +145,17 @@ def _int(v: Any, where: str, lo: int = 0) -> int:
     return v
 
 
+def _cpus(table: dict, where: str, default: Any = 1) -> float:
+    """A job's ``cpus`` (what it asks of Ray): a number >= 0, fractions allowed (Ray's 0.0001 at the finest)."""
+    from haptic_env.numbers import finite_number
+
+    v = table.get("cpus", default)
+    f = finite_number(v)
+    if f is None or f < 0 or 0 < f < 1e-4:
+        raise SpecError(f"{where}.cpus: expected a number >= 0 (fractions down to 0.0001), got {v!r}")
+    return f
+
+
 def _train_vec(v: Any, where: str) -> str:
     """A trained agent's ``vec``: what ``train.py --vec`` takes (checked here, not hours later on a worker)."""
     from agents.sb3 import VEC_KINDS
@@ -219,7 +230,7 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
     _check_keys(ev, _EVALUATE, "evaluate")
     episodes = _int(ev.get("episodes", 20), "evaluate.episodes", 1)
     env_seeds = [_int(s, "evaluate.env_seeds") for s in _as_list(ev.get("env_seeds", list(SWEEP_ENV_SEEDS)))]
-    eval_cpus = float(ev.get("cpus", 1))
+    eval_cpus = _cpus(ev, "evaluate")
     jobs: list[Job] = []
     names = set()
     for i, a in enumerate(agents):
@@ -262,7 +273,7 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
                     "checkpoint_freq": _int(a.get("checkpoint_freq", 20_000), f"{where}.checkpoint_freq", 1),
                     "max_minutes": _minutes(a.get("max_minutes", 0.0), where),
                     "hyperparams": _hyperparams(a["algo"], a.get("hyperparams", {}), where),
-                }, cpus=float(a.get("cpus", n_envs)))
+                }, cpus=_cpus(a, where, n_envs))
                 jobs.append(train)
                 deps = (train.id,)
                 spec = f"{a['algo']}_final.zip"  # in the train job's folder (resolved by the evaluate job)
@@ -277,6 +288,7 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
 
 def _dataset_jobs(doc: dict) -> list[Job]:
     from haptic_env.dataset import DatasetConfig
+    from haptic_env.numbers import flag
 
     fields = set(DatasetConfig.__dataclass_fields__) - {"n_fingers", "normals"}
     jobs = []
@@ -286,14 +298,16 @@ def _dataset_jobs(doc: dict) -> list[Job]:
         rest = {k: v for k, v in t.items() if k in fields}
         for objects, n, normals in product(_as_list(t.get("objects", "default")), _as_list(t.get("fingers", 4)),
                                            _as_list(t.get("normals", True))):
-            cfg = {**rest, "n_fingers": n, "normals": bool(normals)}
+            if flag(normals) is None:  # bool("false") is True
+                raise SpecError(f"{where}.normals: expected true or false (or a list of them), got {normals!r}")
+            cfg = {**rest, "n_fingers": n, "normals": flag(normals)}
             try:
                 DatasetConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in cfg.items()})
             except (TypeError, ValueError) as exc:
                 raise SpecError(f"{where}: {exc}") from None
             label = f"{_safe(objects)}/n{n}-{'normals' if normals else 'no-normals'}"
             label = f"{_safe(t['name'])}/{label}" if "name" in t else label
-            jobs.append(Job("dataset", label, {"objects": objects, "config": cfg}, cpus=float(t.get("cpus", 1))))
+            jobs.append(Job("dataset", label, {"objects": objects, "config": cfg}, cpus=_cpus(t, where)))
     return jobs
 
 
@@ -346,7 +360,7 @@ def _analysis_jobs(doc: dict, datasets: list[Job]) -> list[Job]:
             label = _safe(t.get("name", objects)) + ("" if "name" not in t else f"/{_safe(objects)}")
             deps = tuple(d.id for d in datasets if d.params["objects"] == objects)
             jobs.append(Job("analysis", label, {"objects": objects, "flags": flags}, deps=deps,
-                            cpus=float(t.get("cpus", 1))))
+                            cpus=_cpus(t, where)))
     return jobs
 
 
@@ -361,7 +375,7 @@ def _command_jobs(doc: dict) -> list[Job]:
         if not (isinstance(run, str) or (isinstance(run, list) and all(isinstance(w, str) for w in run))):
             raise SpecError(f"{where}: run must be a string or a list of strings")
         jobs.append(Job("command", _safe(t["name"]), {"run": run, "env": t.get("env", {})},
-                        cpus=float(t.get("cpus", 1))))
+                        cpus=_cpus(t, where)))
     return jobs
 
 
