@@ -8,7 +8,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from haptic_env.recognizers.calibration import expected_calibration_error, reliability, sequence_scores
+from haptic_env.recognizers.calibration import (expected_calibration_error, fit_correction, fit_power, fit_temperature,
+                                                reliability, sequence_scores, tempered_nll)
 from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
 from haptic_env.recognizers.knn import KDTree
 from haptic_env.recognizers.mlp_config import MLPConfig
@@ -91,6 +92,11 @@ CASES = [
            r"max_grasps must be an int >= 1"),
     *_case(lambda v: reliability(np.exp(_S), _Y, v), [True], r"bins must be an int >= 1"),
     *_case(lambda v: expected_calibration_error(np.exp(_S), _Y, v), [True], r"bins must be an int >= 1"),
+    # fit bounds took (1, inf) and (True, 2), a scalar ended in a TypeError; C took inf; T a string
+    *_case(lambda v: fit_temperature(_S, _Y, bounds=v), [(1, INF), (True, 2.0), 3.0], r"bounds must be 0 < lo < hi"),
+    *_case(lambda v: fit_power(_S, _Y, bounds=v), [(0.5, INF), ("0.5", 2.0)], r"bounds must be 0 < lo < hi"),
+    *_case(lambda v: fit_correction(_S, _Y, C=v), [INF, "1", True], r"C must be > 0"),
+    *_case(lambda v: tempered_nll(_S, _Y, v), ["1", True], r"temperature must be > 0"),
     # touch model
     *_case(lambda v: TouchModel.fit(_T, alpha=v), ["1", None, True], r"alpha must be a finite number > 0"),
     # updaters

@@ -55,7 +55,7 @@ def test_hand_source_dataset(two_objects):
         DatasetConfig(source="hand")
     with pytest.raises(ValueError, match="hand"):
         DatasetConfig(source="surface", hand="allegro")
-    with pytest.raises(TypeError, match="hand name"):
+    with pytest.raises(ValueError, match="hand name"):
         hand_grasp_pool(two_objects, object(), 3, 4)
 
 

@@ -27,7 +27,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.special import log_softmax
 
-from haptic_env.numbers import whole_number
+from haptic_env.numbers import finite_number, positive_range, whole_number
 
 __all__ = ["fit_temperature", "sequence_scores", "tempered_nll", "expected_calibration_error", "reliability",
            "T_BOUNDS", "ScoreCorrection", "fit_correction", "select_correction", "SELECT_GRASPS", "PowerCorrection",
@@ -98,6 +98,17 @@ def _centred(S: np.ndarray, floor: float) -> np.ndarray:
     return np.maximum(np.where(np.isfinite(S), S - _row_top(S), floor), floor)
 
 
+def _bounds(bounds) -> tuple[float, float]:
+    """A search interval ``(lo, hi)`` with ``0 < lo < hi``, both finite; a ``ValueError`` naming it otherwise."""
+    try:
+        lo, hi = positive_range(bounds, "bounds")
+    except ValueError:
+        lo = hi = 0.0
+    if not 0 < lo < hi:
+        raise ValueError(f"bounds must be 0 < lo < hi, got {bounds!r}")
+    return lo, hi
+
+
 def fit_correction(scores, y, *, C: float = 1.0) -> ScoreCorrection:
     """The :class:`ScoreCorrection` fitted on validation ``scores (B, K)`` of true classes ``y (B,)``
     (scikit-learn's multinomial ``LogisticRegression``, L2 strength ``1 / C`` on standardised inputs).
@@ -110,7 +121,7 @@ def fit_correction(scores, y, *, C: float = 1.0) -> ScoreCorrection:
     missing = sorted(set(range(K)) - set(np.unique(Y).tolist()))
     if missing:
         raise ValueError(f"fit_correction needs validation scores of every class; classes {missing} have none")
-    if not C > 0:
+    if not (finite_number(C) or 0) > 0:
         raise ValueError(f"C must be > 0, got {C!r}")
     centred = _centred(S, -np.inf)
     finite = centred[np.isfinite(centred)]
@@ -164,9 +175,7 @@ def fit_power(scores, y, bounds: tuple[float, float] = P_BOUNDS) -> PowerCorrect
     (the temperature profiled out: :func:`fit_temperature` at every exponent tried), on validation ``scores (B, K)``
     of true classes ``y (B,)``. The cap is the largest finite validation gap (at least 1)."""
     S, Y = _check(scores, y)
-    lo, hi = (float(b) for b in bounds)
-    if not 0 < lo < hi:
-        raise ValueError(f"bounds must be 0 < lo < hi, got {bounds!r}")
+    lo, hi = _bounds(bounds)
     gaps = -_centred(S, -np.inf)
     finite = gaps[np.isfinite(gaps)]
     cap = float(max(finite.max(), 1.0)) if finite.size else 1.0
@@ -184,7 +193,7 @@ def fit_power(scores, y, bounds: tuple[float, float] = P_BOUNDS) -> PowerCorrect
 def tempered_nll(scores, y, T: float) -> float:
     """Mean negative log-probability of the true class under ``softmax(scores / T)``."""
     S, Y = _check(scores, y)
-    if not T > 0:
+    if not (finite_number(T) or 0) > 0:
         raise ValueError(f"temperature must be > 0, got {T!r}")
     L = log_softmax(_finite_rows(S) / T, axis=1)
     return float(-L[np.arange(len(Y)), Y].mean())
@@ -201,9 +210,7 @@ def fit_temperature(scores, y, bounds: tuple[float, float] = T_BOUNDS) -> float:
         The temperature (1.0 when ``B == 0``: nothing to fit).
     """
     S, Y = _check(scores, y)
-    lo, hi = (float(b) for b in bounds)
-    if not 0 < lo < hi:
-        raise ValueError(f"bounds must be 0 < lo < hi, got {bounds!r}")
+    lo, hi = _bounds(bounds)
     if len(Y) == 0:
         return 1.0
     S = _finite_rows(S)
