@@ -6,7 +6,7 @@ batch size. The vectorised NumPy implementation of the same algorithm (same floa
 the same order, same tie-breaking: first maximum) is kept only as a test oracle, ``tests/phi_numpy.py``;
 both agree to rounding (tested on random, degenerate and symmetric grasps in ``tests/test_grasp_features.py``).
 
-Each kernel returns a status: ``0`` ok, ``1``/``2``/``3`` the degeneracy codes of
+Each kernel returns a status: ``0`` ok, ``1``/``2``/``3``/``4`` the degeneracy codes of
 :data:`haptic_env.grasp_features.DEGENERACY_REASONS`, or ``-1`` (:data:`AMBIGUOUS`) when a hull face holds
 four or more coplanar contacts: that face needs the canonical triangulation of
 ``grasp_features._canonical_hull_triangles`` (Qhull), after which the caller runs :func:`phi_on_hull`.
@@ -22,10 +22,16 @@ import numpy as np
 from numba import njit
 
 __all__ = ["phi_one", "phi_checked", "phi_on_hull", "phi_rows", "phi2_prepare", "phi2_finish", "surface_area_one",
-           "surface_area_rows", "AMBIGUOUS", "BAD_INPUT"]
+           "surface_area_rows", "AMBIGUOUS", "BAD_INPUT", "OUT_OF_RANGE", "SIZE_MIN", "SIZE_MAX"]
 
 AMBIGUOUS = -1  #: a hull face with >= 4 coplanar contacts: triangulate it canonically, then phi_on_hull
 BAD_INPUT = -2  #: non-finite contacts, or a zero / non-finite normal: the caller raises the error
+#: status of a grasp whose diameter (largest contact distance) lies outside ``[SIZE_MIN, SIZE_MAX]`` but above the
+#: coincident limit ``1e-300``: squared lengths and products of lengths would underflow or overflow there (angles of
+#: pi/2 at 1e80, "collinear" at 1e-160, an infinite length at 1e155), so it is refused as out of range
+OUT_OF_RANGE = 4
+SIZE_MIN = 1e-50
+SIZE_MAX = 1e50
 #: ``has_normals`` codes: False / 0 no normals; True / 1 each normal's angles to t1's normal and to the normal of the
 #: triangle (a, b, order[3]) (for n = 3: to the edge ab), the paper's; 2 (:data:`NORMALS_AB`) to t1's normal and to the
 #: edge ab at every n (``phi(normal_axis="ab")``); 3 (:data:`NORMALS_FRAME`) to the three axes of t1's frame: its
@@ -96,7 +102,11 @@ def _hull(P, tri, tol, area, hull):
             scale = max(scale, d)
     sc = max(scale, 1e-300)
     status = 0
-    if dmin <= tol * sc or scale <= 1e-300:
+    if scale <= 1e-300:
+        status = 1
+    elif not (scale >= SIZE_MIN and scale <= SIZE_MAX):  # before the next test: dmin = scale = inf passes it
+        status = OUT_OF_RANGE
+    elif dmin <= tol * sc:
         status = 1
     amax = -np.inf
     for t in range(T):
@@ -487,11 +497,11 @@ def phi2_prepare(P, N, has_normals, dist, ys, xs):
 @njit(cache=True)
 def phi2_finish(dist, ang, has_normals, q, order, reason, valid):
     """Second pass of Phi_2: from ``dist`` and ``ang = arctan2(ys, xs)`` fill ``q (B, 1 | 4)`` (zero rows for
-    coincident contacts), ``order (B, 2)`` (with normals: the contact whose normal makes the larger angle with
-    the line first), ``reason`` and ``valid``."""
+    coincident contacts and for a distance out of range, :data:`OUT_OF_RANGE`), ``order (B, 2)`` (with normals: the
+    contact whose normal makes the larger angle with the line first), ``reason`` and ``valid``."""
     for b in range(dist.shape[0]):
-        ok = dist[b] > 1e-300
-        reason[b] = 0 if ok else 1
+        ok = dist[b] >= SIZE_MIN and dist[b] <= SIZE_MAX
+        reason[b] = 0 if ok else (1 if dist[b] <= 1e-300 else OUT_OF_RANGE)
         valid[b] = ok
         order[b, 0], order[b, 1] = 0, 1
         if not has_normals:

@@ -64,7 +64,16 @@ Degenerate grasps
     Coincident contacts, collinear contacts, and (for ``n >= 4``) coplanar contacts have no
     polyhedron. In a batch they are reported in ``valid`` (their ``q`` row is all zeros, never NaN);
     with ``strict=True`` a :class:`DegenerateGraspError` names the first bad grasp and why.
-    Non-finite input is always an error.
+    Non-finite input is always an error, and so are complex contacts or normals.
+
+Range of sizes
+    Contacts are expected at robot scales (metres or millimetres). A grasp whose diameter (its largest contact
+    distance) lies outside ``[1e-50, 1e50]`` (:data:`GRASP_SIZE_RANGE`) is flagged like a degenerate one (reason 4,
+    "grasp size out of range", or 1 below ~1e-154 where its distances underflow to 0; :func:`surface_area` gives it
+    0): squared lengths and products of lengths underflow or overflow not far beyond (unflagged, a grasp 1e80 across
+    got angles of pi/2, one 1e-160 across was "collinear", one 1e155 across a length of inf). The coplanarity test
+    of ``n >= 4`` contacts reads positions relative to the origin: a flat grasp ~1e10 diameters from the origin can
+    pass as a polyhedron (the coordinates' own rounding, ~1e-6 of its size there, exceeds ``tol``).
 
 Implementation
     The chain of ``n >= 3`` contacts and the surface area run in the compiled (numba) kernels of
@@ -82,16 +91,20 @@ Scale (:func:`normalize_scale`)
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 from itertools import combinations
 from typing import NamedTuple
 
 import numpy as np
 
+from .numbers import finite_number, whole_number
+
 __all__ = [
     "DegenerateGraspError",
     "GraspFeatures",
     "DEGENERACY_REASONS",
+    "GRASP_SIZE_RANGE",
     "feature_dim",
     "phi",
     "phi_planar",
@@ -118,12 +131,17 @@ NORMAL_AXIS_WORDS = {
 }
 
 #: Codes of :attr:`GraspFeatures.reason`.
-DEGENERACY_REASONS = {0: "ok", 1: "coincident contacts", 2: "collinear contacts", 3: "coplanar contacts"}
+DEGENERACY_REASONS = {0: "ok", 1: "coincident contacts", 2: "collinear contacts", 3: "coplanar contacts",
+                      4: "grasp size out of range"}
+
+#: ``(lo, hi)``: the diameters (largest contact distance) of a grasp that :func:`phi` reads; outside it (and above the
+#: coincident limit 1e-300) a grasp gets reason 4 (the kernels' ``SIZE_MIN``, ``SIZE_MAX``; see the module docstring).
+GRASP_SIZE_RANGE = (1e-50, 1e50)
 
 
 
 class DegenerateGraspError(ValueError):
-    """A grasp whose contacts span no polyhedron (coincident, collinear or coplanar)."""
+    """A grasp whose contacts span no polyhedron (coincident, collinear or coplanar), or whose size is out of range."""
 
 
 class GraspFeatures(NamedTuple):
@@ -138,30 +156,63 @@ class GraspFeatures(NamedTuple):
 def feature_dim(n: int, normals: bool = False, dim: int = 3, heights: bool = False, normal_axis: str = "t2") -> int:
     """Length of :math:`\\Phi_n` for ``n`` contacts in ``dim`` (2 or 3) dimensions; ``heights``: plus the ``n``
     contact heights (:func:`phi` with ``heights=True``, 3-d only); ``normal_axis="frame"``: with normals and
-    ``n >= 3``, three angles per normal instead of two."""
-    if dim not in (2, 3):
-        raise ValueError(f"dim must be 2 or 3, got {dim}")
-    if n < 2:
-        raise ValueError(f"a grasp needs at least 2 contacts, got n={n}")
+    ``n >= 3``, three angles per normal instead of two.
+
+    ``n`` is a whole number ``>= 2`` (as :func:`phi` takes), ``dim`` 2 or 3 (whole numbers, numpy integers too) and
+    ``normal_axis`` one of :data:`NORMAL_AXES` whatever ``n`` and ``normals``; else a ``ValueError`` naming it."""
+    d = whole_number(dim)
+    if d not in (2, 3):
+        raise ValueError(f"dim must be 2 or 3, got {dim!r}")
+    m = whole_number(n)
+    if m is None or m < 2:
+        raise ValueError(f"a grasp needs at least 2 contacts: n must be a whole number >= 2, got n={n!r}")
+    check_normal_axis(normal_axis)
+    if heights and d != 3:
+        raise ValueError("contact heights need 3-d contacts (dim=3)")
+    return _feature_dim(m, normals, d, heights, normal_axis)
+
+
+def _feature_dim(n: int, normals, dim: int, heights, normal_axis: str) -> int:
+    """:func:`feature_dim` of checked arguments (phi's own calls: no second check per call)."""
     if heights:
-        if dim != 3:
-            raise ValueError("contact heights need 3-d contacts (dim=3)")
-        return feature_dim(n, normals, dim, normal_axis=normal_axis) + n
+        return _feature_dim(n, normals, dim, False, normal_axis) + n
     if n == 2:
         return (4 if dim == 3 else 3) if normals else 1
     if dim == 3:
-        if normals and check_normal_axis(normal_axis) == "frame":
+        if normals and normal_axis == "frame":
             return 6 * n - 6
         return 5 * n - 6 if normals else 3 * n - 6
     return 3 * n - 3 if normals else 2 * n - 3
 
 
 # --------------------------------------------------------------------------------------- helpers
+def _check_tol(tol) -> float:
+    """``tol`` as a Python float if it is a finite real number ``> 0`` (numpy scalars too), else a ``ValueError``
+    naming it. Not 0: the degeneracy tests and the grouping of a planar hull face's facets would become exact
+    comparisons that rounding decides (a rotated square "valid", its canonical fan lost)."""
+    if type(tol) is float and 0.0 < tol < math.inf:  # the common case, without finite_number's calls
+        return tol
+    f = finite_number(tol)
+    if f is None or not f > 0.0:
+        raise ValueError(f"tol must be a finite number > 0, got {tol!r}")
+    return f
+
+
+def _real(x, name: str) -> np.ndarray:
+    """``x`` as an array (as given if it is one), refused with a ``ValueError`` naming ``name`` and the dtype if it
+    holds no real numbers (complex, strings, dates): a dtype check, no pass over the data."""
+    a = x if isinstance(x, np.ndarray) else np.asarray(x)
+    if a.dtype.kind not in "biufO":
+        raise ValueError(f"{name} must be real numbers, got an array of dtype {a.dtype}")
+    return a
+
+
 def _batched(contacts, normals) -> tuple[np.ndarray, np.ndarray | None, bool]:
-    """Contiguous float64 ``(P, N, single)``, a single grasp given a batch axis; no checks."""
-    P = np.ascontiguousarray(contacts, dtype=np.float64)
+    """Contiguous float64 ``(P, N, single)``, a single grasp given a batch axis; no checks but the dtype's
+    (:func:`_real`)."""
+    P = np.ascontiguousarray(_real(contacts, "contacts"), dtype=np.float64)
     single = P.ndim == 2
-    N = None if normals is None else np.ascontiguousarray(normals, dtype=np.float64)
+    N = None if normals is None else np.ascontiguousarray(_real(normals, "normals"), dtype=np.float64)
     if single:
         P, N = P[None], None if N is None else N[None]
     return P, N, single
@@ -291,7 +342,7 @@ def phi(contacts, normals=None, *, strict: bool = False, tol: float = DEFAULT_TO
         normals: optional contact normals of the same shape (need not be unit length).
         strict: raise :class:`DegenerateGraspError` for the first degenerate grasp instead of
             flagging it in ``valid``.
-        tol: relative tolerance of the degeneracy tests.
+        tol: relative tolerance of the degeneracy tests, a finite number ``> 0`` (``ValueError`` otherwise).
         heights: append the contacts' heights ``z`` in chain order (the contacts must be in the support
             frame; see the module docstring).
         normal_axis: with normals and ``n >= 4``, each normal's second angle is to ``t2``'s normal (``"t2"``, the
@@ -301,8 +352,13 @@ def phi(contacts, normals=None, *, strict: bool = False, tol: float = DEFAULT_TO
     Returns:
         :class:`GraspFeatures` with ``q`` of shape ``(B, feature_dim(n, normals, heights=heights,
         normal_axis=normal_axis))``
-        (``(d,)`` etc. for a single grasp).
+        (``(d,)`` etc. for a single grasp). Contacts are expected at robot scales: a grasp whose diameter is
+        outside :data:`GRASP_SIZE_RANGE` is flagged with reason 4 (see the module docstring).
+
+    Raises:
+        ValueError: a bad ``tol`` or ``normal_axis``, complex or non-finite contacts or normals, bad shapes.
     """
+    tol = _check_tol(tol)
     check_normal_axis(normal_axis)
     P, N, single = _batched(contacts, normals)
     if _compiled_shapes(P, N):
@@ -395,7 +451,7 @@ def _phi_rows(P: np.ndarray, N: np.ndarray | None, tol: float, normal_axis: str 
     """``(q, valid, order, reason)`` of a batch ``P (B, n, 3)``, ``n >= 3``, through the compiled kernels."""
     B, n, _ = P.shape
     tri, tri_edges, _, n_edges = _topology(n)
-    q = np.zeros((B, feature_dim(n, N is not None, normal_axis=normal_axis)))
+    q = np.zeros((B, _feature_dim(n, N is not None, 3, False, normal_axis)))
     order = np.empty((B, n), dtype=np.int64)
     reason = np.empty(B, dtype=np.int8)
     valid = np.empty(B, dtype=bool)
@@ -418,8 +474,11 @@ def _phi_rows(P: np.ndarray, N: np.ndarray | None, tol: float, normal_axis: str 
 
 
 # ----------------------------------------------------------------------------------- planar phi
+@np.errstate(over="ignore", invalid="ignore")  # sizes out of range overflow to inf / nan: flagged (reason 4), zeroed
 def phi_planar(contacts, normals=None, *, strict: bool = False, tol: float = DEFAULT_TOL) -> GraspFeatures:
-    """Planar sibling of :func:`phi` for ``(B, n, 2)`` contacts (``2n - 3`` values, ``3n - 3`` with normals)."""
+    """Planar sibling of :func:`phi` for ``(B, n, 2)`` contacts (``2n - 3`` values, ``3n - 3`` with normals); ``tol``
+    a finite number ``> 0``, sizes out of :data:`GRASP_SIZE_RANGE` flagged as in :func:`phi`."""
+    tol = _check_tol(tol)
     P, N, single = _as_batch(contacts, normals, 2)
     B, n, _ = P.shape
     rows = np.arange(B)
@@ -428,6 +487,7 @@ def phi_planar(contacts, normals=None, *, strict: bool = False, tol: float = DEF
     iu = np.triu_indices(n, 1)
     reason = np.zeros(B, dtype=np.int8)
     reason[dist[:, iu[0], iu[1]].min(axis=1) <= tol * np.maximum(scale, 1e-300)] = 1
+    reason[~((scale >= GRASP_SIZE_RANGE[0]) & (scale <= GRASP_SIZE_RANGE[1]))] = 4
     reason[scale <= 1e-300] = 1
     if n == 2:
         v = P[:, 1] - P[:, 0]
@@ -487,12 +547,17 @@ def surface_area(contacts, *, tol: float = DEFAULT_TOL) -> np.ndarray:
     """Total surface area of each grasp polyhedron, ``(B,)`` (``(,)`` for one grasp).
 
     ``n = 2``: the squared distance (so that scaling divides it to 1); ``n = 3``: the triangle's
-    area; ``n >= 4``: the area of the convex hull. Degenerate grasps get 0.
+    area; ``n >= 4``: the area of the convex hull. Degenerate grasps get 0: those :func:`phi` flags (at the same
+    ``tol``, a finite number ``> 0``), sizes out of range included.
     """
+    tol = _check_tol(tol)
     P, _, single = _batched(contacts, None)
     if not _compiled_shapes(P, None):  # n = 2, or bad shapes (_as_batch raises)
         P, _, single = _as_batch(contacts, None, 3)
-        out = np.sum((P[:, 1] - P[:, 0]) ** 2, -1)
+        with np.errstate(over="ignore"):  # a distance out of range: inf, then 0 below
+            out = np.sum((P[:, 1] - P[:, 0]) ** 2, -1)
+        dist = np.sqrt(out)  # phi's distance, bit for bit (the kernel adds in np.sum's order)
+        out = np.where((dist >= GRASP_SIZE_RANGE[0]) & (dist <= GRASP_SIZE_RANGE[1]), out, 0.0)
         return out[0] if single else out
     B, n, _ = P.shape
     tri = _topology(n)[0]
@@ -508,17 +573,18 @@ def surface_area(contacts, *, tol: float = DEFAULT_TOL) -> np.ndarray:
         a, b, c = P[i, tri[:, 0]], P[i, tri[:, 1]], P[i, tri[:, 2]]
         out[i] = np.where(hull, 0.5 * _norm(_cross(b - a, c - a)), 0.0).sum()
         status[i] = 0
-    out = np.where(status == 0 if n > 3 else status < 2, out, 0.0)
+    out = np.where(status == 0, out, 0.0)  # phi's verdict at every n (n = 3 too: near-coincident contacts get 0)
     return out[0] if single else out
 
 
 def normalize_scale(contacts, *, tol: float = DEFAULT_TOL) -> tuple[np.ndarray, np.ndarray]:
     """Divide contacts by ``sqrt(surface_area)``: returns ``(scaled contacts, sqrt(area))``.
 
-    Degenerate grasps (zero area) are returned unscaled with factor 1, and stay flagged by
-    :func:`phi`. Normals are unaffected by scaling and need no change.
+    Degenerate grasps (zero area: every grasp :func:`phi` flags at the same ``tol``) are returned unscaled with
+    factor 1, and stay flagged by :func:`phi`. Normals are unaffected by scaling and need no change.
     """
-    P = np.asarray(contacts, dtype=np.float64)
+    tol = _check_tol(tol)
+    P = np.asarray(_real(contacts, "contacts"), dtype=np.float64)
     s = np.sqrt(surface_area(P, tol=tol))
     s = np.where(s > 0, s, 1.0)
     return P / np.asarray(s)[..., None, None], s

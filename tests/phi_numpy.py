@@ -28,6 +28,7 @@ from haptic_env.grasp_features import (
     _unit,
     feature_dim,
     DEFAULT_TOL,
+    GRASP_SIZE_RANGE,
 )
 
 __all__ = ["phi_numpy", "surface_area_numpy"]
@@ -68,7 +69,8 @@ def _phi2(P, N, tol):
     B = P.shape[0]
     v = P[:, 1] - P[:, 0]
     dist = np.linalg.norm(v, axis=-1)
-    reason = np.where(dist > 1e-300, 0, 1).astype(np.int8)
+    in_range = (dist >= GRASP_SIZE_RANGE[0]) & (dist <= GRASP_SIZE_RANGE[1])
+    reason = np.where(in_range, 0, np.where(dist > 1e-300, 4, 1)).astype(np.int8)
     order = np.tile(np.arange(2), (B, 1))
     if N is None:
         q = dist[:, None]
@@ -119,6 +121,7 @@ def _hull_facets(P: np.ndarray, tol: float):
     scale = dist.max(axis=1)
     reason = np.zeros(B, dtype=np.int8)
     reason[dist.min(axis=1) <= tol * np.maximum(scale, 1e-300)] = 1
+    reason[~((scale >= GRASP_SIZE_RANGE[0]) & (scale <= GRASP_SIZE_RANGE[1]))] = 4  # a diameter out of range
     reason[scale <= 1e-300] = 1
     a, b, c = P[:, tri[:, 0]], P[:, tri[:, 1]], P[:, tri[:, 2]]
     cr = _cross(b - a, c - a)
@@ -249,12 +252,13 @@ def _phi_chain(P, N, tol):
 def _surface_area_numpy(P: np.ndarray, tol: float) -> np.ndarray:
     B, n, _ = P.shape
     if n == 2:
-        return np.sum((P[:, 1] - P[:, 0]) ** 2, -1)
+        d2 = np.sum((P[:, 1] - P[:, 0]) ** 2, -1)
+        return np.where(_phi2(P, None, tol)[1], d2, 0.0)  # zero where phi flags the grasp
     out = np.zeros(B)
     T = len(_topology(n)[0])
     step = max(_MIN_CHUNK_ROWS, _CHUNK_ELEMENTS // (T * n))
     for lo in range(0, B, step):
         area, hull, reason, _ = _hull_facets(P[lo : lo + step], tol)
-        ok = reason == 0 if n > 3 else reason < 2
+        ok = reason == 0  # phi's verdict at every n (n = 3: near-coincident contacts get 0 too)
         out[lo : lo + step] = np.where(ok, np.where(hull, area, 0.0).sum(1), 0.0)
     return out

@@ -9,6 +9,8 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from haptic_env.grasp_features import (
+    DEFAULT_TOL,
+    GRASP_SIZE_RANGE,
     DegenerateGraspError,
     feature_dim,
     normalize_scale,
@@ -482,3 +484,167 @@ def test_normal_axis_ab_on_coplanar_box_faces_and_bad_values():
         phi(C, N, normal_axis="t3")
     with pytest.raises(ValueError, match="normal_axis must be one of .*'AB'"):
         DatasetConfig(normal_axis="AB")
+
+
+# ------------------------------------------------------------------- argument checks (the input-validation audit)
+COLLINEAR4 = [[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]]
+
+
+@pytest.mark.parametrize("tol", [-1, -1e-7, 0, 0.0, np.nan, np.inf, -np.inf, "x", None, True, np.array([1e-7]),
+                                 np.float64(np.nan), [1e-7]])
+def test_tol_must_be_a_finite_number_above_zero(tol):
+    """tol=-1 made collinear and coplanar grasps valid (q=[2, 0, 0, 0, pi, 0] for four contacts on a line), nan made
+    every n >= 4 grasp coplanar, 'x' / None / an array reached numba (TypingError, 'Cannot unify'); 0 would make the
+    degeneracy tests exact comparisons that rounding decides. Every public function taking tol refuses it by name."""
+    square = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
+    match = "tol must be a finite number > 0, got"
+    for call in (lambda: phi(COLLINEAR4, tol=tol), lambda: phi(COLLINEAR4[:3], tol=tol), lambda: phi(square, tol=tol),
+                 lambda: phi([[0, 0, 0]] * 3 + [[1, 0, 0]], tol=tol), lambda: phi(COLLINEAR4[:2], tol=tol),
+                 lambda: surface_area(COLLINEAR4, tol=tol), lambda: surface_area(COLLINEAR4[:2], tol=tol),
+                 lambda: normalize_scale(COLLINEAR4, tol=tol),
+                 lambda: phi_planar([[0, 0], [1, 0], [2, 0]], tol=tol)):
+        with pytest.raises(ValueError, match=match):
+            call()
+
+
+def test_tol_takes_numpy_scalars_with_the_float_results():
+    P, N = random_grasp(3, 5, batch=40, normals=True)
+    P[0, :, 2] = 0.0  # coplanar
+    for tol in (np.float64(DEFAULT_TOL), np.float32(1e-5), np.int64(1), 1):
+        ref = phi(P, N, tol=float(tol))
+        f = phi(P, N, tol=tol)
+        for a, b in zip(f, ref):
+            np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(surface_area(P, tol=tol), surface_area(P, tol=float(tol)))
+        np.testing.assert_array_equal(phi_planar(P[..., :2], tol=tol).q, phi_planar(P[..., :2], tol=float(tol)).q)
+    assert not phi(COLLINEAR4, tol=np.float64(1e-7)).valid
+
+
+@pytest.mark.parametrize("n", [2, 3, 4, 5, 6])
+@pytest.mark.parametrize("normals", [False, True])
+def test_ordinary_grasps_are_unchanged_by_the_checks(n, normals):
+    """The checks add no change to a valid call: random grasps at ordinary scales (mm to m), a numpy-scalar tol,
+    give the default call's bits and the NumPy oracle's q (bit for bit at n = 2), order, reason and areas."""
+    from tests.phi_numpy import phi_numpy, surface_area_numpy
+
+    rng = np.random.default_rng(100 + n)
+    P = rng.normal(size=(500, n, 3)) * rng.choice([1e-3, 1.0, 1e3], (500, 1, 1))
+    N = rng.normal(size=(500, n, 3)) if normals else None
+    f = phi(P, N)
+    g = phi(P, N, tol=np.float64(DEFAULT_TOL))
+    for a, b in zip(f, g):
+        assert _bitwise_equal(a, b)
+    q, valid, order, reason = phi_numpy(P, N)
+    assert valid.all() and f.valid.all()
+    np.testing.assert_array_equal(f.order, order)
+    np.testing.assert_array_equal(f.reason, reason)
+    if n == 2:
+        assert _bitwise_equal(f.q, q)
+    else:
+        np.testing.assert_allclose(f.q, q, rtol=0, atol=1e-12 * 1e3)
+    a = surface_area(P, tol=np.float64(DEFAULT_TOL))
+    np.testing.assert_allclose(a, surface_area_numpy(P), rtol=1e-12)
+    assert (a > 0).all()
+    scaled, s = normalize_scale(P)
+    np.testing.assert_array_equal(s, np.sqrt(a))
+    np.testing.assert_array_equal(scaled, P / s[:, None, None])
+
+
+@pytest.mark.parametrize("n", [3, 4, 5])
+def test_surface_area_and_normalize_scale_agree_with_phis_verdict(n):
+    """At n = 3 surface_area zeroed only collinear triangles: near-coincident contacts (phi's reason 1) kept their
+    area (5e-09) and normalize_scale scaled them by 1/7.07e-5 though both promise 0 and factor 1 for degenerate
+    grasps. Now both follow phi's verdict at every n, and so does the NumPy oracle."""
+    from tests.phi_numpy import surface_area_numpy
+
+    P = np.array([[0, 0, 0], [1e-8, 0, 0], [0, 1, 0]], float)
+    assert phi(P).reason == 1
+    assert surface_area(P) == 0.0 and surface_area_numpy(P) == 0.0
+    scaled, s = normalize_scale(P)
+    assert s == 1.0
+    np.testing.assert_array_equal(scaled, P)
+    B = random_grasp(n, n, batch=8)[0]
+    B[0, 1] = B[0, 0] + 1e-9  # near-coincident
+    B[1, :, 2] = 0.0  # coplanar (n >= 4)
+    B[2] = np.linspace(0, 1, n)[:, None] * [1.0, 2.0, 3.0]  # collinear
+    B[3] *= 1e60  # out of range
+    f = phi(B)
+    a = surface_area(B)
+    np.testing.assert_array_equal(a > 0, f.valid)
+    np.testing.assert_array_equal(surface_area_numpy(B) > 0, f.valid)
+    scaled, s = normalize_scale(B)
+    np.testing.assert_array_equal(s[~f.valid], 1.0)
+    np.testing.assert_array_equal(scaled[~f.valid], B[~f.valid])
+
+
+@pytest.mark.parametrize("n", [3.5, 3.0, np.float64(4), "3", None, 1, 0, -2, True, np.int64(1)])
+def test_feature_dim_refuses_a_bad_n(n):
+    """feature_dim(3.5) gave 4.5, (3.0) 3.0, ('3') a TypeError; n is a whole number >= 2, phi's minimum."""
+    with pytest.raises(ValueError, match="a grasp needs at least 2 contacts"):
+        feature_dim(n)
+
+
+def test_feature_dim_checks_dim_and_normal_axis_always():
+    """A bad normal_axis passed at n = 2 or without normals (feature_dim(4, False, normal_axis='bogus') gave 6)."""
+    for args in ((4, False), (2, True), (2, False), (3, True), (5, True, 2)):
+        with pytest.raises(ValueError, match="normal_axis must be one of .*'bogus'"):
+            feature_dim(*args, normal_axis="bogus")
+    for dim in (3.0, "3", 1, None):
+        with pytest.raises(ValueError, match="dim must be 2 or 3"):
+            feature_dim(4, dim=dim)
+    assert feature_dim(np.int64(4), True) == 14 and type(feature_dim(np.int64(4))) is int
+    assert feature_dim(4, False, dim=np.int64(2)) == 5 and feature_dim(2, normal_axis="frame") == 1
+
+
+def test_grasp_sizes_out_of_range_are_flagged():
+    """Two contacts 1e155 apart gave q=[inf] as valid; a right triangle with legs 1e80 got angles of pi/2 as valid,
+    legs 1e155 were 'coincident', 1e-160 'collinear'; normalize_scale made legs of 1e200 all-zero contacts with
+    factor inf. A diameter outside GRASP_SIZE_RANGE is now reason 4 (zero row, zero area, factor 1)."""
+    from haptic_env import _phi_kernels
+    from tests.phi_numpy import phi_numpy, surface_area_numpy
+
+    T = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.0]])
+    T4 = np.vstack([T, [0.2, 0.3, 1.0]])
+    for s in (1e-160, 1e-60, 1e60, 1e80, 1e155, 1e200):
+        for P in (T * s, T4 * s, T[:2] * s, T4[[0, 3]] * s):
+            for N in (None, np.ones_like(P)):
+                f = phi(P, N)
+                assert not f.valid and f.reason == 4 and not f.q.any(), (s, P)
+                with np.errstate(all="ignore"):  # the oracle's NumPy overflows out there
+                    assert f.reason == phi_numpy(P, N)[3]
+            with np.errstate(all="ignore"):
+                assert surface_area(P) == 0.0 and surface_area_numpy(P) == 0.0
+            scaled, factor = normalize_scale(P)
+            assert factor == 1.0 and np.array_equal(scaled, P)
+            with pytest.raises(DegenerateGraspError, match="grasp size out of range"):
+                phi(P, strict=True)
+        assert phi_planar(T[:, :2] * s).reason == 4 and phi_planar(T[:2, :2] * s).reason == 4
+    for s in (1e-49, 1e-3, 1e3, 1e49):  # inside: the unit triangle's values, scaled lengths
+        for P in (T, T4, T[:2]):
+            f, g = phi(P * s), phi(P)
+            assert f.valid
+            np.testing.assert_allclose(f.q / np.r_[s, np.ones(len(f.q) - 1)], g.q, rtol=1e-12)
+            np.testing.assert_allclose(surface_area(P * s) / s**2, surface_area(P), rtol=1e-12)
+    assert phi(np.zeros((3, 3))).reason == 1 and phi(np.zeros((2, 3))).reason == 1  # coincident stays coincident
+    assert GRASP_SIZE_RANGE == (_phi_kernels.SIZE_MIN, _phi_kernels.SIZE_MAX)
+
+
+def test_complex_contacts_and_normals_are_refused():
+    """Complex input was cast with only a ComplexWarning (the imaginary part dropped)."""
+    P, N = random_grasp(0, 4, batch=3, normals=True)
+    for call in (lambda: phi(P + 1j), lambda: phi(P[0].astype(np.complex64)), lambda: phi(P[:, :2] + 0j),
+                 lambda: surface_area(P + 0j), lambda: surface_area(P[:, :2] + 0j), lambda: normalize_scale(P + 0j),
+                 lambda: phi_planar(P[..., :2] + 0j), lambda: phi([[1j, 0, 0], [1, 0, 0], [0, 1, 0]]),
+                 lambda: phi([np.complex128(1), 0, 0])):
+        with pytest.raises(ValueError, match="contacts must be real numbers, got an array of dtype complex"):
+            call()
+    for call in (lambda: phi(P, N + 0j), lambda: phi(P[:, :2], N[:, :2] + 0j), lambda: phi_planar(P[..., :2],
+                                                                                                N[..., :2] + 0j)):
+        with pytest.raises(ValueError, match="normals must be real numbers, got an array of dtype complex"):
+            call()
+    # real input of any real dtype (and lists) is taken as before
+    P32, N32 = P.astype(np.float32), N.astype(np.float32)
+    np.testing.assert_array_equal(phi(P32, N32).q, phi(P32.astype(float), N32.astype(float)).q)
+    T = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
+    np.testing.assert_array_equal(phi(T).q, phi(np.array(T, float)).q)
+    np.testing.assert_array_equal(surface_area(T), surface_area(np.array(T, float)))
