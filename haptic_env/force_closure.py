@@ -57,8 +57,15 @@ The pyramids' frame (``frame=``, :data:`FRAMES`)
 
 Degenerate grasps
     Coincident or collinear contacts, ``n <= 2`` (two point contacts cannot resist a torque about the line
-    through them), ``mu = 0`` with fewer than 7 contacts, a zero normal: their wrenches do not span
-    :math:`R^6`, so they are not in force closure (``False``, never an error).
+    through them), ``mu = 0`` with fewer than 7 contacts, a zero normal (a contact that pushes nowhere): their
+    wrenches do not span :math:`R^6`, so they are not in force closure (``False``, never an error). A grasp of no
+    contacts (``n = 0``, ``contacts (B, 0, 3)`` or ``(0, 3)``) resists nothing: ``False``, epsilon 0, and no
+    primitive wrenches (``(B, 0, 6)``); an empty batch (``B = 0``) gives empty answers.
+
+Bad input
+    Contacts or normals that are not finite (NaN, +-inf) raise a ``ValueError`` naming the argument, the grasp and
+    the value: a NaN normal is no zero normal (it would silently drop that contact's wrenches), and an infinite
+    contact would scale every torque to 0.
 """
 
 from __future__ import annotations
@@ -102,6 +109,11 @@ def _check(contacts, normals, mu, edges, frame) -> tuple[np.ndarray, np.ndarray,
         raise ValueError(f"contacts must have shape (B, n, 3) or (n, 3), got {np.shape(contacts)}")
     if N.shape != C.shape:
         raise ValueError(f"normals must have the shape of contacts {C.shape}, got {np.shape(normals)}")
+    for name, X in (("contacts", C), ("normals", N)):
+        if not np.isfinite(X).all():
+            b, i = np.argwhere(~np.isfinite(X).all(axis=-1))[0]
+            where = f"[{i}]" if single else f"[{b}, {i}]"
+            raise ValueError(f"{name} must be finite, got {name}{where} = {X[b, i].tolist()}")
     f = finite_number(mu)  # not check_friction: mu = 0 (frictionless) is allowed here
     if f is None or f < 0:
         raise ValueError(f"mu (the friction coefficient) must be finite and >= 0, got {mu!r}")
@@ -116,8 +128,8 @@ def primitive_wrenches(contacts, normals, mu: float, edges: int = DEFAULT_EDGES,
     """The primitive wrenches of the grasps' linearised friction cones.
 
     Args:
-        contacts: ``(B, n, 3)`` contact points (any length unit).
-        normals: ``(B, n, 3)`` inward contact normals (normalised here; a zero normal gives zero wrenches).
+        contacts: ``(B, n, 3)`` contact points (any length unit), finite; ``n = 0`` gives no wrenches.
+        normals: ``(B, n, 3)`` inward contact normals, finite (normalised here; a zero normal gives zero wrenches).
         mu: Coulomb friction coefficient, ``>= 0``.
         edges: edges of each friction pyramid, ``>= 3``.
         frame: how each pyramid is turned about its normal, one of :data:`FRAMES` (module docstring).
@@ -125,6 +137,10 @@ def primitive_wrenches(contacts, normals, mu: float, edges: int = DEFAULT_EDGES,
     Returns:
         ``(B, n * edges, 6)``: force (unit normal component) and torque about the contacts' centroid divided
         by their largest distance from it, contact-major. ``(n * edges, 6)`` for a single grasp.
+
+    Raises:
+        ValueError: naming the argument and the value, for shapes other than these, non-finite contacts or
+            normals, ``mu`` or ``edges`` out of range, or an unknown ``frame``.
     """
     C, N, single = _check(contacts, normals, mu, edges, frame)
     nn = np.linalg.norm(N, axis=-1, keepdims=True)
@@ -134,8 +150,8 @@ def primitive_wrenches(contacts, normals, mu: float, edges: int = DEFAULT_EDGES,
     a[np.arange(N.shape[0])[:, None], np.arange(N.shape[1]), np.argmin(np.abs(N), axis=-1)] = 1.0
     t1 = np.cross(N, a)
     t1 /= np.maximum(np.linalg.norm(t1, axis=-1, keepdims=True), 1e-300)
-    r = C - C.mean(axis=1, keepdims=True)  # each contact from the centroid
-    s = np.linalg.norm(r, axis=-1).max(axis=1)  # the grasp's size
+    r = C - C.mean(axis=1, keepdims=True) if C.shape[1] else C.copy()  # each contact from the centroid
+    s = np.linalg.norm(r, axis=-1).max(axis=1, initial=0.0)  # the grasp's size (0 without contacts)
     if frame == "grasp":  # towards the centroid, along the tangent plane, where that direction exists
         g = -r
         g -= (g * N).sum(axis=-1, keepdims=True) * N
@@ -226,8 +242,9 @@ def force_closure(contacts, normals, mu: float = DEFAULT_MU, edges: int = DEFAUL
     """Whether each grasp is in force closure with friction ``mu`` (module docstring).
 
     Args:
-        contacts: ``(B, n, 3)`` or ``(n, 3)``.
-        normals: inward normals, the shape of ``contacts``.
+        contacts: ``(B, n, 3)`` or ``(n, 3)``, finite (a ``ValueError`` names a NaN or inf); ``n = 0``: not in
+            closure.
+        normals: inward normals, the shape of ``contacts``, finite (a zero normal: no contact).
         mu: Coulomb friction coefficient, ``>= 0``.
         edges: edges of each friction pyramid (inscribed in the cone), ``>= 3``.
         method: one of :data:`METHODS`, all with the same answers: ``"plane"`` (three contacts only) and
@@ -253,6 +270,8 @@ def _closure(W: np.ndarray, contacts, edges: int, method: str) -> np.ndarray:
     if method == "plane" and n != 3:
         raise ValueError(f"method 'plane' decides three-contact grasps only, got {n} contacts")
     out = np.zeros(W.shape[0], dtype=bool)
+    if n == 0:  # without contacts a grasp resists nothing
+        return out
     if method in ("plane", "auto") and n == 3:
         C = np.asarray(contacts, dtype=np.float64).reshape(W.shape[0], 3, 3)
         for lo in range(0, W.shape[0], _CHUNK):
@@ -284,7 +303,9 @@ def epsilon_quality(contacts, normals, mu: float = DEFAULT_MU, edges: int = DEFA
     single = W.ndim == 2
     W = W[None] if single else W
     out = np.zeros(W.shape[0])
-    if W.shape[1] == 3 * int(edges):  # the exact planar test first, Qhull on the grasps in closure
+    if W.shape[1] == 0:  # no contacts: not in closure
+        todo = np.zeros(0, int)
+    elif W.shape[1] == 3 * int(edges):  # the exact planar test first, Qhull on the grasps in closure
         todo = np.flatnonzero(_closure(W, contacts, int(edges), "auto"))
     else:  # Qhull once on each grasp the search cannot reject: its margin decides closure and is the quality
         todo = np.concatenate([np.zeros(0, int)] + [lo + np.flatnonzero(~_separable(W[lo:lo + _CHUNK]))

@@ -17,10 +17,13 @@ the one source of the episode length (the registered envs set no ``max_episode_s
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from gymnasium import spaces
+
+from haptic_env.numbers import finite_number
 
 if TYPE_CHECKING:
     from haptic_env.config import HapticRecogConfig
@@ -32,9 +35,22 @@ REWARD_KINDS = ("true-posterior-gain", "max-posterior-gain", "entropy-reduction"
 
 def entropy(p: np.ndarray) -> float | np.ndarray:
     """Shannon entropy (nats) of probability vectors along the last axis of ``p (..., K)``: shape ``(...)``, a float
-    for one vector. Zero entries add nothing (``0 log 0 = 0``)."""
+    for one vector. Zero entries add nothing (``0 log 0 = 0``).
+
+    Each vector must be a probability vector: ``K >= 1`` entries, finite, ``>= 0``, summing to 1 within ``1e-6``;
+    a ``ValueError`` names the first row that is not (NaN, inf, a negative entry or a wrong sum would give an entropy
+    that is no entropy). An empty batch ``(0, K)`` gives ``(0,)``."""
     p = np.asarray(p, dtype=np.float64)
+    if p.ndim == 0 or p.shape[-1] == 0:
+        raise ValueError(f"p must have shape (..., K) with K >= 1 probabilities, got shape {p.shape}")
     with np.errstate(divide="ignore", invalid="ignore"):
+        # NaN and +-inf fail the sum test (a NaN, inf or NaN sum), negative entries the min test
+        bad = ~((p.min(axis=-1) >= 0.0) & (np.abs(p.sum(axis=-1) - 1.0) <= 1e-6))
+        if bad.any():
+            i = tuple(int(j) for j in np.argwhere(bad)[0]) if bad.ndim else ()
+            where = f"p[{', '.join(map(str, i))}]" if i else "p"
+            raise ValueError(f"entropy needs probability vectors (finite, >= 0, summing to 1 within 1e-6), got {where}"
+                             f" = {p[i].tolist()}")
         h = -np.where(p > 0, p * np.log(np.where(p > 0, p, 1.0)), 0.0).sum(axis=-1)
     return float(h) if h.ndim == 0 else h
 
@@ -42,11 +58,24 @@ def entropy(p: np.ndarray) -> float | np.ndarray:
 def touched_rows(x: np.ndarray, touched: np.ndarray, bound: float) -> np.ndarray:
     """``x (..., n, 3)`` with the rows of fingers that did not touch (``touched (..., n)`` False) set to 0, clipped
     to ``[-bound, bound]`` and flattened to ``(..., 3n)`` (a new array; non-finite values of untouched rows are
-    dropped, not propagated)."""
+    dropped, not propagated). An empty batch ``(0, n, 3)`` gives ``(0, 3n)``.
+
+    It runs on every step, so it checks shapes, dtypes and ``bound`` only, never the values: ``x`` of shape
+    ``(..., n, 3)``, ``touched`` a bool array of exactly ``x.shape[:-1]`` (no broadcasting, no truthiness of
+    numbers), ``bound`` a finite number ``> 0``; a ``ValueError`` names what is not."""
     x = np.asarray(x, dtype=np.float64)
-    out = np.where(np.asarray(touched, dtype=bool)[..., None], x, 0.0)
-    np.clip(out, -bound, bound, out=out)
-    return out.reshape(out.shape[:-2] + (-1,))
+    t = np.asarray(touched)
+    if x.ndim < 2 or x.shape[-1] != 3:
+        raise ValueError(f"x must have shape (..., n, 3), got shape {x.shape}")
+    if t.dtype.kind != "b" or t.shape != x.shape[:-1]:
+        raise ValueError(f"touched must be a bool array of shape {x.shape[:-1]} (x's without the last axis), got "
+                         f"dtype {t.dtype} and shape {t.shape}")
+    b = bound if type(bound) is float and 0.0 < bound < math.inf else finite_number(bound)  # the env's: a float
+    if b is None or b <= 0:
+        raise ValueError(f"bound must be a finite number > 0, got {bound!r}")
+    out = np.where(t[..., None], x, 0.0)
+    np.clip(out, -b, b, out=out)
+    return out.reshape(out.shape[:-2] + (3 * x.shape[-2],))
 
 
 class Task:

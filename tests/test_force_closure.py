@@ -196,3 +196,62 @@ def test_grasp_frame_falls_back_where_the_centroid_is_along_the_normal():
     W = primitive_wrenches(ball, -ball, 0.5, frame="grasp")
     assert np.isfinite(W).all() and force_closure(ball, -ball, 0.5, frame="grasp") is True
     np.testing.assert_allclose(W, primitive_wrenches(ball, -ball, 0.5, frame="axes"), atol=1e-12)
+
+
+# a regular tetrahedron's corners on the unit sphere, normals to the centre: in force closure at mu = 0.5
+_C4 = np.array([[1.0, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]]) / np.sqrt(3)
+_N4 = -_C4
+
+
+@pytest.mark.parametrize("bad", [[np.nan, np.nan, np.nan], [np.nan, 0.0, 1.0], [np.inf, 0.0, 0.0]])
+def test_non_finite_normals_are_refused_not_read_as_no_contact(bad):
+    """A NaN normal used to count as a zero normal (no contact): the tetrahedron plus a NaN-normal fifth contact came
+    out in closure (epsilon 0.27) with zero wrenches for that contact."""
+    C, N = np.vstack([_C4, [[0.0, 0.0, 1.0]]]), np.vstack([_N4, [bad]])
+    calls = [lambda: primitive_wrenches(C, N, 0.5), lambda: epsilon_quality(C, N),
+             *(partial(force_closure, C, N, method=m) for m in ("auto", "search", "qhull"))]
+    for call in calls:
+        with pytest.raises(ValueError, match=r"normals must be finite, got normals\[4\] = \[(nan|inf)"):
+            call()
+    with pytest.raises(ValueError, match=r"normals must be finite, got normals\[1, 4\]"):
+        force_closure(np.stack([C, C]), np.stack([np.vstack([_N4, [[0.0, 0.0, -1.0]]]), N]))
+
+
+@pytest.mark.parametrize("bad", [np.inf, -np.inf, np.nan])
+def test_non_finite_contacts_are_refused(bad):
+    """An infinite contact used to scale every torque to 0 (finite wrenches, answer False); NaN gave False."""
+    C = _C4.copy()
+    C[0, 0] = bad
+    calls = [lambda: primitive_wrenches(C, _N4, 0.5), lambda: force_closure(C, _N4), lambda: epsilon_quality(C, _N4),
+             lambda: force_closure(C[:3], _N4[:3], method="plane")]
+    for call in calls:
+        with pytest.raises(ValueError, match=r"contacts must be finite, got contacts\[0\] = \[(nan|-?inf)"):
+            call()
+
+
+def test_a_grasp_without_contacts_is_not_in_closure():
+    """No contacts resist nothing (documented): not in closure, epsilon 0, no wrenches; an empty batch is empty."""
+    for method in ("auto", "search", "qhull"):
+        assert force_closure(np.zeros((0, 3)), np.zeros((0, 3)), method=method) is False
+        np.testing.assert_array_equal(force_closure(np.zeros((2, 0, 3)), np.zeros((2, 0, 3)), method=method),
+                                      [False, False])
+        assert force_closure(np.zeros((0, 0, 3)), np.zeros((0, 0, 3)), method=method).shape == (0,)
+    assert epsilon_quality(np.zeros((0, 3)), np.zeros((0, 3))) == 0.0
+    np.testing.assert_array_equal(epsilon_quality(np.zeros((2, 0, 3)), np.zeros((2, 0, 3)), frame="grasp"), [0.0, 0.0])
+    assert epsilon_quality(np.zeros((0, 0, 3)), np.zeros((0, 0, 3))).shape == (0,)
+    assert epsilon_quality(np.zeros((0, 4, 3)), np.zeros((0, 4, 3))).shape == (0,)
+    assert primitive_wrenches(np.zeros((0, 3)), np.zeros((0, 3)), 0.5).shape == (0, 6)
+    assert primitive_wrenches(np.zeros((2, 0, 3)), np.zeros((2, 0, 3)), 0.5, 5).shape == (2, 0, 6)
+    with pytest.raises(ValueError, match="three-contact grasps only, got 0"):
+        force_closure(np.zeros((0, 3)), np.zeros((0, 3)), method="plane")
+
+
+def test_valid_grasps_keep_their_answers():
+    """The checks change no valid answer: the tetrahedron's epsilon and its wrenches from the formula."""
+    assert force_closure(_C4, _N4) is True
+    W = primitive_wrenches(_C4, _N4, 0.5)
+    r = _C4 / np.linalg.norm(_C4, axis=1).max()  # centroid 0, unit size
+    np.testing.assert_allclose(W[:, 3:], np.cross(np.repeat(r, 4, axis=0), W[:, :3]), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(np.einsum("ij,ij->i", W[:, :3], np.repeat(_N4, 4, axis=0)), 1.0, rtol=0, atol=1e-15)
+    eps = epsilon_quality(_C4, _N4)
+    assert eps > 0 and eps == epsilon_quality(np.stack([_C4, _C4]), np.stack([_N4, _N4]))[1]

@@ -66,11 +66,13 @@ def ray_frames(c, s, cb, sb, centre, t, radius, margin, d_w, o_t):
         if nref > 1e-6:
             m = max(nref, 1e-12)
             b10, b11, b12 = r0 / m, r1 / m, r2 / m
-        else:  # alt = horiz - sum(horiz * e3) * e3, horiz = (cos az, sin az, 0)
-            sh = ((0.0 + caz * e30) + saz * e31) + 0.0 * e32
-            a0 = caz - sh * e30
-            a1 = saz - sh * e31
-            a2 = 0.0 - sh * e32
+        else:  # alt = horiz - sum(horiz * e3) * e3, horiz = sign(e3_z) (cos az, sin az, 0)
+            sg = math.copysign(1.0, e32)
+            h0, h1, h2 = caz * sg, saz * sg, 0.0 * sg
+            sh = ((0.0 + h0 * e30) + h1 * e31) + h2 * e32
+            a0 = h0 - sh * e30
+            a1 = h1 - sh * e31
+            a2 = h2 - sh * e32
             m = max(math.sqrt(((0.0 + a0 * a0) + a1 * a1) + a2 * a2), 1e-12)
             b10, b11, b12 = a0 / m, a1 / m, a2 / m
         b20 = e31 * b12 - e32 * b11

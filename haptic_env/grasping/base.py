@@ -34,6 +34,8 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from haptic_env.numbers import finite_number
+
 __all__ = [
     "ACTION_DIM",
     "ACTION_NAMES",
@@ -59,9 +61,16 @@ SUPPORTS = ("table", "floating")
 
 def usable_touch(touched: np.ndarray) -> np.ndarray:
     """Which grasps are usable: ``touched (..., n)`` bool -> ``(...)`` bool, at least ``min(3, n)`` fingers touched (a
-    grasp the Phi_n features accept: a polyhedron, or the distance of a 2-finger gripper)."""
-    touched = np.asarray(touched, dtype=bool)
-    return touched.sum(axis=-1) >= min(3, touched.shape[-1])
+    grasp the Phi_n features accept: a polyhedron, or the distance of a 2-finger gripper).
+
+    ``touched`` must be a bool array (numpy ``bool`` dtype, or a list of Python bools) with ``n >= 2`` fingers, as
+    every backend reports it; anything else (ints, floats, strings, a scalar, ``n < 2``) raises a ``ValueError``
+    naming it rather than being read by truthiness. The check reads only the dtype and the shape."""
+    t = np.asarray(touched)
+    if t.dtype.kind != "b" or t.ndim == 0 or t.shape[-1] < 2:
+        raise ValueError(f"touched must be a bool array of shape (..., n) with n >= 2 fingers, got dtype {t.dtype} "
+                         f"and shape {t.shape}: {touched!r}")
+    return t.sum(axis=-1) >= min(3, t.shape[-1])
 
 
 @dataclass(frozen=True)
@@ -170,12 +179,29 @@ class Approach:
         return np.stack([ce * np.cos(self.azimuth), ce * np.sin(self.azimuth), np.sin(self.elevation)], axis=-1)
 
 
-def validate_actions(actions: Any, action_dim: int = ACTION_DIM) -> np.ndarray:
-    """Check a batch of actions: returns ``(B, action_dim)`` float64; ValueError naming the bad value."""
+def _real_array(value: Any, name: str) -> np.ndarray:
+    """``value`` as a float64 array; a ``ValueError`` naming ``name`` and the value where it is not real numbers
+    (complex values, whose imaginary part a cast would drop; strings; ints beyond a float's range)."""
+    if type(value) is np.ndarray and value.dtype == np.float64:  # the env's own actions: nothing to cast
+        return value
     try:
-        arr = np.asarray(actions, dtype=np.float64)
+        arr = np.asarray(value)
+        is_complex = arr.dtype.kind == "c"
+        if not is_complex:
+            arr = arr.astype(np.float64, copy=False)
+    except OverflowError as exc:
+        raise ValueError(f"{name} must be finite real numbers, got a value too large for a float: {value!r}") from exc
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"actions must be numeric, got {actions!r}") from exc
+        raise ValueError(f"{name} must be numeric, got {value!r}") from exc
+    if is_complex:
+        raise ValueError(f"{name} must be real numbers, got complex values {value!r}")
+    return arr
+
+
+def validate_actions(actions: Any, action_dim: int = ACTION_DIM) -> np.ndarray:
+    """Check a batch of actions: returns ``(B, action_dim)`` float64; ValueError naming the bad value (complex values
+    and ints beyond a float's range too)."""
+    arr = _real_array(actions, "actions")
     if arr.ndim != 2 or arr.shape[1] != action_dim:
         raise ValueError(f"actions must have shape (B, {action_dim}), got shape {arr.shape}")
     bad = ~np.isfinite(arr)
@@ -193,20 +219,23 @@ def validate_actions(actions: Any, action_dim: int = ACTION_DIM) -> np.ndarray:
 
 def validate_action(action: Any, action_dim: int = ACTION_DIM) -> np.ndarray:
     """Check one action: returns ``(action_dim,)`` float64; ValueError naming the bad value."""
-    try:
-        arr = np.asarray(action, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"action must be numeric, got {action!r}") from exc
+    arr = _real_array(action, "action")
     if arr.shape != (action_dim,):
         raise ValueError(f"action must have shape ({action_dim},), got shape {arr.shape}: {action!r}")
     return validate_actions(arr[None], action_dim)[0]
 
 
 def decode_approach(actions: np.ndarray, support: str = "table") -> Approach:
-    """Map validated actions ``(..., 4)`` in [-1, 1] to angles (see the table in the module docstring)."""
+    """Map validated actions ``(..., 4)`` in [-1, 1] to angles (see the table in the module docstring).
+
+    The backends call it on every grasp with actions :func:`validate_actions` has already checked, so it checks only
+    the shape (``(..., 4)``; a ``ValueError`` otherwise), not the values: NaN, inf or values outside ``[-1, 1]`` decode
+    to angles outside the table's ranges. Pass other actions through :func:`validate_actions` first."""
     if support not in SUPPORTS:
         raise ValueError(f"support must be one of {SUPPORTS}, got {support!r}")
     a = np.asarray(actions, dtype=np.float64)
+    if a.shape[-1:] != (ACTION_DIM,):
+        raise ValueError(f"actions must have shape (..., {ACTION_DIM}), got shape {a.shape}")
     el = (a[..., 1] + 1.0) * (np.pi / 4.0) if support == "table" else a[..., 1] * (np.pi / 2.0)
     return Approach(azimuth=np.pi * a[..., 0], elevation=el, roll=np.pi * a[..., 2], spread=(a[..., 3] + 1.0) / 2.0)
 
@@ -220,18 +249,27 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def approach_frame(approach: Approach) -> np.ndarray:
     """(..., 3, 3) rotations with columns ``(e1, e2, e3)``: ``e3 = -u`` the approach axis (into the object),
-    ``e1`` the thumb direction (rolled by ``approach.roll`` about ``e3``), ``e2 = e3 x e1``."""
+    ``e1`` the thumb direction (rolled by ``approach.roll`` about ``e3``), ``e2 = e3 x e1``.
+
+    Before the roll ``e1`` is world z projected onto the plane normal to ``e3``. At the poles (a vertical approach)
+    that projection vanishes and its limit is taken instead, ``sign(e3_z)`` times the azimuth's horizontal direction
+    ``(cos phi, sin phi, 0)`` (away from it at the upper pole, towards it at the lower), so the frame is continuous in
+    the elevation at both poles."""
     u = approach.direction
     e3 = -u
-    # reference perpendicular: world z projected (degenerate at the poles -> use the azimuth direction)
-    az = np.asarray(approach.azimuth, dtype=np.float64)
-    horiz = np.stack([np.cos(az), np.sin(az), np.zeros_like(az)], axis=-1)
+    # reference perpendicular: world z projected, degenerate at the poles -> its limit there, +-azimuth direction
     zref = np.broadcast_to(np.array([0.0, 0.0, 1.0]), e3.shape)
     ref = zref - np.sum(zref * e3, axis=-1, keepdims=True) * e3
     nref = np.linalg.norm(ref, axis=-1, keepdims=True)
-    alt = horiz - np.sum(horiz * e3, axis=-1, keepdims=True) * e3
-    ref = np.where(nref > 1e-6, ref / np.maximum(nref, 1e-12), alt / np.maximum(np.linalg.norm(alt, axis=-1,
-                                                                                               keepdims=True), 1e-12))
+    ref = ref / np.maximum(nref, 1e-12)
+    pole = ~(nref[..., 0] > 1e-6)
+    if pole.any():  # only there: the common case costs one test
+        az = np.broadcast_to(np.asarray(approach.azimuth, dtype=np.float64), pole.shape)[pole]
+        e3p = e3[pole]
+        horiz = np.stack([np.cos(az), np.sin(az), np.zeros_like(az)], axis=-1)
+        horiz *= np.copysign(1.0, e3p[:, 2:])  # e3_z = -1 at the upper pole, +1 at the lower
+        alt = horiz - np.sum(horiz * e3p, axis=-1, keepdims=True) * e3p
+        ref[pole] = alt / np.maximum(np.linalg.norm(alt, axis=-1, keepdims=True), 1e-12)
     b1 = ref
     b2 = _cross(e3, b1)
     c, s = np.cos(approach.roll)[..., None], np.sin(approach.roll)[..., None]
@@ -244,10 +282,20 @@ def support_height(vertices, pose=None, scale: float = 1.0) -> float:
     """The table top's height (world z, m) under an object resting on it: the lowest z of its ``vertices (V, 3)``
     (object frame), scaled by ``scale`` about the object's origin, then posed by ``pose (4, 4)`` (identity when
     None). Every backend with ``support="table"`` puts its table there; contacts minus it are in the support frame
-    that :func:`~haptic_env.grasp_features.phi` ``(heights=True)`` reads."""
-    v = float(scale) * np.asarray(vertices, dtype=np.float64)
+    that :func:`~haptic_env.grasp_features.phi` ``(heights=True)`` reads.
+
+    ``vertices`` must be finite and ``scale`` a finite number ``> 0`` (a real scalar: :func:`~haptic_env.numbers.
+    finite_number`; a negative scale would reflect the object); a ``ValueError`` names what is not."""
+    f = finite_number(scale)
+    if f is None or f <= 0:
+        raise ValueError(f"scale must be a finite number > 0, got {scale!r}")
+    v = _real_array(vertices, "vertices")
     if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0:
         raise ValueError(f"vertices must have shape (V, 3) with V >= 1, got {v.shape}")
+    if not np.isfinite(v).all():
+        i = int(np.flatnonzero(~np.isfinite(v).all(axis=1))[0])
+        raise ValueError(f"vertices must be finite, got vertices[{i}] = {v[i].tolist()}")
+    v = f * v
     T = validate_pose(pose)
     return float((v @ T[2, :3]).min() + T[2, 3])
 
@@ -256,7 +304,7 @@ def validate_pose(pose: Any) -> np.ndarray:
     """A 4x4 rigid transform (identity when ``None``); ValueError naming what is wrong."""
     if pose is None:
         return np.eye(4)
-    T = np.asarray(pose, dtype=np.float64)
+    T = _real_array(pose, "object pose")
     if T.shape != (4, 4):
         raise ValueError(f"object pose must be a 4x4 matrix, got shape {T.shape}")
     rows = T.tolist()  # a 4x4 check in Python floats: numpy's allclose and det cost ~40 us, a reset needs two
