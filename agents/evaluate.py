@@ -7,16 +7,19 @@ Per episode we record the number of grasps at the stop (termination at the thres
 ``max_grasps``: censored), whether the recogniser *decided* (reached the threshold) and whether its
 prediction at the stop is the true object (``correct``). The summary reports, per agent:
 
-* ``success``: fraction correct at the stop, 95% bootstrap CI (episodes resampled; 2000 resamples);
+* ``success``: fraction whose prediction at the stop is right (decided or not), with a 95% Wilson interval;
 * ``decided``: fraction that reached the threshold;
+* ``decided_correct``: fraction decided **and** correct, the open issues' "success at the stop", with a 95% Wilson
+  interval (a proportion's bootstrap CI has no width at 0 or 100 %);
 * ``grasps``: mean and median grasps at the stop with 95% bootstrap CIs, and the spread over seeds;
 * ``fewer_than_random``: relative reduction of mean grasps vs the ``random`` agent, with a bootstrap CI;
 * the success-vs-grasps curve: fraction of episodes decided **and** correct within ``g`` grasps.
 
-These CIs are percentile bootstraps by :func:`scipy.stats.bootstrap`. The RL aggregates come from ``rliable``
-(:func:`rl_aggregates`): the IQM of the grasps at the stop and the success at the stop with stratified bootstrap
-CIs (episodes resampled within each env seed), the probability of improvement of each agent over random, and
-the performance profile (fraction decided and correct within ``tau`` grasps, with its CI band).
+The other CIs are percentile bootstraps by :func:`scipy.stats.bootstrap`; the reduction's resamples the agent's and
+random's episodes independently (conservative: the agents meet the same objects and poses). The RL aggregates come
+from ``rliable`` (:func:`rl_aggregates`): the IQM of the grasps at the stop and the success at the stop with
+stratified bootstrap CIs (episodes resampled within each env seed), the probability of improvement of each agent over
+random, and the performance profile (fraction decided and correct within ``tau`` grasps, with its CI band).
 
 Outputs in ``--out``: ``results.md`` (markdown tables), ``results.json``, ``episodes.csv``,
 ``success_vs_grasps.png``, ``grasps_boxplot.png``, ``performance_profile.png``, ``confusion.png`` (per agent: the
@@ -54,6 +57,7 @@ __all__ = [
     "summarize",
     "success_curve",
     "bootstrap_ci",
+    "proportion_ci",
     "score_matrix",
     "rl_aggregates",
     "write_report",
@@ -135,6 +139,10 @@ def evaluate_agents(agents: Sequence[Any], make_env: Callable[[], Any], n_episod
 
     _check_episodes(n_episodes)
     seeds = list(seeds)
+    names = [a.name for a in agents]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:  # the summary groups episodes by name: two agents of one name would be pooled into one row
+        raise ValueError(f"agents must have distinct names, got {twice} more than once (name a model NAME=model.zip)")
     if store is not None and (keys is None or len(keys) != len(agents)):
         raise ValueError(f"store needs one key per agent ({len(agents)}), got {keys!r}")
     out: list[EpisodeRecord] = []
@@ -196,6 +204,18 @@ def bootstrap_ci(x: np.ndarray, stat: Callable[[np.ndarray], float] = np.mean, n
     return float(ci.low), float(ci.high)
 
 
+def proportion_ci(successes: int, n: int, alpha: float = 0.05) -> tuple[float, float]:
+    """The Wilson score interval ``(lo, hi)`` of ``successes`` out of ``n`` 0/1 outcomes
+    (:meth:`scipy.stats.binomtest(...).proportion_ci <scipy.stats.binomtest>`); ``(nan, nan)`` for ``n = 0``. Unlike a
+    bootstrap it keeps its width at 0 and 100 % (40 of 40: [91.2, 100] %)."""
+    from scipy.stats import binomtest
+
+    if n == 0:
+        return (float("nan"), float("nan"))
+    ci = binomtest(int(successes), int(n)).proportion_ci(confidence_level=1 - alpha, method="wilson")
+    return float(ci.low), float(ci.high)
+
+
 def _ratio_ci(a: np.ndarray, b: np.ndarray, n_boot: int = 2000, seed: int = 1) -> tuple[float, float, float]:
     """``1 - mean(a) / mean(b)`` and its percentile bootstrap CI (:func:`scipy.stats.bootstrap`, a and b resampled
     independently)."""
@@ -235,8 +255,9 @@ def summarize(records: Sequence[EpisodeRecord], baseline: str = "random") -> lis
         seed_means = [np.mean([r.grasps for r in rs if r.seed == s]) for s in seeds]
         row = {
             "agent": n, "episodes": len(rs), "seeds": len(seeds),
-            "success": float(c.mean()), "success_ci": bootstrap_ci(c),
+            "success": float(c.mean()), "success_ci": proportion_ci(int(c.sum()), len(c)),
             "decided": float(d.mean()),
+            "decided_correct": float((c * d).mean()), "decided_correct_ci": proportion_ci(int((c * d).sum()), len(c)),
             "grasps_mean": float(g.mean()), "grasps_mean_ci": bootstrap_ci(g),
             "grasps_median": float(np.median(g)), "grasps_median_ci": bootstrap_ci(g, np.median),
             "grasps_seed_std": float(np.std(seed_means, ddof=1)) if len(seeds) > 1 else 0.0,
@@ -347,14 +368,15 @@ def _fmt_ci(v, ci, pct=False):
 
 
 def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
-    head = ("| agent | episodes (seeds) | success at stop [95% CI] | decided | mean grasps [95% CI] "
-            "| median grasps [95% CI] | seed std | fewer grasps than random [95% CI] |")
-    lines = [head, "|" + "---|" * 8]
+    head = ("| agent | episodes (seeds) | success at stop [95% CI] | decided | decided and correct [95% CI] "
+            "| mean grasps [95% CI] | median grasps [95% CI] | seed std | fewer grasps than random [95% CI] |")
+    lines = [head, "|" + "---|" * 9]
     for r in rows:
         fewer = _fmt_ci(r["fewer_than_random"], r["fewer_than_random_ci"], pct=True) if "fewer_than_random" in r else "—"
         lines.append(
             f"| {r['agent']} | {r['episodes']} ({r['seeds']}) | {_fmt_ci(r['success'], r['success_ci'], pct=True)} "
-            f"| {100 * r['decided']:.1f}% | {_fmt_ci(r['grasps_mean'], r['grasps_mean_ci'])} "
+            f"| {100 * r['decided']:.1f}% | {_fmt_ci(r['decided_correct'], r['decided_correct_ci'], pct=True)} "
+            f"| {_fmt_ci(r['grasps_mean'], r['grasps_mean_ci'])} "
             f"| {_fmt_ci(r['grasps_median'], r['grasps_median_ci'])} | {r['grasps_seed_std']:.2f} | {fewer} |"
         )
     return "\n".join(lines)
@@ -655,6 +677,10 @@ def _main(args) -> int:
             agents.append(make_agent(spec, stochastic=args.stochastic))
         except ValueError as exc:
             raise UsageError(f"--agents: {exc}") from exc
+    names = [a.name for a in agents]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:  # before any episode: evaluate_agents would refuse them after the env is built
+        raise UsageError(f"--agents: {twice} named more than once; give each a name, NAME=model.zip")
     make_env = lambda: haptic_env.make(env_id=args.env_id, **kwargs)  # noqa: E731  (overrides the variant's fields)
     models = [(spec, a.model) for spec, a in zip(args.agents, agents) if hasattr(a, "model")]
     if models:  # a model trained on another env or other settings: said before any episode

@@ -258,8 +258,9 @@ def test_train_env_flags_change_the_fields_a_variant_sets(small_recognizer_kwarg
 
 def test_evaluate_writes_table_and_plots(env_config, tmp_path):
     make = lambda: haptic_env.make(env_config.replace(max_grasps=8))  # noqa: E731
-    recs = evaluate_agents([RandomAgent(), RandomAgent()], make, 3, seeds=[0, 1], progress=False)
-    recs = [r if i < 6 else type(r)(**{**r.__dict__, "agent": "random2"}) for i, r in enumerate(recs)]
+    second = RandomAgent()
+    second.name = "random2"
+    recs = evaluate_agents([RandomAgent(), second], make, 3, seeds=[0, 1], progress=False)
     paths = write_report(recs, tmp_path / "eval", max_grasps=8)
     for p in paths.values():
         assert p.exists() and p.stat().st_size > 0
@@ -366,3 +367,42 @@ def test_training_envs_are_seeded_apart_from_the_evaluation_seeds():
 
     assert [train.env_seed(train.parse_args(["--seed", str(s)])) for s in (0, 1, 2)] == [10_000, 11_000, 12_000]
     assert train.env_seed(train.parse_args(["--seed", "2", "--env-seed", "2"])) == 2
+
+
+def test_two_agents_of_one_name_are_refused_not_pooled(env_config):
+    make = lambda: haptic_env.make(env_config.replace(max_grasps=4))  # noqa: E731
+    with pytest.raises(ValueError, match=r"agents must have distinct names, got \['random'\] more than once"):
+        evaluate_agents([RandomAgent(), RandomAgent()], make, 1, seeds=[0], progress=False)
+
+
+def test_evaluate_refuses_two_agents_of_one_name_before_any_episode(tmp_path, usage_error, monkeypatch):
+    import agents.evaluate as ev
+    from haptic_env.cli import main
+
+    def must_not_run(*a, **k):
+        raise AssertionError("episodes ran before the names were checked")
+
+    monkeypatch.setattr(ev, "evaluate_agents", must_not_run)
+    usage_error(main, ["evaluate", "--agents", "random", "random", "--episodes", "1", "--seeds", "0",
+                       "--out", str(tmp_path / "e")], match=r"--agents: \['random'\] named more than once")
+
+
+def test_success_rates_carry_wilson_intervals_and_the_decided_and_correct_share():
+    from agents.evaluate import markdown_table, proportion_ci
+
+    def rec(agent, i, grasps, decided):  # every prediction at the stop right
+        return EpisodeRecord(agent=agent, seed=0, episode=i, object="a", grasps=grasps, decided=decided,
+                             correct=True, certainty=0.9 if decided else 0.5, ret=0.0, predicted="a")
+
+    recs = [rec("random", i, 3, True) for i in range(40)]
+    recs += [rec("slow", i, 30, False) for i in range(20)] + [rec("slow", 20 + i, 2, True) for i in range(20)]
+    rows = {r["agent"]: r for r in summarize(recs)}
+    # 40 of 40: a bootstrap interval has no width there, Wilson's does
+    assert rows["random"]["success"] == 1.0 and rows["random"]["success_ci"] == pytest.approx((0.91238, 1.0), abs=1e-5)
+    assert proportion_ci(0, 0) != proportion_ci(0, 0)  # nan for no episodes
+    # right at the stop but undecided counts for "success", not for "decided and correct"
+    assert rows["slow"]["success"] == 1.0 and rows["slow"]["decided"] == 0.5 and rows["slow"]["decided_correct"] == 0.5
+    lo, hi = rows["slow"]["decided_correct_ci"]
+    assert lo < 0.5 < hi
+    table = markdown_table(list(rows.values()))
+    assert "| decided and correct [95% CI] |" in table and "| 50.0% [35.2, 64.8] |" in table
