@@ -27,7 +27,8 @@ object predicted at the stop against the true one, each row normalised; the most
 ``results.md``) and, with ``--learning-curves``, ``learning_curves.png``.
 
 An interrupted evaluation resumes: the command saves every finished block of episodes (one agent on one env seed)
-in ``<out>/.partial/`` at once, and the same command run again evaluates only the missing blocks (each block resets
+in ``<out>/.partial/`` at once, and the same command run again, with the same code, evaluates only the missing blocks
+(a block saved by other code is played again: :func:`code_fingerprint`; each block resets
 the env and the agent with its seed, so its episodes are the same either way); the folder is removed once the
 report is written.
 
@@ -611,9 +612,24 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False):
     raise ValueError(f"unknown agent spec {spec!r}; use random, greedy[-env][-blind][:M[:S]] or NAME=path/to/model.zip")
 
 
-def _block_key(spec: str, args, kwargs: dict) -> str:
+def code_fingerprint() -> str:
+    """sha256 of the Python sources of ``haptic_env`` and ``agents`` (paths and bytes): the code that played a block."""
+    import hashlib
+
+    import haptic_env
+
+    h = hashlib.sha256()
+    for pkg in (Path(haptic_env.__file__).parent, Path(__file__).parent):
+        for f in sorted(pkg.rglob("*.py")):
+            h.update(f"{pkg.name}/{f.relative_to(pkg).as_posix()}\0".encode())
+            h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+def _block_key(spec: str, args, kwargs: dict, code: str) -> str:
     """What one agent's saved blocks of ``evaluate`` depend on: the agent spec (with its model file's bytes), the env
-    and its overrides, the episodes per seed and ``--stochastic``."""
+    and its overrides, the episodes per seed, ``--stochastic`` and the code (:func:`code_fingerprint`: a run resumed
+    after the code changed plays its saved blocks again instead of mixing them with the new code's)."""
     import hashlib
 
     from haptic_env.cache import config_key
@@ -622,7 +638,7 @@ def _block_key(spec: str, args, kwargs: dict) -> str:
     model = hashlib.sha256(Path(path).read_bytes()).hexdigest() if path else ""
     name = spec.partition("=")[0] if "=" in spec else Path(spec).stem
     safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in name)[:40]
-    return f"{safe}-" + config_key(spec, model, args.env_id, kwargs, int(args.episodes), bool(args.stochastic))
+    return f"{safe}-" + config_key(spec, model, args.env_id, kwargs, int(args.episodes), bool(args.stochastic), code)
 
 
 def add_parser(subparsers) -> None:
@@ -694,7 +710,8 @@ def _main(args) -> int:
                                  f"or other settings?)")
     t0 = time.time()
     store = out / ".partial"
-    keys = [_block_key(spec, args, kwargs) for spec in args.agents]
+    code = code_fingerprint()
+    keys = [_block_key(spec, args, kwargs, code) for spec in args.agents]
     resumed = sum(_block_path(store, k, s).is_file() for k in keys for s in args.seeds)
     records = evaluate_agents(agents, make_env, args.episodes, args.seeds, store=store, keys=keys)
     note = f" (resumed: {resumed} of {len(keys) * len(args.seeds)} agent-seed blocks read from an interrupted run)" \

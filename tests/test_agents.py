@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import csv
 import json
+import re
 
 import numpy as np
 import pytest
@@ -406,3 +407,29 @@ def test_success_rates_carry_wilson_intervals_and_the_decided_and_correct_share(
     assert lo < 0.5 < hi
     table = markdown_table(list(rows.values()))
     assert "| decided and correct [95% CI] |" in table and "| 50.0% [35.2, 64.8] |" in table
+
+
+def test_evaluate_blocks_are_keyed_by_the_code_that_played_them(tmp_path, monkeypatch):
+    """A resumed ``evaluate`` reuses a saved block only if the same code played it: the block keys hash
+    ``code_fingerprint()`` (the sources of haptic_env and agents) with the command's arguments."""
+    import agents.evaluate as ev
+    from haptic_env.cli import main
+
+    fp = ev.code_fingerprint()
+    assert re.fullmatch(r"[0-9a-f]{64}", fp) and ev.code_fingerprint() == fp
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def capture(agents, make_env, n, seeds, progress=True, store=None, keys=None):
+        seen.append(list(keys))
+        raise Stop
+
+    monkeypatch.setattr(ev, "evaluate_agents", capture)
+    argv = ["evaluate", "--agents", "random", "--episodes", "1", "--seeds", "0", "--out", str(tmp_path / "e")]
+    for code in ("A", "A", "B"):
+        monkeypatch.setattr(ev, "code_fingerprint", lambda code=code: code)
+        with pytest.raises(Stop):
+            main(argv)
+    assert seen[0] == seen[1] != seen[2]
