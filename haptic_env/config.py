@@ -17,10 +17,10 @@ from typing import Any
 import numpy as np
 
 from haptic_env.grasp_features import check_normal_axis
-from haptic_env.numbers import finite_number, flag, positive_range, whole_number
+from haptic_env.numbers import check_flag_fields, finite_number, positive_range, whole_number
 from haptic_env.recognizers.touch import check_touch_weight
 from haptic_env.recognizers.updaters import (DEFAULT_IC_CERTAINTY, DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD, UPDATERS,
-                                             check_ic_certainty)
+                                             check_ic_certainty, check_threshold)
 from haptic_env.recognizers.zfinger import DEFAULT_SUBSET_K, check_min_fingers, check_subset_k
 from haptic_env.scene import POSE_MODES
 from haptic_env.task import REWARD_KINDS
@@ -152,11 +152,8 @@ class HapticRecogConfig:
     JSON-style dict (``{"grasps": {"grasps_per_object": 5000}, "mlp": {"max_epochs": 5}}``)."""
 
     def __post_init__(self) -> None:
-        for name in ("normals", "score_subsets", "calibrated", "observe_contacts", "grasp_heights"):
-            b = flag(getattr(self, name))  # bool("no") is True: take real booleans only (numpy's too, as a bool)
-            if b is None:
-                raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
-            object.__setattr__(self, name, b)  # np.True_ keys as True (the caches hash the flags)
+        check_flag_fields(self, ("normals", "score_subsets", "calibrated", "observe_contacts", "grasp_heights"),
+                          "True or False")
         k = whole_number(self.calibrate_grasps)
         if k is None or k < 1:
             raise ValueError(f"calibrate_grasps must be an int >= 1, got {self.calibrate_grasps!r}")
@@ -183,9 +180,7 @@ class HapticRecogConfig:
             raise ValueError(f"reward must be one of {REWARD_KINDS}, got {self.reward!r}")
         if self.pose not in POSE_MODES:
             raise ValueError(f"pose must be one of {POSE_MODES}, got {self.pose!r}")
-        t = finite_number(self.threshold)
-        if t is None or not 0.0 < t <= 1.0:
-            raise ValueError(f"threshold must be in (0, 1], got {self.threshold!r}")
+        t = check_threshold(self.threshold, "threshold")
         if isinstance(self.threshold, np.generic):  # a Python int or float stays as given
             object.__setattr__(self, "threshold", t)
         cost = finite_number(self.grasp_cost)

@@ -31,7 +31,7 @@ from .force_closure import DEFAULT_EDGES, FRAMES, check_friction, force_closure
 from .grasp_features import check_normal_axis, feature_dim, normalize_scale, phi
 from .grasping.base import SUPPORTS, support_height
 from .hand_grasps import BUDGETS
-from .numbers import finite_number, flag, positive_range, whole_number
+from .numbers import check_flag_fields, check_whole_fields, finite_number, positive_range, whole_number
 from .objects import SAMPLING_METHODS, UP_AXES, GraspObject, ObjectSet, load_object_set
 
 __all__ = [
@@ -129,16 +129,8 @@ class DatasetConfig:
     force_closure: float | None = field(default=None, metadata={KEY_ONLY_WHEN_SET: True})
 
     def __post_init__(self) -> None:
-        for fname, lo in (("n_fingers", 2), ("grasps_per_object", 1), ("seed", 0)):
-            v = whole_number(getattr(self, fname))
-            if v is None or v < lo:
-                raise ValueError(f"{fname} must be an int >= {lo}, got {getattr(self, fname)!r}")
-            object.__setattr__(self, fname, v)  # a numpy int as the Python int (the same cache key)
-        for fname in ("normals", "normalize_scale", "heights"):  # read by truthiness: bool("false") is True
-            b = flag(getattr(self, fname))
-            if b is None:
-                raise ValueError(f"{fname} must be a bool, got {getattr(self, fname)!r}")
-            object.__setattr__(self, fname, b)  # np.True_ keys as True
+        check_whole_fields(self, (("n_fingers", 2), ("grasps_per_object", 1), ("seed", 0)))
+        check_flag_fields(self, ("normals", "normalize_scale", "heights"))
         for fname in ("contact_noise", "normal_noise_deg"):
             v = getattr(self, fname)
             f = finite_number(v)

@@ -12,7 +12,8 @@ import math
 
 import numpy as np
 
-__all__ = ["finite_number", "whole_number", "flag", "positive_range"]
+__all__ = ["finite_number", "whole_number", "flag", "items", "positive_range", "check_whole_fields",
+           "check_flag_fields"]
 
 
 def finite_number(value) -> float | None:
@@ -44,13 +45,41 @@ def flag(value) -> bool | None:
     return None
 
 
+def items(value) -> tuple | None:
+    """``value``'s elements as a tuple (of a tuple, a list, an array), or None where it has none (a number, None): a
+    setting that wants a sequence then raises its own ``ValueError``, not Python's "'float' object is not iterable"."""
+    try:
+        return tuple(value)
+    except TypeError:
+        return None
+
+
+def check_whole_fields(obj, fields) -> None:
+    """Check and store whole-number fields of a (frozen) settings dataclass: for each ``(name, lo)`` of ``fields``,
+    ``obj.<name>`` must be a :func:`whole_number` ``>= lo`` (a ``ValueError`` naming it otherwise), and is stored back
+    as the Python int (a numpy int keys as the int it stands for)."""
+    for name, lo in fields:
+        v = whole_number(getattr(obj, name))
+        if v is None or v < lo:
+            raise ValueError(f"{name} must be an int >= {lo}, got {getattr(obj, name)!r}")
+        object.__setattr__(obj, name, v)
+
+
+def check_flag_fields(obj, names, says: str = "a bool") -> None:
+    """Check and store yes/no fields of a (frozen) settings dataclass: each ``obj.<name>`` must be a :func:`flag`
+    (a ``ValueError`` "``<name>`` must be ``<says>``" otherwise: ``bool("no")`` is True), stored back as the Python
+    bool."""
+    for name in names:
+        b = flag(getattr(obj, name))
+        if b is None:
+            raise ValueError(f"{name} must be {says}, got {getattr(obj, name)!r}")
+        object.__setattr__(obj, name, b)
+
+
 def positive_range(value, name: str) -> tuple[float, float]:
     """``value`` as ``(lo, hi)`` floats with ``0 < lo <= hi``, both finite real numbers (:func:`finite_number`); else a
     ``ValueError`` naming ``name`` and the value (a scalar, a string, a pair of another length, NaN or inf, ...)."""
-    try:
-        pair = tuple(value)
-    except TypeError:
-        pair = ()
+    pair = items(value) or ()
     lo_hi = tuple(finite_number(v) for v in pair) if len(pair) == 2 else (None, None)
     if None in lo_hi or not 0.0 < lo_hi[0] <= lo_hi[1]:
         raise ValueError(f"{name} must be (lo, hi) with 0 < lo <= hi, got {value!r}")

@@ -14,25 +14,13 @@ from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
 from haptic_env.recognizers.knn import KDTree
 from haptic_env.recognizers.mlp_config import MLPConfig
 from haptic_env.recognizers.touch import TouchModel
-from haptic_env.recognizers.updaters import BCIP, BayesianUpdater, _check_threshold
+from haptic_env.recognizers.updaters import BCIP, BayesianUpdater, check_threshold
+from tests.test_recognizers_updaters import FixedModel
 
 NAN, INF = float("nan"), float("inf")
 
 
-class _Table:
-    """A likelihood model returning row ``int(q[0])`` of a table."""
-
-    def __init__(self, table):
-        self.table = np.asarray(table, dtype=float)
-        self.n_classes = self.table.shape[1]
-
-    def log_likelihood(self, Q):
-        return self.table[np.asarray(Q)[:, 0].astype(int)]
-
-    predict_proba = log_likelihood
-
-
-_M = _Table([[0.0, -1.0]])
+_M = FixedModel([[0.0, -1.0]])  # log-likelihood / probability rows by int(q[0])
 _S, _Y = np.log(np.array([[0.7, 0.3], [0.4, 0.6]])), np.array([0, 1])
 _T = np.zeros((2, 4, 3), dtype=bool)
 _X = np.random.default_rng(0).normal(size=(50, 3))
@@ -174,7 +162,7 @@ def test_valid_mlp_settings_are_kept_as_given():
 
 def test_valid_numbers_elsewhere_stay_accepted():
     for t, want in ((1, 1.0), (1.0, 1.0), (np.float32(0.5), 0.5), (np.float64(0.85), 0.85)):
-        got = _check_threshold(t)
+        got = check_threshold(t)
         assert got == want and type(got) is float
     assert BayesianUpdater(_M, threshold=1).threshold == 1.0
     u = BayesianUpdater(_M, n_classes=np.int64(2), max_log_ratio=np.float32(10.0))

@@ -12,7 +12,7 @@ from haptic_env.cache import KEY_ONLY_WHEN_SET
 from haptic_env.dataset import DatasetConfig
 from haptic_env.force_closure import check_friction
 from haptic_env.grasp_features import check_normal_axis
-from haptic_env.numbers import finite_number, flag, positive_range, whole_number
+from haptic_env.numbers import check_flag_fields, check_whole_fields, finite_number, items, positive_range, whole_number
 from haptic_env.objects.base import up_rotation
 from haptic_env.objects.loaders import check_object_spec, unit_scale
 from haptic_env.objects.primitives import FAMILY_SCALE_RANGE
@@ -21,7 +21,7 @@ from haptic_env.recognizers.kde import KDEConfig
 from haptic_env.recognizers.mlp import MLPConfig
 from haptic_env.recognizers.recognizer import RecognizerConfig
 from haptic_env.recognizers.updaters import (DEFAULT_IC_CERTAINTY, DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD, UPDATERS,
-                                             check_ic_certainty)
+                                             check_ic_certainty, check_threshold)
 
 __all__ = ["AnalysisConfig", "KINDS", "MAIN_KINDS", "PAPER", "PAPER_NN", "PAPER_KNN",
            "FAMILY_SOURCES"]
@@ -45,15 +45,6 @@ PAPER = {
 #: nearest-neighbour rows (``../shared/reference/paper_figures.md``, "One-shot accuracy (%) by classifier (kit8)").
 PAPER_NN = {(3, True): 86.0, (3, False): 47.0, (4, True): 80.7, (4, False): 62.4, (5, True): 83.7, (5, False): 71.1}
 PAPER_KNN = {(3, True): 70.8, (3, False): 45.6, (4, True): 59.1, (4, False): 56.1, (5, True): 62.2, (5, False): 61.8}
-
-
-def _items(value) -> tuple | None:
-    """``value``'s elements as a tuple (of a tuple, a list, an array), or None where it has none (a number, None): the
-    field that wants a tuple then raises its own ``ValueError``, not Python's "'float' object is not iterable"."""
-    try:
-        return tuple(value)
-    except TypeError:
-        return None
 
 
 @dataclass(frozen=True)
@@ -148,11 +139,7 @@ class AnalysisConfig:
         check_object_spec(self.objects)  # names an unknown set before any work
         check_normal_axis(self.normal_axis)
         self._check_counts()
-        for name in ("normals", "calibrated", "stop_scale", "progress", "family_heights", "family_lying"):
-            b = flag(getattr(self, name))  # read by truthiness: "no" would be True
-            if b is None:
-                raise ValueError(f"{name} must be a bool, got {getattr(self, name)!r}")
-            object.__setattr__(self, name, b)  # np.True_ keys as True
+        check_flag_fields(self, ("normals", "calibrated", "stop_scale", "progress", "family_heights", "family_lying"))
         check_ic_certainty(self.ic_certainty)
         if self.family_source not in FAMILY_SOURCES:
             raise ValueError(f"family_source must be one of {FAMILY_SOURCES}, got {self.family_source!r}")
@@ -161,7 +148,7 @@ class AnalysisConfig:
         object.__setattr__(self, "family_scale_range", positive_range(self.family_scale_range, "family_scale_range"))
         if self.family_size_range is not None:
             object.__setattr__(self, "family_size_range", positive_range(self.family_size_range, "family_size_range"))
-        fl = tuple(finite_number(q) for q in _items(self.family_floors) or ())
+        fl = tuple(finite_number(q) for q in items(self.family_floors) or ())
         if not fl or not all(q is not None and 0.0 <= q < 1.0 for q in fl):
             raise ValueError(f"family_floors must be a non-empty tuple of quantiles in [0, 1), "
                              f"got {self.family_floors!r}")
@@ -186,42 +173,36 @@ class AnalysisConfig:
         """The counts, tuples and probabilities, each named with its bad value (before any grasp is made)."""
         from haptic_env.experiments.analysis import EXPERIMENTS  # here: analysis imports this module
 
-        for name, lo in (("grasps_per_object", 1), ("test_grasps", 1), ("trials", 1), ("max_grasps", 1),
-                         ("ece_bins", 1), ("family_members", 1), ("seed", 0)):
-            v = whole_number(getattr(self, name))
-            if v is None or v < lo:
-                raise ValueError(f"{name} must be an int >= {lo}, got {getattr(self, name)!r}")
-            object.__setattr__(self, name, v)  # a numpy int as the Python int
-        t = finite_number(self.threshold)
-        if t is None or not 0.0 < t <= 1.0:
-            raise ValueError(f"threshold must be in (0, 1], got {self.threshold!r}")
+        check_whole_fields(self, (("grasps_per_object", 1), ("test_grasps", 1), ("trials", 1), ("max_grasps", 1),
+                                  ("ece_bins", 1), ("family_members", 1), ("seed", 0)))
+        t = check_threshold(self.threshold, "threshold")
         if isinstance(self.threshold, np.generic):  # a Python int or float stays as given
             object.__setattr__(self, "threshold", t)
         cap = self.baseline_max_train
         if cap is not None and (whole_number(cap) or 0) < 1:
             raise ValueError(f"baseline_max_train must be None or an int >= 1, got {self.baseline_max_train!r}")
-        if not _items(self.experiments) or not all(whole_number(e) in EXPERIMENTS for e in self.experiments):
+        if not items(self.experiments) or not all(whole_number(e) in EXPERIMENTS for e in self.experiments):
             raise ValueError(f"experiments must be a non-empty tuple of experiment numbers {sorted(EXPERIMENTS)}, "
                              f"got {self.experiments!r}")
         # experiment 3 scores 3- and 4-finger subsets of an n-finger hand, so a hand needs n >= 4
         for name, lo in (("fingers", 2), ("oneshot_fingers", 2), ("calib_fingers", 2), ("calib_fingers_no_normals", 2),
                          ("zfinger_hands", 4)):
-            ns = _items(getattr(self, name))
+            ns = items(getattr(self, name))
             if ns is None or not all((whole_number(n) or 0) >= lo for n in ns):  # empty: the experiment skips it
                 raise ValueError(f"{name} must be a tuple of ints >= {lo}, got {getattr(self, name)!r}")
-        cl = _items(self.classifiers) or ()
+        cl = items(self.classifiers) or ()
         bad = [c for c in cl if c not in CLASSIFIERS]
         if not cl or bad:
             raise ValueError(f"classifiers: unknown classifier(s) {bad}; choose from {CLASSIFIERS}" if bad else
                              f"classifiers must name at least one of {CLASSIFIERS}, got {self.classifiers!r}")
-        pn = [_items(zp) or () for zp in _items(self.incomplete_pn) or ()]
+        pn = [items(zp) or () for zp in items(self.incomplete_pn) or ()]
         if (not pn or not all(len(zp) == 2 and (whole_number(zp[0]) or 0) >= 2 and (finite_number(zp[1]) or 0) > 0
                               for zp in pn)
                 or len({zp[0] for zp in pn}) != len(pn)):
             raise ValueError(f"incomplete_pn must be (finger count >= 2, probability > 0) pairs, one per finger count, "
                              f"got {self.incomplete_pn!r}")
         positive_range(self.scale_range, "scale_range")
-        lam = [finite_number(v) for v in _items(self.lambdas) or ()]
+        lam = [finite_number(v) for v in items(self.lambdas) or ()]
         if not lam or not all(v is not None and 0.0 < v <= 1.0 for v in lam):
             raise ValueError(f"lambdas must be a non-empty tuple of thresholds in (0, 1], got {self.lambdas!r}")
 

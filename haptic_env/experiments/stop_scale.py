@@ -25,8 +25,8 @@ import numpy as np
 from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.fresh_grasps import fresh_pool, pool_scores
 from haptic_env.experiments.trials import simulate_trials
-from haptic_env.numbers import finite_number
-from haptic_env.recognizers.updaters import DEFAULT_MAX_GRASPS
+from haptic_env.numbers import finite_number, items
+from haptic_env.recognizers.updaters import DEFAULT_MAX_GRASPS, check_threshold
 from haptic_env.splits import VALIDATION_SEED_OFFSET
 
 __all__ = ["STOP_SCALES", "VALIDATION_GRASPS", "VALIDATION_TRIALS", "fit_stop_scale",
@@ -60,16 +60,11 @@ def fit_stop_scale(log_lik: Sequence[np.ndarray], proba: Sequence[np.ndarray], t
         ``chosen`` is the row of the qualifying scale with the fewest mean grasps, or when none qualifies the
         row of ``s = 1`` (``(1.0, nan, nan)`` if 1 was not weighed).
     """
-    t = finite_number(threshold)
-    if t is None or not 0.0 < t <= 1.0:
-        raise ValueError(f"threshold must be in (0, 1], got {threshold!r}")
-    try:
-        scales = tuple(scales)
-    except TypeError:
-        raise ValueError(f"scales must be positive and finite, got {scales!r}") from None
-    bad = [s for s in scales if (finite_number(s) or 0.0) <= 0.0]
-    if bad or not scales:
+    check_threshold(threshold, "threshold")
+    given = items(scales)
+    if not given or any((finite_number(s) or 0.0) <= 0.0 for s in given):
         raise ValueError(f"scales must be positive and finite, got {scales!r}")
+    scales = given
     state = rng.bit_generator.state
     table = []
     for s in scales:

@@ -49,8 +49,8 @@ from numba import njit
 from haptic_env.numbers import finite_number, whole_number
 
 __all__ = ["BeliefUpdater", "IterativeClassification", "BayesianUpdater", "BCNP", "BCIP", "make_updater", "UPDATERS",
-           "DEFAULT_THRESHOLD", "DEFAULT_MAX_GRASPS", "IC_CERTAINTIES", "DEFAULT_IC_CERTAINTY", "check_ic_certainty",
-           "bayes_steps"]
+           "DEFAULT_THRESHOLD", "DEFAULT_MAX_GRASPS", "check_threshold", "IC_CERTAINTIES", "DEFAULT_IC_CERTAINTY",
+           "check_ic_certainty", "bayes_steps"]
 
 #: Every belief-updater kind (the env, the recogniser and the experiments take these names).
 UPDATERS = ("ic", "ic-full", "bc-np", "bc-ip")
@@ -75,10 +75,13 @@ DEFAULT_THRESHOLD = 0.85
 DEFAULT_MAX_GRASPS = 30
 
 
-def _check_threshold(threshold: float) -> float:
+def check_threshold(threshold, name: str = "threshold (lambda_s)") -> float:
+    """``threshold`` as a float if it is a finite number in ``(0, 1]`` (:func:`~haptic_env.numbers.finite_number`:
+    1 and numpy scalars yes, True and strings no); else a ``ValueError`` naming it as ``name``. The one check of every
+    certainty threshold."""
     t = finite_number(threshold)
     if t is None or not 0.0 < t <= 1.0:
-        raise ValueError(f"threshold (lambda_s) must be in (0, 1], got {threshold!r}")
+        raise ValueError(f"{name} must be in (0, 1], got {threshold!r}")
     return t
 
 
@@ -190,7 +193,7 @@ class BeliefUpdater(ABC):
         if (whole_number(n_classes) or 0) < 2:
             raise ValueError(f"an updater needs at least 2 classes, got {n_classes!r}")
         self.n_classes = int(n_classes)
-        self.threshold = _check_threshold(threshold)
+        self.threshold = check_threshold(threshold)
         self.n_grasps = 0
         self.reset()
 
