@@ -85,10 +85,9 @@ class EpisodeRecord:
 
 def _check_episodes(n_episodes) -> None:
     """``n_episodes`` must be a whole number >= 1 (2.5 is not cut to 2, nor True taken as 1)."""
-    from haptic_env.numbers import whole_number
+    from haptic_env.numbers import whole_at_least
 
-    if (whole_number(n_episodes) or 0) < 1:
-        raise ValueError(f"n_episodes must be an int >= 1, got {n_episodes!r}")
+    whole_at_least(n_episodes, 1, "n_episodes")
 
 
 def run_episodes(agent, make_env: Callable[[], Any], n_episodes: int, seed: int,

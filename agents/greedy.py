@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from haptic_env.numbers import finite_number, flag, whole_number
+from haptic_env.numbers import finite_number, flag, whole_at_least
 from haptic_env.task import entropy
 
 __all__ = ["GreedyInfoGainAgent"]
@@ -54,8 +54,7 @@ class GreedyInfoGainAgent:
                  seed: int | None = None, backend_kwargs: dict[str, Any] | None = None, simulate: str = "geometric",
                  pose_known: bool = True):
         for name, v in (("n_candidates", n_candidates), ("n_samples", n_samples)):
-            if (whole_number(v) or 0) < 1:  # 2.7 is not cut to 2, nor True taken as 1
-                raise ValueError(f"{name} must be an int >= 1, got {v!r}")
+            whole_at_least(v, 1, name)  # 2.7 is not cut to 2, nor True taken as 1
         if simulate not in ("geometric", "env"):
             raise ValueError(f"simulate must be 'geometric' or 'env', got {simulate!r}")
         if simulate == "env" and backend_kwargs is not None:

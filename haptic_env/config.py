@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from haptic_env.grasp_features import check_normal_axis
-from haptic_env.numbers import check_flag_fields, finite_number, positive_range, whole_number
+from haptic_env.numbers import check_flag_fields, finite_number, positive_range, whole_at_least, whole_number
 from haptic_env.recognizers.touch import check_touch_weight
 from haptic_env.recognizers.updaters import (DEFAULT_IC_CERTAINTY, DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD, UPDATERS,
                                              check_ic_certainty, check_threshold)
@@ -154,9 +154,7 @@ class HapticRecogConfig:
     def __post_init__(self) -> None:
         check_flag_fields(self, ("normals", "score_subsets", "calibrated", "observe_contacts", "grasp_heights"),
                           "True or False")
-        k = whole_number(self.calibrate_grasps)
-        if k is None or k < 1:
-            raise ValueError(f"calibrate_grasps must be an int >= 1, got {self.calibrate_grasps!r}")
+        whole_at_least(self.calibrate_grasps, 1, "calibrate_grasps")
         if self.training_grasps is not None and (whole_number(self.training_grasps) or 0) < 1:
             raise ValueError(f"training_grasps must be None or an int >= 1, got {self.training_grasps!r}")
         if (whole_number(self.n_fingers) or 0) < 2:
@@ -186,9 +184,7 @@ class HapticRecogConfig:
         cost = finite_number(self.grasp_cost)
         if cost is None or cost < 0.0:
             raise ValueError(f"grasp_cost must be a finite number >= 0, got {self.grasp_cost!r}")
-        m = whole_number(self.max_grasps)
-        if m is None or m < 1:
-            raise ValueError(f"max_grasps must be an int >= 1, got {self.max_grasps!r}")
+        whole_at_least(self.max_grasps, 1, "max_grasps")
         if self.z_fingers is not None and not 2 <= (whole_number(self.z_fingers) or 0) < self.n_fingers:
             raise ValueError(f"z_fingers must be None or in [2, n_fingers={self.n_fingers}), got {self.z_fingers!r}")
         if self.score_subsets and self.z_fingers is None:

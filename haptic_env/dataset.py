@@ -29,9 +29,9 @@ from tqdm.auto import tqdm
 from .cache import KEY_ONLY_WHEN_SET, CacheError, cache_dir, config_key, load_npz, save_npz_atomic
 from .force_closure import DEFAULT_EDGES, FRAMES, check_friction, force_closure
 from .grasp_features import check_normal_axis, feature_dim, normalize_scale, phi
-from .grasping.base import SUPPORTS, support_height
+from .grasping.base import SUPPORTS, check_support, support_height
 from .hand_grasps import BUDGETS
-from .numbers import check_flag_fields, check_whole_fields, finite_number, positive_range, whole_number
+from .numbers import check_flag_fields, check_whole_fields, finite_number, positive_range, whole_at_least, whole_number
 from .objects import SAMPLING_METHODS, UP_AXES, GraspObject, ObjectSet, load_object_set
 
 __all__ = [
@@ -152,8 +152,7 @@ class DatasetConfig:
                 raise ValueError(f"hand_fingers must be an int >= n_fingers={self.n_fingers}, "
                                  f"got {self.hand_fingers!r}")
             object.__setattr__(self, "hand_fingers", hf)
-        if self.support not in SUPPORTS:
-            raise ValueError(f"support must be 'table' or 'floating', got {self.support!r}")
+        check_support(self.support)
         if self.hand_budget not in BUDGETS:
             raise ValueError(f"hand_budget must be one of {BUDGETS}, got {self.hand_budget!r}")
         if (self.source == "hand") != (self.hand is not None):
@@ -233,13 +232,9 @@ def sample_grasps(
     Returns:
         ``contacts (count, n, 3)`` in metres and inward unit ``normals (count, n, 3)``.
     """
-    if (whole_number(n_fingers) or 0) < 1:
-        raise ValueError(f"n_fingers must be an int >= 1, got {n_fingers!r}")
-    c = whole_number(count)
-    if c is None or c < 0:
-        raise ValueError(f"count must be an int >= 0, got {count!r}")
-    pts, nrm = obj.sample_surface(int(count) * int(n_fingers), rng, sampling)
-    shape = (int(count), int(n_fingers), 3)
+    n, c = whole_at_least(n_fingers, 1, "n_fingers"), whole_at_least(count, 0, "count")
+    pts, nrm = obj.sample_surface(c * n, rng, sampling)
+    shape = (c, n, 3)
     return pts.reshape(shape), nrm.reshape(shape)
 
 
@@ -574,8 +569,7 @@ def hand_dataset(objects: ObjectSet, config: DatasetConfig, *, progress: bool = 
     Returns the dataset (labels stay the positions in ``objects``; a left-out object has no rows) and the left-out
     objects with their row counts, so that a caller can report them (a family of random members, say, where the
     hand cannot grasp every member). Raises if no object is left."""
-    if (whole_number(min_rows) or 0) < 1:
-        raise ValueError(f"hand_dataset: min_rows must be an int >= 1, got {min_rows!r}")
+    whole_at_least(min_rows, 1, "hand_dataset: min_rows")
     ds, left_out = _split_hand_rows(objects, config, progress, min_rows)
     if ds is None:
         raise RuntimeError(f"none of the {len(objects)} objects was touched with >= {config.n_fingers} fingers "

@@ -72,7 +72,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from haptic_env.numbers import finite_number, whole_number
+from haptic_env.numbers import finite_number, whole_at_least
 
 __all__ = ["primitive_wrenches", "force_closure", "epsilon_quality", "check_friction", "DEFAULT_EDGES", "DEFAULT_MU",
            "METHODS", "FRAMES"]
@@ -117,8 +117,7 @@ def _check(contacts, normals, mu, edges, frame) -> tuple[np.ndarray, np.ndarray,
     f = finite_number(mu)  # not check_friction: mu = 0 (frictionless) is allowed here
     if f is None or f < 0:
         raise ValueError(f"mu (the friction coefficient) must be finite and >= 0, got {mu!r}")
-    if whole_number(edges) is None or edges < 3:
-        raise ValueError(f"edges must be an int >= 3, got {edges!r}")
+    whole_at_least(edges, 3, "edges")
     if frame not in FRAMES:
         raise ValueError(f"frame (the pyramids' frame) must be one of {FRAMES}, got {frame!r}")
     return C, N, single

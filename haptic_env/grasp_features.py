@@ -91,14 +91,13 @@ Scale (:func:`normalize_scale`)
 
 from __future__ import annotations
 
-import math
 from functools import lru_cache
 from itertools import combinations
 from typing import NamedTuple
 
 import numpy as np
 
-from .numbers import finite_number, whole_number
+from .numbers import positive_number, whole_number
 
 __all__ = [
     "DegenerateGraspError",
@@ -190,12 +189,7 @@ def _check_tol(tol) -> float:
     """``tol`` as a Python float if it is a finite real number ``> 0`` (numpy scalars too), else a ``ValueError``
     naming it. Not 0: the degeneracy tests and the grouping of a planar hull face's facets would become exact
     comparisons that rounding decides (a rotated square "valid", its canonical fan lost)."""
-    if type(tol) is float and 0.0 < tol < math.inf:  # the common case, without finite_number's calls
-        return tol
-    f = finite_number(tol)
-    if f is None or not f > 0.0:
-        raise ValueError(f"tol must be a finite number > 0, got {tol!r}")
-    return f
+    return positive_number(tol, "tol")
 
 
 def _real(x, name: str) -> np.ndarray:

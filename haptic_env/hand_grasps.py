@@ -42,7 +42,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .cache import CacheError, cache_dir, clean_stale_tmp, config_key, load_npz, save_npz_atomic
-from .numbers import finite_number, whole_number
+from .numbers import finite_number, whole_at_least
 
 __all__ = ["HandGraspPool", "hand_grasp_pool", "pool_actions", "pool_rows", "pool_cache_path", "hand_physics_key",
            "CHUNK", "BUDGETS", "balanced_counts", "parts_dir"]
@@ -131,12 +131,10 @@ def balanced_counts(complete_rate, approaches: int, *, lo: float = 0.5, hi: floa
     r = np.asarray(complete_rate, dtype=np.float64)
     if r.ndim != 1 or len(r) == 0 or not np.all((r >= 0) & (r <= 1)):
         raise ValueError(f"complete_rate must be a non-empty (K,) array of fractions in [0, 1], got {complete_rate!r}")
-    if whole_number(approaches) is None or approaches < 1:
-        raise ValueError(f"approaches must be an int >= 1, got {approaches!r}")
+    whole_at_least(approaches, 1, "approaches")
     if not (finite_number(lo) is not None and finite_number(hi) is not None and 0 < lo <= 1 <= hi):
         raise ValueError(f"need 0 < lo <= 1 <= hi, both finite, got lo={lo!r}, hi={hi!r}")
-    if whole_number(minimum) is None or minimum < 0:
-        raise ValueError(f"minimum must be an int >= 0, got {minimum!r}")
+    whole_at_least(minimum, 0, "minimum")
     med = float(np.median(r))
     with np.errstate(divide="ignore"):
         w = np.where(r > 0, med / np.where(r > 0, r, 1.0), hi) if med > 0 else np.ones_like(r)
@@ -228,12 +226,9 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
     """
     if not isinstance(hand, str):
         raise ValueError(f"hand must be a hand name or an MJCF path (a cache key), got {hand!r}")
-    if whole_number(approaches) is None or approaches < 1:
-        raise ValueError(f"approaches must be an int >= 1, got {approaches!r}")
-    if whole_number(n_fingers) is None or n_fingers < 2:
-        raise ValueError(f"n_fingers must be an int >= 2, got {n_fingers!r}")
-    if whole_number(seed) is None or seed < 0:
-        raise ValueError(f"seed must be an int >= 0, got {seed!r}")
+    whole_at_least(approaches, 1, "approaches")
+    whole_at_least(n_fingers, 2, "n_fingers")
+    whole_at_least(seed, 0, "seed")
     if budget not in BUDGETS:
         raise ValueError(f"budget must be one of {BUDGETS}, got {budget!r}")
     path = pool_cache_path(objects, hand, n_fingers, approaches, support, seed, budget) if cache else None

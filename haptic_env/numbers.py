@@ -12,8 +12,8 @@ import math
 
 import numpy as np
 
-__all__ = ["finite_number", "whole_number", "flag", "items", "positive_range", "check_whole_fields",
-           "check_flag_fields"]
+__all__ = ["finite_number", "whole_number", "flag", "items", "positive_range", "positive_number", "whole_at_least",
+           "checked_flag", "check_whole_fields", "check_flag_fields"]
 
 
 def finite_number(value) -> float | None:
@@ -54,15 +54,41 @@ def items(value) -> tuple | None:
         return None
 
 
+def positive_number(value, name: str) -> float:
+    """``value`` as a float if it is a :func:`finite_number` ``> 0``, else a ``ValueError`` "``<name>`` must be a finite
+    number > 0". A plain positive float returns at once (the per-step callers pass one)."""
+    if type(value) is float and 0.0 < value < math.inf:
+        return value
+    f = finite_number(value)
+    if f is None or not f > 0.0:
+        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    return f
+
+
+def whole_at_least(value, lo: int, name: str) -> int:
+    """``value`` as an int if it is a :func:`whole_number` ``>= lo``, else a ``ValueError`` "``<name>`` must be an int
+    >= ``lo``" (2.5 is not cut to 2, nor True taken as 1)."""
+    v = whole_number(value)
+    if v is None or v < lo:
+        raise ValueError(f"{name} must be an int >= {lo}, got {value!r}")
+    return v
+
+
+def checked_flag(value, name: str, says: str = "a bool") -> bool:
+    """``value`` as a bool if it is a :func:`flag`, else a ``ValueError`` "``<name>`` must be ``<says>``"
+    (``bool("no")`` is True: a yes/no setting is never read by truthiness)."""
+    b = flag(value)
+    if b is None:
+        raise ValueError(f"{name} must be {says}, got {value!r}")
+    return b
+
+
 def check_whole_fields(obj, fields) -> None:
     """Check and store whole-number fields of a (frozen) settings dataclass: for each ``(name, lo)`` of ``fields``,
     ``obj.<name>`` must be a :func:`whole_number` ``>= lo`` (a ``ValueError`` naming it otherwise), and is stored back
     as the Python int (a numpy int keys as the int it stands for)."""
     for name, lo in fields:
-        v = whole_number(getattr(obj, name))
-        if v is None or v < lo:
-            raise ValueError(f"{name} must be an int >= {lo}, got {getattr(obj, name)!r}")
-        object.__setattr__(obj, name, v)
+        object.__setattr__(obj, name, whole_at_least(getattr(obj, name), lo, name))
 
 
 def check_flag_fields(obj, names, says: str = "a bool") -> None:
@@ -70,10 +96,7 @@ def check_flag_fields(obj, names, says: str = "a bool") -> None:
     (a ``ValueError`` "``<name>`` must be ``<says>``" otherwise: ``bool("no")`` is True), stored back as the Python
     bool."""
     for name in names:
-        b = flag(getattr(obj, name))
-        if b is None:
-            raise ValueError(f"{name} must be {says}, got {getattr(obj, name)!r}")
-        object.__setattr__(obj, name, b)
+        object.__setattr__(obj, name, checked_flag(getattr(obj, name), name, says))
 
 
 def positive_range(value, name: str) -> tuple[float, float]:

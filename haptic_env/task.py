@@ -17,13 +17,12 @@ the one source of the episode length (the registered envs set no ``max_episode_s
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from gymnasium import spaces
 
-from haptic_env.numbers import finite_number
+from haptic_env.numbers import positive_number
 
 if TYPE_CHECKING:
     from haptic_env.config import HapticRecogConfig
@@ -70,9 +69,7 @@ def touched_rows(x: np.ndarray, touched: np.ndarray, bound: float) -> np.ndarray
     if t.dtype.kind != "b" or t.shape != x.shape[:-1]:
         raise ValueError(f"touched must be a bool array of shape {x.shape[:-1]} (x's without the last axis), got "
                          f"dtype {t.dtype} and shape {t.shape}")
-    b = bound if type(bound) is float and 0.0 < bound < math.inf else finite_number(bound)  # the env's: a float
-    if b is None or b <= 0:
-        raise ValueError(f"bound must be a finite number > 0, got {bound!r}")
+    b = positive_number(bound, "bound")  # the env's: a plain float, checked at once
     out = np.where(t[..., None], x, 0.0)
     np.clip(out, -b, b, out=out)
     return out.reshape(out.shape[:-2] + (3 * x.shape[-2],))

@@ -56,6 +56,7 @@ from haptic_env.config import HapticRecogConfig
 from haptic_env.grasp_features import feature_dim
 from haptic_env.scene import Scene, reset_options
 from haptic_env.task import Task, entropy, touched_rows
+from haptic_env.numbers import whole_at_least
 
 __all__ = ["HapticRecogVectorEnv", "make_vector_env"]
 
@@ -76,8 +77,7 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
                  max_episode_steps: int | None = None, **overrides: Any):
         utils.EzPickle.__init__(self, num_envs, config, autoreset_mode=autoreset_mode, render_mode=render_mode,
                                 max_episode_steps=max_episode_steps, **overrides)
-        if not isinstance(num_envs, (int, np.integer)) or isinstance(num_envs, bool) or num_envs < 1:
-            raise ValueError(f"num_envs must be an int >= 1, got {num_envs!r}")
+        whole_at_least(num_envs, 1, "num_envs")
         config = config if config is not None else HapticRecogConfig()
         if not isinstance(config, HapticRecogConfig):
             raise TypeError(f"config must be a HapticRecogConfig, got {type(config).__name__}")

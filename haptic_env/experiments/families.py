@@ -19,7 +19,7 @@ from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.plots import plot_family_votes
 from haptic_env.experiments.report import Report, mean_std
 from haptic_env.experiments.trials import family_trials, simulate_trials
-from haptic_env.numbers import finite_number, whole_number
+from haptic_env.numbers import finite_number, whole_at_least
 from haptic_env.recognizers.calibration import _finite_rows, fit_temperature, sequence_scores, tempered_nll
 from haptic_env.recognizers.kde import KDELikelihood
 from haptic_env.recognizers.mlp import MLPClassifier
@@ -66,8 +66,7 @@ def family_temperatures(kde, clf, X, fam, *, member=None, grasps: int = 1,
     keeps looking like another family grasp after grasp, so a belief summed over its grasps is over-confident by
     more than one grasp's temperature corrects. The MLP's stays one-shot (IC averages, it does not sum).
     ``floor``: the KDE's outlier floor (:func:`floored`), applied before the fit."""
-    if (whole_number(grasps) or 0) < 1:
-        raise ValueError(f"family_temperatures: grasps must be an int >= 1, got {grasps!r}")
+    whole_at_least(grasps, 1, "family_temperatures: grasps")
     S = _finite_rows(floored(kde.log_likelihood(X), floor))
     fam = np.asarray(fam)
     if grasps > 1:

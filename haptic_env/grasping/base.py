@@ -34,7 +34,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from haptic_env.numbers import finite_number
+from haptic_env.numbers import positive_number
 
 __all__ = [
     "ACTION_DIM",
@@ -50,6 +50,7 @@ __all__ = [
     "validate_pose",
     "support_height",
     "usable_touch",
+    "check_support",
     "make_backend",
     "BACKENDS",
 ]
@@ -57,6 +58,14 @@ __all__ = [
 ACTION_DIM = 4
 ACTION_NAMES = ("azimuth", "elevation", "roll", "spread")
 SUPPORTS = ("table", "floating")
+
+
+def check_support(support) -> str:
+    """``support`` unchanged if it is one of :data:`SUPPORTS`, else a ``ValueError`` naming it (the backends' and the
+    dataset's one check)."""
+    if support not in SUPPORTS:
+        raise ValueError(f"support must be 'table' or 'floating', got {support!r}")
+    return support
 
 
 def usable_touch(touched: np.ndarray) -> np.ndarray:
@@ -286,9 +295,7 @@ def support_height(vertices, pose=None, scale: float = 1.0) -> float:
 
     ``vertices`` must be finite and ``scale`` a finite number ``> 0`` (a real scalar: :func:`~haptic_env.numbers.
     finite_number`; a negative scale would reflect the object); a ``ValueError`` names what is not."""
-    f = finite_number(scale)
-    if f is None or f <= 0:
-        raise ValueError(f"scale must be a finite number > 0, got {scale!r}")
+    f = positive_number(scale, "scale")
     v = _real_array(vertices, "vertices")
     if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0:
         raise ValueError(f"vertices must have shape (V, 3) with V >= 1, got {v.shape}")

@@ -35,15 +35,15 @@ from typing import Any, NamedTuple
 import numpy as np
 import trimesh
 
-from haptic_env.numbers import finite_number, flag
+from haptic_env.numbers import checked_flag, finite_number
 
 from . import _geometric_kernels as gk
 from .base import (
     ACTION_DIM,
-    SUPPORTS,
     GraspBatch,
     GraspResult,
     approach_frame,
+    check_support,
     decode_approach,
     support_height,
     validate_action,
@@ -78,10 +78,8 @@ class GeometricConfig:
     def __post_init__(self) -> None:
         if not (isinstance(self.n_fingers, (int, np.integer)) and 2 <= self.n_fingers <= 16):
             raise ValueError(f"n_fingers must be an integer in [2, 16], got {self.n_fingers!r}")
-        if self.support not in SUPPORTS:
-            raise ValueError(f"support must be 'table' or 'floating', got {self.support!r}")
-        if flag(self.normals) is None:
-            raise ValueError(f"normals must be a bool, got {self.normals!r}")
+        check_support(self.support)
+        checked_flag(self.normals, "normals")
         for name in ("contact_noise", "normal_noise_deg", "table_clearance"):
             v = getattr(self, name)
             f = finite_number(v)

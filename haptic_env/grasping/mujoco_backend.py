@@ -42,14 +42,14 @@ import numpy as np
 
 import mujoco
 
-from haptic_env.numbers import finite_number, flag, whole_number
+from haptic_env.numbers import checked_flag, finite_number, whole_number
 
 from .base import (
     ACTION_DIM,
-    SUPPORTS,
     GraspBatch,
     GraspResult,
     approach_frame,
+    check_support,
     decode_approach,
     support_height,
     usable_touch,
@@ -99,10 +99,8 @@ class MujocoConfig:
     def __post_init__(self) -> None:
         if self.n_fingers is not None and (whole_number(self.n_fingers) is None or self.n_fingers < 2):
             raise ValueError(f"n_fingers must be an int >= 2 or None, got {self.n_fingers!r}")
-        if self.support not in SUPPORTS:
-            raise ValueError(f"support must be 'table' or 'floating', got {self.support!r}")
-        if flag(self.normals) is None:
-            raise ValueError(f"normals must be a bool, got {self.normals!r}")
+        check_support(self.support)
+        checked_flag(self.normals, "normals")
         if self.solver is not None and self.solver not in SOLVERS:
             raise ValueError(f"solver must be one of {tuple(SOLVERS)}, got {self.solver!r}")
         if self.torque_source not in ("actuator", "constraint"):

@@ -36,9 +36,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from haptic_env.numbers import flag, whole_number
+from haptic_env.numbers import checked_flag, whole_number
 
-from .base import (ACTION_DIM, SUPPORTS, GraspBatch, GraspResult, validate_action, validate_actions,
+from .base import (ACTION_DIM, GraspBatch, GraspResult, check_support, validate_action, validate_actions,
                    validate_pose)
 
 __all__ = ["ReplayConfig", "ReplayBackend", "approach_embedding"]
@@ -61,8 +61,7 @@ class ReplayConfig:
         if self.n_fingers is not None and (whole_number(self.n_fingers) is None or self.n_fingers < 2):
             raise ValueError(f"n_fingers must be an int >= 2 or None, got {self.n_fingers!r}")
         for name in ("normals", "progress"):
-            if flag(getattr(self, name)) is None:
-                raise ValueError(f"{name} must be a bool, got {getattr(self, name)!r}")
+            checked_flag(getattr(self, name), name)
         if not isinstance(self.hand, str) or not self.hand:
             raise ValueError(f"hand must be a hand name or an MJCF path, got {self.hand!r}")
         if isinstance(self.approaches, bool) or not (isinstance(self.approaches, (int, np.integer))
@@ -70,8 +69,7 @@ class ReplayConfig:
             raise ValueError(f"approaches must be an int >= 1, got {self.approaches!r}")
         if isinstance(self.pool_seed, bool) or not isinstance(self.pool_seed, (int, np.integer)) or self.pool_seed < 0:
             raise ValueError(f"pool_seed must be an int >= 0, got {self.pool_seed!r}")
-        if self.support not in SUPPORTS:
-            raise ValueError(f"support must be 'table' or 'floating', got {self.support!r}")
+        check_support(self.support)
         if isinstance(self.neighbours, bool) or not (isinstance(self.neighbours, (int, np.integer))
                                                       and 1 <= self.neighbours <= self.approaches):
             raise ValueError(f"neighbours must be an int in [1, approaches={self.approaches}], got {self.neighbours!r}")

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from haptic_env.numbers import finite_number, flag
+from haptic_env.numbers import checked_flag, finite_number
 
 from .base import ACTION_DIM, GraspBatch, GraspResult, validate_action, validate_actions, validate_pose
 
@@ -30,8 +30,7 @@ class UniformConfig:
     def __post_init__(self) -> None:
         if not (isinstance(self.n_fingers, (int, np.integer)) and 2 <= self.n_fingers <= 16):
             raise ValueError(f"n_fingers must be an integer in [2, 16], got {self.n_fingers!r}")
-        if flag(self.normals) is None:
-            raise ValueError(f"normals must be a bool, got {self.normals!r}")
+        checked_flag(self.normals, "normals")
         if self.sampling not in ("area", "centroid"):
             raise ValueError(f"sampling must be 'area' or 'centroid', got {self.sampling!r}")
         noise = finite_number(self.contact_noise)

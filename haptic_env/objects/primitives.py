@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from ..numbers import positive_range, whole_number
+from ..numbers import checked_flag, positive_range, whole_at_least
 from .base import GraspObject, ObjectSet, prepare_mesh, up_rotation
 
 __all__ = ["DEFAULT_SHAPES", "default_set", "family_set", "FAMILIES", "make_shape"]
@@ -205,10 +205,8 @@ def family_set(n_per_family: int, rng: np.random.Generator, families=FAMILIES,
             lying cylinder differently; a box or an ellipsoid on another face is just another member (its three
             factors are drawn alike). The draws and the other members are those of ``lying=False``.
     """
-    if whole_number(n_per_family) is None or n_per_family < 1:
-        raise ValueError(f"n_per_family must be an int >= 1, got {n_per_family!r}")
-    if not isinstance(lying, (bool, np.bool_)):
-        raise ValueError(f"lying must be a bool, got {lying!r}")
+    whole_at_least(n_per_family, 1, "n_per_family")
+    checked_flag(lying, "lying")
     lo, hi = positive_range(scale_range, "scale_range")
     if size_range is not None:
         slo, shi = positive_range(size_range, "size_range")

@@ -27,7 +27,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.special import log_softmax
 
-from haptic_env.numbers import finite_number, positive_range, whole_number
+from haptic_env.numbers import finite_number, positive_range, whole_at_least
 
 __all__ = ["fit_temperature", "sequence_scores", "tempered_nll", "expected_calibration_error", "reliability",
            "T_BOUNDS", "ScoreCorrection", "fit_correction", "select_correction", "SELECT_GRASPS", "PowerCorrection",
@@ -244,8 +244,7 @@ def sequence_scores(scores, y, max_grasps: int, rng: np.random.Generator) -> tup
         largest class's row count (``S (M, K)``, ``M = max_grasps * m * classes``), and their classes ``Y (M,)``.
     """
     S, Y = _check(scores, y)
-    if (whole_number(max_grasps) or 0) < 1:
-        raise ValueError(f"max_grasps must be an int >= 1, got {max_grasps!r}")
+    whole_at_least(max_grasps, 1, "max_grasps")
     if max_grasps == 1 or len(Y) == 0:
         return S, Y
     classes, counts = np.unique(Y, return_counts=True)
@@ -346,8 +345,7 @@ def reliability(proba, y, bins: int = 10) -> dict[str, np.ndarray]:
     """Reliability diagram data of ``proba (B, K)``: per equal-width confidence bin ``[k / bins, (k + 1) / bins)``
     (the last one closed), the mean confidence, the accuracy and the count (``nan`` for empty bins)."""
     P, Y = _check(proba, y)
-    if (whole_number(bins) or 0) < 1:
-        raise ValueError(f"bins must be an int >= 1, got {bins!r}")
+    whole_at_least(bins, 1, "bins")
     conf = P.max(axis=1)
     hit = (P.argmax(axis=1) == Y).astype(np.float64)
     edges = np.arange(bins + 1) / bins  # each edge the double nearest k / bins (linspace puts 0.3 a hair above 0.3)

@@ -71,7 +71,7 @@ import numpy as np
 from scipy.special import logsumexp
 from scipy.spatial import cKDTree
 
-from haptic_env.numbers import finite_number, flag, whole_number
+from haptic_env.numbers import finite_number, flag, whole_at_least, whole_number
 from haptic_env.recognizers.calibration import (CORRECTIONS, PowerCorrection, ScoreCorrection, check_corrections,
                                                 fit_temperature, select_calibration, sequence_scores)
 from haptic_env.recognizers.knn import KDTree, pooled_log_density
@@ -159,9 +159,7 @@ class KDEConfig:
         if not (isinstance(grid, (tuple, list)) and grid and all((finite_number(f) or 0) > 0 for f in grid)):
             raise ValueError(f"KDEConfig.factor_grid must hold positive factors, got {self.factor_grid!r}")
         for name in ("n_calibrate", "calibrate_grasps", "k", "k_max", "max_samples", "select_samples", "n_select"):
-            v = getattr(self, name)
-            if (whole_number(v) or 0) < 1:
-                raise ValueError(f"KDEConfig.{name} must be an int >= 1, got {v!r}")
+            whole_at_least(getattr(self, name), 1, f"KDEConfig.{name}")
         seed, eps = whole_number(self.seed), finite_number(self.eps)
         if seed is None or seed < 0:
             raise ValueError(f"KDEConfig.seed must be an int >= 0, got {self.seed!r}")

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from haptic_env.numbers import finite_number, whole_number
+from haptic_env.numbers import finite_number, whole_at_least, whole_number
 
 __all__ = ["KDTree", "pooled_log_density", "log_density_row", "workspace"]
 
@@ -38,9 +38,7 @@ class KDTree:
         X = np.ascontiguousarray(X, dtype=np.float64)
         if X.ndim != 2 or len(X) == 0:
             raise ValueError(f"KDTree needs a non-empty (N, d) array, got shape {X.shape}")
-        if (whole_number(leafsize) or 0) < 1:
-            raise ValueError(f"leafsize must be an int >= 1, got {leafsize!r}")
-        order, nodes, split = _build(X, int(leafsize))
+        order, nodes, split = _build(X, whole_at_least(leafsize, 1, "leafsize"))
         self.indices = order  #: tree position -> row of X
         self.data = np.ascontiguousarray(X[order], dtype=np.float32)  #: vectors in tree order
         self.nodes = nodes  #: (n_nodes, 4) int32: first child (-1: leaf), leaf start, leaf end, split dimension

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from haptic_env.numbers import finite_number, flag, whole_number
+from haptic_env.numbers import finite_number, flag, whole_at_least, whole_number
 
 __all__ = ["MLPConfig"]
 
@@ -48,9 +48,7 @@ class MLPConfig:
             raise ValueError(f"MLPConfig.lr_decay must be in (0, 1], got {self.lr_decay!r}")
         if not 0.0 < (finite_number(self.val_fraction) or 0) < 1.0:
             raise ValueError(f"MLPConfig.val_fraction must be in (0, 1), got {self.val_fraction!r}")
-        seed = whole_number(self.seed)
-        if seed is None or seed < 0:
-            raise ValueError(f"MLPConfig.seed must be an int >= 0, got {self.seed!r}")
+        whole_at_least(self.seed, 0, "MLPConfig.seed")
         if self.threads is not None and (whole_number(self.threads) or 0) < 1:
             raise ValueError(f"MLPConfig.threads must be None or an int >= 1, got {self.threads!r}")
         for name in ("decoupled_weight_decay", "progress"):

@@ -27,7 +27,7 @@ from scipy.special import softmax
 from haptic_env.dataset import DatasetConfig
 from haptic_env.cache import CacheError, atomic_write, cache_dir, config_key, load_npz, save_npz_atomic
 from haptic_env.grasp_features import feature_dim
-from haptic_env.numbers import flag, whole_number
+from haptic_env.numbers import checked_flag, whole_at_least
 from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
 from haptic_env.recognizers.mlp_config import MLPConfig
 from haptic_env.recognizers.touch import TouchModel
@@ -252,11 +252,9 @@ def build_recognizer(objects, n_fingers: int, normals: bool = True, *, z_values=
             :func:`haptic_env.dataset.build_dataset`; tests inject synthetic data here).
     """
     config = config or RecognizerConfig()
-    if (whole_number(n_fingers) or 0) < 2:
-        raise ValueError(f"n_fingers must be an int >= 2, got {n_fingers!r}")
+    whole_at_least(n_fingers, 2, "n_fingers")
     for name, value in (("progress", progress), ("touch", touch), ("cache", cache)):
-        if flag(value) is None:
-            raise ValueError(f"{name} must be True or False, got {value!r}")
+        checked_flag(value, name, "True or False")
     models = tuple(models)
     bad = [m for m in models if m not in MODELS]
     if bad or not models:

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from haptic_env.numbers import finite_number
+from haptic_env.numbers import finite_number, positive_number
 
 __all__ = ["MAX_TOUCH_FINGERS", "TouchModel", "check_touch_weight", "touch_patterns"]
 
@@ -76,8 +76,7 @@ class TouchModel:
         T = np.asarray(touched)
         if T.ndim != 3 or T.shape[0] < 1 or T.shape[1] < 1:
             raise ValueError(f"touched must have shape (K, A, n) with K, A >= 1, got {T.shape}")
-        if not (finite_number(alpha) or 0) > 0:
-            raise ValueError(f"alpha must be a finite number > 0, got {alpha!r}")
+        positive_number(alpha, "alpha")
         K, A, n = T.shape
         counts = np.full(K, A) if counts is None else np.asarray(counts)
         if counts.shape != (K,) or (counts < 1).any() or (counts > A).any():
