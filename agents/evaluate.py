@@ -126,6 +126,12 @@ def run_episodes(agent, make_env: Callable[[], Any], n_episodes: int, seed: int,
     return records
 
 
+def repeated_names(agents: Sequence[Any]) -> list[str]:
+    """The names (``agent.name``) that more than one of ``agents`` carries, sorted: a summary would pool them."""
+    names = [a.name for a in agents]
+    return sorted({n for n in names if names.count(n) > 1})
+
+
 def evaluate_agents(agents: Sequence[Any], make_env: Callable[[], Any], n_episodes: int,
                     seeds: Iterable[int], progress: bool = True, store: str | Path | None = None,
                     keys: Sequence[str] | None = None) -> list[EpisodeRecord]:
@@ -139,8 +145,7 @@ def evaluate_agents(agents: Sequence[Any], make_env: Callable[[], Any], n_episod
 
     _check_episodes(n_episodes)
     seeds = list(seeds)
-    names = [a.name for a in agents]
-    twice = sorted({n for n in names if names.count(n) > 1})
+    twice = repeated_names(agents)
     if twice:  # the summary groups episodes by name: two agents of one name would be pooled into one row
         raise ValueError(f"agents must have distinct names, got {twice} more than once (name a model NAME=model.zip)")
     if store is not None and (keys is None or len(keys) != len(agents)):
@@ -692,8 +697,7 @@ def _main(args) -> int:
             agents.append(make_agent(spec, stochastic=args.stochastic))
         except ValueError as exc:
             raise UsageError(f"--agents: {exc}") from exc
-    names = [a.name for a in agents]
-    twice = sorted({n for n in names if names.count(n) > 1})
+    twice = repeated_names(agents)
     if twice:  # before any episode: evaluate_agents would refuse them after the env is built
         raise UsageError(f"--agents: {twice} named more than once; give each a name, NAME=model.zip")
     make_env = lambda: haptic_env.make(env_id=args.env_id, **kwargs)  # noqa: E731  (overrides the variant's fields)

@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from haptic_env.numbers import finite_number, flag, whole_at_least
+from haptic_env.numbers import checked_flag, finite_number, whole_at_least
 from haptic_env.task import entropy
 
 __all__ = ["GreedyInfoGainAgent"]
@@ -60,15 +60,13 @@ class GreedyInfoGainAgent:
         if simulate == "env" and backend_kwargs is not None:
             raise ValueError("backend_kwargs applies to simulate='geometric' only; simulate='env' uses the env's own")
         self.simulate = simulate
-        if flag(pose_known) is None:
-            raise ValueError(f"pose_known must be True or False, got {pose_known!r}")
-        self.pose_known = flag(pose_known)
+        self.pose_known = checked_flag(pose_known, "pose_known", "True or False")
         w = finite_number(min_weight)
         if w is None or not 0 <= w < 1:
             raise ValueError(f"min_weight must be in [0, 1), got {min_weight!r}")
         self.n_candidates = int(n_candidates)
         self.n_samples = int(n_samples)
-        self.min_weight = float(min_weight)
+        self.min_weight = w
         self.backend_kwargs = backend_kwargs
         self._rng = np.random.default_rng(seed)
         self._backends: list[Any] | None = None

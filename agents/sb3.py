@@ -267,8 +267,7 @@ def _run_guard(save_path: Path, algo: str, checkpoint_freq: int, max_minutes: fl
             self.num_timesteps = self.model.num_timesteps  # the file names use it
             path = Path(self._checkpoint_path(extension="zip"))
             if self._saved_at != self.num_timesteps:
-                self.saving = True
-                try:
+                with self.signals_deferred():
                     if getattr(self.model, "replay_buffer", None) is not None:
                         _save_atomic(self._checkpoint_path("replay_buffer_", extension="pkl"),
                                      self.model.save_replay_buffer)
@@ -277,10 +276,18 @@ def _run_guard(save_path: Path, algo: str, checkpoint_freq: int, max_minutes: fl
                         _save_atomic(self._checkpoint_path("vecnormalize_", extension="pkl"),
                                      lambda fh: pickle.dump(vec_normalize, fh))
                     _save_atomic(path, self.model.save)
-                finally:
-                    self.saving = False
                 self._saved_at = self.num_timesteps
             return path
+
+        @contextlib.contextmanager
+        def signals_deferred(self):
+            """A SIGINT / SIGTERM during the block waits for its end (``saving``, read by :func:`_stop_on_signals`):
+            the files it writes are whole."""
+            self.saving = True
+            try:
+                yield
+            finally:
+                self.saving = False
 
     return RunGuard()
 
@@ -406,11 +413,8 @@ def train(algo: str, venv, total_timesteps: int, log_dir: str | os.PathLike, *, 
         if guard.stopped:  # time limit: a checkpoint to resume from, and the final model
             guard.save()
         path = log_dir / f"{algo}_final.zip"
-        guard.saving = True  # a signal now lets the final model finish
-        try:
+        with guard.signals_deferred():  # a signal now lets the final model finish
             _save_atomic(path, model.save)
-        finally:
-            guard.saving = False
     return model, path
 
 

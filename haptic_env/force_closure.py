@@ -167,8 +167,11 @@ def primitive_wrenches(contacts, normals, mu: float, edges: int = DEFAULT_EDGES,
 
 
 def _separable(W: np.ndarray) -> np.ndarray:
-    """``(B,)`` True where a direction ``d`` with ``d . w < 0`` for every row of ``W[b] (m, 6)`` was found."""
+    """``(B,)`` True where a direction ``d`` with ``d . w < 0`` for every row of ``W[b] (m, 6)`` was found (every
+    direction, for a grasp without wrenches: no contacts, no closure)."""
     B = W.shape[0]
+    if W.shape[1] == 0:
+        return np.ones(B, dtype=bool)
     rows = np.arange(B)
     d = -W.mean(axis=1)
     d /= np.linalg.norm(d, axis=1, keepdims=True) + 1e-300
@@ -269,8 +272,6 @@ def _closure(W: np.ndarray, contacts, edges: int, method: str) -> np.ndarray:
     if method == "plane" and n != 3:
         raise ValueError(f"method 'plane' decides three-contact grasps only, got {n} contacts")
     out = np.zeros(W.shape[0], dtype=bool)
-    if n == 0:  # without contacts a grasp resists nothing
-        return out
     if method in ("plane", "auto") and n == 3:
         C = np.asarray(contacts, dtype=np.float64).reshape(W.shape[0], 3, 3)
         for lo in range(0, W.shape[0], _CHUNK):
@@ -302,9 +303,7 @@ def epsilon_quality(contacts, normals, mu: float = DEFAULT_MU, edges: int = DEFA
     single = W.ndim == 2
     W = W[None] if single else W
     out = np.zeros(W.shape[0])
-    if W.shape[1] == 0:  # no contacts: not in closure
-        todo = np.zeros(0, int)
-    elif W.shape[1] == 3 * int(edges):  # the exact planar test first, Qhull on the grasps in closure
+    if W.shape[1] == 3 * int(edges):  # the exact planar test first, Qhull on the grasps in closure
         todo = np.flatnonzero(_closure(W, contacts, int(edges), "auto"))
     else:  # Qhull once on each grasp the search cannot reject: its margin decides closure and is the quality
         todo = np.concatenate([np.zeros(0, int)] + [lo + np.flatnonzero(~_separable(W[lo:lo + _CHUNK]))

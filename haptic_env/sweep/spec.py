@@ -298,9 +298,10 @@ def _dataset_jobs(doc: dict) -> list[Job]:
         rest = {k: v for k, v in t.items() if k in fields}
         for objects, n, normals in product(_as_list(t.get("objects", "default")), _as_list(t.get("fingers", 4)),
                                            _as_list(t.get("normals", True))):
-            if flag(normals) is None:  # bool("false") is True
+            b = flag(normals)
+            if b is None:  # bool("false") is True
                 raise SpecError(f"{where}.normals: expected true or false (or a list of them), got {normals!r}")
-            cfg = {**rest, "n_fingers": n, "normals": flag(normals)}
+            cfg = {**rest, "n_fingers": n, "normals": b}
             try:
                 DatasetConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in cfg.items()})
             except (TypeError, ValueError) as exc:
