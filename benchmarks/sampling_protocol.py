@@ -113,11 +113,14 @@ def main(argv=None) -> int:
     print("|---|---|---|---|---|---|")
     from tqdm.auto import tqdm
 
-    bar = tqdm(total=6, desc="rows", unit="row", file=sys.stderr)  # a row takes seconds to minutes
     chosen = {}
     meshes = (("full (about 25,000 faces)", list(objects)), (f"decimated ({args.faces} faces)", decimated))
+    methods = (("area", "area-uniform points"), ("centroid", "centres of uniform faces"))
+    orders = ("their order (sorted face indices)", "shuffled")
+    bar = tqdm(total=len(meshes) * len(methods) + len(orders), desc="rows", unit="row",  # a row: seconds to minutes
+               file=sys.stderr)
     for mesh_label, objs in meshes:
-        for method, label in (("area", "area-uniform points"), ("centroid", "centres of uniform faces")):
+        for method, label in methods:
             t0 = time.perf_counter()
             train, val, test = (data(objs, method, count, seed) for seed, count in
                                 ((1, args.grasps), (3, args.test_grasps), (2, args.test_grasps)))
@@ -126,7 +129,7 @@ def main(argv=None) -> int:
             print(f"| {mesh_label} | {label} | {_cells(accs, j)} |  <!-- {time.perf_counter() - t0:.0f} s -->",
                   flush=True)
             bar.update()
-    for order in ("their order (sorted face indices)", "shuffled"):
+    for order in orders:
         t0 = time.perf_counter()
         train, val, test = (authors_data(decimated, count, args.fingers, seed, sort=order != "shuffled",
                                          normals=normals, mu=args.force_closure)

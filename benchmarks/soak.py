@@ -181,18 +181,15 @@ def run_variant(name: str, steps: int, warmup: int, seed: int, timeout: float | 
 
 def _load_partial(path: Path | None, key: dict[str, Any]) -> dict[str, dict[str, Any]]:
     """The variants an interrupted run with the same settings finished (``{}``: none, other settings, unreadable)."""
-    try:
-        doc = json.loads(path.read_text()) if path is not None else {}
-    except (OSError, ValueError):
-        return {}
-    return doc.get("results", {}) if isinstance(doc, dict) and doc.get("key") == key else {}
+    from haptic_env.cache import load_keyed_json
+
+    return (load_keyed_json(path, key) or {}).get("results", {}) if path is not None else {}
 
 
 def _save_partial(path: Path, key: dict[str, Any], results: dict[str, dict[str, Any]]) -> None:
-    from haptic_env.cache import atomic_write
+    from haptic_env.cache import save_keyed_json
 
-    with atomic_write(path, "w") as fh:
-        json.dump({"key": key, "results": results}, fh)
+    save_keyed_json(path, key, results=results)
 
 
 def table(rows: list[tuple[str, dict[str, Any]]]) -> str:

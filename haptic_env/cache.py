@@ -24,7 +24,7 @@ from typing import Any, Iterator
 import numpy as np
 
 __all__ = ["cache_dir", "config_key", "KEY_ONLY_WHEN_SET", "atomic_write", "save_npz_atomic", "load_npz", "CacheError",
-           "CacheNotWritableError", "clean_stale_tmp", "STALE_TMP_SECONDS"]
+           "CacheNotWritableError", "clean_stale_tmp", "STALE_TMP_SECONDS", "save_keyed_json", "load_keyed_json"]
 
 #: A temporary file older than this is removed even if its writer's process id is still in use (6 h).
 STALE_TMP_SECONDS = 6 * 3600.0
@@ -151,6 +151,23 @@ def atomic_write(path: str | os.PathLike, mode: str = "wb") -> Iterator[Any]:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+
+
+def save_keyed_json(path: str | os.PathLike, key: Any, **fields: Any) -> None:
+    """Write ``{"key": key, **fields}`` as JSON to ``path`` atomically: the resume state of a long run, which
+    :func:`load_keyed_json` gives back only to a run with the same ``key`` (its settings)."""
+    with atomic_write(path, "w") as fh:
+        json.dump({"key": key, **fields}, fh)
+
+
+def load_keyed_json(path: str | os.PathLike, key: Any) -> dict | None:
+    """The document :func:`save_keyed_json` wrote at ``path`` with this ``key``, or None (no file, unreadable, or
+    another key: another run's settings)."""
+    try:
+        doc = json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return None
+    return doc if isinstance(doc, dict) and doc.get("key") == key else None
 
 
 def save_npz_atomic(path: str | os.PathLike, **arrays: np.ndarray) -> Path:

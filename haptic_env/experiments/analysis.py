@@ -12,13 +12,13 @@ writes. The file is removed when the run completes; other settings start over.
 from __future__ import annotations
 
 import dataclasses
-import json
 import time
 from pathlib import Path
 from types import ModuleType
 
 import numpy as np
 
+from haptic_env.cache import config_key, load_keyed_json, save_keyed_json
 from haptic_env.experiments import calibration, families, oneshot, scaled, sequential, success_vs_grasps, zfinger
 from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.report import Report
@@ -46,7 +46,7 @@ def run_analysis(cfg: AnalysisConfig, out: str | Path, command: str | None = Non
     rep = Report(out)
     rng = np.random.default_rng(cfg.seed)
     state_path, key = out / STATE_FILE, settings_key(cfg)
-    state = _load_state(state_path, key)
+    state = load_keyed_json(state_path, key)  # the saved state of an unfinished run with these settings
     if state is not None:
         rep.lines, done = state["lines"], state["done"]
         rng.bit_generator.state = state["rng"]
@@ -79,25 +79,12 @@ STATE_FILE = ".analysis_state.json"
 def settings_key(cfg: AnalysisConfig) -> str:
     """What a run's results depend on (every setting but ``progress``), hashed (:func:`~haptic_env.cache.config_key`):
     a saved state resumes only a run with the same key."""
-    from haptic_env.cache import config_key
-
     return config_key(dataclasses.replace(cfg, progress=False))
-
-
-def _load_state(path: Path, key: str) -> dict | None:
-    """The saved state of an unfinished run with these settings, or None (none, other settings, unreadable)."""
-    try:
-        state = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return None
-    return state if isinstance(state, dict) and state.get("key") == key else None
 
 
 def _run(cfg, objects, rep: Report, rng, done: list[int], state_path: Path, key: str) -> Path:
     """The experiments not in ``done``, each followed by the report and the resume state; the state file is removed
     at the end."""
-    from haptic_env.cache import atomic_write
-
     for e in cfg.experiments:
         if e in done:
             continue
@@ -106,8 +93,7 @@ def _run(cfg, objects, rep: Report, rng, done: list[int], state_path: Path, key:
         rep.p(f"_experiment {e}: {time.perf_counter() - t0:.0f} s_")
         rep.write()
         done = [*done, e]
-        with atomic_write(state_path, "w") as fh:
-            json.dump({"key": key, "done": done, "rng": rng.bit_generator.state, "lines": rep.lines}, fh)
+        save_keyed_json(state_path, key, done=done, rng=rng.bit_generator.state, lines=rep.lines)
     path = rep.write()
     state_path.unlink(missing_ok=True)
     return path
