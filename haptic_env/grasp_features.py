@@ -269,7 +269,9 @@ def _angle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 @lru_cache(maxsize=None)
 def _topology(n: int):
-    """Static index tables: triangles (T,3), their edges (T,3) and a (n,n,n) triangle lookup."""
+    """Static index tables: triangles (T,3), their edges (T,3) and a (n,n,n) triangle lookup.
+
+    Cached and shared by every caller, so the arrays are read-only."""
     tri = np.array(list(combinations(range(n), 3)), dtype=np.int64)
     edges = list(combinations(range(n), 2))
     eidx = {e: i for i, e in enumerate(edges)}
@@ -279,6 +281,8 @@ def _topology(n: int):
     for t, (i, j, k) in enumerate(tri):
         for p in ((i, j, k), (i, k, j), (j, i, k), (j, k, i), (k, i, j), (k, j, i)):
             lut[p] = t
+    for a in (tri, tri_edges, lut):
+        a.flags.writeable = False
     return tri, tri_edges, lut, len(edges)
 
 

@@ -328,3 +328,14 @@ def test_an_interrupted_analysis_resumes_after_its_finished_experiments(tmp_path
     fail["at"] = None
     analysis.run_analysis(dataclasses.replace(cfg, seed=1), tmp_path / "other")
     assert calls == [1, 2, 3]  # another seed: nothing of the saved run is reused
+
+
+def test_analysis_refuses_a_bad_family_hand_before_writing_anything(tmp_path):
+    """Experiment 5's hand is resolved before any experiment runs or the output folder is made."""
+    from haptic_env.experiments.analysis import run_analysis
+    from haptic_env.experiments.config import AnalysisConfig
+
+    cfg = AnalysisConfig(experiments=(1, 5), family_source="hand", family_hand="no_such_hand", progress=False)
+    with pytest.raises(ValueError, match="no_such_hand"):
+        run_analysis(cfg, tmp_path / "out")
+    assert not (tmp_path / "out").exists()

@@ -648,3 +648,12 @@ def test_complex_contacts_and_normals_are_refused():
     T = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
     np.testing.assert_array_equal(phi(T).q, phi(np.array(T, float)).q)
     np.testing.assert_array_equal(surface_area(T), surface_area(np.array(T, float)))
+
+
+def test_topology_tables_are_read_only():
+    """The index tables are cached and shared by every caller: writing to one must fail, not corrupt Phi_n."""
+    from haptic_env.grasp_features import _topology
+
+    for a in _topology(5)[:3]:
+        with pytest.raises(ValueError, match="read-only"):
+            a[...] = 0

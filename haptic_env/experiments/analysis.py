@@ -40,6 +40,10 @@ def run_analysis(cfg: AnalysisConfig, out: str | Path, command: str | None = Non
     for e in cfg.experiments:
         if e not in EXPERIMENTS:
             raise ValueError(f"unknown experiment {e}; choose from {sorted(EXPERIMENTS)}")
+    if 5 in cfg.experiments and cfg.family_source == "hand":
+        from haptic_env.grasping.hands import load_hand
+
+        load_hand(cfg.family_hand, n_fingers=4)  # a bad name fails now, not after experiments 1-4 (nothing written)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     objects = load_object_set(cfg.objects, data_dir=cfg.data_dir, units=cfg.units, up=cfg.up)
