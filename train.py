@@ -1,4 +1,4 @@
-"""Train PPO or SAC on HapticRecog (CleanRL-style: one readable file, explicit seeding).
+"""Train PPO, SAC or recurrent PPO (an LSTM policy) on HapticRecog (CleanRL-style: one readable file, explicit seeding).
 
     python train.py --algo ppo --total-timesteps 200000 --n-envs 2 --env.grasp-cost 0.02 --run-dir runs/ppo
     python train.py --algo ppo --total-timesteps 200000 --n-envs 2 --env.grasp-cost 0.02 --run-dir runs/ppo --resume runs/ppo
@@ -16,7 +16,7 @@ save a checkpoint (SAC: with its replay buffer) and exit with one line naming it
 ``--total-timesteps`` in all, in the same TensorBoard run; the Monitor CSVs of each resumed segment go to new
 files ``monitor/<rank>.part<k>.monitor.csv`` and its flags to ``args.part<k>.json`` (every earlier file and line
 is kept; the learning-curve reader merges the segments by wall time). PPO drops an unfinished rollout (its
-steps are not counted), so the resumed run ends at the same step count as an uninterrupted one.
+steps are not counted; so does recurrent PPO), so the resumed run ends at the same step count as an uninterrupted one.
 Evaluate the result with the ``evaluate`` sub-command::
 
     python -m haptic_env.cli evaluate --agents random greedy ppo=runs/ppo/ppo_final.zip \\
@@ -41,13 +41,14 @@ import numpy as np
 
 from haptic_env.config import HapticRecogConfig
 
-ALGOS = ("ppo", "sac")
+ALGOS = ("ppo", "sac", "rppo")
 
 
 @dataclass(frozen=True)
 class Args:
-    algo: Literal["ppo", "sac"] = "ppo"
-    """The RL algorithm (stable-baselines3)."""
+    algo: Literal["ppo", "sac", "rppo"] = "ppo"
+    """The RL algorithm (stable-baselines3; ``rppo``: sb3-contrib's recurrent PPO, an LSTM policy that remembers the
+    episode's grasps)."""
     env_id: str = "HapticRecog-v0"
     """A registered env id (``haptic_env.ENV_VARIANTS``); ``--env.*`` settings apply on top of its variant."""
     total_timesteps: int = 200_000

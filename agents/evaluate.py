@@ -582,11 +582,18 @@ def plot_learning_curves(log_dirs: dict[str, str | Path], out: str | Path, windo
 
 # --------------------------------------------------------------------------------------- CLI
 def make_agent(spec: str, seed: int = 0, stochastic: bool = False):
-    """``random`` | ``greedy[:<n_candidates>]`` | ``greedy-env[:<n_candidates>]`` (the look-ahead simulates the env's own
-    backend, e.g. the MuJoCo hand); a ``-blind`` suffix (``greedy-blind``, ``greedy-env-blind``) hides the object's
-    pose from the look-ahead (``pose_known=False``); ``:M:S`` sets ``S`` samples per candidate (blind: ``S`` poses) | ``<name>=<model.zip>`` (PPO/SAC from the file name
-    or ``ppo=...``/``sac=...``). ``stochastic``: SB3 agents sample their actions (named ``<name>-stochastic``)
-    instead of taking the mean action."""
+    """An agent from its spec:
+
+    * ``random``;
+    * ``greedy[:<n_candidates>]``, or ``greedy-env[:<n_candidates>]`` (the look-ahead simulates the env's own
+      backend, e.g. the MuJoCo hand); a ``-blind`` suffix (``greedy-blind``, ``greedy-env-blind``) hides the
+      object's pose from the look-ahead (``pose_known=False``); ``:M:S`` sets ``S`` samples per candidate (blind:
+      ``S`` poses);
+    * ``<name>=<model.zip>``: PPO / SAC / recurrent PPO, the algorithm from the file name or from a name ``ppo``,
+      ``sac`` or ``rppo``.
+
+    ``stochastic``: SB3 agents sample their actions (named ``<name>-stochastic``) instead of taking the mean
+    action."""
     if spec == "random":
         from agents.random_policy import RandomAgent
 
@@ -606,10 +613,10 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False):
         agent.name = spec
         return agent
     if "=" in spec or spec.endswith(".zip"):
-        from agents.sb3 import SB3Agent
+        from agents.sb3 import ALGOS, SB3Agent
 
         name, _, path = spec.partition("=") if "=" in spec else (Path(spec).stem, "", spec)
-        algo = name.lower() if name.lower() in ("ppo", "sac") else None
+        algo = name.lower() if name.lower() in ALGOS else None
         agent = SB3Agent.from_path(path, algo=algo, name=f"{name}-stochastic" if stochastic else name)
         agent.deterministic = not stochastic
         return agent
@@ -655,7 +662,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("--agents", nargs="+", default=["random", "greedy"],
                    help="random | greedy[-env][-blind][:M[:S]] (-env: look-ahead with the env's own backend; -blind: "
                         "without the object's pose) | "
-                        "NAME=model.zip (ppo=..., sac=...)")
+                        "NAME=model.zip (ppo=..., sac=..., rppo=...)")
     p.add_argument("--episodes", type=int_in(1), default=40, help="episodes per seed")
     p.add_argument("--seeds", type=int_in(0), nargs="+", default=list(ENV_TEST_SEEDS))
     p.add_argument("--stochastic", action="store_true",

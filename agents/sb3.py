@@ -1,10 +1,14 @@
-"""Stable-Baselines3 PPO / SAC on :class:`haptic_env.env.HapticRecogEnv`.
+"""Stable-Baselines3 PPO / SAC, and sb3-contrib's recurrent PPO (``rppo``), on :class:`haptic_env.env.HapticRecogEnv`.
+
+The env is partially observable: the object's pose is hidden and each observation holds the latest grasp only.
+``rppo`` (``RecurrentPPO`` with an LSTM policy) carries a memory of the episode's grasps; PPO and SAC see one
+observation at a time.
 
 * :func:`make_vec_env` — ``n_envs`` copies (``SubprocVecEnv`` or ``DummyVecEnv``; ``vec="native"``: the native
   vector env through :class:`agents.native_vec.NativeVecEnv`, one process), each wrapped in a
   ``Monitor`` writing ``<log_dir>/monitor/<rank>.monitor.csv`` (with the episode's ``correct`` and
   ``grasps``), seeded ``seed + rank``.
-* :func:`build_model` — PPO or SAC with TensorBoard logs under ``<log_dir>/tb``.
+* :func:`build_model` — PPO, SAC or recurrent PPO with TensorBoard logs under ``<log_dir>/tb``.
 * :func:`train` — learn with checkpoints (``<log_dir>/checkpoints/<algo>_<steps>_steps.zip``, SAC also
   ``<algo>_replay_buffer_<steps>_steps.pkl``), optionally resuming from a checkpoint (its step counter
   continues up to ``total_timesteps``), and save ``<log_dir>/<algo>_final.zip``. SIGINT / SIGTERM or a dead
@@ -29,23 +33,34 @@ import numpy as np
 __all__ = ["ALGOS", "DEFAULT_HYPERPARAMS", "make_vec_env", "build_model", "load_model", "train", "SB3Agent",
            "TrainingInterrupted", "latest_checkpoint", "checkpoint_extras", "close_vec_env", "check_hyperparams"]
 
-ALGOS = ("ppo", "sac")
+#: ``rppo``: sb3-contrib's ``RecurrentPPO`` (an LSTM policy); its model files are named ``rppo_*``.
+ALGOS = ("ppo", "sac", "rppo")
 
-#: Defaults tuned for short episodes (a handful of grasps) and a cheap env; override per key.
+_PPO = dict(n_steps=256, batch_size=128, n_epochs=10, learning_rate=3e-4, gamma=0.95, gae_lambda=0.95, ent_coef=0.0,
+            clip_range=0.2)
+#: Defaults tuned for short episodes (a handful of grasps) and a cheap env; override per key. ``rppo`` is PPO's
+#: with an LSTM of 64 units before the actor's and the critic's layers.
 DEFAULT_HYPERPARAMS: dict[str, dict[str, Any]] = {
-    "ppo": dict(n_steps=256, batch_size=128, n_epochs=10, learning_rate=3e-4, gamma=0.95, gae_lambda=0.95,
-                ent_coef=0.0, clip_range=0.2, policy_kwargs=dict(net_arch=[64, 64])),
+    "ppo": dict(_PPO, policy_kwargs=dict(net_arch=[64, 64])),
     "sac": dict(buffer_size=100_000, learning_starts=1_000, batch_size=256, learning_rate=3e-4, gamma=0.95,
                 tau=0.01, train_freq=1, gradient_steps=1, policy_kwargs=dict(net_arch=[64, 64])),
+    "rppo": dict(_PPO, policy_kwargs=dict(net_arch=[64, 64], lstm_hidden_size=64)),
 }
+
+#: the policy class each algorithm is built with
+_POLICY = {"ppo": "MlpPolicy", "sac": "MlpPolicy", "rppo": "MlpLstmPolicy"}
 
 
 def _algo_class(algo: str):
-    from stable_baselines3 import PPO, SAC
-
-    algo = algo.lower()
+    algo = algo.lower() if isinstance(algo, str) else algo
     if algo not in ALGOS:
         raise ValueError(f"algo must be one of {ALGOS}, got {algo!r}")
+    if algo == "rppo":
+        from sb3_contrib import RecurrentPPO
+
+        return RecurrentPPO
+    from stable_baselines3 import PPO, SAC
+
     return {"ppo": PPO, "sac": SAC}[algo]
 
 
@@ -133,16 +148,17 @@ def check_hyperparams(algo: str, hyperparams: dict) -> None:
 
 def build_model(algo: str, venv, seed: int = 0, log_dir: str | os.PathLike | None = None, verbose: int = 0,
                 **hyperparams: Any):
-    """A fresh PPO/SAC model on ``venv`` (:data:`DEFAULT_HYPERPARAMS` updated with ``hyperparams``)."""
+    """A fresh PPO / SAC / recurrent PPO model on ``venv`` (:data:`DEFAULT_HYPERPARAMS` updated with
+    ``hyperparams``)."""
     cls = _algo_class(algo)
     check_hyperparams(algo, hyperparams)
     params = {**DEFAULT_HYPERPARAMS[algo.lower()], **hyperparams}
     tb = str(Path(log_dir) / "tb") if log_dir is not None else None
-    return cls("MlpPolicy", venv, seed=seed, tensorboard_log=tb, verbose=verbose, device="cpu", **params)
+    return cls(_POLICY[algo.lower()], venv, seed=seed, tensorboard_log=tb, verbose=verbose, device="cpu", **params)
 
 
 def load_model(path: str | os.PathLike, algo: str | None = None, env=None):
-    """Load a saved model; ``algo`` is inferred from the file name (``ppo_*``/``sac_*``) when omitted."""
+    """Load a saved model; ``algo`` is inferred from the file name (``ppo_*``/``sac_*``/``rppo_*``) when omitted."""
     path = Path(path)
     if not path.exists() and not path.with_suffix(".zip").exists():
         raise FileNotFoundError(f"no SB3 model at {path}")
@@ -150,7 +166,7 @@ def load_model(path: str | os.PathLike, algo: str | None = None, env=None):
         stem = path.name.lower()
         algo = next((a for a in ALGOS if stem.startswith(a)), None)
         if algo is None:
-            raise ValueError(f"cannot infer the algorithm from {path.name!r}; pass algo='ppo' or 'sac'")
+            raise ValueError(f"cannot infer the algorithm from {path.name!r}; pass algo='ppo', 'sac' or 'rppo'")
     return _algo_class(algo).load(str(path), env=env, device="cpu")
 
 
@@ -419,12 +435,15 @@ def train(algo: str, venv, total_timesteps: int, log_dir: str | os.PathLike, *, 
 
 
 class SB3Agent:
-    """A trained SB3 model acting deterministically (the mean action)."""
+    """A trained SB3 model acting deterministically (the mean action). A recurrent model (``rppo``) keeps its LSTM
+    state through an episode; :meth:`reset` clears it, so every episode starts from the state it was trained to."""
 
     def __init__(self, model, name: str | None = None, deterministic: bool = True):
         self.model = model
         self.name = name or type(model).__name__.lower()
         self.deterministic = deterministic
+        self.recurrent = hasattr(model.policy, "lstm_actor")
+        self._state, self._start = None, np.ones((1,), dtype=bool)
 
     @classmethod
     def from_path(cls, path: str | os.PathLike, algo: str | None = None, name: str | None = None) -> "SB3Agent":
@@ -433,7 +452,13 @@ class SB3Agent:
     def reset(self, env: Any, seed: int | None = None) -> None:
         if seed is not None:
             self.model.set_random_seed(seed)
+        self._state, self._start = None, np.ones((1,), dtype=bool)
 
     def act(self, obs: np.ndarray, env: Any) -> np.ndarray:
-        action, _ = self.model.predict(np.asarray(obs), deterministic=self.deterministic)
-        return np.asarray(action, dtype=np.float32)
+        if not self.recurrent:
+            action, _ = self.model.predict(np.asarray(obs), deterministic=self.deterministic)
+            return np.asarray(action, dtype=np.float32)
+        action, self._state = self.model.predict(np.asarray(obs)[None], state=self._state, episode_start=self._start,
+                                                 deterministic=self.deterministic)
+        self._start = np.zeros((1,), dtype=bool)
+        return np.asarray(action[0], dtype=np.float32)

@@ -232,6 +232,40 @@ def test_tiny_sac_trains_and_acts_in_bounds(env_config, small_recognizer_kwargs,
     assert a.shape == env.action_space.shape and env.action_space.contains(a.astype(np.float32))
 
 
+def test_tiny_recurrent_ppo_trains_resumes_and_remembers_within_an_episode(env_config, small_recognizer_kwargs,
+                                                                          tmp_path):
+    """``--algo rppo`` (sb3-contrib's RecurrentPPO): trains, checkpoints and resumes like PPO; as an agent it carries
+    its LSTM state from step to step of an episode and starts every episode from a cleared state."""
+    import train
+    from agents.evaluate import make_agent, run_episodes
+    from agents.sb3 import SB3Agent, latest_checkpoint, load_model
+
+    run = tmp_path / "rppo"
+    hp = {"n_steps": 64, "batch_size": 32, "n_epochs": 2}
+    path = train.main(_train_args("rppo", 128, run, small_recognizer_kwargs, hp))
+    assert path.name == "rppo_final.zip" and latest_checkpoint(run).name == "rppo_128_steps.zip"
+    model = load_model(path)  # the algorithm from the file name
+    assert type(model).__name__ == "RecurrentPPO" and model.num_timesteps == 128
+
+    agent = make_agent(f"rppo={path}")
+    assert isinstance(agent, SB3Agent) and agent.recurrent and agent.deterministic
+    env = haptic_env.make(env_config.replace(max_grasps=10))
+    obs, _ = env.reset(seed=0)
+    agent.reset(env, seed=0)
+    first = agent.act(obs, env)
+    again = agent.act(obs, env)  # the same observation, but the memory has the first step now
+    assert not np.array_equal(first, again) and env.action_space.contains(first)
+    agent.reset(env)
+    np.testing.assert_array_equal(agent.act(obs, env), first)  # a new episode: the state is cleared
+    a, b = (run_episodes(make_agent(f"rppo={path}"), lambda: haptic_env.make(env_config.replace(max_grasps=10)),
+                         3, seed=1) for _ in range(2))
+    assert [(r.grasps, r.predicted) for r in a] == [(r.grasps, r.predicted) for r in b]
+
+    resumed = train.main(_train_args("rppo", 256, tmp_path / "resumed", small_recognizer_kwargs, hp)
+                         + ["--resume", str(run / "checkpoints" / "rppo_128_steps.zip")])
+    assert type(load_model(resumed)).__name__ == "RecurrentPPO" and load_model(resumed).num_timesteps == 256
+
+
 def test_train_env_flags_change_the_fields_a_variant_sets(small_recognizer_kwargs, usage_error):
     """``--env.*`` start from the ``--env-id`` variant's config and may change what the variant sets; the envs the
     run makes are that config (``haptic_env.make`` takes the variant's fields from a given config; before, gymnasium

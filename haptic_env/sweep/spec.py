@@ -17,7 +17,7 @@ agent x env x seed), and dataset, analysis and command jobs::
     name = "greedy"                        # random | greedy | greedy:M (spec = ... to rename)
     [[agent]]
     name = "ppo"
-    algo = "ppo"                           # a trained agent: train.py, then evaluation of <algo>_final.zip
+    algo = "ppo"                           # ppo, sac or rppo: train.py, then evaluation of <algo>_final.zip
     total_timesteps = 200000               # + n_envs, vec, checkpoint_freq, hyperparams, cpus, max_minutes
 
     [evaluate]
@@ -244,8 +244,8 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
         trained = "algo" in a
         _check_keys(a, _TRAINED if trained else _BASELINE, where)
         a_seeds = [_int(s, f"{where}.seeds") for s in _as_list(a.get("seeds", seeds))]
-        if trained and a["algo"] not in ("ppo", "sac"):
-            raise SpecError(f"{where}: algo must be 'ppo' or 'sac', got {a['algo']!r}")
+        if trained and a["algo"] not in ("ppo", "sac", "rppo"):
+            raise SpecError(f"{where}: algo must be 'ppo', 'sac' or 'rppo', got {a['algo']!r}")
         if not trained:
             spec = a.get("spec", a["name"])
             if not spec.endswith(".zip"):  # what the evaluate job will build, checked by the one parser of specs
