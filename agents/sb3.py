@@ -152,9 +152,10 @@ def build_model(algo: str, venv, seed: int = 0, log_dir: str | os.PathLike | Non
     ``hyperparams``)."""
     cls = _algo_class(algo)
     check_hyperparams(algo, hyperparams)
-    params = {**DEFAULT_HYPERPARAMS[algo.lower()], **hyperparams}
+    algo = algo.lower()
+    params = {**DEFAULT_HYPERPARAMS[algo], **hyperparams}
     tb = str(Path(log_dir) / "tb") if log_dir is not None else None
-    return cls(_POLICY[algo.lower()], venv, seed=seed, tensorboard_log=tb, verbose=verbose, device="cpu", **params)
+    return cls(_POLICY[algo], venv, seed=seed, tensorboard_log=tb, verbose=verbose, device="cpu", **params)
 
 
 def load_model(path: str | os.PathLike, algo: str | None = None, env=None):
@@ -443,7 +444,7 @@ class SB3Agent:
         self.name = name or type(model).__name__.lower()
         self.deterministic = deterministic
         self.recurrent = hasattr(model.policy, "lstm_actor")
-        self._state, self._start = None, np.ones((1,), dtype=bool)
+        self._clear_memory()
 
     @classmethod
     def from_path(cls, path: str | os.PathLike, algo: str | None = None, name: str | None = None) -> "SB3Agent":
@@ -452,6 +453,10 @@ class SB3Agent:
     def reset(self, env: Any, seed: int | None = None) -> None:
         if seed is not None:
             self.model.set_random_seed(seed)
+        self._clear_memory()
+
+    def _clear_memory(self) -> None:
+        """A recurrent model's LSTM state back to an episode's start (no state, ``episode_start`` set)."""
         self._state, self._start = None, np.ones((1,), dtype=bool)
 
     def act(self, obs: np.ndarray, env: Any) -> np.ndarray:
