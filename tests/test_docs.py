@@ -107,3 +107,54 @@ def test_readme_python_blocks_run(tmp_path, monkeypatch):
     for i, block in enumerate(blocks):
         with contextlib.redirect_stdout(io.StringIO()):
             exec(compile(block, f"README.md python block {i + 1}", "exec"), namespace)
+
+
+def _anchor(heading: str) -> str:
+    """GitHub's anchor of a Markdown heading: lower case, every character but letters, marks, digits, ``_``, ``-``
+    and spaces dropped, spaces turned to ``-`` (github-slugger's rule; repeats get ``-1``, ``-2``, ...)."""
+    import unicodedata
+
+    kept = (ch for ch in heading.strip().lower()
+            if ch in " -" or unicodedata.category(ch)[0] in "LMN" or unicodedata.category(ch) == "Pc")
+    return "".join(kept).replace(" ", "-")
+
+
+def results_contents(text: str) -> str:
+    """The contents list RESULTS.md should carry: its chapters (``#``) and sections (``##``, ``###``) outside code
+    blocks, as nested links, without the title and the contents heading itself (sections before the first chapter
+    stand at the top level)."""
+    lines, seen, code, chapter = [], {}, False, False
+    for line in text.splitlines():
+        if line.startswith("```"):
+            code = not code
+            continue
+        m = None if code else re.match(r"^(#{1,3}) (.*)$", line)
+        if not m:
+            continue
+        level, heading = len(m.group(1)), m.group(2).strip()
+        anchor = _anchor(heading)
+        repeat = seen.get(anchor, 0)
+        seen[anchor] = repeat + 1
+        if repeat:
+            anchor = f"{anchor}-{repeat}"
+        if (level, heading) in ((1, "haptic-recog results"), (2, "Contents")):
+            continue
+        chapter = chapter or level == 1
+        lines.append("  " * (level - 1 if chapter else 0) + f"- [{heading}](#{anchor})")
+    return "\n".join(lines)
+
+
+def test_anchor_follows_githubs_rule():
+    assert _anchor("kit8, experiment 2 for n = 2 and 5-10") == "kit8-experiment-2-for-n--2-and-5-10"
+    assert _anchor("Speed (`python benchmarks/bench_env.py`)") == "speed-python-benchmarksbench_envpy"
+    assert _anchor("Result bar (λ = 0.85, 4 fingers + normals)") == "result-bar-λ--085-4-fingers--normals"
+
+
+def test_results_contents_lists_every_section():
+    """RESULTS.md's "Contents" links every chapter and section, in order, to its heading (a section added, renamed
+    or moved without its entry fails here; the message holds the list to paste)."""
+    text = (ROOT / "RESULTS.md").read_text()
+    m = re.search(r"^## Contents\n\n(.*?)\n\n", text, flags=re.S | re.M)
+    assert m, "RESULTS.md has no '## Contents' section followed by a list"
+    expected = results_contents(text)
+    assert m.group(1) == expected, f"RESULTS.md's contents are out of date; they should read:\n\n{expected}\n"
