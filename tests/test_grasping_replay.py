@@ -177,3 +177,68 @@ def test_neighbours_draw_one_of_the_nearest_records(two_objects):
     for bad in (0, 13, True):
         with pytest.raises(ValueError, match="neighbours"):
             ReplayConfig(approaches=12, neighbours=bad)
+
+
+def _records(rng, A=200, n=4):
+    """Synthetic records of one object: approaches, contacts and touches (no physics), as ``records`` returns them."""
+    from scipy.spatial import cKDTree
+
+    actions = rng.uniform(-1, 1, (A, 4))
+    C = rng.normal(0.0, 0.05, (A, n, 3))
+    T = rng.random((A, n)) < 0.8
+    C[~T] = 0.0
+    return actions, (cKDTree(approach_embedding(actions)), C, np.zeros_like(C), T)
+
+
+def test_yaw_likelihood_peaks_at_the_yaw_that_turned_a_recorded_grasp():
+    """A recorded grasp turned by psi, along its approach turned by psi, fits the yaw psi best (the record itself at
+    distance 0); turning the query and the yaws together leaves the scores; a touch mismatch costs log(miss)."""
+    from haptic_env.grasping.replay import yaw_log_likelihood
+
+    rng = np.random.default_rng(0)
+    actions, rec = _records(rng)
+    yaws = np.arange(36) * 2 * np.pi / 36
+    i, j = 7, 20
+    psi = yaws[j]
+    a = actions[i].copy()
+    a[0] = np.mod(a[0] + psi / np.pi + 1.0, 2.0) - 1.0
+    c = rec[1][i] @ _yaw_pose(psi)[:3, :3].T
+    ll = yaw_log_likelihood(rec, a, c, rec[3][i], yaws, sigma=0.005, neighbours=1)
+    assert ll.shape == (36,) and int(np.argmax(ll)) == j
+    assert ll[j] == pytest.approx(3 * rec[3][i].sum() * -np.log(0.005))  # d = 0 at every touching finger
+    # the same grasp turned once more by 90 degrees is scored at the yaws turned by 90 degrees alike
+    turn = np.pi / 2
+    a2 = a.copy()
+    a2[0] = np.mod(a2[0] + turn / np.pi + 1.0, 2.0) - 1.0
+    ll2 = yaw_log_likelihood(rec, a2, c @ _yaw_pose(turn)[:3, :3].T, rec[3][i], yaws + turn, sigma=0.005,
+                             neighbours=1)
+    np.testing.assert_allclose(ll2, ll, atol=1e-9)
+    # a finger that touched in the record but not in the grasp: log(miss) instead of its Gaussian term
+    t = rec[3][i].copy()
+    f = int(np.flatnonzero(t)[0])
+    t[f] = False
+    ll3 = yaw_log_likelihood(rec, a, c, t, yaws, sigma=0.005, neighbours=1, miss=0.1)
+    assert ll3[j] == pytest.approx(ll[j] + np.log(0.005) * 3 + np.log(0.1))
+
+
+@pytest.mark.parametrize("bad, match", [
+    ({"action": np.zeros(3)}, "action must be 4 finite numbers"),
+    ({"action": np.array([0.0, np.nan, 0.0, 0.0])}, "action must be 4 finite numbers"),
+    ({"contacts": np.zeros((3, 3))}, r"contacts must be \(4, 3\)"),
+    ({"touched": np.ones(4)}, "touched must be a bool array"),
+    ({"yaws": np.array([])}, "yaws must be a non-empty 1-d array"),
+    ({"sigma": 0.0}, "sigma must be a finite number > 0, got 0.0"),
+    ({"sigma": "1"}, "sigma must be a finite number > 0"),
+    ({"miss": 0.0}, r"miss must be in \(0, 1\], got 0.0"),
+    ({"neighbours": 0}, r"neighbours must be an int in \[1, 200\], got 0"),
+    ({"neighbours": 2.0}, r"neighbours must be an int in \[1, 200\], got 2.0"),
+])
+def test_yaw_likelihood_bad_input(bad, match):
+    from haptic_env.grasping.replay import yaw_log_likelihood
+
+    _, rec = _records(np.random.default_rng(1))
+    args = {"action": np.zeros(4), "contacts": np.zeros((4, 3)), "touched": np.ones(4, dtype=bool),
+            "yaws": np.zeros(3), "sigma": 0.01, "neighbours": 4, "miss": 0.05}
+    args.update(bad)
+    with pytest.raises(ValueError, match=match):
+        yaw_log_likelihood(rec, args.pop("action"), args.pop("contacts"), args.pop("touched"), args.pop("yaws"), **args)

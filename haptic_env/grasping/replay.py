@@ -36,12 +36,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from haptic_env.numbers import checked_flag, whole_number
+from haptic_env.numbers import checked_flag, finite_number, whole_number
 
 from .base import (ACTION_DIM, GraspBatch, GraspResult, check_support, validate_action, validate_actions,
                    validate_pose)
 
-__all__ = ["ReplayConfig", "ReplayBackend", "approach_embedding"]
+__all__ = ["ReplayConfig", "ReplayBackend", "approach_embedding", "yaw_log_likelihood"]
 
 
 @dataclass(frozen=True)
@@ -83,6 +83,73 @@ def approach_embedding(actions: np.ndarray) -> np.ndarray:
     az, ro = np.pi * a[..., 0], np.pi * a[..., 2]
     return np.stack([np.cos(az) / np.pi, np.sin(az) / np.pi, a[..., 1],
                      np.cos(ro) / np.pi, np.sin(ro) / np.pi, a[..., 3]], axis=-1)
+
+
+def yaw_log_likelihood(records: tuple, action: np.ndarray, contacts: np.ndarray, touched: np.ndarray,
+                       yaws: np.ndarray, *, sigma: float = 0.007, neighbours: int = 32,
+                       miss: float = 0.05) -> np.ndarray:
+    """How well one world-frame grasp fits an object turned by each of ``yaws`` about the vertical: a kernel mixture
+    over the object's recorded grasps (the replay's physics, turned as :class:`ReplayBackend` turns them).
+
+    For yaw ``psi`` the grasp's approach in the object's frame is its azimuth less ``psi``; the ``neighbours``
+    recorded approaches nearest to it (:func:`approach_embedding`) give their contacts turned by ``psi``, and each
+    scores the grasp finger by finger: an isotropic Gaussian of std ``sigma`` (m) on the contact where both touch,
+    ``miss`` where one touches and the other does not, 1 where neither does. The result is the log of the mean score.
+    The object's position and its table are known (the "table-yaw" poses: a turn about the vertical through the
+    object's origin), so the contacts carry where the object's surface is, which the frame-invariant grasp vector
+    drops (``benchmarks/pose_information.py`` measures how much that is).
+
+    Args:
+        records: one object's ``(tree, contacts (A, n, 3), normals, touched (A, n))`` (:meth:`ReplayBackend.records`).
+        action: ``(4,)`` the grasp's approach in the world frame, in ``[-1, 1]``.
+        contacts: ``(n, 3)`` world-frame fingertip contacts (m); rows of fingers that did not touch are ignored.
+        touched: ``(n,)`` bool.
+        yaws: ``(Y,)`` the object's yaws to score (rad).
+        sigma, neighbours, miss: the kernel's std (m), the records per yaw, the score of a touch mismatch.
+
+    Returns:
+        ``(Y,)`` log-likelihoods, up to a constant shared by every object and yaw for the same grasp.
+
+    Raises:
+        ValueError: shapes that do not match the records, non-finite input, or settings out of range.
+    """
+    tree, C, _, T = records
+    n = C.shape[1]
+    a = np.asarray(action, dtype=np.float64)
+    c = np.asarray(contacts, dtype=np.float64)
+    t = np.asarray(touched)
+    psi = np.asarray(yaws, dtype=np.float64)
+    if a.shape != (ACTION_DIM,) or not np.all(np.isfinite(a)):
+        raise ValueError(f"action must be {ACTION_DIM} finite numbers, got {action!r}")
+    if c.shape != (n, 3) or not np.all(np.isfinite(c)):
+        raise ValueError(f"contacts must be ({n}, 3) finite numbers (the records' {n} fingers), got shape {c.shape}")
+    if t.shape != (n,) or t.dtype != bool:
+        raise ValueError(f"touched must be a bool array of shape ({n},), got {t.dtype} {t.shape}")
+    if psi.ndim != 1 or not psi.size or not np.all(np.isfinite(psi)):
+        raise ValueError(f"yaws must be a non-empty 1-d array of finite angles, got shape {psi.shape}")
+    s = finite_number(sigma)
+    if s is None or s <= 0:
+        raise ValueError(f"sigma must be a finite number > 0, got {sigma!r}")
+    m = finite_number(miss)
+    if m is None or not 0 < m <= 1:
+        raise ValueError(f"miss must be in (0, 1], got {miss!r}")
+    if whole_number(neighbours) is None or not 1 <= neighbours <= len(C):
+        raise ValueError(f"neighbours must be an int in [1, {len(C)}], got {neighbours!r}")
+    local = np.repeat(np.clip(a, -1.0, 1.0)[None], len(psi), axis=0)
+    local[:, 0] = np.mod(local[:, 0] - psi / np.pi + 1.0, 2.0) - 1.0
+    _, idx = tree.query(approach_embedding(local), k=int(neighbours))
+    idx = np.asarray(idx).reshape(len(psi), -1)  # (Y, k)
+    cos, sin = np.cos(psi), np.sin(psi)
+    Cr = C[idx]  # (Y, k, n, 3), the object's frame
+    x = cos[:, None, None] * Cr[..., 0] - sin[:, None, None] * Cr[..., 1]  # turned by psi
+    y = sin[:, None, None] * Cr[..., 0] + cos[:, None, None] * Cr[..., 1]
+    d2 = (x - c[:, 0]) ** 2 + (y - c[:, 1]) ** 2 + (Cr[..., 2] - c[:, 2]) ** 2
+    Tr = T[idx]  # (Y, k, n)
+    both = Tr & t
+    ll = np.where(both, -0.5 * d2 / s ** 2 - 3.0 * np.log(s), 0.0) + np.where(Tr != t, np.log(m), 0.0)
+    ll = ll.sum(axis=-1)  # (Y, k)
+    top = ll.max(axis=1)
+    return top + np.log(np.mean(np.exp(ll - top[:, None]), axis=1))
 
 
 def _yaw(T: np.ndarray) -> float:
