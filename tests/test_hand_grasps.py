@@ -205,3 +205,33 @@ def test_heights_information_benchmark_features(load_benchmark):
     assert "phi+approach" not in X3 and X3["phi+heights"].shape[1] == feature_dim(3, False) + 3
     acc = bench.one_shot((X, y), [(X, y)], "phi+heights")
     assert acc.shape == (1,) and acc[0] == 1.0  # its own grasps: distance-weighted neighbours are exact
+
+
+def test_pose_information_benchmark_scores_turned_pairs(load_benchmark):
+    """benchmarks/pose_information.py: each pair of a validation pool's grasps is turned by one yaw (contacts and
+    approach azimuth alike), and records that are the pool's own grasps identify the object and put the yaw posterior
+    on the turn (synthetic pool, distinct objects)."""
+    from scipy.spatial import cKDTree
+
+    from haptic_env.grasping.replay import approach_embedding
+    from haptic_env.hand_grasps import HandGraspPool, pool_actions
+
+    bench = load_benchmark("pose_information")
+    rng = np.random.default_rng(0)
+    C = rng.normal(0, 0.04, (2, 12, 4, 3))
+    C[1] += [0.1, 0.0, 0.05]  # the second object's contacts sit elsewhere
+    T = np.ones((2, 12, 4), dtype=bool)
+    pool = HandGraspPool(C, np.zeros_like(C), T, ("a", "b"), "generic", 0.0)
+    pairs = list(bench.turned_queries(pool, 7, 1, np.random.default_rng(3)))
+    assert len(pairs) == 6
+    psi, ((a0, c0, t0), (a1, c1, t1)) = pairs[0]
+    acts = pool_actions(7, 1, 12)
+    R = np.array([[np.cos(psi), -np.sin(psi), 0], [np.sin(psi), np.cos(psi), 0], [0, 0, 1]])
+    np.testing.assert_allclose(c0, C[1, 0] @ R.T)
+    np.testing.assert_allclose(c1, C[1, 1] @ R.T)
+    np.testing.assert_allclose(np.mod(a0[0] - acts[0, 0] - psi / np.pi + 1.0, 2.0) - 1.0, 0.0, atol=1e-12)
+    np.testing.assert_array_equal(a0[1:], acts[0, 1:])
+    records = [(cKDTree(approach_embedding(pool_actions(7, k, 12))), C[k], np.zeros_like(C[k]), T[k]) for k in (0, 1)]
+    out = bench.score_pool(records, pool, 7, np.arange(360) * np.pi / 180, 0.005, 1)
+    assert out["one"] == out["one_complete"] == out["naive2"] == out["joint2"] == 1.0
+    assert out["mass2"].shape == (2,) and np.all(out["mass2"] > 0.9)
