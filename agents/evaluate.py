@@ -587,8 +587,9 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False):
     * ``random``;
     * ``greedy[:<n_candidates>]``, or ``greedy-env[:<n_candidates>]`` (the look-ahead simulates the env's own
       backend, e.g. the MuJoCo hand); a ``-blind`` suffix (``greedy-blind``, ``greedy-env-blind``) hides the
-      object's pose from the look-ahead (``pose_known=False``); ``:M:S`` sets ``S`` samples per candidate (blind:
-      ``S`` poses);
+      object's pose from the look-ahead (``pose_known=False``), and ``-infer`` (``greedy-env-infer``) hides it too
+      but draws the look-ahead's poses from the yaw posterior of the episode's grasps (``infer_pose=True``, the hand
+      envs); ``:M:S`` sets ``S`` samples per candidate (blind and infer: ``S`` poses);
     * ``<name>=<model.zip>``: PPO / SAC / recurrent PPO, the algorithm from the file name or from a name ``ppo``,
       ``sac`` or ``rppo``.
 
@@ -603,13 +604,14 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False):
 
         kind, _, rest = spec.partition(":")
         m, _, samples = rest.partition(":")
-        if kind not in ("greedy", "greedy-env", "greedy-blind", "greedy-env-blind"):
-            raise ValueError(f"unknown agent spec {spec!r}; use greedy[-env][-blind][:M[:S]]")
+        if kind not in ("greedy", "greedy-env", "greedy-blind", "greedy-env-blind", "greedy-env-infer"):
+            raise ValueError(f"unknown agent spec {spec!r}; use greedy[-env][-blind][:M[:S]] or "
+                             "greedy-env-infer[:M[:S]]")
         if not all(v.isdigit() for v in (m, samples) if v):
             raise ValueError(f"agent spec {spec!r}: M and S must be whole numbers (greedy[-env][-blind][:M[:S]])")
         agent = GreedyInfoGainAgent(n_candidates=int(m) if m else 16, n_samples=int(samples) if samples else 1, seed=seed,
                                     simulate="env" if kind.startswith("greedy-env") else "geometric",
-                                    pose_known=not kind.endswith("-blind"))
+                                    pose_known=kind.endswith(("greedy", "-env")), infer_pose=kind.endswith("-infer"))
         agent.name = spec
         return agent
     if "=" in spec or spec.endswith(".zip"):
@@ -620,7 +622,8 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False):
         agent = SB3Agent.from_path(path, algo=algo, name=f"{name}-stochastic" if stochastic else name)
         agent.deterministic = not stochastic
         return agent
-    raise ValueError(f"unknown agent spec {spec!r}; use random, greedy[-env][-blind][:M[:S]] or NAME=path/to/model.zip")
+    raise ValueError(f"unknown agent spec {spec!r}; use random, greedy[-env][-blind|-infer][:M[:S]] or "
+                     "NAME=path/to/model.zip")
 
 
 def code_fingerprint() -> str:
@@ -660,8 +663,9 @@ def add_parser(subparsers) -> None:
     p = subparsers.add_parser("evaluate", help="evaluate agents on HapticRecog (table + plots)",
                               description=__doc__.split("\n\n")[0])
     p.add_argument("--agents", nargs="+", default=["random", "greedy"],
-                   help="random | greedy[-env][-blind][:M[:S]] (-env: look-ahead with the env's own backend; -blind: "
-                        "without the object's pose) | "
+                   help="random | greedy[-env][-blind|-infer][:M[:S]] (-env: look-ahead with the env's own backend; "
+                        "-blind: without the object's pose; -infer: the pose drawn from the yaw posterior of the "
+                        "episode's grasps, greedy-env-infer on the hand envs) | "
                         "NAME=model.zip (ppo=..., sac=..., rppo=...)")
     p.add_argument("--episodes", type=int_in(1), default=40, help="episodes per seed")
     p.add_argument("--seeds", type=int_in(0), nargs="+", default=list(ENV_TEST_SEEDS))

@@ -20,7 +20,12 @@ Approximations (documented, deliberate):
   re-places every hypothesis at a fresh pose from the env's pose distribution (``config.pose``, the agent's own
   generator), so the expected entropy averages over where the object might be turned and the look-ahead knows no
   more about the pose than a learned policy (the grasp vector is frame-invariant); this measures how much of the
-  greedy gain is the privileged pose;
+  greedy gain is the privileged pose; ``infer_pose=True`` (with ``pose_known=False``) draws those poses from each
+  hypothesis's posterior over the yaw instead, given the episode's grasps so far: their world-frame contacts
+  scored by :func:`haptic_env.grasping.replay.yaw_log_likelihood` against the hand's recorded grasps (the replay
+  pool of the env's hand, no robot data), on a grid of ``yaw_bins`` yaws. It needs the envs' upright poses
+  (``pose="table-yaw"``) and a hand backend (``mujoco`` or ``replay``): what a pose-blind policy could learn to read
+  from the contacts, as a reference between the blind and the privileged look-ahead;
 * the per-episode random scale (``scale_range``) is ignored (hypotheses at scale 1);
 * ``simulate="geometric"`` (default): the simulation uses the geometric backend, even when the env uses another
   backend (the mujoco hand's contacts differ from the simulated ones, so on a hand env the look-ahead does not know
@@ -52,7 +57,7 @@ class GreedyInfoGainAgent:
 
     def __init__(self, n_candidates: int = 16, n_samples: int = 1, min_weight: float = 1e-3,
                  seed: int | None = None, backend_kwargs: dict[str, Any] | None = None, simulate: str = "geometric",
-                 pose_known: bool = True):
+                 pose_known: bool = True, infer_pose: bool = False, yaw_bins: int = 72):
         for name, v in (("n_candidates", n_candidates), ("n_samples", n_samples)):
             whole_at_least(v, 1, name)  # 2.7 is not cut to 2, nor True taken as 1
         if simulate not in ("geometric", "env"):
@@ -61,6 +66,11 @@ class GreedyInfoGainAgent:
             raise ValueError("backend_kwargs applies to simulate='geometric' only; simulate='env' uses the env's own")
         self.simulate = simulate
         self.pose_known = checked_flag(pose_known, "pose_known", "True or False")
+        self.infer_pose = checked_flag(infer_pose, "infer_pose", "True or False")
+        if self.infer_pose and self.pose_known:
+            raise ValueError("infer_pose=True draws the poses the look-ahead does not know: it needs pose_known=False")
+        whole_at_least(yaw_bins, 4, "yaw_bins")
+        self.yaws = np.arange(int(yaw_bins)) * 2.0 * np.pi / int(yaw_bins)
         w = finite_number(min_weight)
         if w is None or not 0 <= w < 1:
             raise ValueError(f"min_weight must be in [0, 1), got {min_weight!r}")
@@ -72,6 +82,9 @@ class GreedyInfoGainAgent:
         self._backends: list[Any] | None = None
         self._env_id: int | None = None
         self.last_scores: np.ndarray | None = None  #: expected posterior entropy of each candidate, last step
+        self._records: list[tuple] | None = None  # infer_pose: each object's recorded grasps
+        self._yaw_log: np.ndarray | None = None  # infer_pose: (K, yaw_bins) log-likelihood of the episode's grasps
+        self._scored = 0  # infer_pose: grasps of the episode in _yaw_log
 
     def _sim_backends(self, base) -> list[Any]:
         if self._backends is None or self._env_id != id(base):
@@ -86,7 +99,29 @@ class GreedyInfoGainAgent:
                     kw = dict(cfg.backend_kwargs) if cfg.backend == "geometric" else {}
             self._backends = [make_backend(kind, n_fingers=cfg.n_fingers, **kw) for _ in base.objects]
             self._env_id = id(base)
+            self._records = None
         return self._backends
+
+    def _pose_records(self, base) -> list[tuple]:
+        """infer_pose: the recorded grasps of every object by the env's hand (the replay pool, cached on disk)."""
+        if self._records is None:
+            from haptic_env.grasping.replay import ReplayBackend, ReplayConfig
+
+            cfg = base.config
+            if cfg.pose != "table-yaw" or cfg.backend not in ("mujoco", "replay"):
+                raise ValueError("infer_pose needs the upright poses of a hand env (pose='table-yaw', backend 'mujoco' "
+                                 f"or 'replay'), got pose={cfg.pose!r}, backend={cfg.backend!r}")
+            kw = dict(cfg.backend_kwargs)
+            hand = kw.get("hand", "generic")
+            if not isinstance(hand, str):
+                raise ValueError(f"infer_pose needs a hand given by name or MJCF path, got {hand!r}")
+            # a replay env's own records (its approaches and pool), else the replay's defaults for the env's hand
+            own = {k: kw[k] for k in ("approaches", "pool_seed") if cfg.backend == "replay" and k in kw}
+            replay = ReplayBackend(ReplayConfig(hand=hand, n_fingers=cfg.n_fingers, support=kw.get("support", "table"),
+                                                **own))
+            replay.prepare(base.objects)
+            self._records = [replay.records(o) for o in base.objects]
+        return self._records
 
     def reset(self, env: Any, seed: int | None = None) -> None:
         if seed is not None:
@@ -100,6 +135,10 @@ class GreedyInfoGainAgent:
             pose = random_pose(self._rng, base.config.pose)
         for obj, backend in zip(base.objects, self._sim_backends(base)):
             backend.set_object(obj, pose)
+        if self.infer_pose:
+            self._pose_records(base)
+            self._yaw_log = np.zeros((len(base.objects), len(self.yaws)))
+            self._scored = 0
         # each hypothesis's table height at that pose: its simulated contacts are measured from it (grasp_heights)
         self._support_z = [base.scene.support_height(k, pose) for k in range(len(base.objects))]
 
@@ -109,6 +148,8 @@ class GreedyInfoGainAgent:
             self.reset(env)
         space = env.action_space
         M, S = self.n_candidates, self.n_samples
+        if self.infer_pose:
+            self._score_yaws(base)
         cands = self._rng.uniform(space.low, space.high, size=(M,) + space.shape)
         belief = base.belief_state  # the env's Belief: predictions only, its state is not changed
         b = np.asarray(belief.probs, dtype=np.float64)
@@ -135,6 +176,35 @@ class GreedyInfoGainAgent:
         self.last_scores = expected
         return cands[int(np.argmin(expected))].astype(space.dtype)
 
+    def _score_yaws(self, base) -> None:
+        """Add the episode's latest grasp, if not yet scored, to every hypothesis's yaw log-likelihood (the agent acts
+        once per step and is reset for every episode, as every agent is)."""
+        from haptic_env.grasping.replay import yaw_log_likelihood
+
+        if base.grasp_count == self._scored or base.last_grasp is None:
+            return
+        g, a = base.last_grasp, base.task.last_action
+        touched = np.asarray(g.touched, dtype=bool)
+        for k, rec in enumerate(self._pose_records(base)):
+            self._yaw_log[k] += yaw_log_likelihood(rec, a, np.asarray(g.contacts, dtype=np.float64), touched,
+                                                   self.yaws)
+        self._scored = base.grasp_count
+
+    def _pose_sample(self, base, k: int) -> np.ndarray:
+        """A pose of hypothesis ``k`` the look-ahead does not know: from the env's pose distribution, or
+        (``infer_pose``) a yaw from its posterior given the episode's grasps (a bin, then uniform within it)."""
+        from haptic_env.scene import random_pose
+
+        if not self.infer_pose:
+            return random_pose(self._rng, base.config.pose)
+        lp = self._yaw_log[k]
+        p = np.exp(lp - lp.max())
+        width = 2.0 * np.pi / len(self.yaws)
+        psi = self.yaws[self._rng.choice(len(p), p=p / p.sum())] + self._rng.uniform(-0.5, 0.5) * width
+        T = np.eye(4)
+        T[:2, :2] = [[np.cos(psi), -np.sin(psi)], [np.sin(psi), np.cos(psi)]]
+        return T
+
     def _grasp(self, base, k: int, acts: np.ndarray):
         """Simulated grasps of hypothesis ``k`` for ``acts (M*S, A)`` (each candidate repeated ``S`` times, rows kept in
         that order): at the known pose, or (``pose_known=False``) sample ``s`` of every candidate at the ``s``-th
@@ -143,14 +213,13 @@ class GreedyInfoGainAgent:
         if self.pose_known:
             return backend.grasp_batch(acts, self._rng)
         from haptic_env.grasping.base import GraspBatch
-        from haptic_env.scene import random_pose
 
         S = self.n_samples
         cands = acts[::S]  # (M, A): each candidate once
         M = len(cands)
         parts = []
         for _ in range(S):
-            backend.set_object(base.objects[k], random_pose(self._rng, base.config.pose))
+            backend.set_object(base.objects[k], self._pose_sample(base, k))
             parts.append(backend.grasp_batch(cands, self._rng))
         order = np.arange(M * S).reshape(S, M).T.ravel()  # (s, m) blocks -> row m*S + s
         fields = {}

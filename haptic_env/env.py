@@ -228,6 +228,12 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     def grasp_count(self) -> int:
         return self._grasps
 
+    @property
+    def last_grasp(self):
+        """The latest step's grasp result of the backend (world frame: ``contacts``, ``touched``, ...; its action is
+        ``task.last_action``), None before an episode's first step; read-only use, please."""
+        return self._last_result
+
     # ------------------------------------------------------------------------------- gym API
     def __setstate__(self, state):
         super().__setstate__(state)  # EzPickle: a new env from the constructor arguments

@@ -467,3 +467,55 @@ def test_evaluate_blocks_are_keyed_by_the_code_that_played_them(tmp_path, monkey
         with pytest.raises(Stop):
             main(argv)
     assert seen[0] == seen[1] != seen[2]
+
+
+def test_greedy_infer_pose_scores_the_episodes_grasps_for_the_yaw(env_config, small_recognizer_kwargs):
+    """greedy-env-infer: the look-ahead's poses are drawn from each hypothesis's yaw posterior, which sums the
+    replay likelihood of every grasp of the episode so far (one per step) and starts again at a reset. It needs
+    a hand env's upright poses; bad settings fail at construction or reset, naming what is wrong."""
+    from agents.evaluate import make_agent
+    from haptic_env.env import HapticRecogConfig, HapticRecogEnv
+    from haptic_env.grasping.replay import yaw_log_likelihood
+
+    agent = make_agent("greedy-env-infer:4:2", seed=0)
+    assert agent.infer_pose and not agent.pose_known and (agent.n_candidates, agent.n_samples) == (4, 2)
+    with pytest.raises(ValueError, match="infer_pose=True draws the poses the look-ahead does not know"):
+        GreedyInfoGainAgent(infer_pose=True)
+    with pytest.raises(ValueError, match="yaw_bins must be"):
+        GreedyInfoGainAgent(pose_known=False, infer_pose=True, yaw_bins=2)
+    geometric = haptic_env.make(env_config)
+    geometric.reset(seed=0)
+    with pytest.raises(ValueError, match="infer_pose needs the upright poses of a hand env .* backend='geometric'"):
+        GreedyInfoGainAgent(pose_known=False, infer_pose=True).reset(geometric)
+    cfg = HapticRecogConfig(backend="replay", backend_kwargs={"hand": "generic", "approaches": 40, "progress": False},
+                            recognizer_source="surface", recognizer_kwargs=small_recognizer_kwargs, max_grasps=3,
+                            threshold=0.999)
+    env = HapticRecogEnv(cfg)
+    try:
+        obs, _ = env.reset(seed=3)
+        agent = GreedyInfoGainAgent(n_candidates=3, n_samples=2, seed=0, simulate="env", pose_known=False,
+                                    infer_pose=True, yaw_bins=24)
+        agent.reset(env, seed=0)
+        records = agent._pose_records(env)
+        assert len(records) == len(env.objects) and len(records[0][1]) == 40  # the env's own 40 records
+        expected = np.zeros((len(env.objects), 24))
+        for step in range(2):
+            a = agent.act(obs, env)
+            assert agent._scored == step and np.allclose(agent._yaw_log, expected)
+            obs, *_ = env.step(a)
+            g = env.last_grasp
+            expected += [yaw_log_likelihood(r, env.task.last_action, g.contacts, np.asarray(g.touched, dtype=bool),
+                                            agent.yaws) for r in records]
+        agent.act(obs, env)
+        assert agent._scored == 2
+        np.testing.assert_allclose(agent._yaw_log, expected)
+        T = agent._pose_sample(env, 0)  # a turn about the vertical, no translation
+        np.testing.assert_allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-12)
+        assert T[2, 2] == 1.0 and not T[:3, 3].any()
+        obs, _ = env.reset(seed=4)  # a new episode: its grasps count from zero
+        agent.reset(env)
+        agent.act(obs, env)
+        assert agent._scored == 0 and not agent._yaw_log.any()
+    finally:
+        env.close()
+        geometric.close()
