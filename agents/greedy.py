@@ -70,7 +70,7 @@ class GreedyInfoGainAgent:
         if self.infer_pose and self.pose_known:
             raise ValueError("infer_pose=True draws the poses the look-ahead does not know: it needs pose_known=False")
         whole_at_least(yaw_bins, 4, "yaw_bins")
-        self.yaws = np.arange(int(yaw_bins)) * 2.0 * np.pi / int(yaw_bins)
+        self.yaw_bins = int(yaw_bins)
         w = finite_number(min_weight)
         if w is None or not 0 <= w < 1:
             raise ValueError(f"min_weight must be in [0, 1), got {min_weight!r}")
@@ -82,9 +82,7 @@ class GreedyInfoGainAgent:
         self._backends: list[Any] | None = None
         self._env_id: int | None = None
         self.last_scores: np.ndarray | None = None  #: expected posterior entropy of each candidate, last step
-        self._records: list[tuple] | None = None  # infer_pose: each object's recorded grasps
-        self._yaw_log: np.ndarray | None = None  # infer_pose: (K, yaw_bins) log-likelihood of the episode's grasps
-        self._scored = 0  # infer_pose: grasps of the episode in _yaw_log
+        self.yaw_belief = None  #: infer_pose: the episode's :class:`~haptic_env.grasping.replay.YawBelief`
 
     def _sim_backends(self, base) -> list[Any]:
         if self._backends is None or self._env_id != id(base):
@@ -99,29 +97,15 @@ class GreedyInfoGainAgent:
                     kw = dict(cfg.backend_kwargs) if cfg.backend == "geometric" else {}
             self._backends = [make_backend(kind, n_fingers=cfg.n_fingers, **kw) for _ in base.objects]
             self._env_id = id(base)
-            self._records = None
+            self.yaw_belief = None
         return self._backends
 
-    def _pose_records(self, base) -> list[tuple]:
-        """infer_pose: the recorded grasps of every object by the env's hand (the replay pool, cached on disk)."""
-        if self._records is None:
-            from haptic_env.grasping.replay import ReplayBackend, ReplayConfig
-
-            cfg = base.config
-            if cfg.pose != "table-yaw" or cfg.backend not in ("mujoco", "replay"):
-                raise ValueError("infer_pose needs the upright poses of a hand env (pose='table-yaw', backend 'mujoco' "
-                                 f"or 'replay'), got pose={cfg.pose!r}, backend={cfg.backend!r}")
-            kw = dict(cfg.backend_kwargs)
-            hand = kw.get("hand", "generic")
-            if not isinstance(hand, str):
-                raise ValueError(f"infer_pose needs a hand given by name or MJCF path, got {hand!r}")
-            # a replay env's own records (its approaches and pool), else the replay's defaults for the env's hand
-            own = {k: kw[k] for k in ("approaches", "pool_seed") if cfg.backend == "replay" and k in kw}
-            replay = ReplayBackend(ReplayConfig(hand=hand, n_fingers=cfg.n_fingers, support=kw.get("support", "table"),
-                                                **own))
-            replay.prepare(base.objects)
-            self._records = [replay.records(o) for o in base.objects]
-        return self._records
+    def _yaw_belief(self, base):
+        """infer_pose: the yaw belief over the recorded grasps of every object by the env's hand (the replay pool,
+        cached on disk)."""
+        if self.yaw_belief is None:
+            self.yaw_belief = base.scene.yaw_belief(self.yaw_bins)
+        return self.yaw_belief
 
     def reset(self, env: Any, seed: int | None = None) -> None:
         if seed is not None:
@@ -136,9 +120,7 @@ class GreedyInfoGainAgent:
         for obj, backend in zip(base.objects, self._sim_backends(base)):
             backend.set_object(obj, pose)
         if self.infer_pose:
-            self._pose_records(base)
-            self._yaw_log = np.zeros((len(base.objects), len(self.yaws)))
-            self._scored = 0
+            self._yaw_belief(base).reset()
         # each hypothesis's table height at that pose: its simulated contacts are measured from it (grasp_heights)
         self._support_z = [base.scene.support_height(k, pose) for k in range(len(base.objects))]
 
@@ -149,7 +131,10 @@ class GreedyInfoGainAgent:
         space = env.action_space
         M, S = self.n_candidates, self.n_samples
         if self.infer_pose:
-            self._score_yaws(base)
+            yb = self._yaw_belief(base)
+            if base.grasp_count > yb.grasps and base.last_grasp is not None:  # the latest grasp (one per step)
+                g = base.last_grasp
+                yb.add(base.last_approach, g.contacts, np.asarray(g.touched, dtype=bool))
         cands = self._rng.uniform(space.low, space.high, size=(M,) + space.shape)
         belief = base.belief_state  # the env's Belief: predictions only, its state is not changed
         b = np.asarray(belief.probs, dtype=np.float64)
@@ -176,20 +161,6 @@ class GreedyInfoGainAgent:
         self.last_scores = expected
         return cands[int(np.argmin(expected))].astype(space.dtype)
 
-    def _score_yaws(self, base) -> None:
-        """Add the episode's latest grasp, if not yet scored, to every hypothesis's yaw log-likelihood (the agent acts
-        once per step and is reset for every episode, as every agent is)."""
-        from haptic_env.grasping.replay import yaw_log_likelihood
-
-        if base.grasp_count == self._scored or base.last_grasp is None:
-            return
-        g, a = base.last_grasp, base.task.last_action
-        touched = np.asarray(g.touched, dtype=bool)
-        for k, rec in enumerate(self._pose_records(base)):
-            self._yaw_log[k] += yaw_log_likelihood(rec, a, np.asarray(g.contacts, dtype=np.float64), touched,
-                                                   self.yaws)
-        self._scored = base.grasp_count
-
     def _pose_sample(self, base, k: int) -> np.ndarray:
         """A pose of hypothesis ``k`` the look-ahead does not know: from the env's pose distribution, or
         (``infer_pose``) a yaw from its posterior given the episode's grasps (a bin, then uniform within it)."""
@@ -197,10 +168,7 @@ class GreedyInfoGainAgent:
 
         if not self.infer_pose:
             return random_pose(self._rng, base.config.pose)
-        lp = self._yaw_log[k]
-        p = np.exp(lp - lp.max())
-        width = 2.0 * np.pi / len(self.yaws)
-        psi = self.yaws[self._rng.choice(len(p), p=p / p.sum())] + self._rng.uniform(-0.5, 0.5) * width
+        psi = self.yaw_belief.sample(k, self._rng)
         T = np.eye(4)
         T[:2, :2] = [[np.cos(psi), -np.sin(psi)], [np.sin(psi), np.cos(psi)]]
         return T

@@ -26,13 +26,15 @@ from haptic_env.scene import POSE_MODES
 from haptic_env.task import REWARD_KINDS
 
 __all__ = ["HapticRecogConfig", "recognizer_kwargs", "RECOGNIZER_SOURCES", "HAND_APPROACHES", "KDE_METHODS",
-           "HAND_BACKENDS"]
+           "HAND_BACKENDS", "ACTION_FRAMES"]
 
 RECOGNIZER_SOURCES = ("auto", "hand", "geometric", "surface")
 #: How the env's belief update may evaluate the KDE (``KDEConfig.method``).
 KDE_METHODS = ("pooled", "tree", "dense")
 #: Backends whose grasps are a MuJoCo hand's (``backend_kwargs["hand"]``): the physics, or its recorded grasps.
 HAND_BACKENDS = ("mujoco", "replay")
+#: Frames of the action's azimuth (``HapticRecogConfig.action_frame``).
+ACTION_FRAMES = ("world", "estimated")
 #: Random approaches per object of the default ``"hand"`` training grasps.
 HAND_APPROACHES = 3_000
 
@@ -146,6 +148,13 @@ class HapticRecogConfig:
     normals (``"contact_normals"``, ``3n``) in the world frame to the observation; 0 for fingers that did not touch.
     A kinesthetic hand knows where its fingertips stopped, and where they stopped tells a policy where the object's
     surface is, i.e. its pose, which the frame-invariant grasp vector hides. False: the paper's observation."""
+    action_frame: str = "world"
+    """The frame of the action's azimuth: the world's (``"world"``), or the estimated frame of the most probable
+    object (``"estimated"``: the azimuth is turned by that object's most probable yaw given the episode's grasps, a
+    :class:`~haptic_env.grasping.replay.YawBelief` over the hand's recorded grasps of the meshes, the replay pool),
+    so that a policy can aim at a part of an object whose yaw the grasps have told. Needs ``pose="table-yaw"`` and a
+    hand backend ("mujoco" or "replay"); the first ``make`` also records the replay pool if it is not cached.
+    ``"world"``: the paper's setting."""
     recognizer_kwargs: Mapping[str, Any] = field(default_factory=dict)
     """Extra keyword arguments of :func:`haptic_env.recognizers.build_recognizer`, e.g.
     ``{"config": RecognizerConfig(grasps=DatasetConfig(grasps_per_object=5000))}``; ``config`` may also be a
@@ -199,6 +208,12 @@ class HapticRecogConfig:
                              f"(pose='table-yaw', support 'table'), got pose={self.pose!r}, support="
                              f"{dict(self.backend_kwargs).get('support', 'table')!r}")
         check_normal_axis(self.normal_axis)
+        if self.action_frame not in ACTION_FRAMES:
+            raise ValueError(f"action_frame must be one of {ACTION_FRAMES}, got {self.action_frame!r}")
+        if self.action_frame == "estimated" and (self.pose != "table-yaw" or self.backend not in HAND_BACKENDS):
+            raise ValueError("action_frame='estimated' needs a hand backend and objects turned about the vertical only "
+                             f"(pose='table-yaw', backend 'mujoco' or 'replay'), got pose={self.pose!r}, "
+                             f"backend={self.backend!r}")
         if self.kde_method not in KDE_METHODS:
             raise ValueError(f"kde_method must be 'pooled', 'tree' or 'dense', got {self.kde_method!r}")
         for name in ("recognizer_kwargs", "object_kwargs", "backend_kwargs"):

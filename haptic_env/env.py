@@ -55,7 +55,9 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     defined by the backend; every backend takes ``A = 4``: approach azimuth, elevation (upper hemisphere with
     ``support="table"``), roll of the hand about the approach axis, finger spread (see
     :mod:`haptic_env.grasping.base`). Actions outside ``[-1, 1]``, of the wrong shape or non-finite raise
-    ``ValueError``.
+    ``ValueError``. With ``action_frame="estimated"`` (hand envs) the azimuth is read in the most probable object's
+    estimated frame: turned by that object's most probable yaw given the episode's grasps (:attr:`last_approach`
+    is the approach as executed).
 
     ## Observation Space
     ``Box(float32)`` of length ``d + n + 1 + K + A + 1`` (``env.observation_structure`` gives each part's
@@ -185,6 +187,8 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         self._grasps = 0
         self._episode_over = False
         self._last_result = None
+        self._last_approach: np.ndarray | None = None
+        self._yaw_belief = None  # action_frame="estimated": built on the first reset (may record the replay pool)
         self._fig = None
 
     # ----------------------------------------------------------------------------- properties
@@ -230,9 +234,15 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
 
     @property
     def last_grasp(self):
-        """The latest step's grasp result of the backend (world frame: ``contacts``, ``touched``, ...; its action is
-        ``task.last_action``), None before an episode's first step; read-only use, please."""
+        """The latest step's grasp result of the backend (world frame: ``contacts``, ``touched``, ...; its approach is
+        :attr:`last_approach`), None before an episode's first step; read-only use, please."""
         return self._last_result
+
+    @property
+    def last_approach(self) -> np.ndarray | None:
+        """The world-frame approach of the latest grasp (a copy; None before an episode's first step): the action as
+        executed, turned by the estimated yaw with ``action_frame="estimated"``."""
+        return None if self._last_approach is None else self._last_approach.copy()
 
     # ------------------------------------------------------------------------------- gym API
     def __setstate__(self, state):
@@ -248,7 +258,11 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         self._probs = self._belief.reset(support_z=self.scene.support_z)
         self._grasps = 0
         self._episode_over = False
-        self._last_result = None
+        self._last_result = self._last_approach = None
+        if self.config.action_frame == "estimated":
+            if self._yaw_belief is None:
+                self._yaw_belief = self.scene.yaw_belief()
+            self._yaw_belief.reset()
         self.task.reset()
         if self.render_mode == "human":
             self.render()
@@ -264,8 +278,15 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
                                f"truncated at max_grasps={self.config.max_grasps}); call reset() before step()")
         a = self._check_action(action)
         old = self._probs
-        result, contacts, normals, touched = self.scene.grasp(a)
-        self._last_result = result
+        approach = a
+        if self._yaw_belief is not None:  # the azimuth in the most probable object's estimated frame
+            approach = a.copy()
+            psi = self._yaw_belief.mode(int(np.argmax(self._probs)))
+            approach[0] = np.mod(a[0] + psi / np.pi + 1.0, 2.0) - 1.0
+        result, contacts, normals, touched = self.scene.grasp(approach)
+        if self._yaw_belief is not None:
+            self._yaw_belief.add(approach, contacts, touched)
+        self._last_result, self._last_approach = result, approach
         self._grasps += 1
         q, usable = self._belief.update(contacts, normals, touched)
         self._probs = self._belief.probs

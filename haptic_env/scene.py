@@ -170,6 +170,28 @@ class Scene:
             normals = np.asarray(normals, dtype=np.float64)
         return result, contacts, normals, touched
 
+    def yaw_belief(self, bins: int = 72):
+        """A :class:`~haptic_env.grasping.replay.YawBelief` over the objects' recorded grasps by the env's hand: the
+        replay pool (cached on disk; recorded first if not), a replay env's own (its ``approaches`` and
+        ``pool_seed``). It needs a hand backend and objects turned about the vertical only (a ``ValueError`` naming
+        the setting otherwise)."""
+        from haptic_env.config import HAND_BACKENDS
+        from haptic_env.grasping.replay import ReplayBackend, ReplayConfig, YawBelief
+
+        cfg = self.config
+        if cfg.pose != "table-yaw" or cfg.backend not in HAND_BACKENDS:
+            raise ValueError("a yaw belief needs the upright poses of a hand env (pose='table-yaw', backend 'mujoco' "
+                             f"or 'replay'), got pose={cfg.pose!r}, backend={cfg.backend!r}")
+        kw = dict(cfg.backend_kwargs)
+        hand = kw.get("hand", "generic")
+        if not isinstance(hand, str):
+            raise ValueError(f"a yaw belief needs a hand given by name or MJCF path, got {hand!r}")
+        own = {k: kw[k] for k in ("approaches", "pool_seed") if cfg.backend == "replay" and k in kw}
+        replay = ReplayBackend(ReplayConfig(hand=hand, n_fingers=cfg.n_fingers, support=kw.get("support", "table"),
+                                            **own))
+        replay.prepare(self.objects)
+        return YawBelief([replay.records(o) for o in self.objects], bins)
+
     def render(self) -> np.ndarray:
         return np.asarray(self.backend.render())
 

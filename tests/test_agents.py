@@ -485,7 +485,7 @@ def test_greedy_infer_pose_scores_the_episodes_grasps_for_the_yaw(env_config, sm
         GreedyInfoGainAgent(pose_known=False, infer_pose=True, yaw_bins=2)
     geometric = haptic_env.make(env_config)
     geometric.reset(seed=0)
-    with pytest.raises(ValueError, match="infer_pose needs the upright poses of a hand env .* backend='geometric'"):
+    with pytest.raises(ValueError, match="a yaw belief needs the upright poses of a hand env .* backend='geometric'"):
         GreedyInfoGainAgent(pose_known=False, infer_pose=True).reset(geometric)
     cfg = HapticRecogConfig(backend="replay", backend_kwargs={"hand": "generic", "approaches": 40, "progress": False},
                             recognizer_source="surface", recognizer_kwargs=small_recognizer_kwargs, max_grasps=3,
@@ -496,26 +496,29 @@ def test_greedy_infer_pose_scores_the_episodes_grasps_for_the_yaw(env_config, sm
         agent = GreedyInfoGainAgent(n_candidates=3, n_samples=2, seed=0, simulate="env", pose_known=False,
                                     infer_pose=True, yaw_bins=24)
         agent.reset(env, seed=0)
-        records = agent._pose_records(env)
+        yb = agent.yaw_belief
+        records = yb.records
         assert len(records) == len(env.objects) and len(records[0][1]) == 40  # the env's own 40 records
         expected = np.zeros((len(env.objects), 24))
         for step in range(2):
             a = agent.act(obs, env)
-            assert agent._scored == step and np.allclose(agent._yaw_log, expected)
+            assert yb.grasps == step
+            np.testing.assert_allclose([yb.log_likelihood(k) for k in range(len(records))], expected)
             obs, *_ = env.step(a)
             g = env.last_grasp
-            expected += [yaw_log_likelihood(r, env.task.last_action, g.contacts, np.asarray(g.touched, dtype=bool),
-                                            agent.yaws) for r in records]
+            np.testing.assert_array_equal(env.last_approach, env.task.last_action)  # the world frame: as given
+            expected += [yaw_log_likelihood(r, env.last_approach, g.contacts, np.asarray(g.touched, dtype=bool),
+                                            yb.yaws) for r in records]
         agent.act(obs, env)
-        assert agent._scored == 2
-        np.testing.assert_allclose(agent._yaw_log, expected)
+        assert yb.grasps == 2
+        np.testing.assert_allclose([yb.log_likelihood(k) for k in range(len(records))], expected)
         T = agent._pose_sample(env, 0)  # a turn about the vertical, no translation
         np.testing.assert_allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-12)
         assert T[2, 2] == 1.0 and not T[:3, 3].any()
         obs, _ = env.reset(seed=4)  # a new episode: its grasps count from zero
         agent.reset(env)
         agent.act(obs, env)
-        assert agent._scored == 0 and not agent._yaw_log.any()
+        assert agent.yaw_belief is yb and yb.grasps == 0 and not yb.log_likelihood(0).any()
     finally:
         env.close()
         geometric.close()

@@ -242,3 +242,78 @@ def test_yaw_likelihood_bad_input(bad, match):
     args.update(bad)
     with pytest.raises(ValueError, match=match):
         yaw_log_likelihood(rec, args.pop("action"), args.pop("contacts"), args.pop("touched"), args.pop("yaws"), **args)
+
+
+def test_yaw_belief_sums_each_grasp_once_per_object_and_restarts():
+    """YawBelief: an object's posterior is the uniform prior times every grasp's yaw likelihood, computed when asked
+    for (each object and grasp once, in order); reset forgets the episode; the mode and the draws follow it."""
+    from haptic_env.grasping.replay import YawBelief, yaw_log_likelihood
+
+    rng = np.random.default_rng(2)
+    (_, r0), (a1, r1) = _records(rng), _records(rng)
+    yb = YawBelief([r0, r1], bins=36, sigma=0.005, neighbours=1)
+    assert yb.grasps == 0 and yb.mode(1) == 0.0 and np.allclose(yb.probs(0), 1 / 36)
+    psi = yb.yaws[9]
+    queries = []
+    for i in (3, 11):  # two grasps of object 1 turned by psi
+        a = a1[i].copy()
+        a[0] = np.mod(a[0] + psi / np.pi + 1.0, 2.0) - 1.0
+        queries.append((a, r1[1][i] @ _yaw_pose(psi)[:3, :3].T, r1[3][i]))
+    yb.add(*queries[0])
+    first = yb.log_likelihood(1)
+    np.testing.assert_allclose(first, yaw_log_likelihood(r1, *queries[0], yb.yaws, sigma=0.005, neighbours=1))
+    yb.add(*queries[1])
+    both = first + yaw_log_likelihood(r1, *queries[1], yb.yaws, sigma=0.005, neighbours=1)
+    np.testing.assert_allclose(yb.log_likelihood(1), both)
+    np.testing.assert_allclose(yb.log_likelihood(1), both)  # asked again: not summed twice
+    assert yb.mode(1) == pytest.approx(psi) and yb.probs(1).sum() == pytest.approx(1.0)
+    draws = np.array([yb.sample(1, rng) for _ in range(200)])
+    assert np.all(np.abs(draws - psi) <= np.pi / 36 + 1e-12)  # the posterior's one bin, jittered within it
+    assert yb.log_likelihood(0).shape == (36,) and yb.grasps == 2  # object 0 catches up with both grasps
+    yb.reset()
+    assert yb.grasps == 0 and not yb.log_likelihood(1).any()
+    with pytest.raises(ValueError, match="bins must be an int >= 4, got 3"):
+        YawBelief([r0], bins=3)
+    with pytest.raises(ValueError, match="records must hold at least one object"):
+        YawBelief([])
+
+
+def test_env_reads_the_azimuth_in_the_estimated_frame(small_recognizer_kwargs):
+    """action_frame="estimated": each grasp's azimuth is turned by the most probable object's most probable yaw given
+    the episode's grasps (the first grasp: no turn); the observation keeps the policy's own action. A setting that
+    cannot have it is refused at make, naming it."""
+    from haptic_env.env import HapticRecogConfig, HapticRecogEnv
+
+    with pytest.raises(ValueError, match=r"action_frame must be one of \('world', 'estimated'\), got 'object'"):
+        HapticRecogConfig(action_frame="object")
+    with pytest.raises(ValueError, match="action_frame='estimated' needs a hand backend .* backend='geometric'"):
+        HapticRecogConfig(action_frame="estimated")
+    with pytest.raises(ValueError, match="pose='so3'"):
+        HapticRecogConfig(backend="replay", backend_kwargs={"hand": "generic"}, pose="so3", action_frame="estimated")
+    cfg = HapticRecogConfig(backend="replay", backend_kwargs={"hand": "generic", "approaches": 40, "progress": False},
+                            recognizer_source="surface", recognizer_kwargs=small_recognizer_kwargs, max_grasps=4,
+                            threshold=0.999, action_frame="estimated")
+    env = HapticRecogEnv(cfg)
+    try:
+        env.reset(seed=1)
+        assert env.last_approach is None
+        rng = np.random.default_rng(0)
+        turned = 0
+        for step in range(3):
+            a = rng.uniform(-0.9, 0.9, 4)
+            yb = env._yaw_belief
+            psi = yb.mode(int(np.argmax(env.belief)))
+            if step == 0:
+                assert psi == 0.0
+            obs, *_ = env.step(a)
+            want = a.copy()
+            want[0] = np.mod(a[0] + psi / np.pi + 1.0, 2.0) - 1.0
+            np.testing.assert_allclose(env.last_approach, want, atol=1e-12)
+            np.testing.assert_allclose(obs[env.obs_slices["prev_action"]], a, atol=1e-6)  # the policy's frame
+            assert yb.grasps == step + 1
+            turned += psi != 0.0
+        assert turned  # the estimate did turn a later grasp
+        env.reset(seed=2)
+        assert env._yaw_belief.grasps == 0
+    finally:
+        env.close()

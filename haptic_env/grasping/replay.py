@@ -41,7 +41,7 @@ from haptic_env.numbers import checked_flag, finite_number, whole_number
 from .base import (ACTION_DIM, GraspBatch, GraspResult, check_support, validate_action, validate_actions,
                    validate_pose)
 
-__all__ = ["ReplayConfig", "ReplayBackend", "approach_embedding", "yaw_log_likelihood"]
+__all__ = ["ReplayConfig", "ReplayBackend", "approach_embedding", "yaw_log_likelihood", "YawBelief"]
 
 
 @dataclass(frozen=True)
@@ -150,6 +150,69 @@ def yaw_log_likelihood(records: tuple, action: np.ndarray, contacts: np.ndarray,
     ll = ll.sum(axis=-1)  # (Y, k)
     top = ll.max(axis=1)
     return top + np.log(np.mean(np.exp(ll - top[:, None]), axis=1))
+
+
+class YawBelief:
+    """The posterior over each object's yaw given an episode's grasps: a uniform prior on ``bins`` yaws times
+    :func:`yaw_log_likelihood` of every grasp, for the object of each of ``records``. An object's posterior is
+    computed when first asked for and brought up to date with the grasps added since (each object and grasp scored
+    once), so an episode costs one likelihood per grasp for the objects that are asked about.
+
+    Args:
+        records: each object's recorded grasps (:meth:`ReplayBackend.records`).
+        bins: yaws ``2 pi i / bins``, ``i = 0 .. bins - 1``.
+        kernel: :func:`yaw_log_likelihood`'s ``sigma``, ``neighbours``, ``miss``.
+    """
+
+    def __init__(self, records: list[tuple], bins: int = 72, **kernel) -> None:
+        if whole_number(bins) is None or bins < 4:
+            raise ValueError(f"bins must be an int >= 4, got {bins!r}")
+        if not records:
+            raise ValueError("records must hold at least one object's recorded grasps")
+        self.records = list(records)
+        self.yaws = np.arange(int(bins)) * 2.0 * np.pi / int(bins)
+        self.kernel = kernel
+        self.reset()
+
+    def reset(self) -> None:
+        """A new episode: no grasps, every yaw equally likely."""
+        self._grasps: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self._log = np.zeros((len(self.records), len(self.yaws)))
+        self._upto = np.zeros(len(self.records), dtype=int)
+
+    @property
+    def grasps(self) -> int:
+        """Grasps added this episode."""
+        return len(self._grasps)
+
+    def add(self, action: np.ndarray, contacts: np.ndarray, touched: np.ndarray) -> None:
+        """One more grasp of the episode: its world-frame approach ``(4,)``, contacts ``(n, 3)`` and touched fingers
+        ``(n,)`` (copied)."""
+        self._grasps.append((np.array(action, dtype=np.float64), np.array(contacts, dtype=np.float64),
+                             np.array(touched, dtype=bool)))
+
+    def log_likelihood(self, k: int) -> np.ndarray:
+        """``(bins,)`` the summed log-likelihood of the episode's grasps under object ``k`` at each yaw (a copy)."""
+        for a, c, t in self._grasps[self._upto[k]:]:
+            self._log[k] += yaw_log_likelihood(self.records[k], a, c, t, self.yaws, **self.kernel)
+        self._upto[k] = len(self._grasps)
+        return self._log[k].copy()
+
+    def probs(self, k: int) -> np.ndarray:
+        """``(bins,)`` object ``k``'s posterior over the yaws."""
+        lp = self.log_likelihood(k)
+        p = np.exp(lp - lp.max())
+        return p / p.sum()
+
+    def mode(self, k: int) -> float:
+        """Object ``k``'s most probable yaw (rad; the first of equals, 0 before any grasp)."""
+        return float(self.yaws[int(np.argmax(self.log_likelihood(k)))])
+
+    def sample(self, k: int, rng: np.random.Generator) -> float:
+        """A yaw of object ``k`` drawn from its posterior: a bin, then uniformly within it (rad)."""
+        p = self.probs(k)
+        width = 2.0 * np.pi / len(self.yaws)
+        return float(self.yaws[rng.choice(len(p), p=p)] + rng.uniform(-0.5, 0.5) * width)
 
 
 def _yaw(T: np.ndarray) -> float:
