@@ -152,8 +152,9 @@ class HapticRecogConfig:
     """The frame of the action's azimuth: the world's (``"world"``), or the estimated frame of the most probable
     object (``"estimated"``: the azimuth is turned by that object's most probable yaw given the episode's grasps, a
     :class:`~haptic_env.grasping.replay.YawBelief` over the hand's recorded grasps of the meshes, the replay pool),
-    so that a policy can aim at a part of an object whose yaw the grasps have told. Needs ``pose="table-yaw"`` and a
-    hand backend ("mujoco" or "replay"); the first ``make`` also records the replay pool if it is not cached.
+    so that a policy can aim at a part of an object whose yaw the grasps have told. Needs ``pose="table-yaw"``, a
+    hand backend ("mujoco" or "replay") and no ``scale_range`` (the records are of the meshes as they are); the first
+    ``reset`` also records the replay pool if it is not cached.
     ``"world"``: the paper's setting."""
     recognizer_kwargs: Mapping[str, Any] = field(default_factory=dict)
     """Extra keyword arguments of :func:`haptic_env.recognizers.build_recognizer`, e.g.
@@ -210,10 +211,12 @@ class HapticRecogConfig:
         check_normal_axis(self.normal_axis)
         if self.action_frame not in ACTION_FRAMES:
             raise ValueError(f"action_frame must be one of {ACTION_FRAMES}, got {self.action_frame!r}")
-        if self.action_frame == "estimated" and (self.pose != "table-yaw" or self.backend not in HAND_BACKENDS):
-            raise ValueError("action_frame='estimated' needs a hand backend and objects turned about the vertical only "
-                             f"(pose='table-yaw', backend 'mujoco' or 'replay'), got pose={self.pose!r}, "
-                             f"backend={self.backend!r}")
+        if self.action_frame == "estimated" and (self.pose != "table-yaw" or self.backend not in HAND_BACKENDS
+                                                 or self.scale_range is not None):
+            raise ValueError("action_frame='estimated' needs a hand backend and objects turned about the vertical "
+                             "only, at their own scale (pose='table-yaw', backend 'mujoco' or 'replay', "
+                             f"scale_range=None), got pose={self.pose!r}, backend={self.backend!r}, "
+                             f"scale_range={self.scale_range!r}")
         if self.kde_method not in KDE_METHODS:
             raise ValueError(f"kde_method must be 'pooled', 'tree' or 'dense', got {self.kde_method!r}")
         for name in ("recognizer_kwargs", "object_kwargs", "backend_kwargs"):

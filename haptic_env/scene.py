@@ -173,15 +173,16 @@ class Scene:
     def yaw_belief(self, bins: int = 72):
         """A :class:`~haptic_env.grasping.replay.YawBelief` over the objects' recorded grasps by the env's hand: the
         replay pool (cached on disk; recorded first if not), a replay env's own (its ``approaches`` and
-        ``pool_seed``). It needs a hand backend and objects turned about the vertical only (a ``ValueError`` naming
-        the setting otherwise)."""
+        ``pool_seed``). It needs a hand backend, objects turned about the vertical only and no per-episode scale (a
+        ``ValueError`` naming the setting otherwise)."""
         from haptic_env.config import HAND_BACKENDS
         from haptic_env.grasping.replay import ReplayBackend, ReplayConfig, YawBelief
 
         cfg = self.config
-        if cfg.pose != "table-yaw" or cfg.backend not in HAND_BACKENDS:
-            raise ValueError("a yaw belief needs the upright poses of a hand env (pose='table-yaw', backend 'mujoco' "
-                             f"or 'replay'), got pose={cfg.pose!r}, backend={cfg.backend!r}")
+        if cfg.pose != "table-yaw" or cfg.backend not in HAND_BACKENDS or cfg.scale_range is not None:
+            raise ValueError("a yaw belief needs the upright poses of a hand env at the objects' own scale "
+                             "(pose='table-yaw', backend 'mujoco' or 'replay', scale_range=None), got "
+                             f"pose={cfg.pose!r}, backend={cfg.backend!r}, scale_range={cfg.scale_range!r}")
         kw = dict(cfg.backend_kwargs)
         hand = kw.get("hand", "generic")
         if not isinstance(hand, str):

@@ -290,6 +290,9 @@ def test_env_reads_the_azimuth_in_the_estimated_frame(small_recognizer_kwargs):
         HapticRecogConfig(action_frame="estimated")
     with pytest.raises(ValueError, match="pose='so3'"):
         HapticRecogConfig(backend="replay", backend_kwargs={"hand": "generic"}, pose="so3", action_frame="estimated")
+    with pytest.raises(ValueError, match=r"scale_range=\(0.8, 1.2\)"):
+        HapticRecogConfig(backend="replay", backend_kwargs={"hand": "generic"}, scale_range=(0.8, 1.2),
+                          action_frame="estimated")
     cfg = HapticRecogConfig(backend="replay", backend_kwargs={"hand": "generic", "approaches": 40, "progress": False},
                             recognizer_source="surface", recognizer_kwargs=small_recognizer_kwargs, max_grasps=4,
                             threshold=0.999, action_frame="estimated")
