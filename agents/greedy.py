@@ -111,6 +111,9 @@ class GreedyInfoGainAgent:
         if seed is not None:
             self._rng = np.random.default_rng(seed)
         base = env.unwrapped
+        if base.config.action_frame != "world":  # the look-ahead simulates its candidates as world-frame approaches
+            raise ValueError("the greedy look-ahead simulates world-frame approaches; it needs action_frame='world', "
+                             f"got {base.config.action_frame!r}")
         if self.pose_known:
             pose = base.pose
         else:
@@ -132,7 +135,12 @@ class GreedyInfoGainAgent:
         M, S = self.n_candidates, self.n_samples
         if self.infer_pose:
             yb = self._yaw_belief(base)
-            if base.grasp_count > yb.grasps and base.last_grasp is not None:  # the latest grasp (one per step)
+            if base.grasp_count < yb.grasps:  # a new episode the agent was not reset for
+                yb.reset()
+            if base.grasp_count > yb.grasps + 1:
+                raise RuntimeError(f"infer_pose scores every grasp of an episode: the env has made {base.grasp_count} "
+                                   f"grasps and the agent saw {yb.grasps} (act once per step)")
+            if base.grasp_count == yb.grasps + 1:  # the latest grasp
                 g = base.last_grasp
                 yb.add(base.last_approach, g.contacts, np.asarray(g.touched, dtype=bool))
         cands = self._rng.uniform(space.low, space.high, size=(M,) + space.shape)

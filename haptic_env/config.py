@@ -25,8 +25,8 @@ from haptic_env.recognizers.zfinger import DEFAULT_SUBSET_K, check_min_fingers, 
 from haptic_env.scene import POSE_MODES
 from haptic_env.task import REWARD_KINDS
 
-__all__ = ["HapticRecogConfig", "recognizer_kwargs", "RECOGNIZER_SOURCES", "HAND_APPROACHES", "KDE_METHODS",
-           "HAND_BACKENDS", "ACTION_FRAMES"]
+__all__ = ["HapticRecogConfig", "recognizer_kwargs", "backend_hand", "RECOGNIZER_SOURCES", "HAND_APPROACHES",
+           "KDE_METHODS", "HAND_BACKENDS", "ACTION_FRAMES"]
 
 RECOGNIZER_SOURCES = ("auto", "hand", "geometric", "surface")
 #: How the env's belief update may evaluate the KDE (``KDEConfig.method``).
@@ -152,9 +152,12 @@ class HapticRecogConfig:
     """The frame of the action's azimuth: the world's (``"world"``), or the estimated frame of the most probable
     object (``"estimated"``: the azimuth is turned by that object's most probable yaw given the episode's grasps, a
     :class:`~haptic_env.grasping.replay.YawBelief` over the hand's recorded grasps of the meshes, the replay pool),
-    so that a policy can aim at a part of an object whose yaw the grasps have told. Needs ``pose="table-yaw"``, a
-    hand backend ("mujoco" or "replay") and no ``scale_range`` (the records are of the meshes as they are); the first
-    ``reset`` also records the replay pool if it is not cached.
+    so that a policy can aim at a part of an object whose yaw the grasps have told. The observation's
+    ``prev_action`` is the policy's own action, in that frame; the estimate itself is not observed, and
+    ``observe_contacts`` stays in the world frame. Needs ``pose="table-yaw"``, a hand backend ("mujoco" or "replay")
+    given by name or MJCF path, and no ``scale_range`` (the records are of the meshes as they are); the first
+    ``reset`` also records the replay pool if it is not cached. The look-ahead agents simulate world-frame actions,
+    so they refuse it.
     ``"world"``: the paper's setting."""
     recognizer_kwargs: Mapping[str, Any] = field(default_factory=dict)
     """Extra keyword arguments of :func:`haptic_env.recognizers.build_recognizer`, e.g.
@@ -212,11 +215,13 @@ class HapticRecogConfig:
         if self.action_frame not in ACTION_FRAMES:
             raise ValueError(f"action_frame must be one of {ACTION_FRAMES}, got {self.action_frame!r}")
         if self.action_frame == "estimated" and (self.pose != "table-yaw" or self.backend not in HAND_BACKENDS
-                                                 or self.scale_range is not None):
-            raise ValueError("action_frame='estimated' needs a hand backend and objects turned about the vertical "
-                             "only, at their own scale (pose='table-yaw', backend 'mujoco' or 'replay', "
-                             f"scale_range=None), got pose={self.pose!r}, backend={self.backend!r}, "
-                             f"scale_range={self.scale_range!r}")
+                                                 or self.scale_range is not None
+                                                 or not isinstance(backend_hand(self), str)):
+            raise ValueError("action_frame='estimated' needs a hand backend with a hand given by name or MJCF path, "
+                             "and objects turned about the vertical only, at their own scale (pose='table-yaw', "
+                             "backend 'mujoco' or 'replay', scale_range=None), got "
+                             f"pose={self.pose!r}, backend={self.backend!r}, scale_range={self.scale_range!r}, "
+                             f"hand={dict(self.backend_kwargs).get('hand', '(default)')!r}")
         if self.kde_method not in KDE_METHODS:
             raise ValueError(f"kde_method must be 'pooled', 'tree' or 'dense', got {self.kde_method!r}")
         for name in ("recognizer_kwargs", "object_kwargs", "backend_kwargs"):
@@ -256,6 +261,21 @@ class HapticRecogConfig:
         return dataclasses.replace(self, **changes)
 
 
+def backend_hand(config: HapticRecogConfig) -> Any:
+    """The hand of a hand backend's env: ``backend_kwargs["hand"]``, else the backend's own default
+    (``MujocoConfig.hand``, ``ReplayConfig.hand``)."""
+    kw = dict(config.backend_kwargs)
+    if "hand" in kw:
+        return kw["hand"]
+    if config.backend == "replay":
+        from haptic_env.grasping.replay import ReplayConfig
+
+        return ReplayConfig.hand
+    from haptic_env.grasping.mujoco_backend import MujocoConfig
+
+    return MujocoConfig.hand
+
+
 def recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
     """``recognizer_kwargs`` with a JSON-style ``{"config": {"grasps": {...}, "mlp": {...}, "kde": {...}}}``
     turned into ``RecognizerConfig`` (so the command line can pass recogniser settings as JSON); without a
@@ -280,7 +300,7 @@ def recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
         if config.training_grasps is not None:
             grasps.setdefault("grasps_per_object", int(config.training_grasps))
         if grasps["source"] == "hand":  # the backend's own hand, HAND_APPROACHES random approaches per object
-            hand = dict(config.backend_kwargs).get("hand", "generic")
+            hand = backend_hand(config)
             if not isinstance(hand, str):
                 raise ValueError(f"recognizer_source 'hand' needs backend_kwargs['hand'] as a hand name or MJCF path "
                                  f"(a cache key), got {type(hand).__name__}")

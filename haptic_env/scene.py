@@ -173,10 +173,11 @@ class Scene:
     def yaw_belief(self, bins: int = 72):
         """A :class:`~haptic_env.grasping.replay.YawBelief` over the objects' recorded grasps by the env's hand: the
         replay pool (cached on disk; recorded first if not), a replay env's own (its ``approaches`` and
-        ``pool_seed``). It needs a hand backend, objects turned about the vertical only and no per-episode scale (a
-        ``ValueError`` naming the setting otherwise)."""
-        from haptic_env.config import HAND_BACKENDS
-        from haptic_env.grasping.replay import ReplayBackend, ReplayConfig, YawBelief
+        ``pool_seed``), with the kernel's default neighbours (at most the records per object). It needs a hand
+        backend, objects turned about the vertical only and no per-episode scale (a ``ValueError`` naming the setting
+        otherwise)."""
+        from haptic_env.config import HAND_BACKENDS, backend_hand
+        from haptic_env.grasping.replay import YAW_NEIGHBOURS, ReplayBackend, ReplayConfig, YawBelief
 
         cfg = self.config
         if cfg.pose != "table-yaw" or cfg.backend not in HAND_BACKENDS or cfg.scale_range is not None:
@@ -184,14 +185,16 @@ class Scene:
                              "(pose='table-yaw', backend 'mujoco' or 'replay', scale_range=None), got "
                              f"pose={cfg.pose!r}, backend={cfg.backend!r}, scale_range={cfg.scale_range!r}")
         kw = dict(cfg.backend_kwargs)
-        hand = kw.get("hand", "generic")
+        hand = backend_hand(cfg)
         if not isinstance(hand, str):
             raise ValueError(f"a yaw belief needs a hand given by name or MJCF path, got {hand!r}")
         own = {k: kw[k] for k in ("approaches", "pool_seed") if cfg.backend == "replay" and k in kw}
         replay = ReplayBackend(ReplayConfig(hand=hand, n_fingers=cfg.n_fingers, support=kw.get("support", "table"),
                                             **own))
         replay.prepare(self.objects)
-        return YawBelief([replay.records(o) for o in self.objects], bins)
+        records = [replay.records(o) for o in self.objects]
+        # a small pool (a replay env's own, e.g. in tests) has fewer records than the kernel's default neighbours
+        return YawBelief(records, bins, neighbours=min(YAW_NEIGHBOURS, min(len(r[1]) for r in records)))
 
     def render(self) -> np.ndarray:
         return np.asarray(self.backend.render())

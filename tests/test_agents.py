@@ -519,6 +519,20 @@ def test_greedy_infer_pose_scores_the_episodes_grasps_for_the_yaw(env_config, sm
         agent.reset(env)
         agent.act(obs, env)
         assert agent.yaw_belief is yb and yb.grasps == 0 and not yb.log_likelihood(0).any()
+        for _ in range(2):  # two grasps the agent did not see: it cannot score the first any more
+            obs, *_ = env.step(env.action_space.sample())
+        with pytest.raises(RuntimeError, match="the env has made 2 grasps and the agent saw 0"):
+            agent.act(obs, env)
+        obs, _ = env.reset(seed=5)
+        agent.reset(env)
+        for _ in range(2):
+            obs, *_ = env.step(agent.act(obs, env))
+        agent.act(obs, env)
+        assert yb.grasps == 2
+        obs, _ = env.reset(seed=6)  # a new episode the agent is not reset for: its count restarting is noticed
+        obs, *_ = env.step(env.action_space.sample())
+        agent.act(obs, env)
+        assert yb.grasps == 1
     finally:
         env.close()
         geometric.close()

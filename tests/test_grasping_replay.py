@@ -224,6 +224,7 @@ def test_yaw_likelihood_peaks_at_the_yaw_that_turned_a_recorded_grasp():
 @pytest.mark.parametrize("bad, match", [
     ({"action": np.zeros(3)}, "action must be 4 finite numbers"),
     ({"action": np.array([0.0, np.nan, 0.0, 0.0])}, "action must be 4 finite numbers"),
+    ({"action": np.array([0.0, 1.5, 0.0, 0.0])}, r"action must be 4 finite numbers in \[-1, 1\]"),
     ({"contacts": np.zeros((3, 3))}, r"contacts must be \(4, 3\)"),
     ({"touched": np.ones(4)}, "touched must be a bool array"),
     ({"yaws": np.array([])}, "yaws must be a non-empty 1-d array"),
@@ -274,6 +275,10 @@ def test_yaw_belief_sums_each_grasp_once_per_object_and_restarts():
     assert yb.grasps == 0 and not yb.log_likelihood(1).any()
     with pytest.raises(ValueError, match="bins must be an int >= 4, got 3"):
         YawBelief([r0], bins=3)
+    with pytest.raises(ValueError, match=r"neighbours must be an int in \[1, 200\], got 500"):
+        YawBelief([r0], neighbours=500)  # the kernel is checked at construction, not at the first grasp
+    with pytest.raises(ValueError, match=r"k must be an object index in \[0, 2\), got -1"):
+        yb.log_likelihood(-1)
     with pytest.raises(ValueError, match="records must hold at least one object"):
         YawBelief([])
 
@@ -318,5 +323,30 @@ def test_env_reads_the_azimuth_in_the_estimated_frame(small_recognizer_kwargs):
         assert turned  # the estimate did turn a later grasp
         env.reset(seed=2)
         assert env._yaw_belief.grasps == 0
+        assert env._yaw_belief.kernel["neighbours"] == 32  # the default: 40 records per object
+        from agents.greedy import GreedyInfoGainAgent  # the look-ahead simulates world-frame actions: refused
+
+        with pytest.raises(ValueError, match="it needs action_frame='world', got 'estimated'"):
+            GreedyInfoGainAgent(n_candidates=2).reset(env)
     finally:
         env.close()
+    small = HapticRecogEnv(cfg.replace(backend_kwargs={"hand": "generic", "approaches": 8, "progress": False}))
+    try:  # fewer records than the kernel's default neighbours: the belief uses them all
+        small.reset(seed=0)
+        assert small._yaw_belief.kernel["neighbours"] == 8
+        small.step(np.zeros(4))
+        small.step(np.zeros(4))
+        assert small._yaw_belief.log_likelihood(0).shape == (72,)
+    finally:
+        small.close()
+
+
+def test_a_hand_envs_hand_is_its_backends_default_when_not_given():
+    """The recogniser's hand pool and the yaw belief read the env's hand by one rule: backend_kwargs["hand"], else
+    the backend's own default (the replay's Allegro, the MuJoCo backend's generic hand)."""
+    from haptic_env.config import HapticRecogConfig, backend_hand, recognizer_kwargs
+
+    assert backend_hand(HapticRecogConfig(backend="replay")) == ReplayConfig.hand == "allegro"
+    assert backend_hand(HapticRecogConfig(backend="mujoco")) == "generic"
+    assert backend_hand(HapticRecogConfig(backend="replay", backend_kwargs={"hand": "shadow"})) == "shadow"
+    assert recognizer_kwargs(HapticRecogConfig(backend="replay"))["config"].grasps.hand == "allegro"

@@ -41,7 +41,13 @@ from haptic_env.numbers import checked_flag, finite_number, whole_number
 from .base import (ACTION_DIM, GraspBatch, GraspResult, check_support, validate_action, validate_actions,
                    validate_pose)
 
-__all__ = ["ReplayConfig", "ReplayBackend", "approach_embedding", "yaw_log_likelihood", "YawBelief"]
+__all__ = ["ReplayConfig", "ReplayBackend", "approach_embedding", "yaw_log_likelihood", "YawBelief", "YAW_SIGMA",
+           "YAW_NEIGHBOURS"]
+
+#: :func:`yaw_log_likelihood`'s kernel: std (m) and recorded grasps per yaw (fixed before the look-ahead runs; tied
+#: best with 5 mm / 16 on validation pool 500, ``benchmarks/pose_information.py``)
+YAW_SIGMA = 0.007
+YAW_NEIGHBOURS = 32
 
 
 @dataclass(frozen=True)
@@ -86,15 +92,16 @@ def approach_embedding(actions: np.ndarray) -> np.ndarray:
 
 
 def yaw_log_likelihood(records: tuple, action: np.ndarray, contacts: np.ndarray, touched: np.ndarray,
-                       yaws: np.ndarray, *, sigma: float = 0.007, neighbours: int = 32,
+                       yaws: np.ndarray, *, sigma: float = YAW_SIGMA, neighbours: int = YAW_NEIGHBOURS,
                        miss: float = 0.05) -> np.ndarray:
     """How well one world-frame grasp fits an object turned by each of ``yaws`` about the vertical: a kernel mixture
     over the object's recorded grasps (the replay's physics, turned as :class:`ReplayBackend` turns them).
 
     For yaw ``psi`` the grasp's approach in the object's frame is its azimuth less ``psi``; the ``neighbours``
     recorded approaches nearest to it (:func:`approach_embedding`) give their contacts turned by ``psi``, and each
-    scores the grasp finger by finger: an isotropic Gaussian of std ``sigma`` (m) on the contact where both touch,
-    ``miss`` where one touches and the other does not, 1 where neither does. The result is the log of the mean score.
+    scores the grasp finger by finger: an isotropic Gaussian kernel of std ``sigma`` (m) on the contact where both
+    touch, ``sigma**-3 exp(-d**2 / (2 sigma**2))`` (without the Gaussian's ``(2 pi)**-1.5``), ``miss`` where one
+    touches and the other does not, 1 where neither does. The result is the log of the mean score.
     The object's position and its table are known (the "table-yaw" poses: a turn about the vertical through the
     object's origin), so the contacts carry where the object's surface is, which the frame-invariant grasp vector
     drops (``benchmarks/pose_information.py`` measures how much that is).
@@ -108,7 +115,7 @@ def yaw_log_likelihood(records: tuple, action: np.ndarray, contacts: np.ndarray,
         sigma, neighbours, miss: the kernel's std (m), the records per yaw, the score of a touch mismatch.
 
     Returns:
-        ``(Y,)`` log-likelihoods, up to a constant shared by every object and yaw for the same grasp.
+        ``(Y,)`` log-scores (the same kernel for every object and yaw, so they compare across both).
 
     Raises:
         ValueError: shapes that do not match the records, non-finite input, or settings out of range.
@@ -119,8 +126,8 @@ def yaw_log_likelihood(records: tuple, action: np.ndarray, contacts: np.ndarray,
     c = np.asarray(contacts, dtype=np.float64)
     t = np.asarray(touched)
     psi = np.asarray(yaws, dtype=np.float64)
-    if a.shape != (ACTION_DIM,) or not np.all(np.isfinite(a)):
-        raise ValueError(f"action must be {ACTION_DIM} finite numbers, got {action!r}")
+    if a.shape != (ACTION_DIM,) or not np.all(np.isfinite(a)) or np.any(np.abs(a) > 1.0 + 1e-9):
+        raise ValueError(f"action must be {ACTION_DIM} finite numbers in [-1, 1], got {action!r}")
     if c.shape != (n, 3) or not np.all(np.isfinite(c)):
         raise ValueError(f"contacts must be ({n}, 3) finite numbers (the records' {n} fingers), got shape {c.shape}")
     if t.shape != (n,) or t.dtype != bool:
@@ -172,6 +179,9 @@ class YawBelief:
         self.records = list(records)
         self.yaws = np.arange(int(bins)) * 2.0 * np.pi / int(bins)
         self.kernel = kernel
+        r = self.records[0]  # the kernel's settings checked now, not at the first grasp
+        yaw_log_likelihood(r, np.zeros(ACTION_DIM), np.zeros((r[1].shape[1], 3)), np.zeros(r[1].shape[1], dtype=bool),
+                           self.yaws[:1], **kernel)
         self.reset()
 
     def reset(self) -> None:
@@ -193,6 +203,8 @@ class YawBelief:
 
     def log_likelihood(self, k: int) -> np.ndarray:
         """``(bins,)`` the summed log-likelihood of the episode's grasps under object ``k`` at each yaw (a copy)."""
+        if whole_number(k) is None or not 0 <= k < len(self.records):
+            raise ValueError(f"k must be an object index in [0, {len(self.records)}), got {k!r}")
         for a, c, t in self._grasps[self._upto[k]:]:
             self._log[k] += yaw_log_likelihood(self.records[k], a, c, t, self.yaws, **self.kernel)
         self._upto[k] = len(self._grasps)
