@@ -172,14 +172,11 @@ class GreedyInfoGainAgent:
     def _pose_sample(self, base, k: int) -> np.ndarray:
         """A pose of hypothesis ``k`` the look-ahead does not know: from the env's pose distribution, or
         (``infer_pose``) a yaw from its posterior given the episode's grasps (a bin, then uniform within it)."""
-        from haptic_env.scene import random_pose
+        from haptic_env.scene import random_pose, yaw_pose
 
         if not self.infer_pose:
             return random_pose(self._rng, base.config.pose)
-        psi = self.yaw_belief.sample(k, self._rng)
-        T = np.eye(4)
-        T[:2, :2] = [[np.cos(psi), -np.sin(psi)], [np.sin(psi), np.cos(psi)]]
-        return T
+        return yaw_pose(self.yaw_belief.sample(k, self._rng))
 
     def _grasp(self, base, k: int, acts: np.ndarray):
         """Simulated grasps of hypothesis ``k`` for ``acts (M*S, A)`` (each candidate repeated ``S`` times, rows kept in

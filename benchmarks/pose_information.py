@@ -56,17 +56,14 @@ def _logsumexp(x: np.ndarray, axis: int = -1) -> np.ndarray:
 def turned_queries(pool, seed: int, k: int, rng: np.random.Generator):
     """Object ``k``'s grasps of validation pool ``seed`` turned by random yaws, in pairs of one yaw: yields
     ``(yaw, [(action, contacts, touched), (action, contacts, touched)])`` (world frame)."""
+    from haptic_env.grasping.replay import turned_azimuth
+    from haptic_env.scene import yaw_pose
+
     acts = pool_actions(seed, k, pool.touched.shape[1])
     for j in range(0, pool.touched.shape[1] - 1, 2):
         psi = rng.uniform(0.0, 2.0 * np.pi)
-        c, s = np.cos(psi), np.sin(psi)
-        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        grasps = []
-        for i in (j, j + 1):
-            a = acts[i].copy()
-            a[0] = np.mod(a[0] + psi / np.pi + 1.0, 2.0) - 1.0
-            grasps.append((a, pool.contacts[k, i] @ R.T, pool.touched[k, i]))
-        yield psi, grasps
+        R = yaw_pose(psi)[:3, :3]
+        yield psi, [(turned_azimuth(acts[i], psi), pool.contacts[k, i] @ R.T, pool.touched[k, i]) for i in (j, j + 1)]
 
 
 def score_pool(records, pool, seed: int, yaws: np.ndarray, sigma: float, neighbours: int) -> dict:

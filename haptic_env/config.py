@@ -25,8 +25,8 @@ from haptic_env.recognizers.zfinger import DEFAULT_SUBSET_K, check_min_fingers, 
 from haptic_env.scene import POSE_MODES
 from haptic_env.task import REWARD_KINDS
 
-__all__ = ["HapticRecogConfig", "recognizer_kwargs", "backend_hand", "RECOGNIZER_SOURCES", "HAND_APPROACHES",
-           "KDE_METHODS", "HAND_BACKENDS", "ACTION_FRAMES"]
+__all__ = ["HapticRecogConfig", "recognizer_kwargs", "backend_hand", "check_yaw_belief", "RECOGNIZER_SOURCES",
+           "HAND_APPROACHES", "KDE_METHODS", "HAND_BACKENDS", "ACTION_FRAMES"]
 
 RECOGNIZER_SOURCES = ("auto", "hand", "geometric", "surface")
 #: How the env's belief update may evaluate the KDE (``KDEConfig.method``).
@@ -214,14 +214,8 @@ class HapticRecogConfig:
         check_normal_axis(self.normal_axis)
         if self.action_frame not in ACTION_FRAMES:
             raise ValueError(f"action_frame must be one of {ACTION_FRAMES}, got {self.action_frame!r}")
-        if self.action_frame == "estimated" and (self.pose != "table-yaw" or self.backend not in HAND_BACKENDS
-                                                 or self.scale_range is not None
-                                                 or not isinstance(backend_hand(self), str)):
-            raise ValueError("action_frame='estimated' needs a hand backend with a hand given by name or MJCF path, "
-                             "and objects turned about the vertical only, at their own scale (pose='table-yaw', "
-                             "backend 'mujoco' or 'replay', scale_range=None), got "
-                             f"pose={self.pose!r}, backend={self.backend!r}, scale_range={self.scale_range!r}, "
-                             f"hand={dict(self.backend_kwargs).get('hand', '(default)')!r}")
+        if self.action_frame == "estimated":
+            check_yaw_belief(self, "action_frame='estimated'")
         if self.kde_method not in KDE_METHODS:
             raise ValueError(f"kde_method must be 'pooled', 'tree' or 'dense', got {self.kde_method!r}")
         for name in ("recognizer_kwargs", "object_kwargs", "backend_kwargs"):
@@ -274,6 +268,19 @@ def backend_hand(config: HapticRecogConfig) -> Any:
     from haptic_env.grasping.mujoco_backend import MujocoConfig
 
     return MujocoConfig.hand
+
+
+def check_yaw_belief(config: HapticRecogConfig, what: str) -> None:
+    """What a yaw belief (:meth:`~haptic_env.scene.Scene.yaw_belief`, over the hand's recorded grasps) needs of an
+    env: a hand backend whose hand is given by name or MJCF path, objects turned about the vertical only
+    (``pose="table-yaw"``) and no per-episode scale. A ``ValueError`` naming ``what`` and the settings otherwise."""
+    if (config.pose != "table-yaw" or config.backend not in HAND_BACKENDS or config.scale_range is not None
+            or not isinstance(backend_hand(config), str)):
+        raise ValueError(f"{what} needs a hand backend with a hand given by name or MJCF path, and objects turned "
+                         "about the vertical only, at their own scale (pose='table-yaw', backend 'mujoco' or 'replay', "
+                         f"scale_range=None), got pose={config.pose!r}, backend={config.backend!r}, "
+                         f"scale_range={config.scale_range!r}, "
+                         f"hand={dict(config.backend_kwargs).get('hand', '(default)')!r}")
 
 
 def recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:

@@ -280,9 +280,9 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         old = self._probs
         approach = a
         if self._yaw_belief is not None:  # the azimuth in the most probable object's estimated frame
-            approach = a.copy()
-            psi = self._yaw_belief.mode(int(np.argmax(self._probs)))
-            approach[0] = np.mod(a[0] + psi / np.pi + 1.0, 2.0) - 1.0
+            from haptic_env.grasping.replay import turned_azimuth
+
+            approach = turned_azimuth(a, self._yaw_belief.mode(int(np.argmax(self._probs))))
         result, contacts, normals, touched = self.scene.grasp(approach)
         if self._yaw_belief is not None:
             self._yaw_belief.add(approach, contacts, touched)

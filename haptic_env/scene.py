@@ -15,22 +15,28 @@ import numpy as np
 if TYPE_CHECKING:
     from haptic_env.config import HapticRecogConfig
 
-__all__ = ["Scene", "POSE_MODES", "random_pose", "reset_options"]
+__all__ = ["Scene", "POSE_MODES", "random_pose", "yaw_pose", "reset_options"]
 
 #: "table-yaw": a uniform yaw about the world z axis; "so3": a uniform random rotation.
 POSE_MODES = ("table-yaw", "so3")
+
+
+def yaw_pose(psi: float) -> np.ndarray:
+    """The ``(4, 4)`` pose turned by ``psi`` rad about the world z axis, no translation (a "table-yaw" pose)."""
+    T = np.eye(4)
+    c, s = np.cos(psi), np.sin(psi)
+    T[:2, :2] = [[c, -s], [s, c]]
+    return T
 
 
 def random_pose(rng: np.random.Generator, mode: str) -> np.ndarray:
     """A ``(4, 4)`` rigid pose: uniform yaw about z ("table-yaw") or uniform over SO(3) ("so3"); no translation.
 
     "so3" is :meth:`scipy.spatial.transform.Rotation.random` (four standard normals from ``rng``)."""
-    T = np.eye(4)
     if mode == "table-yaw":
-        a = rng.uniform(0.0, 2.0 * np.pi)
-        c, s = np.cos(a), np.sin(a)
-        T[:2, :2] = [[c, -s], [s, c]]
-    elif mode == "so3":
+        return yaw_pose(rng.uniform(0.0, 2.0 * np.pi))
+    T = np.eye(4)
+    if mode == "so3":
         from scipy.spatial.transform import Rotation
 
         T[:3, :3] = Rotation.random(rng=rng).as_matrix()
@@ -173,24 +179,17 @@ class Scene:
     def yaw_belief(self, bins: int = 72):
         """A :class:`~haptic_env.grasping.replay.YawBelief` over the objects' recorded grasps by the env's hand: the
         replay pool (cached on disk; recorded first if not), a replay env's own (its ``approaches`` and
-        ``pool_seed``), with the kernel's default neighbours (at most the records per object). It needs a hand
-        backend, objects turned about the vertical only and no per-episode scale (a ``ValueError`` naming the setting
-        otherwise)."""
-        from haptic_env.config import HAND_BACKENDS, backend_hand
+        ``pool_seed``), with the kernel's default neighbours (at most the records per object). What it needs of the
+        env: :func:`~haptic_env.config.check_yaw_belief`."""
+        from haptic_env.config import backend_hand, check_yaw_belief
         from haptic_env.grasping.replay import YAW_NEIGHBOURS, ReplayBackend, ReplayConfig, YawBelief
 
         cfg = self.config
-        if cfg.pose != "table-yaw" or cfg.backend not in HAND_BACKENDS or cfg.scale_range is not None:
-            raise ValueError("a yaw belief needs the upright poses of a hand env at the objects' own scale "
-                             "(pose='table-yaw', backend 'mujoco' or 'replay', scale_range=None), got "
-                             f"pose={cfg.pose!r}, backend={cfg.backend!r}, scale_range={cfg.scale_range!r}")
+        check_yaw_belief(cfg, "a yaw belief")
         kw = dict(cfg.backend_kwargs)
-        hand = backend_hand(cfg)
-        if not isinstance(hand, str):
-            raise ValueError(f"a yaw belief needs a hand given by name or MJCF path, got {hand!r}")
         own = {k: kw[k] for k in ("approaches", "pool_seed") if cfg.backend == "replay" and k in kw}
-        replay = ReplayBackend(ReplayConfig(hand=hand, n_fingers=cfg.n_fingers, support=kw.get("support", "table"),
-                                            **own))
+        replay = ReplayBackend(ReplayConfig(hand=backend_hand(cfg), n_fingers=cfg.n_fingers,
+                                            support=kw.get("support", "table"), **own))
         replay.prepare(self.objects)
         records = [replay.records(o) for o in self.objects]
         # a small pool (a replay env's own, e.g. in tests) has fewer records than the kernel's default neighbours

@@ -41,13 +41,14 @@ from haptic_env.numbers import checked_flag, finite_number, whole_number
 from .base import (ACTION_DIM, GraspBatch, GraspResult, check_support, validate_action, validate_actions,
                    validate_pose)
 
-__all__ = ["ReplayConfig", "ReplayBackend", "approach_embedding", "yaw_log_likelihood", "YawBelief", "YAW_SIGMA",
-           "YAW_NEIGHBOURS"]
+__all__ = ["ReplayConfig", "ReplayBackend", "approach_embedding", "turned_azimuth", "yaw_log_likelihood", "YawBelief",
+           "YAW_SIGMA", "YAW_NEIGHBOURS", "YAW_MISS"]
 
 #: :func:`yaw_log_likelihood`'s kernel: std (m) and recorded grasps per yaw (fixed before the look-ahead runs; tied
 #: best with 5 mm / 16 on validation pool 500, ``benchmarks/pose_information.py``)
 YAW_SIGMA = 0.007
 YAW_NEIGHBOURS = 32
+YAW_MISS = 0.05  #: its score of a finger that touches in the grasp or the record, not both
 
 
 @dataclass(frozen=True)
@@ -91,9 +92,18 @@ def approach_embedding(actions: np.ndarray) -> np.ndarray:
                      np.cos(ro) / np.pi, np.sin(ro) / np.pi, a[..., 3]], axis=-1)
 
 
+def turned_azimuth(actions: np.ndarray, psi) -> np.ndarray:
+    """``(..., 4)`` actions with the azimuth turned by ``psi`` rad about the vertical (broadcast against
+    ``actions[..., 0]``), wrapped into ``[-1, 1)``: the approach of a world turned by ``psi`` (``-psi``: from the world
+    into the frame of an object turned by ``psi``). A new float64 array; the other coordinates are copied."""
+    out = np.array(actions, dtype=np.float64)
+    out[..., 0] = np.mod(out[..., 0] + np.asarray(psi, dtype=np.float64) / np.pi + 1.0, 2.0) - 1.0
+    return out
+
+
 def yaw_log_likelihood(records: tuple, action: np.ndarray, contacts: np.ndarray, touched: np.ndarray,
                        yaws: np.ndarray, *, sigma: float = YAW_SIGMA, neighbours: int = YAW_NEIGHBOURS,
-                       miss: float = 0.05) -> np.ndarray:
+                       miss: float = YAW_MISS) -> np.ndarray:
     """How well one world-frame grasp fits an object turned by each of ``yaws`` about the vertical: a kernel mixture
     over the object's recorded grasps (the replay's physics, turned as :class:`ReplayBackend` turns them).
 
@@ -134,17 +144,9 @@ def yaw_log_likelihood(records: tuple, action: np.ndarray, contacts: np.ndarray,
         raise ValueError(f"touched must be a bool array of shape ({n},), got {t.dtype} {t.shape}")
     if psi.ndim != 1 or not psi.size or not np.all(np.isfinite(psi)):
         raise ValueError(f"yaws must be a non-empty 1-d array of finite angles, got shape {psi.shape}")
-    s = finite_number(sigma)
-    if s is None or s <= 0:
-        raise ValueError(f"sigma must be a finite number > 0, got {sigma!r}")
-    m = finite_number(miss)
-    if m is None or not 0 < m <= 1:
-        raise ValueError(f"miss must be in (0, 1], got {miss!r}")
-    if whole_number(neighbours) is None or not 1 <= neighbours <= len(C):
-        raise ValueError(f"neighbours must be an int in [1, {len(C)}], got {neighbours!r}")
-    local = np.repeat(np.clip(a, -1.0, 1.0)[None], len(psi), axis=0)
-    local[:, 0] = np.mod(local[:, 0] - psi / np.pi + 1.0, 2.0) - 1.0
-    _, idx = tree.query(approach_embedding(local), k=int(neighbours))
+    s, k, m = _kernel(sigma, neighbours, miss, len(C))
+    local = turned_azimuth(np.repeat(np.clip(a, -1.0, 1.0)[None], len(psi), axis=0), -psi)
+    _, idx = tree.query(approach_embedding(local), k=k)
     idx = np.asarray(idx).reshape(len(psi), -1)  # (Y, k)
     cos, sin = np.cos(psi), np.sin(psi)
     Cr = C[idx]  # (Y, k, n, 3), the object's frame
@@ -157,6 +159,20 @@ def yaw_log_likelihood(records: tuple, action: np.ndarray, contacts: np.ndarray,
     ll = ll.sum(axis=-1)  # (Y, k)
     top = ll.max(axis=1)
     return top + np.log(np.mean(np.exp(ll - top[:, None]), axis=1))
+
+
+def _kernel(sigma, neighbours, miss, records: int) -> tuple[float, int, float]:
+    """:func:`yaw_log_likelihood`'s kernel settings, checked: ``(sigma, neighbours, miss)``, the neighbours at most
+    ``records`` (the recorded grasps per object)."""
+    s = finite_number(sigma)
+    if s is None or s <= 0:
+        raise ValueError(f"sigma must be a finite number > 0, got {sigma!r}")
+    m = finite_number(miss)
+    if m is None or not 0 < m <= 1:
+        raise ValueError(f"miss must be in (0, 1], got {miss!r}")
+    if whole_number(neighbours) is None or not 1 <= neighbours <= records:
+        raise ValueError(f"neighbours must be an int in [1, {records}], got {neighbours!r}")
+    return s, int(neighbours), m
 
 
 class YawBelief:
@@ -178,10 +194,13 @@ class YawBelief:
             raise ValueError("records must hold at least one object's recorded grasps")
         self.records = list(records)
         self.yaws = np.arange(int(bins)) * 2.0 * np.pi / int(bins)
+        unknown = sorted(set(kernel) - {"sigma", "neighbours", "miss"})
+        if unknown:
+            raise TypeError(f"unknown kernel settings {unknown}; yaw_log_likelihood takes sigma, neighbours, miss")
+        # checked now, not at the first grasp, against every object's records
+        _kernel(kernel.get("sigma", YAW_SIGMA), kernel.get("neighbours", YAW_NEIGHBOURS), kernel.get("miss", YAW_MISS),
+                min(len(r[1]) for r in self.records))
         self.kernel = kernel
-        r = self.records[0]  # the kernel's settings checked now, not at the first grasp
-        yaw_log_likelihood(r, np.zeros(ACTION_DIM), np.zeros((r[1].shape[1], 3)), np.zeros(r[1].shape[1], dtype=bool),
-                           self.yaws[:1], **kernel)
         self.reset()
 
     def reset(self) -> None:
@@ -306,8 +325,7 @@ class ReplayBackend:
         if self._table is None:
             raise RuntimeError("call set_object(obj, pose) before grasping")
         a = validate_actions(actions, self.action_dim).astype(np.float64)
-        local = a.copy()  # the approach in the object's frame: the azimuth less the yaw, wrapped into [-1, 1)
-        local[:, 0] = np.mod(a[:, 0] - self._yaw / np.pi + 1.0, 2.0) - 1.0
+        local = turned_azimuth(a, -self._yaw)  # the approach in the object's frame
         tree, C, N, touched = self._table
         k = int(self.config.neighbours)
         _, idx = tree.query(approach_embedding(local), k=k)
