@@ -33,6 +33,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from scipy.special import logsumexp
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -45,12 +46,6 @@ from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 #: (kernel std in m, records per yaw) tried on the selection pool
 GRID = ((0.005, 16), (0.007, 32), (0.01, 32), (0.02, 32))
 WITHIN = np.deg2rad(15.0)
-
-
-def _logsumexp(x: np.ndarray, axis: int = -1) -> np.ndarray:
-    from scipy.special import logsumexp
-
-    return logsumexp(x, axis=axis)
 
 
 def turned_queries(pool, seed: int, k: int, rng: np.random.Generator):
@@ -79,17 +74,17 @@ def score_pool(records, pool, seed: int, yaws: np.ndarray, sigma: float, neighbo
         for psi, grasps in turned_queries(pool, seed, k, rng):
             L = [np.stack([yaw_log_likelihood(records[h], a, c, t, yaws, sigma=sigma, neighbours=neighbours)
                            for h in range(K)]) for a, c, t in grasps]  # 2 x (K, Y)
-            marg = [_logsumexp(x) for x in L]
+            marg = [logsumexp(x, axis=-1) for x in L]
             for m, (_, _, t) in zip(marg, grasps):  # one-shot: each grasp of the pair alone
                 right = int(np.argmax(m) == k)
                 hits["one"].append(right)
                 if t.all():
                     hits["one_complete"].append(right)
             hits["naive2"].append(int(np.argmax(marg[0] + marg[1]) == k))
-            hits["joint2"].append(int(np.argmax(_logsumexp(L[0] + L[1])) == k))
+            hits["joint2"].append(int(np.argmax(logsumexp(L[0] + L[1], axis=-1)) == k))
             near = np.abs(np.mod(yaws - psi + np.pi, 2.0 * np.pi) - np.pi) < WITHIN
             for store, lk in ((mass1, L[0][k]), (mass2, L[0][k] + L[1][k])):
-                p = np.exp(lk - _logsumexp(lk))
+                p = np.exp(lk - logsumexp(lk))
                 store[k].append(p[near].sum())
     out = {name: float(np.mean(v)) if v else float("nan") for name, v in hits.items()}
     out["mass1"] = np.array([np.mean(m) for m in mass1])
