@@ -34,7 +34,7 @@ KDE_METHODS = ("pooled", "tree", "dense")
 #: Backends whose grasps are a MuJoCo hand's (``backend_kwargs["hand"]``): the physics, or its recorded grasps.
 HAND_BACKENDS = ("mujoco", "replay")
 #: Frames of the action's azimuth (``HapticRecogConfig.action_frame``).
-ACTION_FRAMES = ("world", "estimated")
+ACTION_FRAMES = ("world", "estimated", "oracle")
 #: Random approaches per object of the default ``"hand"`` training grasps.
 HAND_APPROACHES = 3_000
 
@@ -158,6 +158,10 @@ class HapticRecogConfig:
     given by name or MJCF path, and no ``scale_range`` (the records are of the meshes as they are); the first
     ``reset`` also records the replay pool if it is not cached. The look-ahead agents simulate world-frame actions,
     so they refuse it.
+    ``"oracle"``: the estimated frame with a perfect estimate, for training only (it reads the hidden pose): the
+    first grasp in the world frame (as ``"estimated"``'s, before any grasp), every later one turned by the object's
+    true yaw. A policy trained so learns approaches relative to the object, and acts with ``"estimated"``
+    (privileged training). Needs what ``"estimated"`` needs.
     ``"world"``: the paper's setting."""
     recognizer_kwargs: Mapping[str, Any] = field(default_factory=dict)
     """Extra keyword arguments of :func:`haptic_env.recognizers.build_recognizer`, e.g.
@@ -214,8 +218,8 @@ class HapticRecogConfig:
         check_normal_axis(self.normal_axis)
         if self.action_frame not in ACTION_FRAMES:
             raise ValueError(f"action_frame must be one of {ACTION_FRAMES}, got {self.action_frame!r}")
-        if self.action_frame == "estimated":
-            check_yaw_belief(self, "action_frame='estimated'")
+        if self.action_frame != "world":
+            check_yaw_belief(self, f"action_frame={self.action_frame!r}")
         if self.kde_method not in KDE_METHODS:
             raise ValueError(f"kde_method must be 'pooled', 'tree' or 'dense', got {self.kde_method!r}")
         for name in ("recognizer_kwargs", "object_kwargs", "backend_kwargs"):

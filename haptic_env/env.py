@@ -57,7 +57,8 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     :mod:`haptic_env.grasping.base`). Actions outside ``[-1, 1]``, of the wrong shape or non-finite raise
     ``ValueError``. With ``action_frame="estimated"`` (hand envs) the azimuth is read in the most probable object's
     estimated frame: turned by that object's most probable yaw given the episode's grasps (:attr:`last_approach`
-    is the approach as executed).
+    is the approach as executed). ``action_frame="oracle"`` reads it in the true object's frame from the second
+    grasp on (training only: it reads the hidden pose).
 
     ## Observation Space
     ``Box(float32)`` of length ``d + n + 1 + K + A + 1`` (``env.observation_structure`` gives each part's
@@ -283,6 +284,10 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
             from haptic_env.grasping.replay import turned_azimuth
 
             approach = turned_azimuth(a, self._yaw_belief.mode(int(np.argmax(self._probs))))
+        elif self.config.action_frame == "oracle" and self._grasps:  # the true frame from the second grasp on
+            from haptic_env.grasping.replay import turned_azimuth
+
+            approach = turned_azimuth(a, self.scene.yaw)
         result, contacts, normals, touched = self.scene.grasp(approach)
         if self._yaw_belief is not None:
             self._yaw_belief.add(approach, contacts, touched)

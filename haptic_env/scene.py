@@ -161,6 +161,12 @@ class Scene:
                 obj = dataclasses.replace(obj, mesh=mesh)
             self.backend.set_object(obj, self.pose.copy())
 
+    @property
+    def yaw(self) -> float:
+        """The episode's object turn about the world z axis (rad, in ``(-pi, pi]``; a "table-yaw" pose is that turn
+        alone)."""
+        return float(np.arctan2(self.pose[1, 0], self.pose[0, 0]))
+
     def grasp(self, action: np.ndarray) -> tuple[Any, np.ndarray, np.ndarray | None, np.ndarray]:
         """Grasp with ``action``: ``(result, contacts (n, 3), normals (n, 3) or None, touched (n,) bool)``; the
         normals only when ``config.normals`` (sensed, or the backend's ground truth when it senses none)."""

@@ -289,7 +289,7 @@ def test_env_reads_the_azimuth_in_the_estimated_frame(small_recognizer_kwargs):
     cannot have it is refused at make, naming it."""
     from haptic_env.env import HapticRecogConfig, HapticRecogEnv
 
-    with pytest.raises(ValueError, match=r"action_frame must be one of \('world', 'estimated'\), got 'object'"):
+    with pytest.raises(ValueError, match=r"action_frame must be one of \('world', 'estimated', 'oracle'\), got 'object'"):
         HapticRecogConfig(action_frame="object")
     with pytest.raises(ValueError, match="action_frame='estimated' needs a hand backend .* backend='geometric'"):
         HapticRecogConfig(action_frame="estimated")
@@ -339,6 +339,37 @@ def test_env_reads_the_azimuth_in_the_estimated_frame(small_recognizer_kwargs):
         assert small._yaw_belief.log_likelihood(0).shape == (72,)
     finally:
         small.close()
+
+
+def test_env_reads_the_azimuth_in_the_true_frame_after_the_first_grasp_with_oracle(small_recognizer_kwargs):
+    """action_frame="oracle" (training only): the first grasp in the world frame, as "estimated"'s before any grasp,
+    every later one turned by the object's true yaw; it needs what "estimated" needs, and builds no yaw belief."""
+    from haptic_env.env import HapticRecogConfig, HapticRecogEnv
+
+    with pytest.raises(ValueError, match="action_frame='oracle' needs a hand backend .* backend='geometric'"):
+        HapticRecogConfig(action_frame="oracle")
+    cfg = HapticRecogConfig(backend="replay", backend_kwargs={"hand": "generic", "approaches": 40, "progress": False},
+                            recognizer_source="surface", recognizer_kwargs=small_recognizer_kwargs, max_grasps=4,
+                            threshold=0.999, action_frame="oracle")
+    env = HapticRecogEnv(cfg)
+    try:
+        for seed in (1, 2):
+            env.reset(seed=seed)
+            psi = env.unwrapped.scene.yaw
+            np.testing.assert_allclose(env.unwrapped.scene.pose[:3, :3] @ [1.0, 0.0, 0.0],
+                                       [np.cos(psi), np.sin(psi), 0.0], atol=1e-12)
+            rng = np.random.default_rng(seed)
+            for step in range(3):
+                a = rng.uniform(-0.9, 0.9, 4)
+                obs, *_ = env.step(a)
+                want = a.copy()
+                if step:
+                    want[0] = np.mod(a[0] + psi / np.pi + 1.0, 2.0) - 1.0
+                np.testing.assert_allclose(env.last_approach, want, atol=1e-12)
+                np.testing.assert_allclose(obs[env.obs_slices["prev_action"]], a, atol=1e-6)
+            assert env._yaw_belief is None
+    finally:
+        env.close()
 
 
 def test_a_hand_envs_hand_is_its_backends_default_when_not_given():
