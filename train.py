@@ -74,6 +74,11 @@ class Args:
     """Checkpoint .zip, or a run directory (its latest checkpoint), to continue from ("" = fresh model)."""
     torch_threads: int = 1
     """Torch intra-op threads of the learner."""
+    discrete_approaches: int = 0
+    """0: the policy acts in the env's continuous approach box. N > 0: it chooses one of N fixed approaches spread
+    over the box (``agents.sb3.approach_table``, the first N Halton points), a categorical policy that can put its
+    mass on a few separate approaches (PPO and recurrent PPO; the evaluation maps the choice back to the approach).
+    A resumed run needs the N it was started with."""
     env: HapticRecogConfig = field(default_factory=HapticRecogConfig)
     """The env's settings (:class:`haptic_env.config.HapticRecogConfig`), starting from the ``--env-id`` variant's
     (``haptic_env.variant_config``): ``--env.backend replay`` on ``HapticRecogMuJoCo-v0`` trains on the Allegro's
@@ -91,7 +96,7 @@ class Args:
 
 #: (field, minimum) of the run settings checked at parse time
 _MINIMUM = {"total_timesteps": 1, "n_envs": 1, "checkpoint_freq": 1, "max_minutes": 0.0, "torch_threads": 1, "seed": 0,
-            "env_seed": -1}
+            "env_seed": -1, "discrete_approaches": 0}
 
 
 def env_seed(args: Args) -> int:
@@ -128,6 +133,15 @@ def parse_args(argv: list[str] | None = None) -> Args:
         value = getattr(args, name)
         if value < lo:
             _usage_error(f"argument --{name.replace('_', '-')}: must be >= {lo}, got {value}")
+    if args.discrete_approaches:
+        from agents.sb3 import DISCRETE_ALGOS
+
+        if args.algo not in DISCRETE_ALGOS:
+            _usage_error(f"argument --discrete-approaches: {args.algo}'s policy takes a continuous action only; "
+                         f"use --algo {' or '.join(DISCRETE_ALGOS)}, or --discrete-approaches 0")
+        if args.vec == "native":
+            _usage_error("argument --discrete-approaches: wraps each env; the native vector env steps them in one batch "
+                         "(use --vec subproc or dummy)")
     for flag, text in (("--env-kwargs", args.env_kwargs), ("--hyperparams", args.hyperparams)):
         try:
             value = json.loads(text)
@@ -217,9 +231,11 @@ def main(argv: list[str] | None = None) -> Path:
 
     t0 = time.time()
     venv = sb3.make_vec_env(config, n_envs=args.n_envs, seed=first_env_seed, log_dir=run_dir, vec=args.vec,
-                            env_id=args.env_id, monitor_suffix=suffix)
+                            env_id=args.env_id, monitor_suffix=suffix, discrete_approaches=args.discrete_approaches)
+    action = (f"one of {args.discrete_approaches} approaches" if args.discrete_approaches
+              else f"{venv.action_space.shape[0]}-dim action")
     print(f"[train] {args.algo} on {args.env_id} ({args.n_envs} envs, {venv.observation_space.shape[0]}-dim obs, "
-          f"{venv.action_space.shape[0]}-dim action); envs ready in {time.time() - t0:.1f} s", flush=True)
+          f"{action}); envs ready in {time.time() - t0:.1f} s", flush=True)
     t0 = time.time()
     try:
         model, path = sb3.train(

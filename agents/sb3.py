@@ -15,6 +15,10 @@ observation at a time.
   env worker stop learning, save a checkpoint and raise :class:`TrainingInterrupted`.
 * :func:`latest_checkpoint` — the checkpoint with the most steps in a run directory.
 * :class:`SB3Agent` — a trained model as an :class:`agents.base.Agent` for :mod:`agents.evaluate`.
+* :func:`approach_table`, :class:`DiscreteApproaches` — a fixed set of ``N`` approaches as a ``Discrete(N)`` action
+  (``make_vec_env(discrete_approaches=N)``, ``train.py --discrete-approaches N``): PPO's policy is then categorical,
+  so it can put its mass on a few separate approaches instead of the one mode of a Gaussian. :class:`SB3Agent` maps
+  such a model's choice back to the approach, so the env it is evaluated on keeps the continuous action box.
 """
 
 from __future__ import annotations
@@ -28,10 +32,12 @@ import warnings
 from pathlib import Path
 from typing import Any, Callable
 
+import gymnasium as gym
 import numpy as np
 
 __all__ = ["ALGOS", "DEFAULT_HYPERPARAMS", "make_vec_env", "build_model", "load_model", "train", "SB3Agent",
-           "TrainingInterrupted", "latest_checkpoint", "checkpoint_extras", "close_vec_env", "check_hyperparams"]
+           "TrainingInterrupted", "latest_checkpoint", "checkpoint_extras", "close_vec_env", "check_hyperparams",
+           "approach_table", "DiscreteApproaches", "DISCRETE_ALGOS"]
 
 #: ``rppo``: sb3-contrib's ``RecurrentPPO`` (an LSTM policy); its model files are named ``rppo_*``.
 ALGOS = ("ppo", "sac", "rppo")
@@ -64,8 +70,41 @@ def _algo_class(algo: str):
     return {"ppo": PPO, "sac": SAC}[algo]
 
 
+#: the algorithms whose policies take a ``Discrete`` action (SAC's does not)
+DISCRETE_ALGOS = ("ppo", "rppo")
+
+
+def approach_table(n: int, dim: int = 4) -> np.ndarray:
+    """``(n, dim)`` float32: ``n`` approaches spread evenly over the action box ``[-1, 1]^dim``, the first ``n``
+    points after the origin of the unscrambled Halton sequence (``scipy.stats.qmc.Halton``), so that the table
+    depends on ``n`` and ``dim`` alone (a saved model's ``Discrete(n)`` names it). ``n`` and ``dim`` ints >= 1; a
+    ``ValueError`` names a bad one."""
+    from scipy.stats import qmc
+
+    from haptic_env.numbers import whole_at_least
+
+    whole_at_least(n, 1, "n")
+    whole_at_least(dim, 1, "dim")
+    return (qmc.Halton(d=int(dim), scramble=False).random(int(n) + 1)[1:] * 2.0 - 1.0).astype(np.float32)
+
+
+class DiscreteApproaches(gym.ActionWrapper):
+    """The env with a ``Discrete(n)`` action: action ``i`` is :func:`approach_table`'s row ``i``."""
+
+    def __init__(self, env, n: int):
+        super().__init__(env)
+        self.table = approach_table(n, int(np.prod(env.action_space.shape)))
+        self.action_space = gym.spaces.Discrete(len(self.table))
+
+    def action(self, action) -> np.ndarray:
+        i = np.asarray(action)
+        if i.size != 1 or i.dtype.kind not in "iu" or not 0 <= int(i.reshape(-1)[0]) < len(self.table):
+            raise ValueError(f"action must be one approach index in [0, {len(self.table)}), got {action!r}")
+        return self.table[int(i.reshape(-1)[0])].copy()
+
+
 def _env_fn(config, rank: int, monitor_dir: str | None, env_id: str, monitor_suffix: str = "",
-            worker: bool = False) -> Callable[[], Any]:
+            worker: bool = False, discrete_approaches: int = 0) -> Callable[[], Any]:
     def _init():
         os.environ.setdefault("OMP_NUM_THREADS", "1")
         if worker:
@@ -80,7 +119,8 @@ def _env_fn(config, rank: int, monitor_dir: str | None, env_id: str, monitor_suf
 
         env = haptic_env.make(config, env_id=env_id)
         path = os.path.join(monitor_dir, f"{rank}{monitor_suffix}") if monitor_dir else None
-        return Monitor(env, filename=path, info_keywords=("correct", "grasps"))
+        env = Monitor(env, filename=path, info_keywords=("correct", "grasps"))
+        return DiscreteApproaches(env, discrete_approaches) if discrete_approaches else env
 
     return _init
 
@@ -91,10 +131,13 @@ VEC_KINDS = ("subproc", "dummy", "native")
 
 
 def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.PathLike | None = None,
-                 vec: str = "subproc", env_id: str = "HapticRecog-v0", monitor_suffix: str = ""):
+                 vec: str = "subproc", env_id: str = "HapticRecog-v0", monitor_suffix: str = "",
+                 discrete_approaches: int = 0):
     """``n_envs`` monitored copies of the env. ``vec="subproc"`` runs each in its own process (which ignores
     SIGINT, so that Ctrl-C reaches only the main process's handler). ``monitor_suffix`` names the Monitor files
-    ``<rank><suffix>.monitor.csv`` (a resumed run writes a new segment, e.g. ``.part2``, keeping the old ones)."""
+    ``<rank><suffix>.monitor.csv`` (a resumed run writes a new segment, e.g. ``.part2``, keeping the old ones).
+    ``discrete_approaches=N > 0`` gives each env a ``Discrete(N)`` action (:class:`DiscreteApproaches`; not with
+    ``vec="native"``)."""
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
     from haptic_env import variant_config
@@ -102,6 +145,12 @@ def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.
 
     if vec not in VEC_KINDS:
         raise ValueError(f"vec must be 'subproc', 'dummy' or 'native', got {vec!r}")
+    from haptic_env.numbers import whole_at_least
+
+    whole_at_least(discrete_approaches, 0, "discrete_approaches")
+    if discrete_approaches and vec == "native":
+        raise ValueError(f"discrete_approaches={discrete_approaches} wraps each env; the native vector env steps them "
+                         "in one batch: use vec='subproc' or 'dummy'")
     config = config or variant_config(env_id)  # no config: the registered env's own (not the defaults)
     monitor_dir = None
     if log_dir is not None:
@@ -124,7 +173,8 @@ def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.
         get_recognizer(probe.objects, probe.config)
         probe.close()
     subproc = vec == "subproc" and n_envs > 1
-    fns = [_env_fn(config, i, monitor_dir, env_id, monitor_suffix, worker=subproc) for i in range(n_envs)]
+    fns = [_env_fn(config, i, monitor_dir, env_id, monitor_suffix, worker=subproc,
+                   discrete_approaches=int(discrete_approaches)) for i in range(n_envs)]
     venv = SubprocVecEnv(fns) if subproc else DummyVecEnv(fns)
     venv.seed(seed)
     venv.action_space.seed(seed)
@@ -436,14 +486,17 @@ def train(algo: str, venv, total_timesteps: int, log_dir: str | os.PathLike, *, 
 
 
 class SB3Agent:
-    """A trained SB3 model acting deterministically (the mean action). A recurrent model (``rppo``) keeps its LSTM
-    state through an episode; :meth:`reset` clears it, so every episode starts from the state it was trained to."""
+    """A trained SB3 model acting deterministically (the mean action; a categorical policy: its most probable
+    approach). A recurrent model (``rppo``) keeps its LSTM state through an episode; :meth:`reset` clears it, so
+    every episode starts from the state it was trained to. A model trained with a ``Discrete(N)`` action
+    (:class:`DiscreteApproaches`) acts with :func:`approach_table`'s row of its choice."""
 
     def __init__(self, model, name: str | None = None, deterministic: bool = True):
         self.model = model
         self.name = name or type(model).__name__.lower()
         self.deterministic = deterministic
         self.recurrent = hasattr(model.policy, "lstm_actor")
+        self.table = approach_table(model.action_space.n) if isinstance(model.action_space, gym.spaces.Discrete) else None
         self._clear_memory()
 
     @classmethod
@@ -462,8 +515,11 @@ class SB3Agent:
     def act(self, obs: np.ndarray, env: Any) -> np.ndarray:
         if not self.recurrent:
             action, _ = self.model.predict(np.asarray(obs), deterministic=self.deterministic)
-            return np.asarray(action, dtype=np.float32)
-        action, self._state = self.model.predict(np.asarray(obs)[None], state=self._state, episode_start=self._start,
-                                                 deterministic=self.deterministic)
-        self._start = np.zeros((1,), dtype=bool)
-        return np.asarray(action[0], dtype=np.float32)
+        else:
+            action, self._state = self.model.predict(np.asarray(obs)[None], state=self._state,
+                                                     episode_start=self._start, deterministic=self.deterministic)
+            self._start = np.zeros((1,), dtype=bool)
+            action = action[0]
+        if self.table is not None:
+            return self.table[int(np.asarray(action).reshape(-1)[0])].copy()
+        return np.asarray(action, dtype=np.float32)

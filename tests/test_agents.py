@@ -266,6 +266,52 @@ def test_tiny_recurrent_ppo_trains_resumes_and_remembers_within_an_episode(env_c
     assert type(load_model(resumed)).__name__ == "RecurrentPPO" and load_model(resumed).num_timesteps == 256
 
 
+def test_discrete_approaches_train_a_categorical_ppo_that_acts_with_the_tables_rows(env_config,
+                                                                                      small_recognizer_kwargs,
+                                                                                      tmp_path, usage_error):
+    """``--discrete-approaches N``: each training env takes one of N fixed approaches (the first N Halton points of
+    the action box, a table that depends on N alone); PPO's policy is categorical, and as an agent it acts on the
+    continuous env with the row of its choice. SAC and the native vector env are refused at parse time."""
+    import train
+    from agents.evaluate import make_agent
+    from agents.sb3 import DiscreteApproaches, SB3Agent, approach_table, load_model
+
+    t = approach_table(16)
+    assert t.shape == (16, 4) and t.dtype == np.float32 and np.all(np.abs(t) < 1)
+    np.testing.assert_array_equal(t, approach_table(64)[:16])  # a prefix: the table depends on n alone
+    assert len(np.unique(t, axis=0)) == 16
+    for bad in (0, 2.5, True):
+        with pytest.raises(ValueError, match="n must be"):
+            approach_table(bad)
+    env = DiscreteApproaches(haptic_env.make(env_config.replace(max_grasps=10)), 16)
+    env.reset(seed=0)
+    env.step(3)
+    np.testing.assert_array_equal(env.unwrapped.last_approach, t[3])
+    for bad in (16, -1, 1.0, np.array([1, 2])):
+        with pytest.raises(ValueError, match=r"action must be one approach index in \[0, 16\)"):
+            env.action(bad)
+
+    run = tmp_path / "ppo_discrete"
+    args = _train_args("ppo", 128, run, small_recognizer_kwargs, {"n_steps": 64, "batch_size": 32, "n_epochs": 2})
+    path = train.main(args + ["--discrete-approaches", "16"])
+    model = load_model(path)
+    assert model.action_space.n == 16 and json.loads((run / "args.json").read_text())["discrete_approaches"] == 16
+    agent = make_agent(f"ppo={path}")
+    assert isinstance(agent, SB3Agent)
+    plain = haptic_env.make(env_config.replace(max_grasps=10))
+    obs, _ = plain.reset(seed=0)
+    a = agent.act(obs, plain)
+    i = int(model.predict(obs, deterministic=True)[0])
+    np.testing.assert_array_equal(a, t[i])
+    assert plain.action_space.contains(a)
+    plain.step(a)
+    usage_error(train.parse_args, ["--algo", "sac", "--discrete-approaches", "8"],
+                match="--discrete-approaches: sac's policy takes a continuous action only")
+    usage_error(train.parse_args, ["--vec", "native", "--discrete-approaches", "8"],
+                match="--discrete-approaches: wraps each env")
+    usage_error(train.parse_args, ["--discrete-approaches", "-1"], match="--discrete-approaches: must be >= 0")
+
+
 def test_train_env_flags_change_the_fields_a_variant_sets(small_recognizer_kwargs, usage_error):
     """``--env.*`` start from the ``--env-id`` variant's config and may change what the variant sets; the envs the
     run makes are that config (``haptic_env.make`` takes the variant's fields from a given config; before, gymnasium
