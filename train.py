@@ -173,7 +173,25 @@ def parse_args(argv: list[str] | None = None) -> Args:
         other = next((a for a in ALGOS if a != args.algo and Path(args.resume).name.startswith(a + "_")), None)
         if other is not None:
             _usage_error(f"argument --resume: {args.resume} is a {other} checkpoint, not {args.algo} (pass --algo {other})")
+        saved = _saved_approaches(Path(args.resume))
+        if saved is not None and saved != args.discrete_approaches:
+            _usage_error(f"argument --discrete-approaches: {args.resume} was trained with --discrete-approaches {saved}, "
+                         f"got {args.discrete_approaches} (resume with the N it was started with)")
     return args
+
+
+def _saved_approaches(path: Path) -> int | None:
+    """The ``--discrete-approaches`` a checkpoint was trained with (0: the continuous action; None: a file SB3 cannot
+    read, left to the loader to report)."""
+    import gymnasium as gym
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    try:
+        data, _, _ = load_from_zip_file(path, load_data=True, device="cpu")
+    except ValueError:  # not a zip file: the resume itself names the problem
+        return None
+    space = (data or {}).get("action_space")
+    return int(space.n) if isinstance(space, gym.spaces.Discrete) else 0
 
 
 def _env_id(argv: list[str]) -> str:

@@ -591,10 +591,10 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False):
       but draws the look-ahead's poses from the yaw posterior of the episode's grasps (``infer_pose=True``, the hand
       envs); ``:M:S`` sets ``S`` samples per candidate (blind and infer: ``S`` poses);
     * ``<name>=<model.zip>``: PPO / SAC / recurrent PPO, the algorithm from the file name or from a name ``ppo``,
-      ``sac`` or ``rppo``.
+      ``sac`` or ``rppo``; a model trained with ``--discrete-approaches`` acts with the approach of its choice.
 
     ``stochastic``: SB3 agents sample their actions (named ``<name>-stochastic``) instead of taking the mean
-    action."""
+    action (a categorical policy's most probable approach)."""
     if spec == "random":
         from agents.random_policy import RandomAgent
 
@@ -670,7 +670,8 @@ def add_parser(subparsers) -> None:
     p.add_argument("--episodes", type=int_in(1), default=40, help="episodes per seed")
     p.add_argument("--seeds", type=int_in(0), nargs="+", default=list(ENV_TEST_SEEDS))
     p.add_argument("--stochastic", action="store_true",
-                   help="SB3 agents sample actions from their policy (seeded per env seed) instead of the mean action")
+                   help="SB3 agents sample actions from their policy (seeded per env seed) instead of the mean "
+                   "action (a categorical policy's most probable approach)")
     p.add_argument("--env-id", default="HapticRecog-v0", choices=list(ENV_VARIANTS))
     p.add_argument("--env-kwargs", type=json_object, default={}, help="JSON dict of HapticRecogConfig fields")
     p.add_argument("--out", default="outputs/eval")

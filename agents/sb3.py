@@ -35,6 +35,8 @@ from typing import Any, Callable
 import gymnasium as gym
 import numpy as np
 
+from haptic_env.grasping.base import ACTION_DIM
+
 __all__ = ["ALGOS", "DEFAULT_HYPERPARAMS", "make_vec_env", "build_model", "load_model", "train", "SB3Agent",
            "TrainingInterrupted", "latest_checkpoint", "checkpoint_extras", "close_vec_env", "check_hyperparams",
            "approach_table", "DiscreteApproaches", "DISCRETE_ALGOS"]
@@ -74,7 +76,7 @@ def _algo_class(algo: str):
 DISCRETE_ALGOS = ("ppo", "rppo")
 
 
-def approach_table(n: int, dim: int = 4) -> np.ndarray:
+def approach_table(n: int, dim: int = ACTION_DIM) -> np.ndarray:
     """``(n, dim)`` float32: ``n`` approaches spread evenly over the action box ``[-1, 1]^dim``, the first ``n``
     points after the origin of the unscrambled Halton sequence (``scipy.stats.qmc.Halton``), so that the table
     depends on ``n`` and ``dim`` alone (a saved model's ``Discrete(n)`` names it). ``n`` and ``dim`` ints >= 1; a
@@ -83,9 +85,8 @@ def approach_table(n: int, dim: int = 4) -> np.ndarray:
 
     from haptic_env.numbers import whole_at_least
 
-    whole_at_least(n, 1, "n")
-    whole_at_least(dim, 1, "dim")
-    return (qmc.Halton(d=int(dim), scramble=False).random(int(n) + 1)[1:] * 2.0 - 1.0).astype(np.float32)
+    n, dim = whole_at_least(n, 1, "n"), whole_at_least(dim, 1, "dim")
+    return (qmc.Halton(d=dim, scramble=False).random(n + 1)[1:] * 2.0 - 1.0).astype(np.float32)
 
 
 class DiscreteApproaches(gym.ActionWrapper):
@@ -147,7 +148,7 @@ def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.
         raise ValueError(f"vec must be 'subproc', 'dummy' or 'native', got {vec!r}")
     from haptic_env.numbers import whole_at_least
 
-    whole_at_least(discrete_approaches, 0, "discrete_approaches")
+    discrete_approaches = whole_at_least(discrete_approaches, 0, "discrete_approaches")
     if discrete_approaches and vec == "native":
         raise ValueError(f"discrete_approaches={discrete_approaches} wraps each env; the native vector env steps them "
                          "in one batch: use vec='subproc' or 'dummy'")
@@ -174,7 +175,7 @@ def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.
         probe.close()
     subproc = vec == "subproc" and n_envs > 1
     fns = [_env_fn(config, i, monitor_dir, env_id, monitor_suffix, worker=subproc,
-                   discrete_approaches=int(discrete_approaches)) for i in range(n_envs)]
+                   discrete_approaches=discrete_approaches) for i in range(n_envs)]
     venv = SubprocVecEnv(fns) if subproc else DummyVecEnv(fns)
     venv.seed(seed)
     venv.action_space.seed(seed)
@@ -203,6 +204,9 @@ def build_model(algo: str, venv, seed: int = 0, log_dir: str | os.PathLike | Non
     cls = _algo_class(algo)
     check_hyperparams(algo, hyperparams)
     algo = algo.lower()
+    if isinstance(venv.action_space, gym.spaces.Discrete) and algo not in DISCRETE_ALGOS:
+        raise ValueError(f"{algo}'s policy takes a continuous action, got the env's {venv.action_space} (fixed "
+                         f"approaches: use one of {DISCRETE_ALGOS})")
     params = {**DEFAULT_HYPERPARAMS[algo], **hyperparams}
     tb = str(Path(log_dir) / "tb") if log_dir is not None else None
     return cls(_POLICY[algo], venv, seed=seed, tensorboard_log=tb, verbose=verbose, device="cpu", **params)

@@ -161,7 +161,8 @@ class HapticRecogConfig:
     ``"oracle"``: the estimated frame with a perfect estimate, for training only (it reads the hidden pose): the
     first grasp in the world frame (as ``"estimated"``'s, before any grasp), every later one turned by the object's
     true yaw. A policy trained so learns approaches relative to the object, and acts with ``"estimated"``
-    (privileged training). Needs what ``"estimated"`` needs.
+    (privileged training). Needs what ``"estimated"`` needs (it builds no yaw belief, but a policy trained so is
+    meant to act with ``"estimated"``, so the same settings are asked of it).
     ``"world"``: the paper's setting."""
     recognizer_kwargs: Mapping[str, Any] = field(default_factory=dict)
     """Extra keyword arguments of :func:`haptic_env.recognizers.build_recognizer`, e.g.

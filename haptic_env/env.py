@@ -242,7 +242,8 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     @property
     def last_approach(self) -> np.ndarray | None:
         """The world-frame approach of the latest grasp (a copy; None before an episode's first step): the action as
-        executed, turned by the estimated yaw with ``action_frame="estimated"``."""
+        executed, turned by the estimated yaw with ``action_frame="estimated"`` (by the true yaw from the second
+        grasp on with ``"oracle"``)."""
         return None if self._last_approach is None else self._last_approach.copy()
 
     # ------------------------------------------------------------------------------- gym API

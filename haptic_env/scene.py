@@ -15,7 +15,7 @@ import numpy as np
 if TYPE_CHECKING:
     from haptic_env.config import HapticRecogConfig
 
-__all__ = ["Scene", "POSE_MODES", "random_pose", "yaw_pose", "reset_options"]
+__all__ = ["Scene", "POSE_MODES", "random_pose", "yaw_pose", "pose_yaw", "reset_options"]
 
 #: "table-yaw": a uniform yaw about the world z axis; "so3": a uniform random rotation.
 POSE_MODES = ("table-yaw", "so3")
@@ -27,6 +27,19 @@ def yaw_pose(psi: float) -> np.ndarray:
     c, s = np.cos(psi), np.sin(psi)
     T[:2, :2] = [[c, -s], [s, c]]
     return T
+
+
+def pose_yaw(T: np.ndarray, who: str = "a yaw") -> float:
+    """The turn about the world z axis (rad, in ``[-pi, pi]``) of a "table-yaw" pose ``T (4, 4)``; a ``ValueError``
+    naming ``who`` (what needs it) and ``T`` for any other pose (tilted or translated). The inverse of
+    :func:`yaw_pose`."""
+    T = np.asarray(T, dtype=np.float64)
+    R = T[:3, :3]
+    if not (np.allclose(R[2], [0.0, 0.0, 1.0], atol=1e-9) and np.allclose(R[:2, 2], 0.0, atol=1e-9)
+            and np.allclose(T[:3, 3], 0.0, atol=1e-12)):
+        raise ValueError(f"{who} needs a pose turned about the vertical axis only (pose='table-yaw', no translation), "
+                         f"got {T.tolist()}")
+    return float(np.arctan2(R[1, 0], R[0, 0]))
 
 
 def random_pose(rng: np.random.Generator, mode: str) -> np.ndarray:
@@ -163,9 +176,8 @@ class Scene:
 
     @property
     def yaw(self) -> float:
-        """The episode's object turn about the world z axis (rad, in ``(-pi, pi]``; a "table-yaw" pose is that turn
-        alone)."""
-        return float(np.arctan2(self.pose[1, 0], self.pose[0, 0]))
+        """The episode's object turn about the world z axis (rad, :func:`pose_yaw`: a "table-yaw" pose only)."""
+        return pose_yaw(self.pose, "the object's yaw")
 
     def grasp(self, action: np.ndarray) -> tuple[Any, np.ndarray, np.ndarray | None, np.ndarray]:
         """Grasp with ``action``: ``(result, contacts (n, 3), normals (n, 3) or None, touched (n,) bool)``; the

@@ -274,7 +274,7 @@ def test_discrete_approaches_train_a_categorical_ppo_that_acts_with_the_tables_r
     continuous env with the row of its choice. SAC and the native vector env are refused at parse time."""
     import train
     from agents.evaluate import make_agent
-    from agents.sb3 import DiscreteApproaches, SB3Agent, approach_table, load_model
+    from agents.sb3 import DiscreteApproaches, SB3Agent, approach_table, build_model, load_model, make_vec_env
 
     t = approach_table(16)
     assert t.shape == (16, 4) and t.dtype == np.float32 and np.all(np.abs(t) < 1)
@@ -305,11 +305,50 @@ def test_discrete_approaches_train_a_categorical_ppo_that_acts_with_the_tables_r
     np.testing.assert_array_equal(a, t[i])
     assert plain.action_space.contains(a)
     plain.step(a)
+    checkpoint = str(run / "checkpoints" / "ppo_128_steps.zip")
+    usage_error(train.parse_args, args + ["--resume", checkpoint],  # resumed without its N: refused, naming both
+                match="--discrete-approaches: .*ppo_128_steps.zip was trained with --discrete-approaches 16, got 0")
+    assert train.parse_args(args + ["--discrete-approaches", "16", "--resume", checkpoint]).discrete_approaches == 16
+    venv = make_vec_env(env_config.replace(max_grasps=10), n_envs=1, vec="dummy", discrete_approaches=4)
+    try:
+        with pytest.raises(ValueError, match=r"sac's policy takes a continuous action, got the env's Discrete\(4\)"):
+            build_model("sac", venv)
+    finally:
+        venv.close()
     usage_error(train.parse_args, ["--algo", "sac", "--discrete-approaches", "8"],
                 match="--discrete-approaches: sac's policy takes a continuous action only")
     usage_error(train.parse_args, ["--vec", "native", "--discrete-approaches", "8"],
                 match="--discrete-approaches: wraps each env")
     usage_error(train.parse_args, ["--discrete-approaches", "-1"], match="--discrete-approaches: must be >= 0")
+
+
+def test_sb3_agent_maps_a_recurrent_or_sampled_categorical_choice_to_its_approach():
+    """SB3's predict gives a categorical choice as a 0-d array (PPO) or a (1,) batch (recurrent PPO), sampled or not:
+    the agent plays that row of the approach table either way."""
+    from types import SimpleNamespace
+
+    import gymnasium as gym
+
+    from agents.sb3 import SB3Agent, approach_table
+
+    class Stub:
+        action_space = gym.spaces.Discrete(8)
+
+        def __init__(self, recurrent: bool):
+            self.policy = SimpleNamespace(lstm_actor=None) if recurrent else SimpleNamespace()
+            self.recurrent, self.calls = recurrent, []
+
+        def predict(self, obs, state=None, episode_start=None, deterministic=True):
+            self.calls.append(deterministic)
+            return (np.array([5]), "state") if self.recurrent else (np.array(5), None)
+
+    for recurrent in (False, True):
+        for deterministic in (True, False):
+            model = Stub(recurrent)
+            agent = SB3Agent(model, deterministic=deterministic)
+            assert agent.recurrent == recurrent
+            np.testing.assert_array_equal(agent.act(np.zeros(3, np.float32), None), approach_table(8)[5])
+            assert model.calls == [deterministic]
 
 
 def test_train_env_flags_change_the_fields_a_variant_sets(small_recognizer_kwargs, usage_error):

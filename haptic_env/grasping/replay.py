@@ -246,16 +246,6 @@ class YawBelief:
         return float(self.yaws[rng.choice(len(p), p=p)] + rng.uniform(-0.5, 0.5) * width)
 
 
-def _yaw(T: np.ndarray) -> float:
-    """The yaw of a "table-yaw" pose; ValueError for any other pose (the replay cannot turn a grasp otherwise)."""
-    R = T[:3, :3]
-    if not (np.allclose(R[2], [0.0, 0.0, 1.0], atol=1e-9) and np.allclose(R[:2, 2], 0.0, atol=1e-9)
-            and np.allclose(T[:3, 3], 0.0, atol=1e-12)):
-        raise ValueError("the replay backend replays poses turned about the vertical axis only (pose='table-yaw', no "
-                         f"translation), got {T.tolist()}")
-    return float(np.arctan2(R[1, 0], R[0, 0]))
-
-
 class ReplayBackend:
     """Recorded grasps of a hand (see the module docstring). :meth:`prepare` records (or reads from the cache) the
     pools of a whole object set at once on all cores; :meth:`set_object` of an object that was not prepared records
@@ -309,8 +299,10 @@ class ReplayBackend:
     def set_object(self, obj, pose: np.ndarray | None = None) -> None:
         from haptic_env.objects import ObjectSet
 
+        from haptic_env.scene import pose_yaw
+
         T = validate_pose(pose)
-        yaw = _yaw(T)
+        yaw = pose_yaw(T, "the replay backend (it replays grasps of an object turned about the vertical)")
         key = (obj.name, obj.mesh_hash)
         if key not in self._tables:
             if any(name == obj.name for name, _ in self._tables):  # e.g. the env's scale_range: a scaled copy
