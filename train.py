@@ -140,8 +140,8 @@ def parse_args(argv: list[str] | None = None) -> Args:
             _usage_error(f"argument --discrete-approaches: {args.algo}'s policy takes a continuous action only; "
                          f"use --algo {' or '.join(DISCRETE_ALGOS)}, or --discrete-approaches 0")
         if args.vec == "native":
-            _usage_error("argument --discrete-approaches: wraps each env; the native vector env steps them in one batch "
-                         "(use --vec subproc or dummy)")
+            _usage_error("argument --discrete-approaches: wraps each env; the native vector env steps them in one "
+                         "batch (use --vec subproc or dummy)")
     for flag, text in (("--env-kwargs", args.env_kwargs), ("--hyperparams", args.hyperparams)):
         try:
             value = json.loads(text)
@@ -175,8 +175,8 @@ def parse_args(argv: list[str] | None = None) -> Args:
             _usage_error(f"argument --resume: {args.resume} is a {other} checkpoint, not {args.algo} (pass --algo {other})")
         saved = _saved_approaches(Path(args.resume))
         if saved is not None and saved != args.discrete_approaches:
-            _usage_error(f"argument --discrete-approaches: {args.resume} was trained with --discrete-approaches {saved}, "
-                         f"got {args.discrete_approaches} (resume with the N it was started with)")
+            _usage_error(f"argument --discrete-approaches: {args.resume} was trained with --discrete-approaches "
+                         f"{saved}, got {args.discrete_approaches} (resume with the N it was started with)")
     return args
 
 

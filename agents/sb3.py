@@ -500,7 +500,8 @@ class SB3Agent:
         self.name = name or type(model).__name__.lower()
         self.deterministic = deterministic
         self.recurrent = hasattr(model.policy, "lstm_actor")
-        self.table = approach_table(model.action_space.n) if isinstance(model.action_space, gym.spaces.Discrete) else None
+        space = model.action_space
+        self.table = approach_table(space.n) if isinstance(space, gym.spaces.Discrete) else None
         self._clear_memory()
 
     @classmethod

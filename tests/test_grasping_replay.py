@@ -289,7 +289,8 @@ def test_env_reads_the_azimuth_in_the_estimated_frame(small_recognizer_kwargs):
     cannot have it is refused at make, naming it."""
     from haptic_env.env import HapticRecogConfig, HapticRecogEnv
 
-    with pytest.raises(ValueError, match=r"action_frame must be one of \('world', 'estimated', 'oracle'\), got 'object'"):
+    frames = r"\('world', 'estimated', 'oracle'\)"
+    with pytest.raises(ValueError, match=rf"action_frame must be one of {frames}, got 'object'"):
         HapticRecogConfig(action_frame="object")
     with pytest.raises(ValueError, match="action_frame='estimated' needs a hand backend .* backend='geometric'"):
         HapticRecogConfig(action_frame="estimated")
