@@ -36,6 +36,7 @@ import gymnasium as gym
 import numpy as np
 
 from haptic_env.grasping.base import ACTION_DIM
+from haptic_env.numbers import whole_at_least
 
 __all__ = ["ALGOS", "DEFAULT_HYPERPARAMS", "make_vec_env", "build_model", "load_model", "train", "SB3Agent",
            "TrainingInterrupted", "latest_checkpoint", "checkpoint_extras", "close_vec_env", "check_hyperparams",
@@ -82,8 +83,6 @@ def approach_table(n: int, dim: int = ACTION_DIM) -> np.ndarray:
     depends on ``n`` and ``dim`` alone (a saved model's ``Discrete(n)`` names it). ``n`` and ``dim`` ints >= 1; a
     ``ValueError`` names a bad one."""
     from scipy.stats import qmc
-
-    from haptic_env.numbers import whole_at_least
 
     n, dim = whole_at_least(n, 1, "n"), whole_at_least(dim, 1, "dim")
     return (qmc.Halton(d=dim, scramble=False).random(n + 1)[1:] * 2.0 - 1.0).astype(np.float32)
@@ -146,8 +145,6 @@ def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.
 
     if vec not in VEC_KINDS:
         raise ValueError(f"vec must be 'subproc', 'dummy' or 'native', got {vec!r}")
-    from haptic_env.numbers import whole_at_least
-
     discrete_approaches = whole_at_least(discrete_approaches, 0, "discrete_approaches")
     if discrete_approaches and vec == "native":
         raise ValueError(f"discrete_approaches={discrete_approaches} wraps each env; the native vector env steps them "

@@ -246,6 +246,15 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         grasp on with ``"oracle"``)."""
         return None if self._last_approach is None else self._last_approach.copy()
 
+    def _frame_yaw(self) -> float | None:
+        """The yaw the next action's azimuth is read in (``action_frame``): the most probable object's estimated yaw
+        (``"estimated"``), the object's true yaw from the second grasp on (``"oracle"``), or None (the world frame)."""
+        if self._yaw_belief is not None:
+            return self._yaw_belief.mode(int(np.argmax(self._probs)))
+        if self.config.action_frame == "oracle" and self._grasps:
+            return self.scene.yaw
+        return None
+
     # ------------------------------------------------------------------------------- gym API
     def __setstate__(self, state):
         super().__setstate__(state)  # EzPickle: a new env from the constructor arguments
@@ -280,15 +289,13 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
                                f"truncated at max_grasps={self.config.max_grasps}); call reset() before step()")
         a = self._check_action(action)
         old = self._probs
-        approach = a
-        if self._yaw_belief is not None:  # the azimuth in the most probable object's estimated frame
+        psi = self._frame_yaw()
+        if psi is None:
+            approach = a
+        else:
             from haptic_env.grasping.replay import turned_azimuth
 
-            approach = turned_azimuth(a, self._yaw_belief.mode(int(np.argmax(self._probs))))
-        elif self.config.action_frame == "oracle" and self._grasps:  # the true frame from the second grasp on
-            from haptic_env.grasping.replay import turned_azimuth
-
-            approach = turned_azimuth(a, self.scene.yaw)
+            approach = turned_azimuth(a, psi)
         result, contacts, normals, touched = self.scene.grasp(approach)
         if self._yaw_belief is not None:
             self._yaw_belief.add(approach, contacts, touched)

@@ -298,7 +298,6 @@ class ReplayBackend:
 
     def set_object(self, obj, pose: np.ndarray | None = None) -> None:
         from haptic_env.objects import ObjectSet
-
         from haptic_env.scene import pose_yaw
 
         T = validate_pose(pose)
