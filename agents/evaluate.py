@@ -581,7 +581,7 @@ def plot_learning_curves(log_dirs: dict[str, str | Path], out: str | Path, windo
 
 
 # --------------------------------------------------------------------------------------- CLI
-def make_agent(spec: str, seed: int = 0, stochastic: bool = False):
+def make_agent(spec: str, seed: int = 0, stochastic: bool = False, no_repeat: bool = False):
     """An agent from its spec:
 
     * ``random``;
@@ -594,7 +594,9 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False):
       ``sac`` or ``rppo``; a model trained with ``--discrete-approaches`` acts with the approach of its choice.
 
     ``stochastic``: SB3 agents sample their actions (named ``<name>-stochastic``) instead of taking the mean
-    action (a categorical policy's most probable approach)."""
+    action (a categorical policy's most probable approach). ``no_repeat``: a categorical SB3 agent does not try an
+    approach twice while its belief stays the same (:class:`agents.sb3.SB3Agent`; named ``<name>-norepeat``); other
+    agents are unchanged."""
     if spec == "random":
         from agents.random_policy import RandomAgent
 
@@ -615,13 +617,12 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False):
         agent.name = spec
         return agent
     if "=" in spec or spec.endswith(".zip"):
-        from agents.sb3 import ALGOS, SB3Agent
+        from agents.sb3 import ALGOS, SB3Agent, load_model
 
         name, _, path = spec.partition("=") if "=" in spec else (Path(spec).stem, "", spec)
         algo = name.lower() if name.lower() in ALGOS else None
-        agent = SB3Agent.from_path(path, algo=algo, name=f"{name}-stochastic" if stochastic else name)
-        agent.deterministic = not stochastic
-        return agent
+        name += "-stochastic" * bool(stochastic) + "-norepeat" * bool(no_repeat)
+        return SB3Agent(load_model(path, algo), name=name, deterministic=not stochastic, no_repeat=no_repeat)
     raise ValueError(f"unknown agent spec {spec!r}; use random, greedy[-env][-blind|-infer][:M[:S]] or "
                      "NAME=path/to/model.zip")
 
@@ -642,7 +643,7 @@ def code_fingerprint() -> str:
 
 def _block_key(spec: str, args, kwargs: dict, code: str) -> str:
     """What one agent's saved blocks of ``evaluate`` depend on: the agent spec (with its model file's bytes), the env
-    and its overrides, the episodes per seed, ``--stochastic`` and the code (:func:`code_fingerprint`: a run resumed
+    and its overrides, the episodes per seed, ``--stochastic``, ``--no-repeat`` and the code (:func:`code_fingerprint`: a run resumed
     after the code changed plays its saved blocks again instead of mixing them with the new code's)."""
     import hashlib
 
@@ -652,7 +653,8 @@ def _block_key(spec: str, args, kwargs: dict, code: str) -> str:
     model = hashlib.sha256(Path(path).read_bytes()).hexdigest() if path else ""
     name = spec.partition("=")[0] if "=" in spec else Path(spec).stem
     safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in name)[:40]
-    return f"{safe}-" + config_key(spec, model, args.env_id, kwargs, int(args.episodes), bool(args.stochastic), code)
+    return f"{safe}-" + config_key(spec, model, args.env_id, kwargs, int(args.episodes), bool(args.stochastic),
+                                  *(["no-repeat"] if args.no_repeat else []), code)
 
 
 def add_parser(subparsers) -> None:
@@ -672,6 +674,10 @@ def add_parser(subparsers) -> None:
     p.add_argument("--stochastic", action="store_true",
                    help="SB3 agents sample actions from their policy (seeded per env seed) instead of the mean "
                    "action (a categorical policy's most probable approach)")
+    p.add_argument("--no-repeat", action="store_true",
+                   help="SB3 agents with a categorical policy (trained with --discrete-approaches) do not choose an "
+                        "approach twice while the belief stays the same (a grasp that touches too few fingers leaves "
+                        "it unchanged, and the policy may repeat it up to the cap); named <name>-norepeat")
     p.add_argument("--env-id", default="HapticRecog-v0", choices=list(ENV_VARIANTS))
     p.add_argument("--env-kwargs", type=json_object, default={}, help="JSON dict of HapticRecogConfig fields")
     p.add_argument("--out", default="outputs/eval")
@@ -706,7 +712,7 @@ def _main(args) -> int:
             if not Path(path).is_file():
                 raise UsageError(f"--agents {spec}: model file {path} does not exist")
         try:
-            agents.append(make_agent(spec, stochastic=args.stochastic))
+            agents.append(make_agent(spec, stochastic=args.stochastic, no_repeat=args.no_repeat))
         except ValueError as exc:
             raise UsageError(f"--agents: {exc}") from exc
     twice = repeated_names(agents)

@@ -490,15 +490,29 @@ class SB3Agent:
     """A trained SB3 model acting deterministically (the mean action; a categorical policy: its most probable
     approach). A recurrent model (``rppo``) keeps its LSTM state through an episode; :meth:`reset` clears it, so
     every episode starts from the state it was trained to. A model trained with a ``Discrete(N)`` action
-    (:class:`DiscreteApproaches`) acts with :func:`approach_table`'s row of its choice."""
+    (:class:`DiscreteApproaches`) acts with :func:`approach_table`'s row of its choice.
 
-    def __init__(self, model, name: str | None = None, deterministic: bool = True):
+    ``no_repeat`` (a categorical, non-recurrent policy only): the agent does not choose an approach twice while the
+    belief stays the same; it takes its most probable approach among those it has not tried since the belief last
+    changed (sampled: draws among them, in proportion to the policy's probabilities). A grasp that touches with too
+    few fingers leaves the belief as it was, and the observation nearly so, so a deterministic policy may choose the
+    same approach again (or two in turn), with the object's pose fixed get the same grasp, and so on up to the
+    episode's cap; with ``no_repeat`` it moves on. Deterministic, it acts as without until it would repeat an
+    approach at an unchanged belief. The belief is read from the observation's ``belief`` part
+    (``env.unwrapped.task.obs_slices``). A ``ValueError`` names a model it does not apply to."""
+
+    def __init__(self, model, name: str | None = None, deterministic: bool = True, no_repeat: bool = False):
         self.model = model
         self.name = name or type(model).__name__.lower()
         self.deterministic = deterministic
         self.recurrent = hasattr(model.policy, "lstm_actor")
         space = model.action_space
         self.table = approach_table(space.n) if isinstance(space, gym.spaces.Discrete) else None
+        if no_repeat and (self.table is None or self.recurrent):
+            kind = "a recurrent" if self.recurrent else f"an action space {space}"
+            raise ValueError(f"no_repeat needs a categorical policy without memory (trained with "
+                             f"--discrete-approaches, ppo); this model ({self.name}) has {kind}")
+        self.no_repeat = bool(no_repeat)
         self._clear_memory()
 
     @classmethod
@@ -511,10 +525,39 @@ class SB3Agent:
         self._clear_memory()
 
     def _clear_memory(self) -> None:
-        """A recurrent model's LSTM state back to an episode's start (no state, ``episode_start`` set)."""
+        """A recurrent model's LSTM state back to an episode's start (no state, ``episode_start`` set), and no
+        belief seen yet."""
         self._state, self._start = None, np.ones((1,), dtype=bool)
+        self._tried: set[int] = set()
+        self._last_belief: np.ndarray | None = None
+
+    def _untried_choice(self, obs: np.ndarray) -> int:
+        """The policy's choice among the approaches not in ``self._tried`` (those tried at this belief): argmax,
+        or a draw from its probabilities renormalised over them, with SB3's seeded torch generator."""
+        import torch as th
+
+        obs_t, _ = self.model.policy.obs_to_tensor(np.asarray(obs))
+        with th.no_grad():
+            probs = self.model.policy.get_distribution(obs_t).distribution.probs[0].clone()
+        tried = sorted(self._tried)
+        if len(tried) >= len(probs):  # every approach tried: the policy's own choice again
+            tried = []
+        probs[tried] = 0.0
+        if self.deterministic or float(probs.sum()) <= 0.0:
+            probs[tried] = -1.0
+            return int(th.argmax(probs))
+        return int(th.multinomial(probs / probs.sum(), 1)[0])
 
     def act(self, obs: np.ndarray, env: Any) -> np.ndarray:
+        if self.no_repeat:
+            obs = np.asarray(obs)
+            belief = obs[env.unwrapped.task.obs_slices["belief"]]
+            if self._last_belief is None or not np.array_equal(belief, self._last_belief):
+                self._tried = set()  # a new belief: every approach may be chosen at it
+            self._last_belief = belief.copy()
+            i = self._untried_choice(obs)
+            self._tried.add(i)
+            return self.table[i].copy()
         if not self.recurrent:
             action, _ = self.model.predict(np.asarray(obs), deterministic=self.deterministic)
         else:

@@ -206,6 +206,8 @@ def test_tiny_ppo_trains_saves_reloads_and_resumes(env_config, small_recognizer_
     sampled.reset(env, seed=0)
     np.testing.assert_array_equal(s1, sampled.act(obs, env))  # seeded: repeatable
     assert not np.array_equal(s1, a1)  # a sample, not the mean action
+    with pytest.raises(ValueError, match=r"no_repeat needs a categorical policy .*\(ppo-norepeat\) has an action"):
+        make_agent(f"ppo={path}", no_repeat=True)  # evaluate --no-repeat with a Gaussian policy
 
     path2 = train.main(args[:-2] + ["--resume", str(run / "checkpoints" / "ppo_128_steps.zip"),
                                     "--total-timesteps", "256", "--run-dir", str(tmp_path / "resumed"),
@@ -305,6 +307,11 @@ def test_discrete_approaches_train_a_categorical_ppo_that_acts_with_the_tables_r
     np.testing.assert_array_equal(a, t[i])
     assert plain.action_space.contains(a)
     plain.step(a)
+    fresh = make_agent(f"ppo={path}", no_repeat=True)  # a real policy's probabilities, on the real observation
+    assert fresh.name == "ppo-norepeat" and fresh.no_repeat
+    obs, _ = plain.reset(seed=0)
+    np.testing.assert_array_equal(fresh.act(obs, plain), t[i])  # nothing tried yet: its own choice
+    assert fresh.act(obs, plain).tolist() != t[i].tolist()  # the same belief again: another approach
     checkpoint = str(run / "checkpoints" / "ppo_128_steps.zip")
     usage_error(train.parse_args, args + ["--resume", checkpoint],  # resumed without its N: refused, naming both
                 match="--discrete-approaches: .*ppo_128_steps.zip was trained with --discrete-approaches 16, got 0")
@@ -349,6 +356,47 @@ def test_sb3_agent_maps_a_recurrent_or_sampled_categorical_choice_to_its_approac
             assert agent.recurrent == recurrent
             np.testing.assert_array_equal(agent.act(np.zeros(3, np.float32), None), approach_table(8)[5])
             assert model.calls == [deterministic]
+
+
+def test_sb3_agent_no_repeat_moves_on_while_the_belief_stays():
+    """``no_repeat``: at an unchanged belief the agent takes its most probable approach not yet tried there (sampled:
+    never a tried one), whatever else of the observation changed; a new belief frees every approach again, and with
+    every approach tried it takes its own choice. A Gaussian or a recurrent policy is refused, naming the model."""
+    from types import SimpleNamespace
+
+    import gymnasium as gym
+    import torch as th
+
+    from agents.sb3 import SB3Agent, approach_table
+
+    probs = th.tensor([[0.05, 0.1, 0.05, 0.2, 0.1, 0.4, 0.05, 0.05]])
+    policy = SimpleNamespace(obs_to_tensor=lambda o: (th.as_tensor(o)[None], True),
+                             get_distribution=lambda o: SimpleNamespace(distribution=SimpleNamespace(probs=probs)))
+    model = SimpleNamespace(action_space=gym.spaces.Discrete(8), policy=policy)
+    env = SimpleNamespace(unwrapped=SimpleNamespace(task=SimpleNamespace(obs_slices={"belief": slice(1, 3)})))
+    table = approach_table(8)
+
+    def obs(count, belief):  # [grasp count, belief (2)]
+        return np.array([count, *belief], np.float32)
+
+    agent = SB3Agent(model, no_repeat=True)
+    rows = [agent.act(obs(k, (0.5, 0.5)), env) for k in range(3)]
+    np.testing.assert_array_equal(rows, table[[5, 3, 1]])  # by probability, ties to the lower index
+    np.testing.assert_array_equal(agent.act(obs(3, (0.6, 0.4)), env), table[5])  # a new belief: all free again
+    for k in range(7):
+        agent.act(obs(4 + k, (0.6, 0.4)), env)
+    np.testing.assert_array_equal(agent.act(obs(11, (0.6, 0.4)), env), table[5])  # all 8 tried: its own choice
+    agent.reset(None)
+    np.testing.assert_array_equal(agent.act(obs(0, (0.6, 0.4)), env), table[5])  # an episode starts afresh
+    sampled = SB3Agent(model, deterministic=False, no_repeat=True)
+    th.manual_seed(0)
+    chosen = [tuple(sampled.act(obs(k, (0.5, 0.5)), env)) for k in range(8)]
+    assert len(set(chosen)) == 8  # eight draws at one belief: each approach once
+    with pytest.raises(ValueError, match=r"no_repeat needs a categorical policy .*\(gauss\) has an action space Box"):
+        SB3Agent(SimpleNamespace(action_space=gym.spaces.Box(-1, 1, (4,)), policy=policy), name="gauss", no_repeat=True)
+    with pytest.raises(ValueError, match=r"no_repeat needs .*\(lstm\) has a recurrent"):
+        SB3Agent(SimpleNamespace(action_space=gym.spaces.Discrete(8), policy=SimpleNamespace(lstm_actor=None)),
+                 name="lstm", no_repeat=True)
 
 
 def test_train_env_flags_change_the_fields_a_variant_sets(small_recognizer_kwargs, usage_error):
