@@ -42,6 +42,36 @@ def test_shipped_specs_expand():
     assert n["easy"] == 3 * (2 + 2 * 2)  # seeds x (random, greedy, PPO train+eval, SAC train+eval)
     assert n["objects"] == 2 * n["easy"] and n["hands"] == 4 * n["easy"] and n["geometry"] == n["easy"]
     assert n["paper_data"] == 2 * 9 * 2 + 2
+    assert n["hands_categorical"] == 3 * (1 + 2)  # seeds x (random, PPO over 64 approaches train+eval)
+
+
+def test_a_categorical_agent_trains_with_its_approaches_and_evaluates_without_repeats(tmp_path, monkeypatch):
+    """``discrete_approaches`` and ``no_repeat`` reach train.py and the evaluate job's agent; a trained agent without
+    them keeps the job keys of earlier sweeps (neither key appears in its params)."""
+    from haptic_env.sweep import jobs
+
+    doc = {"name": "c", "seeds": [0], "env_ids": ["HapticRecog-v0"],
+           "agent": [{"name": "ppo", "algo": "ppo"}, {"name": "p64", "algo": "ppo", "discrete_approaches": 64,
+                                                       "no_repeat": True}]}
+    train, evaluate, train64, evaluate64 = parse_spec(doc).jobs
+    assert "discrete_approaches" not in train.params and "no_repeat" not in evaluate.params
+    assert train64.params["discrete_approaches"] == 64 and evaluate64.params["no_repeat"] is True
+    runs = []
+
+    def run_logged(cmd, log, cwd, pidfile):
+        runs.append(cmd)
+        (tmp_path / "ppo_final.zip").write_bytes(b"model")
+        return 0
+
+    monkeypatch.setattr(jobs, "_run_logged", run_logged)
+    jobs._train(train64.params, tmp_path, 1, {})
+    assert runs[0][-2:] == ["--discrete-approaches", "64"]
+    made = []
+    monkeypatch.setattr("agents.evaluate.make_agent", lambda spec, seed=0, no_repeat=False: made.append(no_repeat)
+                        or (_ for _ in ()).throw(RuntimeError("stop")))
+    with pytest.raises(RuntimeError, match="stop"):
+        jobs._evaluate(evaluate64.params, tmp_path, 1, {"dep_dirs": [str(tmp_path)]})
+    assert made == [True]
 
 
 def test_every_baseline_agent_that_evaluate_builds_is_a_valid_sweep_agent():
@@ -109,6 +139,17 @@ def test_a_changed_env_variant_is_a_new_job(monkeypatch):
     ({"name": "x", "env_ids": ["HapticRecog-v0"],
       "agent": [{"name": "s", "algo": "sac", "hyperparams": {"bogus_key": 1}}]},
      r"hyperparams: unknown SAC hyperparameter\(s\) \['bogus_key'\]"),
+    ({"name": "x", "env_ids": ["HapticRecog-v0"], "agent": [{"name": "s", "algo": "sac", "discrete_approaches": 8}]},
+     r"agent\[0\].discrete_approaches: sac's policy takes a continuous action only"),
+    ({"name": "x", "env_ids": ["HapticRecog-v0"],
+      "agent": [{"name": "p", "algo": "ppo", "discrete_approaches": 8, "vec": "native"}]}, "got \"native\""),
+    ({"name": "x", "env_ids": ["HapticRecog-v0"], "agent": [{"name": "p", "algo": "ppo", "no_repeat": True}]},
+     r"no_repeat: needs a categorical policy without memory .* discrete_approaches 0"),
+    ({"name": "x", "env_ids": ["HapticRecog-v0"],
+      "agent": [{"name": "r", "algo": "rppo", "discrete_approaches": 8, "no_repeat": True}]}, r"got algo 'rppo'"),
+    ({"name": "x", "env_ids": ["HapticRecog-v0"],
+      "agent": [{"name": "p", "algo": "ppo", "discrete_approaches": 8, "no_repeat": "yes"}]},
+     "no_repeat: expected true or false, got 'yes'"),
     ({"name": "x", "analysis": [{"flags": {"no_such_flag": 3}}]}, "unrecognized arguments: --no-such-flag 3"),
     ({"name": "x", "analysis": [{"flags": {"trials": 0}}]}, r"analysis\[0\].flags: trials must be an int >= 1, got 0"),
     ({"name": "x", "analysis": [{"flags": {"experiments": "2", "force_closure": 0.5}}]},

@@ -201,6 +201,8 @@ def _train(p: dict[str, Any], run_dir: Path, attempt: int, job: dict[str, Any]) 
            "--checkpoint-freq", str(p["checkpoint_freq"]),
            "--max-minutes", str(p["max_minutes"]), "--env-kwargs", json.dumps(p["env_kwargs"]),
            "--hyperparams", json.dumps(p["hyperparams"])]
+    if p.get("discrete_approaches"):
+        cmd += ["--discrete-approaches", str(p["discrete_approaches"])]
     resumed = latest_checkpoint(run_dir, p["algo"])
     if resumed is not None:
         cmd += ["--resume", str(run_dir)]
@@ -223,7 +225,7 @@ def _evaluate(p: dict[str, Any], run_dir: Path, attempt: int, job: dict[str, Any
         spec = f"{p['agent']}={model}"
     if p.get("seeding") != "env+agent":
         raise ValueError(f"evaluate job: unknown seeding {p.get('seeding')!r} (this version writes 'env+agent')")
-    agent = make_agent(spec, seed=p["seed"])
+    agent = make_agent(spec, seed=p["seed"], no_repeat=bool(p.get("no_repeat", False)))
     agent.name = p["agent"]
     records = []
     for s in p["env_seeds"]:

@@ -18,7 +18,9 @@ agent x env x seed), and dataset, analysis and command jobs::
     [[agent]]
     name = "ppo"
     algo = "ppo"                           # ppo, sac or rppo: train.py, then evaluation of <algo>_final.zip
-    total_timesteps = 200000               # + n_envs, vec, checkpoint_freq, hyperparams, cpus, max_minutes
+    total_timesteps = 200000               # + n_envs, vec, checkpoint_freq, hyperparams, cpus, max_minutes,
+                                           # discrete_approaches (train.py --discrete-approaches; ppo / rppo) and
+                                           # no_repeat (evaluate --no-repeat; with discrete_approaches, ppo)
 
     [evaluate]
     episodes = 40                          # episodes per env seed
@@ -61,7 +63,7 @@ _TOP = {"name", "description", "out", "seeds", "max_retries", "env_kwargs", "env
         "dataset", "analysis", "command"}
 _ENV = {"name", "id", "kwargs"}
 _TRAINED = {"name", "algo", "total_timesteps", "n_envs", "vec", "checkpoint_freq", "hyperparams", "cpus",
-            "max_minutes", "seeds"}
+            "max_minutes", "seeds", "discrete_approaches", "no_repeat"}
 _BASELINE = {"name", "spec", "seeds"}
 _EVALUATE = {"episodes", "env_seeds", "cpus"}
 _DATASET_KEYS = {"objects", "fingers", "normals", "cpus", "name"}
@@ -188,6 +190,29 @@ def _hyperparams(algo: str, hp: Any, where: str) -> dict[str, Any]:
     return hp
 
 
+def _categorical(a: dict, where: str) -> tuple[int, bool]:
+    """A trained agent's ``discrete_approaches`` (an int >= 0; 0: the continuous action) and ``no_repeat`` (a bool),
+    checked as ``train.py`` and ``evaluate`` would: a categorical policy is PPO's or recurrent PPO's, and
+    ``no_repeat`` needs one without memory."""
+    from agents.sb3 import DISCRETE_ALGOS
+    from haptic_env.numbers import flag
+
+    n = _int(a.get("discrete_approaches", 0), f"{where}.discrete_approaches")
+    if n and a["algo"] not in DISCRETE_ALGOS:
+        raise SpecError(f"{where}.discrete_approaches: {a['algo']}'s policy takes a continuous action only; "
+                        f"use one of {DISCRETE_ALGOS}")
+    if n and a.get("vec") == "native":
+        raise SpecError(f"{where}.discrete_approaches: wraps each env, so it needs vec = \"dummy\" or \"subproc\", "
+                        "got \"native\"")
+    no_repeat = flag(a.get("no_repeat", False))
+    if no_repeat is None:
+        raise SpecError(f"{where}.no_repeat: expected true or false, got {a['no_repeat']!r}")
+    if no_repeat and (not n or a["algo"] != "ppo"):
+        raise SpecError(f"{where}.no_repeat: needs a categorical policy without memory (algo = \"ppo\" with "
+                        f"discrete_approaches >= 1), got algo {a['algo']!r}, discrete_approaches {n}")
+    return n, no_repeat
+
+
 def _envs(doc: dict) -> dict[str, tuple[str, dict[str, Any]]]:
     from haptic_env import ENV_VARIANTS, variant_config
 
@@ -256,6 +281,7 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
                 except ValueError as exc:
                     raise SpecError(f"{where}: a baseline agent: {exc} (or a model .zip via spec); give algo = "
                                     "\"ppo\"/\"sac\" for a trained agent") from None
+        n_approaches, no_repeat = _categorical(a, where) if trained else (0, False)
         for env, s in product(envs, a_seeds):
             env_id, kwargs = envs[env]
             # the registered variant's own settings belong to the job: when a release changes what an env id
@@ -273,6 +299,8 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
                     "checkpoint_freq": _int(a.get("checkpoint_freq", 20_000), f"{where}.checkpoint_freq", 1),
                     "max_minutes": _minutes(a.get("max_minutes", 0.0), where),
                     "hyperparams": _hyperparams(a["algo"], a.get("hyperparams", {}), where),
+                    # only when set: the keys of jobs without it stay those of earlier sweeps
+                    **({"discrete_approaches": n_approaches} if n_approaches else {}),
                 }, cpus=_cpus(a, where, n_envs))
                 jobs.append(train)
                 deps = (train.id,)
@@ -282,7 +310,7 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
                 "env_kwargs": kwargs,
                 "seed": s, "episodes": episodes, "env_seeds": env_seeds,
                 # the agent's random numbers come from (env seed, agent seed): its seeds are distinct runs
-                "seeding": "env+agent"}, deps=deps, cpus=eval_cpus))
+                "seeding": "env+agent", **({"no_repeat": True} if no_repeat else {})}, deps=deps, cpus=eval_cpus))
     return jobs
 
 
