@@ -595,8 +595,8 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False, no_repeat: bo
 
     ``stochastic``: SB3 agents sample their actions (named ``<name>-stochastic``) instead of taking the mean
     action (a categorical policy's most probable approach). ``no_repeat``: a categorical SB3 agent does not try an
-    approach twice while its belief stays the same (:class:`agents.sb3.SB3Agent`; named ``<name>-norepeat``); other
-    agents are unchanged."""
+    approach twice while its belief stays the same (:class:`agents.sb3.SB3Agent`; named ``<name>-norepeat``);
+    baselines ignore it, and an SB3 model whose policy is not categorical and memoryless is refused (``ValueError``)."""
     if spec == "random":
         from agents.random_policy import RandomAgent
 
@@ -643,8 +643,9 @@ def code_fingerprint() -> str:
 
 def _block_key(spec: str, args, kwargs: dict, code: str) -> str:
     """What one agent's saved blocks of ``evaluate`` depend on: the agent spec (with its model file's bytes), the env
-    and its overrides, the episodes per seed, ``--stochastic``, ``--no-repeat`` and the code (:func:`code_fingerprint`: a run resumed
-    after the code changed plays its saved blocks again instead of mixing them with the new code's)."""
+    and its overrides, the episodes per seed, ``--stochastic``, ``--no-repeat`` and the code
+    (:func:`code_fingerprint`: a run resumed after the code changed plays its saved blocks again instead of mixing
+    them with the new code's)."""
     import hashlib
 
     from haptic_env.cache import config_key

@@ -509,9 +509,9 @@ class SB3Agent:
         space = model.action_space
         self.table = approach_table(space.n) if isinstance(space, gym.spaces.Discrete) else None
         if no_repeat and (self.table is None or self.recurrent):
-            kind = "a recurrent" if self.recurrent else f"an action space {space}"
-            raise ValueError(f"no_repeat needs a categorical policy without memory (trained with "
-                             f"--discrete-approaches, ppo); this model ({self.name}) has {kind}")
+            kind = "a recurrent policy" if self.recurrent else f"an action space {space}"
+            raise ValueError(f"no_repeat (evaluate --no-repeat) needs a categorical policy without memory (ppo trained "
+                             f"with --discrete-approaches); the model of agent {self.name!r} has {kind}")
         self.no_repeat = bool(no_repeat)
         self._clear_memory()
 
@@ -536,6 +536,7 @@ class SB3Agent:
         or a draw from its probabilities renormalised over them, with SB3's seeded torch generator."""
         import torch as th
 
+        self.model.policy.set_training_mode(False)  # as SB3's predict does
         obs_t, _ = self.model.policy.obs_to_tensor(np.asarray(obs))
         with th.no_grad():
             probs = self.model.policy.get_distribution(obs_t).distribution.probs[0].clone()

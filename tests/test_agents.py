@@ -206,7 +206,7 @@ def test_tiny_ppo_trains_saves_reloads_and_resumes(env_config, small_recognizer_
     sampled.reset(env, seed=0)
     np.testing.assert_array_equal(s1, sampled.act(obs, env))  # seeded: repeatable
     assert not np.array_equal(s1, a1)  # a sample, not the mean action
-    with pytest.raises(ValueError, match=r"no_repeat needs a categorical policy .*\(ppo-norepeat\) has an action"):
+    with pytest.raises(ValueError, match=r"no_repeat .* needs a categorical policy .*'ppo-norepeat' has an action"):
         make_agent(f"ppo={path}", no_repeat=True)  # evaluate --no-repeat with a Gaussian policy
 
     path2 = train.main(args[:-2] + ["--resume", str(run / "checkpoints" / "ppo_128_steps.zip"),
@@ -307,11 +307,22 @@ def test_discrete_approaches_train_a_categorical_ppo_that_acts_with_the_tables_r
     np.testing.assert_array_equal(a, t[i])
     assert plain.action_space.contains(a)
     plain.step(a)
+    import torch as th
+
     fresh = make_agent(f"ppo={path}", no_repeat=True)  # a real policy's probabilities, on the real observation
     assert fresh.name == "ppo-norepeat" and fresh.no_repeat
     obs, _ = plain.reset(seed=0)
-    np.testing.assert_array_equal(fresh.act(obs, plain), t[i])  # nothing tried yet: its own choice
-    assert fresh.act(obs, plain).tolist() != t[i].tolist()  # the same belief again: another approach
+    for _ in range(12):  # at each new belief, with nothing tried there: exactly SB3's deterministic choice
+        fresh.reset(plain)
+        own = int(model.predict(obs, deterministic=True)[0])
+        np.testing.assert_array_equal(fresh.act(obs, plain), t[own])
+        with th.no_grad():
+            probs = model.policy.get_distribution(model.policy.obs_to_tensor(obs)[0]).distribution.probs[0].numpy()
+        second = int(np.argsort(-probs, kind="stable")[1])
+        np.testing.assert_array_equal(fresh.act(obs, plain), t[second])  # the same belief again: its runner-up
+        obs, _, term, trunc, _ = plain.step(t[own])
+        if term or trunc:
+            obs, _ = plain.reset()
     checkpoint = str(run / "checkpoints" / "ppo_128_steps.zip")
     usage_error(train.parse_args, args + ["--resume", checkpoint],  # resumed without its N: refused, naming both
                 match="--discrete-approaches: .*ppo_128_steps.zip was trained with --discrete-approaches 16, got 0")
@@ -370,7 +381,7 @@ def test_sb3_agent_no_repeat_moves_on_while_the_belief_stays():
     from agents.sb3 import SB3Agent, approach_table
 
     probs = th.tensor([[0.05, 0.1, 0.05, 0.2, 0.1, 0.4, 0.05, 0.05]])
-    policy = SimpleNamespace(obs_to_tensor=lambda o: (th.as_tensor(o)[None], True),
+    policy = SimpleNamespace(obs_to_tensor=lambda o: (th.as_tensor(o)[None], True), set_training_mode=lambda mode: None,
                              get_distribution=lambda o: SimpleNamespace(distribution=SimpleNamespace(probs=probs)))
     model = SimpleNamespace(action_space=gym.spaces.Discrete(8), policy=policy)
     env = SimpleNamespace(unwrapped=SimpleNamespace(task=SimpleNamespace(obs_slices={"belief": slice(1, 3)})))
@@ -392,9 +403,9 @@ def test_sb3_agent_no_repeat_moves_on_while_the_belief_stays():
     th.manual_seed(0)
     chosen = [tuple(sampled.act(obs(k, (0.5, 0.5)), env)) for k in range(8)]
     assert len(set(chosen)) == 8  # eight draws at one belief: each approach once
-    with pytest.raises(ValueError, match=r"no_repeat needs a categorical policy .*\(gauss\) has an action space Box"):
+    with pytest.raises(ValueError, match=r"no_repeat .* needs a categorical policy .*'gauss' has an action space Box"):
         SB3Agent(SimpleNamespace(action_space=gym.spaces.Box(-1, 1, (4,)), policy=policy), name="gauss", no_repeat=True)
-    with pytest.raises(ValueError, match=r"no_repeat needs .*\(lstm\) has a recurrent"):
+    with pytest.raises(ValueError, match=r"no_repeat .* needs .*'lstm' has a recurrent policy"):
         SB3Agent(SimpleNamespace(action_space=gym.spaces.Discrete(8), policy=SimpleNamespace(lstm_actor=None)),
                  name="lstm", no_repeat=True)
 
@@ -600,6 +611,10 @@ def test_evaluate_blocks_are_keyed_by_the_code_that_played_them(tmp_path, monkey
         with pytest.raises(Stop):
             main(argv)
     assert seen[0] == seen[1] != seen[2]
+    for flag in ("--no-repeat", "--stochastic"):  # what the agents do is part of the key: blocks never mix
+        with pytest.raises(Stop):
+            main(argv + [flag])
+    assert len({tuple(k) for k in seen[2:]}) == 3
 
 
 def test_greedy_infer_pose_scores_the_episodes_grasps_for_the_yaw(env_config, small_recognizer_kwargs):

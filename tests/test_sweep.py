@@ -140,7 +140,7 @@ def test_a_changed_env_variant_is_a_new_job(monkeypatch):
       "agent": [{"name": "s", "algo": "sac", "hyperparams": {"bogus_key": 1}}]},
      r"hyperparams: unknown SAC hyperparameter\(s\) \['bogus_key'\]"),
     ({"name": "x", "env_ids": ["HapticRecog-v0"], "agent": [{"name": "s", "algo": "sac", "discrete_approaches": 8}]},
-     r"agent\[0\].discrete_approaches: sac's policy takes a continuous action only"),
+     r"agent\[0\].discrete_approaches: sac.s policy takes a continuous action only \(got discrete_approaches 8\)"),
     ({"name": "x", "env_ids": ["HapticRecog-v0"],
       "agent": [{"name": "p", "algo": "ppo", "discrete_approaches": 8, "vec": "native"}]}, "got \"native\""),
     ({"name": "x", "env_ids": ["HapticRecog-v0"], "agent": [{"name": "p", "algo": "ppo", "no_repeat": True}]},

@@ -199,8 +199,8 @@ def _categorical(a: dict, where: str) -> tuple[int, bool]:
 
     n = _int(a.get("discrete_approaches", 0), f"{where}.discrete_approaches")
     if n and a["algo"] not in DISCRETE_ALGOS:
-        raise SpecError(f"{where}.discrete_approaches: {a['algo']}'s policy takes a continuous action only; "
-                        f"use one of {DISCRETE_ALGOS}")
+        raise SpecError(f"{where}.discrete_approaches: {a['algo']}'s policy takes a continuous action only (got "
+                        f"discrete_approaches {n}); use an algo of {DISCRETE_ALGOS} or 0")
     if n and a.get("vec") == "native":
         raise SpecError(f"{where}.discrete_approaches: wraps each env, so it needs vec = \"dummy\" or \"subproc\", "
                         "got \"native\"")
