@@ -33,6 +33,22 @@ def _cmd(code: str) -> list[str]:
     return [sys.executable, "-c", code]
 
 
+def _fake_train_py(monkeypatch, folder: Path) -> list[list[str]]:
+    """The train job's ``train.py`` replaced by a stub that records its command line and writes ``folder /
+    ppo_final.zip``, as a finished run would; returns the list of recorded command lines."""
+    from haptic_env.sweep import jobs
+
+    runs: list[list[str]] = []
+
+    def run_logged(cmd, log, cwd, pidfile):
+        runs.append(cmd)
+        (folder / "ppo_final.zip").write_bytes(b"model")
+        return 0
+
+    monkeypatch.setattr(jobs, "_run_logged", run_logged)
+    return runs
+
+
 # ------------------------------------------------------------------------------------------ specs
 def test_shipped_specs_expand():
     from haptic_env.sweep import load_spec
@@ -56,14 +72,7 @@ def test_a_categorical_agent_trains_with_its_approaches_and_evaluates_without_re
     train, evaluate, train64, evaluate64 = parse_spec(doc).jobs
     assert "discrete_approaches" not in train.params and "no_repeat" not in evaluate.params
     assert train64.params["discrete_approaches"] == 64 and evaluate64.params["no_repeat"] is True
-    runs = []
-
-    def run_logged(cmd, log, cwd, pidfile):
-        runs.append(cmd)
-        (tmp_path / "ppo_final.zip").write_bytes(b"model")
-        return 0
-
-    monkeypatch.setattr(jobs, "_run_logged", run_logged)
+    runs = _fake_train_py(monkeypatch, tmp_path)
     jobs._train(train64.params, tmp_path, 1, {})
     assert runs[0][-2:] == ["--discrete-approaches", "64"]
     made = []
@@ -458,14 +467,7 @@ def test_a_retried_train_job_reuses_a_finished_model_and_resumes_otherwise(tmp_p
 
     p = {"algo": "ppo", "env_id": "HapticRecog-v0", "total_timesteps": 256, "n_envs": 1, "vec": "dummy", "seed": 0,
          "env_seed": 10_000, "checkpoint_freq": 128, "max_minutes": 0, "env_kwargs": {}, "hyperparams": {}}
-    runs = []
-
-    def run_logged(cmd, log, cwd, pidfile):
-        runs.append(cmd)
-        (tmp_path / "ppo_final.zip").write_bytes(b"model")
-        return 0
-
-    monkeypatch.setattr(jobs, "_run_logged", run_logged)
+    runs = _fake_train_py(monkeypatch, tmp_path)
     (tmp_path / "checkpoints").mkdir()
     (tmp_path / "checkpoints" / "ppo_128_steps.zip").write_bytes(b"checkpoint")
     out = jobs._train(p, tmp_path, 2, {})
