@@ -133,15 +133,11 @@ def parse_args(argv: list[str] | None = None) -> Args:
         value = getattr(args, name)
         if value < lo:
             _usage_error(f"argument --{name.replace('_', '-')}: must be >= {lo}, got {value}")
-    if args.discrete_approaches:
-        from agents.sb3 import DISCRETE_ALGOS
+    from agents.sb3 import discrete_approaches_problem
 
-        if args.algo not in DISCRETE_ALGOS:
-            _usage_error(f"argument --discrete-approaches: {args.algo}'s policy takes a continuous action only; "
-                         f"use --algo {' or '.join(DISCRETE_ALGOS)}, or --discrete-approaches 0")
-        if args.vec == "native":
-            _usage_error("argument --discrete-approaches: wraps each env; the native vector env steps them in one "
-                         "batch (use --vec subproc or dummy)")
+    problem = discrete_approaches_problem(args.discrete_approaches, args.algo, args.vec)
+    if problem is not None:
+        _usage_error(f"argument --discrete-approaches: {problem}")
     for flag, text in (("--env-kwargs", args.env_kwargs), ("--hyperparams", args.hyperparams)):
         try:
             value = json.loads(text)

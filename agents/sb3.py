@@ -40,7 +40,7 @@ from haptic_env.numbers import whole_at_least
 
 __all__ = ["ALGOS", "DEFAULT_HYPERPARAMS", "make_vec_env", "build_model", "load_model", "train", "SB3Agent",
            "TrainingInterrupted", "latest_checkpoint", "checkpoint_extras", "close_vec_env", "check_hyperparams",
-           "approach_table", "DiscreteApproaches", "DISCRETE_ALGOS"]
+           "approach_table", "DiscreteApproaches", "DISCRETE_ALGOS", "discrete_approaches_problem"]
 
 #: ``rppo``: sb3-contrib's ``RecurrentPPO`` (an LSTM policy); its model files are named ``rppo_*``.
 ALGOS = ("ppo", "sac", "rppo")
@@ -75,6 +75,21 @@ def _algo_class(algo: str):
 
 #: the algorithms whose policies take a ``Discrete`` action (SAC's does not)
 DISCRETE_ALGOS = ("ppo", "rppo")
+
+
+def discrete_approaches_problem(n: int, algo: str | None, vec: str) -> str | None:
+    """Why ``n`` fixed approaches (``--discrete-approaches``) cannot be trained with ``algo`` (None: not checked) on
+    a ``vec`` vector env, or None if they can (``n == 0`` always can). The one statement of the rule:
+    :func:`make_vec_env`, ``train.py`` and the sweep specs each report it in their own terms."""
+    if not n:
+        return None
+    if algo is not None and algo not in DISCRETE_ALGOS:
+        return (f"{algo}'s policy takes a continuous action only (got discrete_approaches {n}); use an algo of "
+                f"{DISCRETE_ALGOS} or 0")
+    if vec == "native":
+        return (f"wraps each env (discrete_approaches {n}), and the native vector env steps them in one batch: use "
+                'vec "subproc" or "dummy", got "native"')
+    return None
 
 
 def approach_table(n: int, dim: int = ACTION_DIM) -> np.ndarray:
@@ -146,9 +161,9 @@ def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.
     if vec not in VEC_KINDS:
         raise ValueError(f"vec must be 'subproc', 'dummy' or 'native', got {vec!r}")
     discrete_approaches = whole_at_least(discrete_approaches, 0, "discrete_approaches")
-    if discrete_approaches and vec == "native":
-        raise ValueError(f"discrete_approaches={discrete_approaches} wraps each env; the native vector env steps them "
-                         "in one batch: use vec='subproc' or 'dummy'")
+    problem = discrete_approaches_problem(discrete_approaches, None, vec)
+    if problem is not None:
+        raise ValueError(f"discrete_approaches: {problem}")
     config = config or variant_config(env_id)  # no config: the registered env's own (not the defaults)
     monitor_dir = None
     if log_dir is not None:

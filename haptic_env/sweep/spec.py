@@ -194,16 +194,13 @@ def _categorical(a: dict, where: str) -> tuple[int, bool]:
     """A trained agent's ``discrete_approaches`` (an int >= 0; 0: the continuous action) and ``no_repeat`` (a bool),
     checked as ``train.py`` and ``evaluate`` would: a categorical policy is PPO's or recurrent PPO's, and
     ``no_repeat`` needs one without memory."""
-    from agents.sb3 import DISCRETE_ALGOS
+    from agents.sb3 import discrete_approaches_problem
     from haptic_env.numbers import flag
 
     n = _int(a.get("discrete_approaches", 0), f"{where}.discrete_approaches")
-    if n and a["algo"] not in DISCRETE_ALGOS:
-        raise SpecError(f"{where}.discrete_approaches: {a['algo']}'s policy takes a continuous action only (got "
-                        f"discrete_approaches {n}); use an algo of {DISCRETE_ALGOS} or 0")
-    if n and a.get("vec") == "native":
-        raise SpecError(f"{where}.discrete_approaches: wraps each env, so it needs vec = \"dummy\" or \"subproc\", "
-                        "got \"native\"")
+    problem = discrete_approaches_problem(n, a["algo"], a.get("vec"))
+    if problem is not None:
+        raise SpecError(f"{where}.discrete_approaches: {problem}")
     no_repeat = flag(a.get("no_repeat", False))
     if no_repeat is None:
         raise SpecError(f"{where}.no_repeat: expected true or false, got {a['no_repeat']!r}")
