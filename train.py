@@ -1,4 +1,5 @@
-"""Train PPO, SAC or recurrent PPO (an LSTM policy) on HapticRecog (CleanRL-style: one readable file, explicit seeding).
+"""Train PPO, SAC, recurrent PPO (an LSTM policy) or maskable PPO on HapticRecog (CleanRL-style: one readable file,
+explicit seeding).
 
     python train.py --algo ppo --total-timesteps 200000 --n-envs 2 --env.grasp-cost 0.02 --run-dir runs/ppo
     python train.py --algo ppo --total-timesteps 200000 --n-envs 2 --env.grasp-cost 0.02 --run-dir runs/ppo --resume runs/ppo
@@ -41,14 +42,15 @@ import numpy as np
 
 from haptic_env.config import HapticRecogConfig
 
-ALGOS = ("ppo", "sac", "rppo")
+ALGOS = ("ppo", "sac", "rppo", "mppo")  # agents.sb3.ALGOS (tests/test_agents.py holds them equal)
 
 
 @dataclass(frozen=True)
 class Args:
-    algo: Literal["ppo", "sac", "rppo"] = "ppo"
+    algo: Literal["ppo", "sac", "rppo", "mppo"] = "ppo"
     """The RL algorithm (stable-baselines3; ``rppo``: sb3-contrib's recurrent PPO, an LSTM policy that remembers the
-    episode's grasps)."""
+    episode's grasps; ``mppo``: sb3-contrib's maskable PPO over ``--discrete-approaches N``, trained with a mask that
+    bars the approaches tried since the belief last changed, ``agents.sb3.RepeatMask``, and evaluated with it)."""
     env_id: str = "HapticRecog-v0"
     """A registered env id (``haptic_env.ENV_VARIANTS``); ``--env.*`` settings apply on top of its variant."""
     total_timesteps: int = 200_000
@@ -77,8 +79,8 @@ class Args:
     discrete_approaches: int = 0
     """0: the policy acts in the env's continuous approach box. N > 0: it chooses one of N fixed approaches spread
     over the box (``agents.sb3.approach_table``, the first N Halton points), a categorical policy that can put its
-    mass on a few separate approaches (PPO and recurrent PPO; the evaluation maps the choice back to the approach).
-    A resumed run needs the N it was started with."""
+    mass on a few separate approaches (PPO, recurrent PPO and maskable PPO, which needs them; the evaluation maps
+    the choice back to the approach). A resumed run needs the N it was started with."""
     env: HapticRecogConfig = field(default_factory=HapticRecogConfig)
     """The env's settings (:class:`haptic_env.config.HapticRecogConfig`), starting from the ``--env-id`` variant's
     (``haptic_env.variant_config``): ``--env.backend replay`` on ``HapticRecogMuJoCo-v0`` trains on the Allegro's

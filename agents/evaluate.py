@@ -590,8 +590,9 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False, no_repeat: bo
       object's pose from the look-ahead (``pose_known=False``), and ``-infer`` (``greedy-env-infer``) hides it too
       but draws the look-ahead's poses from the yaw posterior of the episode's grasps (``infer_pose=True``, the hand
       envs); ``:M:S`` sets ``S`` samples per candidate (blind and infer: ``S`` poses);
-    * ``<name>=<model.zip>``: PPO / SAC / recurrent PPO, the algorithm from the file name or from a name ``ppo``,
-      ``sac`` or ``rppo``; a model trained with ``--discrete-approaches`` acts with the approach of its choice.
+    * ``<name>=<model.zip>``: PPO / SAC / recurrent PPO / maskable PPO, the algorithm from the file name or from a
+      name ``ppo``, ``sac``, ``rppo`` or ``mppo``; a model trained with ``--discrete-approaches`` acts with the
+      approach of its choice (maskable PPO always with its mask, :class:`agents.sb3.RepeatMask`).
 
     ``stochastic``: SB3 agents sample their actions (named ``<name>-stochastic``) instead of taking the mean
     action (a categorical policy's most probable approach). ``no_repeat``: a categorical SB3 agent does not try an
@@ -669,7 +670,7 @@ def add_parser(subparsers) -> None:
                    help="random | greedy[-env][-blind|-infer][:M[:S]] (-env: look-ahead with the env's own backend; "
                         "-blind: without the object's pose; -infer: the pose drawn from the yaw posterior of the "
                         "episode's grasps, greedy-env-infer on the hand envs) | "
-                        "NAME=model.zip (ppo=..., sac=..., rppo=...)")
+                        "NAME=model.zip (ppo=..., sac=..., rppo=..., mppo=...)")
     p.add_argument("--episodes", type=int_in(1), default=40, help="episodes per seed")
     p.add_argument("--seeds", type=int_in(0), nargs="+", default=list(ENV_TEST_SEEDS))
     p.add_argument("--stochastic", action="store_true",
@@ -678,7 +679,8 @@ def add_parser(subparsers) -> None:
     p.add_argument("--no-repeat", action="store_true",
                    help="SB3 agents with a categorical policy (trained with --discrete-approaches) do not choose an "
                         "approach twice while the belief stays the same (a grasp that touches too few fingers leaves "
-                        "it unchanged, and the policy may repeat it up to the cap); named <name>-norepeat")
+                        "it unchanged, and the policy may repeat it up to the cap); named <name>-norepeat (an mppo "
+                        "model acts so always: it was trained with that mask)")
     p.add_argument("--env-id", default="HapticRecog-v0", choices=list(ENV_VARIANTS))
     p.add_argument("--env-kwargs", type=json_object, default={}, help="JSON dict of HapticRecogConfig fields")
     p.add_argument("--out", default="outputs/eval")

@@ -1,4 +1,5 @@
-"""Stable-Baselines3 PPO / SAC, and sb3-contrib's recurrent PPO (``rppo``), on :class:`haptic_env.env.HapticRecogEnv`.
+"""Stable-Baselines3 PPO / SAC, and sb3-contrib's recurrent PPO (``rppo``) and maskable PPO (``mppo``), on
+:class:`haptic_env.env.HapticRecogEnv`.
 
 The env is partially observable: the object's pose is hidden and each observation holds the latest grasp only.
 ``rppo`` (``RecurrentPPO`` with an LSTM policy) carries a memory of the episode's grasps; PPO and SAC see one
@@ -8,7 +9,7 @@ observation at a time.
   vector env through :class:`agents.native_vec.NativeVecEnv`, one process), each wrapped in a
   ``Monitor`` writing ``<log_dir>/monitor/<rank>.monitor.csv`` (with the episode's ``correct`` and
   ``grasps``), seeded ``seed + rank``.
-* :func:`build_model` — PPO, SAC or recurrent PPO with TensorBoard logs under ``<log_dir>/tb``.
+* :func:`build_model` — PPO, SAC, recurrent PPO or maskable PPO with TensorBoard logs under ``<log_dir>/tb``.
 * :func:`train` — learn with checkpoints (``<log_dir>/checkpoints/<algo>_<steps>_steps.zip``, SAC also
   ``<algo>_replay_buffer_<steps>_steps.pkl``), optionally resuming from a checkpoint (its step counter
   continues up to ``total_timesteps``), and save ``<log_dir>/<algo>_final.zip``. SIGINT / SIGTERM or a dead
@@ -19,6 +20,9 @@ observation at a time.
   (``make_vec_env(discrete_approaches=N)``, ``train.py --discrete-approaches N``): PPO's policy is then categorical,
   so it can put its mass on a few separate approaches instead of the one mode of a Gaussian. :class:`SB3Agent` maps
   such a model's choice back to the approach, so the env it is evaluated on keeps the continuous action box.
+* :class:`RepeatTracker`, :class:`RepeatMask` — the approaches tried since the belief last changed: the rule by which
+  :class:`SB3Agent` with ``no_repeat`` moves on, and the action mask that ``mppo`` (sb3-contrib's ``MaskablePPO``,
+  ``train.py --algo mppo``) is trained with, so that the policy learns what to choose once a grasp has told nothing.
 """
 
 from __future__ import annotations
@@ -40,24 +44,27 @@ from haptic_env.numbers import whole_at_least
 
 __all__ = ["ALGOS", "DEFAULT_HYPERPARAMS", "make_vec_env", "build_model", "load_model", "train", "SB3Agent",
            "TrainingInterrupted", "latest_checkpoint", "checkpoint_extras", "close_vec_env", "check_hyperparams",
-           "approach_table", "DiscreteApproaches", "DISCRETE_ALGOS", "discrete_approaches_problem"]
+           "approach_table", "DiscreteApproaches", "DISCRETE_ALGOS", "discrete_approaches_problem", "RepeatTracker",
+           "RepeatMask"]
 
-#: ``rppo``: sb3-contrib's ``RecurrentPPO`` (an LSTM policy); its model files are named ``rppo_*``.
-ALGOS = ("ppo", "sac", "rppo")
+#: ``rppo``: sb3-contrib's ``RecurrentPPO`` (an LSTM policy); ``mppo``: sb3-contrib's ``MaskablePPO`` over fixed
+#: approaches, trained and acting with :class:`RepeatMask`. Their model files are named ``rppo_*`` / ``mppo_*``.
+ALGOS = ("ppo", "sac", "rppo", "mppo")
 
 _PPO = dict(n_steps=256, batch_size=128, n_epochs=10, learning_rate=3e-4, gamma=0.95, gae_lambda=0.95, ent_coef=0.0,
             clip_range=0.2)
 #: Defaults tuned for short episodes (a handful of grasps) and a cheap env; override per key. ``rppo`` is PPO's
-#: with an LSTM of 64 units before the actor's and the critic's layers.
+#: with an LSTM of 64 units before the actor's and the critic's layers; ``mppo`` is PPO's.
 DEFAULT_HYPERPARAMS: dict[str, dict[str, Any]] = {
     "ppo": dict(_PPO, policy_kwargs=dict(net_arch=[64, 64])),
     "sac": dict(buffer_size=100_000, learning_starts=1_000, batch_size=256, learning_rate=3e-4, gamma=0.95,
                 tau=0.01, train_freq=1, gradient_steps=1, policy_kwargs=dict(net_arch=[64, 64])),
     "rppo": dict(_PPO, policy_kwargs=dict(net_arch=[64, 64], lstm_hidden_size=64)),
+    "mppo": dict(_PPO, policy_kwargs=dict(net_arch=[64, 64])),
 }
 
 #: the policy class each algorithm is built with
-_POLICY = {"ppo": "MlpPolicy", "sac": "MlpPolicy", "rppo": "MlpLstmPolicy"}
+_POLICY = {"ppo": "MlpPolicy", "sac": "MlpPolicy", "rppo": "MlpLstmPolicy", "mppo": "MlpPolicy"}
 
 
 def _algo_class(algo: str):
@@ -68,20 +75,27 @@ def _algo_class(algo: str):
         from sb3_contrib import RecurrentPPO
 
         return RecurrentPPO
+    if algo == "mppo":
+        from sb3_contrib import MaskablePPO
+
+        return MaskablePPO
     from stable_baselines3 import PPO, SAC
 
     return {"ppo": PPO, "sac": SAC}[algo]
 
 
-#: the algorithms whose policies take a ``Discrete`` action (SAC's does not)
-DISCRETE_ALGOS = ("ppo", "rppo")
+#: the algorithms whose policies take a ``Discrete`` action (SAC's does not); ``mppo`` takes nothing else
+DISCRETE_ALGOS = ("ppo", "rppo", "mppo")
 
 
 def discrete_approaches_problem(n: int, algo: str | None, vec: str) -> str | None:
     """Why ``n`` fixed approaches (``--discrete-approaches``) cannot be trained with ``algo`` (None: not checked) on
-    a ``vec`` vector env, or None if they can (``n == 0`` always can). The one statement of the rule:
-    :func:`make_vec_env`, ``train.py`` and the sweep specs each report it in their own terms."""
+    a ``vec`` vector env, or None if they can (``n == 0``, the continuous action, can with any algo but ``mppo``,
+    which masks fixed approaches). The one statement of the rule: :func:`make_vec_env`, ``train.py`` and the sweep
+    specs each report it in their own terms."""
     if not n:
+        if algo == "mppo":
+            return "mppo masks fixed approaches: it needs discrete_approaches >= 1, got 0"
         return None
     if algo is not None and algo not in DISCRETE_ALGOS:
         return (f"{algo}'s policy takes a continuous action only (got discrete_approaches {n}); use an algo of "
@@ -118,6 +132,68 @@ class DiscreteApproaches(gym.ActionWrapper):
         return self.table[int(i.reshape(-1)[0])].copy()
 
 
+class RepeatTracker:
+    """The approaches tried since the belief last changed, among ``n``: the one statement of the rule that
+    :class:`SB3Agent` with ``no_repeat`` acts by and :class:`RepeatMask` trains ``mppo`` with. Call :meth:`see` with
+    the belief before each choice (a belief other than the last one seen frees every approach), :meth:`add` with the
+    approach chosen, :meth:`clear` at an episode's start."""
+
+    def __init__(self, n: int):
+        self.n = whole_at_least(n, 1, "n")
+        self.clear()
+
+    def clear(self) -> None:
+        self.tried: set[int] = set()
+        self.last: np.ndarray | None = None
+
+    def see(self, belief) -> None:
+        belief = np.asarray(belief)
+        if self.last is None or not np.array_equal(belief, self.last):
+            self.tried = set()
+        self.last = belief.copy()
+
+    def add(self, i: int) -> None:
+        self.tried.add(int(i))
+
+    def mask(self) -> np.ndarray:
+        """``(n,)`` bool: True where an approach may be chosen, i.e. not tried at this belief; all True once every
+        approach has been (then the policy's own choice stands)."""
+        allowed = np.ones(self.n, dtype=bool)
+        if len(self.tried) < self.n:
+            allowed[sorted(self.tried)] = False
+        return allowed
+
+
+class RepeatMask(gym.Wrapper):
+    """An env over fixed approaches (``Discrete(N)``, :class:`DiscreteApproaches`) with ``action_masks()``, the
+    method sb3-contrib's ``MaskablePPO`` asks each env for: False for the approaches tried since the belief (the
+    observation's ``belief`` part, ``env.unwrapped.task.obs_slices``) last changed (:class:`RepeatTracker`). A grasp
+    that touches with too few fingers leaves the belief as it was; the mask then moves the policy on. Other
+    algorithms ignore the method; the wrapper changes no observation, reward or step."""
+
+    def __init__(self, env):
+        super().__init__(env)
+        if not isinstance(env.action_space, gym.spaces.Discrete):
+            raise ValueError(f"RepeatMask needs fixed approaches (a Discrete action), got {env.action_space}")
+        self._belief = env.unwrapped.task.obs_slices["belief"]
+        self.tracker = RepeatTracker(int(env.action_space.n))
+
+    def reset(self, **kwargs):
+        obs, info = self.env.reset(**kwargs)
+        self.tracker.clear()
+        self.tracker.see(np.asarray(obs)[self._belief])
+        return obs, info
+
+    def step(self, action):
+        self.tracker.add(int(np.asarray(action).reshape(-1)[0]))
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self.tracker.see(np.asarray(obs)[self._belief])
+        return obs, reward, terminated, truncated, info
+
+    def action_masks(self) -> np.ndarray:
+        return self.tracker.mask()
+
+
 def _env_fn(config, rank: int, monitor_dir: str | None, env_id: str, monitor_suffix: str = "",
             worker: bool = False, discrete_approaches: int = 0) -> Callable[[], Any]:
     def _init():
@@ -135,7 +211,7 @@ def _env_fn(config, rank: int, monitor_dir: str | None, env_id: str, monitor_suf
         env = haptic_env.make(config, env_id=env_id)
         path = os.path.join(monitor_dir, f"{rank}{monitor_suffix}") if monitor_dir else None
         env = Monitor(env, filename=path, info_keywords=("correct", "grasps"))
-        return DiscreteApproaches(env, discrete_approaches) if discrete_approaches else env
+        return RepeatMask(DiscreteApproaches(env, discrete_approaches)) if discrete_approaches else env
 
     return _init
 
@@ -152,7 +228,7 @@ def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.
     SIGINT, so that Ctrl-C reaches only the main process's handler). ``monitor_suffix`` names the Monitor files
     ``<rank><suffix>.monitor.csv`` (a resumed run writes a new segment, e.g. ``.part2``, keeping the old ones).
     ``discrete_approaches=N > 0`` gives each env a ``Discrete(N)`` action (:class:`DiscreteApproaches`; not with
-    ``vec="native"``)."""
+    ``vec="native"``) and the action mask ``mppo`` trains with (:class:`RepeatMask`)."""
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
     from haptic_env import variant_config
@@ -211,7 +287,7 @@ def check_hyperparams(algo: str, hyperparams: dict) -> None:
 
 def build_model(algo: str, venv, seed: int = 0, log_dir: str | os.PathLike | None = None, verbose: int = 0,
                 **hyperparams: Any):
-    """A fresh PPO / SAC / recurrent PPO model on ``venv`` (:data:`DEFAULT_HYPERPARAMS` updated with
+    """A fresh PPO / SAC / recurrent PPO / maskable PPO model on ``venv`` (:data:`DEFAULT_HYPERPARAMS` updated with
     ``hyperparams``)."""
     cls = _algo_class(algo)
     check_hyperparams(algo, hyperparams)
@@ -225,7 +301,8 @@ def build_model(algo: str, venv, seed: int = 0, log_dir: str | os.PathLike | Non
 
 
 def load_model(path: str | os.PathLike, algo: str | None = None, env=None):
-    """Load a saved model; ``algo`` is inferred from the file name (``ppo_*``/``sac_*``/``rppo_*``) when omitted."""
+    """Load a saved model; ``algo`` is inferred from the file name (``ppo_*``/``sac_*``/``rppo_*``/``mppo_*``) when
+    omitted."""
     path = Path(path)
     if not path.exists() and not path.with_suffix(".zip").exists():
         raise FileNotFoundError(f"no SB3 model at {path}")
@@ -233,7 +310,8 @@ def load_model(path: str | os.PathLike, algo: str | None = None, env=None):
         stem = path.name.lower()
         algo = next((a for a in ALGOS if stem.startswith(a)), None)
         if algo is None:
-            raise ValueError(f"cannot infer the algorithm from {path.name!r}; pass algo='ppo', 'sac' or 'rppo'")
+            raise ValueError(f"cannot infer the algorithm from {path.name!r}; pass algo='ppo', 'sac', 'rppo' or "
+                             "'mppo'")
     return _algo_class(algo).load(str(path), env=env, device="cpu")
 
 
@@ -514,7 +592,9 @@ class SB3Agent:
     same approach again (or two in turn), with the object's pose fixed get the same grasp, and so on up to the
     episode's cap; with ``no_repeat`` it moves on. Deterministic, it acts as without until it would repeat an
     approach at an unchanged belief. The belief is read from the observation's ``belief`` part
-    (``env.unwrapped.task.obs_slices``). A ``ValueError`` names a model it does not apply to."""
+    (``env.unwrapped.task.obs_slices``); the rule is :class:`RepeatTracker`'s. A model trained with that mask
+    (``mppo``, :class:`RepeatMask`) always acts with it, whatever ``no_repeat`` says: it is part of its policy. A
+    ``ValueError`` names a model it does not apply to."""
 
     def __init__(self, model, name: str | None = None, deterministic: bool = True, no_repeat: bool = False):
         self.model = model
@@ -527,7 +607,9 @@ class SB3Agent:
             kind = "a recurrent policy" if self.recurrent else f"an action space {space}"
             raise ValueError(f"no_repeat (evaluate --no-repeat) needs a categorical policy without memory (ppo trained "
                              f"with --discrete-approaches); the model of agent {self.name!r} has {kind}")
-        self.no_repeat = bool(no_repeat)
+        self.masked = type(model).__name__ == "MaskablePPO"  # trained with RepeatMask: its mask is its policy's
+        self.no_repeat = bool(no_repeat) or self.masked
+        self.tracker = RepeatTracker(len(self.table)) if self.no_repeat else None
         self._clear_memory()
 
     @classmethod
@@ -543,36 +625,31 @@ class SB3Agent:
         """A recurrent model's LSTM state back to an episode's start (no state, ``episode_start`` set), and no
         belief seen yet."""
         self._state, self._start = None, np.ones((1,), dtype=bool)
-        self._tried: set[int] = set()
-        self._last_belief: np.ndarray | None = None
+        if self.tracker is not None:
+            self.tracker.clear()
 
     def _untried_choice(self, obs: np.ndarray) -> int:
-        """The policy's choice among the approaches not in ``self._tried`` (those tried at this belief): argmax,
-        or a draw from its probabilities renormalised over them, with SB3's seeded torch generator."""
+        """The policy's choice among the approaches the tracker allows (not tried at this belief): argmax, or a
+        draw from its probabilities renormalised over them, with SB3's seeded torch generator."""
         import torch as th
 
         self.model.policy.set_training_mode(False)  # as SB3's predict does
         obs_t, _ = self.model.policy.obs_to_tensor(np.asarray(obs))
         with th.no_grad():
             probs = self.model.policy.get_distribution(obs_t).distribution.probs[0].clone()
-        tried = sorted(self._tried)
-        if len(tried) >= len(probs):  # every approach tried: the policy's own choice again
-            tried = []
-        probs[tried] = 0.0
+        barred = th.as_tensor(~self.tracker.mask())
+        probs[barred] = 0.0
         if self.deterministic or float(probs.sum()) <= 0.0:
-            probs[tried] = -1.0
+            probs[barred] = -1.0
             return int(th.argmax(probs))
         return int(th.multinomial(probs / probs.sum(), 1)[0])
 
     def act(self, obs: np.ndarray, env: Any) -> np.ndarray:
         if self.no_repeat:
             obs = np.asarray(obs)
-            belief = obs[env.unwrapped.task.obs_slices["belief"]]
-            if self._last_belief is None or not np.array_equal(belief, self._last_belief):
-                self._tried = set()  # a new belief: every approach may be chosen at it
-            self._last_belief = belief.copy()
+            self.tracker.see(obs[env.unwrapped.task.obs_slices["belief"]])
             i = self._untried_choice(obs)
-            self._tried.add(i)
+            self.tracker.add(i)
             return self.table[i].copy()
         if not self.recurrent:
             action, _ = self.model.predict(np.asarray(obs), deterministic=self.deterministic)

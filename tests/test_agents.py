@@ -410,6 +410,98 @@ def test_sb3_agent_no_repeat_moves_on_while_the_belief_stays():
                  name="lstm", no_repeat=True)
 
 
+def test_repeat_mask_bars_the_approaches_tried_while_the_belief_stays():
+    """:class:`RepeatMask` (the mask ``mppo`` trains with): after a step that leaves the observation's belief as it
+    was, the approach just taken is barred, and every one tried since; a changed belief or a reset frees them all;
+    with all tried, all are allowed. It changes nothing the env returns. Only fixed approaches are accepted."""
+    from types import SimpleNamespace
+
+    import gymnasium as gym
+
+    from agents.sb3 import RepeatMask, RepeatTracker
+
+    class Stub(gym.Env):  # obs [grasp count, belief (2)]; the belief moves on actions 2 and 3 only
+        observation_space = gym.spaces.Box(-np.inf, np.inf, (3,), np.float32)
+        action_space = gym.spaces.Discrete(4)
+        task = SimpleNamespace(obs_slices={"belief": slice(1, 3)})
+
+        def reset(self, *, seed=None, options=None):
+            self.k, self.b = 0, np.array([0.5, 0.5], np.float32)
+            return np.array([0, *self.b], np.float32), {}
+
+        def step(self, action):
+            self.k += 1
+            if action >= 2:
+                self.b = np.array([self.b[0] + 0.1, self.b[1] - 0.1], np.float32)
+            return np.array([self.k, *self.b], np.float32), -1.0, False, False, {"k": self.k}
+
+    env = RepeatMask(Stub())
+    obs, _ = env.reset()
+    np.testing.assert_array_equal(env.action_masks(), [True] * 4)
+    obs, reward, term, trunc, info = env.step(0)
+    assert (reward, term, trunc, info) == (-1.0, False, False, {"k": 1}) and obs[0] == 1  # passed through
+    np.testing.assert_array_equal(env.action_masks(), [False, True, True, True])
+    env.step(np.array(1))
+    np.testing.assert_array_equal(env.action_masks(), [False, False, True, True])
+    env.step(2)  # the belief moved: everything free again, the approach just taken too
+    np.testing.assert_array_equal(env.action_masks(), [True] * 4)
+    for a in (0, 1):
+        env.step(a)
+    env.reset()
+    np.testing.assert_array_equal(env.action_masks(), [True] * 4)
+    tracker = RepeatTracker(3)
+    tracker.see([0.5, 0.5])
+    for i in range(3):
+        tracker.add(i)
+    np.testing.assert_array_equal(tracker.mask(), [True] * 3)  # all tried: the policy's own choice stands
+    continuous = Stub()
+    continuous.action_space = gym.spaces.Box(-1, 1, (4,), np.float32)
+    with pytest.raises(ValueError, match=r"RepeatMask needs fixed approaches \(a Discrete action\), got Box"):
+        RepeatMask(continuous)
+    with pytest.raises(ValueError, match="n must be"):
+        RepeatTracker(0)
+
+
+def test_tiny_maskable_ppo_trains_with_the_repeat_mask_and_acts_with_it(env_config, small_recognizer_kwargs,
+                                                                         tmp_path, usage_error):
+    """``--algo mppo`` (sb3-contrib's MaskablePPO) over ``--discrete-approaches N``: trains and checkpoints like
+    PPO, with each env's :class:`RepeatMask`; as an agent it always acts with that mask (``no_repeat`` whatever the
+    flag), choosing what the model's own masked predict chooses. Without fixed approaches it is refused at parse
+    time; train.py and agents.sb3 name the same algorithms."""
+    import train
+    from agents.evaluate import make_agent
+    from agents.sb3 import ALGOS, RepeatTracker, SB3Agent, approach_table, latest_checkpoint, load_model
+
+    assert train.ALGOS == ALGOS
+    run = tmp_path / "mppo"
+    args = _train_args("mppo", 128, run, small_recognizer_kwargs, {"n_steps": 64, "batch_size": 32, "n_epochs": 2})
+    path = train.main(args + ["--discrete-approaches", "16"])
+    assert path.name == "mppo_final.zip" and latest_checkpoint(run).name == "mppo_128_steps.zip"
+    model = load_model(path)
+    assert type(model).__name__ == "MaskablePPO" and model.action_space.n == 16
+    agent = make_agent(f"m={path}")
+    assert isinstance(agent, SB3Agent) and agent.masked and agent.no_repeat and agent.name == "m"
+    t = approach_table(16)
+    env = haptic_env.make(env_config.replace(max_grasps=10))
+    tracker = RepeatTracker(16)
+    obs, _ = env.reset(seed=0)
+    agent.reset(env)
+    belief = env.unwrapped.task.obs_slices["belief"]
+    for _ in range(15):
+        tracker.see(obs[belief])
+        own = int(model.predict(obs, deterministic=True, action_masks=tracker.mask())[0])
+        a = agent.act(obs, env)
+        np.testing.assert_array_equal(a, t[own])
+        tracker.add(own)
+        obs, _, term, trunc, _ = env.step(a)
+        if term or trunc:
+            obs, _ = env.reset()
+            agent.reset(env)
+            tracker.clear()
+    usage_error(train.parse_args, ["--algo", "mppo"],
+                match="--discrete-approaches: mppo masks fixed approaches: it needs discrete_approaches >= 1, got 0")
+
+
 def test_train_env_flags_change_the_fields_a_variant_sets(small_recognizer_kwargs, usage_error):
     """``--env.*`` start from the ``--env-id`` variant's config and may change what the variant sets; the envs the
     run makes are that config (``haptic_env.make`` takes the variant's fields from a given config; before, gymnasium

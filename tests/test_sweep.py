@@ -81,6 +81,10 @@ def test_a_categorical_agent_trains_with_its_approaches_and_evaluates_without_re
     with pytest.raises(RuntimeError, match="stop"):
         jobs._evaluate(evaluate64.params, tmp_path, 1, {"dep_dirs": [str(tmp_path)]})
     assert made == [True]
+    masked = parse_spec({**doc, "agent": [{"name": "m", "algo": "mppo", "discrete_approaches": 64}]}).jobs
+    assert [(j.kind, j.params.get("algo"), j.params.get("discrete_approaches")) for j in masked] == [
+        ("train", "mppo", 64), ("evaluate", None, None)]
+    assert masked[1].params["spec"] == "mppo_final.zip"
 
 
 def test_every_baseline_agent_that_evaluate_builds_is_a_valid_sweep_agent():
@@ -156,6 +160,8 @@ def test_a_changed_env_variant_is_a_new_job(monkeypatch):
      r"no_repeat: needs a categorical policy without memory .* discrete_approaches 0"),
     ({"name": "x", "env_ids": ["HapticRecog-v0"],
       "agent": [{"name": "r", "algo": "rppo", "discrete_approaches": 8, "no_repeat": True}]}, r"got algo 'rppo'"),
+    ({"name": "x", "env_ids": ["HapticRecog-v0"], "agent": [{"name": "m", "algo": "mppo"}]},
+     r"agent\[0\].discrete_approaches: mppo masks fixed approaches: it needs discrete_approaches >= 1, got 0"),
     ({"name": "x", "env_ids": ["HapticRecog-v0"],
       "agent": [{"name": "p", "algo": "ppo", "discrete_approaches": 8, "no_repeat": "yes"}]},
      "no_repeat: expected true or false, got 'yes'"),

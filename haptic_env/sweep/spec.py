@@ -17,9 +17,10 @@ agent x env x seed), and dataset, analysis and command jobs::
     name = "greedy"                        # random | greedy | greedy:M (spec = ... to rename)
     [[agent]]
     name = "ppo"
-    algo = "ppo"                           # ppo, sac or rppo: train.py, then evaluation of <algo>_final.zip
+    algo = "ppo"                           # ppo, sac, rppo or mppo: train.py, then evaluation of <algo>_final.zip
     total_timesteps = 200000               # + n_envs, vec, checkpoint_freq, hyperparams, cpus, max_minutes,
-                                           # discrete_approaches (train.py --discrete-approaches; ppo / rppo) and
+                                           # discrete_approaches (train.py --discrete-approaches; ppo / rppo /
+                                           # mppo, which needs them) and
                                            # no_repeat (evaluate --no-repeat; with discrete_approaches, ppo)
 
     [evaluate]
@@ -192,8 +193,8 @@ def _hyperparams(algo: str, hp: Any, where: str) -> dict[str, Any]:
 
 def _categorical(a: dict, where: str) -> tuple[int, bool]:
     """A trained agent's ``discrete_approaches`` (an int >= 0; 0: the continuous action) and ``no_repeat`` (a bool),
-    checked as ``train.py`` and ``evaluate`` would: a categorical policy is PPO's or recurrent PPO's, and
-    ``no_repeat`` needs one without memory."""
+    checked as ``train.py`` and ``evaluate`` would: a categorical policy is PPO's, recurrent PPO's or maskable
+    PPO's (which needs one), and ``no_repeat`` needs one without memory."""
     from agents.sb3 import discrete_approaches_problem
     from haptic_env.numbers import flag
 
@@ -204,9 +205,10 @@ def _categorical(a: dict, where: str) -> tuple[int, bool]:
     no_repeat = flag(a.get("no_repeat", False))
     if no_repeat is None:
         raise SpecError(f"{where}.no_repeat: expected true or false, got {a['no_repeat']!r}")
-    if no_repeat and (not n or a["algo"] != "ppo"):
+    if no_repeat and (not n or a["algo"] not in ("ppo", "mppo")):
         raise SpecError(f"{where}.no_repeat: needs a categorical policy without memory (algo = \"ppo\" with "
-                        f"discrete_approaches >= 1), got algo {a['algo']!r}, discrete_approaches {n}")
+                        f"discrete_approaches >= 1; \"mppo\" acts so anyway), got algo {a['algo']!r}, "
+                        f"discrete_approaches {n}")
     return n, no_repeat
 
 
@@ -266,8 +268,8 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
         trained = "algo" in a
         _check_keys(a, _TRAINED if trained else _BASELINE, where)
         a_seeds = [_int(s, f"{where}.seeds") for s in _as_list(a.get("seeds", seeds))]
-        if trained and a["algo"] not in ("ppo", "sac", "rppo"):
-            raise SpecError(f"{where}: algo must be 'ppo', 'sac' or 'rppo', got {a['algo']!r}")
+        if trained and a["algo"] not in ("ppo", "sac", "rppo", "mppo"):
+            raise SpecError(f"{where}: algo must be 'ppo', 'sac', 'rppo' or 'mppo', got {a['algo']!r}")
         if not trained:
             spec = a.get("spec", a["name"])
             if not spec.endswith(".zip"):  # what the evaluate job will build, checked by the one parser of specs
