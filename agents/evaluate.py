@@ -621,7 +621,9 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False, no_repeat: bo
         from agents.sb3 import ALGOS, SB3Agent, load_model
 
         name, _, path = spec.partition("=") if "=" in spec else (Path(spec).stem, "", spec)
-        algo = name.lower() if name.lower() in ALGOS else None
+        # the file's own name first (a sweep's <algo>_final.zip), then an agent named after an algorithm
+        stem = Path(path).name.lower()
+        algo = None if any(stem.startswith(a) for a in ALGOS) else name.lower() if name.lower() in ALGOS else None
         name += "-stochastic" * bool(stochastic) + "-norepeat" * bool(no_repeat)
         return SB3Agent(load_model(path, algo), name=name, deterministic=not stochastic, no_repeat=no_repeat)
     raise ValueError(f"unknown agent spec {spec!r}; use random, greedy[-env][-blind|-infer][:M[:S]] or "
@@ -680,7 +682,7 @@ def add_parser(subparsers) -> None:
                    help="SB3 agents with a categorical policy (trained with --discrete-approaches) do not choose an "
                         "approach twice while the belief stays the same (a grasp that touches too few fingers leaves "
                         "it unchanged, and the policy may repeat it up to the cap); named <name>-norepeat (an mppo "
-                        "model acts so always: it was trained with that mask)")
+                        "model acts so always, as it was trained: for it the flag only adds the suffix)")
     p.add_argument("--env-id", default="HapticRecog-v0", choices=list(ENV_VARIANTS))
     p.add_argument("--env-kwargs", type=json_object, default={}, help="JSON dict of HapticRecogConfig fields")
     p.add_argument("--out", default="outputs/eval")

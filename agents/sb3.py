@@ -67,6 +67,15 @@ DEFAULT_HYPERPARAMS: dict[str, dict[str, Any]] = {
 _POLICY = {"ppo": "MlpPolicy", "sac": "MlpPolicy", "rppo": "MlpLstmPolicy", "mppo": "MlpPolicy"}
 
 
+def _is_maskable(model) -> bool:
+    """Whether ``model``'s policy is sb3-contrib's maskable one (a model trained with ``--algo mppo``)."""
+    try:
+        from sb3_contrib.common.maskable.policies import MaskableActorCriticPolicy
+    except ImportError:  # pragma: no cover - sb3-contrib is a dependency
+        return False
+    return isinstance(getattr(model, "policy", None), MaskableActorCriticPolicy)
+
+
 def _algo_class(algo: str):
     algo = algo.lower() if isinstance(algo, str) else algo
     if algo not in ALGOS:
@@ -295,6 +304,9 @@ def build_model(algo: str, venv, seed: int = 0, log_dir: str | os.PathLike | Non
     if isinstance(venv.action_space, gym.spaces.Discrete) and algo not in DISCRETE_ALGOS:
         raise ValueError(f"{algo}'s policy takes a continuous action, got the env's {venv.action_space} (fixed "
                          f"approaches: use one of {DISCRETE_ALGOS})")
+    if algo == "mppo" and not isinstance(venv.action_space, gym.spaces.Discrete):
+        raise ValueError(f"mppo masks fixed approaches: it needs a Discrete action, got the env's {venv.action_space} "
+                         "(make_vec_env(discrete_approaches=N))")
     params = {**DEFAULT_HYPERPARAMS[algo], **hyperparams}
     tb = str(Path(log_dir) / "tb") if log_dir is not None else None
     return cls(_POLICY[algo], venv, seed=seed, tensorboard_log=tb, verbose=verbose, device="cpu", **params)
@@ -607,7 +619,7 @@ class SB3Agent:
             kind = "a recurrent policy" if self.recurrent else f"an action space {space}"
             raise ValueError(f"no_repeat (evaluate --no-repeat) needs a categorical policy without memory (ppo trained "
                              f"with --discrete-approaches); the model of agent {self.name!r} has {kind}")
-        self.masked = type(model).__name__ == "MaskablePPO"  # trained with RepeatMask: its mask is its policy's
+        self.masked = _is_maskable(model)  # trained with RepeatMask: its mask is its policy's
         self.no_repeat = bool(no_repeat) or self.masked
         self.tracker = RepeatTracker(len(self.table)) if self.no_repeat else None
         self._clear_memory()
@@ -629,20 +641,20 @@ class SB3Agent:
             self.tracker.clear()
 
     def _untried_choice(self, obs: np.ndarray) -> int:
-        """The policy's choice among the approaches the tracker allows (not tried at this belief): argmax, or a
-        draw from its probabilities renormalised over them, with SB3's seeded torch generator."""
+        """The policy's choice among the approaches the tracker allows (not tried at this belief): the largest logit
+        among them, or a draw from its probabilities renormalised over them, with SB3's seeded torch generator (on
+        the logits, so that an allowed approach whose probability underflows to 0 keeps its rank, as in
+        MaskablePPO's own masked distribution)."""
         import torch as th
 
         self.model.policy.set_training_mode(False)  # as SB3's predict does
         obs_t, _ = self.model.policy.obs_to_tensor(np.asarray(obs))
         with th.no_grad():
-            probs = self.model.policy.get_distribution(obs_t).distribution.probs[0].clone()
-        barred = th.as_tensor(~self.tracker.mask())
-        probs[barred] = 0.0
-        if self.deterministic or float(probs.sum()) <= 0.0:
-            probs[barred] = -1.0
-            return int(th.argmax(probs))
-        return int(th.multinomial(probs / probs.sum(), 1)[0])
+            logits = self.model.policy.get_distribution(obs_t).distribution.logits[0].clone()
+        logits[th.as_tensor(~self.tracker.mask())] = -th.inf
+        if self.deterministic:
+            return int(th.argmax(logits))
+        return int(th.multinomial(th.softmax(logits, dim=0), 1)[0])
 
     def act(self, obs: np.ndarray, env: Any) -> np.ndarray:
         if self.no_repeat:

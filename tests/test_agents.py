@@ -382,7 +382,7 @@ def test_sb3_agent_no_repeat_moves_on_while_the_belief_stays():
 
     probs = th.tensor([[0.05, 0.1, 0.05, 0.2, 0.1, 0.4, 0.05, 0.05]])
     policy = SimpleNamespace(obs_to_tensor=lambda o: (th.as_tensor(o)[None], True), set_training_mode=lambda mode: None,
-                             get_distribution=lambda o: SimpleNamespace(distribution=SimpleNamespace(probs=probs)))
+                             get_distribution=lambda o: SimpleNamespace(distribution=SimpleNamespace(logits=probs.log())))
     model = SimpleNamespace(action_space=gym.spaces.Discrete(8), policy=policy)
     env = SimpleNamespace(unwrapped=SimpleNamespace(task=SimpleNamespace(obs_slices={"belief": slice(1, 3)})))
     table = approach_table(8)
@@ -436,7 +436,7 @@ def test_repeat_mask_bars_the_approaches_tried_while_the_belief_stays():
             return np.array([self.k, *self.b], np.float32), -1.0, False, False, {"k": self.k}
 
     env = RepeatMask(Stub())
-    obs, _ = env.reset()
+    env.reset()
     np.testing.assert_array_equal(env.action_masks(), [True] * 4)
     obs, reward, term, trunc, info = env.step(0)
     assert (reward, term, trunc, info) == (-1.0, False, False, {"k": 1}) and obs[0] == 1  # passed through
@@ -470,7 +470,8 @@ def test_tiny_maskable_ppo_trains_with_the_repeat_mask_and_acts_with_it(env_conf
     time; train.py and agents.sb3 name the same algorithms."""
     import train
     from agents.evaluate import make_agent
-    from agents.sb3 import ALGOS, RepeatTracker, SB3Agent, approach_table, latest_checkpoint, load_model
+    from agents.sb3 import (ALGOS, RepeatTracker, SB3Agent, approach_table, build_model, latest_checkpoint, load_model,
+                            make_vec_env)
 
     assert train.ALGOS == ALGOS
     run = tmp_path / "mppo"
@@ -481,14 +482,17 @@ def test_tiny_maskable_ppo_trains_with_the_repeat_mask_and_acts_with_it(env_conf
     assert type(model).__name__ == "MaskablePPO" and model.action_space.n == 16
     agent = make_agent(f"m={path}")
     assert isinstance(agent, SB3Agent) and agent.masked and agent.no_repeat and agent.name == "m"
+    assert make_agent(f"ppo={path}").masked  # the file's name, not the agent's, says which algorithm saved it
     t = approach_table(16)
     env = haptic_env.make(env_config.replace(max_grasps=10))
     tracker = RepeatTracker(16)
     obs, _ = env.reset(seed=0)
     agent.reset(env)
     belief = env.unwrapped.task.obs_slices["belief"]
+    barred = 0
     for _ in range(15):
         tracker.see(obs[belief])
+        barred += not tracker.mask().all()
         own = int(model.predict(obs, deterministic=True, action_masks=tracker.mask())[0])
         a = agent.act(obs, env)
         np.testing.assert_array_equal(a, t[own])
@@ -498,8 +502,15 @@ def test_tiny_maskable_ppo_trains_with_the_repeat_mask_and_acts_with_it(env_conf
             obs, _ = env.reset()
             agent.reset(env)
             tracker.clear()
+    assert barred > 0  # some of these choices were made with approaches barred: the masked path is exercised
     usage_error(train.parse_args, ["--algo", "mppo"],
                 match="--discrete-approaches: mppo masks fixed approaches: it needs discrete_approaches >= 1, got 0")
+    venv = make_vec_env(env_config.replace(max_grasps=10), n_envs=1, vec="dummy")
+    try:
+        with pytest.raises(ValueError, match=r"mppo masks fixed approaches: it needs a Discrete action, got .*Box"):
+            build_model("mppo", venv)
+    finally:
+        venv.close()
 
 
 def test_train_env_flags_change_the_fields_a_variant_sets(small_recognizer_kwargs, usage_error):

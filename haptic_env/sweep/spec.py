@@ -21,7 +21,8 @@ agent x env x seed), and dataset, analysis and command jobs::
     total_timesteps = 200000               # + n_envs, vec, checkpoint_freq, hyperparams, cpus, max_minutes,
                                            # discrete_approaches (train.py --discrete-approaches; ppo / rppo /
                                            # mppo, which needs them) and
-                                           # no_repeat (evaluate --no-repeat; with discrete_approaches, ppo)
+                                           # no_repeat (evaluate --no-repeat; with discrete_approaches, ppo;
+                                           # mppo acts so anyway)
 
     [evaluate]
     episodes = 40                          # episodes per env seed
@@ -244,6 +245,7 @@ def _envs(doc: dict) -> dict[str, tuple[str, dict[str, Any]]]:
 
 
 def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
+    from agents.sb3 import ALGOS
     from haptic_env import ENV_VARIANTS
     from haptic_env.splits import SWEEP_ENV_SEEDS, training_env_seed
 
@@ -268,8 +270,8 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
         trained = "algo" in a
         _check_keys(a, _TRAINED if trained else _BASELINE, where)
         a_seeds = [_int(s, f"{where}.seeds") for s in _as_list(a.get("seeds", seeds))]
-        if trained and a["algo"] not in ("ppo", "sac", "rppo", "mppo"):
-            raise SpecError(f"{where}: algo must be 'ppo', 'sac', 'rppo' or 'mppo', got {a['algo']!r}")
+        if trained and a["algo"] not in ALGOS:
+            raise SpecError(f"{where}: algo must be one of {ALGOS}, got {a['algo']!r}")
         if not trained:
             spec = a.get("spec", a["name"])
             if not spec.endswith(".zip"):  # what the evaluate job will build, checked by the one parser of specs
@@ -278,8 +280,8 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
                 try:
                     make_agent(spec)
                 except ValueError as exc:
-                    raise SpecError(f"{where}: a baseline agent: {exc} (or a model .zip via spec); give algo = "
-                                    "\"ppo\"/\"sac\" for a trained agent") from None
+                    raise SpecError(f"{where}: a baseline agent: {exc} (or a model .zip via spec); give an algo "
+                                    f"of {ALGOS} for a trained agent") from None
         n_approaches, no_repeat = _categorical(a, where) if trained else (0, False)
         for env, s in product(envs, a_seeds):
             env_id, kwargs = envs[env]
