@@ -618,12 +618,11 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False, no_repeat: bo
         agent.name = spec
         return agent
     if "=" in spec or spec.endswith(".zip"):
-        from agents.sb3 import ALGOS, SB3Agent, load_model
+        from agents.sb3 import ALGOS, SB3Agent, algo_of_file, load_model
 
         name, _, path = spec.partition("=") if "=" in spec else (Path(spec).stem, "", spec)
         # the file's own name first (a sweep's <algo>_final.zip), then an agent named after an algorithm
-        stem = Path(path).name.lower()
-        algo = None if any(stem.startswith(a) for a in ALGOS) else name.lower() if name.lower() in ALGOS else None
+        algo = algo_of_file(path) or (name.lower() if name.lower() in ALGOS else None)
         name += "-stochastic" * bool(stochastic) + "-norepeat" * bool(no_repeat)
         return SB3Agent(load_model(path, algo), name=name, deterministic=not stochastic, no_repeat=no_repeat)
     raise ValueError(f"unknown agent spec {spec!r}; use random, greedy[-env][-blind|-infer][:M[:S]] or "

@@ -42,10 +42,10 @@ import numpy as np
 from haptic_env.grasping.base import ACTION_DIM
 from haptic_env.numbers import whole_at_least
 
-__all__ = ["ALGOS", "DEFAULT_HYPERPARAMS", "make_vec_env", "build_model", "load_model", "train", "SB3Agent",
-           "TrainingInterrupted", "latest_checkpoint", "checkpoint_extras", "close_vec_env", "check_hyperparams",
-           "approach_table", "DiscreteApproaches", "DISCRETE_ALGOS", "discrete_approaches_problem", "RepeatTracker",
-           "RepeatMask"]
+__all__ = ["ALGOS", "DEFAULT_HYPERPARAMS", "make_vec_env", "build_model", "load_model", "algo_of_file", "train",
+           "SB3Agent", "TrainingInterrupted", "latest_checkpoint", "checkpoint_extras", "close_vec_env",
+           "check_hyperparams", "approach_table", "DiscreteApproaches", "DISCRETE_ALGOS", "discrete_approaches_problem",
+           "RepeatTracker", "RepeatMask"]
 
 #: ``rppo``: sb3-contrib's ``RecurrentPPO`` (an LSTM policy); ``mppo``: sb3-contrib's ``MaskablePPO`` over fixed
 #: approaches, trained and acting with :class:`RepeatMask`. Their model files are named ``rppo_*`` / ``mppo_*``.
@@ -69,10 +69,8 @@ _POLICY = {"ppo": "MlpPolicy", "sac": "MlpPolicy", "rppo": "MlpLstmPolicy", "mpp
 
 def _is_maskable(model) -> bool:
     """Whether ``model``'s policy is sb3-contrib's maskable one (a model trained with ``--algo mppo``)."""
-    try:
-        from sb3_contrib.common.maskable.policies import MaskableActorCriticPolicy
-    except ImportError:  # pragma: no cover - sb3-contrib is a dependency
-        return False
+    from sb3_contrib.common.maskable.policies import MaskableActorCriticPolicy
+
     return isinstance(getattr(model, "policy", None), MaskableActorCriticPolicy)
 
 
@@ -312,15 +310,19 @@ def build_model(algo: str, venv, seed: int = 0, log_dir: str | os.PathLike | Non
     return cls(_POLICY[algo], venv, seed=seed, tensorboard_log=tb, verbose=verbose, device="cpu", **params)
 
 
+def algo_of_file(path: str | os.PathLike) -> str | None:
+    """The algorithm a model file's name starts with (``ppo_*``/``sac_*``/``rppo_*``/``mppo_*``), or None."""
+    stem = Path(path).name.lower()
+    return next((a for a in ALGOS if stem.startswith(a)), None)
+
+
 def load_model(path: str | os.PathLike, algo: str | None = None, env=None):
-    """Load a saved model; ``algo`` is inferred from the file name (``ppo_*``/``sac_*``/``rppo_*``/``mppo_*``) when
-    omitted."""
+    """Load a saved model; ``algo`` is inferred from the file name (:func:`algo_of_file`) when omitted."""
     path = Path(path)
     if not path.exists() and not path.with_suffix(".zip").exists():
         raise FileNotFoundError(f"no SB3 model at {path}")
     if algo is None:
-        stem = path.name.lower()
-        algo = next((a for a in ALGOS if stem.startswith(a)), None)
+        algo = algo_of_file(path)
         if algo is None:
             raise ValueError(f"cannot infer the algorithm from {path.name!r}; pass algo='ppo', 'sac', 'rppo' or "
                              "'mppo'")
