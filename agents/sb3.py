@@ -16,8 +16,9 @@ observation at a time.
   env worker stop learning, save a checkpoint and raise :class:`TrainingInterrupted`.
 * :func:`latest_checkpoint` — the checkpoint with the most steps in a run directory.
 * :class:`SB3Agent` — a trained model as an :class:`agents.base.Agent` for :mod:`agents.evaluate`.
-* :func:`approach_table`, :class:`DiscreteApproaches` — a fixed set of ``N`` approaches as a ``Discrete(N)`` action
-  (``make_vec_env(discrete_approaches=N)``, ``train.py --discrete-approaches N``): PPO's policy is then categorical,
+* :func:`approach_table` (from :mod:`haptic_env.grasping.base`), :class:`DiscreteApproaches` — a fixed set of
+  ``N`` approaches as a ``Discrete(N)`` action (``make_vec_env(discrete_approaches=N)``,
+  ``train.py --discrete-approaches N``): PPO's policy is then categorical,
   so it can put its mass on a few separate approaches instead of the one mode of a Gaussian. :class:`SB3Agent` maps
   such a model's choice back to the approach, so the env it is evaluated on keeps the continuous action box.
 * :class:`RepeatTracker`, :class:`RepeatMask` — the approaches tried since the belief last changed: the rule by which
@@ -39,7 +40,7 @@ from typing import Any, Callable
 import gymnasium as gym
 import numpy as np
 
-from haptic_env.grasping.base import ACTION_DIM
+from haptic_env.grasping.base import approach_table
 from haptic_env.numbers import whole_at_least
 
 __all__ = ["ALGOS", "DEFAULT_HYPERPARAMS", "make_vec_env", "build_model", "load_model", "algo_of_file", "train",
@@ -111,17 +112,6 @@ def discrete_approaches_problem(n: int, algo: str | None, vec: str) -> str | Non
         return (f"wraps each env (discrete_approaches {n}), and the native vector env steps them in one batch: use "
                 'vec "subproc" or "dummy", got "native"')
     return None
-
-
-def approach_table(n: int, dim: int = ACTION_DIM) -> np.ndarray:
-    """``(n, dim)`` float32: ``n`` approaches spread evenly over the action box ``[-1, 1]^dim``, the first ``n``
-    points after the origin of the unscrambled Halton sequence (``scipy.stats.qmc.Halton``), so that the table
-    depends on ``n`` and ``dim`` alone (a saved model's ``Discrete(n)`` names it). ``n`` and ``dim`` ints >= 1; a
-    ``ValueError`` names a bad one."""
-    from scipy.stats import qmc
-
-    n, dim = whole_at_least(n, 1, "n"), whole_at_least(dim, 1, "dim")
-    return (qmc.Halton(d=dim, scramble=False).random(n + 1)[1:] * 2.0 - 1.0).astype(np.float32)
 
 
 class DiscreteApproaches(gym.ActionWrapper):

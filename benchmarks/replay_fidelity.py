@@ -8,11 +8,17 @@ identity pose) and compares, object by object, what it returns with what MuJoCo 
 * the touched fingertips: the same set, and the same usability (>= 3 fingertips);
 * the contacts of fingertips that touched in both: mean distance (mm).
 
+With ``--table N`` the replay records instead the ``N`` approaches of a ``--discrete-approaches N`` agent, each at
+``--yaws`` evenly spaced yaws (``ReplayConfig.table``), and is asked for those approaches at random yaws of the object
+(``--pool-approaches`` queries per object, approach ``i % N`` turned by a yaw drawn from ``--pool-seed``'s stream),
+which MuJoCo grasps as the held-out pool.
+
 Each figure is also given for a *random* record of the same object (the replay with its lookup replaced by a random
 index): what a replay that ignored the approach would score. Speed: replayed grasps per second against MuJoCo's own
 grasps per second on ``--time-approaches`` approaches, in the same run (one process), as a ratio.
 
     python benchmarks/replay_fidelity.py [--hand allegro] [--objects ycb10] [--approaches 6000] [--pool-seed 500]
+    python benchmarks/replay_fidelity.py --table 64 [--yaws 72]   # the records of a 64-approach agent
 
 The first run records the replay pool (``approaches`` per object; 4.6 min for the Allegro's 60,000 on 2 cores) and the
 held-out pool unless they are cached. The headline (the speed ratio) is printed last.
@@ -38,21 +44,34 @@ def main(argv=None) -> int:
     ap.add_argument("--pool-seed", type=int, default=500, help="seed of the held-out MuJoCo pool compared with")
     ap.add_argument("--pool-approaches", type=int_in(1), default=300, help="held-out approaches per object")
     ap.add_argument("--time-approaches", type=int_in(1), default=100, help="approaches timed on each backend")
+    ap.add_argument("--table", type=int_in(0), default=0,
+                    help="N > 0: record the N approaches of approach_table(N) at --yaws yaws each, and query "
+                         "them at random yaws")
+    ap.add_argument("--yaws", type=int_in(1), default=72, help="recorded yaws per table approach (with --table)")
     args = ap.parse_args(argv)
 
     from haptic_env.grasping import make_backend, usable_touch
+    from haptic_env.grasping.base import approach_table
+    from haptic_env.grasping.replay import turned_azimuth
     from haptic_env.hand_grasps import hand_grasp_pool, pool_actions
     from haptic_env.objects import load_object_set
 
     objects = load_object_set(args.objects)
-    replay = make_backend("replay", hand=args.hand, approaches=args.approaches, pool_seed=args.replay_seed)
+    replay = make_backend("replay", hand=args.hand, approaches=args.approaches, pool_seed=args.replay_seed,
+                          table=args.table, yaws=args.yaws)
     replay.prepare(objects)
     n = replay.n_fingers
-    held = hand_grasp_pool(objects, args.hand, n, args.pool_approaches, seed=args.pool_seed)
+    queries = None
+    if args.table:  # table approach i % N at a random yaw, the same queries for every object
+        q_rng = np.random.default_rng(args.pool_seed)
+        rows_ = approach_table(args.table)[np.arange(args.pool_approaches) % args.table]
+        queries = turned_azimuth(rows_, q_rng.uniform(0, 2 * np.pi, args.pool_approaches))
+    held = hand_grasp_pool(objects, args.hand, n, args.pool_approaches, seed=args.pool_seed, actions=queries)
     rng = np.random.default_rng(0)
     rows, tot = [], {"replay": [], "random": []}
     for k, obj in enumerate(objects):
-        actions = pool_actions(args.pool_seed, k, args.pool_approaches).astype(np.float32)
+        actions = (pool_actions(args.pool_seed, k, args.pool_approaches) if queries is None else queries)
+        actions = actions.astype(np.float32)
         replay.set_object(obj)
         got = replay.grasp_batch(actions, rng)
         _, C, _, T = replay.records(obj)
@@ -67,8 +86,11 @@ def main(argv=None) -> int:
             cells += [same, usable, dist]
         rows.append((obj.name, *cells))
 
-    print(f"{args.hand} on {args.objects}: replay of {args.approaches} recorded approaches per object (seed "
-          f"{args.replay_seed}) against MuJoCo's grasps of {args.pool_approaches} held-out approaches (seed "
+    records = (f"the {args.table} table approaches at {args.yaws} yaws each" if args.table else
+               f"{args.approaches} recorded approaches per object (seed {args.replay_seed})")
+    asked = (f"{args.pool_approaches} table approaches at random yaws" if args.table else
+             f"{args.pool_approaches} held-out approaches")
+    print(f"{args.hand} on {args.objects}: replay of {records} against MuJoCo's grasps of {asked} (seed "
           f"{args.pool_seed})\n")
     print("| object | same fingertips | same usability | contact distance (mm) | random record: same fingertips | "
           "same usability | distance (mm) |")

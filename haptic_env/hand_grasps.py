@@ -29,6 +29,7 @@ an object are the uniform pool's.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
 import shutil
 import time
@@ -42,10 +43,11 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .cache import CacheError, cache_dir, clean_stale_tmp, config_key, load_npz, save_npz_atomic
+from .grasping.base import validate_actions
 from .numbers import finite_number, whole_at_least
 
-__all__ = ["HandGraspPool", "hand_grasp_pool", "pool_actions", "pool_rows", "pool_cache_path", "hand_physics_key",
-           "CHUNK", "BUDGETS", "balanced_counts", "parts_dir"]
+__all__ = ["HandGraspPool", "hand_grasp_pool", "pool_actions", "table_actions", "pool_rows", "pool_cache_path",
+           "hand_physics_key", "CHUNK", "BUDGETS", "balanced_counts", "parts_dir"]
 
 _CACHE_VERSION = "hand-grasps-v2"  # v2: the key holds the hand's physics (hand_physics_key)
 #: values of ``hand_grasp_pool(budget=...)`` (and ``DatasetConfig.hand_budget``)
@@ -108,9 +110,10 @@ def hand_physics_key(hand: str, n_fingers: int) -> str:
 
 
 def pool_cache_path(objects, hand: str, n_fingers: int, approaches: int, support: str, seed: int,
-                    budget: str = "uniform") -> Path:
+                    budget: str = "uniform", actions: np.ndarray | None = None) -> Path:
+    given = [] if actions is None else [hashlib.sha256(np.ascontiguousarray(actions, np.float64)).hexdigest()]
     key = config_key(_CACHE_VERSION, objects.identity, hand, int(n_fingers), int(approaches), support, int(seed),
-                     hand_physics_key(hand, n_fingers), *([] if budget == "uniform" else [budget]))
+                     hand_physics_key(hand, n_fingers), *([] if budget == "uniform" else [budget]), *given)
     return cache_dir("hand_grasps") / f"{hand}-{key}.npz"
 
 
@@ -140,6 +143,18 @@ def balanced_counts(complete_rate, approaches: int, *, lo: float = 0.5, hi: floa
         w = np.where(r > 0, med / np.where(r > 0, r, 1.0), hi) if med > 0 else np.ones_like(r)
     w = np.clip(w, lo, hi)
     return np.maximum(np.rint(len(r) * int(approaches) * w / w.sum()).astype(np.int64), int(minimum))
+
+
+def table_actions(table: int, yaws: int) -> np.ndarray:
+    """``(table * yaws, 4)`` float64: each row of :func:`~haptic_env.grasping.base.approach_table` ``(table)`` turned
+    about the vertical by ``yaws`` evenly spaced yaws (``2 pi j / yaws``, ``j = 0..yaws-1``; row ``i * yaws + j``), as
+    the replay backend records them (``ReplayConfig.table``). ``table`` and ``yaws`` ints >= 1."""
+    from .grasping.base import approach_table
+    from .grasping.replay import turned_azimuth
+
+    t = approach_table(whole_at_least(table, 1, "table")).astype(np.float64)
+    psi = 2 * np.pi * np.arange(whole_at_least(yaws, 1, "yaws")) / yaws
+    return turned_azimuth(np.repeat(t, len(psi), axis=0), np.tile(psi, len(t)))
 
 
 def pool_actions(seed: int, k: int, count: int) -> np.ndarray:
@@ -205,8 +220,8 @@ def _load_parts(folder: Path, n_fingers: int) -> tuple[dict[tuple[int, int, int]
 
 def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, support: str = "table", seed: int = 0,
                     budget: str = "uniform", workers: int | None = None, cache: bool = True,
-                    progress: bool = True) -> HandGraspPool:
-    """Grasp every object of ``objects`` with ``hand`` along uniformly random approaches.
+                    progress: bool = True, actions: np.ndarray | None = None) -> HandGraspPool:
+    """Grasp every object of ``objects`` with ``hand`` along uniformly random approaches (or along given ones).
 
     Args:
         objects: an ``ObjectSet`` (its collision pieces are used, as in the env).
@@ -217,6 +232,8 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
             the module docstring).
         workers: processes (default: all cores); 1 runs in this process.
         cache: read / write ``cache_dir("hand_grasps")``.
+        actions: ``(approaches, 4)`` approaches in ``[-1, 1]`` to grasp every object along, in this order, instead
+            of the random ones (e.g. :func:`table_actions`); the cache key holds them. Needs ``budget="uniform"``.
 
     Object ``k``'s approaches come from ``SeedSequence([seed, k])`` and chunk ``lo`` grasps with the
     random stream ``[seed, k, lo]``, so the pool does not depend on ``workers``, and an object's first
@@ -231,7 +248,12 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
     whole_at_least(seed, 0, "seed")
     if budget not in BUDGETS:
         raise ValueError(f"budget must be one of {BUDGETS}, got {budget!r}")
-    path = pool_cache_path(objects, hand, n_fingers, approaches, support, seed, budget) if cache else None
+    if actions is not None:
+        actions = validate_actions(actions, 4)
+        if len(actions) != approaches or budget != "uniform":
+            raise ValueError(f"given actions need approaches == len(actions) and budget='uniform', got {len(actions)} "
+                             f"actions, approaches={approaches!r}, budget={budget!r}")
+    path = pool_cache_path(objects, hand, n_fingers, approaches, support, seed, budget, actions) if cache else None
     if path is not None and path.exists():
         try:
             a = load_npz(path, ("contacts", "normals", "touched", "names", "seconds"))
@@ -257,8 +279,8 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
                   f"saved in {parts}")
 
     def args(k, lo, hi):  # object k's approach stream, whatever its length, starts the same
-        actions = pool_actions(seed, k, hi)[lo:]
-        return (objects[k], hand, n_fingers, support, actions, [seed, k, lo])
+        chunk = pool_actions(seed, k, hi)[lo:] if actions is None else actions[lo:hi]
+        return (objects[k], hand, n_fingers, support, chunk, [seed, k, lo])
 
     def chunks(counts, start=0):
         return [(k, lo, min(lo + CHUNK, int(counts[k]))) for k in range(K) for lo in range(start, int(counts[k]), CHUNK)]

@@ -134,6 +134,13 @@ def test_fidelity_benchmark_runs_on_the_generic_hand(load_benchmark, capsys, usa
     assert "| **mean** | **100 %** | **100 %** | **0.0** |" in out  # the held-out pool is the replay's own
     assert out.strip().splitlines()[-1].startswith("replay backend: ")
     usage_error(fidelity.main, ["--approaches", "0"], match="--approaches: must be >= 1, got 0")
+    # --table: the records are a table's approaches at yaws, queried at random yaws
+    assert fidelity.main(["--hand", "generic", "--objects", "default", "--table", "2", "--yaws", "4",
+                          "--pool-seed", "4", "--pool-approaches", "4", "--time-approaches", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "replay of the 2 table approaches at 4 yaws each against MuJoCo's grasps of 4 table approaches" in out
+    assert "| **mean** |" in out
+    usage_error(fidelity.main, ["--yaws", "0"], match="--yaws: must be >= 1, got 0")
 
 
 def test_the_allegro_physics_turns_with_the_object():
@@ -177,6 +184,46 @@ def test_neighbours_draw_one_of_the_nearest_records(two_objects):
     for bad in (0, 13, True):
         with pytest.raises(ValueError, match="neighbours"):
             ReplayConfig(approaches=12, neighbours=bad)
+
+
+def test_a_table_replay_answers_each_table_approach_with_its_own_grasp_at_the_nearest_recorded_yaw(two_objects):
+    """ReplayConfig.table: the records are the table's approaches turned by evenly spaced yaws
+    (hand_grasps.table_actions), grasped by the physics; a table approach asked at any yaw of the object gets its own
+    grasp at the nearest recorded yaw, turned; the pool is cached under a key that holds the approaches."""
+    from haptic_env.grasping.base import approach_table
+    from haptic_env.grasping.replay import turned_azimuth
+    from haptic_env.hand_grasps import pool_cache_path, table_actions
+
+    acts = table_actions(3, 8)
+    assert acts.shape == (24, 4)
+    np.testing.assert_array_equal(acts[::8], approach_table(3).astype(np.float64))  # yaw 0 first
+    np.testing.assert_allclose(acts[1], turned_azimuth(approach_table(3)[0], 2 * np.pi / 8))
+    be = make_backend("replay", hand="generic", table=3, yaws=8, progress=False)
+    assert be.config.records == 24
+    mug = two_objects["mug"]
+    psi = 2 * np.pi * 5 / 8 + 0.1  # 0.1 rad past recorded yaw 5 (the grid is 0.785 rad)
+    be.set_object(mug, _yaw_pose(psi))
+    got = be.grasp_batch(approach_table(3), None)
+    phys = make_backend("mujoco", n_fingers=4, hand="generic", normals=True)
+    phys.set_object(mug)
+    R = _yaw_pose(psi)[:3, :3]
+    for i, a in enumerate(approach_table(3)):
+        # the object turned by psi is met by approach a at azimuth -psi in its frame; recorded: -(5/8) turn
+        want = phys.grasp(turned_azimuth(a, -2 * np.pi * 5 / 8).astype(np.float32), np.random.default_rng(0))
+        np.testing.assert_array_equal(got.touched[i], want.touched)
+        np.testing.assert_allclose(got.contacts[i], want.contacts @ R.T, atol=1e-6)
+    phys.close()
+    key = pool_cache_path(load_object_set("default").subset(("mug",), name="mug"), "generic", 4, 24, "table", 1,
+                          actions=acts)
+    assert key != pool_cache_path(load_object_set("default").subset(("mug",), name="mug"), "generic", 4, 24,
+                                  "table", 1)
+    with pytest.raises(ValueError, match="given actions need approaches == len"):
+        hand_grasp_pool(two_objects, "generic", 4, 25, actions=acts, cache=False)
+    for bad in ({"table": -1}, {"table": 1.5}, {"yaws": 0}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            ReplayConfig(**bad)
+    with pytest.raises(ValueError, match=r"neighbours must be an int in \[1, 8\]"):
+        ReplayConfig(table=2, yaws=4, neighbours=9)
 
 
 def _records(rng, A=200, n=4):

@@ -34,11 +34,12 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from haptic_env.numbers import positive_number
+from haptic_env.numbers import positive_number, whole_at_least
 
 __all__ = [
     "ACTION_DIM",
     "ACTION_NAMES",
+    "approach_table",
     "GraspResult",
     "GraspBatch",
     "GraspBackend",
@@ -58,6 +59,17 @@ __all__ = [
 ACTION_DIM = 4
 ACTION_NAMES = ("azimuth", "elevation", "roll", "spread")
 SUPPORTS = ("table", "floating")
+
+
+def approach_table(n: int, dim: int = ACTION_DIM) -> np.ndarray:
+    """``(n, dim)`` float32: ``n`` approaches spread evenly over the action box ``[-1, 1]^dim``, the first ``n``
+    points after the origin of the unscrambled Halton sequence (``scipy.stats.qmc.Halton``), so that the table
+    depends on ``n`` and ``dim`` alone (a saved model's ``Discrete(n)`` names it; the replay backend records its
+    rows, ``ReplayConfig.table``). ``n`` and ``dim`` ints >= 1; a ``ValueError`` names a bad one."""
+    from scipy.stats import qmc
+
+    n, dim = whole_at_least(n, 1, "n"), whole_at_least(dim, 1, "dim")
+    return (qmc.Halton(d=dim, scramble=False).random(n + 1)[1:] * 2.0 - 1.0).astype(np.float32)
 
 
 def check_support(support) -> str:
