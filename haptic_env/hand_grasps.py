@@ -3,9 +3,9 @@
 The recogniser is still trained from the meshes alone (no robot data), but its grasps come from
 the same simulated hand, closing law and contact / normal extraction as the MuJoCo backend
 (:class:`~haptic_env.grasping.mujoco_backend.MujocoBackend`, object fixed at the identity pose,
-uniformly random approaches). What a hand can touch (fingertips on convex bulges, never in
-concavities, a bias towards its own aperture) and its torque-derived normals with their error
-are then in the training distribution.
+uniformly random approaches, or given ones for the replay backend's records). What a hand can touch
+(fingertips on convex bulges, never in concavities, a bias towards its own aperture) and its torque-derived
+normals with their error are then in the training distribution.
 
 :func:`hand_grasp_pool` returns the raw grasps of every object (contacts, normals, touched
 fingers), spread over processes (one task per chunk of approaches, all cores by default), with a
@@ -227,7 +227,8 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
         objects: an ``ObjectSet`` (its collision pieces are used, as in the env).
         hand: a hand name of :func:`~haptic_env.grasping.hands.load_hand` ("allegro", "shadow", ...) or an
             MJCF path; ``n_fingers`` its fingers.
-        approaches: random approaches per object ("uniform"), or their mean ("balanced").
+        approaches: random approaches per object ("uniform"), or their mean ("balanced"); with ``actions``, their
+            count.
         budget: "uniform" or "balanced" (:func:`balanced_counts` of the first chunk's complete-grasp rates; see
             the module docstring).
         workers: processes (default: all cores); 1 runs in this process.
@@ -235,8 +236,8 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
         actions: ``(approaches, 4)`` approaches in ``[-1, 1]`` to grasp every object along, in this order, instead
             of the random ones (e.g. :func:`table_actions`); the cache key holds them. Needs ``budget="uniform"``.
 
-    Object ``k``'s approaches come from ``SeedSequence([seed, k])`` and chunk ``lo`` grasps with the
-    random stream ``[seed, k, lo]``, so the pool does not depend on ``workers``, and an object's first
+    Object ``k``'s approaches come from ``SeedSequence([seed, k])`` (or are ``actions``) and chunk ``lo`` grasps with
+    the random stream ``[seed, k, lo]``, so the pool does not depend on ``workers``, and an object's first
     approaches do not depend on its count. For the same reason an interrupted build (``cache=True``) resumes from
     its saved chunks (:func:`parts_dir`) and gives the pool an uninterrupted one gives; ``seconds`` then sums the
     builds' wall times up to their last saved chunk.

@@ -196,9 +196,11 @@ class Scene:
 
     def yaw_belief(self, bins: int = 72):
         """A :class:`~haptic_env.grasping.replay.YawBelief` over the objects' recorded grasps by the env's hand: the
-        replay pool (cached on disk; recorded first if not), a replay env's own (its ``approaches`` and
-        ``pool_seed``), with the kernel's default neighbours (at most the records per object). What it needs of the
-        env: :func:`~haptic_env.config.check_yaw_belief`."""
+        replay pool of random approaches (cached on disk; recorded first if not), a replay env's own ``approaches``
+        and ``pool_seed`` if it sets them, with the kernel's default neighbours (at most the records per object). A
+        replay env's ``table`` records are not used: the kernel's nearest records would then be one approach at
+        neighbouring yaws, not the approaches around the asked one. What it needs of the env:
+        :func:`~haptic_env.config.check_yaw_belief`."""
         from haptic_env.config import backend_hand, check_yaw_belief
         from haptic_env.grasping.replay import YAW_NEIGHBOURS, ReplayBackend, ReplayConfig, YawBelief
 

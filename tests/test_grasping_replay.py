@@ -219,7 +219,11 @@ def test_a_table_replay_answers_each_table_approach_with_its_own_grasp_at_the_ne
                                   "table", 1)
     with pytest.raises(ValueError, match="given actions need approaches == len"):
         hand_grasp_pool(two_objects, "generic", 4, 25, actions=acts, cache=False)
-    for bad in ({"table": -1}, {"table": 1.5}, {"yaws": 0}):
+    for bad, match in ((np.zeros((2, 3)), r"shape \(B, 4\)"), (np.full((2, 4), np.nan), "must be finite"),
+                       (np.full((2, 4), 1.5), r"outside \[-1, 1\]")):
+        with pytest.raises(ValueError, match=match):
+            hand_grasp_pool(two_objects, "generic", 4, 2, actions=bad, cache=False)
+    for bad in ({"table": -1}, {"table": 1.5}, {"table": True}, {"yaws": 0}):
         with pytest.raises(ValueError, match=next(iter(bad))):
             ReplayConfig(**bad)
     with pytest.raises(ValueError, match=r"neighbours must be an int in \[1, 8\]"):

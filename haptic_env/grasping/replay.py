@@ -73,7 +73,8 @@ class ReplayConfig:
     #: 0: record ``approaches`` random approaches per object. N >= 1: record instead the N approaches of a
     #: ``--discrete-approaches N`` agent (:func:`~haptic_env.grasping.base.approach_table`), each at ``yaws`` evenly
     #: spaced yaws (:func:`~haptic_env.hand_grasps.table_actions`; ``approaches`` is then not used), so that each of
-    #: those approaches, at any yaw of the object, is answered with its own grasp at the nearest recorded yaw
+    #: those approaches, at any yaw of the object, is answered with its own grasp at the nearest recorded yaw (an
+    #: env's yaw belief, ``action_frame="estimated"``, still reads the random-approach pool: ``Scene.yaw_belief``)
     table: int = 0
     yaws: int = 72  #: recorded yaws per approach of ``table`` (72: every 5 degrees)
 
