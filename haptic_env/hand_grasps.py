@@ -43,7 +43,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .cache import CacheError, cache_dir, clean_stale_tmp, config_key, load_npz, save_npz_atomic
-from .grasping.base import validate_actions
+from .grasping.base import approach_table, validate_actions
 from .numbers import finite_number, whole_at_least
 
 __all__ = ["HandGraspPool", "hand_grasp_pool", "pool_actions", "table_actions", "pool_rows", "pool_cache_path",
@@ -149,7 +149,6 @@ def table_actions(table: int, yaws: int) -> np.ndarray:
     """``(table * yaws, 4)`` float64: each row of :func:`~haptic_env.grasping.base.approach_table` ``(table)`` turned
     about the vertical by ``yaws`` evenly spaced yaws (``2 pi j / yaws``, ``j = 0..yaws-1``; row ``i * yaws + j``), as
     the replay backend records them (``ReplayConfig.table``). ``table`` and ``yaws`` ints >= 1."""
-    from .grasping.base import approach_table
     from .grasping.replay import turned_azimuth
 
     t = approach_table(whole_at_least(table, 1, "table")).astype(np.float64)

@@ -303,10 +303,12 @@ class ReplayBackend:
         table = table_actions(cfg.table, cfg.yaws) if cfg.table else None
         pool = hand_grasp_pool(subset, cfg.hand, self.n_fingers, cfg.records, support=cfg.support,
                                seed=int(cfg.pool_seed), progress=cfg.progress, actions=table)
+        shared = None if table is None else cKDTree(approach_embedding(table))  # every object's table is the same
         for k, obj in enumerate(subset):
-            actions = pool_actions(cfg.pool_seed, k, cfg.approaches) if table is None else table
-            self._tables[obj.name, obj.mesh_hash] = (cKDTree(approach_embedding(actions)), pool.contacts[k],
-                                                      pool.normals[k], pool.touched[k])
+            tree = shared
+            if tree is None:
+                tree = cKDTree(approach_embedding(pool_actions(cfg.pool_seed, k, cfg.approaches)))
+            self._tables[obj.name, obj.mesh_hash] = (tree, pool.contacts[k], pool.normals[k], pool.touched[k])
 
     def records(self, obj) -> tuple:
         """The recorded grasps of ``obj`` (recorded first if need be), in the object's frame at the identity pose:
