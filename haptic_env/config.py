@@ -164,13 +164,19 @@ class HapticRecogConfig:
     (privileged training). Needs what ``"estimated"`` needs (it builds no yaw belief, but a policy trained so is
     meant to act with ``"estimated"``, so the same settings are asked of it).
     ``"world"``: the paper's setting."""
+    observe_yaw: bool = False
+    """Add how sure the estimated frame is to the observation (``"yaw_certainty"``, 1 value): the most probable
+    object's yaw posterior mass within +-15 degrees of its most probable yaw (``YawBelief.certainty``; 7/72 before
+    any grasp, 1 when sure), so that a policy can tell an approach aimed in a known frame from one aimed in a guessed
+    one. Needs ``action_frame="estimated"`` (its yaw belief). False: the paper's observation."""
     recognizer_kwargs: Mapping[str, Any] = field(default_factory=dict)
     """Extra keyword arguments of :func:`haptic_env.recognizers.build_recognizer`, e.g.
     ``{"config": RecognizerConfig(grasps=DatasetConfig(grasps_per_object=5000))}``; ``config`` may also be a
     JSON-style dict (``{"grasps": {"grasps_per_object": 5000}, "mlp": {"max_epochs": 5}}``)."""
 
     def __post_init__(self) -> None:
-        check_flag_fields(self, ("normals", "score_subsets", "calibrated", "observe_contacts", "grasp_heights"),
+        check_flag_fields(self, ("normals", "score_subsets", "calibrated", "observe_contacts", "grasp_heights",
+                                 "observe_yaw"),
                           "True or False")
         whole_at_least(self.calibrate_grasps, 1, "calibrate_grasps")
         if self.training_grasps is not None and (whole_number(self.training_grasps) or 0) < 1:
@@ -221,6 +227,9 @@ class HapticRecogConfig:
             raise ValueError(f"action_frame must be one of {ACTION_FRAMES}, got {self.action_frame!r}")
         if self.action_frame != "world":
             check_yaw_belief(self, f"action_frame={self.action_frame!r}")
+        if self.observe_yaw and self.action_frame != "estimated":
+            raise ValueError(f"observe_yaw=True observes the estimated frame's yaw belief: it needs "
+                             f"action_frame='estimated', got action_frame={self.action_frame!r}")
         if self.kde_method not in KDE_METHODS:
             raise ValueError(f"kde_method must be 'pooled', 'tree' or 'dense', got {self.kde_method!r}")
         for name in ("recognizer_kwargs", "object_kwargs", "backend_kwargs"):

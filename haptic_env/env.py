@@ -85,6 +85,13 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     |                 |      | finger; 0 for a finger that did not touch                                |             |
     | contact_normals | 3n   | their contact normals (only with ``normals``), 0 where not touched       | [-1, 1]     |
 
+    With ``observe_yaw=True`` (needs ``action_frame="estimated"``) one value follows last:
+
+    | Slice         | Size | Content                                                                    | Range       |
+    | ------------- | ---- | -------------------------------------------------------------------------- | ----------- |
+    | yaw_certainty | 1    | the most probable object's yaw posterior mass within +-15 degrees of its   | [0, 1]      |
+    |               |      | most probable yaw, the frame the next azimuth is read in (7/72 at reset)   |             |
+
     ## Rewards
     ``reward = gain - grasp_cost`` with ``gain`` chosen by ``reward``:
 
@@ -255,6 +262,11 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
             return self.scene.yaw
         return None
 
+    def _observe_yaw(self) -> None:
+        """``observe_yaw``: hand the task how sure the most probable object's estimated yaw is now."""
+        if self.config.observe_yaw:
+            self.task.yaw_certainty = self._yaw_belief.certainty(int(np.argmax(self._probs)))
+
     # ------------------------------------------------------------------------------- gym API
     def __setstate__(self, state):
         super().__setstate__(state)  # EzPickle: a new env from the constructor arguments
@@ -275,6 +287,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
                 self._yaw_belief = self.scene.yaw_belief()
             self._yaw_belief.reset()
         self.task.reset()
+        self._observe_yaw()
         if self.render_mode == "human":
             self.render()
         return self.task.observation(self._probs, 0), self._info(usable=False, decided=False)
@@ -304,6 +317,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         q, usable = self._belief.update(contacts, normals, touched)
         self._probs = self._belief.probs
         self.task.record(q, touched, usable, a, contacts, normals)  # a: a fresh float64 array from _check_action
+        self._observe_yaw()
         reward, terms = self.task.reward(old, self._probs, self.scene.target)
         terminated = decided = self._belief.decided
         truncated = self.task.truncated(self._grasps, terminated)

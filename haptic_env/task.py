@@ -90,12 +90,14 @@ class Task:
         bounds = {
             "grasp": (-self.q_bound, self.q_bound), "contact_mask": (0, 1), "usable": (0, 1), "belief": (0, 1),
             "prev_action": (-1, 1), "grasp_count": (0, 1),
-            "contacts": (-self.q_bound, self.q_bound), "contact_normals": (-1, 1),
+            "contacts": (-self.q_bound, self.q_bound), "contact_normals": (-1, 1), "yaw_certainty": (0, 1),
         }
         if config.observe_contacts:
             self.observation_structure["contacts"] = 3 * n
             if config.normals:
                 self.observation_structure["contact_normals"] = 3 * n
+        if config.observe_yaw:
+            self.observation_structure["yaw_certainty"] = 1
         self.obs_slices: dict[str, slice] = {}
         lows, highs, start = [], [], 0
         for name, size in self.observation_structure.items():
@@ -116,6 +118,7 @@ class Task:
         self.last_action = np.zeros(sizes["prev_action"])
         self.last_contacts = np.zeros(sizes.get("contacts", 0))
         self.last_normals = np.zeros(sizes.get("contact_normals", 0))
+        self.yaw_certainty = 0.0  #: observe_yaw: set by the env from its yaw belief after reset and every grasp
 
     def record(self, q: np.ndarray, touched: np.ndarray, usable: bool, action: np.ndarray,
                contacts: np.ndarray | None = None, normals: np.ndarray | None = None) -> None:
@@ -159,7 +162,7 @@ class Task:
         return self.fill(np.empty(self.observation_space.shape, dtype=np.float32), {
             "grasp": self.last_q, "contact_mask": self.last_mask, "usable": self.last_usable, "belief": belief,
             "prev_action": self.last_action, "grasp_count": grasps / self.config.max_grasps,
-            "contacts": self.last_contacts, "contact_normals": self.last_normals,
+            "contacts": self.last_contacts, "contact_normals": self.last_normals, "yaw_certainty": self.yaw_certainty,
         })
 
     def info(self, names, target: int, belief: np.ndarray, certainty: float, *, grasps: int, usable: bool,

@@ -334,6 +334,62 @@ def test_yaw_belief_sums_each_grasp_once_per_object_and_restarts():
         YawBelief([])
 
 
+def test_yaw_certainty_is_the_posterior_mass_near_the_mode():
+    """YawBelief.certainty: object k's posterior mass within ``window`` bins of its mode, either side, wrapping round
+    the circle; (2 window + 1) / bins before any grasp; a bad window is refused, naming it."""
+    from haptic_env.grasping.replay import YAW_WINDOW, YawBelief
+
+    rng = np.random.default_rng(3)
+    _, rec = _records(rng)
+    yb = YawBelief([rec], bins=36, sigma=0.005, neighbours=1)
+    assert yb.certainty(0) == pytest.approx((2 * YAW_WINDOW + 1) / 36)
+    assert yb.certainty(0, window=0) == pytest.approx(1 / 36)
+    lp = np.log(np.arange(1, 37, dtype=float))[::-1]  # mode at bin 0: the window wraps to bins 35, 34, ...
+    yb._log[0], yb._upto[0] = lp, 0
+    p = np.exp(lp - lp.max())
+    p /= p.sum()
+    assert yb.certainty(0, window=2) == pytest.approx(p[[34, 35, 0, 1, 2]].sum())
+    assert yb.certainty(0, window=17) == pytest.approx(1.0 - p[18])
+    for bad in (-1, 18, 1.5, "2"):
+        with pytest.raises(ValueError, match=rf"window must be an int in \[0, bins // 2 = 18\), got {bad!r}"):
+            yb.certainty(0, window=bad)
+
+
+def test_env_observes_the_yaw_certainty(small_recognizer_kwargs):
+    """observe_yaw: one more observation part, last, holding the most probable object's yaw certainty after reset and
+    every grasp; refused without action_frame="estimated", naming it."""
+    from haptic_env.env import HapticRecogConfig, HapticRecogEnv
+
+    with pytest.raises(ValueError, match="observe_yaw=True .* needs action_frame='estimated', got action_frame='world'"):
+        HapticRecogConfig(backend="replay", backend_kwargs={"hand": "generic"}, observe_yaw=True)
+    with pytest.raises(ValueError, match="observe_yaw must be True or False, got 1"):
+        HapticRecogConfig(observe_yaw=1)
+    cfg = HapticRecogConfig(backend="replay", backend_kwargs={"hand": "generic", "approaches": 40, "progress": False},
+                            recognizer_source="surface", recognizer_kwargs=small_recognizer_kwargs, max_grasps=4,
+                            threshold=0.999, action_frame="estimated")
+    plain, env = HapticRecogEnv(cfg), HapticRecogEnv(cfg.replace(observe_yaw=True))
+    try:
+        assert list(env.observation_structure) == [*plain.observation_structure, "yaw_certainty"]
+        assert env.obs_slices["yaw_certainty"] == slice(plain.observation_space.shape[0], env.observation_space.shape[0])
+        obs, _ = env.reset(seed=1)
+        obs_plain, _ = plain.reset(seed=1)
+        assert obs[-1] == pytest.approx(7 / 72) and env.observation_space.contains(obs)
+        rng = np.random.default_rng(0)
+        seen = []
+        for _ in range(3):
+            a = rng.uniform(-0.9, 0.9, 4)
+            obs, *_ = env.step(a)
+            obs_plain, *_ = plain.step(a)
+            np.testing.assert_array_equal(obs[:-1], obs_plain)  # the rest of the observation is the plain env's
+            want = env._yaw_belief.certainty(int(np.argmax(env.belief)))
+            assert obs[-1] == pytest.approx(want, abs=1e-6) and env.observation_space.contains(obs)
+            seen.append(float(obs[-1]))
+        assert max(seen) > 7 / 72  # grasps do tell the yaw
+    finally:
+        env.close()
+        plain.close()
+
+
 def test_env_reads_the_azimuth_in_the_estimated_frame(small_recognizer_kwargs):
     """action_frame="estimated": each grasp's azimuth is turned by the most probable object's most probable yaw given
     the episode's grasps (the first grasp: no turn); the observation keeps the policy's own action. A setting that

@@ -49,13 +49,14 @@ from .base import (ACTION_DIM, GraspBatch, GraspResult, check_support, validate_
                    validate_pose)
 
 __all__ = ["ReplayConfig", "ReplayBackend", "approach_embedding", "turned_azimuth", "yaw_log_likelihood", "YawBelief",
-           "YAW_SIGMA", "YAW_NEIGHBOURS", "YAW_MISS"]
+           "YAW_SIGMA", "YAW_NEIGHBOURS", "YAW_MISS", "YAW_WINDOW"]
 
 #: :func:`yaw_log_likelihood`'s kernel: std (m) and recorded grasps per yaw (fixed before the look-ahead runs; tied
 #: best with 5 mm / 16 on validation pool 500, ``benchmarks/pose_information.py``)
 YAW_SIGMA = 0.007
 YAW_NEIGHBOURS = 32
 YAW_MISS = 0.05  #: its score of a finger that touches in the grasp or the record, not both
+YAW_WINDOW = 3  #: YawBelief.certainty: bins either side of the mode (3 of 72: +-15 degrees)
 
 
 @dataclass(frozen=True)
@@ -256,6 +257,16 @@ class YawBelief:
         lp = self.log_likelihood(k)
         p = np.exp(lp - lp.max())
         return p / p.sum()
+
+    def certainty(self, k: int, window: int = YAW_WINDOW) -> float:
+        """How sure object ``k``'s yaw is: its posterior mass within ``window`` bins of its mode, either side (circular;
+        ``(2 window + 1) / bins`` before any grasp, 1 when every bit of it lies there)."""
+        if whole_number(window) is None or not 0 <= window < len(self.yaws) // 2:
+            raise ValueError(f"window must be an int in [0, bins // 2 = {len(self.yaws) // 2}), got {window!r}")
+        lp = self.log_likelihood(k)
+        p = np.exp(lp - lp.max())
+        near = (int(np.argmax(lp)) + np.arange(-int(window), int(window) + 1)) % len(p)
+        return float(p[near].sum() / p.sum())
 
     def mode(self, k: int) -> float:
         """Object ``k``'s most probable yaw (rad; the first of equals, 0 before any grasp)."""
