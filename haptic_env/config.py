@@ -153,7 +153,8 @@ class HapticRecogConfig:
     object (``"estimated"``: the azimuth is turned by that object's most probable yaw given the episode's grasps, a
     :class:`~haptic_env.grasping.replay.YawBelief` over the hand's recorded grasps of the meshes, the replay pool),
     so that a policy can aim at a part of an object whose yaw the grasps have told. The observation's
-    ``prev_action`` is the policy's own action, in that frame; the estimate itself is not observed, and
+    ``prev_action`` is the policy's own action, in that frame; the estimate itself is not observed (how sure it is
+    is, with ``observe_yaw``), and
     ``observe_contacts`` stays in the world frame. Needs ``pose="table-yaw"``, a hand backend ("mujoco" or "replay")
     given by name or MJCF path, and no ``scale_range`` (the records are of the meshes as they are); the first
     ``reset`` also records the replay pool if it is not cached. The look-ahead agents simulate world-frame actions,
@@ -168,7 +169,8 @@ class HapticRecogConfig:
     """Add how sure the estimated frame is to the observation (``"yaw_certainty"``, 1 value): the most probable
     object's yaw posterior mass within +-15 degrees of its most probable yaw (``YawBelief.certainty``; 7/72 before
     any grasp, 1 when sure), so that a policy can tell an approach aimed in a known frame from one aimed in a guessed
-    one. Needs ``action_frame="estimated"`` (its yaw belief). False: the paper's observation."""
+    one. Needs ``action_frame="estimated"`` (its yaw belief; ``"oracle"`` has none, so a policy that observes it is
+    trained with ``"estimated"``). False: the paper's observation."""
     recognizer_kwargs: Mapping[str, Any] = field(default_factory=dict)
     """Extra keyword arguments of :func:`haptic_env.recognizers.build_recognizer`, e.g.
     ``{"config": RecognizerConfig(grasps=DatasetConfig(grasps_per_object=5000))}``; ``config`` may also be a

@@ -350,7 +350,16 @@ def test_yaw_certainty_is_the_posterior_mass_near_the_mode():
     p /= p.sum()
     assert yb.certainty(0, window=2) == pytest.approx(p[[34, 35, 0, 1, 2]].sum())
     assert yb.certainty(0, window=17) == pytest.approx(1.0 - p[18])
-    for bad in (-1, 18, 1.5, "2"):
+    lp = np.full(36, -50.0)  # two equal peaks: the window is centred on the first, the bin mode() returns
+    lp[[5, 20]], lp[[4, 6]] = 0.0, -1.0
+    yb._log[0] = lp
+    assert yb.mode(0) == pytest.approx(yb.yaws[5])
+    p = np.exp(lp)
+    assert yb.certainty(0, window=1) == pytest.approx(p[4:7].sum() / p.sum())
+    assert yb.certainty(0, window=np.int64(1)) == yb.certainty(0, window=1)
+    with pytest.raises(ValueError, match=r"k must be an object index in \[0, 1\), got 1"):
+        yb.certainty(1)
+    for bad in (-1, 18, 1.5, "2", True):
         with pytest.raises(ValueError, match=rf"window must be an int in \[0, bins // 2 = 18\), got {bad!r}"):
             yb.certainty(0, window=bad)
 
@@ -364,6 +373,8 @@ def test_env_observes_the_yaw_certainty(small_recognizer_kwargs):
         HapticRecogConfig(backend="replay", backend_kwargs={"hand": "generic"}, observe_yaw=True)
     with pytest.raises(ValueError, match="observe_yaw must be True or False, got 1"):
         HapticRecogConfig(observe_yaw=1)
+    with pytest.raises(ValueError, match="needs action_frame='estimated', got action_frame='oracle'"):
+        HapticRecogConfig(backend="replay", backend_kwargs={"hand": "generic"}, action_frame="oracle", observe_yaw=True)
     cfg = HapticRecogConfig(backend="replay", backend_kwargs={"hand": "generic", "approaches": 40, "progress": False},
                             recognizer_source="surface", recognizer_kwargs=small_recognizer_kwargs, max_grasps=4,
                             threshold=0.999, action_frame="estimated")
@@ -385,6 +396,17 @@ def test_env_observes_the_yaw_certainty(small_recognizer_kwargs):
             assert obs[-1] == pytest.approx(want, abs=1e-6) and env.observation_space.contains(obs)
             seen.append(float(obs[-1]))
         assert max(seen) > 7 / 72  # grasps do tell the yaw
+        # and the value is that of the frame the next grasp is aimed in: centred on the yaw that turns it
+        k = int(np.argmax(env.belief))
+        p = env._yaw_belief.probs(k)
+        mode = int(round(env._yaw_belief.mode(k) / (2 * np.pi / 72)))
+        assert obs[-1] == pytest.approx(p[(mode + np.arange(-3, 4)) % 72].sum(), abs=1e-6)
+        if not env._episode_over:
+            psi = env._yaw_belief.mode(k)  # read before the grasp adds to the yaw belief
+            env.step(np.zeros(4))
+            assert env.last_approach[0] == pytest.approx(np.mod(psi / np.pi + 1.0, 2.0) - 1.0)
+        obs, _ = env.reset(seed=2)
+        assert obs[-1] == pytest.approx(7 / 72)  # a new episode: no grasps, every yaw equally likely
     finally:
         env.close()
         plain.close()
