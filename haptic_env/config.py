@@ -153,7 +153,7 @@ class HapticRecogConfig:
     object (``"estimated"``: the azimuth is turned by that object's most probable yaw given the episode's grasps, a
     :class:`~haptic_env.grasping.replay.YawBelief` over the hand's recorded grasps of the meshes, the replay pool),
     so that a policy can aim at a part of an object whose yaw the grasps have told. The observation's
-    ``prev_action`` is the policy's own action, in that frame; the estimate itself is not observed (how sure it is
+    ``prev_action`` is the policy's own action, in that frame; the estimate itself is not observed (only how sure it
     is, with ``observe_yaw``), and
     ``observe_contacts`` stays in the world frame. Needs ``pose="table-yaw"``, a hand backend ("mujoco" or "replay")
     given by name or MJCF path, and no ``scale_range`` (the records are of the meshes as they are); the first
