@@ -198,6 +198,12 @@ def _kernel(sigma, neighbours, miss, records: int) -> tuple[float, int, float]:
     return s, int(neighbours), m
 
 
+def _normalised(lp: np.ndarray) -> np.ndarray:
+    """A posterior ``(bins,)`` from its unnormalised log ``lp (bins,)`` (shifted by its maximum: no overflow)."""
+    p = np.exp(lp - lp.max())
+    return p / p.sum()
+
+
 class YawBelief:
     """The posterior over each object's yaw given an episode's grasps: a uniform prior on ``bins`` yaws times
     :func:`yaw_log_likelihood` of every grasp, for the object of each of ``records``. An object's posterior is
@@ -254,9 +260,7 @@ class YawBelief:
 
     def probs(self, k: int) -> np.ndarray:
         """``(bins,)`` object ``k``'s posterior over the yaws."""
-        lp = self.log_likelihood(k)
-        p = np.exp(lp - lp.max())
-        return p / p.sum()
+        return _normalised(self.log_likelihood(k))
 
     def certainty(self, k: int, window: int = YAW_WINDOW) -> float:
         """How sure object ``k``'s yaw is: its posterior mass within ``window`` bins of its mode, either side (circular;
@@ -264,9 +268,8 @@ class YawBelief:
         if whole_number(window) is None or not 0 <= window < len(self.yaws) // 2:
             raise ValueError(f"window must be an int in [0, bins // 2 = {len(self.yaws) // 2}), got {window!r}")
         lp = self.log_likelihood(k)
-        p = np.exp(lp - lp.max())
-        near = (int(np.argmax(lp)) + np.arange(-int(window), int(window) + 1)) % len(p)
-        return float(p[near].sum() / p.sum())
+        near = (int(np.argmax(lp)) + np.arange(-int(window), int(window) + 1)) % len(lp)  # mode()'s bin, its ties
+        return float(_normalised(lp)[near].sum())
 
     def mode(self, k: int) -> float:
         """Object ``k``'s most probable yaw (rad; the first of equals, 0 before any grasp)."""
