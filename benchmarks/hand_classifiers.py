@@ -8,10 +8,12 @@ seed 0, the env's approaches per object, complete grasps or 3-subsets), four sci
 
 * ``knn``: k-NN, 15 neighbours, distance-weighted;
 * ``hgb``: histogram gradient boosting (300 iterations at most, early stopping on 10 % of the training vectors);
-* ``extra-trees``: 300 extremely randomised trees, 2 vectors per leaf at least;
+* ``extra-trees``: 300 extremely randomised trees, 2 vectors per leaf at least (356-622 MB pickled per finger
+  count, about 50 ms per vector);
+* ``extra-trees-small``: 50 such trees, 10 vectors per leaf at least;
 * ``mlp``: a 3 x 256 ReLU network (Adam, early stopping on 10 % of the training vectors);
 
-all on standardised vectors, seed 0. Each is scored one-shot on the hand table's validation pools (pool seeds
+(``--classifiers`` defaults to all but ``extra-trees-small``) all on standardised vectors, seed 0. Each is scored one-shot on the hand table's validation pools (pool seeds
 500-502, or with ``--split test`` its test pools 1000-1002; 10 queries x 30 random approaches per object each; every
 complete grasp, or every 3-subset of the touching
 fingertips of every grasp with at least 3) by its accuracy (argmax right) and its log-loss (nats; log 10 = 2.30 for
@@ -56,7 +58,7 @@ from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD  # noqa: E402
 from haptic_env.recognizers.zfinger import subset_vectors, subset_weight  # noqa: E402
 from haptic_env.splits import hand_pool_seed  # noqa: E402
 
-CLASSIFIERS = ("knn", "hgb", "extra-trees", "mlp")
+CLASSIFIERS = ("knn", "hgb", "extra-trees", "extra-trees-small", "mlp")
 #: the likelihoods replayed in the frontier by default (the MLP trains 1-3 min per finger count)
 FRONTIER = ("hgb", "extra-trees")
 METHODS = ("BC-NP", "BC-NP, z=3")
@@ -78,6 +80,8 @@ def make(name: str):
         return HistGradientBoostingClassifier(max_iter=300, early_stopping=True, random_state=0)
     if name == "extra-trees":
         return ExtraTreesClassifier(300, min_samples_leaf=2, n_jobs=1, random_state=0)
+    if name == "extra-trees-small":
+        return ExtraTreesClassifier(50, min_samples_leaf=10, n_jobs=1, random_state=0)
     if name == "mlp":
         return MLPClassifier((256, 256, 256), early_stopping=True, max_iter=200, random_state=0)
     raise ValueError(f"unknown classifier {name!r}; choose from {CLASSIFIERS}")
@@ -176,7 +180,7 @@ def query_scores(pool, objects, rec, normals: bool, z: int | None, likelihoods: 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--hands", nargs="+", default=["allegro", "aero"], choices=list(SETUPS))
-    ap.add_argument("--classifiers", nargs="*", default=list(CLASSIFIERS), choices=CLASSIFIERS,
+    ap.add_argument("--classifiers", nargs="*", default=["knn", "hgb", "extra-trees", "mlp"], choices=CLASSIFIERS,
                     help="one-shot comparison")
     ap.add_argument("--frontier", nargs="*", default=list(FRONTIER), choices=CLASSIFIERS,
                     help="classifiers replayed as the belief's likelihood (none: skip the frontier)")
