@@ -135,10 +135,9 @@ def scores(proba: np.ndarray, y: np.ndarray) -> tuple[float, float]:
 
 def kde_proba(rec, X: np.ndarray) -> np.ndarray:
     """The env's calibrated KDE posterior of each vector under a uniform prior, ``(m, K)``."""
-    L = rec.models.with_calibration(True).log_likelihood(X)
-    L = L - L.max(axis=1, keepdims=True)
-    P = np.exp(L)
-    return P / P.sum(axis=1, keepdims=True)
+    from scipy.special import softmax
+
+    return softmax(rec.models.with_calibration(True).log_likelihood(X), axis=1)
 
 
 def query_scores(pool, objects, rec, normals: bool, z: int | None, likelihoods: dict, touch_weight: float,
@@ -201,7 +200,7 @@ def main(argv=None) -> int:
     objects = load_object_set("ycb10")
     K = len(objects)
     names = ["KDE (the env's)", *args.classifiers]
-    one = ["| hand | normals | grasp vectors | training vectors | validation vectors per seed | " +
+    one = ["| hand | normals | grasp vectors | training vectors | query vectors per pool | " +
            " | ".join(names) + " |", "|---" * (5 + len(names)) + "|"]
     front = ["| hand | normals | method | paper | likelihood | " + " | ".join(f"s = {s:g}" for s in scales) + " |",
              "|---" * (5 + len(scales)) + "|"]
