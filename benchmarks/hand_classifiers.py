@@ -99,7 +99,6 @@ class ClassifierLikelihood:
             raise ValueError(f"every one of the {n_classes} classes needs training vectors; counts {counts.tolist()}")
         self.scaler = StandardScaler().fit(X)
         self.clf = make(name).fit(self.scaler.transform(X), y)
-        self.n_classes = n_classes
         self.log_prior = np.log(counts / len(y))
 
     def proba(self, Q: np.ndarray) -> np.ndarray:
