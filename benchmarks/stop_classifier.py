@@ -1,0 +1,132 @@
+"""Experiment 2's BC-NP belief with a gradient-boosted classifier as the likelihood (validation only).
+
+On the simulated hands a tree ensemble in the KDE's place let BC-NP stop sooner at the same success (RESULTS.md, "A
+tree ensemble as the belief's likelihood"). This benchmark asks the same of experiment 2's cells that miss their
+target, kit8 without normals at n = 3-5 (BC-NP needs more grasps than 1.5x the paper's). Each likelihood is trained on
+exactly experiment 2's training grasps (``AnalysisConfig``'s data set, its 85 % training split):
+
+* ``kde``: experiment 2's calibrated KDE scores (its correction and temperature), the reported belief;
+* ``hgb``: scikit-learn's histogram gradient boosting (``benchmarks.hand_classifiers.make("hgb")``: 300 iterations at
+  most, early stopping on 10 % of its training vectors), as ``log p(object | q) - log prior`` with each class
+  probability floored at 1e-6 (``hand_classifiers.ClassifierLikelihood``), on at most ``--hgb-rows`` training
+  vectors per object (the first ones of the split; the data set's order is random).
+
+Then experiment 2's stop scale is fitted on top of each, exactly as experiment 2 fits it
+(``stop_scale.fit_stop_scale``: the scale with the fewest grasps whose validation stops are decided and right in at
+least lambda of the trials), over a grid that reaches further down (a classifier's log-probabilities are sharper than
+the calibrated KDE's):
+
+* set A: experiment 2's own validation grasps (seed + 500, 1,500 per object) and trial stream, used to CHOOSE;
+* set B: further fresh grasps (seed + ``CHECK_SEED_OFFSET``), only to CHECK, with the scale chosen on A.
+
+No test grasp is used. The KDE's row at experiment 2's grid reproduces its own validation choice. Run::
+
+    OMP_NUM_THREADS=1 python benchmarks/stop_classifier.py --objects kit8 --no-normals --fingers 3,4,5 \\
+        --grasps-per-object 200000 --out docs/results/stop_classifier/kit8_no_normals_200k.md
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from benchmarks.hand_classifiers import ClassifierLikelihood  # noqa: E402
+from benchmarks.stop_floor import CHECK_SEED_OFFSET  # noqa: E402
+from haptic_env.cli import output_path  # noqa: E402
+from haptic_env.dataset import build_dataset  # noqa: E402
+from haptic_env.experiments.config import AnalysisConfig  # noqa: E402
+from haptic_env.experiments.fresh_grasps import fresh_pool  # noqa: E402
+from haptic_env.experiments.stop_scale import STOP_SCALES, VALIDATION_GRASPS, VALIDATION_TRIALS, fit_stop_scale  # noqa: E402
+from haptic_env.objects import load_object_set  # noqa: E402
+from haptic_env.recognizers.recognizer import build_recognizer  # noqa: E402
+from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD  # noqa: E402
+from haptic_env.splits import VALIDATION_SEED_OFFSET  # noqa: E402
+
+#: experiment 2's grid and below it (a classifier's scores are sharper than the calibrated KDE's)
+SCALES = (0.1, 0.15, 0.2, 0.25, 0.3, 0.35) + STOP_SCALES
+LIKELIHOODS = ("kde", "hgb")
+
+
+def first_rows(X: np.ndarray, y: np.ndarray, per_class: int) -> tuple[np.ndarray, np.ndarray]:
+    """The first ``per_class`` rows of each class of ``(X (m, d), y (m,))``, in their order."""
+    if per_class < 1:
+        raise ValueError(f"per_class must be >= 1, got {per_class!r}")
+    keep = np.zeros(len(y), dtype=bool)
+    for k in np.unique(y):
+        keep[np.flatnonzero(y == k)[:per_class]] = True
+    return X[keep], y[keep]
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--objects", default="kit8")
+    p.add_argument("--no-normals", action="store_true")
+    p.add_argument("--fingers", default="3,4,5")
+    p.add_argument("--grasps-per-object", type=int, default=200_000)
+    p.add_argument("--hgb-rows", type=int, default=50_000, help="training vectors per object for hgb (at most)")
+    p.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", type=output_path("file"), default=None, help="also write the table (markdown) here")
+    a = p.parse_args(argv)
+    if a.hgb_rows < 1:
+        p.error(f"--hgb-rows must be >= 1, got {a.hgb_rows}")
+    t0 = time.time()
+    objects = load_object_set(a.objects)
+    cfg = AnalysisConfig(objects=a.objects, grasps_per_object=a.grasps_per_object, normals=not a.no_normals,
+                         threshold=a.threshold, seed=a.seed, progress=False)
+    cfg = dataclasses.replace(cfg, kde=dataclasses.replace(cfg.kde, seed=a.seed))  # as `haptic-recog analysis` sets it
+    rows, frontier = [], []
+    for n in (int(v) for v in a.fingers.split(",")):
+        rc = cfg.recognizer_config()
+        rec = build_recognizer(objects, n, cfg.normals, config=rc, models=("kde",), progress=False)
+        ds = build_dataset(objects, rc.dataset_config(n, cfg.normals, hand_fingers=n), progress=False)
+        t1 = time.time()
+        hgb = ClassifierLikelihood("hgb", *first_rows(ds.X_train, ds.y_train, a.hgb_rows), len(objects))
+        fit_s = time.time() - t1
+        like = {"kde": rec.models.with_calibration(True).log_likelihood, "hgb": hgb.log_likelihood}
+        pools = {name: fresh_pool(objects, n, cfg.normals, cfg, seed_offset=off, grasps=VALIDATION_GRASPS)
+                 for name, off in (("A", VALIDATION_SEED_OFFSET), ("B", CHECK_SEED_OFFSET))}
+        for lik in LIKELIHOODS:
+            t1 = time.time()
+            sets = {name: [like[lik](X) for X in pool] for name, pool in pools.items()}
+            score_us = 1e6 * (time.time() - t1) / sum(len(X) for pool in pools.values() for X in pool)
+            r = {"n": n, "lik": lik, "us": score_us, "fit": fit_s if lik == "hgb" else float("nan")}
+            for name, LL in sets.items():
+                PR = [np.full(x.shape, 1.0 / x.shape[1]) for x in LL]  # BC-NP does not use the classifier
+                rng = np.random.default_rng([cfg.seed, n, VALIDATION_SEED_OFFSET])  # experiment 2's stream on A
+                chosen, table = fit_stop_scale(LL, PR, cfg.threshold, scales=SCALES, trials=VALIDATION_TRIALS, rng=rng)
+                if name == "A":
+                    r["s"] = chosen[0]
+                by_s = {t[0]: f"{100 * t[1]:.1f} / {t[2]:.2f}" for t in table}
+                r[name] = by_s[r["s"]]  # B: at the scale chosen on A
+                frontier.append([str(n), lik, name] + [by_s[s] for s in SCALES if s <= 1.0])
+            rows.append(r)
+            print(r, file=sys.stderr, flush=True)
+    head = ["n", "likelihood", "s chosen on A", "A at s: right / grasps", "B at s", "fit (s)", "scoring (us/vector)"]
+    lines = [f"{a.objects}, normals: {cfg.normals}, {a.grasps_per_object} grasps per object (hgb: at most "
+             f"{a.hgb_rows} training vectors per object), seed {a.seed}, lambda {a.threshold}; {VALIDATION_GRASPS} "
+             f"validation grasps per object, {VALIDATION_TRIALS} BC-NP trials per cell (right = decided and right at "
+             f"the stop); {time.time() - t0:.0f} s", "",
+             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += [f"| {r['n']} | {r['lik']} | {r['s']:g} | {r['A']} | {r['B']} | {r['fit']:.0f} | {r['us']:.1f} |"
+              for r in rows]
+    head = ["n", "likelihood", "set"] + [f"s = {s:g}" for s in SCALES if s <= 1.0]
+    lines += ["", "Every scale (the frontier of right stops against grasps; s > 1 only adds grasps here):", "",
+              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join(row) + " |" for row in frontier]
+    text = "\n".join(lines)
+    print(text)
+    if a.out is not None:
+        a.out.parent.mkdir(parents=True, exist_ok=True)
+        a.out.write_text(text + "\n")
+
+
+if __name__ == "__main__":
+    main()
