@@ -6,10 +6,10 @@ target, kit8 without normals at n = 3-5 (BC-NP needs more grasps than 1.5x the p
 exactly experiment 2's training grasps (``AnalysisConfig``'s data set, its 85 % training split):
 
 * ``kde``: experiment 2's calibrated KDE scores (its correction and temperature), the reported belief;
-* ``hgb``: scikit-learn's histogram gradient boosting (``benchmarks.hand_classifiers.make("hgb")``: 300 iterations at
-  most, early stopping on 10 % of its training vectors), as ``log p(object | q) - log prior`` with each class
-  probability floored at 1e-6 (``hand_classifiers.ClassifierLikelihood``), on at most ``--hgb-rows`` training
-  vectors per object (the first ones of the split; the data set's order is random).
+* ``hgb``: scikit-learn's histogram gradient boosting as ``log p(object | q) - log prior``, each class probability
+  floored at 1e-6, on at most 50,000 training vectors per object (300 iterations at most, early stopping on 10 % of
+  them): the analyses' ``--likelihood hgb`` (:mod:`haptic_env.recognizers.boosted`, ``AnalysisConfig.likelihood``),
+  built and cached by ``build_recognizer`` as they build it.
 
 Then experiment 2's stop scale is fitted on top of each, exactly as experiment 2 fits it
 (``stop_scale.fit_stop_scale``: the scale with the fewest grasps whose validation stops are decided and right in at
@@ -37,14 +37,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.hand_classifiers import ClassifierLikelihood  # noqa: E402
 from benchmarks.stop_floor import CHECK_SEED_OFFSET  # noqa: E402
 from haptic_env.cli import output_path  # noqa: E402
-from haptic_env.dataset import build_dataset  # noqa: E402
 from haptic_env.experiments.config import AnalysisConfig  # noqa: E402
 from haptic_env.experiments.fresh_grasps import fresh_pool  # noqa: E402
-from haptic_env.experiments.stop_scale import STOP_SCALES, VALIDATION_GRASPS, VALIDATION_TRIALS, fit_stop_scale  # noqa: E402
+from haptic_env.experiments.stop_scale import (STOP_SCALES, VALIDATION_GRASPS, VALIDATION_TRIALS,  # noqa: E402
+                                               fit_stop_scale)
 from haptic_env.objects import load_object_set  # noqa: E402
+from haptic_env.recognizers.boosted import BoostedConfig  # noqa: E402
 from haptic_env.recognizers.recognizer import build_recognizer  # noqa: E402
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD  # noqa: E402
 from haptic_env.splits import VALIDATION_SEED_OFFSET  # noqa: E402
@@ -54,29 +54,16 @@ SCALES = (0.1, 0.15, 0.2, 0.25, 0.3, 0.35) + STOP_SCALES
 LIKELIHOODS = ("kde", "hgb")
 
 
-def first_rows(X: np.ndarray, y: np.ndarray, per_class: int) -> tuple[np.ndarray, np.ndarray]:
-    """The first ``per_class`` rows of each class of ``(X (m, d), y (m,))``, in their order."""
-    if per_class < 1:
-        raise ValueError(f"per_class must be >= 1, got {per_class!r}")
-    keep = np.zeros(len(y), dtype=bool)
-    for k in np.unique(y):
-        keep[np.flatnonzero(y == k)[:per_class]] = True
-    return X[keep], y[keep]
-
-
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--objects", default="kit8")
     p.add_argument("--no-normals", action="store_true")
     p.add_argument("--fingers", default="3,4,5")
     p.add_argument("--grasps-per-object", type=int, default=200_000)
-    p.add_argument("--hgb-rows", type=int, default=50_000, help="training vectors per object for hgb (at most)")
     p.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=output_path("file"), default=None, help="also write the table (markdown) here")
     a = p.parse_args(argv)
-    if a.hgb_rows < 1:
-        p.error(f"--hgb-rows must be >= 1, got {a.hgb_rows}")
     t0 = time.time()
     objects = load_object_set(a.objects)
     cfg = AnalysisConfig(objects=a.objects, grasps_per_object=a.grasps_per_object, normals=not a.no_normals,
@@ -84,13 +71,12 @@ def main(argv=None):
     cfg = dataclasses.replace(cfg, kde=dataclasses.replace(cfg.kde, seed=a.seed))  # as `haptic-recog analysis` sets it
     rows, frontier = [], []
     for n in (int(v) for v in a.fingers.split(",")):
-        rc = cfg.recognizer_config()
-        rec = build_recognizer(objects, n, cfg.normals, config=rc, models=("kde",), progress=False)
-        ds = build_dataset(objects, rc.dataset_config(n, cfg.normals, hand_fingers=n), progress=False)
-        t1 = time.time()
-        hgb = ClassifierLikelihood("hgb", *first_rows(ds.X_train, ds.y_train, a.hgb_rows), len(objects))
+        rec = build_recognizer(objects, n, cfg.normals, config=cfg.recognizer_config(), models=("kde",), progress=False)
+        t1 = time.time()  # the fit, or reading it back from the cache
+        hgb = build_recognizer(objects, n, cfg.normals, config=dataclasses.replace(cfg, likelihood="hgb")
+                               .recognizer_config(), models=("kde",), progress=False)
         fit_s = time.time() - t1
-        like = {"kde": rec.models.with_calibration(True).log_likelihood, "hgb": hgb.log_likelihood}
+        like = {"kde": rec.models.with_calibration(True).log_likelihood, "hgb": hgb.models.log_likelihood}
         pools = {name: fresh_pool(objects, n, cfg.normals, cfg, seed_offset=off, grasps=VALIDATION_GRASPS)
                  for name, off in (("A", VALIDATION_SEED_OFFSET), ("B", CHECK_SEED_OFFSET))}
         for lik in LIKELIHOODS:
@@ -109,9 +95,11 @@ def main(argv=None):
                 frontier.append([str(n), lik, name] + [by_s[s] for s in SCALES if s <= 1.0])
             rows.append(r)
             print(r, file=sys.stderr, flush=True)
-    head = ["n", "likelihood", "s chosen on A", "A at s: right / grasps", "B at s", "fit (s)", "scoring (us/vector)"]
+    head = ["n", "likelihood", "s chosen on A", "A at s: right / grasps", "B at s", "fit or cache read (s)",
+            "scoring (us/vector)"]
     lines = [f"{a.objects}, normals: {cfg.normals}, {a.grasps_per_object} grasps per object (hgb: at most "
-             f"{a.hgb_rows} training vectors per object), seed {a.seed}, lambda {a.threshold}; {VALIDATION_GRASPS} "
+             f"{BoostedConfig().max_train_per_class} training vectors per object), seed {a.seed}, lambda {a.threshold}; "
+             f"{VALIDATION_GRASPS} "
              f"validation grasps per object, {VALIDATION_TRIALS} BC-NP trials per cell (right = decided and right at "
              f"the stop); {time.time() - t0:.0f} s", "",
              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]

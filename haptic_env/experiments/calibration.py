@@ -60,7 +60,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
         y = np.concatenate([np.full(len(p), k) for k, p in enumerate(pool)])
         scores = {v: pool_scores(rec.models.with_calibration(v == "calibrated"), pool) for v in ("raw", "calibrated")}
         curves = {}
-        for model, Tm, label in (("BC (KDE)", T["kde"], kde_temperature(rec.models, n)),
+        bc = "BC (KDE)" if cfg.likelihood == "kde" else f"BC ({cfg.likelihood})"
+        for model, Tm, label in ((bc, T["kde"], kde_temperature(rec.models, n)),
                                  ("MLP", T["classifier"], f"{T['classifier']:.2f}")):
             row = [n, "yes" if normals else "no", model, label]
             for v in ("raw", "calibrated"):

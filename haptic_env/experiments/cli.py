@@ -10,6 +10,7 @@ from haptic_env.cli import float_in, parse_int_list
 from haptic_env.grasp_features import NORMAL_AXES
 from haptic_env.objects.base import UP_AXES
 from haptic_env.experiments.config import FAMILY_SOURCES, AnalysisConfig
+from haptic_env.recognizers.boosted import LIKELIHOODS
 from haptic_env.recognizers.calibration import CORRECTIONS, check_corrections
 from haptic_env.recognizers.kde import SELECTS
 from haptic_env.recognizers.updaters import IC_CERTAINTIES
@@ -149,6 +150,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="IC's certainty: count, the winner's summed probability over the grasp count (default); share, "
                         "its share of the summed winner scores once it reaches 0.6, from the second grasp on (the "
                         "authors' public code)")
+    p.add_argument("--likelihood", choices=LIKELIHOODS, default=d.likelihood,
+                   help="the beliefs' likelihood (experiments 1-4, 6, 7): kde, the paper's KDE (default); hgb, "
+                        "scikit-learn's histogram gradient boosting on at most 50,000 training grasps per object "
+                        "(haptic_env.recognizers.boosted; not the paper's method)")
     p.add_argument("--stop-scale", action=argparse.BooleanOptionalAction, default=None,
                    help="experiment 2: divide BC's calibrated log-likelihoods by a stop scale chosen on validation "
                         "trials so that a stop at lambda is right about lambda of the time (fewest BC-NP grasps among "
@@ -221,6 +226,7 @@ def config_from_args(args) -> AnalysisConfig:
             family_floors=_numbers(args.family_floors, "--family-floors"),
             family_force_closure=args.family_force_closure, force_closure=args.force_closure,
             calibrated=not args.raw, stop_scale=args.stop_scale, ic_certainty=args.ic_certainty,
+            likelihood=args.likelihood,
             calib_fingers=parse_int_list(args.calib_fingers),
             calib_fingers_no_normals=parse_int_list(args.calib_fingers_no_normals),
             lambdas=_lambdas(args.lambdas), seed=args.seed,

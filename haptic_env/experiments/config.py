@@ -17,6 +17,7 @@ from haptic_env.objects.base import up_rotation
 from haptic_env.objects.loaders import check_object_spec, unit_scale
 from haptic_env.objects.primitives import FAMILY_SCALE_RANGE
 from haptic_env.recognizers.baselines import CLASSIFIERS
+from haptic_env.recognizers.boosted import LIKELIHOODS, BoostedConfig
 from haptic_env.recognizers.kde import KDEConfig
 from haptic_env.recognizers.mlp import MLPConfig
 from haptic_env.recognizers.recognizer import RecognizerConfig
@@ -116,6 +117,9 @@ class AnalysisConfig:
     #: IC's certainty rule in every experiment (:data:`~haptic_env.recognizers.updaters.IC_CERTAINTIES`): ``"count"``,
     #: ``max S / k``; ``"share"``, the winner's share of the summed winner scores as the authors' public code has it
     ic_certainty: str = DEFAULT_IC_CERTAINTY
+    #: the beliefs' likelihood in every experiment that trains through :meth:`recognizer_config`
+    #: (``RecognizerConfig.likelihood``): the KDE (``"kde"``, the paper's) or gradient boosting (``"hgb"``, opt-in)
+    likelihood: str = field(default="kde", metadata={KEY_ONLY_WHEN_SET: True})
     calib_fingers: tuple[int, ...] = (3, 4, 5, 8)  #: experiment 7, with normals
     calib_fingers_no_normals: tuple[int, ...] = (4,)  #: experiment 7, without normals
     lambdas: tuple[float, ...] = (0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95)  #: experiment 7
@@ -141,6 +145,8 @@ class AnalysisConfig:
         self._check_counts()
         check_flag_fields(self, ("normals", "calibrated", "stop_scale", "progress", "family_heights", "family_lying"))
         check_ic_certainty(self.ic_certainty)
+        if self.likelihood not in LIKELIHOODS:
+            raise ValueError(f"likelihood must be one of {LIKELIHOODS}, got {self.likelihood!r}")
         if self.family_source not in FAMILY_SOURCES:
             raise ValueError(f"family_source must be one of {FAMILY_SOURCES}, got {self.family_source!r}")
         if not isinstance(self.family_hand, str) or not self.family_hand:
@@ -220,7 +226,8 @@ class AnalysisConfig:
         :class:`DatasetConfig` fields, e.g. experiment 4's scale range)."""
         grasps = DatasetConfig(grasps_per_object=self.grasps_per_object, seed=self.seed,
                                **{"normal_axis": self.normal_axis, "force_closure": self.force_closure, **kw})
-        return RecognizerConfig(grasps=grasps, mlp=dataclasses.replace(self.mlp, progress=False), kde=self.kde)
+        return RecognizerConfig(grasps=grasps, mlp=dataclasses.replace(self.mlp, progress=False), kde=self.kde,
+                                likelihood=self.likelihood, boosted=BoostedConfig(seed=self.seed))
 
     @property
     def uses_stop_scale(self) -> bool:
@@ -233,6 +240,8 @@ class AnalysisConfig:
         """How experiments 2-6 score grasps (and IC's certainty, if not the default), as the report's headings say it."""
         ic = "; IC certainty: the winner's share of the winners' scores (the authors' code)" \
             if self.ic_certainty == "share" else ""
+        if self.likelihood == "hgb":
+            ic += "; BC's likelihood: gradient boosting (`--likelihood hgb`, no temperature of its own)"
         if not self.calibrated:
             return "raw scores (paper)" + ic
         k = self.kde.calibrate_grasps

@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import pickle
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -25,9 +26,11 @@ import numpy as np
 from scipy.special import softmax
 
 from haptic_env.dataset import DatasetConfig
-from haptic_env.cache import CacheError, atomic_write, cache_dir, config_key, load_npz, save_npz_atomic
+from haptic_env.cache import (KEY_ONLY_WHEN_SET, CacheError, atomic_write, cache_dir, config_key, load_npz,
+                               save_npz_atomic)
 from haptic_env.grasp_features import feature_dim
 from haptic_env.numbers import checked_flag, whole_at_least
+from haptic_env.recognizers.boosted import LIKELIHOODS, BoostedConfig, BoostedLikelihood
 from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
 from haptic_env.recognizers.mlp_config import MLPConfig
 from haptic_env.recognizers.touch import TouchModel
@@ -53,11 +56,31 @@ class RecognizerConfig:
     epochs; tree KDE on all training grasps with an auto-selected bandwidth) builds the default set
     in about a minute on 2 idle cores; the paper's protocol is
     ``grasps=DatasetConfig(grasps_per_object=200_000)`` (and optionally ``MLPConfig(depth=7, width=500)``).
+
+    ``likelihood`` picks what the beliefs' likelihood slot (the model ``"kde"`` of :data:`MODELS`) holds: the KDE
+    (``"kde"``, the paper's method and the default) or gradient boosting (``"hgb"``,
+    :class:`~haptic_env.recognizers.boosted.BoostedLikelihood` with ``boosted``; opt-in, for the analyses).
     """
 
     grasps: DatasetConfig = field(default_factory=DatasetConfig)
     mlp: MLPConfig = field(default_factory=lambda: MLPConfig(max_epochs=15, patience=3, max_train=60_000))
     kde: KDEConfig = field(default_factory=KDEConfig)
+    likelihood: str = field(default="kde", metadata={KEY_ONLY_WHEN_SET: True})
+    boosted: BoostedConfig = field(default=BoostedConfig(), metadata={KEY_ONLY_WHEN_SET: True})
+
+    def __post_init__(self):
+        if self.likelihood not in LIKELIHOODS:
+            raise ValueError(f"likelihood must be one of {LIKELIHOODS}, got {self.likelihood!r}")
+
+    def model_config(self, model: str):
+        """The config that keys a cached ``model`` (:data:`MODELS`): the MLP's, or the likelihood slot's."""
+        if model == "mlp":
+            return self.mlp
+        if self.likelihood == "kde":
+            return self.kde
+        from importlib.metadata import version  # a pickled model is read back by the scikit-learn that wrote it
+
+        return "hgb", self.boosted, version("scikit-learn")
 
     def dataset_config(self, n_fingers: int, normals: bool, hand_fingers: int | None = None) -> DatasetConfig:
         """The training-grasp config of the ``n_fingers`` model."""
@@ -281,7 +304,7 @@ def build_recognizer(objects, n_fingers: int, normals: bool = True, *, z_values=
     for z in zs:
         dcfg = config.dataset_config(z, bool(normals), hand_fingers=int(n_fingers))
         key = config_key("recognizer", RECOGNIZER_VERSION, okey, z, bool(normals), dcfg, *filter(None, [dcfg.source_key()]))
-        built = {m: _load(root, f"{key}-{config_key(getattr(config, m))}", m, config) if cache else None
+        built = {m: _load(root, f"{key}-{config_key(config.model_config(m))}", m, config) if cache else None
                  for m in MODELS if m in models}
         if any(v is None for v in built.values()):
             t0 = time.perf_counter()
@@ -291,9 +314,9 @@ def build_recognizer(objects, n_fingers: int, normals: bool = True, *, z_values=
             for m in [m for m, v in built.items() if v is None]:
                 built[m] = _train(m, ds, config, progress)
                 if cache:
-                    _save(root, f"{key}-{config_key(getattr(config, m))}", m, built[m],
+                    _save(root, f"{key}-{config_key(config.model_config(m))}", m, built[m],
                           {"names": list(names), "z": z, "normals": bool(normals), "model": m,
-                           "train_seconds": time.perf_counter() - t0})
+                           "train_seconds": time.perf_counter() - t0}, config)
         bank.add(z, built.get("mlp"), built.get("kde"))
     return Recognizer(names, int(n_fingers), bool(normals), config, bank,
                       touch=_touch_model(objects, config, int(n_fingers), progress) if touch else None)
@@ -314,13 +337,24 @@ def _train(model: str, ds, cfg: RecognizerConfig, progress: bool):
 
         clf = MLPClassifier(dataclasses.replace(cfg.mlp, progress=progress and cfg.mlp.progress))
         return clf.fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val, n_classes=k)
+    if cfg.likelihood == "hgb":
+        return BoostedLikelihood(cfg.boosted).fit(ds.X_train, ds.y_train, n_classes=k)
     return KDELikelihood(cfg.kde).fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val, n_classes=k)
 
 
-def _save(root, key: str, model: str, obj, meta: dict) -> None:
-    path = root / (f"{key}_mlp.pt" if model == "mlp" else f"{key}_kde.npz")
+def _model_path(root, key: str, model: str, config: RecognizerConfig):
+    if model == "mlp":
+        return root / f"{key}_mlp.pt"
+    return root / (f"{key}_kde.npz" if config.likelihood == "kde" else f"{key}_hgb.pkl")
+
+
+def _save(root, key: str, model: str, obj, meta: dict, config: RecognizerConfig) -> None:
+    path = _model_path(root, key, model, config)
     if model == "mlp":
         obj.save(path)
+    elif isinstance(obj, BoostedLikelihood):
+        with atomic_write(path) as fh:
+            fh.write(obj.to_bytes())
     else:
         save_npz_atomic(path, **obj.state())
     # the model file's digest: a flipped weight byte still loads (torch does not check its zip CRCs)
@@ -330,7 +364,7 @@ def _save(root, key: str, model: str, obj, meta: dict) -> None:
 
 def _load(root, key: str, model: str, config: RecognizerConfig):
     """The cached ``model`` under ``key``, or None (missing, or unreadable: rebuilt with a warning)."""
-    path = root / (f"{key}_mlp.pt" if model == "mlp" else f"{key}_kde.npz")
+    path = _model_path(root, key, model, config)
     meta = root / f"{key}.json"
     if not (path.exists() and meta.exists()):
         return None
@@ -345,12 +379,14 @@ def _load(root, key: str, model: str, config: RecognizerConfig):
             from haptic_env.recognizers.mlp import MLPClassifier
 
             loaded = MLPClassifier.load(path)
+        elif config.likelihood == "hgb":  # unpickled only after the digest check above
+            loaded = BoostedLikelihood.from_bytes(config.boosted, path.read_bytes())
         else:  # every class's data: a file missing one would load as a KDE of fewer objects
             required = ("kde_mean", "kde_std", "kde_bandwidth", "kde_factor", *(f"kde_data_{c}" for c in range(len(names))))
             loaded = KDELikelihood.from_state(config.kde, load_npz(path, required))
         if loaded.n_classes != len(names):
             raise CacheError(f"{path} holds {loaded.n_classes} classes, {meta.name} names {len(names)} objects")
         return loaded
-    except (CacheError, ValueError, OSError) as exc:  # json.JSONDecodeError is a ValueError
+    except (CacheError, ValueError, OSError, pickle.UnpicklingError, EOFError) as exc:  # JSONDecodeError: a ValueError
         warnings.warn(f"rebuilding recogniser model {path.name}: {exc}", stacklevel=3)
         return None

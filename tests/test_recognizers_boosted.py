@@ -1,0 +1,131 @@
+"""Gradient boosting in the beliefs' likelihood slot (``RecognizerConfig(likelihood="hgb")``)."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+
+import numpy as np
+import pytest
+
+from haptic_env.cache import _jsonable, cache_dir
+from haptic_env.dataset import GraspDataset
+from haptic_env.experiments.cli import add_parser, config_from_args
+from haptic_env.experiments.config import AnalysisConfig
+from haptic_env.objects import load_object_set
+from haptic_env.recognizers.boosted import BoostedConfig, BoostedLikelihood
+from haptic_env.recognizers.recognizer import RecognizerConfig, build_recognizer
+
+
+def blobs(n_per_class: int, seed: int, k: int = 3, d: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """``k`` Gaussian blobs in ``d`` dimensions, unit apart on the diagonal."""
+    rng = np.random.default_rng(seed)
+    y = np.repeat(np.arange(k), n_per_class)
+    return rng.normal(size=(len(y), d)) + y[:, None], y
+
+
+def test_log_likelihood_is_the_posterior_over_the_prior():
+    X, y = blobs(300, 0)
+    keep = np.r_[0:300, 300:450, 600:900]  # unequal classes: the prior is not uniform
+    lik = BoostedLikelihood(BoostedConfig(max_iter=30)).fit(X[keep], y[keep], n_classes=3)
+    Q, yq = blobs(50, 1)
+    ll = lik.log_likelihood(Q)
+    assert ll.shape == (150, 3) and np.isfinite(ll).all()
+    prior = np.array([300, 150, 300]) / 750
+    p = np.maximum(lik.clf.predict_proba(Q), 1e-6)
+    np.testing.assert_allclose(ll, np.log(p) - np.log(prior))
+    assert np.mean(ll.argmax(1) == yq) > 0.5  # chance is 1/3
+    assert lik.calibrate_scores(ll) is ll and lik.temperature == 1.0 and lik.n_classes == 3
+
+
+def test_the_floor_bounds_every_score_from_below():
+    X, y = blobs(200, 0, d=1)
+    X[y == 2] += 50.0  # far away: the classifier is sure
+    lik = BoostedLikelihood(BoostedConfig(max_iter=50, floor=1e-3)).fit(X, y)
+    ll = lik.log_likelihood(X[y == 2])
+    assert ll.min() >= np.log(1e-3) - np.log(1 / 3) - 1e-9
+
+
+def test_training_rows_are_capped_per_class():
+    X, y = blobs(100, 0)
+    lik = BoostedLikelihood(BoostedConfig(max_iter=5, max_train_per_class=40)).fit(X, y)
+    assert lik.clf.n_features_in_ == 3
+    np.testing.assert_allclose(lik.log_prior, np.log(np.full(3, 1 / 3)))
+    same = BoostedLikelihood(BoostedConfig(max_iter=5, max_train_per_class=40))
+    first = np.concatenate([np.flatnonzero(y == c)[:40] for c in range(3)])
+    same.fit(X[first], y[first])
+    np.testing.assert_array_equal(lik.log_likelihood(X), same.log_likelihood(X))
+
+
+@pytest.mark.parametrize("kw, match", [({"max_iter": 0}, "max_iter"), ({"max_train_per_class": 0}, "max_train"),
+                                        ({"floor": 0.0}, "floor"), ({"floor": 1.5}, "floor"), ({"seed": -1}, "seed")])
+def test_bad_config_is_named(kw, match):
+    with pytest.raises(ValueError, match=match):
+        BoostedConfig(**kw)
+
+
+def test_bad_training_data_is_named_before_any_fit():
+    X, y = blobs(20, 0)
+    with pytest.raises(ValueError, match="every one of the 4 classes"):
+        BoostedLikelihood().fit(X, y, n_classes=4)
+    X[3, 1] = np.nan
+    with pytest.raises(ValueError, match="non-finite"):
+        BoostedLikelihood().fit(X, y)
+    with pytest.raises(RuntimeError, match="not fitted"):
+        BoostedLikelihood().log_likelihood(X)
+    with pytest.raises(ValueError, match="likelihood must be one of"):
+        RecognizerConfig(likelihood="gp")
+    with pytest.raises(ValueError, match="likelihood must be one of"):
+        AnalysisConfig(likelihood="forest")
+
+
+def test_the_default_keeps_every_cache_key():
+    """``likelihood`` and ``boosted`` stay out of the keys while at their defaults (old caches and results stand)."""
+    assert "likelihood" not in _jsonable(AnalysisConfig())
+    assert not {"likelihood", "boosted"} & _jsonable(RecognizerConfig()).keys()
+    rc = RecognizerConfig()
+    assert rc.model_config("kde") is rc.kde and rc.model_config("mlp") is rc.mlp
+    assert dataclasses.replace(rc, likelihood="hgb").model_config("kde")[:2] == ("hgb", rc.boosted)
+
+
+def parse(argv: list[str]) -> AnalysisConfig:
+    parser = argparse.ArgumentParser()
+    add_parser(parser.add_subparsers(dest="cmd"))
+    return config_from_args(parser.parse_args(["analysis", "--out", "unused", *argv]))
+
+
+def test_the_analysis_cli_passes_the_likelihood_on():
+    cfg = parse(["--likelihood", "hgb", "--experiments", "2"])
+    assert cfg.likelihood == "hgb" and cfg.recognizer_config().likelihood == "hgb"
+    assert "gradient boosting" in cfg.scores_label
+    assert parse(["--experiments", "2"]).recognizer_config().likelihood == "kde"
+
+
+def test_a_recogniser_holds_it_in_the_kde_slot_and_caches_it():
+    objects = load_object_set("default")
+    K = len(objects)
+    calls = []
+
+    def dataset_fn(objs, dcfg):
+        calls.append(dcfg.n_fingers)
+        X, y = blobs(120, dcfg.n_fingers, k=K, d=3)
+        Xv, yv = blobs(20, 99, k=K, d=3)
+        return GraspDataset(X.astype(np.float32), y, Xv.astype(np.float32), yv, tuple(objects.names), dcfg)
+
+    cfg = RecognizerConfig(likelihood="hgb", boosted=BoostedConfig(max_iter=10))
+    rec = build_recognizer(objects, 3, False, config=cfg, models=("kde",), progress=False, dataset_fn=dataset_fn)
+    lik = rec.models.model(3)[1]
+    assert isinstance(lik, BoostedLikelihood)
+    Q = blobs(5, 7, k=K, d=3)[0]
+    np.testing.assert_array_equal(rec.models.log_likelihood(Q), lik.log_likelihood(Q))  # no temperature
+    assert rec.grasp_scorer() is None  # the compiled scorer is the KDE's: the env scores through features
+    files = sorted(p.name for p in cache_dir("recognizers").glob("*_hgb.pkl"))
+    assert files and calls == [3]
+    again = build_recognizer(objects, 3, False, config=cfg, models=("kde",), progress=False, dataset_fn=dataset_fn)
+    assert calls == [3]  # read back, not retrained
+    np.testing.assert_array_equal(again.models.log_likelihood(Q), rec.models.log_likelihood(Q))
+    path = cache_dir("recognizers") / files[0]
+    path.write_bytes(path.read_bytes()[:-7] + b"damaged")
+    with pytest.warns(UserWarning, match="rebuilding"):
+        build_recognizer(objects, 3, False, config=cfg, models=("kde",), progress=False, dataset_fn=dataset_fn)
+    assert calls == [3, 3]
