@@ -3,7 +3,7 @@
 On the simulated hands a tree ensemble in the KDE's place let BC-NP stop sooner at the same success (RESULTS.md, "A
 tree ensemble as the belief's likelihood"). This benchmark asks the same of experiment 2's cells that miss their
 target, kit8 without normals at n = 3-5 (BC-NP needs more grasps than 1.5x the paper's). Each likelihood is trained on
-exactly experiment 2's training grasps (``AnalysisConfig``'s data set, its 85 % training split):
+exactly experiment 2's training grasps (``AnalysisConfig``'s data set, its 80 % training split):
 
 * ``kde``: experiment 2's calibrated KDE scores (its correction and temperature), the reported belief;
 * ``hgb``: scikit-learn's histogram gradient boosting as ``log p(object | q) - log prior``, each class probability
@@ -13,8 +13,8 @@ exactly experiment 2's training grasps (``AnalysisConfig``'s data set, its 85 % 
 
 Then experiment 2's stop scale is fitted on top of each, exactly as experiment 2 fits it
 (``stop_scale.fit_stop_scale``: the scale with the fewest grasps whose validation stops are decided and right in at
-least lambda of the trials), over a grid that reaches further down (a classifier's log-probabilities are sharper than
-the calibrated KDE's):
+least lambda of the trials; the log-likelihoods are divided by it), over a grid that reaches further down than
+experiment 2's, in case a classifier's scores need more sharpening than the calibrated KDE's (none chose below 0.8):
 
 * set A: experiment 2's own validation grasps (seed + 500, 1,500 per object) and trial stream, used to CHOOSE;
 * set B: further fresh grasps (seed + ``CHECK_SEED_OFFSET``), only to CHECK, with the scale chosen on A.
@@ -49,7 +49,7 @@ from haptic_env.recognizers.recognizer import build_recognizer  # noqa: E402
 from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD  # noqa: E402
 from haptic_env.splits import VALIDATION_SEED_OFFSET  # noqa: E402
 
-#: experiment 2's grid and below it (a classifier's scores are sharper than the calibrated KDE's)
+#: experiment 2's grid and below it (sharper beliefs)
 SCALES = (0.1, 0.15, 0.2, 0.25, 0.3, 0.35) + STOP_SCALES
 LIKELIHOODS = ("kde", "hgb")
 

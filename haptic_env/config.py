@@ -341,6 +341,10 @@ def recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
                              f"got source {rc['grasps'].source!r}")
         if isinstance(rc.get("mlp"), Mapping):
             rc["mlp"] = MLPConfig(**rc["mlp"])
+        if isinstance(rc.get("boosted"), Mapping):  # with "likelihood": "hgb" (recognizers/boosted.py)
+            from haptic_env.recognizers.boosted import BoostedConfig
+
+            rc["boosted"] = BoostedConfig(**rc["boosted"])
         kde = rc.get("kde", {})
         if isinstance(kde, Mapping):
             rc["kde"] = KDEConfig(**{"method": config.kde_method, "calibrate_grasps": int(config.calibrate_grasps),

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import pickle
 
 import numpy as np
 import pytest
@@ -42,8 +43,9 @@ def test_the_floor_bounds_every_score_from_below():
     X, y = blobs(200, 0, d=1)
     X[y == 2] += 50.0  # far away: the classifier is sure
     lik = BoostedLikelihood(BoostedConfig(max_iter=50, floor=1e-3)).fit(X, y)
+    assert (lik.clf.predict_proba(X[y == 2])[:, :2] < 1e-3).any()  # the floor binds here
     ll = lik.log_likelihood(X[y == 2])
-    assert ll.min() >= np.log(1e-3) - np.log(1 / 3) - 1e-9
+    assert ll.min() == pytest.approx(np.log(1e-3) - np.log(1 / 3))
 
 
 def test_training_rows_are_capped_per_class():
@@ -97,11 +99,25 @@ def parse(argv: list[str]) -> AnalysisConfig:
 def test_the_analysis_cli_passes_the_likelihood_on():
     cfg = parse(["--likelihood", "hgb", "--experiments", "2"])
     assert cfg.likelihood == "hgb" and cfg.recognizer_config().likelihood == "hgb"
-    assert "gradient boosting" in cfg.scores_label
+    assert "gradient boosting" in cfg.scores_label and "KDE" not in cfg.scores_label
     assert parse(["--experiments", "2"]).recognizer_config().likelihood == "kde"
 
 
-def test_a_recogniser_holds_it_in_the_kde_slot_and_caches_it():
+def test_a_saved_model_reads_back_and_a_foreign_blob_is_named():
+    X, y = blobs(50, 0)
+    lik = BoostedLikelihood(BoostedConfig(max_iter=5)).fit(X, y)
+    back = BoostedLikelihood.from_bytes(lik.config, lik.to_bytes())
+    np.testing.assert_array_equal(back.log_likelihood(X), lik.log_likelihood(X))
+    with pytest.raises(ValueError, match="does not load"):
+        BoostedLikelihood.from_bytes(lik.config, b"not a pickle")
+    with pytest.raises(ValueError, match="not a BoostedLikelihood"):
+        BoostedLikelihood.from_bytes(lik.config, pickle.dumps([1, 2]))
+    with pytest.raises(ValueError, match="disagree"):
+        BoostedLikelihood.from_bytes(lik.config, pickle.dumps({"clf": lik.clf, "log_prior": np.zeros(2)}))
+
+
+def test_a_recogniser_holds_it_in_the_kde_slot_and_caches_it(tmp_path, monkeypatch):
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path))  # its own cache: the call counts below do not hang on others
     objects = load_object_set("default")
     K = len(objects)
     calls = []
@@ -129,3 +145,19 @@ def test_a_recogniser_holds_it_in_the_kde_slot_and_caches_it():
     with pytest.warns(UserWarning, match="rebuilding"):
         build_recognizer(objects, 3, False, config=cfg, models=("kde",), progress=False, dataset_fn=dataset_fn)
     assert calls == [3, 3]
+    # the KDE of the same data has its own files: neither reads the other's
+    kde = build_recognizer(objects, 3, False, config=RecognizerConfig(), models=("kde",), progress=False,
+                           dataset_fn=dataset_fn)
+    assert calls == [3, 3, 3] and not isinstance(kde.models.model(3)[1], BoostedLikelihood)
+    assert len(list(cache_dir("recognizers").glob("*_kde.npz"))) == 1
+    assert len(list(cache_dir("recognizers").glob("*_hgb.pkl"))) == 1
+
+
+def test_the_env_config_takes_it_as_json():
+    from haptic_env.config import HapticRecogConfig, recognizer_kwargs
+
+    cfg = HapticRecogConfig(recognizer_kwargs={"config": {"likelihood": "hgb", "boosted": {"max_iter": 5}}})
+    rc = recognizer_kwargs(cfg)["config"]
+    assert rc.likelihood == "hgb" and rc.boosted == BoostedConfig(max_iter=5)
+    with pytest.raises(ValueError, match="max_iter"):
+        HapticRecogConfig(recognizer_kwargs={"config": {"likelihood": "hgb", "boosted": {"max_iter": 0}}})

@@ -226,8 +226,8 @@ class AnalysisConfig:
         :class:`DatasetConfig` fields, e.g. experiment 4's scale range)."""
         grasps = DatasetConfig(grasps_per_object=self.grasps_per_object, seed=self.seed,
                                **{"normal_axis": self.normal_axis, "force_closure": self.force_closure, **kw})
-        return RecognizerConfig(grasps=grasps, mlp=dataclasses.replace(self.mlp, progress=False), kde=self.kde,
-                                likelihood=self.likelihood, boosted=BoostedConfig(seed=self.seed))
+        hgb = {"likelihood": "hgb", "boosted": BoostedConfig(seed=self.seed)} if self.likelihood == "hgb" else {}
+        return RecognizerConfig(grasps=grasps, mlp=dataclasses.replace(self.mlp, progress=False), kde=self.kde, **hgb)
 
     @property
     def uses_stop_scale(self) -> bool:
@@ -241,7 +241,9 @@ class AnalysisConfig:
         ic = "; IC certainty: the winner's share of the winners' scores (the authors' code)" \
             if self.ic_certainty == "share" else ""
         if self.likelihood == "hgb":
-            ic += "; BC's likelihood: gradient boosting (`--likelihood hgb`, no temperature of its own)"
+            return ("BC's likelihood: gradient boosting (`--likelihood hgb`, not the paper's; no correction or "
+                    "temperature of its own), " + ("raw scores" if not self.calibrated else
+                                                   "the MLP's calibration temperature") + ic)
         if not self.calibrated:
             return "raw scores (paper)" + ic
         k = self.kde.calibrate_grasps

@@ -38,7 +38,7 @@ def baseline_train_cap(name: str, cfg: AnalysisConfig) -> int | None:
 def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> None:
     rep.h("1. One-shot accuracy (%) on fresh test grasps")
     rows = []
-    names = [*cfg.classifiers, "kde"]
+    names = [*cfg.classifiers, cfg.likelihood]  # the beliefs' likelihood as a classifier: the KDE or hgb
     for normals in (False, True):
         for n in cfg.oneshot_fingers:
             rc = cfg.recognizer_config()
@@ -49,7 +49,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
             ds = None
             row = [n, "yes" if normals else "no"]
             for name in tqdm(names, desc=f"exp1 n={n} normals={normals}", disable=not cfg.progress, leave=False):
-                if name == "kde":
+                if name == cfg.likelihood:
                     acc = np.mean(kde.log_likelihood(Xt).argmax(1) == yt)
                 elif name == "mlp":
                     acc = clf.score(Xt, yt)

@@ -43,6 +43,8 @@ class BoostedConfig:
     seed: int = 0
 
     def __post_init__(self):
+        if isinstance(self.floor, bool):
+            raise ValueError(f"floor must be a number in (0, 1), got {self.floor!r}")
         whole_at_least(self.max_iter, 1, "max_iter")
         whole_at_least(self.max_train_per_class, 1, "max_train_per_class")
         whole_at_least(self.seed, 0, "seed")
@@ -109,7 +111,10 @@ class BoostedLikelihood:
 
     @classmethod
     def from_bytes(cls, config: BoostedConfig, blob: bytes) -> BoostedLikelihood:
-        state = pickle.loads(blob)  # noqa: S301 - the caller checked the file's digest first
+        try:  # a model pickled by other library versions may not load: the caller rebuilds it
+            state = pickle.loads(blob)  # noqa: S301 - the caller checked the file's digest first
+        except Exception as exc:
+            raise ValueError(f"the saved model does not load here: {exc!r}") from exc
         if not (isinstance(state, dict) and {"clf", "log_prior"} <= state.keys()):
             raise ValueError("not a BoostedLikelihood state")
         out = cls(config)

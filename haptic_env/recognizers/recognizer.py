@@ -17,7 +17,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import pickle
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -71,6 +70,8 @@ class RecognizerConfig:
     def __post_init__(self):
         if self.likelihood not in LIKELIHOODS:
             raise ValueError(f"likelihood must be one of {LIKELIHOODS}, got {self.likelihood!r}")
+        if not isinstance(self.boosted, BoostedConfig):
+            raise ValueError(f"boosted must be a BoostedConfig, got {type(self.boosted).__name__}")
 
     def model_config(self, model: str):
         """The config that keys a cached ``model`` (:data:`MODELS`): the MLP's, or the likelihood slot's."""
@@ -316,6 +317,7 @@ def build_recognizer(objects, n_fingers: int, normals: bool = True, *, z_values=
                 if cache:
                     _save(root, f"{key}-{config_key(config.model_config(m))}", m, built[m],
                           {"names": list(names), "z": z, "normals": bool(normals), "model": m,
+                           "likelihood": config.likelihood,
                            "train_seconds": time.perf_counter() - t0}, config)
         bank.add(z, built.get("mlp"), built.get("kde"))
     return Recognizer(names, int(n_fingers), bool(normals), config, bank,
@@ -387,6 +389,6 @@ def _load(root, key: str, model: str, config: RecognizerConfig):
         if loaded.n_classes != len(names):
             raise CacheError(f"{path} holds {loaded.n_classes} classes, {meta.name} names {len(names)} objects")
         return loaded
-    except (CacheError, ValueError, OSError, pickle.UnpicklingError, EOFError) as exc:  # JSONDecodeError: a ValueError
+    except (CacheError, ValueError, OSError) as exc:  # json.JSONDecodeError is a ValueError
         warnings.warn(f"rebuilding recogniser model {path.name}: {exc}", stacklevel=3)
         return None
