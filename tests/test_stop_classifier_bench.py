@@ -1,0 +1,26 @@
+"""benchmarks/stop_classifier.py end to end on a small embedded set (slow: it trains a KDE and gradient boosting)."""
+
+from __future__ import annotations
+
+import pytest
+
+from haptic_env.experiments.stop_scale import VALIDATION_TRIALS
+
+
+@pytest.mark.slow
+def test_it_fits_a_stop_scale_for_each_likelihood_on_validation_grasps(load_benchmark, tmp_path):
+    bench = load_benchmark("stop_classifier")
+    out = tmp_path / "table.md"
+    bench.main(["--objects", "default", "--no-normals", "--fingers", "3", "--grasps-per-object", "300",
+                "--out", str(out)])
+    text = out.read_text()
+    assert f"{VALIDATION_TRIALS} BC-NP trials per cell" in text
+    rows = [line.split(" | ") for line in text.splitlines() if line.startswith("| 3 | ")]
+    main = [r for r in rows if len(r) == 7]
+    assert [r[1] for r in main] == list(bench.LIKELIHOODS)
+    for r in main:
+        assert float(r[2]) in bench.SCALES  # the scale chosen on set A
+        right, grasps = (float(v) for v in r[3].split(" / "))
+        assert 0 <= right <= 100 and 1 <= grasps <= 30
+    frontier = [r for r in rows if len(r) > 7]
+    assert sorted((r[1], r[2]) for r in frontier) == sorted((k, s) for k in bench.LIKELIHOODS for s in "AB")
