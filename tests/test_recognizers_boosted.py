@@ -70,6 +70,8 @@ def test_bad_training_data_is_named_before_any_fit():
     X, y = blobs(20, 0)
     with pytest.raises(ValueError, match="every one of the 4 classes"):
         BoostedLikelihood().fit(X, y, n_classes=4)
+    with pytest.raises(ValueError, match="integer class labels"):
+        BoostedLikelihood().fit(X, y.astype(float))
     X[3, 1] = np.nan
     with pytest.raises(ValueError, match="non-finite"):
         BoostedLikelihood().fit(X, y)

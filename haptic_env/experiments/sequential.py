@@ -48,7 +48,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
                 plot_confusion(confusion(res["truth"], res["pred"], K), objects.names,
                                f"{kind}, n=4, lambda={cfg.threshold}", rep.out / f"confusion_n4_{kind}.png")
         rows.append(row)
-    hdr = ["n", "MLP one-shot %", "T KDE" if cfg.likelihood == "kde" else f"T {cfg.likelihood}", "T MLP"] + (["stop scale (validation BC-NP)"] if cfg.uses_stop_scale else [])
+    t_lik = "T KDE" if cfg.likelihood == "kde" else f"T {cfg.likelihood}"
+    hdr = ["n", "MLP one-shot %", t_lik, "T MLP"] + (["stop scale (validation BC-NP)"] if cfg.uses_stop_scale else [])
     for kind in KINDS:
         hdr += [f"{kind} success %", f"{kind} grasps"]
     rep.table(hdr, rows)
