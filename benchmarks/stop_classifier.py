@@ -27,26 +27,20 @@ No test grasp is used. The KDE's row at experiment 2's grid reproduces its own v
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.stop_floor import CHECK_SEED_OFFSET  # noqa: E402
-from haptic_env.cli import output_path  # noqa: E402
-from haptic_env.experiments.config import AnalysisConfig  # noqa: E402
+from benchmarks.stop_floor import (CHECK_SEED_OFFSET, analysis_config, choose_and_check, emit,  # noqa: E402
+                                   experiment2_parser, md_table)
 from haptic_env.experiments.fresh_grasps import fresh_pool  # noqa: E402
-from haptic_env.experiments.stop_scale import (STOP_SCALES, VALIDATION_GRASPS, VALIDATION_TRIALS,  # noqa: E402
-                                               fit_stop_scale)
+from haptic_env.experiments.stop_scale import STOP_SCALES, VALIDATION_GRASPS, VALIDATION_TRIALS  # noqa: E402
 from haptic_env.objects import load_object_set  # noqa: E402
 from haptic_env.recognizers.boosted import BoostedConfig  # noqa: E402
 from haptic_env.recognizers.recognizer import build_recognizer  # noqa: E402
-from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD  # noqa: E402
 from haptic_env.splits import VALIDATION_SEED_OFFSET  # noqa: E402
 
 #: experiment 2's grid and below it (sharper beliefs)
@@ -55,20 +49,10 @@ LIKELIHOODS = ("kde", "hgb")
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--objects", default="kit8")
-    p.add_argument("--no-normals", action="store_true")
-    p.add_argument("--fingers", default="3,4,5")
-    p.add_argument("--grasps-per-object", type=int, default=200_000)
-    p.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--out", type=output_path("file"), default=None, help="also write the table (markdown) here")
-    a = p.parse_args(argv)
+    a = experiment2_parser(__doc__.split("\n\n")[0]).parse_args(argv)
     t0 = time.time()
     objects = load_object_set(a.objects)
-    cfg = AnalysisConfig(objects=a.objects, grasps_per_object=a.grasps_per_object, normals=not a.no_normals,
-                         threshold=a.threshold, seed=a.seed, progress=False)
-    cfg = dataclasses.replace(cfg, kde=dataclasses.replace(cfg.kde, seed=a.seed))  # as `haptic-recog analysis` sets it
+    cfg = analysis_config(a)
     rows, frontier = [], []
     for n in (int(v) for v in a.fingers.split(",")):
         rec = build_recognizer(objects, n, cfg.normals, config=cfg.recognizer_config(), models=("kde",), progress=False)
@@ -83,37 +67,24 @@ def main(argv=None):
             t1 = time.time()
             sets = {name: [like[lik](X) for X in pool] for name, pool in pools.items()}
             score_us = 1e6 * (time.time() - t1) / sum(len(X) for pool in pools.values() for X in pool)
-            r = {"n": n, "lik": lik, "us": score_us, "fit": fit_s if lik == "hgb" else float("nan")}
-            for name, LL in sets.items():
-                PR = [np.full(x.shape, 1.0 / x.shape[1]) for x in LL]  # BC-NP does not use the classifier
-                rng = np.random.default_rng([cfg.seed, n, VALIDATION_SEED_OFFSET])  # experiment 2's stream on A
-                chosen, table = fit_stop_scale(LL, PR, cfg.threshold, scales=SCALES, trials=VALIDATION_TRIALS, rng=rng)
-                if name == "A":
-                    r["s"] = chosen[0]
-                by_s = {t[0]: f"{100 * t[1]:.1f} / {t[2]:.2f}" for t in table}
-                r[name] = by_s[r["s"]]  # B: at the scale chosen on A
-                frontier.append([str(n), lik, name] + [by_s[s] for s in SCALES if s <= 1.0])
+            s, at, every = choose_and_check(sets, n, cfg, SCALES)
+            fit = fit_s if lik == "hgb" else float("nan")
+            r = {"n": n, "lik": lik, "us": score_us, "fit": fit, "s": s, **at}
+            frontier += [[str(n), lik, k] + [by_s[v] for v in SCALES if v <= 1.0] for k, by_s in every.items()]
             rows.append(r)
             print(r, file=sys.stderr, flush=True)
     head = ["n", "likelihood", "s chosen on A", "A at s: right / grasps", "B at s", "fit or cache read (s)",
             "scoring (us/vector)"]
     lines = [f"{a.objects}, normals: {cfg.normals}, {a.grasps_per_object} grasps per object (hgb: at most "
-             f"{BoostedConfig().max_train_per_class} training vectors per object), seed {a.seed}, lambda {a.threshold}; "
-             f"{VALIDATION_GRASPS} "
+             f"{BoostedConfig().max_train_per_class} training vectors per object), seed {a.seed}, lambda "
+             f"{a.threshold}; {VALIDATION_GRASPS} "
              f"validation grasps per object, {VALIDATION_TRIALS} BC-NP trials per cell (right = decided and right at "
-             f"the stop); {time.time() - t0:.0f} s", "",
-             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    lines += [f"| {r['n']} | {r['lik']} | {r['s']:g} | {r['A']} | {r['B']} | {r['fit']:.0f} | {r['us']:.1f} |"
-              for r in rows]
+             f"the stop); {time.time() - t0:.0f} s", ""]
+    lines += md_table(head, [[str(r["n"]), r["lik"], f"{r['s']:g}", r["A"], r["B"], f"{r['fit']:.0f}",
+                              f"{r['us']:.1f}"] for r in rows])
     head = ["n", "likelihood", "set"] + [f"s = {s:g}" for s in SCALES if s <= 1.0]
-    lines += ["", "Every scale (the frontier of right stops against grasps; s > 1 only adds grasps here):", "",
-              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    lines += ["| " + " | ".join(row) + " |" for row in frontier]
-    text = "\n".join(lines)
-    print(text)
-    if a.out is not None:
-        a.out.parent.mkdir(parents=True, exist_ok=True)
-        a.out.write_text(text + "\n")
+    lines += ["", "Every scale (the frontier of right stops against grasps; s > 1 only adds grasps here):", ""]
+    emit(lines + md_table(head, frontier), a.out)
 
 
 if __name__ == "__main__":

@@ -50,25 +50,65 @@ def posterior_floor(LL: np.ndarray, eps: float) -> np.ndarray:
     return np.asarray(LL) if eps == 0 else floored(log_softmax(np.asarray(LL, dtype=np.float64), axis=1), np.log(eps))
 
 
-def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def experiment2_parser(description: str) -> argparse.ArgumentParser:
+    """The arguments every experiment-2 validation benchmark takes (:func:`analysis_config` reads them)."""
+    p = argparse.ArgumentParser(description=description)
     p.add_argument("--objects", default="kit8")
     p.add_argument("--no-normals", action="store_true")
     p.add_argument("--fingers", default="3,4,5")
     p.add_argument("--grasps-per-object", type=int, default=200_000)
-    p.add_argument("--eps", default=",".join(f"{e:g}" for e in EPS), help="posterior floors (0: none)")
     p.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=output_path("file"), default=None, help="also write the table (markdown) here")
+    return p
+
+
+def analysis_config(a: argparse.Namespace) -> AnalysisConfig:
+    """Experiment 2's settings from the parsed ``--objects --no-normals --grasps-per-object --threshold --seed``."""
+    cfg = AnalysisConfig(objects=a.objects, grasps_per_object=a.grasps_per_object, normals=not a.no_normals,
+                         threshold=a.threshold, seed=a.seed, progress=False)
+    return dataclasses.replace(cfg, kde=dataclasses.replace(cfg.kde, seed=a.seed))  # as `haptic-recog analysis` sets it
+
+
+def choose_and_check(sets: dict, n: int, cfg: AnalysisConfig, scales=STOP_SCALES) -> tuple[float, dict, dict]:
+    """Experiment 2's stop scale chosen on ``sets["A"]`` (per object ``(G, K)`` scores, its trial stream) and checked
+    on ``sets["B"]``: ``(s, {set: "right / grasps" at s}, {set: {scale: "right / grasps"}})``."""
+    at, every, s = {}, {}, None
+    for name, LL in sets.items():
+        PR = [np.full(x.shape, 1.0 / x.shape[1]) for x in LL]  # BC-NP does not use the classifier
+        rng = np.random.default_rng([cfg.seed, n, VALIDATION_SEED_OFFSET])  # experiment 2's stream on A
+        chosen, table = fit_stop_scale(LL, PR, cfg.threshold, scales=scales, trials=VALIDATION_TRIALS, rng=rng)
+        if name == "A":
+            s = chosen[0]
+        every[name] = {t[0]: f"{100 * t[1]:.1f} / {t[2]:.2f}" for t in table}
+        at[name] = every[name][s]  # B: at the scale chosen on A
+    return s, at, every
+
+
+def md_table(head: list[str], rows: list[list[str]]) -> list[str]:
+    """A markdown table's lines: the header, its rule, one line per row of cells."""
+    return ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)] + ["| " + " | ".join(r) + " |" for r in rows]
+
+
+def emit(lines: list[str], out) -> None:
+    """Print the report's ``lines`` and write them to ``out`` (a path, or None: print only)."""
+    text = "\n".join(lines)
+    print(text)
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(text + "\n")
+
+
+def main(argv=None):
+    p = experiment2_parser(__doc__.split("\n\n")[0])
+    p.add_argument("--eps", default=",".join(f"{e:g}" for e in EPS), help="posterior floors (0: none)")
     a = p.parse_args(argv)
     eps_grid = tuple(float(v) for v in a.eps.split(","))
     for e in eps_grid:
         posterior_floor(np.zeros((1, 2)), e)  # a bad value fails here, before any training
     t0 = time.time()
     objects = load_object_set(a.objects)
-    cfg = AnalysisConfig(objects=a.objects, grasps_per_object=a.grasps_per_object, normals=not a.no_normals,
-                         threshold=a.threshold, seed=a.seed, progress=False)
-    cfg = dataclasses.replace(cfg, kde=dataclasses.replace(cfg.kde, seed=a.seed))  # as `haptic-recog analysis` sets it
+    cfg = analysis_config(a)
     rows, frontier = [], []
     for n in (int(v) for v in a.fingers.split(",")):
         rec = build_recognizer(objects, n, cfg.normals, config=cfg.recognizer_config(), models=("kde",),
@@ -79,34 +119,21 @@ def main(argv=None):
             pool = fresh_pool(objects, n, cfg.normals, cfg, seed_offset=off, grasps=VALIDATION_GRASPS)
             sets[name] = [models.log_likelihood(X) for X in pool]
         for eps in eps_grid:
-            r = {"n": n, "eps": eps}
-            for name, LL in sets.items():
-                L = [posterior_floor(x, eps) for x in LL]
-                PR = [np.full(x.shape, 1.0 / x.shape[1]) for x in L]  # BC-NP does not use the classifier
-                rng = np.random.default_rng([cfg.seed, n, VALIDATION_SEED_OFFSET])  # experiment 2's stream on A
-                chosen, table = fit_stop_scale(L, PR, cfg.threshold, trials=VALIDATION_TRIALS, rng=rng)
-                if name == "A":
-                    r["s"] = chosen[0]
-                by_s = {t[0]: f"{100 * t[1]:.1f} / {t[2]:.2f}" for t in table}
-                r[name] = by_s[r["s"]]  # B: at the scale chosen on A
-                frontier.append([str(n), f"{eps:g}", name] + [by_s[s] for s in STOP_SCALES if s <= 1.0])
+            floored_sets = {k: [posterior_floor(x, eps) for x in LL] for k, LL in sets.items()}
+            s, at, every = choose_and_check(floored_sets, n, cfg)
+            r = {"n": n, "eps": eps, "s": s, **at}
+            frontier += [[str(n), f"{eps:g}", k] + [by_s[v] for v in STOP_SCALES if v <= 1.0]
+                         for k, by_s in every.items()]
             rows.append(r)
             print(r, file=sys.stderr, flush=True)
     head = ["n", "eps", "s chosen on A", "A at s: right / grasps", "B at s"]
     lines = [f"{a.objects}, normals: {cfg.normals}, {a.grasps_per_object} grasps per object, seed {a.seed}, lambda "
              f"{a.threshold}; {VALIDATION_GRASPS} validation grasps per object, {VALIDATION_TRIALS} BC-NP trials per "
-             f"cell (right = decided and right at the stop); {time.time() - t0:.0f} s", "",
-             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    lines += [f"| {r['n']} | {r['eps']:g} | {r['s']:g} | {r['A']} | {r['B']} |" for r in rows]
+             f"cell (right = decided and right at the stop); {time.time() - t0:.0f} s", ""]
+    lines += md_table(head, [[str(r["n"]), f"{r['eps']:g}", f"{r['s']:g}", r["A"], r["B"]] for r in rows])
     head = ["n", "eps", "set"] + [f"s = {s:g}" for s in STOP_SCALES if s <= 1.0]
-    lines += ["", "Every scale (the frontier of right stops against grasps; s > 1 only adds grasps here):", "",
-              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    lines += ["| " + " | ".join(row) + " |" for row in frontier]
-    text = "\n".join(lines)
-    print(text)
-    if a.out is not None:
-        a.out.parent.mkdir(parents=True, exist_ok=True)
-        a.out.write_text(text + "\n")
+    lines += ["", "Every scale (the frontier of right stops against grasps; s > 1 only adds grasps here):", ""]
+    emit(lines + md_table(head, frontier), a.out)
 
 
 if __name__ == "__main__":
