@@ -17,13 +17,16 @@ log-likelihoods of m grasps of one member) on A and B; and the NLL on A of the s
 at least about the ``q``-quantile of the true family's log-likelihood on held-back member grasps, so that a grasp unlike
 every family moves the belief little. ``--bias`` adds, per row, a per-family offset on each grasp's floored
 log-likelihood (:func:`fit_bias`, fitted jointly with the sequence temperature on A; ellipsoid's fixed at 0), a
-correction of a lean towards one family, and B's votes with it. The experiment-5 settings are the reported row's
+correction of a lean towards one family, and B's votes with it. The factor ``hgb`` puts gradient boosting in the
+KDE's place (``haptic_env.recognizers.boosted``, the analyses' ``--likelihood hgb``, which experiment 5 does not use),
+floored and sequence-calibrated alike. The experiment-5 settings are the reported row's
 (Allegro grasps, no normals, 40 members, size factor U(0.7, 1.6), 1,000 approaches per member). Run (the pools are built
 once, about 7 minutes on 2 cores per seed, then cached)::
 
     OMP_NUM_THREADS=1 python benchmarks/family_bandwidth.py --seed 0 --out docs/results/families/bandwidth_seed0.md
     OMP_NUM_THREADS=1 python benchmarks/family_bandwidth.py --seed S --factors auto --floors 0,0.01,0.03,0.1,0.2,0.3
     OMP_NUM_THREADS=1 python benchmarks/family_bandwidth.py --seed S --factors auto --floors 0,0.03,0.1,0.2 --bias
+    OMP_NUM_THREADS=1 python benchmarks/family_bandwidth.py --seed S --factors auto,hgb --floors 0,0.01,0.03,0.1,0.2
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ from haptic_env.cli import output_path
 from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.families import floored, grasp_config, member_grasps, sequence_fit
 from haptic_env.objects import FAMILIES, family_set
+from haptic_env.recognizers.boosted import BoostedConfig, BoostedLikelihood
 from haptic_env.recognizers.kde import KDELikelihood
 from haptic_env.splits import FAMILY_VAL_SEED_OFFSET
 
@@ -107,7 +111,8 @@ def main(argv=None):
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--members", type=int, default=40)
     p.add_argument("--factors", default=",".join(str(f) for f in FACTORS),
-                   help="bandwidth factors (multiples of Scott's rule); 'auto': experiment 5's own choice")
+                   help="bandwidth factors (multiples of Scott's rule); 'auto': experiment 5's own choice; 'hgb': "
+                        "gradient boosting in the KDE's place")
     p.add_argument("--floors", default="0",
                    help="outlier floors: each log-likelihood becomes logaddexp(LL, c), c the q-quantile of the true "
                         "family's log-likelihood on held-back member grasps (0: no floor); a grasp unlike every "
@@ -118,7 +123,7 @@ def main(argv=None):
     p.add_argument("--trials", type=int, default=600, help="vote draws per vote column")
     p.add_argument("--out", type=output_path("file"), default=None, help="also write the table (markdown) here")
     a = p.parse_args(argv)
-    factors = tuple(v if v == "auto" else float(v) for v in a.factors.split(","))
+    factors = tuple(v if v in ("auto", "hgb") else float(v) for v in a.factors.split(","))
     floors = tuple(float(v) for v in a.floors.split(","))
     t0 = time.time()
     cfg = AnalysisConfig(experiments=(5,), normals=False, family_source="hand", family_members=a.members,
@@ -137,12 +142,15 @@ def main(argv=None):
           f"A {len(new['A'][0])}, B {len(new['B'][0])}", file=sys.stderr, flush=True)
     rows = []
     for f in factors:
-        kde = KDELikelihood(dataclasses.replace(cfg.kde, factor=f)).fit(ds.X_train, ytr, ds.X_val, yva, n_classes=3)
+        if f == "hgb":
+            kde = BoostedLikelihood(BoostedConfig(seed=a.seed)).fit(ds.X_train, ytr, n_classes=3)
+        else:
+            kde = KDELikelihood(dataclasses.replace(cfg.kde, factor=f)).fit(ds.X_train, ytr, ds.X_val, yva, n_classes=3)
         held = kde.log_likelihood(ds.X_val)
         raw = {name: kde.log_likelihood(X) for name, (X, _, _) in new.items()}
         for q in floors:
             c = np.quantile(held[np.arange(len(yva)), yva], q) if q > 0 else -np.inf
-            r = {"factor": f if f != "auto" else f"auto ({float(kde.factor[0]):g})", "floor": q,
+            r = {"factor": f"auto ({float(kde.factor[0]):g})" if f == "auto" else f, "floor": q,
                  "held_1": 100 * np.mean(floored(held, c).argmax(1) == yva)}
             for name, (X, fam, member) in new.items():
                 LL = floored(raw[name], c)
