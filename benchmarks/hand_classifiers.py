@@ -59,6 +59,8 @@ from haptic_env.recognizers.zfinger import subset_vectors, subset_weight  # noqa
 from haptic_env.splits import hand_pool_seed  # noqa: E402
 
 CLASSIFIERS = ("knn", "hgb", "extra-trees", "extra-trees-small", "mlp")
+#: the one-shot comparison's classifiers by default (the small forest only where asked for)
+ONE_SHOT = ("knn", "hgb", "extra-trees", "mlp")
 #: the likelihoods replayed in the frontier by default (the MLP trains 1-3 min per finger count)
 FRONTIER = ("hgb", "extra-trees")
 METHODS = ("BC-NP", "BC-NP, z=3")
@@ -178,7 +180,7 @@ def query_scores(pool, objects, rec, normals: bool, z: int | None, likelihoods: 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--hands", nargs="+", default=["allegro", "aero"], choices=list(SETUPS))
-    ap.add_argument("--classifiers", nargs="*", default=["knn", "hgb", "extra-trees", "mlp"], choices=CLASSIFIERS,
+    ap.add_argument("--classifiers", nargs="*", default=list(ONE_SHOT), choices=CLASSIFIERS,
                     help="one-shot comparison")
     ap.add_argument("--frontier", nargs="*", default=list(FRONTIER), choices=CLASSIFIERS,
                     help="classifiers replayed as the belief's likelihood (none: skip the frontier)")

@@ -17,7 +17,7 @@ from haptic_env.objects.base import up_rotation
 from haptic_env.objects.loaders import check_object_spec, unit_scale
 from haptic_env.objects.primitives import FAMILY_SCALE_RANGE
 from haptic_env.recognizers.baselines import CLASSIFIERS
-from haptic_env.recognizers.boosted import LIKELIHOODS, BoostedConfig
+from haptic_env.recognizers.boosted import BoostedConfig, check_likelihood
 from haptic_env.recognizers.kde import KDEConfig
 from haptic_env.recognizers.mlp import MLPConfig
 from haptic_env.recognizers.recognizer import RecognizerConfig
@@ -145,8 +145,7 @@ class AnalysisConfig:
         self._check_counts()
         check_flag_fields(self, ("normals", "calibrated", "stop_scale", "progress", "family_heights", "family_lying"))
         check_ic_certainty(self.ic_certainty)
-        if self.likelihood not in LIKELIHOODS:
-            raise ValueError(f"likelihood must be one of {LIKELIHOODS}, got {self.likelihood!r}")
+        check_likelihood(self.likelihood)
         if self.family_source not in FAMILY_SOURCES:
             raise ValueError(f"family_source must be one of {FAMILY_SOURCES}, got {self.family_source!r}")
         if not isinstance(self.family_hand, str) or not self.family_hand:

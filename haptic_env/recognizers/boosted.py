@@ -22,10 +22,16 @@ import numpy as np
 
 from haptic_env.numbers import whole_at_least
 
-__all__ = ["BoostedConfig", "BoostedLikelihood", "LIKELIHOODS"]
+__all__ = ["BoostedConfig", "BoostedLikelihood", "LIKELIHOODS", "check_likelihood"]
 
 #: the likelihoods a recogniser can hold in the beliefs' slot (``RecognizerConfig.likelihood``)
 LIKELIHOODS = ("kde", "hgb")
+
+
+def check_likelihood(value) -> None:
+    """Raise ValueError naming ``value`` unless it is one of :data:`LIKELIHOODS`."""
+    if value not in LIKELIHOODS:
+        raise ValueError(f"likelihood must be one of {LIKELIHOODS}, got {value!r}")
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,7 @@ from haptic_env.cache import (KEY_ONLY_WHEN_SET, CacheError, atomic_write, cache
                                save_npz_atomic)
 from haptic_env.grasp_features import feature_dim
 from haptic_env.numbers import checked_flag, whole_at_least
-from haptic_env.recognizers.boosted import LIKELIHOODS, BoostedConfig, BoostedLikelihood
+from haptic_env.recognizers.boosted import BoostedConfig, BoostedLikelihood, check_likelihood
 from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
 from haptic_env.recognizers.mlp_config import MLPConfig
 from haptic_env.recognizers.touch import TouchModel
@@ -68,8 +68,7 @@ class RecognizerConfig:
     boosted: BoostedConfig = field(default=BoostedConfig(), metadata={KEY_ONLY_WHEN_SET: True})
 
     def __post_init__(self):
-        if self.likelihood not in LIKELIHOODS:
-            raise ValueError(f"likelihood must be one of {LIKELIHOODS}, got {self.likelihood!r}")
+        check_likelihood(self.likelihood)
         if not isinstance(self.boosted, BoostedConfig):
             raise ValueError(f"boosted must be a BoostedConfig, got {type(self.boosted).__name__}")
 
