@@ -2,6 +2,7 @@
 
     python benchmarks/bench_env.py [--steps 3000] [--n-fingers 4] [--objects default]
     python benchmarks/bench_env.py --env-id HapticRecogMuJoCo-v0 --steps 300     # a MuJoCo hand
+    python benchmarks/bench_env.py --env-id HapticRecogMuJoCo-v0 --steps 300 --likelihood hgb   # gradient boosting
 
 Runs on ONE core (OMP/MKL/torch threads = 1). Baseline measured in the same run: the backend's
 ``grasp()`` alone on the same actions and objects. The env step adds Phi (grasp features), the BC-NP
@@ -39,6 +40,8 @@ def main(argv=None) -> None:
     p.add_argument("--n-fingers", type=int, default=None, help="override the variant's fingers")
     p.add_argument("--objects", default=None, help="override the variant's object set")
     p.add_argument("--updater", default="bc-np")
+    p.add_argument("--likelihood", default=None, choices=("kde", "hgb"),
+                   help="override the variant's likelihood (HapticRecogConfig.likelihood; hgb: gradient boosting)")
     p.add_argument("--repeats", type=int, default=5, help="timing repeats (the median is reported)")
     args = p.parse_args(argv)
 
@@ -47,14 +50,15 @@ def main(argv=None) -> None:
     torch.set_num_threads(1)
     import haptic_env
 
-    fields = {k: v for k, v in (("objects", args.objects), ("n_fingers", args.n_fingers)) if v is not None}
+    fields = {k: v for k, v in (("objects", args.objects), ("n_fingers", args.n_fingers),
+                                ("likelihood", args.likelihood)) if v is not None}
     cfg = haptic_env.variant_config(args.env_id, **fields, updater=args.updater, threshold=1.0,
                                     max_grasps=10**9)  # never stop: every step is a full step
     env = haptic_env.make(cfg, env_id=args.env_id, max_episode_steps=None).unwrapped
     t0 = time.perf_counter()
     env.reset(seed=0)
     print(f"{args.env_id}: objects={cfg.objects} (K={env.n_classes}), n_fingers={cfg.n_fingers}, normals={cfg.normals}, "
-          f"updater={args.updater}; recogniser ready in {time.perf_counter() - t0:.1f} s")
+          f"updater={args.updater}, likelihood={cfg.likelihood}; recogniser ready in {time.perf_counter() - t0:.1f} s")
     rng = np.random.default_rng(0)
     actions = rng.uniform(-1, 1, (args.steps, env.action_dim)).astype(np.float32)
     per_obj = max(1, args.steps // env.n_classes)

@@ -18,6 +18,7 @@ import numpy as np
 
 from haptic_env.grasp_features import check_normal_axis
 from haptic_env.numbers import check_flag_fields, finite_number, positive_range, whole_at_least, whole_number
+from haptic_env.recognizers.boosted import check_likelihood
 from haptic_env.recognizers.touch import check_touch_weight
 from haptic_env.recognizers.updaters import (DEFAULT_IC_CERTAINTY, DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD, UPDATERS,
                                              check_ic_certainty, check_threshold)
@@ -113,6 +114,13 @@ class HapticRecogConfig:
     """How the belief update evaluates the per-object KDEs (``KDEConfig.method``) unless ``recognizer_kwargs``
     sets its own: "pooled" (one neighbour search over all objects' training vectors: a compiled k-d tree, ~25 us per grasp),
     "tree" (a search per object, as the recogniser analyses use: ~0.45 ms), or "dense" (exact, slow)."""
+    likelihood: str = "kde"
+    """What BC's likelihood is (``RecognizerConfig.likelihood``) unless ``recognizer_kwargs`` sets its own: the KDE
+    ("kde", the paper's method) or gradient boosting ("hgb", opt-in: one scikit-learn histogram gradient-boosting
+    classifier per finger count, ``log p(object | q)`` minus its prior as the log-likelihood, with a temperature
+    fitted for ``calibrate_grasps``-grasp beliefs on validation grasps and the trees walked by a compiled kernel;
+    :mod:`haptic_env.recognizers.boosted`). On the hand envs' validation episodes it stopped in fewer grasps
+    (RESULTS.md, "Gradient boosting in the hand envs")."""
     calibrated: bool = True
     """Scale the recogniser's scores by the temperatures fitted on its validation grasps
     (:mod:`haptic_env.recognizers.calibration`); False: the paper's raw likelihoods and probabilities."""
@@ -234,6 +242,7 @@ class HapticRecogConfig:
                              f"action_frame='estimated', got action_frame={self.action_frame!r}")
         if self.kde_method not in KDE_METHODS:
             raise ValueError(f"kde_method must be 'pooled', 'tree' or 'dense', got {self.kde_method!r}")
+        check_likelihood(self.likelihood)
         for name in ("recognizer_kwargs", "object_kwargs", "backend_kwargs"):
             if not isinstance(getattr(self, name), Mapping):
                 raise TypeError(f"{name} must be a mapping (dict), got {getattr(self, name)!r}")
@@ -305,7 +314,9 @@ def recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
     config, or a JSON config whose ``grasps`` has no ``source``, the recogniser trains on
     ``config.recognizer_source`` grasps (``config.training_grasps`` per object when set, with ``support`` from the
     backend's ``support`` setting, default "table"), and its KDE is evaluated by ``config.kde_method`` and calibrated for ``config.calibrate_grasps``
-    grasps unless the JSON ``kde`` sets them."""
+    grasps unless the JSON ``kde`` sets them; with ``"likelihood": "hgb"`` (gradient boosting in the KDE's place,
+    opt-in) its temperature is fitted for ``config.calibrate_grasps`` grasps unless the JSON ``boosted`` sets
+    ``calibrate_grasps``."""
     from haptic_env.dataset import DatasetConfig
     from haptic_env.recognizers import KDEConfig, MLPConfig, RecognizerConfig
 
@@ -341,7 +352,12 @@ def recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
                              f"got source {rc['grasps'].source!r}")
         if isinstance(rc.get("mlp"), Mapping):
             rc["mlp"] = MLPConfig(**rc["mlp"])
-        if isinstance(rc.get("boosted"), Mapping):  # with "likelihood": "hgb" (recognizers/boosted.py)
+        rc.setdefault("likelihood", config.likelihood)
+        if rc.get("likelihood") == "hgb" and isinstance(rc.get("boosted", {}), Mapping):  # recognizers/boosted.py
+            from haptic_env.recognizers.boosted import BoostedConfig
+
+            rc["boosted"] = BoostedConfig(**{"calibrate_grasps": int(config.calibrate_grasps), **rc.get("boosted", {})})
+        elif isinstance(rc.get("boosted"), Mapping):
             from haptic_env.recognizers.boosted import BoostedConfig
 
             rc["boosted"] = BoostedConfig(**rc["boosted"])

@@ -159,7 +159,74 @@ def test_the_env_config_takes_it_as_json():
     from haptic_env.config import HapticRecogConfig, recognizer_kwargs
 
     cfg = HapticRecogConfig(recognizer_kwargs={"config": {"likelihood": "hgb", "boosted": {"max_iter": 5}}})
-    rc = recognizer_kwargs(cfg)["config"]
-    assert rc.likelihood == "hgb" and rc.boosted == BoostedConfig(max_iter=5)
+    rc = recognizer_kwargs(cfg)["config"]  # the temperature for the env's calibrate_grasps, as the KDE's
+    assert rc.likelihood == "hgb" and rc.boosted == BoostedConfig(max_iter=5, calibrate_grasps=cfg.calibrate_grasps)
     with pytest.raises(ValueError, match="max_iter"):
         HapticRecogConfig(recognizer_kwargs={"config": {"likelihood": "hgb", "boosted": {"max_iter": 0}}})
+
+
+def test_the_env_setting_picks_the_likelihood_and_its_temperature():
+    from haptic_env.config import HapticRecogConfig, recognizer_kwargs
+
+    assert recognizer_kwargs(HapticRecogConfig())["config"].likelihood == "kde"
+    rc = recognizer_kwargs(HapticRecogConfig(likelihood="hgb", calibrate_grasps=5))["config"]
+    assert rc.likelihood == "hgb" and rc.boosted == BoostedConfig(calibrate_grasps=5)
+    own = HapticRecogConfig(likelihood="hgb", calibrate_grasps=5,
+                            recognizer_kwargs={"config": {"boosted": {"calibrate_grasps": 0}}})
+    assert recognizer_kwargs(own)["config"].boosted == BoostedConfig()  # the JSON's own setting wins
+    json_kde = HapticRecogConfig(likelihood="hgb", recognizer_kwargs={"config": {"likelihood": "kde"}})
+    assert recognizer_kwargs(json_kde)["config"].likelihood == "kde"
+    with pytest.raises(ValueError, match="likelihood must be one of .*'forest'"):
+        HapticRecogConfig(likelihood="forest")
+
+
+@pytest.mark.parametrize("k", [2, 4])
+def test_the_compiled_trees_give_scikit_learns_probabilities(k):
+    """The numba tree walk (two classes: one tree per iteration and a sigmoid) equals ``predict_proba``."""
+    X, y = blobs(200, 0, k=k, d=6)
+    lik = BoostedLikelihood(BoostedConfig(max_iter=40, floor=1e-12)).fit(X, y)
+    Q = blobs(30, 3, k=k, d=6)[0]
+    Q[0] = X[5]  # on training values, where ``x <= threshold`` decides
+    expected = np.log(np.maximum(lik.clf.predict_proba(Q), 1e-12)) - lik.log_prior
+    np.testing.assert_allclose(lik.log_likelihood(Q), expected, rtol=1e-12, atol=1e-12)
+    lik._trees = False  # the fallback for trees this module cannot read: scikit-learn's own path
+    np.testing.assert_allclose(lik.log_likelihood(Q), expected, rtol=1e-12, atol=1e-12)
+    with pytest.raises(ValueError, match=r"Q must be \(m, 6\)"):
+        lik.log_likelihood(Q[:, :5])
+
+
+def test_a_temperature_is_fitted_on_validation_vectors_and_saved():
+    X, y = blobs(300, 0)
+    Xv, yv = blobs(100, 1)
+    plain = BoostedLikelihood(BoostedConfig(max_iter=30)).fit(X, y, Xv, yv)
+    assert plain.temperature == 1.0 and not plain.calibrated  # calibrate_grasps=0: the analyses' default
+    lik = BoostedLikelihood(BoostedConfig(max_iter=30, calibrate_grasps=3)).fit(X, y, Xv, yv)
+    assert lik.temperature != 1.0 and lik.calibrated
+    np.testing.assert_array_equal(lik.log_likelihood(Xv), plain.log_likelihood(Xv))  # the same trees
+    ll = lik.log_likelihood(Xv)
+    np.testing.assert_allclose(lik.calibrate_scores(ll), ll / lik.temperature)
+    # the temperature minimises the NLL of 1..3-grasp beliefs: a nearby one does worse on the same sums
+    from haptic_env.recognizers.calibration import sequence_scores, tempered_nll
+
+    rng = np.random.default_rng(0)
+    keep = np.concatenate([rng.permutation(np.flatnonzero(yv == c))[:1000] for c in range(3)])
+    S, Y = sequence_scores(ll[keep], yv[keep], 3, rng)
+    best = tempered_nll(S, Y, lik.temperature)
+    assert best <= tempered_nll(S, Y, lik.temperature * 1.2) and best <= tempered_nll(S, Y, lik.temperature / 1.2)
+    back = BoostedLikelihood.from_bytes(lik.config, lik.to_bytes())
+    assert back.temperature == lik.temperature
+    assert BoostedLikelihood(BoostedConfig(max_iter=30, calibrate_grasps=3)).fit(X, y).temperature == 1.0  # no X_val
+    with pytest.raises(ValueError, match=r"X_val must be \(m, 3\)"):
+        BoostedLikelihood(BoostedConfig(max_iter=5, calibrate_grasps=2)).fit(X, y, Xv[:, :2], yv)
+
+
+@pytest.mark.parametrize("kw, match", [({"calibrate_grasps": -1}, "calibrate_grasps"),
+                                        ({"n_calibrate": 0}, "n_calibrate"), ({"calibrate_grasps": 1.5}, "calibrate")])
+def test_bad_calibration_settings_are_named(kw, match):
+    with pytest.raises(ValueError, match=match):
+        BoostedConfig(**kw)
+
+
+def test_the_calibration_settings_stay_out_of_the_key_at_their_defaults():
+    assert not {"calibrate_grasps", "n_calibrate"} & _jsonable(BoostedConfig()).keys()
+    assert _jsonable(BoostedConfig(calibrate_grasps=5))["calibrate_grasps"] == 5

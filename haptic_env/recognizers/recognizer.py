@@ -339,7 +339,7 @@ def _train(model: str, ds, cfg: RecognizerConfig, progress: bool):
         clf = MLPClassifier(dataclasses.replace(cfg.mlp, progress=progress and cfg.mlp.progress))
         return clf.fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val, n_classes=k)
     if cfg.likelihood == "hgb":
-        return BoostedLikelihood(cfg.boosted).fit(ds.X_train, ds.y_train, n_classes=k)
+        return BoostedLikelihood(cfg.boosted).fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val, n_classes=k)
     return KDELikelihood(cfg.kde).fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val, n_classes=k)
 
 
