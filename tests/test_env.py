@@ -683,3 +683,47 @@ def test_heights_hand_envs_are_the_plain_ones_with_grasp_heights():
         assert heights == {**plain, "grasp_heights": True, "touch_weight": w}
         assert haptic_env.variant_config(f"HapticRecog{hand}Heights-v0").grasp_heights
         assert not haptic_env.variant_config(f"HapticRecog{hand}-v0").grasp_heights
+
+
+def test_gradient_boosting_as_the_envs_likelihood(env_config):
+    """``likelihood="hgb"``: the belief multiplies gradient boosting's tempered scores, in the single env and the
+    native vector env (its general path) alike, and an episode is reproducible by seed."""
+    from scipy.special import log_softmax
+
+    from haptic_env.recognizers.boosted import BoostedLikelihood
+
+    rk = {**env_config.recognizer_kwargs, "config": {**env_config.recognizer_kwargs["config"],
+                                                     "boosted": {"max_iter": 15}}}
+    cfg = env_config.replace(likelihood="hgb", calibrate_grasps=2, recognizer_kwargs=rk)
+    env = _make(cfg)
+    obs, _ = env.reset(seed=3)
+    u = env.unwrapped
+    lik = u.recognizer.models.model(cfg.n_fingers)[1]
+    assert isinstance(lik, BoostedLikelihood) and lik.config.calibrate_grasps == 2 and lik.calibrated
+    scored = []
+    raw = lik.log_likelihood
+
+    def spy(Q):
+        scored.append(raw(Q))
+        return scored[-1]
+
+    lik.log_likelihood = spy  # the instance's own scores, recorded
+    rng = np.random.default_rng(0)
+    try:
+        for _ in range(30):  # until a grasp scores: the belief is the prior times its tempered likelihood
+            before = u.belief.copy()
+            *_, info = env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
+            if info["usable"]:
+                break
+    finally:
+        del lik.log_likelihood
+    assert info["usable"] and len(scored) == 1
+    expected = log_softmax(np.log(before) + scored[0].sum(0) / lik.temperature)
+    np.testing.assert_allclose(np.log(u.belief), expected, atol=1e-9)
+    ra, rb = _rollout(_make(cfg), 5, 12), _rollout(_make(cfg), 5, 12)
+    for (oa, _, ia), (ob, _, ib) in zip(ra, rb):
+        np.testing.assert_array_equal(oa, ob)
+    venv = gym.make_vec("HapticRecog-v0", num_envs=2, vectorization_mode="vector_entry_point", config=cfg)
+    vo, _ = venv.reset(seed=5)
+    np.testing.assert_array_equal(vo[0], ra[0][0])
+    venv.close()
