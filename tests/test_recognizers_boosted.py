@@ -193,6 +193,9 @@ def test_the_compiled_trees_give_scikit_learns_probabilities(k):
     np.testing.assert_allclose(lik.log_likelihood(Q), expected, rtol=1e-12, atol=1e-12)
     with pytest.raises(ValueError, match=r"Q must be \(m, 6\)"):
         lik.log_likelihood(Q[:, :5])
+    Q[2, 1] = np.nan
+    with pytest.raises(ValueError, match="non-finite"):
+        lik.log_likelihood(Q)
 
 
 def test_a_temperature_is_fitted_on_validation_vectors_and_saved():

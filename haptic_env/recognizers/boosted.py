@@ -139,6 +139,8 @@ class BoostedLikelihood:
         Q = np.atleast_2d(np.asarray(Q, dtype=np.float64))
         if Q.ndim != 2 or Q.shape[1] != self.clf.n_features_in_:
             raise ValueError(f"Q must be (m, {self.clf.n_features_in_}), got {Q.shape}")
+        if not np.isfinite(Q).all():  # the compiled walk has no missing-value branch (nor has the training data)
+            raise ValueError("Q holds non-finite values")
         if self._trees is None:
             self._trees = _flatten(self.clf)
         if self._trees is False:  # a scikit-learn whose trees this module cannot read: its own (slower) path
