@@ -353,14 +353,13 @@ def recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
         if isinstance(rc.get("mlp"), Mapping):
             rc["mlp"] = MLPConfig(**rc["mlp"])
         rc.setdefault("likelihood", config.likelihood)
-        if rc.get("likelihood") == "hgb" and isinstance(rc.get("boosted", {}), Mapping):  # recognizers/boosted.py
+        boosted = rc.get("boosted", {})
+        if isinstance(boosted, Mapping) and (boosted or rc["likelihood"] == "hgb"):  # recognizers/boosted.py
             from haptic_env.recognizers.boosted import BoostedConfig
 
-            rc["boosted"] = BoostedConfig(**{"calibrate_grasps": int(config.calibrate_grasps), **rc.get("boosted", {})})
-        elif isinstance(rc.get("boosted"), Mapping):
-            from haptic_env.recognizers.boosted import BoostedConfig
-
-            rc["boosted"] = BoostedConfig(**rc["boosted"])
+            # gradient boosting's temperature for the env's calibrate_grasps, as the KDE's, unless the JSON sets it
+            env = {"calibrate_grasps": int(config.calibrate_grasps)} if rc["likelihood"] == "hgb" else {}
+            rc["boosted"] = BoostedConfig(**{**env, **boosted})
         kde = rc.get("kde", {})
         if isinstance(kde, Mapping):
             rc["kde"] = KDEConfig(**{"method": config.kde_method, "calibrate_grasps": int(config.calibrate_grasps),

@@ -58,7 +58,8 @@ class RecognizerConfig:
 
     ``likelihood`` picks what the beliefs' likelihood slot (the model ``"kde"`` of :data:`MODELS`) holds: the KDE
     (``"kde"``, the paper's method and the default) or gradient boosting (``"hgb"``,
-    :class:`~haptic_env.recognizers.boosted.BoostedLikelihood` with ``boosted``; opt-in, for the analyses).
+    :class:`~haptic_env.recognizers.boosted.BoostedLikelihood` with ``boosted``; opt-in, for the analyses'
+    ``--likelihood hgb`` and the envs' ``HapticRecogConfig.likelihood``).
     """
 
     grasps: DatasetConfig = field(default_factory=DatasetConfig)
