@@ -7,6 +7,7 @@ import pytest
 
 from haptic_env.recognizers import KDEConfig, KDELikelihood
 from haptic_env.recognizers.calibration import (
+    calibration_rows,
     expected_calibration_error,
     fit_correction,
     fit_temperature,
@@ -268,3 +269,12 @@ def test_kde_power_correction_is_stored_and_chosen_by_auto_only_where_it_helps()
         KDEConfig(correct="auto", correct_candidates=("power", "power"))
     with pytest.raises(ValueError, match="correct must be"):
         KDEConfig(correct="isotonic")
+
+
+def test_calibration_rows_take_at_most_n_of_each_class_without_repeats():
+    y = np.array([0] * 5 + [1] * 2 + [3] * 4)  # class 2 has no rows
+    rows = calibration_rows(y, 4, 3, np.random.default_rng(0))
+    assert len(rows) == len(set(rows.tolist())) == 3 + 2 + 3
+    assert np.bincount(y[rows], minlength=4).tolist() == [3, 2, 0, 3]
+    assert (np.diff(y[rows]) >= 0).all()  # in class order
+    np.testing.assert_array_equal(rows, calibration_rows(y, 4, 3, np.random.default_rng(0)))

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
+from scipy.special import expit, softmax
 
 from haptic_env.cache import KEY_ONLY_WHEN_SET
 from haptic_env.numbers import whole_at_least
@@ -81,7 +82,7 @@ class BoostedLikelihood:
         #: the calibration temperature ``T`` (``calibrate_grasps >= 1``; 1: none): :meth:`calibrate_scores` divides
         #: by it (``ModelBank`` reads it and :attr:`calibrated`)
         self.temperature = 1.0
-        self._trees: tuple | bool | None = None  # the fitted trees as flat arrays (:func:`_flatten`) once fitted
+        self._trees: tuple | bool | None = None  # the fitted trees as flat arrays (:func:`_flatten`), set with clf
 
     @property
     def calibrated(self) -> bool:
@@ -122,13 +123,12 @@ class BoostedLikelihood:
         return self
 
     def _fit_temperature(self, Xv: np.ndarray, yv: np.ndarray, d: int) -> None:
-        from haptic_env.recognizers.calibration import fit_temperature, sequence_scores
+        from haptic_env.recognizers.calibration import calibration_rows, fit_temperature, sequence_scores
 
         if Xv.ndim != 2 or Xv.shape[1] != d or yv.shape != (len(Xv),):
             raise ValueError(f"X_val must be (m, {d}) and y_val (m,), got {Xv.shape} and {yv.shape}")
         rng = np.random.default_rng(self.config.seed)
-        keep = np.concatenate([rng.permutation(np.flatnonzero(yv == c))[: self.config.n_calibrate]
-                               for c in range(self.n_classes)])
+        keep = calibration_rows(yv, self.n_classes, self.config.n_calibrate, rng)
         S, Y = sequence_scores(self.log_likelihood(Xv[keep]), yv[keep], self.config.calibrate_grasps, rng)
         self.temperature = fit_temperature(S, Y)
 
@@ -141,15 +141,16 @@ class BoostedLikelihood:
             raise ValueError(f"Q must be (m, {self.clf.n_features_in_}), got {Q.shape}")
         if not np.isfinite(Q).all():  # the compiled walk has no missing-value branch (nor has the training data)
             raise ValueError("Q holds non-finite values")
-        if self._trees is None:
-            self._trees = _flatten(self.clf)
         if self._trees is False:  # a scikit-learn whose trees this module cannot read: its own (slower) path
             proba = self.clf.predict_proba(Q)
         else:
             baseline, arrays = self._trees
             raw = np.empty((len(Q), len(baseline)))
             _raw_scores(np.ascontiguousarray(Q), baseline, *arrays, raw)
-            proba = _proba(raw)
+            if raw.shape[1] == 1:  # two classes: one tree per iteration, scikit-learn's sigmoid
+                proba = np.column_stack([expit(-raw[:, 0]), expit(raw[:, 0])])
+            else:
+                proba = softmax(raw, axis=1)
         return np.log(np.maximum(proba, self.config.floor)) - self.log_prior
 
     def calibrate_scores(self, ll: np.ndarray) -> np.ndarray:
@@ -222,13 +223,3 @@ def _raw_scores(X, baseline, links, numbers, roots, out):
                     f = links[node, 0]
                 s += numbers[node, 1]
             out[i, t] = s
-
-
-def _proba(raw: np.ndarray) -> np.ndarray:
-    """Class probabilities from raw scores ``(m, T)``: the softmax (multiclass) or the sigmoid (``T = 1``, two
-    classes), as scikit-learn's log-loss."""
-    if raw.shape[1] == 1:
-        p1 = 1.0 / (1.0 + np.exp(-raw[:, 0]))
-        return np.column_stack([1.0 - p1, p1])
-    e = np.exp(raw - raw.max(axis=1, keepdims=True))
-    return e / e.sum(axis=1, keepdims=True)

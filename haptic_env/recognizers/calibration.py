@@ -29,9 +29,9 @@ from scipy.special import log_softmax
 
 from haptic_env.numbers import finite_number, positive_range, whole_at_least
 
-__all__ = ["fit_temperature", "sequence_scores", "tempered_nll", "expected_calibration_error", "reliability",
-           "T_BOUNDS", "ScoreCorrection", "fit_correction", "select_correction", "SELECT_GRASPS", "PowerCorrection",
-           "fit_power", "P_BOUNDS", "CORRECTIONS", "check_corrections", "select_calibration"]
+__all__ = ["fit_temperature", "sequence_scores", "calibration_rows", "tempered_nll", "expected_calibration_error",
+           "reliability", "T_BOUNDS", "ScoreCorrection", "fit_correction", "select_correction", "SELECT_GRASPS",
+           "PowerCorrection", "fit_power", "P_BOUNDS", "CORRECTIONS", "check_corrections", "select_calibration"]
 
 #: Range of temperatures searched by :func:`fit_temperature`.
 T_BOUNDS = (0.02, 200.0)
@@ -221,6 +221,13 @@ def fit_temperature(scores, y, bounds: tuple[float, float] = T_BOUNDS) -> float:
 
     res = minimize_scalar(nll, bounds=(np.log(lo), np.log(hi)), method="bounded", options={"xatol": 1e-3})
     return float(np.exp(res.x))
+
+
+def calibration_rows(y, n_classes: int, per_class: int, rng: np.random.Generator) -> np.ndarray:
+    """Indices of at most ``per_class`` validation rows of each class ``0 .. n_classes-1`` of ``y (B,)``, drawn at
+    random without replacement (one permutation per class, in class order), to fit a calibration on."""
+    y = np.asarray(y)
+    return np.concatenate([rng.permutation(np.flatnonzero(y == c))[:per_class] for c in range(n_classes)])
 
 
 def sequence_scores(scores, y, max_grasps: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:

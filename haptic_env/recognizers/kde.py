@@ -72,8 +72,9 @@ from scipy.special import logsumexp
 from scipy.spatial import cKDTree
 
 from haptic_env.numbers import finite_number, flag, whole_at_least, whole_number
-from haptic_env.recognizers.calibration import (CORRECTIONS, PowerCorrection, ScoreCorrection, check_corrections,
-                                                fit_temperature, select_calibration, sequence_scores)
+from haptic_env.recognizers.calibration import (CORRECTIONS, PowerCorrection, ScoreCorrection, calibration_rows,
+                                                check_corrections, fit_temperature, select_calibration,
+                                                sequence_scores)
 from haptic_env.recognizers.knn import KDTree, pooled_log_density
 from haptic_env.recognizers.preprocess import Standardizer
 from haptic_env.recognizers.preprocess import check_xy as _check_xy
@@ -247,8 +248,7 @@ class KDELikelihood:
         self.temperature, self.correction = 1.0, None
         if cfg.calibrate and given_val:
             Xv, yv = _check_xy(X_val, y_val, X.shape[1], "X_val")
-            keep = np.concatenate([rng.permutation(np.flatnonzero(yv == c))[: cfg.n_calibrate]
-                                   for c in range(self.n_classes)])
+            keep = calibration_rows(yv, self.n_classes, cfg.n_calibrate, rng)
             if len(keep):
                 S, Y = self.log_likelihood(Xv[keep]), yv[keep]
                 use = cfg.correct
@@ -361,8 +361,7 @@ class KDELikelihood:
         the calibration that ``config.correct`` would keep gives the factor's NLL."""
         cfg = self.config
         rng = np.random.default_rng([cfg.seed, 2])
-        keep = np.concatenate([rng.permutation(np.flatnonzero(y_val == c))[: cfg.n_calibrate]
-                               for c in range(self.n_classes)])
+        keep = calibration_rows(y_val, self.n_classes, cfg.n_calibrate, rng)
         counts = np.bincount(y_val[keep], minlength=self.n_classes)
         if counts.min() < 2:
             raise ValueError(f"KDEConfig.select='posterior' needs >= 2 validation vectors of every class, got "
