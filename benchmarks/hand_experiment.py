@@ -26,12 +26,15 @@ beliefs of 1 to ``--calibrate-grasps`` grasps of one object, by default the hand
 ``--heights`` appends the contacts' heights above the table to every grasp vector, in training and in the
 queries (``DatasetConfig.heights``, the envs' ``grasp_heights``; the objects rest upright as in the pools); the
 defaults then come from the hand's ``Heights`` env (:data:`HEIGHTS_ENV_IDS`), which sets ``grasp_heights``.
+``--likelihood hgb`` puts gradient boosting in the KDE's place as every BC row's likelihood (opt-in, the envs'
+``HapticRecogConfig.likelihood``; its sequence temperature fitted for the same ``K`` grasps); the IC and BC-IP rows'
+classifier is the MLP either way.
 ``--queries`` queries per object and seed; the spread is the std over ``--seeds``.
 
     python benchmarks/hand_experiment.py [--hands allegro shadow aero] [--queries 10] [--seeds 0 1 2]
         [--max-grasps 30] [--approaches 3000] [--regimes surface hand] [--raw] [--out results/hands]
         [--hand-budget uniform|balanced] [--kde-bandwidth shared|per-class]   # options measured, not the envs'
-        [--touch-weight W] [--heights] [--ic-certainty count|share] [--normal-axis t2|ab|frame]
+        [--touch-weight W] [--heights] [--ic-certainty count|share] [--normal-axis t2|ab|frame] [--likelihood kde|hgb]
 
 Prints (and with ``--out`` writes ``hand_table.md``) the table with the paper's figure beside each
 cell; the headline is printed last.
@@ -58,6 +61,7 @@ from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
 from haptic_env.hand_grasps import BUDGETS, hand_grasp_pool  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 from haptic_env.recognizers import KDEConfig, RecognizerConfig, build_recognizer  # noqa: E402
+from haptic_env.recognizers.boosted import LIKELIHOODS, BoostedConfig  # noqa: E402
 from haptic_env.recognizers.kde import BANDWIDTHS  # noqa: E402
 from haptic_env.recognizers.updaters import (DEFAULT_IC_CERTAINTY, DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD,  # noqa: E402
                                              IC_CERTAINTIES)
@@ -139,6 +143,9 @@ def training_config(regime: str, hand: str, args, calibrate_grasps: int = 1,
     else:
         g = DatasetConfig(source="surface", grasps_per_object=args.surface_grasps, contact_noise=args.surface_noise,
                           normal_noise_deg=args.surface_normal_noise, seed=0, heights=heights, normal_axis=axis)
+    likelihood = getattr(args, "likelihood", "kde")
+    if likelihood == "hgb":  # as the envs' recognizer_kwargs: the sequence temperature for the same K grasps
+        return RecognizerConfig(grasps=g, likelihood="hgb", boosted=BoostedConfig(calibrate_grasps=calibrate_grasps))
     return RecognizerConfig(grasps=g, kde=KDEConfig(calibrate_grasps=calibrate_grasps, bandwidth=bandwidth))
 
 
@@ -212,8 +219,13 @@ def main(argv=None) -> int:
     ap.add_argument("--normal-axis", choices=NORMAL_AXES, default="t2",
                     help="each normal's angles in the grasp vectors (DatasetConfig.normal_axis, the envs' normal_axis): "
                          "t2 (the paper's), ab, or frame (three per normal)")
+    ap.add_argument("--likelihood", choices=LIKELIHOODS, default="kde",
+                    help="BC's likelihood: kde (the paper's, default) or hgb (gradient boosting, opt-in; "
+                         "HapticRecogConfig.likelihood)")
     ap.add_argument("--out", type=output_path("folder"), default=None, help="write hand_table.md here")
     args = ap.parse_args(argv)
+    if args.likelihood == "hgb" and args.kde_bandwidth != "shared":
+        ap.error(f"--kde-bandwidth {args.kde_bandwidth} sets the KDE, which --likelihood hgb replaces")
     if args.touch_weight is not None and not (np.isfinite(args.touch_weight) and args.touch_weight >= 0):
         ap.error(f"--touch-weight must be a finite number >= 0, got {args.touch_weight}")
     for spec in args.hands:  # every name checked before the first hand's pools are built
@@ -254,14 +266,15 @@ def main(argv=None) -> int:
     lines = [
         f"YCB-10, {args.queries} queries per object x {len(args.seeds)} {args.split} seeds ({args.seeds}), <= {args.max_grasps} "
         f"random-approach grasps per query, lambda = {args.threshold}, "
-        f"{calib}{'; grasp vectors with the contacts heights above the table (--heights)' if args.heights else ''}"
+        f"{calib}{'; BC likelihood: gradient boosting (--likelihood hgb)' if args.likelihood == 'hgb' else ''}"
+        f"{'; grasp vectors with the contacts heights above the table (--heights)' if args.heights else ''}"
         f"{'' if args.normal_axis == 't2' else f'; Phi_n with normal_axis={args.normal_axis!r}: ' + NORMAL_AXIS_WORDS[args.normal_axis]}. "
         "Success = decided and correct at the stop; accuracy = final prediction correct (decided or not). "
         "Mean +- sample std (ddof = 1) over the test seeds. Paper: Pisa/IIT SoftHand for the 5-finger rows, real Allegro "
         "for the 4-finger rows.",
         "",
         "| hand | fingers | normals | training | method | success % | accuracy % | grasps | paper (success % / grasps) | "
-        "usable grasps | T (KDE / MLP) | K | training grasps / object | touch w |",
+        f"usable grasps | T ({args.likelihood.upper()} / MLP) | K | training grasps / object | touch w |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for hand, n, normals, regime, label, r, usable, temps, K, data, w in rows:
