@@ -4,7 +4,9 @@
 numba call; the baseline is the same model scored through scikit-learn (the fallback path,
 ``HistGradientBoostingClassifier.predict_proba``), in the same process on the same vectors. Both are timed on one
 vector per call (an env step scores one grasp) and on a batch (the analyses' trials), interleaved, best of
-``--repeats``; the two paths must agree to rounding first.
+``--repeats``; the two paths must agree to rounding first. In an env the physics between two grasps pushes the trees
+out of the CPU caches, so the one-vector calls are also timed cold: ``--evict-mb`` MB of other memory written before
+each call (outside the timing; 0 skips it).
 
     OMP_NUM_THREADS=1 python benchmarks/bench_boosted.py --objects default --fingers 4 --grasps-per-object 10000
 
@@ -50,10 +52,13 @@ def main(argv=None) -> int:
     p.add_argument("--singles", type=int, default=200, help="one-vector calls per timing")
     p.add_argument("--batch", type=int, default=2_000, help="vectors in the batch timing")
     p.add_argument("--repeats", type=int, default=5)
+    p.add_argument("--evict-mb", type=int, default=64, help="MB written between the cold one-vector calls (0: none)")
     a = p.parse_args(argv)
     for name in ("fingers", "grasps_per_object", "max_iter", "singles", "batch", "repeats"):
         if getattr(a, name) < (2 if name == "fingers" else 100 if name == "grasps_per_object" else 1):
             p.error(f"--{name.replace('_', '-')} is too small: {getattr(a, name)}")
+    if a.evict_mb < 0:
+        p.error(f"--evict-mb must be >= 0, got {a.evict_mb}")
     normals = not a.no_normals
     cfg = AnalysisConfig(objects=a.objects, units=a.units, grasps_per_object=a.grasps_per_object, normals=normals,
                          progress=False)
@@ -81,6 +86,17 @@ def main(argv=None) -> int:
         batch = _best(lambda m=model: m.log_likelihood(Q), a.repeats) / len(Q)
         times[name] = one
         print(f"{name:20s} one vector per call {one * 1e6:9.1f} us   batch of {len(Q)}: {batch * 1e6:8.2f} us per vector")
+    if a.evict_mb:
+        other = np.ones(a.evict_mb * 2**20 // 8)
+        for name, model in [("scikit-learn", library), ("compiled", lik)]:
+            spent = 0.0
+            for q in singles:
+                np.add(other, 1.0, out=other)  # as a grasp's physics would, between two scores
+                t = time.perf_counter()
+                model.log_likelihood(q[None])
+                spent += time.perf_counter() - t
+            print(f"{name:20s} one vector per call, cold cache ({a.evict_mb} MB written before each): "
+                  f"{spent / len(singles) * 1e6:9.1f} us")
     base = min(times["scikit-learn"], times["scikit-learn again"])
     print(f"HEADLINE: the compiled walk scores one vector in {times['compiled'] / base:.4f}x scikit-learn's time "
           f"({times['compiled'] * 1e6:.0f} us against {base * 1e6:.0f} us)")

@@ -15,7 +15,10 @@ sequence temperature on the validation vectors as the KDE does (``KDEConfig.cali
 
 Scoring walks the fitted trees in one compiled call (:func:`_raw_scores`, numba) instead of scikit-learn's
 ``predict_proba``, whose per-call overhead (about 50 ms for one vector of a 2,000-tree model) would dwarf an env step;
-the two agree to rounding (tested).
+the two agree to rounding (tested). In an env the trees (a few MB) have left the CPU caches by the next grasp, so
+each node read waits on memory: the walk packs each node in 16 bytes with its two children side by side
+(:func:`_flatten`) and walks an iteration's per-class trees together, so that their reads overlap
+(``benchmarks/bench_boosted.py``, "cold cache").
 """
 
 from __future__ import annotations
@@ -82,7 +85,7 @@ class BoostedLikelihood:
         #: the calibration temperature ``T`` (``calibrate_grasps >= 1``; 1: none): :meth:`calibrate_scores` divides
         #: by it (``ModelBank`` reads it and :attr:`calibrated`)
         self.temperature = 1.0
-        self._trees: tuple | bool | None = None  # the fitted trees as flat arrays (:func:`_flatten`), set with clf
+        self._trees: tuple | bool | None = None  # the fitted trees as packed arrays (:func:`_flatten`), set with clf
 
     @property
     def calibrated(self) -> bool:
@@ -144,9 +147,9 @@ class BoostedLikelihood:
         if self._trees is False:  # a scikit-learn whose trees this module cannot read: its own (slower) path
             proba = self.clf.predict_proba(Q)
         else:
-            baseline, arrays = self._trees
+            baseline, (nodes, roots) = self._trees
             raw = np.empty((len(Q), len(baseline)))
-            _raw_scores(np.ascontiguousarray(Q), baseline, *arrays, raw)
+            _raw_scores(np.ascontiguousarray(Q), baseline, nodes, roots, raw)
             if raw.shape[1] == 1:  # two classes: one tree per iteration, scikit-learn's sigmoid
                 proba = np.column_stack([expit(-raw[:, 0]), expit(raw[:, 0])])
             else:
@@ -182,11 +185,12 @@ class BoostedLikelihood:
 
 
 def _flatten(clf):
-    """The fitted trees of a ``HistGradientBoostingClassifier`` as flat arrays for :func:`_raw_scores`:
-    ``(baseline (T,), (links (nodes, 3), numbers (nodes, 2), roots (iterations, T)))``, a node's ``links`` row
-    ``(feature or -1 at a leaf, left, right)`` with global child indices and its ``numbers`` row ``(threshold,
-    value)`` (rows, not separate arrays: a node's fields share cache lines, 20 % faster measured); False where they
-    cannot be read (categorical splits, or a scikit-learn whose private tree layout differs)."""
+    """The fitted trees of a ``HistGradientBoostingClassifier`` packed for :func:`_raw_scores`:
+    ``(baseline (T,), (nodes (N, 2), roots (iterations, T)))``. Each tree's nodes are renumbered breadth-first, so
+    that a split's two children are neighbours (the right one follows the left one); a node's row is ``(threshold,
+    feature * 2**32 + left child)`` at a split and ``(value, -1)`` at a leaf, 16 bytes, all float64 (exact: features <
+    2**20 and nodes < 2**32 are checked). False where they cannot be read (categorical splits, or a scikit-learn whose
+    private tree layout differs)."""
     try:
         predictors, baseline = clf._predictors, np.asarray(clf._baseline_prediction, dtype=np.float64).ravel()
         nodes = [p.nodes for it in predictors for p in it]
@@ -197,29 +201,70 @@ def _flatten(clf):
         # field by field: concatenating the structured records themselves is 10x slower (NumPy promotes each dtype)
         flat = {f: np.concatenate([n[f] for n in nodes])
                 for f in ("is_leaf", "feature_idx", "left", "right", "num_threshold", "value")}
+        if sizes.sum() >= 2**32 or clf.n_features_in_ >= 2**20:
+            return False
         shift = np.repeat(offsets, sizes)
         links = np.column_stack([np.where(flat["is_leaf"].astype(bool), -1, flat["feature_idx"]),
                                  flat["left"].astype(np.int64) + shift, flat["right"].astype(np.int64) + shift])
-        arrays = (np.ascontiguousarray(links, dtype=np.int64),
-                  np.ascontiguousarray(np.column_stack([flat["num_threshold"], flat["value"]]), dtype=np.float64),
-                  offsets.reshape(len(predictors), len(baseline)).astype(np.int64))
+        numbers = np.column_stack([flat["num_threshold"], flat["value"]]).astype(np.float64)
+        roots = offsets.reshape(len(predictors), len(baseline)).astype(np.int64)
     except (AttributeError, KeyError, TypeError, ValueError):
         return False
-    return baseline, arrays
+    packed, new_roots = np.empty((len(links), 2)), np.empty_like(roots)
+    _pack(np.ascontiguousarray(links, dtype=np.int64), np.ascontiguousarray(numbers), roots, packed, new_roots)
+    return baseline, (packed, new_roots)
 
 
 @njit(cache=True)
-def _raw_scores(X, baseline, links, numbers, roots, out):
-    """``out[i, t]`` = the baseline plus every iteration's tree ``t`` at ``X[i]`` (scikit-learn's raw prediction,
-    summed in its order: ``x <= threshold`` goes left)."""
-    for i in range(X.shape[0]):
+def _pack(links, numbers, roots, packed, new_roots):
+    """Renumber every tree breadth-first into ``packed`` (the rows :func:`_flatten` documents). ``links (N, 3)``:
+    (feature or -1 at a leaf, left, right) with global node indices; ``numbers (N, 2)``: (threshold, value)."""
+    queue = np.empty(len(links), np.int64)  # one tree's old nodes in breadth-first order: its new index - start
+    start = 0
+    for it in range(roots.shape[0]):
         for t in range(roots.shape[1]):
-            s = baseline[t]
-            for it in range(roots.shape[0]):
-                node = roots[it, t]
-                f = links[node, 0]
-                while f >= 0:
-                    node = links[node, 1] if X[i, f] <= numbers[node, 0] else links[node, 2]
-                    f = links[node, 0]
-                s += numbers[node, 1]
-            out[i, t] = s
+            new_roots[it, t] = start
+            queue[0] = roots[it, t]
+            head, tail = 0, 1
+            while head < tail:
+                old = queue[head]
+                row = start + head
+                head += 1
+                f = links[old, 0]
+                if f < 0:
+                    packed[row, 0] = numbers[old, 1]
+                    packed[row, 1] = -1.0
+                else:
+                    queue[tail] = links[old, 1]
+                    queue[tail + 1] = links[old, 2]
+                    packed[row, 0] = numbers[old, 0]
+                    packed[row, 1] = f * 4294967296.0 + (start + tail)
+                    tail += 2
+            start += tail
+
+
+@njit(cache=True)
+def _raw_scores(X, baseline, nodes, roots, out):
+    """``out[i, t]`` = the baseline plus every iteration's tree ``t`` at ``X[i]`` (scikit-learn's raw prediction,
+    summed in its order: ``x <= threshold`` goes left). The ``T`` trees of one iteration are walked a level at a time
+    together: their memory reads do not wait on each other."""
+    T = roots.shape[1]
+    at = np.empty(T, np.int64)
+    for i in range(X.shape[0]):
+        for t in range(T):
+            out[i, t] = baseline[t]
+        for it in range(roots.shape[0]):
+            for t in range(T):
+                at[t] = roots[it, t]
+            moving = True
+            while moving:
+                moving = False
+                for t in range(T):
+                    node = at[t]
+                    code = nodes[node, 1]
+                    if code >= 0.0:
+                        c = np.int64(code)
+                        at[t] = (c & 0xFFFFFFFF) + (0 if X[i, c >> 32] <= nodes[node, 0] else 1)
+                        moving = True
+            for t in range(T):
+                out[i, t] += nodes[at[t], 0]
