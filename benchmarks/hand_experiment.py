@@ -261,7 +261,8 @@ def main(argv=None) -> int:
                     rows.append((hand, n, normals, regime, label, r, usable, temps, K, data,
                                  w if METHODS[label][0] == "bc-np" else 0.0))
     cols = {(4, True): "4+", (4, False): "4-", (5, False): "5-"}
-    calib = "raw scores" if args.raw else ("calibrated scores (temperatures fitted on validation grasps; the KDE's "
+    lik = "gradient boosting's" if args.likelihood == "hgb" else "the KDE's"
+    calib = "raw scores" if args.raw else (f"calibrated scores (temperatures fitted on validation grasps; {lik} "
                                            "for beliefs of 1-K grasps of one object, K in the last column)")
     lines = [
         f"YCB-10, {args.queries} queries per object x {len(args.seeds)} {args.split} seeds ({args.seeds}), <= {args.max_grasps} "
