@@ -35,7 +35,8 @@ belief also weighs the hand's *touch pattern* (``touch_weight > 0``, :mod:`hapti
 every grasp adds ``w log P(pattern | object)`` to the contacts' log-likelihoods in the same Bayes step.
 
 Complete grasps of a Bayesian updater over a pooled KDE take a compiled path (:class:`GraspScorer`: Phi and the
-KDE search in one call; ``compiled=False`` forces the general path, which gives the same result).
+KDE search in one call; with gradient boosting, Phi compiled and then its walk; ``compiled=False`` forces the
+general path, which gives the same result).
 
 The maths of the posterior step live in :mod:`haptic_env.recognizers.updaters` (IC, BC-NP, BC-IP), whose
 :func:`~haptic_env.recognizers.updaters.bayes_steps` updates ``B`` log beliefs ``(B, K)`` in one call:

@@ -7,13 +7,13 @@ Gymnasium's vector entry point of the geometric variants (``HapticRecog-v0``, ``
 
 The ``B`` episodes live as arrays (object index, pose, scale, log belief, the observation's memory of the latest
 grasp). One :meth:`step` is one batched backend call for all ``B`` approaches
-(:meth:`~haptic_env.grasping.geometric.GeometricBackend.grasp_placed`: one Embree call per distinct object),
-one compiled Phi + pooled-KDE call for the complete grasps
-(:meth:`~haptic_env.recognizers.scorer.GraspScorer.batch`), one batched Phi call per touched-finger count for
-the incomplete grasps' observed vectors, and one batched Bayes step
+(:meth:`~haptic_env.grasping.geometric.GeometricBackend.grasp_placed`: one Embree call per distinct object), one
+compiled Phi + pooled-KDE call for the complete grasps (with ``likelihood="hgb"``: Phi compiled, then one walk of
+the trees for the batch; :meth:`~haptic_env.recognizers.scorer.GraspScorer.batch`), one batched Phi call per
+touched-finger count for the incomplete grasps' observed vectors, and one batched Bayes step
 (:func:`~haptic_env.recognizers.updaters.bayes_steps`) for the beliefs. That fast path covers BC-NP on complete
-grasps with the pooled KDE (the registered geometric variants); any other updater / z-finger setting keeps one
-:class:`~haptic_env.belief.Belief` per sub-env, still with one batched backend call.
+grasps with the pooled KDE (the registered geometric variants) or gradient boosting; any other updater / z-finger
+setting keeps one :class:`~haptic_env.belief.Belief` per sub-env, still with one batched backend call.
 
 **Equivalence and seeding.** Sub-env ``i`` is a :class:`HapticRecogEnv` of the same config: ``reset(seed=s)``
 seeds it as ``HapticRecogEnv.reset(seed=s + i)`` (Gymnasium's ``SyncVectorEnv`` convention; a list of ``B``
@@ -154,15 +154,16 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
 
     @property
     def fast_path(self) -> bool:
-        """Whether beliefs are updated as arrays (BC-NP, complete grasps, pooled KDE) rather than one
-        :class:`Belief` per sub-env (None before the first reset)."""
+        """Whether beliefs are updated as arrays (BC-NP, complete grasps, pooled KDE or gradient boosting) rather
+        than one :class:`Belief` per sub-env (None before the first reset)."""
         return self._scorer is not None
 
     def _build_beliefs(self) -> None:
         c = self.config
         rec = self.recognizer
         check_grasp_vectors(rec, c)
-        # None for a KDE not evaluated "pooled" or scale-normalised grasps: then the general path
+        # None for a KDE not evaluated "pooled" or scale-normalised grasps: then the general path (gradient boosting
+        # has a scorer too)
         scorer = rec.grasp_scorer(c.calibrated) if (c.updater == "bc-np" and c.z_fingers is None
                                                      and not c.score_subsets) else None
         self._scorer = scorer

@@ -687,7 +687,9 @@ def test_heights_hand_envs_are_the_plain_ones_with_grasp_heights():
 
 def test_gradient_boosting_as_the_envs_likelihood(env_config):
     """``likelihood="hgb"``: the belief multiplies gradient boosting's tempered scores, in the single env and the
-    native vector env (its general path) alike, and an episode is reproducible by seed."""
+    native vector env (its array fast path: Phi compiled, the trees walked for the batch) alike, and an episode is
+    reproducible by seed."""
+    from gymnasium.vector import SyncVectorEnv
     from scipy.special import log_softmax
 
     from haptic_env.recognizers.boosted import BoostedLikelihood
@@ -724,6 +726,13 @@ def test_gradient_boosting_as_the_envs_likelihood(env_config):
     for (oa, _, ia), (ob, _, ib) in zip(ra, rb):
         np.testing.assert_array_equal(oa, ob)
     venv = gym.make_vec("HapticRecog-v0", num_envs=2, vectorization_mode="vector_entry_point", config=cfg)
+    ref = SyncVectorEnv([lambda: HapticRecogEnv(cfg) for _ in range(2)])
     vo, _ = venv.reset(seed=5)
+    np.testing.assert_array_equal(vo, ref.reset(seed=5)[0])
     np.testing.assert_array_equal(vo[0], ra[0][0])
+    assert venv.unwrapped.fast_path
+    for a in np.random.default_rng(1).uniform(-1, 1, (25, 2, 4)).astype(np.float32):
+        for x, y in zip(venv.step(a)[:4], ref.step(a)[:4]):  # obs, rewards, terminations, truncations
+            np.testing.assert_array_equal(x, y)
     venv.close()
+    ref.close()

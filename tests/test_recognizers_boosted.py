@@ -136,7 +136,10 @@ def test_a_recogniser_holds_it_in_the_kde_slot_and_caches_it(tmp_path, monkeypat
     assert isinstance(lik, BoostedLikelihood)
     Q = blobs(5, 7, k=K, d=3)[0]
     np.testing.assert_array_equal(rec.models.log_likelihood(Q), lik.log_likelihood(Q))  # no temperature
-    assert rec.grasp_scorer() is None  # the compiled scorer is the KDE's: the env scores through features
+    scorer = rec.grasp_scorer()  # Phi compiled, then the model's walk: the same scores as features -> model
+    P = np.random.default_rng(3).normal(size=(3, 3))
+    q, ll = scorer(P)
+    np.testing.assert_array_equal(ll, lik.log_likelihood(q))
     files = sorted(p.name for p in cache_dir("recognizers").glob("*_hgb.pkl"))
     assert files and calls == [3]
     again = build_recognizer(objects, 3, False, config=cfg, models=("kde",), progress=False, dataset_fn=dataset_fn)

@@ -96,6 +96,11 @@ class BoostedLikelihood:
     def n_classes(self) -> int:
         return 0 if self.log_prior is None else len(self.log_prior)
 
+    @property
+    def n_features(self) -> int:
+        """The grasp-vector length it was fitted on (0 before :meth:`fit`)."""
+        return 0 if self.clf is None else int(self.clf.n_features_in_)
+
     def fit(self, X: np.ndarray, y: np.ndarray, X_val=None, y_val=None, n_classes: int | None = None):
         """Train on ``X (m, d)``, ``y (m,)`` in ``0..n_classes-1`` (every class present). Early stopping draws its
         own 10 % of ``X``; ``X_val``/``y_val`` fit the temperature (``calibrate_grasps >= 1``; without them it

@@ -199,9 +199,9 @@ class Recognizer:
 
     def grasp_scorer(self, calibrated: bool = True):
         """:class:`~haptic_env.recognizers.scorer.GraspScorer` of complete ``n_fingers`` grasps (Phi and the KDE
-        log-likelihoods in one compiled call; divided by the KDE's temperature when ``calibrated``), or None if
-        the KDE is not evaluated ``"pooled"`` or grasps are scale-normalised (then use :meth:`features` and
-        ``updater.update``)."""
+        log-likelihoods in one compiled call, or Phi compiled and then gradient boosting's walk with
+        ``likelihood="hgb"``; divided by the likelihood's temperature when ``calibrated``), or None if the KDE is not
+        evaluated ``"pooled"`` or grasps are scale-normalised (then use :meth:`features` and ``updater.update``)."""
         if self.config.grasps.normalize_scale or self.n_fingers < 3:  # the compiled Phi kernels need a polyhedron
             return None
         scorers = self.__dict__.setdefault("_scorers", {})
@@ -209,7 +209,7 @@ class Recognizer:
             from haptic_env.recognizers.scorer import GraspScorer
 
             kde = self.models.model(self.n_fingers)[1]
-            ok = kde is not None and getattr(kde, "pooled", None) is not None
+            ok = kde is not None and (getattr(kde, "pooled", None) is not None or isinstance(kde, BoostedLikelihood))
             post = kde.calibrate_scores if ok and calibrated and kde.calibrated else None
             scorers[calibrated] = (GraspScorer(self.n_fingers, self.normals, kde, post=post, heights=self.heights,
                                                normal_axis=self.normal_axis) if ok else None)

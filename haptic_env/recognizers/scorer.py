@@ -6,6 +6,8 @@ arrays around two compiled kernels; :class:`GraspScorer` runs :math:`\Phi_n`, th
 the pooled KDE search in one numba call instead (same kernels, same results: tested equal to the
 general path). It applies to a recogniser whose KDE uses ``method="pooled"`` and that does not
 scale-normalise grasps; :meth:`haptic_env.recognizers.Recognizer.grasp_scorer` returns None otherwise.
+With gradient boosting in the KDE's place (``RecognizerConfig.likelihood="hgb"``) it runs :math:`\Phi_n` compiled and
+hands the vector to :meth:`~haptic_env.recognizers.boosted.BoostedLikelihood.log_likelihood` (its own compiled walk).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from numba import njit
 
 from haptic_env import _phi_kernels as phik
 from haptic_env.grasp_features import DEFAULT_TOL, _topology, feature_dim, normals_code, phi
+from haptic_env.recognizers.boosted import BoostedLikelihood
 from haptic_env.recognizers.knn import log_density_row, workspace
 
 __all__ = ["GraspScorer"]
@@ -25,30 +28,36 @@ class GraspScorer:
 
     ``log_lik`` is None for a degenerate grasp (then ``q`` is all zeros, as :func:`phi` reports it).
     ``post``, if given, maps the log-likelihoods ``(B, K) -> (B, K)`` (the KDE's calibration,
-    :meth:`~.kde.KDELikelihood.calibrate_scores`).
+    :meth:`~.kde.KDELikelihood.calibrate_scores`). ``kde``: a KDE evaluated ``"pooled"`` (searched in the same
+    compiled call as Phi) or a :class:`~haptic_env.recognizers.boosted.BoostedLikelihood` (Phi compiled, then its
+    walk).
     """
 
     def __init__(self, n_fingers: int, normals: bool, kde, post=None, heights: bool = False, normal_axis: str = "t2"):
         if post is not None and not callable(post):
             raise TypeError(f"post must be a callable (B, K) -> (B, K) or None, got {type(post).__name__}")
         self.post = post
-        if kde.pooled is None:
-            raise ValueError("GraspScorer needs a KDE evaluated with method='pooled'")
+        pooled = getattr(kde, "pooled", None) is not None
+        if not pooled and not isinstance(kde, BoostedLikelihood):
+            raise ValueError("GraspScorer needs a KDE evaluated with method='pooled' or a BoostedLikelihood, got "
+                             f"{type(kde).__name__}" + (" without a pooled index" if hasattr(kde, "pooled") else ""))
         d = feature_dim(n_fingers, normals, heights=heights, normal_axis=normal_axis)
         if kde.n_features != d:
-            raise ValueError(f"the KDE has {kde.n_features} features, {n_fingers} fingers (normals={normals}, "
+            raise ValueError(f"the likelihood has {kde.n_features} features, {n_fingers} fingers (normals={normals}, "
                              f"heights={heights}) give {d}")
         self.n_fingers, self.normals, self.kde, self.heights = int(n_fingers), bool(normals), kde, bool(heights)
         self.normal_axis = normal_axis
         self._normals_code = normals_code(self.normals, normal_axis)  # the kernels' has_normals (0-3)
         tri, tri_edges, _, n_edges = _topology(self.n_fingers)
-        cfg = kde.config
         self._phi_args = (tri, tri_edges, n_edges, DEFAULT_TOL, feature_dim(n_fingers, normals, normal_axis=normal_axis),
                           self.heights)
-        self._kde_args = (kde.scaler.mean, kde.scaler.std, *kde.pooled.arrays(), kde.pooled_labels,
-                          min(cfg.k, kde.pooled.n), float(cfg.eps), kde._norms(), 0.5 / kde.bandwidth**2,
-                          cfg.cutoff * kde.bandwidth)
-        self._work = workspace(kde.pooled.nodes, d, min(cfg.k, kde.pooled.n), kde.n_classes)
+        self._kde_args = None  # gradient boosting: Phi compiled here, the scores by the model's own walk
+        if pooled:
+            cfg = kde.config
+            self._kde_args = (kde.scaler.mean, kde.scaler.std, *kde.pooled.arrays(), kde.pooled_labels,
+                              min(cfg.k, kde.pooled.n), float(cfg.eps), kde._norms(), 0.5 / kde.bandwidth**2,
+                              cfg.cutoff * kde.bandwidth)
+            self._work = workspace(kde.pooled.nodes, d, min(cfg.k, kde.pooled.n), kde.n_classes)
         self._d, self._K = d, kde.n_classes
 
     def __call__(self, contacts, normals=None) -> tuple[np.ndarray, np.ndarray | None]:
@@ -58,11 +67,17 @@ class GraspScorer:
             raise ValueError(f"GraspScorer takes contacts (and normals={self.normals}) of shape ({self.n_fingers}, 3), "
                              f"got {P.shape}" + ("" if N is None else f" and {N.shape}"))
         q = np.zeros(self._d)
-        out = np.empty((1, self._K))
-        status = _score(P, P if N is None else N, self._normals_code, *self._phi_args, *self._kde_args, self._work, q,
-                        np.empty(self.n_fingers, np.int64), out[0])
-        if status == 0:
-            return q, self._finish(out)
+        order = np.empty(self.n_fingers, np.int64)
+        if self._kde_args is None:
+            status = _phi_row(P, P if N is None else N, self._normals_code, *self._phi_args, q, order)
+            if status == 0:
+                return q, self._finish(self.kde.log_likelihood(q))
+        else:
+            out = np.empty((1, self._K))
+            status = _score(P, P if N is None else N, self._normals_code, *self._phi_args, *self._kde_args, self._work,
+                            q, order, out[0])
+            if status == 0:
+                return q, self._finish(out)
         if status > 0:  # degenerate: no information
             return np.zeros(self._d), None
         # a planar hull face (Qhull's canonical triangulation) or bad input (raises): the general path
@@ -86,10 +101,16 @@ class GraspScorer:
         q = np.zeros((B, self._d))
         out = np.empty((B, self._K))
         status = np.empty(B, np.int64)
-        _score_batch(P, P if N is None else N, self._normals_code, *self._phi_args, *self._kde_args, self._work, q, out,
-                     status)
-        scored = status == 0
-        out[scored] = self._finish(out[scored])
+        if self._kde_args is None:
+            _phi_batch(P, P if N is None else N, self._normals_code, *self._phi_args, q, status)
+            scored = status == 0
+            if scored.any():
+                out[scored] = self._finish(self.kde.log_likelihood(q[scored]))
+        else:
+            _score_batch(P, P if N is None else N, self._normals_code, *self._phi_args, *self._kde_args, self._work, q,
+                         out, status)
+            scored = status == 0
+            out[scored] = self._finish(out[scored])
         for b in np.flatnonzero(status < 0):  # a planar hull face or bad input: the general path, as __call__
             f = phi(P[b], None if N is None else N[b], heights=self.heights, normal_axis=self.normal_axis)
             q[b] = f.q
@@ -111,17 +132,33 @@ def _score_batch(P, N, has_normals, tri, tri_edges, n_edges, tol, d_phi, has_hei
 
 
 @njit(cache=True)
+def _phi_row(P, N, has_normals, tri, tri_edges, n_edges, tol, d_phi, has_heights, q, order):
+    """Phi of one grasp into ``q[:d_phi]`` (and with ``has_heights`` the contacts' heights in chain order into the
+    rest), as :func:`_score` computes it; returns the Phi status."""
+    status = phik.phi_checked(P, N, has_normals, tri, tri_edges, n_edges, tol, q[:d_phi], order,
+                              np.empty((P.shape[0], 3)))
+    if status == 0 and has_heights:
+        for i in range(P.shape[0]):
+            q[d_phi + i] = P[order[i], 2]
+    return status
+
+
+@njit(cache=True)
+def _phi_batch(P, N, has_normals, tri, tri_edges, n_edges, tol, d_phi, has_heights, q, status):
+    """:func:`_phi_row` of ``B`` grasps."""
+    order = np.empty(P.shape[1], np.int64)
+    for b in range(P.shape[0]):
+        status[b] = _phi_row(P[b], N[b], has_normals, tri, tri_edges, n_edges, tol, d_phi, has_heights, q[b], order)
+
+
+@njit(cache=True)
 def _score(P, N, has_normals, tri, tri_edges, n_edges, tol, d_phi, has_heights, mean, std, data, nodes, split, labels,
            k, eps, log_norms, inv, radius, work, q, order, out):
     """Phi of one grasp into ``q[:d_phi]`` (and with ``has_heights`` the contacts' heights in chain order into the
     rest), then its pooled-KDE log densities into ``out``; returns the Phi status."""
-    status = phik.phi_checked(P, N, has_normals, tri, tri_edges, n_edges, tol, q[:d_phi], order,
-                              np.empty((P.shape[0], 3)))
+    status = _phi_row(P, N, has_normals, tri, tri_edges, n_edges, tol, d_phi, has_heights, q, order)
     if status != 0:
         return status
-    if has_heights:
-        for i in range(P.shape[0]):
-            q[d_phi + i] = P[order[i], 2]
     z = (q - mean) / std
     log_density_row(data, nodes, split, labels, z, k, eps, log_norms, inv, radius, work, out)
     return 0
