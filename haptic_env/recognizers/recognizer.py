@@ -209,7 +209,7 @@ class Recognizer:
             from haptic_env.recognizers.scorer import GraspScorer
 
             kde = self.models.model(self.n_fingers)[1]
-            ok = kde is not None and (getattr(kde, "pooled", None) is not None or isinstance(kde, BoostedLikelihood))
+            ok = kde is not None and GraspScorer.handles(kde)
             post = kde.calibrate_scores if ok and calibrated and kde.calibrated else None
             scorers[calibrated] = (GraspScorer(self.n_fingers, self.normals, kde, post=post, heights=self.heights,
                                                normal_axis=self.normal_axis) if ok else None)

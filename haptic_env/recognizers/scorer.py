@@ -37,8 +37,7 @@ class GraspScorer:
         if post is not None and not callable(post):
             raise TypeError(f"post must be a callable (B, K) -> (B, K) or None, got {type(post).__name__}")
         self.post = post
-        pooled = getattr(kde, "pooled", None) is not None
-        if not pooled and not isinstance(kde, BoostedLikelihood):
+        if not self.handles(kde):
             raise ValueError("GraspScorer needs a KDE evaluated with method='pooled' or a BoostedLikelihood, got "
                              f"{type(kde).__name__}" + (" without a pooled index" if hasattr(kde, "pooled") else ""))
         d = feature_dim(n_fingers, normals, heights=heights, normal_axis=normal_axis)
@@ -52,13 +51,19 @@ class GraspScorer:
         self._phi_args = (tri, tri_edges, n_edges, DEFAULT_TOL, feature_dim(n_fingers, normals, normal_axis=normal_axis),
                           self.heights)
         self._kde_args = None  # gradient boosting: Phi compiled here, the scores by the model's own walk
-        if pooled:
+        if not isinstance(kde, BoostedLikelihood):  # a pooled KDE: searched in the same compiled call as Phi
             cfg = kde.config
             self._kde_args = (kde.scaler.mean, kde.scaler.std, *kde.pooled.arrays(), kde.pooled_labels,
                               min(cfg.k, kde.pooled.n), float(cfg.eps), kde._norms(), 0.5 / kde.bandwidth**2,
                               cfg.cutoff * kde.bandwidth)
             self._work = workspace(kde.pooled.nodes, d, min(cfg.k, kde.pooled.n), kde.n_classes)
         self._d, self._K = d, kde.n_classes
+
+    @staticmethod
+    def handles(model) -> bool:
+        """Whether ``model`` (a recogniser's likelihood slot) is one this scorer runs: a KDE evaluated ``"pooled"``
+        or a :class:`~haptic_env.recognizers.boosted.BoostedLikelihood`."""
+        return getattr(model, "pooled", None) is not None or isinstance(model, BoostedLikelihood)
 
     def __call__(self, contacts, normals=None) -> tuple[np.ndarray, np.ndarray | None]:
         P = np.ascontiguousarray(contacts, dtype=np.float64)
