@@ -35,14 +35,18 @@ classifier is the MLP either way.
         [--max-grasps 30] [--approaches 3000] [--regimes surface hand] [--raw] [--out results/hands]
         [--hand-budget uniform|balanced] [--kde-bandwidth shared|per-class]   # options measured, not the envs'
         [--touch-weight W] [--heights] [--ic-certainty count|share] [--normal-axis t2|ab|frame] [--likelihood kde|hgb]
+    python benchmarks/hand_experiment.py --plot results/hands/hand_table.md   # draws a written table, runs nothing
 
-Prints (and with ``--out`` writes ``hand_table.md``) the table with the paper's figure beside each
-cell; the headline is printed last.
+Prints (and with ``--out`` writes ``hand_table.md`` and its plot ``hand_table.png``) the table with the paper's
+figure beside each cell; the headline is printed last. ``--plot FILE`` runs no experiment: it draws the table in
+``FILE`` (a ``hand_table.md`` this script wrote) as the PNG beside it, so a committed table gets its plot.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import re
 import sys
 import time
 from pathlib import Path
@@ -87,6 +91,14 @@ PAPER = {
 }
 
 
+#: method -> its marker in the plot; training regime -> its colour (the paper's figures: hollow, black)
+MARKERS = {"IC": "o", "BC-NP": "s", "BC-IP": "D", "IC, z=3": "^", "BC-NP, z=3": "v"}
+REGIME_COLORS = {"hand": "C0", "surface": "0.55"}
+#: the table's header, as :func:`main` writes it (the temperature column names the likelihood)
+TABLE_HEADER = ("| hand | fingers | normals | training | method | success % | accuracy % | grasps | "
+                "paper (success % / grasps) |")
+
+
 def seed_std(x: np.ndarray) -> float:
     """The sample standard deviation over seeds (ddof = 1; 0 for one seed): the "+-" of the hand benchmarks."""
     return float(np.std(x, ddof=min(1, len(x) - 1)))
@@ -116,6 +128,92 @@ def write_table(out: Path, name: str, script: str, argv, seconds: float, text: s
     out.mkdir(parents=True, exist_ok=True)
     cmd = f"python benchmarks/{script} " + " ".join(sys.argv[1:] if argv is None else argv)
     (out / name).write_text(f"`{cmd}` ({seconds:.0f} s)\n\n{text}\n")
+
+
+def read_table(text: str) -> tuple[list[dict], float]:
+    """The rows of a table this script wrote (a ``hand_table.md``'s text) and its lambda.
+
+    Each row: ``hand``, ``fingers`` (int), ``normals`` (bool), ``training``, ``method``, ``success`` and
+    ``success_std`` (fractions), ``grasps`` and ``grasps_std``, ``paper`` (success fraction, grasps). ValueError, naming
+    what is missing, when ``text`` holds no such table."""
+    lines = [ln.strip() for ln in text.splitlines() if ln.startswith("|")]
+    if not lines or not lines[0].startswith(TABLE_HEADER):
+        raise ValueError(f"no hand table: no line starts with {TABLE_HEADER!r}")
+    head = [c.strip() for c in lines[0].strip("|").split("|")]
+    m = re.search(r"lambda = ([0-9.]+)", text)
+    if m is None:
+        raise ValueError("no 'lambda = ...' in the table's caption")
+
+    def mean_std(cell: str) -> tuple[float, float]:
+        mean, _, std = cell.partition("+-")
+        return float(mean), float(std)
+
+    rows = []
+    for ln in lines[2:]:  # after the header and its |---| line
+        c = dict(zip(head, (x.strip() for x in ln.strip("|").split("|"))))
+        if c.get("method") not in METHODS or len(c) != len(head):
+            raise ValueError(f"not a row of the hand table: {ln!r}")
+        (s, s_std), (g, g_std) = mean_std(c["success %"]), mean_std(c["grasps"])
+        ps, pg = (float(x) for x in c["paper (success % / grasps)"].split("/"))
+        rows.append({"hand": c["hand"], "fingers": int(c["fingers"]), "normals": c["normals"] == "yes",
+                     "training": c["training"], "method": c["method"], "success": s / 100, "success_std": s_std / 100,
+                     "grasps": g, "grasps_std": g_std, "paper": (ps / 100, pg)})
+    if not rows:
+        raise ValueError("the hand table has no rows")
+    return rows, float(m.group(1))
+
+
+def plot_hand_table(rows: list[dict], path: Path, threshold: float = DEFAULT_THRESHOLD) -> None:
+    """Success at the stop against mean grasps (log axis), one panel per hand and normals setting (the paper's
+    columns): each method's row per training regime (filled, +- seed std; :data:`MARKERS`, :data:`REGIME_COLORS`)
+    and the paper's figure (hollow, black), joined to the hand-matched row of the same method by a dashed line; the
+    dotted line is lambda - 3 points. ``rows`` as :func:`read_table` gives them; written atomically to ``path``."""
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from matplotlib.ticker import NullFormatter, ScalarFormatter
+
+    panels = list(dict.fromkeys((r["hand"], r["fingers"], r["normals"]) for r in rows))
+    xs = [r["grasps"] for r in rows] + [r["paper"][1] for r in rows]
+    fig = Figure(figsize=(4.0 * len(panels) + 0.6, 4.4))
+    axes = fig.subplots(1, len(panels), squeeze=False, sharey=True)[0]
+    for ax, key in zip(axes, panels):
+        mine = [r for r in rows if (r["hand"], r["fingers"], r["normals"]) == key]
+        for r in mine:
+            ax.errorbar(r["grasps"], 100 * r["success"], xerr=r["grasps_std"], yerr=100 * r["success_std"],
+                        fmt=MARKERS[r["method"]], color=REGIME_COLORS.get(r["training"], "C1"), ms=6, capsize=2)
+        for method in dict.fromkeys(r["method"] for r in mine):
+            ps, pg = next(r["paper"] for r in mine if r["method"] == method)
+            ax.plot(pg, 100 * ps, MARKERS[method], mfc="none", mec="k", ms=8)
+            matched = next((r for r in mine if r["method"] == method and r["training"] == "hand"), None)
+            if matched is not None:
+                ax.plot([pg, matched["grasps"]], [100 * ps, 100 * matched["success"]], ls="--", lw=0.8, color="k",
+                        alpha=0.45)
+        ax.axhline(100 * (threshold - 0.03), ls=":", color="C3", lw=1)
+        ax.set_xscale("log")
+        ax.set_xlim(min(xs) / 1.3, max(xs) * 1.3)
+        ax.set_xticks([1, 2, 3, 5, 10, 20, 30])
+        ax.xaxis.set_major_formatter(ScalarFormatter())
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.set_ylim(0, 103)
+        hand, n, normals = key
+        paper = "Pisa/IIT SoftHand" if n == 5 else "real Allegro"
+        ax.set_title(f"{hand}, {n} fingers, {'with' if normals else 'without'} normals\n(paper: {paper})",
+                     fontsize=9)
+        ax.set_xlabel("mean grasps to the stop")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("success at the stop (%): decided and correct")
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    regimes = list(dict.fromkeys(r["training"] for r in rows))
+    handles = [Line2D([], [], ls="none", marker=MARKERS[m], color="k", label=m) for m in methods]
+    handles += [Line2D([], [], ls="none", marker="s", color=REGIME_COLORS.get(g, "C1"), label=f"ours, {g} training")
+                for g in regimes]
+    handles += [Line2D([], [], ls="none", marker="o", mfc="none", mec="k", label="paper"),
+                Line2D([], [], ls=":", color="C3", label=f"lambda - 3 points ({100 * (threshold - 0.03):.0f} %)")]
+    fig.legend(handles=handles, loc="lower center", ncol=min(len(handles), 5), fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0.13, 1, 1))
+    tmp = path.with_name(f".{path.stem}.tmp.png")
+    fig.savefig(tmp, dpi=110)
+    os.replace(tmp, path)
 
 
 def run_query(updater, C, N, T, normals: bool, touch=None) -> tuple[int, int, bool]:
@@ -222,8 +320,22 @@ def main(argv=None) -> int:
     ap.add_argument("--likelihood", choices=LIKELIHOODS, default="kde",
                     help="BC's likelihood: kde (the paper's, default) or hgb (gradient boosting, opt-in; "
                          "HapticRecogConfig.likelihood)")
-    ap.add_argument("--out", type=output_path("folder"), default=None, help="write hand_table.md here")
+    ap.add_argument("--out", type=output_path("folder"), default=None,
+                    help="write hand_table.md and its plot, hand_table.png, here")
+    ap.add_argument("--plot", type=Path, default=None, metavar="FILE",
+                    help="run no experiment: draw the table in FILE (a hand_table.md this script wrote) as FILE's "
+                         "name with .png, beside it")
     args = ap.parse_args(argv)
+    if args.plot is not None:
+        if args.out is not None:
+            ap.error(f"--plot draws the table in {args.plot}; --out runs the experiment: give one of them")
+        try:
+            rows, threshold = read_table(args.plot.read_text())
+        except (OSError, UnicodeDecodeError, ValueError) as exc:
+            ap.error(f"--plot {args.plot}: {exc}")
+        plot_hand_table(rows, args.plot.with_suffix(".png"), threshold)
+        print(f"wrote {args.plot.with_suffix('.png')} ({len(rows)} rows)")
+        return 0
     if args.likelihood == "hgb" and args.kde_bandwidth != "shared":
         ap.error(f"--kde-bandwidth {args.kde_bandwidth} sets the KDE, which --likelihood hgb replaces")
     if args.touch_weight is not None and not (np.isfinite(args.touch_weight) and args.touch_weight >= 0):
@@ -274,8 +386,8 @@ def main(argv=None) -> int:
         "Mean +- sample std (ddof = 1) over the test seeds. Paper: Pisa/IIT SoftHand for the 5-finger rows, real Allegro "
         "for the 4-finger rows.",
         "",
-        "| hand | fingers | normals | training | method | success % | accuracy % | grasps | paper (success % / grasps) | "
-        f"usable grasps | T ({args.likelihood.upper()} / MLP) | K | training grasps / object | touch w |",
+        f"{TABLE_HEADER} usable grasps | T ({args.likelihood.upper()} / MLP) | K | training grasps / object | "
+        "touch w |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for hand, n, normals, regime, label, r, usable, temps, K, data, w in rows:
@@ -290,6 +402,8 @@ def main(argv=None) -> int:
     print("\n" + text)
     if args.out is not None:
         write_table(args.out, "hand_table.md", "hand_experiment.py", argv, time.perf_counter() - t_start, text)
+        if rows:
+            plot_hand_table(read_table(text)[0], args.out / "hand_table.png", args.threshold)
     if rows:  # a cell fixed in advance: the first BC-NP row (the first hand and regime asked for), not the best one
         head = next((r for r in rows if r[4] == "BC-NP"), rows[0])
         s, g = head[5]["success"], head[5]["grasps"]

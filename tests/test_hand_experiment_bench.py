@@ -34,3 +34,67 @@ def test_command_line_errors_name_the_bad_value(bench, usage_error):
     usage_error(bench.main, ["--likelihood", "mlp"], match=r"--likelihood: invalid choice: 'mlp'")
     usage_error(bench.main, ["--likelihood", "hgb", "--kde-bandwidth", "per-class"],
                 match=r"--kde-bandwidth per-class sets the KDE, which --likelihood hgb replaces")
+
+
+_TABLE = """`python benchmarks/hand_experiment.py --out somewhere` (9 s)
+
+YCB-10, 10 queries per object x 3 test seeds ([0, 1, 2]), <= 30 random-approach grasps per query, lambda = 0.9, \
+calibrated scores. Success = decided and correct at the stop.
+
+| hand | fingers | normals | training | method | success % | accuracy % | grasps | paper (success % / grasps) | \
+usable grasps | T (KDE / MLP) | K | training grasps / object | touch w |
+|---|---|---|---|---|---|---|---|---|---|---|---|---|---|
+| allegro | 4 | yes | hand | BC-NP | 98.0 +- 0.5 | 98.0 +- 0.0 | 3.31 +- 0.14 | 92 / 4.8 | \
+ 0.73 | 5.58 / 1.04 | 5 | 6,000 | 0 |
+| shadow | 5 | no | surface | IC, z=3 | 0.0 +- 0.0 | 10.0 +- 0.0 | 30.00 +- 0.00 | 51 / 1.04 | \
+ 0.82 | 1.37 / 1.11 | 5 | 20,000 | 0 |
+"""
+
+
+def test_read_table_gives_the_rows_the_script_wrote(bench):
+    rows, threshold = bench.read_table(_TABLE)
+    assert threshold == 0.9
+    assert rows[0] == {"hand": "allegro", "fingers": 4, "normals": True, "training": "hand", "method": "BC-NP",
+                       "success": pytest.approx(0.98), "success_std": pytest.approx(0.005), "grasps": 3.31,
+                       "grasps_std": 0.14, "paper": (pytest.approx(0.92), 4.8)}
+    assert rows[1]["hand"] == "shadow" and rows[1]["normals"] is False and rows[1]["method"] == "IC, z=3"
+    assert rows[1]["grasps"] == 30.0 and rows[1]["paper"] == (pytest.approx(0.51), 1.04)
+
+
+def test_the_committed_hand_table_reads_with_the_papers_figures(bench):
+    """results/hands/hand_table.md, which this script wrote: 40 rows in the paper's four columns, each with the
+    paper's figure of its method and column as the script holds it (:data:`PAPER`)."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "results" / "hands" / "hand_table.md").read_text()
+    rows, threshold = bench.read_table(text)
+    assert threshold == 0.85 and len(rows) == 40
+    assert list(dict.fromkeys((r["hand"], r["fingers"], r["normals"]) for r in rows)) == [
+        ("allegro", 4, True), ("allegro", 4, False), ("shadow", 5, False), ("aero", 5, False)]
+    for r in rows:
+        s, g = bench.PAPER[r["method"]][f"{r['fingers']}{'+' if r['normals'] else '-'}"]
+        assert r["paper"] == (pytest.approx(s / 100), g)
+
+
+def test_plot_draws_a_table_beside_it(bench, tmp_path, capsys):
+    table = tmp_path / "hand_table.md"
+    table.write_text(_TABLE)
+    assert bench.main(["--plot", str(table)]) == 0
+    png = tmp_path / "hand_table.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["hand_table.md", "hand_table.png"]  # no temporary left
+    assert "wrote" in capsys.readouterr().out
+
+
+def test_plot_errors_name_the_file_and_the_problem(bench, tmp_path, usage_error):
+    missing = tmp_path / "nothing.md"
+    usage_error(bench.main, ["--plot", str(missing)], match=r"--plot .*nothing\.md: .*No such file")
+    other = tmp_path / "other.md"
+    other.write_text("# results\n\n| a | b |\n|---|---|\n| 1 | 2 |\n")
+    usage_error(bench.main, ["--plot", str(other)], match=r"--plot .*other\.md: no hand table")
+    broken = tmp_path / "broken.md"
+    broken.write_text(_TABLE.replace("| IC, z=3 |", "| IC, z=9 |"))
+    usage_error(bench.main, ["--plot", str(broken)], match=r"not a row of the hand table: .*IC, z=9")
+    usage_error(bench.main, ["--plot", str(other), "--out", str(tmp_path / "out")],
+                match=r"--plot draws the table in .*other\.md; --out runs the experiment")
+    assert not (tmp_path / "out").exists() and not list(tmp_path.glob("*.png"))
