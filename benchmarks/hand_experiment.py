@@ -151,10 +151,13 @@ def read_table(text: str) -> tuple[list[dict], float]:
     rows = []
     for ln in lines[2:]:  # after the header and its |---| line
         c = dict(zip(head, (x.strip() for x in ln.strip("|").split("|"))))
-        if c.get("method") not in METHODS or len(c) != len(head):
-            raise ValueError(f"not a row of the hand table: {ln!r}")
-        (s, s_std), (g, g_std) = mean_std(c["success %"]), mean_std(c["grasps"])
-        ps, pg = (float(x) for x in c["paper (success % / grasps)"].split("/"))
+        try:
+            if c.get("method") not in METHODS or len(c) != len(head):
+                raise ValueError
+            (s, s_std), (g, g_std) = mean_std(c["success %"]), mean_std(c["grasps"])
+            ps, pg = (float(x) for x in c["paper (success % / grasps)"].split("/"))
+        except ValueError:
+            raise ValueError(f"not a row of the hand table: {ln!r}") from None
         rows.append({"hand": c["hand"], "fingers": int(c["fingers"]), "normals": c["normals"] == "yes",
                      "training": c["training"], "method": c["method"], "success": s / 100, "success_std": s_std / 100,
                      "grasps": g, "grasps_std": g_std, "paper": (ps / 100, pg)})

@@ -95,6 +95,8 @@ def test_plot_errors_name_the_file_and_the_problem(bench, tmp_path, usage_error)
     broken = tmp_path / "broken.md"
     broken.write_text(_TABLE.replace("| IC, z=3 |", "| IC, z=9 |"))
     usage_error(bench.main, ["--plot", str(broken)], match=r"not a row of the hand table: .*IC, z=9")
+    broken.write_text(_TABLE.replace("| 3.31 +- 0.14 |", "| n/a |"))
+    usage_error(bench.main, ["--plot", str(broken)], match=r"not a row of the hand table: .*BC-NP .*n/a")
     usage_error(bench.main, ["--plot", str(other), "--out", str(tmp_path / "out")],
                 match=r"--plot draws the table in .*other\.md; --out runs the experiment")
     assert not (tmp_path / "out").exists() and not list(tmp_path.glob("*.png"))
