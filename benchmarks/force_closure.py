@@ -144,7 +144,7 @@ def main(argv=None) -> int:
             ap.error(f"--hand: {exc}")
     from tqdm.auto import tqdm
 
-    from haptic_env.experiments.config import PAPER_KNN  # imports the analyses (torch): only when run
+    from haptic_env.experiments.paper import PAPER_KNN  # imports the analyses (torch): only when run
     from haptic_env.objects import load_object_set
 
     t_start = time.perf_counter()

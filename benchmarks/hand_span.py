@@ -80,7 +80,7 @@ def main(argv=None) -> int:
     from tqdm import tqdm
 
     from haptic_env.dataset import DatasetConfig
-    from haptic_env.experiments.config import PAPER_KNN  # imports the analyses (torch): only when run
+    from haptic_env.experiments.paper import PAPER_KNN  # imports the analyses (torch): only when run
     from haptic_env.objects import load_object_set
 
     objects = load_object_set(args.objects)

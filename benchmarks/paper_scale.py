@@ -44,7 +44,7 @@ import numpy as np
 
 from haptic_env import cli
 from haptic_env.cache import atomic_write
-from haptic_env.experiments.config import PAPER_KNN, PAPER_NN
+from haptic_env.experiments.paper import PAPER_KNN, PAPER_NN
 from haptic_env.grasp_features import NORMAL_AXES, NORMAL_AXIS_WORDS
 from haptic_env.recognizers.updaters import DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD
 from haptic_env.splits import TEST_SEED_OFFSET

@@ -210,7 +210,7 @@ def _curve(decimated, sizes: list[int], data, args, held: str) -> int:
     if args.plot is not None:
         from matplotlib.figure import Figure  # no pyplot: no global backend switch
 
-        from haptic_env.experiments.config import PAPER_KNN
+        from haptic_env.experiments.paper import PAPER_KNN
 
         fig = Figure(figsize=(6, 4))
         ax = fig.subplots()

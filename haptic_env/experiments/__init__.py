@@ -38,7 +38,8 @@ Default settings finish in minutes on 2 cores; the paper's protocol is
 from haptic_env.experiments.analysis import EXPERIMENTS, run_analysis
 from haptic_env.experiments.calibration import calibration_summary, oneshot_posterior
 from haptic_env.experiments.cli import add_parser
-from haptic_env.experiments.config import PAPER, AnalysisConfig
+from haptic_env.experiments.config import AnalysisConfig
+from haptic_env.experiments.paper import PAPER
 from haptic_env.experiments.families import EXPECTED_FAMILY, family_temperatures
 from haptic_env.experiments.trials import family_trials, incomplete_trials, run_trial, simulate_trials
 from haptic_env.splits import TEST_SEED_OFFSET

@@ -24,8 +24,7 @@ from haptic_env.recognizers.recognizer import RecognizerConfig
 from haptic_env.recognizers.updaters import (DEFAULT_IC_CERTAINTY, DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD, UPDATERS,
                                              check_ic_certainty, check_threshold)
 
-__all__ = ["AnalysisConfig", "KINDS", "MAIN_KINDS", "PAPER", "PAPER_NN", "PAPER_KNN",
-           "FAMILY_SOURCES"]
+__all__ = ["AnalysisConfig", "KINDS", "MAIN_KINDS", "FAMILY_SOURCES"]
 
 #: The updaters of experiments 2 and 6: every kind.
 KINDS = UPDATERS
@@ -36,17 +35,6 @@ MAIN_KINDS = ("ic", "bc-np", "bc-ip")
 #: paper's analysis protocol), the geometric hand's grasps under random approaches over the full sphere, or a robot
 #: hand's own MuJoCo grasps (:attr:`AnalysisConfig.family_hand`) under random approaches, the object on the table.
 FAMILY_SOURCES = ("surface", "geometric", "hand")
-
-#: Reference numbers quoted from Sintov & Ben-David (kit objects) for the tables.
-PAPER = {
-    "mlp_oneshot_n3_normals": 86.0,
-    "bcnp_grasps_n4_normals": 3.37,
-}
-#: The paper's kit8 one-shot accuracies (%) at 200,000 grasps per object by (n, normals): its neural-network and
-#: nearest-neighbour rows (``../shared/reference/paper_figures.md``, "One-shot accuracy (%) by classifier (kit8)").
-PAPER_NN = {(3, True): 86.0, (3, False): 47.0, (4, True): 80.7, (4, False): 62.4, (5, True): 83.7, (5, False): 71.1}
-PAPER_KNN = {(3, True): 70.8, (3, False): 45.6, (4, True): 59.1, (4, False): 56.1, (5, True): 62.2, (5, False): 61.8}
-
 
 @dataclass(frozen=True)
 class AnalysisConfig:

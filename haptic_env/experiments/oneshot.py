@@ -13,6 +13,7 @@ from tqdm.auto import tqdm
 
 from haptic_env.dataset import build_dataset
 from haptic_env.experiments.config import AnalysisConfig
+from haptic_env.experiments import paper
 from haptic_env.experiments.fresh_grasps import fresh_pool
 from haptic_env.experiments.report import Report
 from haptic_env.recognizers.baselines import make_classifier
@@ -38,6 +39,7 @@ def baseline_train_cap(name: str, cfg: AnalysisConfig) -> int | None:
 def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> None:
     rep.h("1. One-shot accuracy (%) on fresh test grasps")
     rows = []
+    with_paper = paper.applies(cfg.objects)
     names = [*cfg.classifiers, cfg.likelihood]  # the beliefs' likelihood as a classifier: the KDE or hgb
     for normals in (False, True):
         for n in cfg.oneshot_fingers:
@@ -58,10 +60,13 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
                         ds = build_dataset(objects, rc.dataset_config(n, normals), progress=False)
                     m = make_classifier(name, max_train=baseline_train_cap(name, cfg), seed=cfg.seed)
                     acc = m.fit(ds.X_train, ds.y_train, n_classes=len(objects)).score(Xt, yt)
-                row.append(f"{100 * acc:.1f}")
+                theirs = paper.ONESHOT.get(name, {}).get((n, normals)) if with_paper else None
+                row.append(f"{100 * acc:.1f}" + ("" if theirs is None else f" ({theirs})"))
             rows.append(row)
     rep.table(["n", "normals", *names], rows)
     rep.p(f"Test grasps: {cfg.test_grasps} per object (seed {cfg.seed + TEST_SEED_OFFSET}); binomial std of an "
           f"accuracy near 85% is about {100 * np.sqrt(0.85 * 0.15 / (cfg.test_grasps * len(objects))):.1f} points. "
           f"Baselines train on subsamples (GP {max(200, (cfg.baseline_max_train or 0) // 5)}, SVMs "
-          f"{cfg.baseline_max_train}, kNN/trees {10 * (cfg.baseline_max_train or 0)} rows).")
+          f"{cfg.baseline_max_train}, kNN/trees {10 * (cfg.baseline_max_train or 0)} rows)." +
+          (" In brackets: the paper's figure (kit8, 200,000 grasps per object; its neural network is `mlp` here)."
+           if with_paper else ""))

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 from tqdm.auto import tqdm
 
+from haptic_env.experiments import paper
 from haptic_env.experiments.config import KINDS, AnalysisConfig
 from haptic_env.experiments.fresh_grasps import fresh_pool, pool_scores, scored_models
 from haptic_env.experiments.plots import plot_confusion, plot_sequential_vs_fingers
@@ -19,7 +20,10 @@ from haptic_env.experiments.trials import confusion, simulate_trials, summarize
 from haptic_env.recognizers.recognizer import build_recognizer
 from haptic_env.splits import VALIDATION_SEED_OFFSET
 
-__all__ = ["run"]
+__all__ = ["run", "PAPER_KINDS"]
+
+#: the updaters whose grasps the paper gives (:data:`~haptic_env.experiments.paper.GRASPS`)
+PAPER_KINDS = ("ic", "bc-np")
 
 
 def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> None:
@@ -27,6 +31,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     rows = []
     curves = {}
     K = len(objects)
+    with_paper = paper.applies(cfg.objects)
     for n in tqdm(cfg.fingers, desc="exp2 fingers", disable=not cfg.progress):
         rec = build_recognizer(objects, n, cfg.normals, config=cfg.recognizer_config(), progress=False)
         models = scored_models(rec, cfg)
@@ -47,11 +52,17 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
             if n == 4:
                 plot_confusion(confusion(res["truth"], res["pred"], K), objects.names,
                                f"{kind}, n=4, lambda={cfg.threshold}", rep.out / f"confusion_n4_{kind}.png")
+        if with_paper:
+            for kind in PAPER_KINDS:
+                theirs = paper.GRASPS[kind].get((n, cfg.normals))
+                row.append("-" if theirs is None else f"{theirs[0]:.2f} ± {theirs[1]:.2f}")
         rows.append(row)
     t_lik = "T KDE" if cfg.likelihood == "kde" else f"T {cfg.likelihood}"
     hdr = ["n", "MLP one-shot %", t_lik, "T MLP"] + (["stop scale (validation BC-NP)"] if cfg.uses_stop_scale else [])
     for kind in KINDS:
         hdr += [f"{kind} success %", f"{kind} grasps"]
+    if with_paper:
+        hdr += [f"paper {kind} grasps" for kind in PAPER_KINDS]
     rep.table(hdr, rows)
     rep.p(f"{cfg.trials} trials per cell, at most {cfg.max_grasps} grasps; success ± binomial std; grasps mean ± std. "
           "T: the calibration temperatures fitted on validation grasps (" +
@@ -62,6 +73,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
            f"{list(STOP_SCALES)} with the fewest BC-NP grasps whose validation stops are decided and right in at "
            f"least lambda of {VALIDATION_TRIALS} trials ({VALIDATION_GRASPS} fresh validation grasps per object, seed "
            f"{cfg.seed + VALIDATION_SEED_OFFSET}; 1 when none is); in brackets its validation rate and grasps."
-           if cfg.uses_stop_scale else ""))
+           if cfg.uses_stop_scale else "") +
+          (" Paper: kit8's mean ± std grasps to the stop at 200,000 grasps per object (n = 3-5; its success rates are "
+           "given as plots only)." if with_paper else ""))
     if curves:
         plot_sequential_vs_fingers(curves, rep.out / "sequential_vs_fingers.png")

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 from tqdm.auto import tqdm
 
+from haptic_env.experiments import paper
 from haptic_env.experiments.config import MAIN_KINDS, AnalysisConfig
 from haptic_env.belief import Belief
 from haptic_env.experiments.fresh_grasps import contact_pool, fresh_pool, pool_scores, scored_models
@@ -25,6 +26,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     rep.h(f"3. z-finger scoring and incomplete grasps (lambda = {cfg.threshold}, normals: {cfg.normals}; "
           f"{cfg.scores_label})")
     rows = []
+    with_paper = paper.applies(cfg.objects)
     recs = {z: build_recognizer(objects, z, cfg.normals, config=cfg.recognizer_config(), progress=False)
             for z in SUBSET_SIZES}
     beliefs = {z: Belief(rec, calibrated=cfg.calibrated) for z, rec in recs.items()}  # their subset scoring
@@ -47,11 +49,17 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
                                                                max_grasps=cfg.max_grasps, threshold=cfg.threshold,
                                                                rng=rng, ic_certainty=cfg.ic_certainty))
                     row += [f"{sr:.1f} ± {se:.1f}", mean_std(gm, gs, 2)]
+                if with_paper:  # the paper's figures are for 4 random subsets per grasp
+                    row += [_paper_cell(paper.ZFINGER.get((kind, z, n, cfg.normals)) if k_sub == 4 else None)
+                            for kind in ("ic", "bc-np")]
                 rows.append(row)
     rep.table(["hand n", "z", "subsets", "IC success %", "IC grasps", "BC-NP success %", "BC-NP grasps",
-               "BC-IP success %", "BC-IP grasps"], rows)
+               "BC-IP success %", "BC-IP grasps"]
+              + (["paper IC success % / grasps", "paper BC-NP success % / grasps"] if with_paper else []), rows)
     rep.p("Per grasp, every (or k = 4 random) z-subset of the n contacts is mapped to Phi_z; BC multiplies the "
-          "subsets' KDE likelihoods, IC sums their probability vectors (paper Algorithms 3, 4).")
+          "subsets' KDE likelihoods, IC sums their probability vectors (paper Algorithms 3, 4)." +
+          (" Paper: kit8 at 200,000 grasps per object, 4 random z-subsets per grasp (so beside the k = 4 rows), "
+           "hands of 4-7 fingers." if with_paper else ""))
     # incomplete grasps
     pn = dict(cfg.incomplete_pn)
     zlist = sorted(pn)
@@ -63,6 +71,14 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     for kind in MAIN_KINDS:
         sr, se, gm, gs = summarize(incomplete_trials(pools, p, kind, trials=cfg.trials, max_grasps=cfg.max_grasps,
                                                      threshold=cfg.threshold, rng=rng, ic_certainty=cfg.ic_certainty))
-        rows.append([kind, f"{sr:.1f} ± {se:.1f}", mean_std(gm, gs, 2)])
-    rep.p(f"Incomplete grasps: finger count z ~ p_n(z) = {pn} per grasp, each scored by its z-finger model.")
-    rep.table(["updater", "success %", "grasps"], rows)
+        rows.append([kind, f"{sr:.1f} ± {se:.1f}", mean_std(gm, gs, 2)]
+                    + ([_paper_cell(paper.INCOMPLETE.get((kind, max(zlist), cfg.normals)))] if with_paper else []))
+    rep.p(f"Incomplete grasps: finger count z ~ p_n(z) = {pn} per grasp, each scored by its z-finger model." +
+          (f" Paper: kit8's incomplete grasps of an n = {max(zlist)} hand (its p_n(z) is not in the reference "
+           "summary)." if with_paper else ""))
+    rep.table(["updater", "success %", "grasps"] + (["paper success % / grasps"] if with_paper else []), rows)
+
+
+def _paper_cell(figure: tuple[float, float] | None) -> str:
+    """The paper's ``(success %, grasps)`` as a table cell; "-" where it gives none."""
+    return "-" if figure is None else f"{figure[0]:g} / {figure[1]:g}"
