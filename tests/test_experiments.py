@@ -364,6 +364,7 @@ def test_reports_of_the_papers_set_put_its_figures_beside_ours(tmp_path, cache, 
     exp2 = [line for line in text.splitlines() if line.startswith("| 3 | ") and "3.57 ± 4.57" in line]
     assert len(exp2) == 1 and exp2[0].endswith("| 3.57 ± 4.57 | 3.53 ± 2.07 |")
     assert "| paper ic grasps | paper bc-np grasps |" in text
+    assert (tmp_path / "paper" / "sequential_vs_fingers.png").stat().st_size > 1000  # with the paper's grasps drawn
     zrows = [line for line in text.splitlines() if line.startswith("| 5 | 3 | ")]
     assert zrows[0].endswith("| - | - |") and zrows[1].endswith("| 96.7 / 1.57 | 91.7 / 1.27 |")  # all, then k=4
     assert "| bc-np | " in text and "| 93.3 / 2.87 |" in text  # incomplete grasps of a 5-finger hand

@@ -40,14 +40,21 @@ def plot_confusion(C: np.ndarray, names, title: str, path: Path) -> None:
     _save(fig, path)
 
 
-def plot_sequential_vs_fingers(curves: dict, path: Path) -> None:
-    """Experiment 2: ``curves[kind] = [(n, success %, mean grasps), ...]``."""
+def plot_sequential_vs_fingers(curves: dict, path: Path, paper: dict | None = None) -> None:
+    """Experiment 2: ``curves[kind] = [(n, success %, mean grasps), ...]``; ``paper[kind] = [(n, mean grasps), ...]``,
+    the paper's grasps, drawn hollow in the kind's colour (its success rates are plots only)."""
     fig = Figure(figsize=(10, 4))
     ax = fig.subplots(1, 2)
     for kind, pts in curves.items():
         pts = np.array(pts)
-        ax[0].plot(pts[:, 0], pts[:, 1], "o-", label=kind)
-        ax[1].plot(pts[:, 0], pts[:, 2], "o-", label=kind)
+        line, = ax[0].plot(pts[:, 0], pts[:, 1], "o-", label=kind)
+        ax[1].plot(pts[:, 0], pts[:, 2], "o-", color=line.get_color(), label=kind)
+        if paper and paper.get(kind):
+            theirs = np.array(paper[kind])
+            ax[1].plot(theirs[:, 0], theirs[:, 1], "s", mfc="none", mec=line.get_color(), ms=9,
+                       label=f"{kind}, paper (kit8)")
+    if paper:
+        ax[1].legend(fontsize=8)
     ax[0].set(xlabel="fingers n", ylabel="success %", title="success at lambda")
     ax[1].set(xlabel="fingers n", ylabel="grasps", title="mean grasps to decide")
     ax[0].legend()
