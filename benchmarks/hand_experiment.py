@@ -45,7 +45,6 @@ figure beside each cell; the headline is printed last. ``--plot FILE`` runs no e
 from __future__ import annotations
 
 import argparse
-import os
 import re
 import sys
 import time
@@ -57,6 +56,7 @@ from tqdm import tqdm
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from haptic_env import variant_config  # noqa: E402
+from haptic_env.cache import atomic_write  # noqa: E402
 from haptic_env.cli import int_in, output_path  # noqa: E402
 from haptic_env.config import HAND_APPROACHES, HapticRecogConfig  # noqa: E402
 from haptic_env.dataset import DatasetConfig, support_frame  # noqa: E402
@@ -214,9 +214,8 @@ def plot_hand_table(rows: list[dict], path: Path, threshold: float = DEFAULT_THR
                 Line2D([], [], ls=":", color="C3", label=f"lambda - 3 points ({100 * (threshold - 0.03):.0f} %)")]
     fig.legend(handles=handles, loc="lower center", ncol=min(len(handles), 5), fontsize=8, frameon=False)
     fig.tight_layout(rect=(0, 0.13, 1, 1))
-    tmp = path.with_name(f".{path.stem}.tmp.png")
-    fig.savefig(tmp, dpi=110)
-    os.replace(tmp, path)
+    with atomic_write(path) as fh:
+        fig.savefig(fh, format="png", dpi=110)
 
 
 def run_query(updater, C, N, T, normals: bool, touch=None) -> tuple[int, int, bool]:

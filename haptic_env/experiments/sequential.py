@@ -55,7 +55,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
         if with_paper:
             for kind in PAPER_KINDS:
                 theirs = paper.GRASPS[kind].get((n, cfg.normals))
-                row.append("-" if theirs is None else f"{theirs[0]:.2f} ± {theirs[1]:.2f}")
+                row.append("-" if theirs is None else mean_std(*theirs, 2))
         rows.append(row)
     t_lik = "T KDE" if cfg.likelihood == "kde" else f"T {cfg.likelihood}"
     hdr = ["n", "MLP one-shot %", t_lik, "T MLP"] + (["stop scale (validation BC-NP)"] if cfg.uses_stop_scale else [])
