@@ -9,8 +9,8 @@ Every table is keyed by the finger count ``n`` and whether the grasp vectors car
 
 from __future__ import annotations
 
-__all__ = ["PAPER_SET", "ONESHOT", "PAPER_NN", "PAPER_KNN", "GRASPS", "ZFINGER", "INCOMPLETE", "SCALED", "applies",
-           "PAPER"]
+__all__ = ["PAPER_SET", "ONESHOT", "PAPER_NN", "PAPER_KNN", "GRASPS", "ZFINGER", "INCOMPLETE", "SCALED", "SCALE_RANGE",
+           "applies", "PAPER"]
 
 #: the object set the paper's analysis figures are for
 PAPER_SET = "kit8"
@@ -65,7 +65,9 @@ INCOMPLETE = {("ic", 4, True): (98.7, 4.99), ("ic", 4, False): (75.8, 3.47), ("i
               ("ic", 5, False): (87.1, 3.56), ("bc-np", 4, True): (97.3, 3.27), ("bc-np", 4, False): (95.3, 7.72),
               ("bc-np", 5, True): (93.3, 2.87), ("bc-np", 5, False): (96.0, 6.3)}
 
-#: scaled objects (scale in [0.1, 5], with scale normalisation): success % by updater
+#: the scales of the paper's scaled objects (one per grasp, uniform), which :data:`SCALED` is for
+SCALE_RANGE = (0.1, 5.0)
+#: scaled objects (scale in :data:`SCALE_RANGE`, with scale normalisation): success % by updater
 SCALED = {
     "ic": _row(96.2, 43.3, 90.2, 63.8, 91.1, 73.5),
     "bc-np": _row(91.5, 84.0, 92.2, 91.3, 85.2, 90.9),

@@ -32,7 +32,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
             row += [f"{sr:.1f} ± {se:.1f}", mean_std(gm, gs, 2)]
         if with_paper:  # the paper's figures are with scale normalisation, scales in [0.1, 5]
             row.append(" / ".join(f"{paper.SCALED[kind][(4, cfg.normals)]:g}" for kind in MAIN_KINDS)
-                       if norm and tuple(cfg.scale_range) == (0.1, 5.0) else "-")
+                       if norm and tuple(cfg.scale_range) == paper.SCALE_RANGE else "-")
         rows.append(row)
     rep.table(["scale normalisation", "MLP one-shot %", "IC success %", "IC grasps", "BC-NP success %", "BC-NP grasps",
                "BC-IP success %", "BC-IP grasps"]

@@ -77,6 +77,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
           (" Paper: kit8's mean ± std grasps to the stop at 200,000 grasps per object (n = 3-5; its success rates are "
            "given as plots only)." if with_paper else ""))
     if curves:
-        theirs = {kind: [(n, paper.GRASPS[kind][(n, cfg.normals)][0]) for n, _, _ in curves[kind]
-                         if (n, cfg.normals) in paper.GRASPS[kind]] for kind in PAPER_KINDS if kind in curves}
-        plot_sequential_vs_fingers(curves, rep.out / "sequential_vs_fingers.png", theirs if with_paper else None)
+        theirs = None if not with_paper else {
+            kind: [(n, paper.GRASPS[kind][(n, cfg.normals)][0]) for n, _, _ in curves[kind]
+                   if (n, cfg.normals) in paper.GRASPS[kind]] for kind in PAPER_KINDS if kind in curves}
+        plot_sequential_vs_fingers(curves, rep.out / "sequential_vs_fingers.png", theirs)
