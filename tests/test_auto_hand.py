@@ -8,6 +8,7 @@ and the Menagerie hands where the shared data is present - goes through the same
 from __future__ import annotations
 
 import sys
+import warnings
 
 import numpy as np
 import pytest
@@ -15,7 +16,7 @@ import trimesh
 
 import mujoco
 from haptic_env.grasping import make_backend
-from haptic_env.grasping.auto_hand import ROOT_NAME, auto_hand, report
+from haptic_env.grasping.auto_hand import ROOT_NAME, auto_hand, report, single_root
 from haptic_env.grasping.hands import HandUnavailableError, generic_hand
 from haptic_env.objects import GraspObject
 
@@ -221,6 +222,21 @@ def test_sibling_roots_are_wrapped_and_options_kept(tmp_path):
     be.set_object(_cyl())
     m = be.scene.model
     assert m.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC and m.opt.impratio == 5.0  # applied to the scene
+
+
+def test_wrapping_leaves_no_mujoco_log(tmp_path, monkeypatch, capfd):
+    """single_root attaches with an empty prefix; MuJoCo's warning about it would otherwise be printed and appended
+    to MUJOCO_LOG.TXT in the user's working directory. Other warnings still reach MuJoCo's handler afterwards."""
+    monkeypatch.chdir(tmp_path)
+    before = mujoco.get_mju_user_warning()
+    outer, root, wrapped = single_root(sibling_roots_hand())
+    assert root == ROOT_NAME and set(wrapped) == {"palm", "f0_base", "f1_base", "f2_base"}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # compile repeats it as a Python warning (the bindings', no log)
+        outer.compile()
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+    assert "empty prefix" not in capfd.readouterr().out
+    assert mujoco.get_mju_user_warning() is before
 
 
 def test_synergy_holds_rotation_and_closes_coupled_fingers(tmp_path):

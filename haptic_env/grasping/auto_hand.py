@@ -48,6 +48,7 @@ the step) in ``<cache>/auto_hands/``. ``report(desc)`` (also logged at INFO) say
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import logging
@@ -199,10 +200,33 @@ def single_root(spec: mujoco.MjSpec) -> tuple[mujoco.MjSpec, str, tuple[str, ...
               "ccd_tolerance", "disableflags", "enableflags", "gravity"):
         setattr(outer.option, k, getattr(spec.option, k))  # no "attach conflict": the hand's options are kept
     root = outer.worldbody.add_body(name=ROOT_NAME)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # "empty prefix may prevent saving": names must stay as in the file
+    with _empty_prefix_allowed():  # names must stay as in the file
         outer.attach(spec, frame=root.add_frame(), prefix="")
     return outer, ROOT_NAME, names
+
+
+#: MuJoCo's warning for :meth:`mujoco.MjSpec.attach` with ``prefix=""`` (it concerns saving the spec as XML,
+#: which the grasp scene never does).
+EMPTY_PREFIX_WARNING = "Attaching a spec with an empty prefix"
+
+
+@contextlib.contextmanager
+def _empty_prefix_allowed():
+    """Within the block, MuJoCo's empty-prefix warning is dropped (MuJoCo's default handler would print it
+    and append it to ``MUJOCO_LOG.TXT`` in the working directory); any other MuJoCo warning is logged.
+    The previous handler is restored on exit."""
+    def handler(msg: str) -> None:
+        if not msg.startswith(EMPTY_PREFIX_WARNING):
+            log.warning("MuJoCo: %s", msg)
+
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(handler)
+    try:
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message=EMPTY_PREFIX_WARNING)
+            yield
+    finally:
+        mujoco.set_mju_user_warning(previous)
 
 
 def hand_options(spec: mujoco.MjSpec) -> tuple[dict[str, object], float]:
