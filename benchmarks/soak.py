@@ -148,7 +148,13 @@ def child_command(name: str, steps: int, warmup: int, seed: int) -> list[str]:
 def run_variant(name: str, steps: int, warmup: int, seed: int, timeout: float | None) -> dict[str, Any]:
     """One variant in a child process: its result, or ``{"error": ...}`` (crash, timeout). The child's stderr (its
     progress bars) is passed through as it comes."""
-    proc = subprocess.Popen(child_command(name, steps, warmup, seed), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    with subprocess.Popen(child_command(name, steps, warmup, seed), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                          text=True, cwd=ROOT) as proc:  # the with closes the pipes
+        return _read_child(proc, timeout)
+
+
+def _read_child(proc: subprocess.Popen, timeout: float | None) -> dict[str, Any]:
+    """``run_variant``'s reading of a started child: its ``SOAK-RESULT`` line, or what ended it."""
     out, err = [], collections.deque(maxlen=200)  # the child's stdout; the end of its stderr, for a crash's line
 
     def pump(stream, keep, echo):
@@ -167,7 +173,7 @@ def run_variant(name: str, steps: int, warmup: int, seed: int, timeout: float | 
     except subprocess.TimeoutExpired:
         proc.kill()
         proc.wait()
-        return {"error": f"timed out after {timeout:.0f} s"}
+        return {"error": f"timed out after {timeout:g} s"}
     finally:
         for t in threads:
             t.join(timeout=5)

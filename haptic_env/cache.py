@@ -181,7 +181,8 @@ def load_npz(path: str | os.PathLike, required: tuple[str, ...] = ()) -> dict[st
     """Load every array of an ``.npz``; raise :class:`CacheError` naming the file if it is unreadable."""
     path = Path(path)
     try:
-        with np.load(path, allow_pickle=False) as data:
+        # the file is opened here, not by np.load: np.load leaks its handle when a corrupted zip fails to open
+        with open(path, "rb") as f, np.load(f, allow_pickle=False) as data:
             out = {k: data[k] for k in data.files}
     except FileNotFoundError:
         raise

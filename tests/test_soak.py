@@ -73,7 +73,7 @@ def test_a_variant_child_is_read_and_its_crash_named(load_benchmark, monkeypatch
     assert soak.run_variant("ok", 2, 1, 0, None) == {"steps": 2}
     assert "bar 2/2" in capsys.readouterr().err
     assert soak.run_variant("crash", 2, 1, 0, None) == {"error": "crashed (exit status 3): boom"}
-    assert soak.run_variant("hang", 2, 1, 0, 0.5) == {"error": "timed out after 0 s"}
+    assert soak.run_variant("hang", 2, 1, 0, 0.5) == {"error": "timed out after 0.5 s"}
 
 
 def test_an_interrupted_soak_resumes_after_its_finished_variants(load_benchmark, monkeypatch, tmp_path):
