@@ -23,8 +23,9 @@ from typing import Any, Iterator
 
 import numpy as np
 
-__all__ = ["cache_dir", "config_key", "KEY_ONLY_WHEN_SET", "atomic_write", "save_npz_atomic", "load_npz", "CacheError",
-           "CacheNotWritableError", "clean_stale_tmp", "STALE_TMP_SECONDS", "save_keyed_json", "load_keyed_json"]
+__all__ = ["cache_dir", "config_key", "KEY_ONLY_WHEN_SET", "KEY_AS", "atomic_write", "save_npz_atomic", "load_npz",
+           "CacheError", "CacheNotWritableError", "clean_stale_tmp", "STALE_TMP_SECONDS", "save_keyed_json",
+           "load_keyed_json"]
 
 #: A temporary file older than this is removed even if its writer's process id is still in use (6 h).
 STALE_TMP_SECONDS = 6 * 3600.0
@@ -106,11 +107,15 @@ def clean_stale_tmp(folder: str | os.PathLike, max_age: float = STALE_TMP_SECOND
 #: Metadata flag of a dataclass field that is left out of :func:`config_key` while it holds its default, so that a
 #: field added to a config later keeps the keys (and the cached files) of everything made before it existed.
 KEY_ONLY_WHEN_SET = "key_only_when_set"
+#: Metadata of a dataclass field that cannot change the artefact (a progress bar): :func:`config_key` keys it as the
+#: value given here, whatever it holds, so that turning it on or off finds the same cached files.
+KEY_AS = "key_as"
 
 
 def _jsonable(obj: Any) -> Any:
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return {f.name: _jsonable(getattr(obj, f.name)) for f in dataclasses.fields(obj)
+        return {f.name: _jsonable(f.metadata[KEY_AS] if KEY_AS in f.metadata else getattr(obj, f.name))
+                for f in dataclasses.fields(obj)
                 if not (f.metadata.get(KEY_ONLY_WHEN_SET) and getattr(obj, f.name) == f.default)}
     if isinstance(obj, dict):
         return {str(k): _jsonable(v) for k, v in sorted(obj.items())}

@@ -7,7 +7,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from haptic_env.cache import KEY_ONLY_WHEN_SET, CacheError, atomic_write, cache_dir, config_key, load_npz, save_npz_atomic
+from haptic_env.cache import (KEY_AS, KEY_ONLY_WHEN_SET, CacheError, atomic_write, cache_dir, config_key, load_npz,
+                               save_npz_atomic)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -24,6 +25,42 @@ def test_config_key_is_stable_and_sensitive():
     # numpy scalars key as the Python scalars they stand for (np.bool_ had been keyed by its repr)
     assert config_key(np.int64(3), np.float32(0.5), np.bool_(True)) == config_key(3, 0.5, True)
     assert config_key(np.bool_(True)) != config_key(np.bool_(False))
+
+
+def test_config_keys_are_the_same_in_another_process():
+    """A key built from a value whose text holds a memory address, or from hash order, would differ from process to
+    process, so that no cache would ever be found again: the package's own configs key alike in a fresh interpreter
+    with another hash seed."""
+    import os
+    import subprocess
+    import sys
+
+    from haptic_env.config import HapticRecogConfig
+    from haptic_env.dataset import DatasetConfig
+    from haptic_env.recognizers import RecognizerConfig
+
+    code = ("from haptic_env.cache import config_key\n"
+            "from haptic_env.config import HapticRecogConfig\n"
+            "from haptic_env.dataset import DatasetConfig\n"
+            "from haptic_env.recognizers import RecognizerConfig\n"
+            "print(config_key(HapticRecogConfig(), DatasetConfig(), RecognizerConfig()))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         env={**os.environ, "PYTHONHASHSEED": "12345"}).stdout.strip()
+    assert out == config_key(HapticRecogConfig(), DatasetConfig(), RecognizerConfig())
+
+
+def test_a_field_keyed_as_a_fixed_value_does_not_change_the_key():
+    from haptic_env.recognizers import MLPConfig
+
+    @dataclasses.dataclass(frozen=True)
+    class Shown:
+        a: int = 1
+        bar: bool = dataclasses.field(default=True, metadata={KEY_AS: False})
+
+    assert config_key(Shown(bar=True)) == config_key(Shown(bar=False)) != config_key(Shown(a=2))
+    # the MLP's progress bar: on or off, a recogniser finds the same cached model
+    on, off = MLPConfig(progress=True), MLPConfig(progress=False)
+    assert config_key(on) == config_key(off) != config_key(MLPConfig(seed=1))
 
 
 def test_field_added_later_keeps_older_keys_while_unset():

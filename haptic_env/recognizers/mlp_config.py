@@ -3,8 +3,9 @@ recogniser's config can be built and read without importing torch (a BC-NP env n
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
+from haptic_env.cache import KEY_AS
 from haptic_env.numbers import finite_number, flag, whole_at_least, whole_number
 
 __all__ = ["MLPConfig"]
@@ -29,7 +30,9 @@ class MLPConfig:
     val_fraction: float = 0.1  #: used only when no explicit validation set is given to ``fit``
     seed: int = 0
     threads: int | None = None  #: torch intra-op threads (None: see :func:`~.mlp.torch_threads`)
-    progress: bool = True
+    #: a progress bar per epoch; keyed as False (:data:`~haptic_env.cache.KEY_AS`, the analyses' setting, so that
+    #: their cached models keep their keys): with it on or off a recogniser finds the same cached model
+    progress: bool = field(default=True, metadata={KEY_AS: False})
 
     def __post_init__(self):
         for name in ("depth", "width", "batch_size", "max_epochs", "patience"):
