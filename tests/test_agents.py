@@ -180,7 +180,7 @@ def _train_args(algo: str, steps: int, run, recognizer_kwargs: dict, hyperparams
             "--hyperparams", json.dumps(hyperparams)]
 
 
-def test_tiny_ppo_trains_saves_reloads_and_resumes(env_config, small_recognizer_kwargs, tmp_path):
+def test_tiny_ppo_trains_saves_reloads_and_resumes(env_config, small_recognizer_kwargs, tmp_path, capsys):
     import train
     from agents.sb3 import SB3Agent, load_model
 
@@ -209,10 +209,12 @@ def test_tiny_ppo_trains_saves_reloads_and_resumes(env_config, small_recognizer_
     with pytest.raises(ValueError, match=r"no_repeat .* needs a categorical policy .*'ppo-norepeat' has an action"):
         make_agent(f"ppo={path}", no_repeat=True)  # evaluate --no-repeat with a Gaussian policy
 
+    capsys.readouterr()
     path2 = train.main(args[:-2] + ["--resume", str(run / "checkpoints" / "ppo_128_steps.zip"),
                                     "--total-timesteps", "256", "--run-dir", str(tmp_path / "resumed"),
                                     "--hyperparams", json.dumps({"n_steps": 64, "batch_size": 32})])
     assert load_model(path2).num_timesteps >= 256
+    assert "256 steps (128 in this run)" in capsys.readouterr().out  # went on from step 128, not from 0
 
     curves = plot_learning_curves({"ppo": run}, tmp_path / "lc.png", window=5)
     assert curves.stat().st_size > 0
@@ -235,7 +237,7 @@ def test_tiny_sac_trains_and_acts_in_bounds(env_config, small_recognizer_kwargs,
 
 
 def test_tiny_recurrent_ppo_trains_resumes_and_remembers_within_an_episode(env_config, small_recognizer_kwargs,
-                                                                          tmp_path):
+                                                                          tmp_path, capsys):
     """``--algo rppo`` (sb3-contrib's RecurrentPPO): trains, checkpoints and resumes like PPO; as an agent it carries
     its LSTM state from step to step of an episode and starts every episode from a cleared state."""
     import train
@@ -263,9 +265,11 @@ def test_tiny_recurrent_ppo_trains_resumes_and_remembers_within_an_episode(env_c
                          3, seed=1) for _ in range(2))
     assert [(r.grasps, r.predicted) for r in a] == [(r.grasps, r.predicted) for r in b]
 
+    capsys.readouterr()
     resumed = train.main(_train_args("rppo", 256, tmp_path / "resumed", small_recognizer_kwargs, hp)
                          + ["--resume", str(run / "checkpoints" / "rppo_128_steps.zip")])
     assert type(load_model(resumed)).__name__ == "RecurrentPPO" and load_model(resumed).num_timesteps == 256
+    assert "256 steps (128 in this run)" in capsys.readouterr().out  # went on from step 128, not from 0
 
 
 def test_discrete_approaches_train_a_categorical_ppo_that_acts_with_the_tables_rows(env_config,
@@ -681,7 +685,7 @@ def test_success_rates_carry_wilson_intervals_and_the_decided_and_correct_share(
     rows = {r["agent"]: r for r in summarize(recs)}
     # 40 of 40: a bootstrap interval has no width there, Wilson's does
     assert rows["random"]["success"] == 1.0 and rows["random"]["success_ci"] == pytest.approx((0.91238, 1.0), abs=1e-5)
-    assert proportion_ci(0, 0) != proportion_ci(0, 0)  # nan for no episodes
+    assert np.isnan(proportion_ci(0, 0)).all()  # nan for no episodes
     # right at the stop but undecided counts for "success", not for "decided and correct"
     assert rows["slow"]["success"] == 1.0 and rows["slow"]["decided"] == 0.5 and rows["slow"]["decided_correct"] == 0.5
     lo, hi = rows["slow"]["decided_correct_ci"]

@@ -31,7 +31,9 @@ def documents() -> list[pathlib.Path]:
                          cwd=ROOT, capture_output=True, text=True)
     if out.returncode != 0:
         pytest.skip(f"not a git checkout: {out.stderr.strip()}")
-    return [ROOT / f for f in out.stdout.split()]
+    docs = [ROOT / f for f in out.stdout.split()]
+    assert ROOT / "README.md" in docs and ROOT / "RESULTS.md" in docs, docs  # else the checks below check nothing
+    return docs
 
 
 def commands(text: str):

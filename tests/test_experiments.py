@@ -127,11 +127,19 @@ def test_build_recognizer_caches_and_updates(cache):
     for kind in ("bc-np", "bc-ip", "ic", "ic-full"):
         u = rec.make_updater(kind)
         b = u.update_grasp(pts, nrm)
-        assert b.shape == (3,) and u.n_grasps == 1
+        assert b.shape == (3,) and u.n_grasps == 1 and np.all(b >= 0)
+        if kind == "ic":  # the winner's score only
+            assert np.count_nonzero(b) == 1 and 0 < b.max() <= 1
+        else:  # a posterior
+            assert b.sum() == pytest.approx(1.0)
+    assert rec.make_updater("bc-np").update_grasp(pts, nrm).max() > 0.5  # one grasp moves the KDE's belief
     uz = rec.make_updater("bc-np", z=3, k=2, rng=rng)
-    assert uz.update_grasp(pts, nrm).shape == (3,)
-    inc = rec.make_updater("bc-np")  # incomplete grasp routed to the 3-finger model
-    assert inc.update_grasp(pts, nrm, touched=np.array([True, True, False, True])).shape == (3,)
+    bz = uz.update_grasp(pts, nrm)
+    assert bz.shape == (3,) and bz.sum() == pytest.approx(1.0)
+    inc = rec.make_updater("bc-np")  # incomplete grasp routed to the 3-finger model: as a grasp of its 3 contacts
+    touched = np.array([True, True, False, True])
+    np.testing.assert_allclose(inc.update_grasp(pts, nrm, touched=touched),
+                               rec.make_updater("bc-np").update_grasp(pts[touched], nrm[touched]), rtol=1e-12)
     (cache / "recognizers" / next(f for f in files if f.endswith("_mlp.pt"))).write_bytes(b"garbage")
     with pytest.warns(UserWarning, match="rebuilding"):
         build_recognizer(objs, 4, True, z_values=(3,), config=cfg, progress=False)

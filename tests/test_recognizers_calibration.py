@@ -245,10 +245,12 @@ def test_power_correction_recovers_the_exponent_and_beats_a_temperature_held_out
         fit_power(S, y, bounds=(1.0, 0.5))
 
 
-def test_kde_power_correction_is_stored_and_chosen_by_auto_only_where_it_helps():
+def test_kde_power_correction_is_stored_and_chosen_by_auto_only_where_it_helps(monkeypatch):
     """``correct="power"`` fits it and the cache round trip keeps it; ``correct="auto"`` with the power among its
-    candidates fits exactly what the chosen one fits; bad names are refused."""
-    from haptic_env.recognizers.calibration import PowerCorrection
+    candidates fits exactly what the chosen one fits, and what it fits is select_calibration's choice on the KDE's
+    own validation scores (whose choice, the lowest held-out NLL, is tested above); bad names are refused."""
+    import haptic_env.recognizers.kde as kde_module
+    from haptic_env.recognizers.calibration import PowerCorrection, ScoreCorrection
 
     X, y, Xv, yv = _two_gaussians(np.random.default_rng(2), 400, 300, d=8, shift=0.5)
     power = KDELikelihood(KDEConfig(method="dense", correct="power")).fit(X, y, Xv, yv)
@@ -265,6 +267,18 @@ def test_kde_power_correction_is_stored_and_chosen_by_auto_only_where_it_helps()
     assert auto.temperature == chosen.temperature
     np.testing.assert_array_equal(auto.calibrate_scores(auto.log_likelihood(q)),
                                   chosen.calibrate_scores(chosen.log_likelihood(q)))
+    # the wiring: auto takes whatever select_calibration chooses among the configured candidates
+    seen = []
+    for forced, expected in ((None, type(None)), ("power", PowerCorrection), ("matrix", ScoreCorrection)):
+        def select(S, Y, candidates, *, forced=forced, **kw):
+            seen.append((S.shape, tuple(candidates)))
+            return forced, {}
+
+        monkeypatch.setattr(kde_module, "select_calibration", select)
+        fitted = KDELikelihood(KDEConfig(method="dense", correct="auto", correct_candidates=("matrix", "power"))
+                               ).fit(X, y, Xv, yv)
+        assert type(fitted.correction) is expected
+    assert seen == [((len(Xv), 2), ("matrix", "power"))] * 3  # the KDE's scores of its validation vectors
     with pytest.raises(ValueError, match="correct_candidates"):
         KDEConfig(correct="auto", correct_candidates=("power", "power"))
     with pytest.raises(ValueError, match="correct must be"):

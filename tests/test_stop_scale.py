@@ -102,7 +102,7 @@ def test_raw_scores_have_no_stop_scale_and_refuse_one_by_name(tmp_path, monkeypa
     with pytest.raises(SystemExit) as exc:
         main(base + ["--out", str(tmp_path / "both"), "--stop-scale"])
     assert exc.value.code == 2 and not (tmp_path / "both").exists()
-    assert "--stop-scale" in capsys.readouterr().err
+    assert "error: --stop-scale scales calibrated scores; --raw is the paper's method" in capsys.readouterr().err
     assert main(base + ["--out", str(tmp_path / "raw")]) == 0
     raw = (tmp_path / "raw" / "results.md").read_text()
     assert "stop scale (validation BC-NP)" not in raw and " --no-stop-scale " in raw.split("```")[1]
