@@ -4,7 +4,7 @@ r"""The belief over the ``K`` objects: grasp :math:`\to q = \Phi_n \to` likeliho
 public API:
 
 =================================  ===================================================================
-``reset(prior, support_z)``        forget all grasps (returns the prior); the episode's table height
+``reset(prior, *, support_z)``     forget all grasps (returns the prior); the episode's table height
 ``update(contacts, normals, t)``   one real grasp -> ``(q, usable)``; the posterior moves if usable
 ``update_rows(Q)``                 one grasp given as its score rows ``(m, d)`` (precomputed vectors)
 ``rows(contacts, normals, t)``     the grasp vector and score rows of one grasp (no state change)
@@ -40,8 +40,8 @@ general path, which gives the same result).
 
 The maths of the posterior step live in :mod:`haptic_env.recognizers.updaters` (IC, BC-NP, BC-IP), whose
 :func:`~haptic_env.recognizers.updaters.bayes_steps` updates ``B`` log beliefs ``(B, K)`` in one call:
-:meth:`predict` uses it for ``G`` candidate grasps, and a vector env can use it with :meth:`rows_batch` for
-``B`` episodes at once.
+:meth:`predict` uses it for ``G`` candidate grasps, and the native vector env's fast path uses it with the compiled
+:class:`~haptic_env.recognizers.scorer.GraspScorer` for ``B`` episodes at once.
 
 The recognisers themselves are built (or loaded from the cache) once per process per configuration
 (:func:`get_recognizer`).

@@ -45,7 +45,8 @@ class HapticRecogConfig:
     """Every setting of :class:`HapticRecogEnv` (see the env docstring, section *Arguments*)."""
 
     objects: str = "default"
-    """Object-set spec for :func:`haptic_env.objects.load_object_set` ("default", "families", "kit8", "ycb10", a folder)."""
+    """Object-set spec for :func:`haptic_env.objects.load_object_set` ("default", "families" or "families:N", "kit8",
+    "kit20", "ycb10", a folder)."""
     object_kwargs: Mapping[str, Any] = field(default_factory=dict)
     """Extra keyword arguments of ``load_object_set`` (``data_dir``, ``units``, ``up``)."""
     backend: str = "geometric"
@@ -135,8 +136,9 @@ class HapticRecogConfig:
     """Weight ``w`` of the hand's touch-pattern log-likelihood ``w log P(pattern | object)`` that BC-NP adds at
     every grasp (which fingertips touched: :mod:`haptic_env.recognizers.touch`, estimated from the same
     hand-matched training grasps as the KDE); 0: off, the paper's method. Needs the "bc-np" updater and "hand"
-    training grasps (the mujoco backend). The Shadow and Aero envs use 0.25 and 0.5, chosen per hand on
-    validation grasps (RESULTS.md); the Allegro keeps 0 (its success at the stop did not change)."""
+    training grasps (the mujoco or replay backend). The Shadow and Aero envs use 0.25 and 0.5, chosen per hand on
+    validation grasps (RESULTS.md); the Allegro keeps 0 (its success at the stop did not change). The ``Heights``
+    envs use 1.0 / 0.5 / 1.0 / 1.0 (Allegro / Shadow / Aero / Robotiq), chosen for them on validation."""
     grasp_heights: bool = False
     """Append the contacts' heights above the table to the grasp vector (``n`` more values, in the chain order of
     :math:`\\Phi_n`; ``DatasetConfig.heights``, ``phi(heights=True)``), for the recogniser and the observation. The

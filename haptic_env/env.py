@@ -47,7 +47,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     joint angles, optionally contact normals). The contacts are mapped to the pose-invariant grasp vector
     :math:`q = \Phi_n(\text{contacts})` and a Bayesian belief over the ``K`` objects is updated with a
     learned likelihood (BC-NP by default; the models are trained from the object meshes alone, by default on
-    grasps of the geometric hand model, ``recognizer_source``). The task is to become certain of the object's identity in as
+    grasps of the backend's own hand model, the geometric or the MuJoCo hand's, ``recognizer_source``). The task is to become certain of the object's identity in as
     few grasps as possible. The agent does not see the object or its pose.
 
     ## Action Space
@@ -81,8 +81,8 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
 
     | Slice           | Size | Content                                                                  | Range       |
     | --------------- | ---- | ------------------------------------------------------------------------ | ----------- |
-    | contacts        | 3n   | the latest grasp's contact points in the world frame (m), finger by      | +-diameter  |
-    |                 |      | finger; 0 for a finger that did not touch                                |             |
+    | contacts        | 3n   | the latest grasp's contact points in the world frame (m), finger by      | +-max(pi,   |
+    |                 |      | finger; 0 for a finger that did not touch                                | diameter)   |
     | contact_normals | 3n   | their contact normals (only with ``normals``), 0 where not touched       | [-1, 1]     |
 
     With ``observe_yaw=True`` (needs ``action_frame="estimated"``) one value follows last:
@@ -136,7 +136,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     ``z``-subsets by the ``z``-finger model instead (the paper's z-finger scoring; a Bayes step counts them as
     at most ``subset_k = 4`` subsets, the paper's Algorithm 4); with ``min_fingers=m`` a grasp of ``m <= t < z``
     touching fingers is then scored by the ``t``-finger model, where the paper's scoring drops it. With
-    ``touch_weight=w > 0`` (the 5-finger hand envs) every grasp, incomplete or not, also adds
+    ``touch_weight=w > 0`` (the Shadow and Aero envs and every ``Heights`` hand env) every grasp, incomplete or not, also adds
     ``w log P(pattern | object)`` of its touch pattern (which fingertips touched), estimated from the hand's own
     grasps of the meshes (:mod:`haptic_env.recognizers.touch`); such a grasp always updates the belief.
 
@@ -150,7 +150,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         env = haptic_env.make(HapticRecogConfig(max_grasps=50))            # the env truncates after 50 grasps
 
     Every field, its default and its meaning: :class:`~haptic_env.config.HapticRecogConfig` (each field's
-    docstring; ``python train.py --help`` lists them as ``--env.<field>``).
+    docstring; ``python train.py --help`` lists them as ``--env.<field>``, with hyphens: ``--env.grasp-cost``).
 
     The recogniser is built (or loaded from the cache, ``$HAPTIC_CACHE``) on the first ``reset`` and shared
     by every env of the process with the same objects/fingers/normals/recogniser settings.
