@@ -47,8 +47,9 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     joint angles, optionally contact normals). The contacts are mapped to the pose-invariant grasp vector
     :math:`q = \Phi_n(\text{contacts})` and a Bayesian belief over the ``K`` objects is updated with a
     learned likelihood (BC-NP by default; the models are trained from the object meshes alone, by default on
-    grasps of the backend's own hand model, the geometric or the MuJoCo hand's, ``recognizer_source``). The task is to become certain of the object's identity in as
-    few grasps as possible. The agent does not see the object or its pose.
+    grasps of the backend's own hand model, the geometric or the MuJoCo hand's, ``recognizer_source``). The task
+    is to become certain of the object's identity in as few grasps as possible. The agent does not see the object
+    or its pose.
 
     ## Action Space
     ``Box(-1, 1, (A,), float32)`` where ``A = backend.action_dim``: the approach parameters of one grasp,
@@ -136,9 +137,10 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     ``z``-subsets by the ``z``-finger model instead (the paper's z-finger scoring; a Bayes step counts them as
     at most ``subset_k = 4`` subsets, the paper's Algorithm 4); with ``min_fingers=m`` a grasp of ``m <= t < z``
     touching fingers is then scored by the ``t``-finger model, where the paper's scoring drops it. With
-    ``touch_weight=w > 0`` (the Shadow and Aero envs and every ``Heights`` hand env) every grasp, incomplete or not, also adds
-    ``w log P(pattern | object)`` of its touch pattern (which fingertips touched), estimated from the hand's own
-    grasps of the meshes (:mod:`haptic_env.recognizers.touch`); such a grasp always updates the belief.
+    ``touch_weight=w > 0`` (the Shadow and Aero envs and every ``Heights`` hand env) every grasp, incomplete or
+    not, also adds ``w log P(pattern | object)`` of its touch pattern (which fingertips touched), estimated from
+    the hand's own grasps of the meshes (:mod:`haptic_env.recognizers.touch`); such a grasp always updates the
+    belief.
 
     ## Arguments
     One frozen dataclass :class:`HapticRecogConfig` holds every setting. Pass it as ``config=`` and/or
