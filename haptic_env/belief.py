@@ -57,7 +57,7 @@ import numpy as np
 
 from haptic_env.grasp_features import feature_dim
 from haptic_env.recognizers.touch import check_touch_weight
-from haptic_env.recognizers.updaters import DEFAULT_IC_CERTAINTY, DEFAULT_THRESHOLD, UPDATERS
+from haptic_env.recognizers.updaters import DEFAULT_IC_CERTAINTY, DEFAULT_THRESHOLD, DEFAULT_UPDATER, UPDATERS
 from haptic_env.recognizers.zfinger import DEFAULT_SUBSET_K, check_min_fingers, check_subset_k, subset_weight
 
 if TYPE_CHECKING:
@@ -130,7 +130,7 @@ class Belief:
         ic_certainty: with ``kind="ic"``, IC's certainty rule (``IterativeClassification``): "count" or "share".
     """
 
-    def __init__(self, recognizer, kind: str = "bc-np", threshold: float = DEFAULT_THRESHOLD, *,
+    def __init__(self, recognizer, kind: str = DEFAULT_UPDATER, threshold: float = DEFAULT_THRESHOLD, *,
                  calibrated: bool = True, z_fingers: int | None = None, score_subsets: bool = False,
                  touch_weight: float = 0.0, subset_k: int | None = DEFAULT_SUBSET_K, min_fingers: int | None = None,
                  ic_certainty: str = DEFAULT_IC_CERTAINTY):

@@ -20,8 +20,8 @@ from haptic_env.grasp_features import check_normal_axis
 from haptic_env.numbers import check_flag_fields, finite_number, positive_range, whole_at_least, whole_number
 from haptic_env.recognizers.boosted import check_likelihood
 from haptic_env.recognizers.touch import check_touch_weight
-from haptic_env.recognizers.updaters import (DEFAULT_IC_CERTAINTY, DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD, UPDATERS,
-                                             check_ic_certainty, check_threshold)
+from haptic_env.recognizers.updaters import (DEFAULT_IC_CERTAINTY, DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD,
+                                             DEFAULT_UPDATER, UPDATERS, check_ic_certainty, check_threshold)
 from haptic_env.recognizers.zfinger import DEFAULT_SUBSET_K, check_min_fingers, check_subset_k
 from haptic_env.scene import POSE_MODES
 from haptic_env.task import REWARD_KINDS
@@ -58,7 +58,7 @@ class HapticRecogConfig:
     """Fingers of the hand (>= 2; 2: a gripper, q is the contact distance); the backend must have as many."""
     normals: bool = True
     """Use contact normals in the grasp vector (``5n - 6`` values instead of ``3n - 6``)."""
-    updater: str = "bc-np"
+    updater: str = DEFAULT_UPDATER
     """Belief update, one of ``haptic_env.recognizers.UPDATERS``: "bc-np" | "bc-ip" | "ic" | "ic-full"
     (``Recognizer.make_updater(kind=...)``)."""
     ic_certainty: str = DEFAULT_IC_CERTAINTY

@@ -19,8 +19,9 @@ _EXPORTS = {
                     "calibration"),
     **dict.fromkeys(("MODELS", "ModelBank", "Recognizer", "RecognizerConfig", "build_recognizer", "models_for"),
                     "recognizer"),
-    **dict.fromkeys(("BCIP", "BCNP", "UPDATERS", "DEFAULT_THRESHOLD", "DEFAULT_MAX_GRASPS", "BayesianUpdater",
-                     "BeliefUpdater", "IterativeClassification", "make_updater", "bayes_steps"), "updaters"),
+    **dict.fromkeys(("BCIP", "BCNP", "UPDATERS", "DEFAULT_UPDATER", "DEFAULT_THRESHOLD", "DEFAULT_MAX_GRASPS",
+                     "BayesianUpdater", "BeliefUpdater", "IterativeClassification", "make_updater", "bayes_steps"),
+                    "updaters"),
     **dict.fromkeys(("ZFingerUpdater", "sample_finger_counts", "subset_vectors", "subsets"), "zfinger"),
 }
 

@@ -33,7 +33,7 @@ from haptic_env.recognizers.boosted import BoostedConfig, BoostedLikelihood, che
 from haptic_env.recognizers.kde import KDEConfig, KDELikelihood
 from haptic_env.recognizers.mlp_config import MLPConfig
 from haptic_env.recognizers.touch import TouchModel
-from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, UPDATERS, make_updater
+from haptic_env.recognizers.updaters import DEFAULT_THRESHOLD, DEFAULT_UPDATER, UPDATERS, make_updater
 from haptic_env.recognizers.zfinger import ZFingerUpdater, subset_vectors
 
 __all__ = ["RecognizerConfig", "ModelBank", "Recognizer", "build_recognizer", "models_for", "MODELS", "RECOGNIZER_VERSION"]
@@ -215,7 +215,7 @@ class Recognizer:
                                                normal_axis=self.normal_axis) if ok else None)
         return scorers[calibrated]
 
-    def make_updater(self, kind: str = "bc-np", threshold: float = DEFAULT_THRESHOLD, z: int | None = None, *,
+    def make_updater(self, kind: str = DEFAULT_UPDATER, threshold: float = DEFAULT_THRESHOLD, z: int | None = None, *,
                      k: int | None = None, rng: np.random.Generator | None = None, calibrated: bool = True,
                      **kw) -> ZFingerUpdater:
         """A belief updater over this recogniser's models.

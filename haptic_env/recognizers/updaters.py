@@ -49,11 +49,13 @@ from numba import njit
 from haptic_env.numbers import finite_number, whole_number
 
 __all__ = ["BeliefUpdater", "IterativeClassification", "BayesianUpdater", "BCNP", "BCIP", "make_updater", "UPDATERS",
-           "DEFAULT_THRESHOLD", "DEFAULT_MAX_GRASPS", "check_threshold", "IC_CERTAINTIES", "DEFAULT_IC_CERTAINTY",
+           "DEFAULT_UPDATER", "DEFAULT_THRESHOLD", "DEFAULT_MAX_GRASPS", "check_threshold", "IC_CERTAINTIES", "DEFAULT_IC_CERTAINTY",
            "check_ic_certainty", "bayes_steps"]
 
 #: Every belief-updater kind (the env, the recogniser and the experiments take these names).
 UPDATERS = ("ic", "ic-full", "bc-np", "bc-ip")
+#: The updater wherever one is not given (the env, the belief, the recogniser's ``make_updater``): BC-NP.
+DEFAULT_UPDATER = UPDATERS[2]
 #: How IC turns its scores into a certainty (:class:`IterativeClassification`): ours, or the authors' code's.
 IC_CERTAINTIES = ("count", "share")
 #: IC's certainty rule wherever one is not given (the env, the analyses, the benchmarks).
