@@ -7,7 +7,8 @@ object in the KDE (``--grasps`` to change). Measured in the same run:
 * BC-NP update with the "pooled" KDE evaluation (one search over all objects; the env's default);
 * BC-NP update with a dense numpy evaluation over all samples (the baseline);
 * BC-NP update with scikit-learn's ``KernelDensity`` (the library's KDE: a ball tree per object with the same
-  standardised vectors and bandwidths, ``rtol=1e-3``), on the dense row's queries;
+  standardised vectors and bandwidths), on the dense row's queries, at ``rtol=1e-3`` and at ``rtol=0.3``, whose
+  true-class error (about 0.14 nats) is that of the tree KDE (median about 0.12): the library as loose as ours;
 * IC update (MLP 3 x 256 forward pass);
 * accuracy cost of tree and pooled vs dense: one-shot argmax agreement, accuracies, and the
   error of the true-class log-likelihood on held-out grasps;
@@ -16,7 +17,9 @@ object in the KDE (``--grasps`` to change). Measured in the same run:
   saturates), and scipy's ``gaussian_kde`` (the library's exact sum) against the dense sum.
 
 Headline (printed last): the BC update time (goal <= 2 ms) and its ratios to the dense sum and to scikit-learn's
-``KernelDensity``, all from the same run.
+``KernelDensity`` at the tree's accuracy (``rtol=0.3``), all from the same run. (Far from a class's vectors, 10 or
+more bandwidths, ``KernelDensity`` returns log densities well above the exact sum at any ``rtol``, e.g. -48.2 for an
+exact -65.9, checked in float64; the error is printed. Those cells are ones a posterior gives almost no weight.)
 
     python benchmarks/bench_recognizers.py [--grasps 200000] [--queries 300]
 """
@@ -38,6 +41,11 @@ import torch  # noqa: E402
 from haptic_env.dataset import DatasetConfig, build_dataset  # noqa: E402
 from haptic_env.objects import load_object_set  # noqa: E402
 from haptic_env.recognizers import KDEConfig, KDELikelihood, MLPClassifier, MLPConfig, make_updater  # noqa: E402
+
+
+#: scikit-learn KernelDensity tolerances timed: a tight one, and the last one, whose true-class error (about 0.14 nats
+#: here) is the tree KDE's (median about 0.12), for the headline.
+LIBRARY_RTOLS = (1e-3, 0.3)
 
 
 def _time_updates(u, Q):
@@ -130,21 +138,27 @@ def main(argv=None) -> int:
     t_dense, _, w_dense = _time_updates(bcd, Q[: args.dense_queries])
     from sklearn.neighbors import KernelDensity
 
-    t0 = time.perf_counter()
-    library = [KernelDensity(bandwidth=float(kde.bandwidth[c]), kernel="gaussian", rtol=1e-3).fit(kde.data[c])
-               for c in range(kde.n_classes)]
-    t_lib_fit = time.perf_counter() - t0
-
     class Library:  # the same log densities as the dense sum, from the library (within its rtol)
         n_classes = kde.n_classes
 
+        def __init__(self, rtol: float):
+            t0 = time.perf_counter()
+            self.models = [KernelDensity(bandwidth=float(kde.bandwidth[c]), kernel="gaussian", rtol=rtol
+                                         ).fit(kde.data[c]) for c in range(kde.n_classes)]
+            self.rtol, self.fit_seconds = rtol, time.perf_counter() - t0
+
         def log_likelihood(self, X):
             Z = (np.atleast_2d(X) - kde.scaler.mean) / kde.scaler.std
-            return np.stack([m.score_samples(Z) for m in library], axis=1) - np.log(kde.scaler.std).sum()
+            return np.stack([m.score_samples(Z) for m in self.models], axis=1) - np.log(kde.scaler.std).sum()
 
-    t_lib, _, w_lib = _time_updates(make_updater("bc-np", likelihood=Library()), Q[: args.dense_queries])
-    lib_err = np.abs(Library().log_likelihood(Q[: args.dense_queries])
-                     - kde.log_likelihood(Q[: args.dense_queries], method="dense"))
+    Qd, yd = Q[: args.dense_queries], yq[: args.dense_queries]
+    dense_d = kde.log_likelihood(Qd, method="dense")
+    libs = []
+    for rtol in LIBRARY_RTOLS:
+        lib = Library(rtol)
+        t_lib, _, w_lib = _time_updates(make_updater("bc-np", likelihood=lib), Qd)
+        err = np.abs(lib.log_likelihood(Qd) - dense_d)
+        libs.append((lib, t_lib, w_lib, np.median(err[np.arange(len(Qd)), yd]), err.max()))
     ic = make_updater("ic", classifier=clf)
     t_ic, t_ic90, w_ic = _time_updates(ic, Q)
 
@@ -165,16 +179,18 @@ def main(argv=None) -> int:
     print("times are CPU time of one thread (median; p90; wall-clock median in brackets)")
     print(f"IC update (MLP 3x256 forward, 1 thread): {1e3 * t_ic:.3f} ms; p90 {1e3 * t_ic90:.3f} ms [{1e3 * w_ic:.3f} ms wall]")
     print(f"BC update, dense numpy over all {ds.X_train.shape[0]} samples: {1e3 * t_dense:.2f} ms [{1e3 * w_dense:.2f} ms wall]")
-    print(f"BC update, scikit-learn KernelDensity (ball trees, rtol 1e-3; {t_lib_fit:.1f} s to build): "
-          f"{1e3 * t_lib:.2f} ms [{1e3 * w_lib:.2f} ms wall]; |log-likelihood - dense| max {lib_err.max():.2e} nats "
-          f"over {args.dense_queries} queries")
+    for lib, t_lib, w_lib, true_err, max_err in libs:
+        print(f"BC update, scikit-learn KernelDensity (ball trees, rtol {lib.rtol:g}; {lib.fit_seconds:.1f} s to "
+              f"build): {1e3 * t_lib:.2f} ms [{1e3 * w_lib:.2f} ms wall]; true-class |log-likelihood - dense| median "
+              f"{true_err:.4f} nats, any class max {max_err:.1f} nats over {args.dense_queries} queries")
     print(f"BC update, tree KDE (k >= {kde.config.k} per object, eps={kde.config.eps}, cutoff {kde.config.cutoff} h): "
           f"{1e3 * t_tree:.3f} ms; p90 {1e3 * t_tree90:.3f} ms [{1e3 * w_tree:.3f} ms wall]")
     print(f"BC update, pooled KDE (one search, k={pooled.config.k} over all objects): {1e3 * t_pool:.3f} ms; "
           f"p90 {1e3 * t_pool90:.3f} ms [{1e3 * w_pool:.3f} ms wall]; {t_tree / t_pool:.1f}x faster than tree")
+    lib, t_lib = libs[-1][0], libs[-1][1]  # the library as loose as the tree
     print(f"HEADLINE: BC update {1e3 * t_tree:.2f} ms CPU on one core (goal <= 2 ms), {t_dense / t_tree:.0f}x faster "
           f"than a dense numpy evaluation and {t_lib / t_tree:.0f}x faster than scikit-learn's KernelDensity "
-          f"(rtol 1e-3), in the same run")
+          f"(rtol {lib.rtol:g}, the tree's accuracy), in the same run")
     return 0
 
 
