@@ -25,6 +25,10 @@ real hand does not have. ``--force-closure MU`` keeps only grasps in force closu
 decimated meshes, face centres against area-uniform points: the paper's candidate contacts are a finite set (one
 per face) that its training and test grasps share, which a large training set could cover.
 
+Each finished row of the table is kept in the cache (``<cache>/sampling_protocol/<settings key>.json``, written
+atomically), so an interrupted run started again with the same settings prints the rows it has and computes only the
+rest (a row takes minutes; with ``--force-closure`` the table took 31 minutes).
+
 Needs the shared data (kit/) and ``pip install -e ".[bench]"`` (fast-simplification).
 
     python benchmarks/sampling_protocol.py [--fingers 3] [--no-normals] [--grasps 20000] [--faces 800] \
@@ -113,6 +117,21 @@ def main(argv=None) -> int:
     print("|---|---|---|---|---|---|")
     from tqdm.auto import tqdm
 
+    from haptic_env.cache import cache_dir, config_key, load_keyed_json, save_keyed_json
+
+    key = {k: v for k, v in sorted(vars(args).items()) if k not in ("curve", "plot")}
+    state = cache_dir("sampling_protocol") / f"{config_key(key)}.json"
+    rows = (load_keyed_json(state, key) or {}).get("rows", {})  # the rows an interrupted run finished
+
+    def row(name, compute):
+        """``(accs, j, n_test, seconds)`` of the row ``name``: kept from an earlier run, or computed and kept."""
+        if name not in rows:
+            t0 = time.perf_counter()
+            accs, j, n_test = compute()
+            rows[name] = [[float(a) for a in accs], int(j), int(n_test), time.perf_counter() - t0]
+            save_keyed_json(state, key, rows=rows)
+        return rows[name]
+
     chosen = {}
     meshes = (("full (about 25,000 faces)", list(objects)), (f"decimated ({args.faces} faces)", decimated))
     methods = (("area", "area-uniform points"), ("centroid", "centres of uniform faces"))
@@ -121,22 +140,25 @@ def main(argv=None) -> int:
                file=sys.stderr)
     for mesh_label, objs in meshes:
         for method, label in methods:
-            t0 = time.perf_counter()
-            train, val, test = (data(objs, method, count, seed) for seed, count in
-                                ((1, args.grasps), (3, args.test_grasps), (2, args.test_grasps)))
-            accs, j = validated_knn(train, val, test)
-            chosen[mesh_label, label] = accs[j], len(test[1])
-            print(f"| {mesh_label} | {label} | {_cells(accs, j)} |  <!-- {time.perf_counter() - t0:.0f} s -->",
-                  flush=True)
+            def our_row(objs=objs, method=method):
+                train, val, test = (data(objs, method, count, seed) for seed, count in
+                                    ((1, args.grasps), (3, args.test_grasps), (2, args.test_grasps)))
+                return (*validated_knn(train, val, test), len(test[1]))
+
+            accs, j, n_test, seconds = row(f"{mesh_label} | {label}", our_row)
+            chosen[mesh_label, label] = accs[j], n_test
+            print(f"| {mesh_label} | {label} | {_cells(accs, j)} |  <!-- {seconds:.0f} s -->", flush=True)
             bar.update()
     for order in orders:
-        t0 = time.perf_counter()
-        train, val, test = (authors_data(decimated, count, args.fingers, seed, sort=order != "shuffled",
-                                         normals=normals, mu=args.force_closure)
-                            for seed, count in ((1, args.grasps), (3, args.test_grasps), (2, args.test_grasps)))
-        accs, j = validated_knn(train, val, test)
+        def authors_row(order=order):
+            train, val, test = (authors_data(decimated, count, args.fingers, seed, sort=order != "shuffled",
+                                             normals=normals, mu=args.force_closure)
+                                for seed, count in ((1, args.grasps), (3, args.test_grasps), (2, args.test_grasps)))
+            return (*validated_knn(train, val, test), len(test[1]))
+
+        accs, j, _, seconds = row(f"authors | {order}", authors_row)
         print(f"| decimated ({args.faces} faces) | centres of uniform faces, the authors' vector, {order} | "
-              f"{_cells(accs, j)} |  <!-- {time.perf_counter() - t0:.0f} s -->", flush=True)
+              f"{_cells(accs, j)} |  <!-- {seconds:.0f} s -->", flush=True)
         bar.update()
     bar.close()
     (ours, n_ours), (paper, n_paper) = (chosen["full (about 25,000 faces)", "area-uniform points"],

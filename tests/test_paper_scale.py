@@ -130,6 +130,28 @@ def test_sampling_protocol_rejects_bad_values_first(load_benchmark, usage_error)
         usage_error(protocol.main, bad, match=match)
 
 
+def test_sampling_protocol_resumes_its_finished_rows(load_benchmark, monkeypatch, tmp_path, capsys):
+    """Each finished row is kept under the cache, keyed by the settings: a second run with them prints the same table
+    without computing a row; other settings compute theirs."""
+    pytest.importorskip("fast_simplification", reason="the decimated meshes need the bench extra")
+    from haptic_env.objects.loaders import data_dir
+
+    if data_dir() is None:
+        pytest.skip("shared mesh data absent (kit/; set HAPTIC_DATA or put it in ../shared/data)")
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path / "cache"))
+    protocol = load_benchmark("sampling_protocol")
+    argv = ["--grasps", "60", "--test-grasps", "10", "--faces", "200"]
+    calls = []
+    knn = protocol.validated_knn
+    monkeypatch.setattr(protocol, "validated_knn", lambda *a: calls.append(1) or knn(*a))
+    assert protocol.main(argv) == 0
+    first = capsys.readouterr().out
+    assert len(calls) == 6 and len(list((tmp_path / "cache" / "sampling_protocol").glob("*.json"))) == 1
+    assert protocol.main(argv) == 0
+    assert len(calls) == 6 and capsys.readouterr().out == first  # every row from the kept state
+    assert protocol.main([*argv[:-1], "300"]) == 0 and len(calls) == 12  # other settings: their own rows
+
+
 def test_sampling_protocol_authors_vector(load_benchmark):
     """The authors' 3-finger vector (benchmarks/sampling_protocol.py): their code's arithmetic, grasp by grasp; rigid
     invariant; it starts at the longest edge, so a cyclic shift of the contacts leaves it unchanged, but it depends
