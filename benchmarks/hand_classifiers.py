@@ -32,7 +32,9 @@ it would tell more per grasp. Nothing is chosen here; the default split uses no 
     OMP_NUM_THREADS=1 python benchmarks/hand_classifiers.py [--hands allegro aero] [--split validation]
         [--classifiers knn hgb extra-trees mlp] [--frontier hgb extra-trees] [--scales ...] [--out DIR]
 
-Writes ``classifiers.md`` and ``frontier.png`` under ``--out``; the headline (per hand and method, the fewest grasps at
+Writes ``classifiers.md`` and ``frontier.png`` under ``--out``, and ``state.json``, each finished (hand, normals) block,
+from which a run started again into the same folder with the same settings resumes (without ``--out`` that state is
+kept in the cache); the headline (per hand and method, the fewest grasps at
 the paper's success with each likelihood) is printed last.
 """
 
@@ -50,6 +52,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.hand_experiment import PAPER, SETUPS, env_config, query_pools, seed_std, training_config  # noqa: E402
 from benchmarks.stop_frontier import grasp_scores, replay  # noqa: E402
 from haptic_env.cli import output_path  # noqa: E402
+from haptic_env.cache import atomic_write, cache_dir, config_key, load_keyed_json, save_keyed_json  # noqa: E402
 from haptic_env.config import HAND_APPROACHES  # noqa: E402
 from haptic_env.dataset import build_dataset, support_frame  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
@@ -206,6 +209,15 @@ def main(argv=None) -> int:
     front = ["| hand | normals | method | paper | likelihood | " + " | ".join(f"s = {s:g}" for s in scales) + " |",
              "|---" * (5 + len(scales)) + "|"]
     curves, heads = [], []
+    # each finished (hand, normals) block is kept, keyed by the settings, in --out (else in the cache): a run started
+    # again after an interruption (the default run takes about 14 min) computes only the blocks it lacks
+    key = {k: v for k, v in sorted(vars(args).items()) if k != "out"}
+    state = (args.out / "state.json" if args.out is not None
+             else cache_dir("hand_classifiers") / f"{config_key(key)}.json")
+    finished = (load_keyed_json(state, key) or {}).get("blocks", {})
+    if finished:
+        print(f"resuming: {len(finished)} finished block(s) kept in {state} (delete it to compute them again)",
+              file=sys.stderr)
     for hand in args.hands:
         n, normal_settings = SETUPS[hand]
         got = query_pools(objects, hand, n, args.split, args.seeds, QUERIES, MAX_GRASPS)
@@ -216,6 +228,16 @@ def main(argv=None) -> int:
         cfg = training_config("hand", hand, argparse.Namespace(hand_budget="uniform", heights=False),
                               env.calibrate_grasps, env.training_grasps or HAND_APPROACHES)
         for normals in normal_settings:
+            block = f"{hand} | normals={normals}"
+            if block in finished:  # an interrupted run finished it
+                b = finished[block]
+                one += b["one"]
+                front += b["front"]
+                heads += b["heads"]
+                curves += [(c[0], c[1], np.array(c[2]), np.array(c[3])) for c in b["curves"]]
+                print("\n".join(b["one"] + b["front"]), flush=True)
+                continue
+            mark = (len(one), len(front), len(curves), len(heads))
             rec = build_recognizer(objects, n, normals, z_values=tuple(range(3, n)), config=cfg,
                                    models=models_for("bc-np"), touch=env.touch_weight > 0)
             data = {z: build_dataset(objects, cfg.dataset_config(z, normals, hand_fingers=n)) for z in range(3, n + 1)}
@@ -246,31 +268,35 @@ def main(argv=None) -> int:
                 one.append(f"| {hand} | {'yes' if normals else 'no'} | {what} | {len(ds.X_train):,} | "
                            f"{int(np.mean([len(y) for _, y in queries])):,} | " + " | ".join(cells) + " |")
                 print(one[-1], flush=True)
-            if not args.frontier:
-                continue
-            liks = {name: {data[z].X_train.shape[1]: trained(name, z) for z in data} for name in args.frontier}
-            for method in METHODS:
-                z = 3 if method.endswith("z=3") else None
-                S, G = {}, {}
-                for pool in pools:
-                    Ls, labels = query_scores(pool, objects, rec, normals, z, liks, env.touch_weight, env.subset_k)
-                    for name, L in Ls.items():
-                        pred, used, done = replay(L, scales, DEFAULT_THRESHOLD)
-                        S.setdefault(name, []).append(np.mean((pred == labels) & done, axis=1))
-                        G.setdefault(name, []).append(used.mean(axis=1))
-                paper = PAPER[method][f"{n}{'+' if normals else '-'}"]
-                for name in S:
-                    s_, g_ = np.array(S[name]).T, np.array(G[name]).T  # (scales, seeds)
-                    cells = [f"{100 * s_[i].mean():.1f} +- {100 * seed_std(s_[i]):.1f} % / {g_[i].mean():.2f}"
-                             for i in range(len(scales))]
-                    front.append(f"| {hand} | {'yes' if normals else 'no'} | {method} | {paper[0]} % / {paper[1]} | "
-                                 f"{name} | " + " | ".join(cells) + " |")
-                    print(front[-1], flush=True)
-                    curves.append((f"{hand} {'w/' if normals else 'w/o'} normals, {method}", name,
-                                   g_.mean(1), 100 * s_.mean(1)))
-                    ok = [i for i in range(len(scales)) if 100 * s_[i].mean() >= paper[0]]
-                    best = f"{g_[min(ok, key=lambda i: g_[i].mean())].mean():.2f}" if ok else "none"
-                    heads.append(f"{hand} {'w/' if normals else 'w/o'} normals {method}, {name}: {best}")
+            if args.frontier:
+                liks = {name: {data[z].X_train.shape[1]: trained(name, z) for z in data} for name in args.frontier}
+                for method in METHODS:
+                    z = 3 if method.endswith("z=3") else None
+                    S, G = {}, {}
+                    for pool in pools:
+                        Ls, labels = query_scores(pool, objects, rec, normals, z, liks, env.touch_weight,
+                                                  env.subset_k)
+                        for name, L in Ls.items():
+                            pred, used, done = replay(L, scales, DEFAULT_THRESHOLD)
+                            S.setdefault(name, []).append(np.mean((pred == labels) & done, axis=1))
+                            G.setdefault(name, []).append(used.mean(axis=1))
+                    paper = PAPER[method][f"{n}{'+' if normals else '-'}"]
+                    for name in S:
+                        s_, g_ = np.array(S[name]).T, np.array(G[name]).T  # (scales, seeds)
+                        cells = [f"{100 * s_[i].mean():.1f} +- {100 * seed_std(s_[i]):.1f} % / {g_[i].mean():.2f}"
+                                 for i in range(len(scales))]
+                        front.append(f"| {hand} | {'yes' if normals else 'no'} | {method} | {paper[0]} % / "
+                                     f"{paper[1]} | {name} | " + " | ".join(cells) + " |")
+                        print(front[-1], flush=True)
+                        curves.append((f"{hand} {'w/' if normals else 'w/o'} normals, {method}", name,
+                                       g_.mean(1), 100 * s_.mean(1)))
+                        ok = [i for i in range(len(scales)) if 100 * s_[i].mean() >= paper[0]]
+                        best = f"{g_[min(ok, key=lambda i: g_[i].mean())].mean():.2f}" if ok else "none"
+                        heads.append(f"{hand} {'w/' if normals else 'w/o'} normals {method}, {name}: {best}")
+            finished[block] = {"one": one[mark[0]:], "front": front[mark[1]:], "heads": heads[mark[3]:],
+                               "curves": [[c[0], c[1], np.asarray(c[2]).tolist(), np.asarray(c[3]).tolist()]
+                                          for c in curves[mark[2]:]]}
+            save_keyed_json(state, key, blocks=finished)
     if len(one) == 2:
         return 1
     pool_seeds = [hand_pool_seed(args.split, s) for s in args.seeds]
@@ -284,7 +310,8 @@ def main(argv=None) -> int:
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
         cmd = "python benchmarks/hand_classifiers.py " + " ".join(sys.argv[1:] if argv is None else argv)
-        (args.out / "classifiers.md").write_text(f"`{cmd}` ({time.perf_counter() - t0:.0f} s)\n\n{text}\n")
+        with atomic_write(args.out / "classifiers.md", "w") as fh:
+            fh.write(f"`{cmd}` ({time.perf_counter() - t0:.0f} s)\n\n{text}\n")
         if curves:
             plot(curves, args.out / "frontier.png")
     print(f"HEADLINE: fewest mean grasps at the paper's success on {args.split}, per likelihood: "
@@ -311,7 +338,8 @@ def plot(curves: list, path: Path) -> None:
         ax.set_ylabel("success at the stop, %")
         ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    with atomic_write(path) as fh:
+        fig.savefig(fh, dpi=110, format="png")
 
 
 if __name__ == "__main__":

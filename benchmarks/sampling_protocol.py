@@ -122,6 +122,9 @@ def main(argv=None) -> int:
     key = {k: v for k, v in sorted(vars(args).items()) if k not in ("curve", "plot")}
     state = cache_dir("sampling_protocol") / f"{config_key(key)}.json"
     rows = (load_keyed_json(state, key) or {}).get("rows", {})  # the rows an interrupted run finished
+    if rows:
+        print(f"resuming: {len(rows)} finished row(s) kept in {state} (delete it to compute them again)",
+              file=sys.stderr)
 
     def row(name, compute):
         """``(accs, j, n_test, seconds)`` of the row ``name``: kept from an earlier run, or computed and kept."""
