@@ -40,8 +40,14 @@ def test_sample_grasps_shapes_and_determinism(objects):
     C2, N2 = sample_grasps(mug, 100, 5, np.random.default_rng(0))
     np.testing.assert_array_equal(C, C2)
     np.testing.assert_array_equal(N, N2)
-    Cc, _ = sample_grasps(mug, 10, 3, np.random.default_rng(0), sampling="centroid")
+    Cc, Nc = sample_grasps(mug, 10, 3, np.random.default_rng(0), sampling="centroid")
     assert Cc.shape == (10, 3, 3)
+    # the paper's protocol: every contact is the centre of a face, with that face's normal (inward or outward)
+    centres, normals = mug.mesh.triangles_center, mug.mesh.face_normals
+    d = np.linalg.norm(Cc.reshape(-1, 1, 3) - centres[None], axis=-1)
+    face = d.argmin(1)
+    assert d.min(1).max() < 1e-9
+    np.testing.assert_allclose(np.abs(np.einsum("ij,ij->i", Nc.reshape(-1, 3), normals[face])), 1.0, atol=1e-9)
 
 
 @pytest.mark.parametrize("n,normals", [(3, False), (4, True), (5, True), (2, True)])

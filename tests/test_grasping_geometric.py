@@ -81,6 +81,7 @@ def test_same_seed_same_grasp_and_batch_matches_single():
     batch = exact.grasp_batch(a, np.random.default_rng(0))
     single = exact.grasp(a[3], np.random.default_rng(0))
     assert np.array_equal(single.contacts, batch.contacts[3]) and np.array_equal(single.touched, batch.touched[3])
+    assert np.array_equal(single.normals, batch.normals[3])
 
 
 def test_noise_perturbs_only_touched_and_keeps_unit_normals():
