@@ -147,10 +147,11 @@ def main(argv=None) -> None:
         print(f"| native B={B} | {nat:,.0f} | {nat / base:.1f} | {'-' if sync is None else f'{nat / sync:.1f}'} |")
         if sync is not None:
             print(f"| SyncVectorEnv B={B} | {sync:,.0f} | {sync / base:.2f} | 1.0 |")
-    if 64 in args.sizes:
-        r64 = med["native B=64"] / base
-        print(f"HEADLINE: native vector env B=64 {med['native B=64']:,.0f} steps/s = {r64:.1f}x the single env "
-              f"({base:,.0f} steps/s) in the same run (target >= 15x: {'met' if r64 >= 15 else 'missed'})")
+    B = 64 if 64 in args.sizes else max(args.sizes)  # the target is set at B = 64; other sizes get the ratio alone
+    r = med[f"native B={B}"] / base
+    target = f" (target >= 15x: {'met' if r >= 15 else 'missed'})" if B == 64 else " (the target is for B=64)"
+    print(f"HEADLINE: native vector env B={B} {med[f'native B={B}']:,.0f} steps/s = {r:.1f}x the single env "
+          f"({base:,.0f} steps/s) in the same run{target}")
 
 
 if __name__ == "__main__":
