@@ -52,7 +52,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.hand_experiment import PAPER, SETUPS, env_config, query_pools, seed_std, training_config  # noqa: E402
 from benchmarks.stop_frontier import grasp_scores, replay  # noqa: E402
 from haptic_env.cli import output_path  # noqa: E402
-from haptic_env.cache import atomic_write, cache_dir, config_key, load_keyed_json, save_keyed_json  # noqa: E402
+from haptic_env.cache import atomic_write, cache_dir, config_key, resume_state, save_keyed_json  # noqa: E402
 from haptic_env.config import HAND_APPROACHES  # noqa: E402
 from haptic_env.dataset import build_dataset, support_frame  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
@@ -214,10 +214,7 @@ def main(argv=None) -> int:
     key = {k: v for k, v in sorted(vars(args).items()) if k != "out"}
     state = (args.out / "state.json" if args.out is not None
              else cache_dir("hand_classifiers") / f"{config_key(key)}.json")
-    finished = (load_keyed_json(state, key) or {}).get("blocks", {})
-    if finished:
-        print(f"resuming: {len(finished)} finished block(s) kept in {state} (delete it to compute them again)",
-              file=sys.stderr)
+    finished = resume_state(state, key, "blocks")
     for hand in args.hands:
         n, normal_settings = SETUPS[hand]
         got = query_pools(objects, hand, n, args.split, args.seeds, QUERIES, MAX_GRASPS)

@@ -117,14 +117,11 @@ def main(argv=None) -> int:
     print("|---|---|---|---|---|---|")
     from tqdm.auto import tqdm
 
-    from haptic_env.cache import cache_dir, config_key, load_keyed_json, save_keyed_json
+    from haptic_env.cache import cache_dir, config_key, resume_state, save_keyed_json
 
     key = {k: v for k, v in sorted(vars(args).items()) if k not in ("curve", "plot")}
     state = cache_dir("sampling_protocol") / f"{config_key(key)}.json"
-    rows = (load_keyed_json(state, key) or {}).get("rows", {})  # the rows an interrupted run finished
-    if rows:
-        print(f"resuming: {len(rows)} finished row(s) kept in {state} (delete it to compute them again)",
-              file=sys.stderr)
+    rows = resume_state(state, key, "rows")  # the rows an interrupted run finished
 
     def row(name, compute):
         """``(accs, j, n_test, seconds)`` of the row ``name``: kept from an earlier run, or computed and kept."""

@@ -19,7 +19,9 @@ experiment 2's, in case a classifier's scores need more sharpening than the cali
 * set A: experiment 2's own validation grasps (seed + 500, 1,500 per object) and trial stream, used to CHOOSE;
 * set B: further fresh grasps (seed + ``CHECK_SEED_OFFSET``), only to CHECK, with the scale chosen on A.
 
-No test grasp is used. The KDE's row at experiment 2's grid reproduces its own validation choice. Run::
+No test grasp is used. The KDE's row at experiment 2's grid reproduces its own validation choice. Each finished finger
+count is kept beside ``--out`` (``<out>.state.json``; without ``--out`` in the cache), and a run started again with
+the same settings resumes from it (a run took 6.5-25 minutes). Run::
 
     OMP_NUM_THREADS=1 python benchmarks/stop_classifier.py --objects kit8 --no-normals --fingers 3,4,5 \\
         --grasps-per-object 200000 --out docs/results/stop_classifier/kit8_no_normals_200k.md
@@ -35,7 +37,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.stop_floor import (CHECK_SEED_OFFSET, analysis_config, choose_and_check, emit,  # noqa: E402
-                                   experiment2_parser, md_table)
+                                   experiment2_parser, kept_parts, md_table)
+from haptic_env.cache import save_keyed_json  # noqa: E402
 from haptic_env.experiments.fresh_grasps import fresh_pool  # noqa: E402
 from haptic_env.experiments.stop_scale import STOP_SCALES, VALIDATION_GRASPS, VALIDATION_TRIALS  # noqa: E402
 from haptic_env.objects import load_object_set  # noqa: E402
@@ -54,7 +57,13 @@ def main(argv=None):
     objects = load_object_set(a.objects)
     cfg = analysis_config(a)
     rows, frontier = [], []
+    state, key, parts = kept_parts(a, "stop_classifier")
     for n in (int(v) for v in a.fingers.split(",")):
+        if str(n) in parts:  # an interrupted run finished it
+            rows += parts[str(n)]["rows"]
+            frontier += parts[str(n)]["frontier"]
+            continue
+        mark = len(rows), len(frontier)
         rec = build_recognizer(objects, n, cfg.normals, config=cfg.recognizer_config(), models=("kde",), progress=False)
         t1 = time.time()  # the fit, or reading it back from the cache
         hgb = build_recognizer(objects, n, cfg.normals, config=dataclasses.replace(cfg, likelihood="hgb")
@@ -73,6 +82,8 @@ def main(argv=None):
             frontier += [[str(n), lik, k] + [by_s[v] for v in SCALES if v <= 1.0] for k, by_s in every.items()]
             rows.append(r)
             print(r, file=sys.stderr, flush=True)
+        parts[str(n)] = {"rows": rows[mark[0]:], "frontier": frontier[mark[1]:]}
+        save_keyed_json(state, key, parts=parts)
     head = ["n", "likelihood", "s chosen on A", "A at s: right / grasps", "B at s", "fit or cache read (s)",
             "scoring (us/vector)"]
     lines = [f"{a.objects}, normals: {cfg.normals}, {a.grasps_per_object} grasps per object (hgb: at most "

@@ -12,8 +12,9 @@ the scale with the fewest grasps whose validation stops are decided and right in
 * set A: experiment 2's own validation grasps (seed + 500, 1,500 per object) and trial stream, used to CHOOSE;
 * set B: further fresh grasps (seed + ``CHECK_SEED_OFFSET``), only to CHECK, with the scale chosen on A.
 
-No test grasp is used. Run (the training data and KDEs are built once and cached; 200,000 grasps per object is
-experiment 2's reported setting)::
+No test grasp is used. Each finished finger count is kept beside ``--out`` (``<out>.state.json``; without ``--out`` in
+the cache), and a run started again with the same settings resumes from it. Run (the training data and KDEs are
+built once and cached; 200,000 grasps per object is experiment 2's reported setting)::
 
     OMP_NUM_THREADS=1 python benchmarks/stop_floor.py --objects kit8 --no-normals --fingers 3,4,5 \\
         --grasps-per-object 200000 --out docs/results/stop_floor/kit8_no_normals_200k.md
@@ -25,10 +26,12 @@ import argparse
 import dataclasses
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 from scipy.special import log_softmax
 
+from haptic_env.cache import atomic_write, cache_dir, config_key, resume_state, save_keyed_json
 from haptic_env.cli import output_path
 from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.families import floored
@@ -91,12 +94,21 @@ def md_table(head: list[str], rows: list[list[str]]) -> list[str]:
 
 
 def emit(lines: list[str], out) -> None:
-    """Print the report's ``lines`` and write them to ``out`` (a path, or None: print only)."""
+    """Print the report's ``lines`` and write them to ``out`` (a path, or None: print only), atomically."""
     text = "\n".join(lines)
     print(text)
     if out is not None:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(text + "\n")
+        with atomic_write(out, "w") as fh:
+            fh.write(text + "\n")
+
+
+def kept_parts(a: argparse.Namespace, name: str) -> tuple[Path, dict, dict]:
+    """Where a run with the settings ``a`` keeps each finished finger count (beside ``--out``, else in the cache),
+    its key, and the parts an interrupted run with them kept (:func:`~haptic_env.cache.resume_state`)."""
+    key = {k: v for k, v in sorted(vars(a).items()) if k != "out"}
+    path = a.out.with_name(a.out.name + ".state.json") if a.out is not None else \
+        cache_dir(name) / f"{config_key(key)}.json"
+    return path, key, resume_state(path, key, "parts")
 
 
 def main(argv=None):
@@ -110,7 +122,13 @@ def main(argv=None):
     objects = load_object_set(a.objects)
     cfg = analysis_config(a)
     rows, frontier = [], []
+    state, key, parts = kept_parts(a, "stop_floor")
     for n in (int(v) for v in a.fingers.split(",")):
+        if str(n) in parts:  # an interrupted run finished it
+            rows += parts[str(n)]["rows"]
+            frontier += parts[str(n)]["frontier"]
+            continue
+        mark = len(rows), len(frontier)
         rec = build_recognizer(objects, n, cfg.normals, config=cfg.recognizer_config(), models=("kde",),
                                progress=False)
         models = rec.models.with_calibration(True)
@@ -126,6 +144,8 @@ def main(argv=None):
                          for k, by_s in every.items()]
             rows.append(r)
             print(r, file=sys.stderr, flush=True)
+        parts[str(n)] = {"rows": rows[mark[0]:], "frontier": frontier[mark[1]:]}
+        save_keyed_json(state, key, parts=parts)
     head = ["n", "eps", "s chosen on A", "A at s: right / grasps", "B at s"]
     lines = [f"{a.objects}, normals: {cfg.normals}, {a.grasps_per_object} grasps per object, seed {a.seed}, lambda "
              f"{a.threshold}; {VALIDATION_GRASPS} validation grasps per object, {VALIDATION_TRIALS} BC-NP trials per "

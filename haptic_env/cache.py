@@ -16,6 +16,7 @@ import dataclasses
 import hashlib
 import json
 import os
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -25,7 +26,7 @@ import numpy as np
 
 __all__ = ["cache_dir", "config_key", "KEY_ONLY_WHEN_SET", "KEY_AS", "atomic_write", "save_npz_atomic", "load_npz",
            "CacheError", "CacheNotWritableError", "clean_stale_tmp", "STALE_TMP_SECONDS", "save_keyed_json",
-           "load_keyed_json"]
+           "load_keyed_json", "resume_state"]
 
 #: A temporary file older than this is removed even if its writer's process id is still in use (6 h).
 STALE_TMP_SECONDS = 6 * 3600.0
@@ -173,6 +174,17 @@ def load_keyed_json(path: str | os.PathLike, key: Any) -> dict | None:
     except (OSError, ValueError):
         return None
     return doc if isinstance(doc, dict) and doc.get("key") == key else None
+
+
+def resume_state(path: str | os.PathLike, key: Any, field: str) -> dict:
+    """The finished parts (``field`` of the document :func:`save_keyed_json` wrote at ``path``) that an interrupted
+    run with these settings (``key``) kept, or ``{}``; when there are some, says so on stderr with the path: a state
+    kept by older code would be read back too, and deleting the file computes them again."""
+    parts = (load_keyed_json(path, key) or {}).get(field) or {}
+    if parts:
+        print(f"resuming: {len(parts)} finished part(s) kept in {path} (delete it to compute them again)",
+              file=sys.stderr, flush=True)
+    return parts
 
 
 def save_npz_atomic(path: str | os.PathLike, **arrays: np.ndarray) -> Path:

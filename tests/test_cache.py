@@ -63,6 +63,19 @@ def test_a_field_keyed_as_a_fixed_value_does_not_change_the_key():
     assert config_key(on) == config_key(off) != config_key(MLPConfig(seed=1))
 
 
+def test_resume_state_gives_back_only_the_same_settings_parts_and_says_where(tmp_path, capsys):
+    from haptic_env.cache import resume_state, save_keyed_json
+
+    path = tmp_path / "state.json"
+    assert resume_state(path, {"a": 1}, "parts") == {} and capsys.readouterr().err == ""  # no file: nothing said
+    save_keyed_json(path, {"a": 1}, parts={"3": [0.5]})
+    assert resume_state(path, {"a": 1}, "parts") == {"3": [0.5]}
+    assert f"1 finished part(s) kept in {path}" in capsys.readouterr().err
+    assert resume_state(path, {"a": 2}, "parts") == {}  # another run's settings
+    path.write_text("{not json")
+    assert resume_state(path, {"a": 1}, "parts") == {}  # unreadable: computed again
+
+
 def test_field_added_later_keeps_older_keys_while_unset():
     @dataclasses.dataclass(frozen=True)
     class Later:

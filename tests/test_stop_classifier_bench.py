@@ -8,11 +8,11 @@ from haptic_env.experiments.stop_scale import VALIDATION_TRIALS
 
 
 @pytest.mark.slow
-def test_it_fits_a_stop_scale_for_each_likelihood_on_validation_grasps(load_benchmark, tmp_path):
+def test_it_fits_a_stop_scale_for_each_likelihood_on_validation_grasps(load_benchmark, tmp_path, monkeypatch):
     bench = load_benchmark("stop_classifier")
     out = tmp_path / "table.md"
-    bench.main(["--objects", "default", "--no-normals", "--fingers", "3", "--grasps-per-object", "300",
-                "--out", str(out)])
+    argv = ["--objects", "default", "--no-normals", "--fingers", "3", "--grasps-per-object", "300", "--out", str(out)]
+    bench.main(argv)
     text = out.read_text()
     assert f"{VALIDATION_TRIALS} BC-NP trials per cell" in text
     rows = [line.split(" | ") for line in text.splitlines() if line.startswith("| 3 | ")]
@@ -24,3 +24,8 @@ def test_it_fits_a_stop_scale_for_each_likelihood_on_validation_grasps(load_benc
         assert 0 <= right <= 100 and 1 <= grasps <= 30
     frontier = [r for r in rows if len(r) > 7]
     assert sorted((r[1], r[2]) for r in frontier) == sorted((k, s) for k in bench.LIKELIHOODS for s in "AB")
+    # a run started again with the same settings reads each finished finger count back: nothing is trained again
+    monkeypatch.setattr(bench, "build_recognizer", lambda *a, **k: pytest.fail("the finished n = 3 was computed again"))
+    bench.main(argv)
+    assert out.read_text().splitlines()[1:] == text.splitlines()[1:]  # all but the first line (its wall time)
+    assert (tmp_path / "table.md.state.json").is_file()
