@@ -32,9 +32,9 @@ it would tell more per grasp. Nothing is chosen here; the default split uses no 
     OMP_NUM_THREADS=1 python benchmarks/hand_classifiers.py [--hands allegro aero] [--split validation]
         [--classifiers knn hgb extra-trees mlp] [--frontier hgb extra-trees] [--scales ...] [--out DIR]
 
-Writes ``classifiers.md`` and ``frontier.png`` under ``--out``, and ``classifiers.state.json``, each finished (hand, normals) block,
-from which a run started again into the same folder with the same settings resumes (without ``--out`` that state is
-kept in the cache); the headline (per hand and method, the fewest grasps at
+Writes ``classifiers.md`` and ``frontier.png`` under ``--out``, and ``classifiers.state.json``, each finished (hand,
+normals) block, from which a run started again into the same folder with the same settings resumes (without
+``--out`` that state is kept in the cache); the headline (per hand and method, the fewest grasps at
 the paper's success with each likelihood) is printed last.
 """
 
@@ -209,8 +209,8 @@ def main(argv=None) -> int:
     front = ["| hand | normals | method | paper | likelihood | " + " | ".join(f"s = {s:g}" for s in scales) + " |",
              "|---" * (5 + len(scales)) + "|"]
     curves, heads = [], []
-    # each finished (hand, normals) block is kept, keyed by the settings, in --out (else in the cache; not committed): a run started
-    # again after an interruption (the default run takes about 14 min) computes only the blocks it lacks
+    # each finished (hand, normals) block is kept, keyed by the settings, in --out (else in the cache; not committed):
+    # a run started again after an interruption (the default run takes about 14 min) computes only the blocks it lacks
     key = {k: v for k, v in sorted(vars(args).items()) if k != "out"}
     state = (args.out / "classifiers.state.json" if args.out is not None
              else cache_dir("hand_classifiers") / f"{config_key(key)}.json")
