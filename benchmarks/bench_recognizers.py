@@ -8,7 +8,7 @@ object in the KDE (``--grasps`` to change). Measured in the same run:
 * BC-NP update with a dense numpy evaluation over all samples (the baseline);
 * BC-NP update with scikit-learn's ``KernelDensity`` (the library's KDE: a ball tree per object with the same
   standardised vectors and bandwidths), on the dense row's queries, at ``rtol=1e-3`` and at ``rtol=0.3``, whose
-  true-class error (about 0.14 nats) is that of the tree KDE (median about 0.12): the library as loose as ours;
+  true-class error (about 0.14 nats) is close to the tree KDE's (median about 0.11): the library about as loose;
 * IC update (MLP 3 x 256 forward pass);
 * accuracy cost of tree and pooled vs dense: one-shot argmax agreement, accuracies, and the
   error of the true-class log-likelihood on held-out grasps;
@@ -44,7 +44,7 @@ from haptic_env.recognizers import KDEConfig, KDELikelihood, MLPClassifier, MLPC
 
 
 #: scikit-learn KernelDensity tolerances timed: a tight one, and the last one, whose true-class error (about 0.14 nats
-#: here) is the tree KDE's (median about 0.12), for the headline.
+#: here) is close to the tree KDE's (median about 0.11), for the headline.
 LIBRARY_RTOLS = (1e-3, 0.3)
 
 
