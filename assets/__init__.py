@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["ASSETS", "HAND_FILES", "SCENE_FILE", "SCENE_OBJECT", "SCENE_ACTION", "asset_path", "grasp_scene",
-           "write_assets"]
+           "scene_object", "write_assets"]
 
 #: the folder holding the files (the installed package's, or the repository's ``assets/``)
 ASSETS = Path(__file__).resolve().parent
@@ -49,19 +49,28 @@ def asset_path(name: str) -> Path:
     return path
 
 
-def grasp_scene(hand: str = "generic", objects: str = "default", name: str = SCENE_OBJECT,
+def scene_object(names) -> str:
+    """The object a scene grasps when none is named, among the set's ``names``: :data:`SCENE_OBJECT`, else the first
+    whose name contains it (ycb10's ``025_mug``), else the set's first."""
+    names = list(names)
+    return next((n for n in names if n == SCENE_OBJECT), next((n for n in names if SCENE_OBJECT in n), names[0]))
+
+
+def grasp_scene(hand: str = "generic", objects: str = "default", name: str | None = None,
                 action=SCENE_ACTION, n_fingers: int | None = None):
     """The MuJoCo backend's grasp scene of ``hand`` grasping object ``name`` of the set ``objects`` along ``action``
     (4 values in [-1, 1]; the README's action table), as MJCF text with the keyframes ``approach`` and ``grasp``
     (:meth:`~haptic_env.grasping.mujoco_backend.MujocoBackend.scene_spec`; the hand's mesh files by absolute path).
-    ``n_fingers``: the hand's (default: its own; 4 for ``"generic"``). Returns ``(xml, grasp_result)``; an unknown
-    object raises ``ValueError`` naming it and the set's objects, a bad action ``ValueError`` naming it."""
+    ``n_fingers``: the hand's (default: its own; 4 for ``"generic"``); ``name`` None: :func:`scene_object`. Returns
+    ``(xml, grasp_result)``; an unknown object raises ``ValueError`` naming it and the set's objects, a bad action
+    ``ValueError`` naming it."""
     from haptic_env.grasping import make_backend
     from haptic_env.grasping.base import validate_action
     from haptic_env.objects import load_object_set
 
     a = validate_action(np.asarray(action, dtype=np.float64), 4)
     objs = load_object_set(objects)
+    name = scene_object(objs.names) if name is None else name
     if name not in objs.names:
         raise ValueError(f"no object {name!r} in the set {objects!r}; it has {list(objs.names)}")
     backend = make_backend("mujoco", n_fingers=n_fingers, hand=hand, support="table", normals=True)
@@ -105,7 +114,8 @@ def add_parser(subparsers):
     p.add_argument("--hand", default="generic", help="generic | allegro | shadow | aero | robotiq | an MJCF file")
     p.add_argument("--fingers", type=int, default=None, help="the hand's fingers (default: its own; generic 4)")
     p.add_argument("--objects", default="default", help="object set: default | kit8 | kit20 | ycb10 | a folder (m)")
-    p.add_argument("--object", default=SCENE_OBJECT, help=f"the object's name in the set (default {SCENE_OBJECT})")
+    p.add_argument("--object", default=None, help=f"the object's name in the set (default: {SCENE_OBJECT}, else the "
+                   f"first object whose name contains it, else the set's first)")
     p.add_argument("--action", default=",".join(str(v) for v in SCENE_ACTION),
                    help="the approach, 4 comma-separated values in [-1, 1]: azimuth, elevation, roll, spread")
     p.add_argument("--out", type=Path, default=Path(SCENE_FILE), help=f"the MJCF file to write (default {SCENE_FILE})")
@@ -125,7 +135,13 @@ def _run_cli(args) -> int:
     if args.out.is_dir():
         raise UsageError(f"--out {args.out} is a folder; give a file name such as {args.out / SCENE_FILE}")
     from haptic_env.grasping.hands import HandUnavailableError
+    from haptic_env.objects import load_object_set
 
+    if args.object is None:
+        try:
+            args.object = scene_object(load_object_set(args.objects).names)
+        except (ValueError, FileNotFoundError) as exc:  # an unknown set, or its data not found
+            raise UsageError(str(exc)) from exc
     print(f"grasping {args.object!r} of {args.objects!r} with the {args.hand!r} hand (the first use of a mesh without "
           "convex pieces decomposes it with CoACD, cached: seconds to a minute) ...", file=sys.stderr, flush=True)
     try:

@@ -113,6 +113,21 @@ def test_scene_command_names_bad_input(argv, message, capsys, tmp_path):
     assert not out.exists()  # nothing half-written
 
 
+def test_scene_object_is_the_mug_or_a_set_s_mug_or_its_first():
+    from haptic_env.assets import scene_object
+
+    assert scene_object(["box", "mug", "can"]) == "mug"
+    assert scene_object(["001_chips_can", "025_mug", "048_hammer"]) == "025_mug"  # ycb10
+    assert scene_object(["CatLying", "GreenCup"]) == "CatLying"
+
+
+def test_scene_command_names_missing_data_without_an_object_too(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("HAPTIC_DATA", str(tmp_path))  # no kit/ there; the default object is looked up in the set
+    with pytest.raises(SystemExit) as exc:
+        main(["scene", "--objects", "kit8", "--out", str(tmp_path / "s.xml")])
+    assert exc.value.code == 2 and "KIT meshes missing" in capsys.readouterr().err
+
+
 def test_scene_command_names_missing_data(tmp_path, capsys, monkeypatch):
     monkeypatch.setenv("HAPTIC_DATA", str(tmp_path))  # no kit/ there
     with pytest.raises(SystemExit) as exc:
