@@ -215,8 +215,11 @@ def main(argv=None):
         rows = [size_cell(a.members, a.grasps, a.seed, sr, tuple(float(v) for v in a.sizes.split(",")), a.source,
                           a.heights)]
     else:
-        rows = [run_cell(lo, hi, nrm, nz, a.members, a.grasps, a.seed, ms, a.trials, models, a.source, sr, a.heights, a.lying)
-                for lo, hi, nrm, nz in cells]
+        rows = []
+        for lo, hi, nrm, nz in cells:  # each cell's row on stderr as it finishes (a cell takes minutes)
+            rows.append(run_cell(lo, hi, nrm, nz, a.members, a.grasps, a.seed, ms, a.trials, models, a.source, sr,
+                                 a.heights, a.lying))
+            print(rows[-1], file=sys.stderr, flush=True)
     keys = list(dict.fromkeys(k for r in rows for k in r))
     print("| " + " | ".join(keys) + " |")
     print("|" + "---|" * len(keys))
