@@ -31,6 +31,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from haptic_env.cli import int_in  # noqa: E402
 from haptic_env.dataset import DatasetConfig, _object_grasps  # noqa: E402
 from haptic_env.grasp_features import phi  # noqa: E402
 from haptic_env.objects import GraspObject, data_dir, make_shape  # noqa: E402
@@ -70,11 +71,9 @@ def naive_loop(P: np.ndarray) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--grasps", type=int, default=200_000)
-    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--grasps", type=int_in(NAIVE_GRASPS), default=200_000)
+    ap.add_argument("--repeats", type=int_in(1), default=3)
     args = ap.parse_args()
-    if args.grasps < NAIVE_GRASPS or args.repeats < 1:
-        sys.exit(f"--grasps must be >= {NAIVE_GRASPS} and --repeats >= 1, got {args.grasps}, {args.repeats}")
     obj = bench_object()
     cfg = DatasetConfig(n_fingers=4, normals=True, grasps_per_object=args.grasps)
     print(f"object: {obj.name}, {len(obj.mesh.faces)} faces; {args.grasps} grasps x 4 fingers with normals; 1 thread")

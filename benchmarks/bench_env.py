@@ -32,17 +32,19 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
+from haptic_env.cli import int_in  # noqa: E402
+
 
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--steps", type=int, default=3000)
+    p.add_argument("--steps", type=int_in(1), default=3000)
     p.add_argument("--env-id", default="HapticRecog-v0", help="a registered variant (its config, never stopping)")
-    p.add_argument("--n-fingers", type=int, default=None, help="override the variant's fingers")
+    p.add_argument("--n-fingers", type=int_in(2), default=None, help="override the variant's fingers")
     p.add_argument("--objects", default=None, help="override the variant's object set")
     p.add_argument("--updater", default="bc-np")
     p.add_argument("--likelihood", default=None, choices=("kde", "hgb"),
                    help="override the variant's likelihood (HapticRecogConfig.likelihood; hgb: gradient boosting)")
-    p.add_argument("--repeats", type=int, default=5, help="timing repeats (the median is reported)")
+    p.add_argument("--repeats", type=int_in(1), default=5, help="timing repeats (the median is reported)")
     args = p.parse_args(argv)
 
     import torch

@@ -21,6 +21,7 @@ from tqdm import tqdm
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from haptic_env.cli import int_in  # noqa: E402
 from haptic_env.grasping import make_backend  # noqa: E402
 from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
@@ -59,7 +60,7 @@ def run(hand: str, objects, approaches: int, variants: dict) -> dict:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--approaches", type=int, default=30, help="random approaches per object and solver")
+    ap.add_argument("--approaches", type=int_in(1), default=30, help="random approaches per object and solver")
     ap.add_argument("--hands", default="shadow,allegro,aero,robotiq")
     ap.add_argument("--solvers", default="Newton,CG,PGS", help="the first is the baseline")
     args = ap.parse_args(argv)

@@ -22,6 +22,7 @@ from tqdm import tqdm
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from haptic_env.cli import int_in  # noqa: E402
 from haptic_env.grasping import make_backend  # noqa: E402
 from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
@@ -95,10 +96,10 @@ def usable_fraction(backend: str, objects, n_approaches: int, seed: int, **cfg) 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--approaches", type=int, default=20, help="random approaches per object (mujoco)")
-    ap.add_argument("--geo-approaches", type=int, default=500, help="random approaches per object (geometric)")
+    ap.add_argument("--approaches", type=int_in(1), default=20, help="random approaches per object (mujoco)")
+    ap.add_argument("--geo-approaches", type=int_in(1), default=500, help="random approaches per object (geometric)")
     ap.add_argument("--hands", default="generic,allegro,shadow,aero,robotiq")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int_in(0), default=0)
     ap.add_argument("--quick", action="store_true", help="3 objects per set")
     args = ap.parse_args(argv)
     sets = _sets(args.quick)

@@ -32,6 +32,7 @@ from scipy.spatial import cKDTree  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from haptic_env.cli import int_in  # noqa: E402
 from haptic_env.dataset import DatasetConfig, build_dataset  # noqa: E402
 from haptic_env.objects import load_object_set  # noqa: E402
 from haptic_env.recognizers.kde import KDEConfig, KDELikelihood  # noqa: E402
@@ -75,9 +76,10 @@ def per_query(fn, Z: np.ndarray, repeats: int) -> float:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--grasps", type=int, default=100_000, help="training grasps per object in the pooled tree")
-    ap.add_argument("--queries", type=int, default=2000, help="held-out grasps queried one at a time")
-    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--grasps", type=int_in(100), default=100_000,
+                    help="training grasps per object in the pooled tree")
+    ap.add_argument("--queries", type=int_in(1), default=2000, help="held-out grasps queried one at a time")
+    ap.add_argument("--repeats", type=int_in(1), default=5)
     args = ap.parse_args(argv)
     objects = load_object_set("default")
     ds = build_dataset(objects, DatasetConfig(n_fingers=4, normals=True, grasps_per_object=args.grasps), progress=False)

@@ -32,6 +32,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from haptic_env.cli import int_in  # noqa: E402
 from haptic_env.dataset import sample_grasps  # noqa: E402
 from haptic_env.grasp_features import phi, surface_area  # noqa: E402
 from haptic_env.objects import load_object_set  # noqa: E402
@@ -76,10 +77,10 @@ def rate(fn, C, N, batch: int, repeats: int) -> float:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--grasps", type=int, default=200_000, help="grasps per n (the large batch)")
+    ap.add_argument("--grasps", type=int_in(1), default=200_000, help="grasps per n (the large batch)")
     ap.add_argument("--fingers", default="2,3,4,8")
     ap.add_argument("--batches", default="1,64,200000", help="batch sizes (small ones timed on fewer grasps)")
-    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--repeats", type=int_in(1), default=3)
     ap.add_argument("--source", default="surface", choices=("surface", "gaussian"),
                     help="surface: grasps of the default set (box faces give planar hull faces: Qhull in both "
                          "paths); gaussian: contacts in general position")

@@ -38,6 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a check
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
+from haptic_env.cli import int_in  # noqa: E402
 from haptic_env.dataset import DatasetConfig, build_dataset  # noqa: E402
 from haptic_env.objects import load_object_set  # noqa: E402
 from haptic_env.recognizers import KDEConfig, KDELikelihood, MLPClassifier, MLPConfig, make_updater  # noqa: E402
@@ -98,10 +99,15 @@ def low_dimensional(objs, grasps: int = 10_000, queries: int = 200) -> None:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--grasps", type=int, default=200_000, help="training grasps per object in the KDE")
-    ap.add_argument("--queries", type=int, default=300, help="timed updates (held-out grasps)")
-    ap.add_argument("--dense-queries", type=int, default=30, help="timed dense updates (slow)")
+    ap.add_argument("--grasps", type=int_in(1000), default=200_000, help="training grasps per object in the KDE")
+    ap.add_argument("--queries", type=int_in(1), default=300, help="timed updates (held-out grasps)")
+    ap.add_argument("--dense-queries", type=int_in(1), default=30, help="timed dense updates (slow)")
     args = ap.parse_args(argv)
+    held = 8 * round(0.02 * args.grasps)  # the held-out grasps the queries are drawn from (2 % per object, 8 objects)
+    if args.queries > held:
+        ap.error(f"--queries {args.queries} is more than the {held} held-out grasps of --grasps {args.grasps}")
+    if args.dense_queries > args.queries:
+        ap.error(f"--dense-queries {args.dense_queries} must be <= --queries {args.queries}")
     torch.set_num_threads(1)
 
     objs = load_object_set("default")

@@ -33,6 +33,8 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
+from haptic_env.cli import float_in, int_in  # noqa: E402
+
 
 def _actions(n: int, B: int, A: int) -> np.ndarray:
     return np.random.default_rng(0).uniform(-1, 1, (n, B, A)).astype(np.float32)
@@ -93,9 +95,10 @@ def _time_sync(B: int, cfg, mode, seconds: float) -> float:
 
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--sizes", type=int, nargs="+", default=[1, 8, 64, 256])
-    p.add_argument("--seconds", type=float, default=2.0, help="timed seconds per configuration and round")
-    p.add_argument("--rounds", type=int, default=3)
+    p.add_argument("--sizes", type=int_in(1), nargs="+", default=[1, 8, 64, 256])
+    p.add_argument("--seconds", type=float_in(0.0, lo_open=True), default=2.0,
+                   help="timed seconds per configuration and round")
+    p.add_argument("--rounds", type=int_in(1), default=3)
     p.add_argument("--no-sync", action="store_true", help="skip SyncVectorEnv")
     p.add_argument("--no-resets", action="store_true", help="episodes never end (threshold 1, no truncation)")
     args = p.parse_args(argv)
