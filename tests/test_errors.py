@@ -374,6 +374,21 @@ def test_ctrl_c_in_a_subcommand_is_one_line_saying_what_a_rerun_keeps(monkeypatc
                            "command resumes from them")
 
 
+@pytest.mark.parametrize("bench, argv, match", [
+    ("bench_env", ["--steps", "0"], r"argument --steps: must be >= 1, got 0"),
+    ("bench_vector_env", ["--seconds", "0"], r"argument --seconds: must be a finite number in \(0.0, inf\], got 0"),
+    ("bench_vector_env", ["--sizes", "8", "0"], r"argument --sizes: must be >= 1, got 0"),
+    ("bench_recognizers", ["--grasps", "1000"], r"--queries 300 is more than the 160 held-out grasps of --grasps 1000"),
+    ("bench_recognizers", ["--dense-queries", "400"], r"--dense-queries 400 must be <= --queries 300"),
+    ("bench_grasping", ["--seed", "-1"], r"argument --seed: must be >= 0, got -1"),
+    ("bench_grasp_solver", ["--approaches", "0"], r"argument --approaches: must be >= 1, got 0"),
+    ("bench_knn", ["--grasps", "2.5"], r"argument --grasps: expected an integer, got '2.5'"),
+    ("bench_phi", ["--repeats", "0"], r"argument --repeats: must be >= 1, got 0"),
+])
+def test_speed_benchmarks_refuse_bad_counts_before_any_work(load_benchmark, usage_error, bench, argv, match):
+    usage_error(load_benchmark(bench).main, argv, match=match)
+
+
 def test_output_path_refuses_what_a_long_run_could_not_write_at_its_end(tmp_path):
     """``cli.output_path``: a file output that is a folder, a folder output that is a file, or a path under a file,
     is refused when parsed (nothing is created); a path in folders still to make is accepted."""
