@@ -25,6 +25,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from haptic_env.cli import int_in  # noqa: E402
 from haptic_env.dataset import build_dataset  # noqa: E402
 from haptic_env.experiments.config import AnalysisConfig  # noqa: E402
 from haptic_env.experiments.report import kde_temperature  # noqa: E402
@@ -46,7 +47,7 @@ def main(argv=None) -> None:
     ap.add_argument("--objects", default="default")
     ap.add_argument("--fingers", default="4,5,8")
     ap.add_argument("--no-normals", action="store_true")
-    ap.add_argument("--trials", type=int, default=600)
+    ap.add_argument("--trials", type=int_in(1), default=600)
     args = ap.parse_args(argv)
     objects = load_object_set(args.objects)
     normals = not args.no_normals

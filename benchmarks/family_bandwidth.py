@@ -40,7 +40,7 @@ import numpy as np
 from scipy.optimize import minimize
 from scipy.special import log_softmax
 
-from haptic_env.cli import output_path
+from haptic_env.cli import int_in, output_path
 from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.families import floored, grasp_config, member_grasps, sequence_fit
 from haptic_env.objects import FAMILIES, family_set
@@ -108,8 +108,8 @@ def cell(key: str, v) -> str:
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--members", type=int, default=40)
+    p.add_argument("--seed", type=int_in(0), default=0)
+    p.add_argument("--members", type=int_in(1), default=40)
     p.add_argument("--factors", default=",".join(str(f) for f in FACTORS),
                    help="bandwidth factors (multiples of Scott's rule); 'auto': experiment 5's own choice; 'hgb': "
                         "gradient boosting in the KDE's place")
@@ -120,7 +120,7 @@ def main(argv=None):
     p.add_argument("--bias", action="store_true",
                    help="also fit per-family offsets with the sequence temperature on A (fit_bias) and give B's votes "
                         "with them")
-    p.add_argument("--trials", type=int, default=600, help="vote draws per vote column")
+    p.add_argument("--trials", type=int_in(1), default=600, help="vote draws per vote column")
     p.add_argument("--out", type=output_path("file"), default=None, help="also write the table (markdown) here")
     a = p.parse_args(argv)
     factors = tuple(v if v in ("auto", "hgb") else float(v) for v in a.factors.split(","))

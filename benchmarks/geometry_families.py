@@ -33,6 +33,7 @@ import time
 import numpy as np
 from scipy.special import logsumexp
 
+from haptic_env.cli import float_in, int_in
 from haptic_env.dataset import DatasetConfig
 from haptic_env.experiments.config import FAMILY_SOURCES, AnalysisConfig
 from haptic_env.experiments.families import family_vectors, grasp_config, member_grasps
@@ -179,14 +180,14 @@ def size_cell(members, G, seed, size_range, sizes, source, heights=False):
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--sweep", choices=("spread", "norm", "members", "one", "sizes"), default="spread")
-    p.add_argument("--members", type=int, default=10)
-    p.add_argument("--grasps", type=int, default=3000, help="grasps per training member (20 %% held back)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--trials", type=int, default=300)
+    p.add_argument("--members", type=int_in(1), default=10)
+    p.add_argument("--grasps", type=int_in(5), default=3000, help="grasps per training member (20 %% held back)")
+    p.add_argument("--seed", type=int_in(0), default=0)
+    p.add_argument("--trials", type=int_in(1), default=300)
     p.add_argument("--ms", default="1,3,5,10,30")
     p.add_argument("--models", default="member,mlp,rf")
-    p.add_argument("--lo", type=float, default=0.5)
-    p.add_argument("--hi", type=float, default=1.5)
+    p.add_argument("--lo", type=float_in(0.0, lo_open=True), default=0.5)
+    p.add_argument("--hi", type=float_in(0.0, lo_open=True), default=1.5)
     p.add_argument("--source", choices=FAMILY_SOURCES, default="surface",
                    help="training and validation grasps: independent surface points (the paper's), the geometric "
                         "hand's grasps under random approaches, or the Allegro's own MuJoCo grasps (hand; "
@@ -200,6 +201,8 @@ def main(argv=None):
                    help="every second cylinder member lies on its side (experiment 5's --family-lying)")
     p.add_argument("--sizes", default="0.05,0.067,0.08,0.1,0.12", help="--sweep sizes: the fixed shapes' sizes (m)")
     a = p.parse_args(argv)
+    if a.lo > a.hi:
+        p.error(f"--lo {a.lo} must be <= --hi {a.hi}")
     ms = tuple(int(v) for v in a.ms.split(","))
     models = set(a.models.split(","))
     if a.sweep == "spread":

@@ -28,6 +28,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from haptic_env.cli import int_in  # noqa: E402
 from haptic_env.grasping import make_backend  # noqa: E402
 from haptic_env.grasping.auto_hand import report  # noqa: E402
 from haptic_env.grasping.hands import HandUnavailableError, generic_hand  # noqa: E402
@@ -60,10 +61,10 @@ def run_hand(hand, objects, n_approaches: int, seed: int, **cfg) -> dict:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--approaches", type=int, default=20, help="random approaches per object")
+    ap.add_argument("--approaches", type=int_in(1), default=20, help="random approaches per object")
     ap.add_argument("--hands", default="allegro,shadow,aero,robotiq,generic3,generic4,generic5,generic6")
     ap.add_argument("--no-named", action="store_true", help="leave out the hand-tuned named hands")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int_in(0), default=0)
     ap.add_argument("--reports", action="store_true", help="print what the automatic path chose per hand")
     args = ap.parse_args(argv)
     warnings.filterwarnings("ignore", message="Attach")  # MuJoCo's notes on attaching specs

@@ -29,7 +29,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.hand_experiment import seed_std  # noqa: E402
-from haptic_env.cli import output_path  # noqa: E402
+from haptic_env.cli import int_in, output_path  # noqa: E402
 from haptic_env.dataset import DatasetConfig, support_frame  # noqa: E402
 from haptic_env.grasp_features import phi  # noqa: E402
 from haptic_env.hand_grasps import hand_grasp_pool, pool_actions, pool_rows  # noqa: E402
@@ -82,9 +82,10 @@ def one_shot(train: tuple[dict, np.ndarray], tests: list[tuple[dict, np.ndarray]
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--hands", nargs="+", default=list(SETUPS), choices=list(SETUPS))
-    ap.add_argument("--approaches", type=int, default=6000, help="training pool approaches per object (the envs')")
-    ap.add_argument("--validation-seeds", type=int, nargs="+", default=[500, 501, 502])
-    ap.add_argument("--queries", type=int, default=300, help="approaches per object of each validation pool")
+    ap.add_argument("--approaches", type=int_in(1), default=6000,
+                    help="training pool approaches per object (the envs')")
+    ap.add_argument("--validation-seeds", type=int_in(0), nargs="+", default=[500, 501, 502])
+    ap.add_argument("--queries", type=int_in(1), default=300, help="approaches per object of each validation pool")
     ap.add_argument("--out", type=output_path("folder"), default=None)
     args = ap.parse_args(argv)
     if data_dir() is None:

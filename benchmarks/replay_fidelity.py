@@ -40,8 +40,8 @@ def main(argv=None) -> int:
     ap.add_argument("--hand", default="allegro")
     ap.add_argument("--objects", default="ycb10")
     ap.add_argument("--approaches", type=int_in(1), default=6000, help="recorded approaches per object of the replay")
-    ap.add_argument("--replay-seed", type=int, default=1, help="the replay pool's seed (ReplayConfig.pool_seed)")
-    ap.add_argument("--pool-seed", type=int, default=500, help="seed of the held-out MuJoCo pool compared with")
+    ap.add_argument("--replay-seed", type=int_in(0), default=1, help="the replay pool's seed (ReplayConfig.pool_seed)")
+    ap.add_argument("--pool-seed", type=int_in(0), default=500, help="seed of the held-out MuJoCo pool compared with")
     ap.add_argument("--pool-approaches", type=int_in(1), default=300, help="held-out approaches per object")
     ap.add_argument("--time-approaches", type=int_in(1), default=100, help="approaches timed on each backend")
     ap.add_argument("--table", type=int_in(0), default=0,

@@ -32,7 +32,7 @@ import numpy as np
 from scipy.special import log_softmax
 
 from haptic_env.cache import atomic_write, cache_dir, config_key, resume_state, save_keyed_json
-from haptic_env.cli import output_path
+from haptic_env.cli import float_in, int_in, output_path
 from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.families import floored
 from haptic_env.experiments.fresh_grasps import fresh_pool
@@ -59,9 +59,9 @@ def experiment2_parser(description: str) -> argparse.ArgumentParser:
     p.add_argument("--objects", default="kit8")
     p.add_argument("--no-normals", action="store_true")
     p.add_argument("--fingers", default="3,4,5")
-    p.add_argument("--grasps-per-object", type=int, default=200_000)
-    p.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--grasps-per-object", type=int_in(10), default=200_000)
+    p.add_argument("--threshold", type=float_in(0.0, 1.0, lo_open=True), default=DEFAULT_THRESHOLD)
+    p.add_argument("--seed", type=int_in(0), default=0)
     p.add_argument("--out", type=output_path("file"), default=None, help="also write the table (markdown) here")
     return p
 

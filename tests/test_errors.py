@@ -384,8 +384,12 @@ def test_ctrl_c_in_a_subcommand_is_one_line_saying_what_a_rerun_keeps(monkeypatc
     ("bench_grasp_solver", ["--approaches", "0"], r"argument --approaches: must be >= 1, got 0"),
     ("bench_knn", ["--grasps", "2.5"], r"argument --grasps: expected an integer, got '2.5'"),
     ("bench_phi", ["--repeats", "0"], r"argument --repeats: must be >= 1, got 0"),
+    ("geometry_families", ["--lo", "2"], r"--lo 2.0 must be <= --hi 1.5"),
+    ("family_bandwidth", ["--members", "0"], r"argument --members: must be >= 1, got 0"),
+    ("stop_floor", ["--threshold", "1.5"], r"argument --threshold: must be a finite number in \(0.0, 1.0\], got 1.5"),
+    ("hand_auto", ["--approaches", "0"], r"argument --approaches: must be >= 1, got 0"),
 ])
-def test_speed_benchmarks_refuse_bad_counts_before_any_work(load_benchmark, usage_error, bench, argv, match):
+def test_benchmarks_refuse_bad_counts_before_any_work(load_benchmark, usage_error, bench, argv, match):
     usage_error(load_benchmark(bench).main, argv, match=match)
 
 
