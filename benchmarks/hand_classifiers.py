@@ -49,7 +49,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.hand_experiment import PAPER, SETUPS, env_config, query_pools, seed_std, training_config  # noqa: E402
+from benchmarks.hand_experiment import (PAPER, SETUPS, env_config, query_pools, seed_std,  # noqa: E402
+                                        training_config, write_table)
 from benchmarks.stop_frontier import grasp_scores, replay  # noqa: E402
 from haptic_env.cli import output_path  # noqa: E402
 from haptic_env.cache import atomic_write, cache_dir, config_key, resume_state, save_keyed_json  # noqa: E402
@@ -305,10 +306,7 @@ def main(argv=None) -> int:
                  f"std over the pools / mean grasps; {QUERIES} queries of at most {MAX_GRASPS} grasps per object and "
                  f"pool, lambda = {DEFAULT_THRESHOLD}; the KDE at s = 1 is the env's belief):\n\n" + "\n".join(front))
     if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
-        cmd = "python benchmarks/hand_classifiers.py " + " ".join(sys.argv[1:] if argv is None else argv)
-        with atomic_write(args.out / "classifiers.md", "w") as fh:
-            fh.write(f"`{cmd}` ({time.perf_counter() - t0:.0f} s)\n\n{text}\n")
+        write_table(args.out, "classifiers.md", "hand_classifiers.py", argv, time.perf_counter() - t0, text)
         if curves:
             plot(curves, args.out / "frontier.png")
     print(f"HEADLINE: fewest mean grasps at the paper's success on {args.split}, per likelihood: "

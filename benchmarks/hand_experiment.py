@@ -123,11 +123,11 @@ def env_config(name: str, heights: bool = False) -> HapticRecogConfig:
 
 
 def write_table(out: Path, name: str, script: str, argv, seconds: float, text: str) -> None:
-    """Write ``text`` to ``out/name``, headed by the command that made it (``python benchmarks/<script> <argv>``; the
-    process's own arguments when ``argv`` is None) and its wall time."""
-    out.mkdir(parents=True, exist_ok=True)
+    """Write ``text`` to ``out/name`` atomically, headed by the command that made it (``python benchmarks/<script>
+    <argv>``; the process's own arguments when ``argv`` is None) and its wall time."""
     cmd = f"python benchmarks/{script} " + " ".join(sys.argv[1:] if argv is None else argv)
-    (out / name).write_text(f"`{cmd}` ({seconds:.0f} s)\n\n{text}\n")
+    with atomic_write(out / name, "w") as fh:
+        fh.write(f"`{cmd}` ({seconds:.0f} s)\n\n{text}\n")
 
 
 def read_table(text: str) -> tuple[list[dict], float]:
