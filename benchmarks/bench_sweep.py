@@ -29,22 +29,19 @@ sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
 
-from haptic_env.cli import output_path  # noqa: E402
+from haptic_env.cli import int_in, output_path  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--jobs", type=int, default=4)
-    ap.add_argument("--grasps", type=int, default=100_000, help="grasps per object of each dataset job")
+    ap.add_argument("--jobs", type=int_in(1), default=4)
+    ap.add_argument("--grasps", type=int_in(1), default=100_000, help="grasps per object of each dataset job")
     ap.add_argument("--fingers", type=int, default=4)
-    ap.add_argument("--num-cpus", type=int, default=2)
-    ap.add_argument("--rounds", type=int, default=2, help="pairs of runs, the order alternating; the median ratio")
+    ap.add_argument("--num-cpus", type=int_in(1), default=2)
+    ap.add_argument("--rounds", type=int_in(1), default=2,
+                    help="pairs of runs, the order alternating; the median ratio")
     ap.add_argument("--out", type=output_path("file"), default=None, help="also write the numbers to this JSON file")
     args = ap.parse_args(argv)
-    for flag, value in (("--jobs", args.jobs), ("--grasps", args.grasps), ("--num-cpus", args.num_cpus),
-                        ("--rounds", args.rounds)):
-        if value < 1:
-            ap.error(f"{flag} must be >= 1, got {value}")
 
     from haptic_env.cache import atomic_write
     from haptic_env.sweep import parse_spec
