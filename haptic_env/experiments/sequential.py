@@ -23,7 +23,7 @@ from haptic_env.splits import VALIDATION_SEED_OFFSET
 __all__ = ["run", "PAPER_KINDS"]
 
 #: the updaters whose grasps the paper gives (:data:`~haptic_env.experiments.paper.GRASPS`)
-PAPER_KINDS = ("ic", "bc-np")
+PAPER_KINDS = tuple(paper.GRASPS)
 
 
 def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> None:
