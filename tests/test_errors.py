@@ -382,6 +382,8 @@ def test_ctrl_c_in_a_subcommand_is_one_line_saying_what_a_rerun_keeps(monkeypatc
     ("bench_recognizers", ["--dense-queries", "400"], r"--dense-queries 400 must be <= --queries 300"),
     ("bench_grasping", ["--seed", "-1"], r"argument --seed: must be >= 0, got -1"),
     ("bench_grasp_solver", ["--approaches", "0"], r"argument --approaches: must be >= 1, got 0"),
+    ("bench_grasp_solver", ["--solvers", "Newton,XX"], r"--solvers: got 'Newton,XX'; give distinct names from CG"),
+    ("bench_grasp_solver", ["--hands", "shadow,shadow"], r"--hands: got 'shadow,shadow'; give distinct names"),
     ("bench_knn", ["--grasps", "2.5"], r"argument --grasps: expected an integer, got '2.5'"),
     ("bench_phi", ["--repeats", "0"], r"argument --repeats: must be >= 1, got 0"),
     ("geometry_families", ["--lo", "2"], r"--lo 2.0 must be <= --hi 1.5"),
