@@ -97,6 +97,23 @@ def test_invalid_action_and_timing(generic):
     assert 0 < t["step_time_per_grasp"] <= t["time_per_grasp"]
 
 
+def test_timing_counts_the_steps_of_every_object_grasped():
+    """``timing`` counts the physics of every grasp since ``reset_timing``, whichever object's scene ran it (each
+    object has a scene of its own; the counters were once read from the current scene only, so that the steps of
+    the other objects' grasps were missing and ``ratio`` came out many times too large)."""
+    be = make_backend("mujoco", 4, hand="generic")
+    rng = np.random.default_rng(5)
+    steps = []
+    be.reset_timing()
+    for obj in (_cyl(), GraspObject("box", trimesh.creation.box((0.06, 0.05, 0.1)))):
+        be.set_object(obj)
+        steps += [be.grasp(a, rng).info["steps"] for a in rng.uniform(-1, 1, (2, 4))]
+    t = be.timing
+    assert t["grasps"] == 4 and t["steps_per_grasp"] == pytest.approx(np.mean(steps))
+    assert 0 < t["step_time_per_grasp"] <= t["time_per_grasp"]
+    be.close()
+
+
 def test_render_offscreen(generic):
     import mujoco
 

@@ -527,6 +527,8 @@ class MujocoBackend:
         self._calibrated: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self.grasp_time = 0.0
         self.n_grasps = 0
+        self._step_time = 0.0  # seconds inside mj_step over this backend's grasps, whichever object's scene ran them
+        self._steps = 0
 
     # ------------------------------------------------------------------ scene
     #: ``set_object(..., scale=s)`` scales the object about its origin without a mesh copy (the env's ``scale_range``)
@@ -621,6 +623,7 @@ class MujocoBackend:
         u = -F[:, 2]
         open_u, close_u = self._ctrls(float(ap.spread))
         sc.reset(open_u)
+        step_time0, steps0 = sc.step_time, sc.steps
         # pre-grasp: grasp centre on the approach axis, as close to the object as collision-free
         s_max = float(np.max(self._hull_vw @ u - self._centre @ u)) + 0.3
         s, free = 0.0, False
@@ -664,6 +667,8 @@ class MujocoBackend:
         res = self._read(rng, steps)
         self.grasp_time += time.perf_counter() - t0
         self.n_grasps += 1
+        self._step_time += sc.step_time - step_time0
+        self._steps += sc.steps - steps0
         return res
 
     def _read(self, rng: np.random.Generator, steps: int) -> GraspResult:
@@ -733,16 +738,15 @@ class MujocoBackend:
     # ------------------------------------------------------------------ stats / render
     @property
     def timing(self) -> dict[str, float]:
-        """Backend time per grasp, raw mj_step time per grasp, and their ratio (>= 1)."""
-        sc = self._require()
+        """Backend time per grasp, raw mj_step time per grasp, and their ratio (>= 1), over the grasps since the
+        last :meth:`reset_timing`, of every object (each object's scene counts its own steps)."""
         per = self.grasp_time / max(self.n_grasps, 1)
-        step = sc.step_time / max(self.n_grasps, 1)
+        step = self._step_time / max(self.n_grasps, 1)
         return {"grasps": self.n_grasps, "time_per_grasp": per, "step_time_per_grasp": step,
-                "steps_per_grasp": sc.steps / max(self.n_grasps, 1), "ratio": per / max(step, 1e-12)}
+                "steps_per_grasp": self._steps / max(self.n_grasps, 1), "ratio": per / max(step, 1e-12)}
 
     def reset_timing(self) -> None:
-        sc = self._require()
-        self.grasp_time, self.n_grasps, sc.step_time, sc.steps = 0.0, 0, 0.0, 0
+        self.grasp_time, self.n_grasps, self._step_time, self._steps = 0.0, 0, 0.0, 0
 
     def render(self, width: int = 480, height: int = 480) -> np.ndarray:
         """(H, W, 3) uint8 offscreen render of the current scene (mujoco.Renderer; EGL/OSMesa)."""
