@@ -81,6 +81,21 @@ def test_bad_training_data_is_named_before_any_fit():
         RecognizerConfig(likelihood="gp")
     with pytest.raises(ValueError, match="likelihood must be one of"):
         AnalysisConfig(likelihood="forest")
+    with pytest.raises(ValueError, match="no training vectors"):
+        BoostedLikelihood().fit(X[:0], y[:0])
+    with pytest.raises(ValueError, match=r"class labels must lie in 0\.\.1, got labels from 0 to 2"):
+        BoostedLikelihood().fit(np.nan_to_num(X), y, n_classes=2)
+
+
+def test_small_data_and_one_class_fit_and_score_as_the_kde_does():
+    """Few vectors per class (too few for early stopping's stratified 10 %) still fit, with every iteration; one
+    class gives ``(m, 1)`` scores of 0 (scikit-learn fits it as two classes), as the KDE's."""
+    X, y = blobs(5, 0)  # 3 classes x 5 vectors: a 2-vector hold-out cannot hold all 3 classes
+    b = BoostedLikelihood(BoostedConfig(max_iter=20)).fit(X, y)
+    assert b.clf.n_iter_ == 20 and b.log_likelihood(X[:4]).shape == (4, 3)
+    one = BoostedLikelihood(BoostedConfig(max_iter=5)).fit(X, np.zeros(len(X), dtype=np.int64))
+    ll = one.log_likelihood(X[:4])
+    assert ll.shape == (4, 1) and np.allclose(ll, 0.0)
 
 
 def test_the_default_keeps_every_cache_key():

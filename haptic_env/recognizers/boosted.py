@@ -114,15 +114,23 @@ class BoostedLikelihood:
             raise ValueError("X holds non-finite values")
         if not np.issubdtype(y.dtype, np.integer):
             raise ValueError(f"y must hold integer class labels, got dtype {y.dtype}")
+        if len(y) == 0:
+            raise ValueError("no training vectors (X and y are empty)")
         k = int(y.max()) + 1 if n_classes is None else int(n_classes)
-        counts = np.bincount(y, minlength=k) if len(y) and y.min() >= 0 else np.array([-1])
-        if len(counts) != k or not (counts > 0).all():
+        if y.min() < 0 or y.max() >= k:
+            raise ValueError(f"class labels must lie in 0..{k - 1}, got labels from {int(y.min())} to {int(y.max())}")
+        counts = np.bincount(y, minlength=k)
+        if not (counts > 0).all():
             raise ValueError(f"every one of the {k} classes needs training vectors, got counts {counts.tolist()}")
         keep = np.zeros(len(y), dtype=bool)
         for c in range(k):
             keep[np.flatnonzero(y == c)[: self.config.max_train_per_class]] = True
         X, y = X[keep], y[keep]
-        self.clf = HistGradientBoostingClassifier(max_iter=self.config.max_iter, early_stopping=True,
+        # early stopping holds out a stratified 10 %: it needs 2 vectors of each class and room for every class on
+        # both sides; with fewer (a hand whose grasps of an object rarely complete) all max_iter iterations are fit
+        held = -(-len(y) // 10)
+        early = bool(np.bincount(y, minlength=k).min() >= 2 and k <= held <= len(y) - k)
+        self.clf = HistGradientBoostingClassifier(max_iter=self.config.max_iter, early_stopping=early,
                                                   random_state=self.config.seed).fit(X, y)
         self.log_prior = np.log(np.bincount(y, minlength=k) / len(y))
         self._trees, self.temperature = _flatten(self.clf), 1.0
@@ -159,6 +167,8 @@ class BoostedLikelihood:
                 proba = np.column_stack([expit(-raw[:, 0]), expit(raw[:, 0])])
             else:
                 proba = softmax(raw, axis=1)
+        if self.n_classes == 1:  # scikit-learn fits one class as two (the second never seen): (m, 1) as the KDE's
+            proba = proba[:, :1]
         return np.log(np.maximum(proba, self.config.floor)) - self.log_prior
 
     def calibrate_scores(self, ll: np.ndarray) -> np.ndarray:
