@@ -16,6 +16,7 @@ import dataclasses
 import hashlib
 import json
 import os
+import re
 import sys
 import tempfile
 import time
@@ -26,7 +27,7 @@ import numpy as np
 
 __all__ = ["cache_dir", "config_key", "KEY_ONLY_WHEN_SET", "KEY_AS", "atomic_write", "save_npz_atomic", "load_npz",
            "CacheError", "CacheNotWritableError", "clean_stale_tmp", "STALE_TMP_SECONDS", "save_keyed_json",
-           "load_keyed_json", "resume_state"]
+           "load_keyed_json", "resume_state", "file_stem"]
 
 #: A temporary file older than this is removed even if its writer's process id is still in use (6 h).
 STALE_TMP_SECONDS = 6 * 3600.0
@@ -89,8 +90,8 @@ def clean_stale_tmp(folder: str | os.PathLike, max_age: float = STALE_TMP_SECOND
             continue
         pid = None
         for part in e.name.split("."):
-            if part.startswith("pid") and part[3:].isdigit():
-                pid = int(part[3:])
+            if part.startswith("pid") and part[3:].isascii() and part[3:].isdigit() and len(part) <= 12:
+                pid = int(part[3:])  # ascii digits only (int() refuses some that isdigit() accepts), pids fit int32
         try:
             age = now - e.stat(follow_symlinks=False).st_mtime
         except OSError:
@@ -131,10 +132,28 @@ def _jsonable(obj: Any) -> Any:
     return obj
 
 
+def file_stem(name: str, default: str = "cache", length: int = 40) -> str:
+    """``name`` (an object set's, a hand's: possibly a path) as the start of a cache file's name: each run of
+    characters outside ``[A-Za-z0-9_.-]`` becomes one ``_``, cut to ``length`` characters (``default`` if nothing is
+    left), so that the file stays in its cache folder whatever the name holds (a path's ``/``); the ``-<key>`` that
+    follows it tells files apart."""
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", str(name))[:length] or default
+
+
 def config_key(*parts: Any, length: int = 16) -> str:
     """A short stable hex digest of dataclasses / dicts / scalars (the cache key of an artefact)."""
     blob = json.dumps(_jsonable(list(parts)), sort_keys=True, default=str)
     return hashlib.sha256(blob.encode()).hexdigest()[:length]
+
+
+def _umask() -> int:
+    """The process's umask (read by setting it and putting it back: once, at import)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+_UMASK = _umask()
 
 
 @contextlib.contextmanager
@@ -152,6 +171,7 @@ def atomic_write(path: str | os.PathLike, mode: str = "wb") -> Iterator[Any]:
             yield fh
             fh.flush()
             os.fsync(fh.fileno())
+        os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes it owner-only; a shared cache wants the umask's modes
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
@@ -173,7 +193,8 @@ def load_keyed_json(path: str | os.PathLike, key: Any) -> dict | None:
         doc = json.loads(Path(path).read_text())
     except (OSError, ValueError):
         return None
-    return doc if isinstance(doc, dict) and doc.get("key") == key else None
+    # the key as JSON gives it back (tuples as lists, dict keys as strings), so that a key compares equal to itself
+    return doc if isinstance(doc, dict) and doc.get("key") == json.loads(json.dumps(key)) else None
 
 
 def resume_state(path: str | os.PathLike, key: Any, field: str) -> dict:

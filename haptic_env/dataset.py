@@ -17,7 +17,6 @@ CLI::
 from __future__ import annotations
 
 import argparse
-import re
 import time
 import warnings
 from dataclasses import dataclass, field, replace
@@ -26,7 +25,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from .cache import KEY_ONLY_WHEN_SET, CacheError, cache_dir, config_key, load_npz, save_npz_atomic
+from .cache import KEY_ONLY_WHEN_SET, CacheError, cache_dir, config_key, file_stem, load_npz, save_npz_atomic
 from .force_closure import DEFAULT_EDGES, FRAMES, check_friction, force_closure
 from .grasp_features import check_normal_axis, feature_dim, normalize_scale, phi
 from .grasping.base import SUPPORTS, check_support, support_height
@@ -403,14 +402,10 @@ def _object_grasps(obj: GraspObject, config: DatasetConfig, rng: np.random.Gener
     )
 
 
-def _safe_name(name: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)[:40] or "objects"
-
-
 def dataset_cache_path(objects: ObjectSet, config: DatasetConfig) -> Path:
     """Where :func:`build_dataset` caches the dataset of ``objects`` under ``config``."""
     key = config_key(_CACHE_VERSION, objects.identity, config, *filter(None, [config.source_key()]))
-    return cache_dir("datasets") / f"{_safe_name(objects.name)}-{key}.npz"
+    return cache_dir("datasets") / f"{file_stem(objects.name, 'objects')}-{key}.npz"
 
 
 def _from_arrays(arrays: dict, objects: ObjectSet, config: DatasetConfig, path: Path) -> GraspDataset:

@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from .cache import CacheError, cache_dir, clean_stale_tmp, config_key, load_npz, save_npz_atomic
+from .cache import CacheError, cache_dir, clean_stale_tmp, config_key, file_stem, load_npz, save_npz_atomic
 from .grasping.base import approach_table, validate_actions
 from .numbers import finite_number, whole_at_least
 
@@ -114,7 +114,7 @@ def pool_cache_path(objects, hand: str, n_fingers: int, approaches: int, support
     given = [] if actions is None else [hashlib.sha256(np.ascontiguousarray(actions, np.float64)).hexdigest()]
     key = config_key(_CACHE_VERSION, objects.identity, hand, int(n_fingers), int(approaches), support, int(seed),
                      hand_physics_key(hand, n_fingers), *([] if budget == "uniform" else [budget]), *given)
-    return cache_dir("hand_grasps") / f"{hand}-{key}.npz"
+    return cache_dir("hand_grasps") / f"{file_stem(hand, 'hand')}-{key}.npz"  # a hand may be an MJCF path
 
 
 def balanced_counts(complete_rate, approaches: int, *, lo: float = 0.5, hi: float = 2.0, minimum: int = 1) -> np.ndarray:
@@ -168,14 +168,16 @@ def _grasp_chunk(obj, hand: str, n_fingers: int, support: str, actions: np.ndarr
 
     t0 = time.perf_counter()
     be = make_backend("mujoco", n_fingers=n_fingers, hand=hand, support=support, normals=True)
-    be.set_object(obj)
-    rng = np.random.default_rng(seed)
-    m = len(actions)
-    C, N, T = np.zeros((m, n_fingers, 3)), np.zeros((m, n_fingers, 3)), np.zeros((m, n_fingers), bool)
-    for i, a in enumerate(actions):
-        r = be.grasp(a, rng)
-        C[i], N[i], T[i] = r.contacts, r.normals, r.touched
-    be.close()
+    try:
+        be.set_object(obj)
+        rng = np.random.default_rng(seed)
+        m = len(actions)
+        C, N, T = np.zeros((m, n_fingers, 3)), np.zeros((m, n_fingers, 3)), np.zeros((m, n_fingers), bool)
+        for i, a in enumerate(actions):
+            r = be.grasp(a, rng)
+            C[i], N[i], T[i] = r.contacts, r.normals, r.touched
+    finally:
+        be.close()
     return C, N, T, time.perf_counter() - t0
 
 
@@ -317,27 +319,10 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
                 put(k, lo, hi, saved[k, lo, hi], save=False)
         return [t for t in tasks if t not in saved]
 
-    if workers <= 1:
-        for tasks in phases():
-            for k, lo, hi in todo(tasks):
-                put(k, lo, hi, _grasp_chunk(*args(k, lo, hi)))
-    else:
-        # fork (Linux): workers need not re-import the caller's script, which "spawn" does (a script without a
-        # __main__ guard would then run again in every worker); the workers use MuJoCo and numpy only.
-        # Decompose the meshes here first: a forked worker that starts CoACD inherits its thread runtime from
-        # this process without the threads and deadlocks (seen in the test suite); workers then read the pieces
-        # from the collision cache.
-        from .grasping.collision import convex_pieces
-
-        for obj in objects:
-            convex_pieces(obj)
-        ctx = get_context("fork" if "fork" in get_all_start_methods() else "spawn")
-        with ProcessPoolExecutor(workers, mp_context=ctx) as ex:
-            for tasks in phases():
-                futs = {ex.submit(_grasp_chunk, *args(k, lo, hi)): (k, lo, hi) for k, lo, hi in todo(tasks)}
-                for f in as_completed(futs):
-                    put(*futs[f], f.result())
-    bar.close()
+    try:
+        _run(phases, todo, put, args, workers, objects)
+    finally:
+        bar.close()
     seconds = spent + time.perf_counter() - t0
     counts = np.array([sum(len(r[0]) for (j, _), r in results.items() if j == k) for k in range(K)])
     A = int(counts.max())
@@ -354,6 +339,37 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
                         seconds=np.array(seconds), **extra)
         shutil.rmtree(parts, ignore_errors=True)
     return pool
+
+
+def _run(phases, todo, put, args, workers: int, objects) -> None:
+    """Grasp every phase's chunks that no earlier build saved (``todo``), in this process (``workers <= 1``) or over
+    ``workers`` processes, handing each finished chunk to ``put`` as it comes. On an error or an interrupt the
+    chunks not yet started are cancelled (those already saved stay: the same build resumes from them)."""
+    if workers <= 1:
+        for tasks in phases():
+            for k, lo, hi in todo(tasks):
+                put(k, lo, hi, _grasp_chunk(*args(k, lo, hi)))
+        return
+    # fork (Linux): workers need not re-import the caller's script, which "spawn" does (a script without a
+    # __main__ guard would then run again in every worker); the workers use MuJoCo and numpy only.
+    # Decompose the meshes here first: a forked worker that starts CoACD inherits its thread runtime from
+    # this process without the threads and deadlocks (seen in the test suite); workers then read the pieces
+    # from the collision cache.
+    from .grasping.collision import convex_pieces
+
+    for obj in objects:
+        convex_pieces(obj)
+    ctx = get_context("fork" if "fork" in get_all_start_methods() else "spawn")
+    ex = ProcessPoolExecutor(workers, mp_context=ctx)
+    try:
+        for tasks in phases():
+            futs = {ex.submit(_grasp_chunk, *args(k, lo, hi)): (k, lo, hi) for k, lo, hi in todo(tasks)}
+            for f in as_completed(futs):
+                put(*futs[f], f.result())
+    except BaseException:
+        ex.shutdown(wait=True, cancel_futures=True)  # the chunks not started are dropped, the running ones finish
+        raise
+    ex.shutdown(wait=True)
 
 
 def pool_rows(pool: HandGraspPool, k: int, z: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:

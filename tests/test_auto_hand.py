@@ -239,6 +239,23 @@ def test_wrapping_leaves_no_mujoco_log(tmp_path, monkeypatch, capfd):
     assert mujoco.get_mju_user_warning() is before
 
 
+def test_a_users_warning_handler_hears_every_warning_but_the_empty_prefix_one():
+    """Inside the wrapping block a MuJoCo warning other than the empty-prefix one reaches the handler the user had
+    set (which may raise, count or log), not only this package's log; the user's handler is back afterwards."""
+    from haptic_env.grasping.auto_hand import EMPTY_PREFIX_WARNING, _empty_prefix_allowed
+
+    heard = []
+    mujoco.set_mju_user_warning(heard.append)
+    try:
+        with _empty_prefix_allowed():
+            handler = mujoco.get_mju_user_warning()
+            handler(EMPTY_PREFIX_WARNING + " ...")
+            handler("Something else")
+        assert heard == ["Something else"] and mujoco.get_mju_user_warning() == heard.append
+    finally:
+        mujoco.set_mju_user_warning(None)
+
+
 def test_synergy_holds_rotation_and_closes_coupled_fingers(tmp_path):
     rot = report(auto_hand(_write(tmp_path, "rot", rotation_joint_hand()), cache=False))
     assert all(a.endswith("rot") for a in rot.held) and len(rot.held) == 4, rot.held

@@ -76,6 +76,48 @@ def test_resume_state_gives_back_only_the_same_settings_parts_and_says_where(tmp
     assert resume_state(path, {"a": 1}, "parts") == {}  # unreadable: computed again
 
 
+def test_a_resume_key_with_tuples_or_number_keys_matches_itself(tmp_path):
+    """A key is compared as JSON gives it back: one with a tuple or a number as a dict key (which JSON turns into a
+    list and a string) still finds its own parts, and another key still does not."""
+    from haptic_env.cache import resume_state, save_keyed_json
+
+    path, key = tmp_path / "state.json", {"scales": (0.5, 1.0), 3: "fingers"}
+    save_keyed_json(path, key, parts={"a": 1})
+    assert resume_state(path, key, "parts") == {"a": 1}
+    assert resume_state(path, {"scales": (0.5, 2.0), 3: "fingers"}, "parts") == {}
+
+
+def test_file_stem_keeps_a_cache_file_in_its_folder():
+    from haptic_env.cache import file_stem
+
+    assert file_stem("kit8") == "kit8" and file_stem("ycb10", "x") == "ycb10"  # plain names as they are
+    assert file_stem("/home/u/my hands/../hand.xml") == "_home_u_my_hands_.._hand.xml"
+    assert "/" not in file_stem("../../etc") and file_stem("///", "hand") == "_"
+    assert file_stem("", "hand") == "hand" and len(file_stem("x" * 100)) == 40
+
+
+def test_cache_files_get_the_umask_modes_not_owner_only(tmp_path):
+    """A written cache file is readable as the umask allows (a shared cache), not owner-only as mkstemp makes it."""
+    import os
+    import stat
+
+    from haptic_env import cache
+
+    path = save_npz_atomic(tmp_path / "a.npz", x=np.arange(3))
+    assert stat.S_IMODE(os.stat(path).st_mode) == 0o666 & ~cache._UMASK
+
+
+def test_stale_temp_files_with_odd_names_do_not_break_the_cache_folder(tmp_path):
+    """A hidden ``.tmp`` file whose pid part is not a plain pid (unicode digits, a huge number) is not taken for a
+    writer's pid: ``cache_dir`` does not fail on it."""
+    from haptic_env.cache import clean_stale_tmp
+
+    for name in (".a.npz.pid\u00b2\u00b3.x.tmp", f".b.npz.pid{2 ** 70}.x.tmp", ".c.npz.pid12.x.tmp"):
+        (tmp_path / name).write_bytes(b"")
+    assert clean_stale_tmp(tmp_path) == []  # all fresh: nothing removed, nothing raised
+    assert clean_stale_tmp(tmp_path, max_age=-1) and not any(tmp_path.iterdir())
+
+
 def test_field_added_later_keeps_older_keys_while_unset():
     @dataclasses.dataclass(frozen=True)
     class Later:

@@ -183,6 +183,49 @@ def test_interrupted_pool_build_resumes_from_its_saved_chunks(two_objects, monke
     assert resumed.seconds > 0
 
 
+def test_a_hand_given_as_a_file_keeps_its_pool_in_the_cache(two_objects):
+    """A hand named by its MJCF path caches its pool in the cache's folder (the path made a file name), not next to
+    the user's file."""
+    from pathlib import Path
+
+    import haptic_env.assets as assets
+    from haptic_env.cache import cache_dir
+    from haptic_env.hand_grasps import pool_cache_path
+
+    hand = str(Path(assets.__file__).parent / "generic_hand_4.xml")
+    path = pool_cache_path(two_objects, hand, 4, 12, "table", 0)
+    assert path.parent == cache_dir("hand_grasps") and path.name.endswith(".npz") and "generic_hand_4" in path.name
+
+
+def test_a_failing_chunk_stops_a_parallel_build_without_grasping_the_rest(two_objects, monkeypatch, tmp_path):
+    """An error in one worker's chunk (or an interrupt) cancels the chunks not yet started instead of grasping them
+    all and throwing them away (a pool executor's exit waits for every queued task)."""
+    import haptic_env.hand_grasps as hg
+
+    monkeypatch.setattr(hg, "CHUNK", 1)  # 2 objects x 12 approaches: 24 chunks
+    log = tmp_path / "chunks.log"
+    monkeypatch.setenv("HAPTIC_TEST_CHUNK_LOG", str(log))
+    monkeypatch.setattr(hg, "_grasp_chunk", _failing_chunk)  # the forked workers see it too
+    with pytest.raises(RuntimeError, match="a MuJoCo error in one chunk"):
+        hand_grasp_pool(two_objects, "generic", 3, 12, seed=9, workers=2, cache=False, progress=False)
+    assert len(log.read_text()) <= 6  # without the cancel: all 23 other chunks
+
+
+def _failing_chunk(obj, hand, n, support, actions, seed):
+    """A stand-in for ``_grasp_chunk`` (module level: a worker's task is pickled by name): the first chunk of object
+    0 fails; every other one takes 50 ms and leaves a mark in the log."""
+    import os
+    import time
+
+    if seed[1:] == [0, 0]:
+        raise RuntimeError("a MuJoCo error in one chunk")
+    time.sleep(0.05)
+    with open(os.environ["HAPTIC_TEST_CHUNK_LOG"], "a") as fh:
+        fh.write("x")
+    m = len(actions)
+    return np.zeros((m, n, 3)), np.zeros((m, n, 3)), np.zeros((m, n), bool), 0.05
+
+
 def test_heights_information_benchmark_features(load_benchmark):
     """benchmarks/heights_information.py: its three feature sets of a pool, from the same grasps (synthetic pool)."""
     from haptic_env.grasp_features import feature_dim

@@ -213,13 +213,18 @@ EMPTY_PREFIX_WARNING = "Attaching a spec with an empty prefix"
 @contextlib.contextmanager
 def _empty_prefix_allowed():
     """Within the block, MuJoCo's empty-prefix warning is dropped (MuJoCo's default handler would print it
-    and append it to ``MUJOCO_LOG.TXT`` in the working directory); any other MuJoCo warning is logged.
-    The previous handler is restored on exit."""
+    and append it to ``MUJOCO_LOG.TXT`` in the working directory); any other MuJoCo warning goes to the handler
+    the user had set, or is logged if none was. The previous handler is restored on exit."""
+    previous = mujoco.get_mju_user_warning()
+
     def handler(msg: str) -> None:
-        if not msg.startswith(EMPTY_PREFIX_WARNING):
+        if msg.startswith(EMPTY_PREFIX_WARNING):
+            return
+        if previous is not None:
+            previous(msg)
+        else:
             log.warning("MuJoCo: %s", msg)
 
-    previous = mujoco.get_mju_user_warning()
     mujoco.set_mju_user_warning(handler)
     try:
         with warnings.catch_warnings():
@@ -646,9 +651,9 @@ def auto_hand(source: str | Path | mujoco.MjSpec, tips: tuple[str, ...] | list[s
     key = hashlib.sha256(json.dumps([AUTO_VERSION, xml, tips, tips_given, timestep]).encode()).hexdigest()[:16]
     path, res = None, None
     if cache:
-        from ..cache import cache_dir
+        from ..cache import cache_dir, file_stem
 
-        path = cache_dir("auto_hands") / f"{re.sub(r'[^A-Za-z0-9_.-]', '_', name)}-{key}.json"
+        path = cache_dir("auto_hands") / f"{file_stem(name, 'hand')}-{key}.json"
         if path.is_file():
             try:
                 res = json.loads(path.read_text())
