@@ -65,7 +65,8 @@ class Args:
     env_seed: int = -1
     """The first env's seed (env ``rank`` gets ``env_seed + rank``). -1: ``10000 + 1000 * seed``, apart from the
     evaluation seeds (test 0-4, validation 500-504, sweeps 1000-1002), so that no training env replays an evaluation
-    seed's episodes. Runs before 2026-12-04 used ``seed + rank``: ``--env-seed SEED`` repeats them."""
+    seed's episodes. Runs before 2026-12-06 had ``seed + rank`` in effect (stable-baselines3 re-seeded the envs with
+    the model's seed): ``--env-seed SEED`` repeats them."""
     run_dir: str = "runs/ppo"
     """Where the run's files go."""
     checkpoint_freq: int = 20_000

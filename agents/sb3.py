@@ -530,6 +530,7 @@ def train(algo: str, venv, total_timesteps: int, log_dir: str | os.PathLike, *, 
     log_dir = Path(log_dir)
     log_dir.mkdir(parents=True, exist_ok=True)
     algo = algo.lower()
+    env_seeds = list(venv.unwrapped._seeds)  # the caller's: SB3 replaces them when it builds or loads the model
     if resume is not None:
         extras = checkpoint_extras(resume)
         if "vecnormalize" in extras:  # the saved statistics, into the caller's VecNormalize or a new one
@@ -550,6 +551,9 @@ def train(algo: str, venv, total_timesteps: int, log_dir: str | os.PathLike, *, 
             model.load_replay_buffer(str(extras["replay_buffer"]))
     else:
         model = build_model(algo, venv, seed=seed, log_dir=log_dir, verbose=verbose, **hyperparams)
+    # SB3 seeds the model's env with the model's seed + rank (set_random_seed in _setup_model), which would replay the
+    # evaluation seeds' episodes (test 0-4); the envs start where the caller seeded them (make_vec_env's seed)
+    venv.unwrapped._seeds = env_seeds
     guard = _run_guard(log_dir / "checkpoints", algo, checkpoint_freq, max_minutes)
     failure = None  # (reason, exit code) of an exception that ended learn()
     with _stop_on_signals(guard):  # also covers the final save: a signal then lets it finish

@@ -218,6 +218,32 @@ def test_vecnormalize_stats_are_checkpointed_and_resumed(env_config, tmp_path):
     assert load_from_pkl(tmp_path / "checkpoints" / "ppo_vecnormalize_192_steps.pkl").obs_rms.count >= saved + 64
 
 
+@pytest.mark.parametrize("resume", [False, True])
+def test_training_envs_keep_their_seeds_when_the_model_is_built_or_loaded(env_config, tmp_path, resume):
+    """SB3 seeds a model's env with the model's seed + rank when it builds or loads the model, which would start the
+    training envs on the evaluation seeds' episodes (``--seed 0``: test seeds 0 and 1); ``train`` keeps the seeds the
+    envs were made with (train.py's ``10000 + 1000 x seed + rank``), for a fresh run and for a resumed one."""
+    from agents import sb3
+
+    hp = {"n_steps": 16, "batch_size": 16, "n_epochs": 1}
+    ckpt = None
+    if resume:
+        venv = sb3.make_vec_env(env_config.replace(max_grasps=10), n_envs=2, seed=10000, vec="dummy")
+        sb3.train("ppo", venv, 32, tmp_path, seed=0, checkpoint_freq=32, **hp)
+        venv.close()
+        ckpt = sb3.latest_checkpoint(tmp_path, "ppo")
+    venv = sb3.make_vec_env(env_config.replace(max_grasps=10), n_envs=2, seed=10000, vec="dummy")
+    first = []
+    for env in venv.envs:  # record each env's first reset seed
+        def reset(*a, _real=env.reset, **kw):
+            first.append(kw.get("seed"))
+            return _real(*a, **kw)
+        env.reset = reset
+    sb3.train("ppo", venv, 64 if resume else 32, tmp_path, seed=0, checkpoint_freq=32, resume=ckpt, **hp)
+    venv.close()
+    assert first[:2] == [10000, 10001]
+
+
 def test_checkpoints_are_written_whole_extras_first(env_config, tmp_path, monkeypatch):
     """A save killed mid-write leaves no file under a checkpoint's name (``latest_checkpoint`` never picks a torn
     one); the SAC replay buffer is written before the model's zip, so a zip found has its buffer; and resuming SAC
