@@ -82,7 +82,8 @@ def get_recognizer(objects, config: HapticRecogConfig):
     from haptic_env.recognizers import build_recognizer, models_for
 
     kwargs.setdefault("models", models_for(config.updater))  # BC-NP: the KDE only
-    key = config_key(objects.name, tuple(objects.names), config.n_fingers, config.normals, z_values, kwargs)
+    # the meshes' hashes, not only their names: a set loaded in other units or from another folder is another set
+    key = config_key(objects.name, objects.identity, config.n_fingers, config.normals, z_values, kwargs)
     if key in _RECOGNIZERS:
         _RECOGNIZERS.move_to_end(key)
         return _RECOGNIZERS[key]

@@ -298,3 +298,20 @@ def test_the_process_keeps_the_last_recognisers_used(env_config, monkeypatch):
     assert len(belief._RECOGNIZERS) == belief.MAX_RECOGNIZERS == 4
     assert get_recognizer(objects, configs[0]) is first[0] and len(built) == 5
     assert get_recognizer(objects, configs[1]) is not first[1] and len(built) == 6  # n = 3 built again
+
+
+def test_a_set_of_the_same_names_but_other_meshes_gets_its_own_recogniser(env_config, monkeypatch):
+    """The process's memo is keyed by the meshes, not only the names: the same set loaded in other units (or from
+    another folder) is another recogniser."""
+    import haptic_env.belief as belief
+    import haptic_env.recognizers as recognizers
+
+    from haptic_env.objects import GraspObject, ObjectSet, load_object_set
+
+    objects = load_object_set(env_config.objects)
+    scaled = ObjectSet(objects.name, [GraspObject(o.name, o.mesh.copy().apply_scale(2.0)) for o in objects])
+    assert scaled.names == objects.names and scaled.identity != objects.identity
+    built = []
+    monkeypatch.setattr(recognizers, "build_recognizer", lambda *a, **k: built.append(k) or object())
+    monkeypatch.setattr(belief, "_RECOGNIZERS", type(belief._RECOGNIZERS)())
+    assert get_recognizer(objects, env_config) is not get_recognizer(scaled, env_config) and len(built) == 2
