@@ -83,6 +83,7 @@ class GreedyInfoGainAgent:
         self._env_id: int | None = None
         self.last_scores: np.ndarray | None = None  #: expected posterior entropy of each candidate, last step
         self.yaw_belief = None  #: infer_pose: the episode's :class:`~haptic_env.grasping.replay.YawBelief`
+        self._pose: np.ndarray | None = None  # the hypotheses' pose this episode (reset)
 
     def _sim_backends(self, base) -> list[Any]:
         if self._backends is None or self._env_id != id(base):
@@ -95,7 +96,15 @@ class GreedyInfoGainAgent:
                 kind, kw = "geometric", self.backend_kwargs
                 if kw is None:
                     kw = dict(cfg.backend_kwargs) if cfg.backend == "geometric" else {}
-            self._backends = [make_backend(kind, n_fingers=cfg.n_fingers, **kw) for _ in base.objects]
+            if kind == "replay":
+                # one replay backend over the env's whole set, as the env's own: an object's recorded approaches
+                # depend on its index in the set it was prepared with (a backend per object would record each as
+                # object 0 of a set of one); set_object then only picks its table
+                shared = make_backend(kind, n_fingers=cfg.n_fingers, **kw)
+                shared.prepare(base.objects)
+                self._backends = [shared] * len(base.objects)
+            else:
+                self._backends = [make_backend(kind, n_fingers=cfg.n_fingers, **kw) for _ in base.objects]
             self._env_id = id(base)
             self.yaw_belief = None
         return self._backends
@@ -122,6 +131,7 @@ class GreedyInfoGainAgent:
             pose = random_pose(self._rng, base.config.pose)
         for obj, backend in zip(base.objects, self._sim_backends(base)):
             backend.set_object(obj, pose)
+        self._pose = pose
         if self.infer_pose:
             self._yaw_belief(base).reset()
         # each hypothesis's table height at that pose: its simulated contacts are measured from it (grasp_heights)
@@ -182,8 +192,11 @@ class GreedyInfoGainAgent:
         """Simulated grasps of hypothesis ``k`` for ``acts (M*S, A)`` (each candidate repeated ``S`` times, rows kept in
         that order): at the known pose, or (``pose_known=False``) sample ``s`` of every candidate at the ``s``-th
         fresh pose."""
-        backend = self._sim_backends(base)[k]
+        backends = self._sim_backends(base)
+        backend = backends[k]
         if self.pose_known:
+            if len(backends) > 1 and backends[0] is backends[-1]:  # one backend for every hypothesis (replay)
+                backend.set_object(base.objects[k], self._pose)
             return backend.grasp_batch(acts, self._rng)
         from haptic_env.grasping.base import GraspBatch
 

@@ -125,6 +125,30 @@ def test_env_on_the_replay_backend(small_recognizer_kwargs):
         env.close()
 
 
+def test_the_greedy_look_ahead_on_a_replay_env_replays_the_envs_own_records(small_recognizer_kwargs):
+    """``greedy-env`` on a replay env simulates each hypothesis with the env's recordings: at the true pose its grasp
+    of the true object along an approach is the env's own (an object's recorded approaches depend on its index in
+    the set; a backend per object had recorded each as the first object of a set of one)."""
+    from agents.evaluate import make_agent
+    from haptic_env.env import HapticRecogConfig, HapticRecogEnv
+
+    cfg = HapticRecogConfig(backend="replay", backend_kwargs={"hand": "generic", "approaches": 8, "progress": False},
+                            recognizer_source="surface", recognizer_kwargs=small_recognizer_kwargs, max_grasps=3)
+    env = HapticRecogEnv(cfg)
+    try:
+        agent = make_agent("greedy-env:4", seed=0)
+        acts = np.random.default_rng(1).uniform(-1, 1, (5, 4))
+        for k in (1, 2):  # objects past the first
+            env.reset(seed=k, options={"object": env.object_names[k]})
+            agent.reset(env)
+            sim = agent._grasp(env, k, acts)
+            real = env.scene.backend.grasp_batch(acts, np.random.default_rng(0))
+            np.testing.assert_array_equal(sim.touched, real.touched)
+            np.testing.assert_allclose(sim.contacts, real.contacts)
+    finally:
+        env.close()
+
+
 def test_fidelity_benchmark_runs_on_the_generic_hand(load_benchmark, capsys, usage_error):
     """benchmarks/replay_fidelity.py on a small pool: the replay of a pool's own approaches (same seed) is exact."""
     fidelity = load_benchmark("replay_fidelity")
