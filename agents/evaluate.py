@@ -145,6 +145,8 @@ def evaluate_agents(agents: Sequence[Any], make_env: Callable[[], Any], n_episod
 
     _check_episodes(n_episodes)
     seeds = list(seeds)
+    if len(set(seeds)) < len(seeds):  # the same episodes twice would count as twice the evidence
+        raise ValueError(f"seeds must be distinct, got {seeds}")
     twice = repeated_names(agents)
     if twice:  # the summary groups episodes by name: two agents of one name would be pooled into one row
         raise ValueError(f"agents must have distinct names, got {twice} more than once (name a model NAME=model.zip)")
@@ -230,6 +232,8 @@ def _ratio_ci(a: np.ndarray, b: np.ndarray, n_boot: int = 2000, seed: int = 1) -
     value = float(1.0 - a.mean() / b.mean())
     if (a.size < 2 or np.all(a == a[0])) and (b.size < 2 or np.all(b == b[0])):
         return value, value, value
+    if a.size < 2 or b.size < 2:  # one episode on a side: no interval (the bootstrap needs two per sample)
+        return value, float("nan"), float("nan")
 
     def fewer(x, y, axis=-1):
         return 1.0 - x.mean(axis=axis) / y.mean(axis=axis)
@@ -703,6 +707,8 @@ def _main(args) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {out} is a file; give a folder for the report")
+    if len(set(args.seeds)) < len(args.seeds):  # a seed twice would count its episodes twice (narrower intervals)
+        raise UsageError(f"--seeds: each seed once, got {args.seeds}")
     curves = {}
     for spec in args.learning_curves:
         name, _, path = spec.partition("=") if "=" in spec else (Path(spec).name, "", spec)

@@ -673,6 +673,27 @@ def test_evaluate_refuses_two_agents_of_one_name_before_any_episode(tmp_path, us
                        "--out", str(tmp_path / "e")], match=r"--agents: \['random'\] named more than once")
 
 
+def test_evaluate_refuses_a_seed_given_twice(tmp_path, usage_error, env_config):
+    """A seed given twice would count its episodes twice (twice the evidence, narrower intervals): refused by the
+    command before any episode, and by ``evaluate_agents``."""
+    from haptic_env.cli import main
+
+    usage_error(main, ["evaluate", "--agents", "random", "--episodes", "1", "--seeds", "0", "0",
+                       "--out", str(tmp_path / "e")], match=r"--seeds: each seed once, got \[0, 0\]")
+    make = lambda: haptic_env.make(env_config.replace(max_grasps=4))  # noqa: E731
+    with pytest.raises(ValueError, match=r"seeds must be distinct, got \[3, 3\]"):
+        evaluate_agents([RandomAgent()], make, 1, seeds=[3, 3], progress=False)
+
+
+def test_the_ratio_interval_is_not_a_crash_when_one_side_has_one_episode():
+    """``_ratio_ci`` with one episode on one side and several varied ones on the other: the ratio, and no interval
+    (the bootstrap needs two per sample), instead of scipy's error."""
+    from agents.evaluate import _ratio_ci
+
+    value, lo, hi = _ratio_ci([2.0], [3.0, 4.0, 5.0, 3.0])
+    assert value == pytest.approx(1 - 2.0 / 3.75) and np.isnan(lo) and np.isnan(hi)
+
+
 def test_success_rates_carry_wilson_intervals_and_the_decided_and_correct_share():
     from agents.evaluate import markdown_table, proportion_ci
 
