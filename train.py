@@ -176,6 +176,14 @@ def parse_args(argv: list[str] | None = None) -> Args:
         if saved is not None and saved != args.discrete_approaches:
             _usage_error(f"argument --discrete-approaches: {args.resume} was trained with --discrete-approaches "
                          f"{saved}, got {args.discrete_approaches} (resume with the N it was started with)")
+    else:
+        from agents.sb3 import latest_checkpoint
+
+        run_dir = Path(args.run_dir)
+        held = latest_checkpoint(run_dir) or next(iter(sorted(run_dir.glob("*_final.zip"))), None)
+        if held is not None:  # a later --resume would pick that run's checkpoints up under this run's settings
+            _usage_error(f"argument --run-dir: {run_dir} already holds a run ({held.name}); continue it with "
+                         f"--resume {run_dir}, or choose another --run-dir")
     return args
 
 
@@ -209,6 +217,34 @@ def env_config(args: Args) -> HapticRecogConfig:
     return args.env.replace(**json.loads(args.env_kwargs))
 
 
+#: What a resumed segment may change without note: its length, its checkpoints, its output and its machine's threads
+_SEGMENT_ONLY = ("total_timesteps", "max_minutes", "checkpoint_freq", "progress_bar", "verbose", "torch_threads",
+                 "resume", "run_dir")
+
+
+def settings_changed(record: dict, checkpoint: Path) -> list[str]:
+    """On ``--resume``: ``"name: old -> new"`` for each run setting of ``record`` (what this segment writes to its
+    ``args*.json``) that differs from the ``args.json`` of the run ``checkpoint`` belongs to (its folder, or the one
+    above ``checkpoints/``); nothing when that file is missing or unreadable. Fine-tuning a checkpoint on another env
+    is allowed; it is said, not silent."""
+    folder = checkpoint.parent.parent if checkpoint.parent.name == "checkpoints" else checkpoint.parent
+    try:
+        old = json.loads((folder / "args.json").read_text())
+    except (OSError, ValueError):
+        return []
+    new = json.loads(json.dumps(record, default=str))
+    out = []
+    for name in sorted(set(old) | set(new)):
+        if name in _SEGMENT_ONLY or old.get(name) == new.get(name):
+            continue
+        if name == "env_config" and isinstance(old.get(name), dict) and isinstance(new.get(name), dict):
+            a, b = old[name], new[name]
+            out += [f"env.{k}: {a.get(k)!r} -> {b.get(k)!r}" for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)]
+        else:
+            out.append(f"{name}: {old.get(name)!r} -> {new.get(name)!r}")
+    return out
+
+
 def _next_part(run_dir: Path) -> int:
     """The first run segment ``k`` whose files (``args.json`` + ``monitor/<rank>.monitor.csv`` for ``k = 1``,
     ``args.part<k>.json`` + ``monitor/<rank>.part<k>.monitor.csv`` after) do not exist yet."""
@@ -240,11 +276,16 @@ def main(argv: list[str] | None = None) -> Path:
     first_env_seed = env_seed(args)
     part = _next_part(run_dir) if args.resume else 1  # a resumed run keeps the earlier args and Monitor files
     suffix = "" if part == 1 else f".part{part}"
-    (run_dir / f"args{suffix}.json").write_text(json.dumps(
-        {**{f.name: getattr(args, f.name) for f in dataclasses.fields(args) if f.name != "env"},
-         "first_env_seed": first_env_seed,
-         "env_config": {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(config).items()}},
-        indent=2, default=str))
+    record = {**{f.name: getattr(args, f.name) for f in dataclasses.fields(args) if f.name != "env"},
+              "first_env_seed": first_env_seed,
+              "env_config": {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(config).items()}}
+    if args.resume:
+        changed = settings_changed(record, Path(args.resume))
+        if changed:  # the model keeps the checkpoint's hyperparameters whatever --hyperparams says
+            print(f"[train] resuming {args.resume} with other settings than its run's: {'; '.join(changed)}"
+                  + (" (--hyperparams: the checkpoint's are kept)" if any(c.startswith("hyperparams") for c in changed)
+                     else ""), file=sys.stderr, flush=True)
+    (run_dir / f"args{suffix}.json").write_text(json.dumps(record, indent=2, default=str))
 
     t0 = time.time()
     venv = sb3.make_vec_env(config, n_envs=args.n_envs, seed=first_env_seed, log_dir=run_dir, vec=args.vec,

@@ -576,6 +576,8 @@ def train(algo: str, venv, total_timesteps: int, log_dir: str | os.PathLike, *, 
                 with contextlib.suppress(Exception):
                     model.logger.close()  # flush the TensorBoard events
         if failure is not None or (guard.stopped and guard.signum is not None):
+            if getattr(guard, "model", None) is None:  # learn() failed before SB3 set up the callback (the envs' reset)
+                guard.init_callback(model)
             guard.rewind()
             reason, code = failure or (f"stopped by {guard.stop_reason}", 128 + guard.signum)
             raise TrainingInterrupted(reason, guard.save(), int(model.num_timesteps), code)

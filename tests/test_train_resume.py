@@ -244,6 +244,49 @@ def test_training_envs_keep_their_seeds_when_the_model_is_built_or_loaded(env_co
     assert first[:2] == [10000, 10001]
 
 
+def test_a_fresh_run_is_refused_a_folder_that_holds_a_run_and_a_resume_says_what_it_changes(
+        small_recognizer_kwargs, tmp_path, usage_error, capsys, monkeypatch):
+    """A fresh run into a folder that holds another run's checkpoints is refused (a later ``--resume`` would go on
+    from that run's model under this run's settings); resuming with other run settings than the run's own
+    ``args.json`` (fine-tuning on another env is allowed) says which, and that ``--hyperparams`` are the
+    checkpoint's."""
+    monkeypatch.syspath_prepend(str(ROOT))
+    import train
+
+    run = tmp_path / "run"
+    hp = {"n_steps": 64, "batch_size": 64, "n_epochs": 1}
+    first = _args("ppo", 128, run, small_recognizer_kwargs, hp)
+    train.main(first)
+    usage_error(train.main, first, match=r"--run-dir: .*run already holds a run \(ppo_128_steps.zip\); continue it "
+                                         r"with --resume")
+    capsys.readouterr()
+    more = _args("ppo", 192, run, small_recognizer_kwargs, {**hp, "n_epochs": 2})
+    more[more.index("--env.max-grasps") + 1] = "8"
+    train.main(more + ["--resume", str(run)])
+    err = capsys.readouterr().err
+    assert "with other settings than its run's: env.max_grasps: 10 -> 8" in err
+    assert "hyperparams: " in err and "(--hyperparams: the checkpoint's are kept)" in err
+
+
+def test_a_failed_first_reset_still_saves_and_names_its_checkpoint(env_config, tmp_path, monkeypatch):
+    """An env worker that dies in the envs' first reset (before stable-baselines3 sets up the callbacks) ends in
+    ``TrainingInterrupted`` naming a checkpoint, not in an ``AttributeError`` of the unset callback."""
+    from agents import sb3
+
+    venv = sb3.make_vec_env(env_config.replace(max_grasps=10), n_envs=1, vec="dummy")
+
+    def dead(*a, **k):
+        raise EOFError("worker gone")
+
+    monkeypatch.setattr(venv, "reset", dead)
+    try:
+        with pytest.raises(sb3.TrainingInterrupted) as info:
+            sb3.train("ppo", venv, 64, tmp_path, n_steps=32, batch_size=32, n_epochs=1)
+    finally:
+        venv.close()
+    assert "an env worker died (EOFError)" in info.value.reason and Path(info.value.path).is_file()
+
+
 def test_checkpoints_are_written_whole_extras_first(env_config, tmp_path, monkeypatch):
     """A save killed mid-write leaves no file under a checkpoint's name (``latest_checkpoint`` never picks a torn
     one); the SAC replay buffer is written before the model's zip, so a zip found has its buffer; and resuming SAC
