@@ -257,6 +257,9 @@ def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.
 
         probe = haptic_env.make(config, env_id=env_id).unwrapped
         get_recognizer(probe.objects, probe.config)
+        # and whatever a first reset builds (the estimated frame's yaw belief records the hand's replay pool): a
+        # worker is a daemonic process, which may not start the pool's processes
+        probe.reset(seed=0)
         probe.close()
     subproc = vec == "subproc" and n_envs > 1
     fns = [_env_fn(config, i, monitor_dir, env_id, monitor_suffix, worker=subproc,

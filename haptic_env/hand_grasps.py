@@ -36,7 +36,7 @@ import time
 import warnings
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
-from multiprocessing import get_all_start_methods, get_context
+from multiprocessing import current_process, get_all_start_methods, get_context
 from pathlib import Path
 
 import numpy as np
@@ -271,6 +271,8 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
     first = min(CHUNK, int(approaches))
     results: dict[tuple[int, int], tuple] = {}
     workers = min(K * -(-int(approaches) // CHUNK), int(workers or os.cpu_count() or 1))
+    if workers > 1 and current_process().daemon:  # e.g. an SB3 SubprocVecEnv worker: it may not start processes
+        workers = 1
     parts = parts_dir(path) if path is not None else None
     saved, spent = _load_parts(parts, n_fingers) if parts is not None else ({}, 0.0)
     build = f"{os.getpid()}-{time.time_ns()}"  # this build's id in its saved chunks

@@ -211,6 +211,27 @@ def test_a_failing_chunk_stops_a_parallel_build_without_grasping_the_rest(two_ob
     assert len(log.read_text()) <= 6  # without the cancel: all 23 other chunks
 
 
+def test_a_daemonic_process_builds_its_pool_in_process(two_objects):
+    """In a daemonic process (an SB3 ``SubprocVecEnv`` worker), which may not start children, a pool is grasped in
+    that process instead of failing on the process pool's start."""
+    import multiprocessing
+
+    ctx = multiprocessing.get_context("fork")
+    out = ctx.Queue()
+    worker = ctx.Process(target=_pool_in_a_daemon, args=(two_objects, out), daemon=True)
+    worker.start()
+    worker.join(180)
+    assert out.get(timeout=10) == (2, 4, 3)
+
+
+def _pool_in_a_daemon(objects, out) -> None:
+    try:
+        pool = hand_grasp_pool(objects, "generic", 3, 4, seed=11, workers=2, cache=False, progress=False)
+        out.put(pool.touched.shape)
+    except BaseException as exc:  # noqa: BLE001 - reported to the test
+        out.put(repr(exc))
+
+
 def _failing_chunk(obj, hand, n, support, actions, seed):
     """A stand-in for ``_grasp_chunk`` (module level: a worker's task is pickled by name): the first chunk of object
     0 fails; every other one takes 50 ms and leaves a mark in the log."""
