@@ -64,7 +64,7 @@ CASES = [
     *_case(_kde("calibrate_grasps"), [True], r"KDEConfig\.calibrate_grasps must be an int >= 1"),
     # MLPConfig
     *[c for f in ("depth", "width", "batch_size", "max_epochs", "patience")
-      for c in _case(_mlp(f), [True], rf"MLPConfig\.{f} must be a positive integer")],
+      for c in _case(_mlp(f), [True], rf"MLPConfig\.{f} must be an integer >= {0 if f == 'depth' else 1}")],
     *_case(_mlp("max_train"), [True], r"MLPConfig\.max_train must be None or an int >= 1"),
     *_case(_mlp("lr"), ["0.01", True, None], r"MLPConfig\.lr must be positive and finite"),
     *_case(_mlp("weight_decay"), [None, True, "0"], r"MLPConfig\.weight_decay must be >= 0 and finite"),

@@ -83,6 +83,25 @@ def test_auto_bandwidth_picks_from_grid_and_state_round_trip():
     assert np.allclose(again.log_likelihood(q), kde.log_likelihood(q), atol=1e-4)
 
 
+@pytest.mark.parametrize("select", ["likelihood", "posterior"])
+def test_without_validation_vectors_the_bandwidth_is_chosen_on_vectors_the_choosing_kde_does_not_hold(select):
+    """``fit`` without ``X_val`` holds 10 % of each class out of the KDE that chooses the bandwidth: scored by a KDE
+    that holds them, each vector matched itself and the narrowest factor of the grid always won. The choice is then
+    the one a separate validation set gives (or next to it), and the fitted KDE keeps every vector."""
+    rng = np.random.default_rng(3)
+    X = np.concatenate([rng.normal(size=(2000, 3)), rng.normal(size=(2000, 3)) + 0.8])  # two overlapping classes
+    y = np.repeat([0, 1], 2000)
+    perm = rng.permutation(len(X))
+    val, train = perm[:500], perm[500:]
+    cfg = KDEConfig(method="dense", select=select)
+    alone = KDELikelihood(cfg).fit(X[train], y[train])
+    with_val = KDELikelihood(cfg).fit(X[train], y[train], X[val], y[val])
+    grid = sorted(cfg.factor_grid)
+    assert alone.factor[0] > grid[0]  # not the narrowest by default
+    assert abs(grid.index(alone.factor[0]) - grid.index(with_val.factor[0])) <= 1
+    assert sum(len(z) for z in alone.data) == len(train)
+
+
 @pytest.mark.parametrize("method", ["tree", "pooled"])
 def test_a_loaded_kde_scores_exactly_as_the_fitted_one(method):
     """The cache keeps the training vectors as fitted: float32 copies built other search trees, and the approximate

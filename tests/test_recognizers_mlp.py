@@ -151,3 +151,15 @@ def test_an_interrupted_fit_resumes_from_its_epoch_checkpoint(tmp_path, monkeypa
     seen[:] = []
     MLPClassifier(cfg).fit(X, y, checkpoint=ckpt)
     assert len(seen) == 5
+
+
+def test_a_fit_without_validation_rows_needs_two_rows_and_keeps_one_for_training():
+    """Without ``X_val`` the MLP holds out validation rows; one row is refused by name (it trained on none and
+    divided by zero), two keep one row each."""
+    from haptic_env.recognizers.mlp import MLPClassifier, MLPConfig
+
+    cfg = MLPConfig(depth=1, width=4, max_epochs=1, progress=False)
+    with pytest.raises(ValueError, match="needs >= 2 training rows, got 1"):
+        MLPClassifier(cfg).fit(np.zeros((1, 3)), np.array([0]), n_classes=2)
+    m = MLPClassifier(cfg).fit(np.array([[0.0, 0, 0], [1, 1, 1]]), np.array([0, 1]))
+    assert m.predict_proba(np.zeros((1, 3))).shape == (1, 2)

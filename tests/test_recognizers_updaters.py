@@ -205,3 +205,27 @@ def test_bc_weight_tempers_one_step_and_predict_matches_update():
                 copy.deepcopy(u).update([[0.0]], weight=bad)
         with pytest.raises(ValueError, match="weights"):
             u.predict(Q, starts, weights=[1.0])
+
+
+def test_a_grasp_that_fits_only_ruled_out_classes_leaves_the_belief_as_it_was():
+    """After a grasp rules class 0 out, a grasp that rules out every other class has nothing to update: the belief
+    stays (it became NaN, reported as a valid update, on the batched path too)."""
+    from haptic_env.recognizers.updaters import bayes_steps
+
+    u = BayesianUpdater(None, 0.85, n_classes=3)
+    u.update_scores(log_lik=np.array([[-np.inf, 0.0, 0.0]]))
+    before = u.belief.copy()
+    u.update_scores(log_lik=np.array([[0.0, -np.inf, -np.inf]]))
+    assert np.allclose(u.belief, before) and np.isfinite(u.belief).all()
+    log_b = np.log(np.array([[1e-300, 0.5, 0.5]]))
+    log_b[0, 0] = -np.inf
+    post, ok = bayes_steps(log_b, np.array([[0.0, -np.inf, -np.inf]]), np.array([0, 1]))
+    assert np.isfinite(post[0, 1:]).all() and not np.isnan(post).any()
+
+
+def test_a_refused_update_changes_nothing():
+    """IC and BC-IP's first grasp refuse an update without classifier probabilities before counting the grasp."""
+    for u in (IterativeClassification(None, 0.85, n_classes=2), BCIP(None, None, 0.85, n_classes=2)):
+        with pytest.raises(ValueError, match="probabilities"):
+            u.update_scores(log_lik=np.zeros((1, 2)))
+        assert u.n_grasps == 0

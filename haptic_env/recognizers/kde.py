@@ -211,7 +211,9 @@ class KDELikelihood:
         """Store the training vectors ``X (N, d)`` of each class ``y (N,)``; choose the bandwidth.
 
         With ``config.factor == "auto"`` a validation set is needed; without ``X_val`` a random
-        10 % of ``X`` is held out for the choice only (the KDE keeps all of ``X``). With
+        10 % of each class of ``X`` (of one with at least 2 vectors) is held out of the KDE that chooses, and
+        scored by it (a vector scored by a KDE that holds it favours the narrowest bandwidth); the fitted KDE
+        keeps all of ``X``. With
         ``config.calibrate`` and ``X_val`` given, :attr:`temperature` is fitted on at most
         ``n_calibrate`` validation vectors per class (:func:`~.calibration.fit_temperature` of the
         log-likelihoods evaluated by ``config.method``); without ``X_val`` it stays 1.
@@ -233,15 +235,29 @@ class KDELikelihood:
         scott = self._scott([len(z) for z in self.data], X.shape[1])
         given_val = X_val is not None
         if cfg.factor == "auto":
+            full = None
             if X_val is None:
-                perm = rng.permutation(len(X))[: max(1, len(X) // 10)]
-                X_val, y_val = X[perm], y[perm]
+                held = np.zeros(len(X), dtype=bool)
+                for c in range(self.n_classes):
+                    rows = np.flatnonzero(y == c)
+                    if len(rows) >= 2:
+                        held[rng.choice(rows, max(1, len(rows) // 10), replace=False)] = True
+                if not held.any():
+                    raise ValueError("KDELikelihood.fit: choosing the bandwidth needs X_val, or a class of X with at "
+                                     "least 2 vectors to hold one out")
+                X_val, y_val = X[held], y[held]
+                full, self.data = self.data, [Z[(y == c) & ~held] for c in range(self.n_classes)]
+                sel_scott = self._scott([len(z) for z in self.data], X.shape[1])
             else:
                 X_val, y_val = _check_xy(X_val, y_val, X.shape[1], "X_val")
+                sel_scott = scott
             if cfg.select == "posterior":
-                self.factor = self._select_posterior(X_val, np.asarray(y_val), scott)
+                self.factor = self._select_posterior(X_val, np.asarray(y_val), sel_scott)
             else:
                 self.factor = self._select(self.scaler(X_val), np.asarray(y_val), rng)
+            if full is not None:  # the KDE keeps every vector
+                self.data = full
+                self.trees, self.pooled, self.pooled_labels = [], None, None
         else:
             self.factor = np.full(self.n_classes, float(cfg.factor))
         self._set_bandwidth(self.factor * scott)
@@ -254,7 +270,8 @@ class KDELikelihood:
                 use = cfg.correct
                 counts = np.bincount(Y, minlength=self.n_classes)
                 if use and counts.min() < (2 if use == "auto" else 1):
-                    warnings.warn(f"KDELikelihood.fit: validation vectors per class {counts.tolist()}; the learned "
+                    warnings.warn(f"KDELikelihood.fit: validation vectors per class {counts.tolist()} (at most "
+                                  f"n_calibrate={cfg.n_calibrate} each); the learned "
                                   "correction needs every class (twice for 'auto') and is skipped (temperature only)",
                                   RuntimeWarning, stacklevel=2)
                     use = False
@@ -365,7 +382,7 @@ class KDELikelihood:
         counts = np.bincount(y_val[keep], minlength=self.n_classes)
         if counts.min() < 2:
             raise ValueError(f"KDEConfig.select='posterior' needs >= 2 validation vectors of every class, got "
-                             f"{counts.tolist()}")
+                             f"{counts.tolist()} (at most n_calibrate={cfg.n_calibrate} per class are used)")
         Xs, Ys = X_val[keep], y_val[keep]
         fixed = {False: None, True: "matrix"}.get(cfg.correct, cfg.correct)
         cands = cfg.correct_candidates if fixed == "auto" else tuple(filter(None, [fixed]))

@@ -146,8 +146,11 @@ class MLPClassifier:
             keep = rng.choice(len(X), cfg.max_train, replace=False)
             X, y = X[keep], y[keep]
         if X_val is None:
+            if len(X) < 2:
+                raise ValueError(f"MLP fit without X_val holds out validation rows: it needs >= 2 training rows, got "
+                                 f"{len(X)}")
             perm = rng.permutation(len(X))
-            n_val = max(1, int(round(cfg.val_fraction * len(X))))
+            n_val = min(max(1, int(round(cfg.val_fraction * len(X)))), len(X) - 1)
             X_val, y_val = X[perm[:n_val]], y[perm[:n_val]]
             X, y = X[perm[n_val:]], y[perm[n_val:]]
         else:

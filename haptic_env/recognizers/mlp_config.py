@@ -38,8 +38,9 @@ class MLPConfig:
         for name in ("depth", "width", "batch_size", "max_epochs", "patience"):
             v = getattr(self, name)
             n = whole_number(v)
-            if n is None or n < (0 if name == "depth" else 1):
-                raise ValueError(f"MLPConfig.{name} must be a positive integer, got {v!r}")
+            lo = 0 if name == "depth" else 1  # depth 0: a linear classifier
+            if n is None or n < lo:
+                raise ValueError(f"MLPConfig.{name} must be an integer >= {lo}, got {v!r}")
         if self.max_train is not None and (whole_number(self.max_train) or 0) < 1:
             raise ValueError(f"MLPConfig.max_train must be None or an int >= 1, got {self.max_train!r}")
         if not (finite_number(self.lr) or 0) > 0:

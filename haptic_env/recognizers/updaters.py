@@ -115,6 +115,8 @@ def _bayes_step(log_belief, L, product, max_log_ratio):
     for c in range(K):
         post[c] = log_belief[c] + (max(ll[c], top - max_log_ratio) - top)
     mx = post.max()
+    if not np.isfinite(mx):  # the grasp fits only classes the belief has ruled out: it cannot be used
+        return log_belief, _NO_INFORMATION
     total = 0.0
     for c in range(K):
         total += np.exp(post[c] - mx)
@@ -300,10 +302,10 @@ class IterativeClassification(BeliefUpdater):
         return self.scores / self.n_grasps
 
     def update_scores(self, log_lik=None, proba=None) -> np.ndarray:
-        self.n_grasps += 1
-        if proba is None:
+        if proba is None:  # before anything changes
             raise ValueError("IC updates need classifier probabilities (proba)")
         P = np.asarray(proba, dtype=np.float64).reshape(-1, self.n_classes)
+        self.n_grasps += 1
         if len(P) == 0:  # no usable (sub-)grasp: the grasp is spent, the scores stay
             return self.belief
         p = P.mean(axis=0)
@@ -416,10 +418,10 @@ class BCIP(BayesianUpdater):
     def update_scores(self, log_lik=None, proba=None) -> np.ndarray:
         if self.n_grasps > 0:
             return super().update_scores(log_lik=log_lik)
-        self.n_grasps += 1
-        if proba is None:
+        if proba is None:  # before anything changes
             raise ValueError("the first BC-IP update needs classifier probabilities (proba)")
         P = np.asarray(proba, dtype=np.float64).reshape(-1, self.n_classes)
+        self.n_grasps += 1
         if len(P):
             p = np.maximum(P.mean(axis=0), self.eps)
             post = self.log_belief + np.log(p / p.sum())
