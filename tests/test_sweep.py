@@ -165,7 +165,7 @@ def test_a_changed_env_variant_is_a_new_job(monkeypatch):
     ({"name": "x", "env_ids": ["HapticRecog-v0"],
       "agent": [{"name": "p", "algo": "ppo", "discrete_approaches": 8, "no_repeat": "yes"}]},
      "no_repeat: expected true or false, got 'yes'"),
-    ({"name": "x", "analysis": [{"flags": {"no_such_flag": 3}}]}, "unrecognized arguments: --no-such-flag 3"),
+    ({"name": "x", "analysis": [{"flags": {"no_such_flag": 3}}]}, r"unknown flag\(s\) \['--no-such-flag'\] for haptic-recog analysis"),
     ({"name": "x", "analysis": [{"flags": {"trials": 0}}]}, r"analysis\[0\].flags: trials must be an int >= 1, got 0"),
     ({"name": "x", "analysis": [{"flags": {"experiments": "2", "force_closure": 0.5}}]},
      "force_closure needs every finger count >= 3"),
@@ -482,6 +482,29 @@ def test_a_retried_train_job_reuses_a_finished_model_and_resumes_otherwise(tmp_p
     out = jobs._train(p, tmp_path, 3, {})
     assert len(runs) == 1 and out == {"model": str(tmp_path / "ppo_final.zip"), "resumed_from": None,
                                       "reused_final_model": True}
+
+
+def test_a_false_toggle_is_spelled_out_and_an_unknown_flag_is_refused_even_when_false():
+    """``stop_scale = false`` runs ``--no-stop-scale`` (left out, the analysis kept its default, on); a flag that
+    ``haptic-recog analysis`` does not have is refused at load, ``false`` or not."""
+    from haptic_env.sweep.spec import SpecError, _check_analysis_flags, analysis_argv
+
+    assert "--no-stop-scale" in analysis_argv("kit8", {"stop_scale": False}, "/o")
+    _check_analysis_flags("kit8", {"stop_scale": False, "raw": False}, "analysis[0]")
+    with pytest.raises(SpecError, match=r"analysis\[0\]\.flags: unknown flag\(s\) \['--no-such-flag'\]"):
+        _check_analysis_flags("kit8", {"no_such_flag": False}, "analysis[0]")
+
+
+def test_a_seed_given_twice_is_refused():
+    """An env seed twice would evaluate the same episodes twice (counted as twice the evidence); an agent's seed twice
+    would train the same model twice."""
+    from haptic_env.sweep.spec import SpecError, parse_spec
+
+    base = {"name": "s", "env_ids": ["HapticRecog-v0"], "agent": [{"name": "random", "spec": "random"}]}
+    with pytest.raises(SpecError, match=r"evaluate.env_seeds: each seed once, got \[1000, 1000\]"):
+        parse_spec({**base, "evaluate": {"env_seeds": [1000, 1000]}})
+    with pytest.raises(SpecError, match=r"agent\[0\].seeds: each seed once, got \[0, 0\]"):
+        parse_spec({**base, "agent": [{"name": "random", "spec": "random", "seeds": [0, 0]}]})
 
 
 def test_analysis_argv_spells_the_flags_as_the_job_runs_them():

@@ -256,6 +256,8 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
     _check_keys(ev, _EVALUATE, "evaluate")
     episodes = _int(ev.get("episodes", 20), "evaluate.episodes", 1)
     env_seeds = [_int(s, "evaluate.env_seeds") for s in _as_list(ev.get("env_seeds", list(SWEEP_ENV_SEEDS)))]
+    if len(set(env_seeds)) < len(env_seeds):  # a seed twice: the same episodes twice, as twice the evidence
+        raise SpecError(f"evaluate.env_seeds: each seed once, got {env_seeds}")
     eval_cpus = _cpus(ev, "evaluate")
     jobs: list[Job] = []
     names = set()
@@ -270,6 +272,8 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
         trained = "algo" in a
         _check_keys(a, _TRAINED if trained else _BASELINE, where)
         a_seeds = [_int(s, f"{where}.seeds") for s in _as_list(a.get("seeds", seeds))]
+        if len(set(a_seeds)) < len(a_seeds):
+            raise SpecError(f"{where}.seeds: each seed once, got {a_seeds}")
         if trained and a["algo"] not in ALGOS:
             raise SpecError(f"{where}: algo must be one of {ALGOS}, got {a['algo']!r}")
         if not trained:
@@ -341,15 +345,31 @@ def _dataset_jobs(doc: dict) -> list[Job]:
     return jobs
 
 
+def _analysis_toggles() -> set[str]:
+    """The ``haptic-recog analysis`` options with a ``--no-`` form (``--stop-scale`` / ``--no-stop-scale``), whose
+    ``false`` must be spelled out: their default may be on."""
+    import argparse
+
+    from haptic_env.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)).choices["analysis"]
+    return {a.option_strings[0] for a in sub._actions if isinstance(a, argparse.BooleanOptionalAction)}
+
+
 def analysis_argv(objects: str, flags: dict[str, Any], out) -> list[str]:
     """``haptic-recog`` arguments of an analysis job: ``analysis --out OUT --objects OBJECTS`` and its ``flags``
-    (``key = true``: the bare flag; a list: comma-joined), ``--quiet`` unless the flags say otherwise."""
+    (``key = true``: the bare flag; ``false``: ``--no-<key>`` for an option with that form, else left out, as its
+    default is off; a list: comma-joined), ``--quiet`` unless the flags say otherwise."""
     argv = ["analysis", "--out", str(out), "--objects", str(objects)]
+    toggles = _analysis_toggles() if any(v is False for v in flags.values()) else set()
     for k, v in flags.items():
         flag = "--" + k.replace("_", "-")
         if v is True:
             argv.append(flag)
-        elif v is not False:
+        elif v is False:
+            if flag in toggles:
+                argv.append("--no-" + flag[2:])
+        else:
             argv += [flag, ",".join(map(str, v)) if isinstance(v, list) else str(v)]
     return argv if "quiet" in flags else [*argv, "--quiet"]
 
@@ -364,7 +384,13 @@ def _check_analysis_flags(objects: str, flags: dict[str, Any], where: str) -> No
     from haptic_env.experiments.cli import config_from_args
 
     err = io.StringIO()
+    # every key must name an option, a false one too (it is left out of the command, so parsing would not see it)
+    spelled = analysis_argv(objects, {k: (True if v is False else v) for k, v in flags.items()}, "unused")
     try:
+        with contextlib.redirect_stderr(err):
+            unknown = [w for w in build_parser().parse_known_args(spelled)[1] if w.startswith("--")]
+        if unknown:
+            raise SpecError(f"{where}.flags: unknown flag(s) {unknown} for haptic-recog analysis")
         with contextlib.redirect_stderr(err):
             args = build_parser().parse_args(analysis_argv(objects, flags, "unused"))
         config_from_args(args)
