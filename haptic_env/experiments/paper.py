@@ -9,8 +9,8 @@ Every table is keyed by the finger count ``n`` and whether the grasp vectors car
 
 from __future__ import annotations
 
-__all__ = ["PAPER_SET", "ONESHOT", "PAPER_NN", "PAPER_KNN", "GRASPS", "ZFINGER", "INCOMPLETE", "SCALED", "SCALE_RANGE",
-           "applies", "PAPER"]
+__all__ = ["PAPER_SET", "THRESHOLD", "ONESHOT", "PAPER_NN", "PAPER_KNN", "GRASPS", "ZFINGER", "INCOMPLETE", "SCALED",
+           "SCALE_RANGE", "applies", "PAPER"]
 
 #: the object set the paper's analysis figures are for
 PAPER_SET = "kit8"
@@ -78,6 +78,11 @@ SCALED = {
 PAPER = {"mlp_oneshot_n3_normals": PAPER_NN[(3, True)], "bcnp_grasps_n4_normals": GRASPS["bc-np"][(4, True)][0]}
 
 
-def applies(objects: str) -> bool:
-    """Whether the analysis of object set ``objects`` (``AnalysisConfig.objects``) has the paper's figures."""
-    return objects == PAPER_SET
+#: the certainty threshold of the paper's sequential figures (experiments 2-4)
+THRESHOLD = 0.85
+
+
+def applies(objects: str, threshold: float | None = None) -> bool:
+    """Whether the analysis of object set ``objects`` (``AnalysisConfig.objects``) has the paper's figures; for the
+    sequential experiments (``threshold``: their lambda) only at the paper's lambda, :data:`THRESHOLD`."""
+    return objects == PAPER_SET and (threshold is None or threshold == THRESHOLD)

@@ -19,7 +19,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     rep.h(f"4. Scaled objects (scale ~ U{cfg.scale_range} per grasp, n = 4, normals: {cfg.normals}; "
           f"{cfg.scores_label})")
     rows = []
-    with_paper = paper.applies(cfg.objects)
+    with_paper = paper.applies(cfg.objects, cfg.threshold)  # its figures are at lambda = 0.85
     for norm in (False, True):
         kw = {"scale_range": cfg.scale_range, "normalize_scale": norm}
         rec = build_recognizer(objects, 4, cfg.normals, config=cfg.recognizer_config(**kw), progress=False)

@@ -31,7 +31,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     rows = []
     curves = {}
     K = len(objects)
-    with_paper = paper.applies(cfg.objects)
+    with_paper = paper.applies(cfg.objects, cfg.threshold)  # its figures are at lambda = 0.85
     for n in tqdm(cfg.fingers, desc="exp2 fingers", disable=not cfg.progress):
         rec = build_recognizer(objects, n, cfg.normals, config=cfg.recognizer_config(), progress=False)
         models = scored_models(rec, cfg)

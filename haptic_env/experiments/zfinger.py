@@ -26,7 +26,7 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     rep.h(f"3. z-finger scoring and incomplete grasps (lambda = {cfg.threshold}, normals: {cfg.normals}; "
           f"{cfg.scores_label})")
     rows = []
-    with_paper = paper.applies(cfg.objects)
+    with_paper = paper.applies(cfg.objects, cfg.threshold)  # its figures are at lambda = 0.85
     recs = {z: build_recognizer(objects, z, cfg.normals, config=cfg.recognizer_config(), progress=False)
             for z in SUBSET_SIZES}
     beliefs = {z: Belief(rec, calibrated=cfg.calibrated) for z, rec in recs.items()}  # their subset scoring
