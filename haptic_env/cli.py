@@ -97,10 +97,16 @@ def parse_int_list(text: str) -> tuple[int, ...]:
             a, b = whole(lo), whole(hi)
             if b < a:
                 raise ValueError(f"range {part!r} runs backwards in {text!r}")
+            if b - a >= MAX_RANGE:  # a typo (1-1e12) is refused, not built
+                raise ValueError(f"range {part!r} in {text!r} holds more than {MAX_RANGE:,} numbers")
             out += range(a, b + 1)
         else:
             out.append(whole(part))
     return tuple(out)
+
+
+#: the most numbers one range ``a-b`` of :func:`parse_int_list` may hold
+MAX_RANGE = 100_000
 
 
 def int_list(text: str) -> tuple[int, ...]:
@@ -124,7 +130,8 @@ def output_path(kind: str = "file"):
             raise argparse.ArgumentTypeError(f"{text} is a folder; give a file name")
         if kind == "folder" and path.exists() and not path.is_dir():
             raise argparse.ArgumentTypeError(f"{text} is a file; give a folder")
-        above = path.absolute().parent
+        # an existing folder is written into (its own rights); else the nearest existing folder above creates it
+        above = path.absolute() if kind == "folder" and path.is_dir() else path.absolute().parent
         while not above.exists():
             above = above.parent
         if not above.is_dir() or not os.access(above, os.W_OK | os.X_OK):

@@ -10,6 +10,7 @@ Defaults that other modules share come from their owners: the threshold and the 
 from __future__ import annotations
 
 import dataclasses
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -258,6 +259,7 @@ class HapticRecogConfig:
             unknown = sorted(set(self.recognizer_kwargs) - set(valid))
             if unknown:
                 raise ValueError(f"unknown recognizer_kwargs {unknown}; valid: {valid}")
+            self._check_recognizer_settings()
             try:
                 recognizer_kwargs(self)
             except (TypeError, ValueError) as exc:
@@ -273,6 +275,29 @@ class HapticRecogConfig:
         if k is not None and k < 2:
             raise ValueError(f"object set {self.objects!r} has {k} object(s); recognising one needs at least 2")
 
+    def _check_recognizer_settings(self) -> None:
+        """``recognizer_kwargs`` that contradict the env's own settings, refused at make (they failed at the first
+        reset, after the recogniser was trained): the grasp vectors' ``normal_axis`` and ``heights``, and a touch
+        pattern switched off under a ``touch_weight``."""
+        kw = self.recognizer_kwargs
+        if self.touch_weight > 0 and "touch" in kw and not kw["touch"]:
+            raise ValueError(f"touch_weight={self.touch_weight} weighs the touch pattern, but recognizer_kwargs "
+                             f"switches it off (touch={kw['touch']!r}); drop one of them")
+        rc = kw.get("config", {})
+        grasps = rc.get("grasps", {}) if isinstance(rc, Mapping) else getattr(rc, "grasps", None)
+        if grasps is None:
+            return
+        get = grasps.get if isinstance(grasps, Mapping) else lambda k, d=None: getattr(grasps, k, d)
+        axis, heights = get("normal_axis", self.normal_axis), get("heights", self.grasp_heights)
+        if axis != self.normal_axis:
+            raise ValueError(f"recognizer_kwargs' grasps take each normal's second angle to {axis!r} but the config "
+                             f"has normal_axis={self.normal_axis!r}; set both alike (or leave it out of the JSON: it "
+                             "follows normal_axis)")
+        if bool(heights) != bool(self.grasp_heights):
+            raise ValueError(f"recognizer_kwargs' grasps have heights={heights!r} but the config has grasp_heights="
+                             f"{self.grasp_heights}; set both alike (or leave it out of the JSON: it follows "
+                             "grasp_heights)")
+
     def replace(self, **changes: Any) -> "HapticRecogConfig":
         """A copy with ``changes`` applied; unknown names raise a ``TypeError`` listing the valid ones."""
         names = {f.name for f in dataclasses.fields(self)}
@@ -287,7 +312,7 @@ def backend_hand(config: HapticRecogConfig) -> Any:
     (``MujocoConfig.hand``, ``ReplayConfig.hand``)."""
     kw = dict(config.backend_kwargs)
     if "hand" in kw:
-        return kw["hand"]
+        return os.fspath(kw["hand"]) if isinstance(kw["hand"], os.PathLike) else kw["hand"]  # a Path: its text
     if config.backend == "replay":
         from haptic_env.grasping.replay import ReplayConfig
 
@@ -350,7 +375,9 @@ def recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
             grasps["scale_range"] = tuple(grasps["scale_range"])
         rc["grasps"] = DatasetConfig(**grasps)
         if kw.get("touch") and rc["grasps"].source != "hand":
-            raise ValueError(f"touch_weight={config.touch_weight} needs hand-matched training grasps (source 'hand'), "
+            what = (f"touch_weight={config.touch_weight}" if config.touch_weight > 0
+                    else f"recognizer_kwargs['touch']={kw['touch']!r}")
+            raise ValueError(f"{what} needs hand-matched training grasps (source 'hand'), "
                              f"got source {rc['grasps'].source!r}")
         if isinstance(rc.get("mlp"), Mapping):
             rc["mlp"] = MLPConfig(**rc["mlp"])

@@ -14,7 +14,10 @@ stream below is apart from the others, so no validation or test draw is ever a t
 
 Sweeps evaluate on :data:`SWEEP_ENV_SEEDS` (their leaderboard's own test seeds).
 """
+
 from __future__ import annotations
+
+from haptic_env.numbers import whole_number
 
 __all__ = ["TEST_SEED_OFFSET", "VALIDATION_SEED_OFFSET", "FAMILY_VAL_SEED_OFFSET", "ENV_TEST_SEEDS",
            "ENV_VALIDATION_SEEDS", "SWEEP_ENV_SEEDS", "HAND_POOL_SPLITS", "hand_pool_seed", "training_env_seed"]
@@ -40,11 +43,24 @@ def hand_pool_seed(split: str, seed: int) -> int:
     pools; the envs train on pool seed 0). A ``ValueError`` names a bad split."""
     if split not in HAND_POOL_SPLITS:
         raise ValueError(f"split must be one of {tuple(HAND_POOL_SPLITS)}, got {split!r}")
-    return HAND_POOL_SPLITS[split] + int(seed)
+    return HAND_POOL_SPLITS[split] + _seed_in(seed, SPLIT_SPAN, "seed")
 
 
 def training_env_seed(seed: int) -> int:
     """The first training env's seed for training seed ``seed`` (env ``rank`` gets it ``+ rank``): apart from every
     evaluation seed (test 0-4, validation 500-504, sweeps 1000-1002), so that no training env replays the episode
     draws of an evaluation seed."""
-    return 10_000 + 1_000 * int(seed)
+    return 10_000 + 1_000 * _seed_in(seed, None, "seed")
+
+
+#: how many seeds a split's offsets leave apart (validation 500 + s must stay below the test pools' 1000)
+SPLIT_SPAN = 500
+
+
+def _seed_in(seed, span: int | None, name: str) -> int:
+    """``seed`` as an int in ``[0, span)`` (no upper bound for ``None``): a negative seed (or one past the span) would
+    land in another split's range, e.g. ``training_env_seed(-10)`` on test seed 0."""
+    s = whole_number(seed)
+    if s is None or s < 0 or (span is not None and s >= span):
+        raise ValueError(f"{name} must be an int in [0, {span if span is not None else 'inf'}), got {seed!r}")
+    return s

@@ -9,6 +9,7 @@ import subprocess
 import sys
 import time
 import warnings
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -393,6 +394,45 @@ def test_ctrl_c_in_a_subcommand_is_one_line_saying_what_a_rerun_keeps(monkeypatc
 ])
 def test_benchmarks_refuse_bad_counts_before_any_work(load_benchmark, usage_error, bench, argv, match):
     usage_error(load_benchmark(bench).main, argv, match=match)
+
+
+def test_an_existing_output_folder_is_checked_itself_and_a_huge_range_is_refused(tmp_path, monkeypatch):
+    """``output_path("folder")`` of an existing folder asks that folder's rights (a run writes into it), not its
+    parent's; ``parse_int_list`` refuses a range of more than ``MAX_RANGE`` numbers (``1-1e12``) instead of building
+    it."""
+    import argparse
+    import os
+
+    from haptic_env.cli import MAX_RANGE, output_path, parse_int_list
+
+    out = tmp_path / "out"
+    out.mkdir()
+    asked = []
+    monkeypatch.setattr(os, "access", lambda p, mode: asked.append(Path(p)) or Path(p) != out)
+    with pytest.raises(argparse.ArgumentTypeError, match=r"out is not a writable folder"):
+        output_path("folder")(str(out))
+    assert asked == [out]
+    with pytest.raises(ValueError, match=r"holds more than 100,000 numbers"):
+        parse_int_list("1-1e12")
+    assert len(parse_int_list(f"1-{MAX_RANGE}")) == MAX_RANGE
+
+
+def test_env_settings_that_contradict_the_recognisers_are_refused_at_make():
+    """recognizer_kwargs' grasp settings against the env's (normal_axis, grasp_heights) and a touch pattern switched
+    off under a touch_weight failed at the first reset, after training; a hand given as a Path is its path."""
+    from haptic_env.config import HapticRecogConfig, recognizer_kwargs
+
+    with pytest.raises(ValueError, match=r"second angle to 't2' but the config has normal_axis='ab'"):
+        HapticRecogConfig(normal_axis="ab", recognizer_kwargs={"config": {"grasps": {"normal_axis": "t2"}}})
+    with pytest.raises(ValueError, match=r"heights=False but the config has grasp_heights=True"):
+        HapticRecogConfig(grasp_heights=True, recognizer_kwargs={"config": {"grasps": {"heights": False}}})
+    with pytest.raises(ValueError, match=r"touch_weight=0.5 weighs the touch pattern, but recognizer_kwargs switches"):
+        HapticRecogConfig(backend="replay", touch_weight=0.5, recognizer_kwargs={"touch": False})
+    with pytest.raises(ValueError, match=r"recognizer_kwargs\['touch'\]=True needs hand-matched training grasps"):
+        HapticRecogConfig(recognizer_kwargs={"touch": True})
+    hand = Path(__file__).resolve().parents[1] / "assets" / "generic_hand_4.xml"
+    cfg = HapticRecogConfig(backend="mujoco", backend_kwargs={"hand": hand}, n_fingers=4)
+    assert recognizer_kwargs(cfg)["config"].grasps.hand == str(hand)
 
 
 def test_output_path_refuses_what_a_long_run_could_not_write_at_its_end(tmp_path):

@@ -33,3 +33,16 @@ def test_evaluate_reports_on_the_test_seeds_by_default():
     parser = argparse.ArgumentParser()
     add_parser(parser.add_subparsers())
     assert parser.parse_args(["evaluate"]).seeds == list(splits.ENV_TEST_SEEDS) == [0, 1, 2, 3, 4]
+
+
+@pytest.mark.parametrize("call, match", [
+    (lambda: splits.training_env_seed(-10), r"seed must be an int in \[0, inf\), got -10"),
+    (lambda: splits.hand_pool_seed("validation", -500), r"seed must be an int in \[0, 500\), got -500"),
+    (lambda: splits.hand_pool_seed("validation", 500), r"seed must be an int in \[0, 500\), got 500"),
+    (lambda: splits.hand_pool_seed("test", 2.5), r"got 2.5"),
+])
+def test_a_seed_that_would_land_in_another_split_is_refused(call, match):
+    """training_env_seed(-10) was test seed 0, hand_pool_seed("validation", 500) the test pool of seed 0 and
+    hand_pool_seed("validation", -500) the envs' training pool."""
+    with pytest.raises(ValueError, match=match):
+        call()
