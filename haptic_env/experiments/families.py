@@ -284,7 +284,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
         rep.p(f"The {cfg.family_hand} grasped some random members with fewer than 4 fingers only (too small or too flat "
               f"for it); they are left out: training {sorted(m.left_train)}, validation {sorted(m.left_val)}, "
               f"test {sorted(left_test)}.")
-    rep.p(f"Held-back grasps of the {n_tr} training members (fresh, test seed): one-shot family accuracy MLP "
+    rep.p(f"Held-back grasps of {len(held)} of the {n_tr} training members (fresh, test seed; a member without such "
+          f"grasps is left out): one-shot family accuracy MLP "
           f"{100 * one_h:.1f} %, KDE argmax {100 * one_kde_h:.1f} % (chance 33.3 %).")
     rep.p(f"Held-out family members ({n_te} new random boxes/cylinders/ellipsoids, test seed); one-shot "
           f"family accuracy MLP {100 * one:.1f} %, KDE argmax {100 * one_kde:.1f} % (chance 33.3 %). Temperatures "

@@ -65,8 +65,9 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
             rows.append(row)
     rep.table(["n", "normals", *names], rows)
     rep.p(f"Test grasps: {cfg.test_grasps} per object (seed {cfg.seed + TEST_SEED_OFFSET}); binomial std of an "
-          f"accuracy near 85% is about {100 * np.sqrt(0.85 * 0.15 / (cfg.test_grasps * len(objects))):.1f} points. "
-          f"Baselines train on subsamples (GP {max(200, (cfg.baseline_max_train or 0) // 5)}, SVMs "
-          f"{cfg.baseline_max_train}, kNN/trees {10 * (cfg.baseline_max_train or 0)} rows)." +
+          f"accuracy near 85% is about {100 * np.sqrt(0.85 * 0.15 / (cfg.test_grasps * len(objects))):.1f} points. " +
+          ("Baselines train on every training row." if cfg.baseline_max_train is None else
+           f"Baselines train on subsamples (GP {baseline_train_cap('gp', cfg)}, SVMs "
+           f"{baseline_train_cap('rbf-svm', cfg)}, kNN/trees {baseline_train_cap('knn', cfg)} rows).") +
           (" In brackets: the paper's figure (kit8, 200,000 grasps per object; its neural network is `mlp` here)."
            if with_paper else ""))
