@@ -294,16 +294,31 @@ class GraspScene:
         if not hasattr(self, "_unscaled"):
             mids = m.geom_dataid[self.obj_geom_ids]
             verts = [slice(m.mesh_vertadr[i], m.mesh_vertadr[i] + m.mesh_vertnum[i]) for i in mids]
+            # the bounding-volume trees too: the object body's (the midphase picks the pieces to collide with it,
+            # body frame) and each mesh's (mesh frame); left unscaled, touches outside the unscaled boxes were missed
+            b = self.obj_body_id
+            bvh = np.concatenate([np.arange(m.body_bvhadr[b], m.body_bvhadr[b] + m.body_bvhnum[b])]
+                                 + [np.arange(m.mesh_bvhadr[i], m.mesh_bvhadr[i] + m.mesh_bvhnum[i]) for i in mids
+                                    if m.mesh_bvhadr[i] >= 0]).astype(np.int64)
             self._unscaled = (verts, [m.mesh_vert[v].copy() for v in verts], m.geom_pos[self.obj_geom_ids].copy(),
-                              m.geom_rbound[self.obj_geom_ids].copy(), m.geom_aabb[self.obj_geom_ids].copy(), 1.0)
-        verts, vert0, pos0, rb0, aabb0, current = self._unscaled
+                              m.geom_rbound[self.obj_geom_ids].copy(), m.geom_aabb[self.obj_geom_ids].copy(),
+                              bvh, m.bvh_aabb[bvh].copy(), m.geom_size[self.obj_geom_ids].copy(),
+                              (m.body_ipos[b].copy(), float(m.body_mass[b]), m.body_inertia[b].copy()), 1.0)
+        verts, vert0, pos0, rb0, aabb0, bvh, bvh0, size0, (ipos0, mass0, inertia0), current = self._unscaled
         if scale == current:
             return
         for v, v0 in zip(verts, vert0):
             m.mesh_vert[v] = scale * v0
         g = self.obj_geom_ids
         m.geom_pos[g], m.geom_rbound[g], m.geom_aabb[g] = scale * pos0, scale * rb0, scale * aabb0
-        self._unscaled = (*self._unscaled[:5], scale)
+        m.geom_size[g] = scale * size0  # a mesh geom's size: its box's half-extents
+        b = self.obj_body_id  # its inertial frame, which its bounding-volume tree is kept in (mass: a solid's)
+        m.body_ipos[b], m.body_mass[b], m.body_inertia[b] = scale * ipos0, scale**3 * mass0, scale**5 * inertia0
+        m.bvh_aabb[bvh] = scale * bvh0  # (centre, half-size) rows, both scale about the frame's origin
+        if self._renderer is not None:  # it uploaded the meshes at their old size
+            self._renderer.close()
+            self._renderer = None
+        self._unscaled = (*self._unscaled[:9], scale)
 
     def place_object(self, pose: np.ndarray, table_z: float | None) -> None:
         """Move the (static) object body to ``pose`` and the visual table plane to ``table_z``, without
@@ -340,7 +355,7 @@ class GraspScene:
                     item.file = str((home / (sub or "") / item.file).resolve())
         body = spec.body("object")
         body.pos, body.quat = m.body_pos[self.obj_body_id].copy(), m.body_quat[self.obj_body_id].copy()
-        scale = self._unscaled[5] if hasattr(self, "_unscaled") else 1.0
+        scale = self._unscaled[-1] if hasattr(self, "_unscaled") else 1.0
         for i in range(len(self.object_geom_names)):
             spec.mesh(f"obj_piece{i}").scale = [scale] * 3
         if self._table_geom >= 0:
