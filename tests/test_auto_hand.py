@@ -256,6 +256,26 @@ def test_a_users_warning_handler_hears_every_warning_but_the_empty_prefix_one():
         mujoco.set_mju_user_warning(None)
 
 
+@pytest.mark.parametrize("kind", ["gear2", "motor"])
+def test_the_open_pose_is_the_angle_an_actuator_holds_not_its_control(tmp_path, kind):
+    """``GraspScene.reset`` puts a joint where its actuator holds it: a position servo of gear 2 holds half its
+    control; a motor's control is a force, so its joint keeps its rest angle (both were set to the control)."""
+    spec = sibling_roots_hand()
+    for act in spec.actuators:
+        if kind == "gear2":
+            act.gear[0] = 2.0
+        else:
+            act.set_to_motor()
+    be = make_backend("mujoco", hand=_write(tmp_path, kind, spec))
+    be.set_object(_cyl())
+    sc, m = be.scene, be.scene.model
+    ctrl = np.full(m.nu, 0.4)
+    sc.reset(ctrl)
+    j = m.actuator_trnid[:, 0]
+    want = np.full(m.nu, 0.2) if kind == "gear2" else m.qpos0[m.jnt_qposadr[j]]
+    np.testing.assert_allclose(sc.data.qpos[m.jnt_qposadr[j]], want)
+
+
 def test_synergy_holds_rotation_and_closes_coupled_fingers(tmp_path):
     rot = report(auto_hand(_write(tmp_path, "rot", rotation_joint_hand()), cache=False))
     assert all(a.endswith("rot") for a in rot.held) and len(rot.held) == 4, rot.held

@@ -330,15 +330,19 @@ class GraspScene:
             m.geom_pos[self._table_geom, 2] = table_z - 1e-4
 
     def reset(self, ctrl: np.ndarray) -> None:
-        """Zero state, joints set to the actuator targets where an actuator drives one joint directly."""
+        """Zero state, joints set where a position-like actuator drives one joint directly: to the angle it holds
+        for ``ctrl`` (``(ctrl - offset) / ctrl_per_length`` of actuator length, over the gear; ``ctrl`` itself for a
+        position servo of gear 1). A motor's control is a force, not an angle: its joint keeps its rest angle."""
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
         d.ctrl[:] = ctrl
         for a in range(m.nu):
-            if m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT:
+            gear = m.actuator_gear[a, 0]
+            if m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT and np.isfinite(self.ctrl_per_length[a]) and gear:
                 j = m.actuator_trnid[a, 0]
                 lo, hi = m.jnt_range[j] if m.jnt_limited[j] else (-np.inf, np.inf)
-                d.qpos[m.jnt_qposadr[j]] = np.clip(ctrl[a], lo, hi)
+                q = (ctrl[a] - self.ctrl_offset[a]) / self.ctrl_per_length[a] / gear
+                d.qpos[m.jnt_qposadr[j]] = np.clip(q, lo, hi)
 
     def export_spec(self, keys: dict[str, dict[str, np.ndarray]] | None = None) -> mujoco.MjSpec:
         """A copy of the scene as an ``MjSpec`` (``.to_xml()`` for MuJoCo's viewer): the object where
