@@ -256,6 +256,16 @@ def test_a_users_warning_handler_hears_every_warning_but_the_empty_prefix_one():
         mujoco.set_mju_user_warning(None)
 
 
+def test_unnamed_actuators_are_refused_by_name(tmp_path):
+    """The closing synergy keeps targets by actuator name: unnamed actuators all became one (one closed, the others
+    stayed open). They are refused, naming them by index."""
+    spec = sibling_roots_hand()
+    for act in list(spec.actuators)[1:3]:
+        act.name = ""
+    with pytest.raises(ValueError, match=r"actuators \['#1', '#2'\] have no name"):
+        auto_hand(_write(tmp_path, "unnamed", spec), cache=False)
+
+
 @pytest.mark.parametrize("kind", ["gear2", "motor"])
 def test_the_open_pose_is_the_angle_an_actuator_holds_not_its_control(tmp_path, kind):
     """``GraspScene.reset`` puts a joint where its actuator holds it: a position servo of gear 2 holds half its

@@ -604,6 +604,10 @@ def _check_actuators(m: mujoco.MjModel, name: str) -> None:
     if m.nu == 0:
         raise ValueError(f"hand {name!r} has no actuators: the automatic closing drives the fingers with position "
                          "(or motor) actuators on their joints or tendons")
+    unnamed = [f"#{a}" for a in range(m.nu) if not m.actuator(a).name]
+    if unnamed:  # the closing synergy is kept by actuator name: unnamed ones would all be one
+        raise ValueError(f"hand {name!r}: actuators {unnamed} have no name; the automatic closing keeps each "
+                         "actuator's targets by its name (give every <actuator> element a name)")
     free = [m.actuator(a).name or f"#{a}" for a in range(m.nu) if not m.actuator_ctrllimited[a]
             or not m.actuator_ctrlrange[a, 1] > m.actuator_ctrlrange[a, 0]]
     if free:
