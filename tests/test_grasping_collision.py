@@ -49,3 +49,19 @@ def test_shipped_ycb_pieces_align_with_mesh():
 def test_bad_method():
     with pytest.raises(ValueError, match="collision method"):
         CollisionConfig(method="voxels")
+
+
+def test_shipped_pieces_of_a_millimetre_folder_are_in_metres_like_their_mesh(tmp_path):
+    """A folder in the YCB layout (``<object>/mesh.stl`` + ``collision_*.stl``) loaded with ``units="mm"``: the pieces
+    are scaled, turned and moved as the mesh was (they stayed in millimetres, 1000 times too large)."""
+    from haptic_env.objects.loaders import load_folder
+
+    box = trimesh.creation.box((60.0, 60.0, 100.0))
+    box.apply_translation((0, 0, 50.0))  # in the file: standing on z = 0, in millimetres
+    (tmp_path / "box").mkdir()
+    box.export(tmp_path / "box" / "mesh.stl")
+    box.export(tmp_path / "box" / "collision_00.stl")
+    obj = load_folder(tmp_path, units="mm")[0]
+    pieces = convex_pieces(obj)
+    np.testing.assert_allclose(pieces[0].bounds, obj.mesh.bounds, atol=1e-9)
+    assert obj.unit_scale == 1e-3

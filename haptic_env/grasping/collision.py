@@ -83,6 +83,7 @@ def _from_files(obj: Any) -> list[trimesh.Trimesh]:
         if not p.is_file():
             raise FileNotFoundError(f"collision piece {p} of object {obj.name!r} is missing")
         m = trimesh.load(p, force="mesh")
+        m.apply_scale(float(getattr(obj, "unit_scale", 1.0)))  # the file's units, as its mesh's (mm files: 1e-3)
         m.apply_transform(T)
         m.apply_translation(offset)
         pieces.append(m)

@@ -89,7 +89,9 @@ class GraspObject:
         offset: ``(3,)`` translation that was applied to the file's coordinates (scaled and turned by
             :attr:`rotation`) to centre the mesh.
         rotation: ``(3, 3)`` rotation that stood the file's coordinates up (:func:`up_rotation`; the identity for
-            a z-up file). ``collision_paths`` geometry matches :attr:`mesh` as ``p @ rotation.T + offset``.
+            a z-up file). ``collision_paths`` geometry matches :attr:`mesh` as
+            ``(unit_scale * p) @ rotation.T + offset``.
+        unit_scale: metres per unit of the files (:attr:`source` and :attr:`collision_paths`; 1 for metre files).
     """
 
     name: str
@@ -99,6 +101,7 @@ class GraspObject:
     collision_paths: tuple[Path, ...] = ()
     offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
     rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
+    unit_scale: float = 1.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:

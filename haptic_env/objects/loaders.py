@@ -150,7 +150,8 @@ def load_mesh_object(path: str | Path, *, units: str | float = "m", name: str | 
         warnings.warn(f"mesh file {path}: object {name!r} is {size:.3g} m across with units={units!r}; are the file's "
                       "coordinates in millimetres? (load it with units='mm', e.g. object_kwargs={'units': 'mm'})",
                       UserWarning, stacklevel=2)
-    return GraspObject(name, mesh, source=path, collision_paths=tuple(collision_paths), offset=offset, rotation=R)
+    return GraspObject(name, mesh, source=path, collision_paths=tuple(collision_paths), offset=offset, rotation=R,
+                       unit_scale=unit_scale(units))
 
 
 def load_folder(folder: str | Path, *, units: str | float = "m", name: str | None = None, up: str = "z") -> ObjectSet:
