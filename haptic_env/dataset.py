@@ -568,7 +568,8 @@ def hand_dataset(objects: ObjectSet, config: DatasetConfig, *, progress: bool = 
     ds, left_out = _split_hand_rows(objects, config, progress, min_rows)
     if ds is None:
         raise RuntimeError(f"none of the {len(objects)} objects was touched with >= {config.n_fingers} fingers "
-                           f"(non-degenerate) in {min_rows} of {config.grasps_per_object} {config.hand} grasps")
+                           f"(non-degenerate) in {min_rows} of its {config.hand} grasps (budget {config.hand_budget!r}, "
+                           f"{config.grasps_per_object} approaches per object)")
     return ds, left_out
 
 
@@ -596,8 +597,9 @@ def _hand_dataset(objects: ObjectSet, config: DatasetConfig, path: Path | None, 
     ds, left_out = _split_hand_rows(objects, config, progress, 2)
     if left_out:
         name, n = next(iter(left_out.items()))
-        raise RuntimeError(f"object {name!r}: {n} of {config.grasps_per_object} {config.hand} "
-                           f"grasps touched it with >= {config.n_fingers} fingers (non-degenerate); "
+        raise RuntimeError(f"object {name!r}: {n} of its {config.hand} grasps (budget {config.hand_budget!r}, "
+                           f"{config.grasps_per_object} approaches per object) touched it with >= {config.n_fingers} "
+                           "fingers (non-degenerate); "
                            "use more approaches or fewer fingers")
     return replace(ds, cache_path=path)
 
@@ -704,7 +706,7 @@ def _print_summary(args: argparse.Namespace, objects, config: DatasetConfig, ds,
         from .hand_grasps import hand_grasp_pool
 
         pool = hand_grasp_pool(objects, config.hand, config.hand_fingers or config.n_fingers, config.grasps_per_object,
-                               support=config.support, seed=config.seed, progress=False)
+                               support=config.support, seed=config.seed, budget=config.hand_budget, progress=False)
         print(f"hand grasps ({config.hand}): {pool.touched.shape[1]} approaches x {len(objects)} objects built in "
               f"{pool.seconds:.1f} s ({pool.grasps_per_second:.0f} grasps/s on all cores)")
     src = "hit" if ds.from_cache else ("written" if ds.cache_path else "disabled")

@@ -84,7 +84,8 @@ def test_hand_vectors_keep_every_row_and_report_objects_the_hand_cannot_grasp(tw
         assert np.all(np.abs(C) <= obj.extents / 2 + 0.01)  # within the object's box (contacts on its surface)
     tiny = family_set(1, np.random.default_rng(0), scale_range=(0.05, 0.05), families=("ellipsoid",))  # 4 mm
     assert [len(v) for v in hand_vectors(tiny, cfg, progress=False)] == [0]
-    with pytest.raises(RuntimeError, match="'ellipsoid_00': 0 of 12 generic grasps"):
+    with pytest.raises(RuntimeError,
+                       match=r"'ellipsoid_00': 0 of its generic grasps \(budget 'uniform', 12 approaches per object\)"):
         build_dataset(tiny, cfg, cache=False, progress=False)
 
 
