@@ -568,8 +568,8 @@ def hand_dataset(objects: ObjectSet, config: DatasetConfig, *, progress: bool = 
     ds, left_out = _split_hand_rows(objects, config, progress, min_rows)
     if ds is None:
         raise RuntimeError(f"none of the {len(objects)} objects was touched with >= {config.n_fingers} fingers "
-                           f"(non-degenerate) in {min_rows} of its {config.hand} grasps (budget {config.hand_budget!r}, "
-                           f"{config.grasps_per_object} approaches per object)")
+                           f"(non-degenerate) in {min_rows} of its {config.hand} grasps (budget "
+                           f"{config.hand_budget!r}, {config.grasps_per_object} approaches per object)")
     return ds, left_out
 
 
