@@ -256,6 +256,13 @@ def test_a_users_warning_handler_hears_every_warning_but_the_empty_prefix_one():
         mujoco.set_mju_user_warning(None)
 
 
+def test_a_root_without_close_ctrl_is_refused_not_dropped(tmp_path):
+    from haptic_env.grasping.hands import mjcf_hand
+
+    with pytest.raises(ValueError, match=r"root='palm' is for a hand used as given \(with close_ctrl=\)"):
+        mjcf_hand(_write(tmp_path, "sib", sibling_roots_hand()), root="palm")
+
+
 def test_unnamed_actuators_are_refused_by_name(tmp_path):
     """The closing synergy keeps targets by actuator name: unnamed actuators all became one (one closed, the others
     stayed open). They are refused, naming them by index."""

@@ -284,6 +284,9 @@ def mjcf_hand(path: str | Path, tips: tuple[str, ...] | list[str] | None = None,
     from .auto_hand import auto_hand, hand_options, load_mjcf, single_root
 
     if close_ctrl is None:
+        if root is not None:  # it was dropped without a word
+            raise ValueError(f"MJCF hand {path}: root={root!r} is for a hand used as given (with close_ctrl=); the "
+                             "automatic path mounts the hand at the root it finds (leave root out, or give close_ctrl)")
         desc = auto_hand(path, tips)
         if open_ctrl:
             desc.open_ctrl = {**desc.open_ctrl, **open_ctrl}
