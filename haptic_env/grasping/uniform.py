@@ -74,7 +74,8 @@ class UniformBackend:
         return self.grasp_batch(a[None], rng)[0]
 
     def render(self, width: int = 480, height: int = 480) -> np.ndarray:
-        """Same matplotlib picture as the geometric backend (mesh + last sampled points)."""
+        """The geometric backend's matplotlib picture of the posed mesh (the sampled points are not drawn: they come
+        from no finger rays, which that picture draws)."""
         from .geometric import GeometricBackend
 
         if self._geo is None:
