@@ -237,7 +237,7 @@ def test_a_recogniser_with_normal_axis_ab_or_frame_is_scored_with_it(env_config,
 
     kw = _copy.deepcopy(small_recognizer_kwargs)
     kw["config"]["grasps"]["normal_axis"] = axis
-    cfg = env_config.replace(recognizer_kwargs=kw)
+    cfg = env_config.replace(recognizer_kwargs=kw, normal_axis=axis)  # the env config follows its recogniser
     rec = get_recognizer(load_object_set(cfg.objects), cfg)
     assert rec.normal_axis == axis and rec.config.grasps.normal_axis == axis
     backend = make_backend("geometric", n_fingers=4)
@@ -315,3 +315,17 @@ def test_a_set_of_the_same_names_but_other_meshes_gets_its_own_recogniser(env_co
     monkeypatch.setattr(recognizers, "build_recognizer", lambda *a, **k: built.append(k) or object())
     monkeypatch.setattr(belief, "_RECOGNIZERS", type(belief._RECOGNIZERS)())
     assert get_recognizer(objects, env_config) is not get_recognizer(scaled, env_config) and len(built) == 2
+
+
+def test_a_recogniser_of_other_grasp_vectors_is_refused_by_the_belief(env_config):
+    """The make-time check reads recognizer_kwargs; ``check_grasp_vectors`` is the one for a recogniser however it
+    came: its normal axis and heights must be the config's."""
+    from types import SimpleNamespace
+
+    from haptic_env.belief import check_grasp_vectors
+
+    with pytest.raises(ValueError, match=r"second angle to 't2' but the config has normal_axis='ab'"):
+        check_grasp_vectors(SimpleNamespace(normal_axis="t2", heights=False), env_config.replace(normal_axis="ab"))
+    with pytest.raises(ValueError, match="lack the contact heights but the config has grasp_heights=True"):
+        check_grasp_vectors(SimpleNamespace(normal_axis="t2", heights=False), env_config.replace(grasp_heights=True))
+    check_grasp_vectors(SimpleNamespace(normal_axis="t2", heights=False), env_config)

@@ -616,8 +616,8 @@ def test_grasp_heights_reach_the_recogniser_observation_and_belief(env_config):
         env_config.replace(grasp_heights=True, pose="so3")
     plain = {"config": {"grasps": {"grasps_per_object": 1500, "heights": False},
                         "mlp": {"depth": 1, "width": 32, "max_epochs": 1, "progress": False}}, "progress": False}
-    with pytest.raises(ValueError, match="lack the contact heights"):
-        HapticRecogEnv(env_config.replace(grasp_heights=True, recognizer_kwargs=plain)).reset(seed=0)
+    with pytest.raises(ValueError, match="heights=False but the config has grasp_heights=True"):  # at make
+        env_config.replace(grasp_heights=True, recognizer_kwargs=plain)
 
 
 @pytest.mark.parametrize("axis", ["ab", "frame"])
@@ -651,8 +651,8 @@ def test_normal_axis_ab_or_frame_reaches_the_recogniser_and_the_observation(env_
     assert seen > 0
     other = {"config": {"grasps": {"grasps_per_object": 1500, "normal_axis": "t2"},
                         "mlp": {"depth": 1, "width": 32, "max_epochs": 1, "progress": False}}, "progress": False}
-    with pytest.raises(ValueError, match=f"normal_axis={axis!r}"):
-        HapticRecogEnv(env_config.replace(normal_axis=axis, recognizer_kwargs=other)).reset(seed=0)
+    with pytest.raises(ValueError, match=f"second angle to 't2' but the config has normal_axis={axis!r}"):  # at make
+        env_config.replace(normal_axis=axis, recognizer_kwargs=other)
     with pytest.raises(ValueError, match="normal_axis must be one of .*'t1'"):
         env_config.replace(normal_axis="t1")
 
