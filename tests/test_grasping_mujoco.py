@@ -134,12 +134,7 @@ def test_an_object_scaled_in_place_grasps_as_one_built_at_that_size(tmp_path):
     in_place, built = make_backend("mujoco", 3, hand="generic"), make_backend("mujoco", 3, hand="generic")
     in_place.set_object(GraspObject("L", whole, collision_paths=tuple(small)), scale=s)
     built.set_object(GraspObject("L_big", whole.copy().apply_scale(s), collision_paths=tuple(big)))
-    for x in np.random.default_rng(0).uniform(-1, 1, (30, 4)):
-        r1, r2 = in_place.grasp(x, np.random.default_rng(0)), built.grasp(x, np.random.default_rng(0))
-        np.testing.assert_array_equal(r1.touched, r2.touched)
-        np.testing.assert_allclose(r1.contacts, r2.contacts, atol=1e-6)
-    in_place.close()
-    built.close()
+    _assert_same_grasps(in_place, built, np.random.default_rng(0).uniform(-1, 1, (30, 4)), atol=1e-6)
 
 
 def test_render_offscreen(generic):
@@ -258,12 +253,17 @@ def test_a_known_object_in_a_new_pose_moves_instead_of_recompiling():
     assert moved.scene is first  # no recompilation
     fresh = make_backend("mujoco", 4, hand="generic")
     fresh.set_object(cyl, T2)
-    for a in np.random.default_rng(3).uniform(-1, 1, (4, 4)):
-        r1, r2 = moved.grasp(a, np.random.default_rng(0)), fresh.grasp(a, np.random.default_rng(0))
+    _assert_same_grasps(moved, fresh, np.random.default_rng(3).uniform(-1, 1, (4, 4)), atol=1e-9)
+
+
+def _assert_same_grasps(one, other, actions, atol: float) -> None:
+    """Both backends grasp each action alike (the same fingers touch, contacts within ``atol``); closes both."""
+    for x in actions:
+        r1, r2 = one.grasp(x, np.random.default_rng(0)), other.grasp(x, np.random.default_rng(0))
         np.testing.assert_array_equal(r1.touched, r2.touched)
-        np.testing.assert_allclose(r1.contacts, r2.contacts, atol=1e-9)
-    moved.close()
-    fresh.close()
+        np.testing.assert_allclose(r1.contacts, r2.contacts, atol=atol)
+    one.close()
+    other.close()
 
 
 def test_scale_without_a_mesh_copy_matches_a_scaled_object():
