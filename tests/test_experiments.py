@@ -296,17 +296,6 @@ def test_analysis_config_names_a_bad_setting(kw, message):
 
 
 
-def test_the_analysis_seed_draws_the_models_too():
-    """``AnalysisConfig(seed=s)`` seeds the MLP and the KDE with ``s`` as the CLI's ``--seed`` does (through the API
-    they kept 0, so runs of several seeds shared their models' draws); a model seed set on its own is kept."""
-    from haptic_env.experiments.config import AnalysisConfig
-    from haptic_env.recognizers import MLPConfig
-
-    c = AnalysisConfig(seed=5)
-    assert c.mlp.seed == 5 and c.kde.seed == 5 and AnalysisConfig().mlp.seed == 0
-    assert AnalysisConfig(seed=5, mlp=MLPConfig(seed=2)).mlp.seed == 2
-
-
 def test_the_papers_sequential_figures_only_at_its_lambda():
     """The paper's grasps and success rates are at lambda = 0.85: the sequential experiments print them beside ours
     only there (the one-shot accuracies do not depend on lambda)."""
