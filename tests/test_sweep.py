@@ -491,7 +491,7 @@ def test_a_false_toggle_is_spelled_out_and_an_unknown_flag_is_refused_even_when_
     from haptic_env.sweep.spec import SpecError, _check_analysis_flags, analysis_argv
 
     assert "--no-stop-scale" in analysis_argv("kit8", {"stop_scale": False}, "/o")
-    _check_analysis_flags("kit8", {"stop_scale": False, "raw": False}, "analysis[0]")
+    _check_analysis_flags("kit8", {"stop_scale": False, "raw": False, "force_closure": False}, "analysis[0]")
     with pytest.raises(SpecError, match=r"analysis\[0\]\.flags: unknown flag\(s\) \['--no-such-flag'\]"):
         _check_analysis_flags("kit8", {"no_such_flag": False}, "analysis[0]")
 
@@ -518,3 +518,13 @@ def test_analysis_argv_spells_the_flags_as_the_job_runs_them():
                                                   "--fingers", "3,4", "--no-normals", "--quiet"]
     assert analysis_argv("kit8", {"quiet": True}, "/o")[-1] == "--quiet"
     assert analysis_argv("kit8", {"quiet": True}, "/o").count("--quiet") == 1
+
+
+def test_a_train_jobs_key_holds_how_its_envs_are_seeded():
+    """Train jobs carry their envs' seeding (since 2026-12-06 the envs keep env_seed; SB3 had re-seeded them seed +
+    rank), so that a sweep folder's jobs trained the earlier way train again instead of being reused."""
+    from haptic_env.sweep.spec import parse_spec
+
+    spec = parse_spec({"name": "s", "env_ids": ["HapticRecog-v0"], "agent": [{"name": "ppo", "algo": "ppo"}]})
+    train = next(j for j in spec.jobs if j.kind == "train")
+    assert train.params["seeding"] == "env_seed kept" and train.params["env_seed"] == 10_000

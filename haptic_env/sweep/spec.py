@@ -298,7 +298,8 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
                 train = Job("train", f"{env}/{name}/seed{s}", {
                     "algo": a["algo"], "env_id": env_id, "env_variant": variant, "env_kwargs": kwargs, "seed": s,
                     # how the training envs are seeded is part of the job: jobs trained the earlier way train again
-                    "env_seed": training_env_seed(s),
+                    # ("seeding": since 2026-12-06 the envs keep env_seed; before, SB3 re-seeded them seed + rank)
+                    "env_seed": training_env_seed(s), "seeding": "env_seed kept",
                     "total_timesteps": _int(a.get("total_timesteps", 200_000), f"{where}.total_timesteps", 1),
                     "n_envs": n_envs, "vec": _train_vec(a.get("vec", "dummy" if n_envs == 1 else "subproc"), where),
                     "checkpoint_freq": _int(a.get("checkpoint_freq", 20_000), f"{where}.checkpoint_freq", 1),
@@ -345,15 +346,16 @@ def _dataset_jobs(doc: dict) -> list[Job]:
     return jobs
 
 
-def _analysis_toggles() -> set[str]:
-    """The ``haptic-recog analysis`` options with a ``--no-`` form (``--stop-scale`` / ``--no-stop-scale``), whose
-    ``false`` must be spelled out: their default may be on."""
+def _analysis_options() -> tuple[set[str], set[str]]:
+    """``haptic-recog analysis``'s option strings, and those with a ``--no-`` form (``--stop-scale`` /
+    ``--no-stop-scale``), whose ``false`` must be spelled out: their default may be on."""
     import argparse
 
     from haptic_env.cli import build_parser
 
     sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)).choices["analysis"]
-    return {a.option_strings[0] for a in sub._actions if isinstance(a, argparse.BooleanOptionalAction)}
+    return (set(sub._option_string_actions),
+            {a.option_strings[0] for a in sub._actions if isinstance(a, argparse.BooleanOptionalAction)})
 
 
 def analysis_argv(objects: str, flags: dict[str, Any], out) -> list[str]:
@@ -361,7 +363,7 @@ def analysis_argv(objects: str, flags: dict[str, Any], out) -> list[str]:
     (``key = true``: the bare flag; ``false``: ``--no-<key>`` for an option with that form, else left out, as its
     default is off; a list: comma-joined), ``--quiet`` unless the flags say otherwise."""
     argv = ["analysis", "--out", str(out), "--objects", str(objects)]
-    toggles = _analysis_toggles() if any(v is False for v in flags.values()) else set()
+    toggles = _analysis_options()[1] if any(v is False for v in flags.values()) else set()
     for k, v in flags.items():
         flag = "--" + k.replace("_", "-")
         if v is True:
@@ -385,12 +387,11 @@ def _check_analysis_flags(objects: str, flags: dict[str, Any], where: str) -> No
 
     err = io.StringIO()
     # every key must name an option, a false one too (it is left out of the command, so parsing would not see it)
-    spelled = analysis_argv(objects, {k: (True if v is False else v) for k, v in flags.items()}, "unused")
+    options = _analysis_options()[0]
+    unknown = sorted(f for f in ("--" + k.replace("_", "-") for k in flags) if f not in options)
+    if unknown:
+        raise SpecError(f"{where}.flags: unknown flag(s) {unknown} for haptic-recog analysis")
     try:
-        with contextlib.redirect_stderr(err):
-            unknown = [w for w in build_parser().parse_known_args(spelled)[1] if w.startswith("--")]
-        if unknown:
-            raise SpecError(f"{where}.flags: unknown flag(s) {unknown} for haptic-recog analysis")
         with contextlib.redirect_stderr(err):
             args = build_parser().parse_args(analysis_argv(objects, flags, "unused"))
         config_from_args(args)
