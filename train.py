@@ -176,15 +176,26 @@ def parse_args(argv: list[str] | None = None) -> Args:
         if saved is not None and saved != args.discrete_approaches:
             _usage_error(f"argument --discrete-approaches: {args.resume} was trained with --discrete-approaches "
                          f"{saved}, got {args.discrete_approaches} (resume with the N it was started with)")
-    else:
-        from agents.sb3 import latest_checkpoint
-
-        run_dir = Path(args.run_dir)
-        held = latest_checkpoint(run_dir) or next(iter(sorted(run_dir.glob("*_final.zip"))), None)
-        if held is not None:  # a later --resume would pick that run's checkpoints up under this run's settings
-            _usage_error(f"argument --run-dir: {run_dir} already holds a run ({held.name}); continue it with "
-                         f"--resume {run_dir}, or choose another --run-dir")
     return args
+
+
+def refuse_a_held_run_dir(args: Args) -> None:
+    """A fresh run (no ``--resume``) into a ``--run-dir`` that holds a run's checkpoints or final model is a usage
+    error before any file is written: a later ``--resume`` would go on from that run's model under this run's
+    settings."""
+    from agents.sb3 import latest_checkpoint
+
+    if args.resume:
+        return
+    run_dir = Path(args.run_dir)
+    checkpoint = latest_checkpoint(run_dir)
+    final = next(iter(sorted(run_dir.glob("*_final.zip"))), None)
+    if checkpoint is not None:
+        _usage_error(f"argument --run-dir: {run_dir} already holds a run ({checkpoint.name}); continue it with "
+                     f"--resume {run_dir}, or choose another --run-dir")
+    if final is not None:
+        _usage_error(f"argument --run-dir: {run_dir} already holds a finished run ({final.name}); choose another "
+                     "--run-dir")
 
 
 def _saved_approaches(path: Path) -> int | None:
@@ -260,6 +271,7 @@ def _next_part(run_dir: Path) -> int:
 
 def main(argv: list[str] | None = None) -> Path:
     args = parse_args(argv)
+    refuse_a_held_run_dir(args)
     import torch
 
     from agents import sb3
