@@ -246,18 +246,24 @@ class KDELikelihood:
                     raise ValueError("KDELikelihood.fit: choosing the bandwidth needs X_val, or a class of X with at "
                                      "least 2 vectors to hold one out")
                 X_val, y_val = X[held], y[held]
-                full, self.data = self.data, [Z[(y == c) & ~held] for c in range(self.n_classes)]
+                kept = [Z[(y == c) & ~held] for c in range(self.n_classes)]
+                if cfg.method == "subsample":  # the choosing KDE as capped as the fitted one
+                    kept = [z[rng.choice(len(z), cfg.max_samples, replace=False)] if len(z) > cfg.max_samples else z
+                            for z in kept]
+                full, self.data = self.data, kept
                 sel_scott = self._scott([len(z) for z in self.data], X.shape[1])
             else:
                 X_val, y_val = _check_xy(X_val, y_val, X.shape[1], "X_val")
                 sel_scott = scott
-            if cfg.select == "posterior":
-                self.factor = self._select_posterior(X_val, np.asarray(y_val), sel_scott)
-            else:
-                self.factor = self._select(self.scaler(X_val), np.asarray(y_val), rng)
-            if full is not None:  # the KDE keeps every vector
-                self.data = full
-                self.trees, self.pooled, self.pooled_labels = [], None, None
+            try:
+                if cfg.select == "posterior":
+                    self.factor = self._select_posterior(X_val, np.asarray(y_val), sel_scott)
+                else:
+                    self.factor = self._select(self.scaler(X_val), np.asarray(y_val), rng)
+            finally:
+                if full is not None:  # the KDE keeps every vector (a failed choice too)
+                    self.data = full
+                    self.trees, self.pooled, self.pooled_labels = [], None, None
         else:
             self.factor = np.full(self.n_classes, float(cfg.factor))
         self._set_bandwidth(self.factor * scott)
