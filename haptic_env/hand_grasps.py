@@ -106,7 +106,22 @@ def hand_physics_key(hand: str, n_fingers: int) -> str:
     h = load_hand(hand, int(n_fingers))
     fields = {f.name: getattr(h, f.name) for f in dataclasses.fields(h) if f.name != "spec"}
     fields["option"] = {k: int(v) if hasattr(v, "value") else v for k, v in h.option.items()}
-    return config_key(h.spec.to_xml(), fields, MujocoConfig(n_fingers=int(n_fingers), hand=hand))
+    # a hand with a joint actuator other than a position servo of gear 1 opens where its actuators hold the joints
+    # since 2026-12-06 (GraspScene.reset), so its pools are built again; every other hand keeps its key
+    held = [] if all(_plain_servo(a) for a in h.spec.actuators) else ["reset: held angles"]
+    return config_key(h.spec.to_xml(), fields, MujocoConfig(n_fingers=int(n_fingers), hand=hand), *held)
+
+
+def _plain_servo(act) -> bool:
+    """An ``MjsActuator`` that is not on a joint, or a position servo of gear 1 on one (its control is the joint's
+    angle)."""
+    import mujoco
+
+    if act.trntype != mujoco.mjtTrn.mjTRN_JOINT:
+        return True
+    return bool(act.gear[0] == 1.0 and act.gaintype == mujoco.mjtGain.mjGAIN_FIXED
+                and act.biastype == mujoco.mjtBias.mjBIAS_AFFINE and act.gainprm[0] > 0
+                and act.biasprm[1] == -act.gainprm[0] and act.biasprm[0] == 0.0)
 
 
 def pool_cache_path(objects, hand: str, n_fingers: int, approaches: int, support: str, seed: int,

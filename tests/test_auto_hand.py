@@ -291,6 +291,10 @@ def test_the_open_pose_is_the_angle_an_actuator_holds_not_its_control(tmp_path, 
     j = m.actuator_trnid[:, 0]
     want = np.full(m.nu, 0.2) if kind == "gear2" else m.qpos0[m.jnt_qposadr[j]]
     np.testing.assert_allclose(sc.data.qpos[m.jnt_qposadr[j]], want)
+    from haptic_env.hand_grasps import _plain_servo  # such a hand's pools (opened otherwise before) get a new key
+
+    assert not any(_plain_servo(a) for a in spec.actuators)
+    assert all(_plain_servo(a) for a in sibling_roots_hand().actuators)
 
 
 def test_synergy_holds_rotation_and_closes_coupled_fingers(tmp_path):

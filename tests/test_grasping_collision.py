@@ -65,3 +65,5 @@ def test_shipped_pieces_of_a_millimetre_folder_are_in_metres_like_their_mesh(tmp
     pieces = convex_pieces(obj)
     np.testing.assert_allclose(pieces[0].bounds, obj.mesh.bounds, atol=1e-9)
     assert obj.unit_scale == 1e-3
+    objects = load_folder(tmp_path, units="mm")  # its pools, built with pieces in mm before, get a new key
+    assert objects.identity == [("box", obj.mesh_hash, "pieces x0.001")]

@@ -247,8 +247,11 @@ class ObjectSet:
 
     @property
     def identity(self) -> list[tuple[str, str]]:
-        """``[(name, mesh hash), ...]``: what a cache key of anything built from this set needs."""
-        return [(o.name, o.mesh_hash) for o in self._objects]
+        """``[(name, mesh hash), ...]``: what a cache key of anything built from this set needs (and, for an object
+        whose shipped collision pieces are in other units than metres, that scale: they were read unscaled before
+        2026-12-06, so its hand pools are built again)."""
+        return [(o.name, o.mesh_hash) + ((f"pieces x{o.unit_scale:g}",) if o.collision_paths and o.unit_scale != 1.0
+                                         else ()) for o in self._objects]
 
     def index(self, name: str) -> int:
         """Position (class label) of the object called ``name``."""
