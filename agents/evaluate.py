@@ -743,7 +743,10 @@ def _main(args) -> int:
     store = out / ".partial"
     code = code_fingerprint()
     keys = [_block_key(spec, args, kwargs, code) for spec in args.agents]
-    resumed = sum(_block_path(store, k, s).is_file() for k in keys for s in args.seeds)
+    with warnings.catch_warnings():  # an unreadable block is run again (evaluate_agents says so): not counted here
+        warnings.simplefilter("ignore", RuntimeWarning)
+        resumed = sum(_read_block(_block_path(store, k, s), args.episodes) is not None
+                      for k in keys for s in args.seeds)
     records = evaluate_agents(agents, make_env, args.episodes, args.seeds, store=store, keys=keys)
     note = f" (resumed: {resumed} of {len(keys) * len(args.seeds)} agent-seed blocks read from an interrupted run)" \
         if resumed else ""

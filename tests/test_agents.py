@@ -685,6 +685,32 @@ def test_evaluate_refuses_a_seed_given_twice(tmp_path, usage_error, env_config):
         evaluate_agents([RandomAgent()], make, 1, seeds=[3, 3], progress=False)
 
 
+def test_the_resumed_note_counts_only_the_blocks_read_back(tmp_path, small_recognizer_kwargs, monkeypatch):
+    """The report's "resumed" note counts the saved blocks the run read back, not a damaged one it ran again."""
+    import json
+
+    import agents.evaluate as ev
+    from haptic_env.cli import main
+
+    out = tmp_path / "e"
+    argv = ["evaluate", "--agents", "random", "--episodes", "1", "--seeds", "0", "1", "--out", str(out),
+            "--env-kwargs", json.dumps({"recognizer_kwargs": small_recognizer_kwargs, "max_grasps": 4})]
+    real = ev.write_report
+
+    def interrupted(*a, **k):  # every block saved, then the run stops before its report
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(ev, "write_report", interrupted)
+    main(argv)
+    monkeypatch.setattr(ev, "write_report", real)
+    blocks = sorted((out / ".partial").glob("*.json"))
+    assert len(blocks) == 2
+    blocks[0].write_text("not json")
+    with pytest.warns(RuntimeWarning, match="running them again"):
+        assert main(argv) == 0
+    assert "resumed: 1 of 2 agent-seed blocks" in (out / "results.md").read_text()
+
+
 def test_the_ratio_interval_is_not_a_crash_when_one_side_has_one_episode():
     """``_ratio_ci`` with one episode on one side and several varied ones on the other: the ratio, and no interval
     (the bootstrap needs two per sample), instead of scipy's error."""
