@@ -113,15 +113,16 @@ def hand_physics_key(hand: str, n_fingers: int) -> str:
 
 
 def _plain_servo(act) -> bool:
-    """An ``MjsActuator`` that is not on a joint, or a position servo of gear 1 on one (its control is the joint's
-    angle)."""
+    """An ``MjsActuator`` that is not on a joint, or a position servo of gear 1 on one whose control is the joint's
+    angle (:func:`~.grasping.mujoco_backend.servo_equilibrium`: one control per unit of length, no offset)."""
     import mujoco
+
+    from .grasping.mujoco_backend import servo_equilibrium
 
     if act.trntype != mujoco.mjtTrn.mjTRN_JOINT:
         return True
-    return bool(act.gear[0] == 1.0 and act.gaintype == mujoco.mjtGain.mjGAIN_FIXED
-                and act.biastype == mujoco.mjtBias.mjBIAS_AFFINE and act.gainprm[0] > 0
-                and act.biasprm[1] == -act.gainprm[0] and act.biasprm[0] == 0.0)
+    per_length, offset = servo_equilibrium(act.gaintype, act.biastype, act.gainprm[0], act.biasprm[0], act.biasprm[1])
+    return bool(act.gear[0] == 1.0 and per_length == 1.0 and offset == 0.0)
 
 
 def pool_cache_path(objects, hand: str, n_fingers: int, approaches: int, support: str, seed: int,

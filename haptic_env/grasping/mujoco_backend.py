@@ -159,6 +159,18 @@ def _tip_site_auto(model: mujoco.MjModel, body_id: int) -> tuple[np.ndarray, flo
     return centre, r
 
 
+def servo_equilibrium(gaintype, biastype, gain, b0, b1) -> tuple[np.ndarray, np.ndarray]:
+    """``(ctrl_per_length, ctrl_offset)`` of actuators (arrays, or scalars of one ``MjsActuator``) by their gain and
+    bias types and ``gainprm[0]``, ``biasprm[0]``, ``biasprm[1]``: a position-like actuator (fixed gain > 0, affine
+    bias with ``biasprm[1] < 0``) holds ``ctrl = ctrl_per_length * length + ctrl_offset`` at rest, from
+    ``gain * ctrl + b0 + b1 * length = 0``; NaN for any other (a motor's control is a force)."""
+    gain, b0, b1 = (np.asarray(x, dtype=np.float64) for x in (gain, b0, b1))
+    position_like = ((np.asarray(gaintype) == mujoco.mjtGain.mjGAIN_FIXED)
+                     & (np.asarray(biastype) == mujoco.mjtBias.mjBIAS_AFFINE) & (gain > 0) & (b1 < 0))
+    safe_gain = np.where(position_like, gain, 1.0)
+    return np.where(position_like, -b1 / safe_gain, np.nan), np.where(position_like, -b0 / safe_gain, np.nan)
+
+
 class GraspScene:
     """Simulator wrapper: object + hand on a mocap mount. Physics only, no task logic."""
 
@@ -268,13 +280,9 @@ class GraspScene:
         self.act_finger = np.where(self.act_fingers.sum(1) == 1, np.argmax(self.act_fingers, axis=1), -1)
         self.act_joint = np.where(m.actuator_trntype == mujoco.mjtTrn.mjTRN_JOINT, m.actuator_trnid[:, 0], -1)
         self.moment_scale = np.maximum(np.abs(moment).max(axis=1), 1e-12)
-        gain, b0, b1 = m.actuator_gainprm[:, 0], m.actuator_biasprm[:, 0], m.actuator_biasprm[:, 1]
-        position_like = ((m.actuator_gaintype == mujoco.mjtGain.mjGAIN_FIXED)
-                         & (m.actuator_biastype == mujoco.mjtBias.mjBIAS_AFFINE) & (gain > 0) & (b1 < 0))
-        safe_gain = np.where(position_like, gain, 1.0)
-        # equilibrium gain * ctrl + b0 + b1 * length = 0  ->  ctrl = ctrl_per_length * length + ctrl_offset
-        self.ctrl_per_length = np.where(position_like, -b1 / safe_gain, np.nan)
-        self.ctrl_offset = np.where(position_like, -b0 / safe_gain, np.nan)
+        self.ctrl_per_length, self.ctrl_offset = servo_equilibrium(
+            m.actuator_gaintype, m.actuator_biastype, m.actuator_gainprm[:, 0], m.actuator_biasprm[:, 0],
+            m.actuator_biasprm[:, 1])
         mujoco.mj_resetData(m, self.data)
         self.step_time = 0.0  # seconds spent inside mj_step
         self.steps = 0
