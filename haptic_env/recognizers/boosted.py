@@ -128,11 +128,11 @@ class BoostedLikelihood:
         X, y = X[keep], y[keep]
         # early stopping holds out a stratified 10 %: it needs 2 vectors of each class and room for every class on
         # both sides; with fewer (a hand whose grasps of an object rarely complete) all max_iter iterations are fit
-        held = -(-len(y) // 10)
-        early = bool(np.bincount(y, minlength=k).min() >= 2 and k <= held <= len(y) - k)
+        kept, held = np.bincount(y, minlength=k), -(-len(y) // 10)
+        early = bool(kept.min() >= 2 and k <= held <= len(y) - k)
         self.clf = HistGradientBoostingClassifier(max_iter=self.config.max_iter, early_stopping=early,
                                                   random_state=self.config.seed).fit(X, y)
-        self.log_prior = np.log(np.bincount(y, minlength=k) / len(y))
+        self.log_prior = np.log(kept / len(y))
         self._trees, self.temperature = _flatten(self.clf), 1.0
         if self.config.calibrate_grasps and X_val is not None:
             self._fit_temperature(np.asarray(X_val, dtype=np.float64), np.asarray(y_val), X.shape[1])

@@ -230,8 +230,7 @@ class KDELikelihood:
         if empty:
             raise ValueError(f"KDELikelihood.fit: no training vectors for classes {empty}")
         if cfg.method == "subsample":
-            self.data = [z[rng.choice(len(z), cfg.max_samples, replace=False)] if len(z) > cfg.max_samples else z
-                         for z in self.data]
+            self.data = self._capped(self.data, rng)
         scott = self._scott([len(z) for z in self.data], X.shape[1])
         given_val = X_val is not None
         if cfg.factor == "auto":
@@ -248,8 +247,7 @@ class KDELikelihood:
                 X_val, y_val = X[held], y[held]
                 kept = [Z[(y == c) & ~held] for c in range(self.n_classes)]
                 if cfg.method == "subsample":  # the choosing KDE as capped as the fitted one
-                    kept = [z[rng.choice(len(z), cfg.max_samples, replace=False)] if len(z) > cfg.max_samples else z
-                            for z in kept]
+                    kept = self._capped(kept, rng)
                 full, self.data = self.data, kept
                 sel_scott = self._scott([len(z) for z in self.data], X.shape[1])
             else:
@@ -291,6 +289,11 @@ class KDELikelihood:
                     S, Y = sequence_scores(S, Y, cfg.calibrate_grasps, rng)
                 self.temperature = fit_temperature(S, Y)
         return self
+
+    def _capped(self, data: list[np.ndarray], rng: np.random.Generator) -> list[np.ndarray]:
+        """Each class's vectors, a random ``max_samples`` of them where it has more (``method="subsample"``)."""
+        m = self.config.max_samples
+        return [z[rng.choice(len(z), m, replace=False)] if len(z) > m else z for z in data]
 
     def with_method(self, method: str) -> KDELikelihood:
         """This fitted KDE evaluated by another method ("tree", "pooled" or "dense"); shares the training vectors."""
