@@ -48,6 +48,7 @@ folder and a finished job with the same settings is skipped.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import re
@@ -346,16 +347,17 @@ def _dataset_jobs(doc: dict) -> list[Job]:
     return jobs
 
 
-def _analysis_options() -> tuple[set[str], set[str]]:
+@functools.cache
+def _analysis_options() -> tuple[frozenset[str], frozenset[str]]:
     """``haptic-recog analysis``'s option strings, and those with a ``--no-`` form (``--stop-scale`` /
-    ``--no-stop-scale``), whose ``false`` must be spelled out: their default may be on."""
+    ``--no-stop-scale``), whose ``false`` must be spelled out: their default may be on (read from the parser once)."""
     import argparse
 
     from haptic_env.cli import build_parser
 
     sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)).choices["analysis"]
-    return (set(sub._option_string_actions),
-            {a.option_strings[0] for a in sub._actions if isinstance(a, argparse.BooleanOptionalAction)})
+    return (frozenset(sub._option_string_actions),
+            frozenset(a.option_strings[0] for a in sub._actions if isinstance(a, argparse.BooleanOptionalAction)))
 
 
 def analysis_argv(objects: str, flags: dict[str, Any], out) -> list[str]:
