@@ -35,6 +35,23 @@ def haptic_cache(tmp_path_factory):
         os.environ["HAPTIC_CACHE"] = old
 
 
+@pytest.fixture(scope="session", autouse=True)
+def no_menagerie_download(tmp_path_factory):
+    """No test downloads a Menagerie hand or reads the user's ``mujoco-menagerie`` cache: the package's download URL
+    points at a folder that does not exist and its cache at a session directory. A hand is then read from
+    ``$MENAGERIE_ROOT`` or the data folder's ``menagerie/``, or it is unavailable at once (the tests skip) instead
+    of after a download attempt that depends on the network."""
+    saved = {k: os.environ.get(k) for k in ("MENAGERIE_BASE_URL", "MENAGERIE_CACHE_DIR")}
+    os.environ["MENAGERIE_BASE_URL"] = (tmp_path_factory.mktemp("menagerie_offline") / "absent").as_uri()
+    os.environ["MENAGERIE_CACHE_DIR"] = str(tmp_path_factory.mktemp("menagerie_cache"))
+    yield
+    for k, v in saved.items():
+        if v is None:
+            os.environ.pop(k, None)
+        else:
+            os.environ[k] = v
+
+
 @pytest.fixture(scope="session")
 def small_recognizer_kwargs():
     """``recognizer_kwargs`` (JSON-style) of a recogniser that builds in seconds (small dataset, tiny MLP)."""

@@ -178,7 +178,8 @@ def test_random_bytes_stl_is_a_clear_mesh_error(tmp_path):
 
 
 def test_ascii_stl_with_a_latin1_header_loads(tmp_path):
-    pytest.importorskip("charset_normalizer")  # a dependency: trimesh guesses the header's encoding with it
+    # charset-normalizer is a dependency (pyproject.toml): trimesh guesses the header's encoding with it, and the
+    # load fails without it, so its absence fails here rather than skipping
     p = tmp_path / "latin.stl"
     p.write_bytes(_box_ascii_stl().replace(b"solid", b"solid caf\xe9 \xb0C", 1))
     obj = load_mesh_object(p)

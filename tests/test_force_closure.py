@@ -255,3 +255,4 @@ def test_valid_grasps_keep_their_answers():
     np.testing.assert_allclose(np.einsum("ij,ij->i", W[:, :3], np.repeat(_N4, 4, axis=0)), 1.0, rtol=0, atol=1e-15)
     eps = epsilon_quality(_C4, _N4)
     assert eps > 0 and eps == epsilon_quality(np.stack([_C4, _C4]), np.stack([_N4, _N4]))[1]
+    assert eps == pytest.approx(0.3150057631523782, rel=1e-6)  # pinned: a check that moved the answer fails here
