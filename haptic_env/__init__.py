@@ -21,7 +21,9 @@ for it on validation grasps (``touch_weight``; RESULTS.md). The plain envs keep 
 leaderboard and RL results are theirs.
 
 All take ``config=HapticRecogConfig(...)`` and/or single config fields as keyword arguments, see
-:class:`haptic_env.env.HapticRecogEnv`.
+:class:`haptic_env.env.HapticRecogEnv`. A variant's own fields (:data:`ENV_VARIANTS`) are passed as keyword
+arguments and so win over ``config``'s (``make`` refuses a config that set one of them otherwise): for a variant
+with changes, ``haptic_env.make(variant_config(id, **changes), env_id=id)``.
 """
 
 from __future__ import annotations

@@ -148,6 +148,24 @@ def test_bad_config_and_options_raise(env_config):
         HapticRecogEnv(env_config).step(np.zeros(env.action_dim))
 
 
+def test_a_variant_refuses_a_config_whose_choices_it_would_replace():
+    """gym.make(variant, config=...) gets the variant's fields as keyword overrides, which win: a config that set
+    one of them otherwise is refused by name (it ran silently with the variant's value); fields left at their
+    defaults take the variant's, and haptic_env.make(variant_config(...)) keeps the config's."""
+    with pytest.raises(ValueError, match=r"HapticRecogKIT-v0 sets objects over the given config: objects=.kit20."):
+        gym.make("HapticRecogKIT-v0", config=HapticRecogConfig(objects="kit20", max_grasps=7))
+    with pytest.raises(ValueError, match=r"HapticRecogMuJoCoHeights-v0 sets calibrate_grasps .*variant's 5"):
+        gym.make("HapticRecogMuJoCoHeights-v0", config=HapticRecogConfig(calibrate_grasps=2))
+    # not refused (they get as far as loading kit8's meshes from a folder that is not there)
+    with pytest.raises(FileNotFoundError, match="absent"):
+        gym.make("HapticRecogKIT-v0", config=HapticRecogConfig(max_grasps=7), object_kwargs={"data_dir": "absent"})
+    cfg = haptic_env.variant_config("HapticRecogKIT-v0", max_grasps=7, object_kwargs={"data_dir": "absent"})
+    with pytest.raises(FileNotFoundError, match="absent"):
+        haptic_env.make(cfg, env_id="HapticRecogKIT-v0")
+    plain = gym.make("HapticRecog-v0", config=HapticRecogConfig(n_fingers=3), grasp_cost=0.01).unwrapped.config
+    assert plain.n_fingers == 3 and plain.grasp_cost == 0.01  # explicit keyword arguments still go on top
+
+
 def test_kit_variant_without_data_raises_clearly(tmp_path):
     with pytest.raises(FileNotFoundError, match=str(tmp_path / "missing")):
         gym.make("HapticRecogKIT-v0", object_kwargs={"data_dir": tmp_path / "missing"})
