@@ -56,7 +56,8 @@ class HapticRecogConfig:
     backend_kwargs: Mapping[str, Any] = field(default_factory=dict)
     """Extra keyword arguments of ``make_backend`` (e.g. ``hand="allegro"`` for mujoco)."""
     n_fingers: int = 4
-    """Fingers of the hand (>= 2; 2: a gripper, q is the contact distance); the backend must have as many."""
+    """Fingers of the hand (>= 2; 2: a gripper, q is the contact distance, with normals also their two angles to
+    the line between the contacts and their twist: 4 values); the backend must have as many."""
     normals: bool = True
     """Use contact normals in the grasp vector (``5n - 6`` values instead of ``3n - 6``)."""
     updater: str = DEFAULT_UPDATER
@@ -108,10 +109,11 @@ class HapticRecogConfig:
     """Training grasps per object of the recogniser (``DatasetConfig.grasps_per_object``; for "hand" grasps, random
     approaches per object) unless ``recognizer_kwargs`` sets its own; None: the source's default
     (:data:`HAND_APPROACHES` for "hand", ``DatasetConfig``'s for the others). The Allegro env uses 6,000: twice the
-    default lifted BC-NP's success at the stop on validation grasps in fewer grasps (RESULTS.md), and its grasps
-    are fast enough to keep the first make under 5 minutes. The Shadow and Aero envs use 6,000 too (validated the
-    same way); their first makes take 4-10 minutes on 2 idle cores, depending on the machine's MuJoCo speed
-    (RESULTS.md, "Speed and build time of the hand envs"; half the approaches cost the Shadow validation success)."""
+    default lifted BC-NP's success at the stop on validation grasps in fewer grasps (RESULTS.md); its first make
+    and reset take about 2 to over 5 minutes on 2 cores, depending on the machine's MuJoCo speed. The Shadow and
+    Aero envs use 6,000 too (validated the same way); theirs take about 4 to 11.5 minutes (RESULTS.md, "Speed and
+    build time of the hand envs"; half the approaches cost the KDE validation success, and README gives the
+    opt-in half-pool recipe with gradient boosting that keeps it)."""
     kde_method: str = "pooled"
     """How the belief update evaluates the per-object KDEs (``KDEConfig.method``) unless ``recognizer_kwargs``
     sets its own: "pooled" (one neighbour search over all objects' training vectors: a compiled k-d tree, ~25 us per grasp),
