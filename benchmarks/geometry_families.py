@@ -136,7 +136,7 @@ def run_cell(lo, hi, normals, normalize, members, G, seed, ms, trials, models, s
         row["mem_1_new"] = 100 * np.mean(np.concatenate(
             [np.array([member_family_ll(L[i:i + 1], fmem).argmax() for i in range(len(L))]) == fnew[k] for k, L in enumerate(LLm)]))
         for m, a in votes(lambda o, r: member_family_ll(LLm[o][r], fmem, kdem.temperature), LLm, fnew, ms, trials, rng).items():
-            row[f"mem_{m}_new"] = a
+            row[f"memvote_{m}_new"] = a  # not mem_1_new: that is the one-shot accuracy above
     if "mlp" in models:
         mlp = MLPClassifier(MLPConfig(max_epochs=20, patience=3, progress=False)).fit(ds.X_train, ytr, ds.X_val, yva, n_classes=3)
         row["mlp_1_held"] = 100 * mlp.score(ds.X_val, yva)

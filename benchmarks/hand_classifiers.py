@@ -26,7 +26,8 @@ with each classifier as the likelihood, ``log p(object | q) - log (the object's 
 (each class probability floored at 1e-6), one classifier per count of touching fingertips (3 to n), scored as the
 env scores the KDE (BC-NP: the touching contacts' vector; z = 3: the 3-subsets' sum, weighted by the env's
 ``subset_k``; the env's touch-pattern term added alike), and multiplied by each scale ``s``. The KDE's row at
-``s = 1`` is the env's belief. If a classifier's frontier (success at the stop against grasps) lay above the KDE's,
+``s = 1`` is the hand table's belief (the env's settings, the KDE summed per object where the env pools its
+neighbour search: ``stop_frontier.py``'s docstring). If a classifier's frontier (success at the stop against grasps) lay above the KDE's,
 it would tell more per grasp. Nothing is chosen here; the default split uses no test grasp.
 
     OMP_NUM_THREADS=1 python benchmarks/hand_classifiers.py [--hands allegro aero] [--split validation]
@@ -148,7 +149,7 @@ def kde_proba(rec, X: np.ndarray) -> np.ndarray:
 def query_scores(pool, objects, rec, normals: bool, z: int | None, likelihoods: dict, touch_weight: float,
                  subset_k: int) -> tuple[dict[str, np.ndarray], np.ndarray]:
     """Per-grasp log-likelihoods of one pool's queries, ``name -> (Q, G, K)``, and the queries' labels ``(Q,)``:
-    ``"KDE"`` by :func:`~benchmarks.stop_frontier.grasp_scores` (the env's belief), each classifier of
+    ``"KDE"`` by :func:`~benchmarks.stop_frontier.grasp_scores` (the hand table's belief), each classifier of
     ``likelihoods`` (vector dimension -> :class:`ClassifierLikelihood`) the same way, batched per dimension."""
     K, n = pool.touched.shape[0], pool.touched.shape[2]
     kde, labels, rows = [], [], {}  # rows: dim -> (query, grasp, weight, vector) lists
@@ -304,7 +305,7 @@ def main(argv=None) -> int:
     if len(front) > 2:
         text += ("\n\nThe stop frontier with each likelihood (success at the stop, decided and correct, mean +- sample "
                  f"std over the pools / mean grasps; {QUERIES} queries of at most {MAX_GRASPS} grasps per object and "
-                 f"pool, lambda = {DEFAULT_THRESHOLD}; the KDE at s = 1 is the env's belief):\n\n" + "\n".join(front))
+                 f"pool, lambda = {DEFAULT_THRESHOLD}; the KDE at s = 1 is the hand table's belief):\n\n" + "\n".join(front))
     if args.out is not None:
         write_table(args.out, "classifiers.md", "hand_classifiers.py", argv, time.perf_counter() - t0, text)
         if curves:

@@ -23,7 +23,9 @@ both plus the touch pattern's log-likelihood weighted as in the hand's env (``to
 With ``--heights`` the grasp vectors carry the contacts' heights above the table, and the settings are the hand's
 ``Heights`` env's (``hand_experiment.py --heights``).
 
-Scale 1 is the registered env's belief; the script checks that its replay reproduces the hand table's updaters
+Scale 1 is the hand table's belief: the registered env's settings, with the KDE summed per object (``method="tree"``)
+where the env pools one neighbour search over all objects (``kde_method="pooled"``), so far-tail scores and the fitted
+temperature differ a little from the env's. The script checks that its replay reproduces the hand table's updaters
 exactly there (the same stops and predictions), before it reports anything, for every hand without z-subsets and for
 the 4-finger Allegro with them. A 5-finger hand's z = 3 replay is not checked: the env counts its C(5, 3) = 10 subsets
 as the paper's k = 4 (``subset_k``), which the hand table's updater (the product over all subsets) does not.
@@ -121,7 +123,7 @@ def main(argv=None) -> int:
     ap.add_argument("--max-grasps", type=int, default=DEFAULT_MAX_GRASPS)
     ap.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD, help="certainty threshold lambda")
     ap.add_argument("--scales", type=float, nargs="+", default=[0.5, 0.7, 1.0, 1.4, 2.0, 3.0, 4.0, 6.0, 10.0],
-                    help="multipliers of the calibrated per-grasp log-likelihood (1: the env's belief)")
+                    help="multipliers of the calibrated per-grasp log-likelihood (1: the hand table's belief)")
     ap.add_argument("--heights", action="store_true",
                     help="grasp vectors with the contacts' heights above the table (the hands' Heights envs)")
     ap.add_argument("--out", type=output_path("folder"), default=None, help="write frontier.md and frontier.png here")
@@ -130,7 +132,7 @@ def main(argv=None) -> int:
     if bad:
         ap.error(f"--scales must be finite and > 0, got {bad}")
     if 1.0 not in args.scales:
-        ap.error("--scales must include 1 (the env's belief, checked against the hand table's updaters)")
+        ap.error("--scales must include 1 (the hand table's belief, checked against its updaters)")
     if not 0 < args.threshold < 1:
         ap.error(f"--threshold must be in (0, 1), got {args.threshold}")
     if data_dir() is None:
