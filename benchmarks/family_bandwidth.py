@@ -40,6 +40,7 @@ import numpy as np
 from scipy.optimize import minimize
 from scipy.special import log_softmax
 
+from haptic_env.cache import atomic_write
 from haptic_env.cli import int_in, output_path
 from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.families import floored, grasp_config, member_grasps, sequence_fit
@@ -181,8 +182,8 @@ def main(argv=None):
     text = "\n".join(lines)
     print(text)
     if a.out is not None:
-        a.out.parent.mkdir(parents=True, exist_ok=True)
-        a.out.write_text(text + "\n")
+        with atomic_write(a.out, "w") as fh:
+            fh.write(text + "\n")
 
 
 if __name__ == "__main__":

@@ -23,6 +23,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.sampling_protocol import knn_accuracy  # noqa: E402
+from haptic_env.cache import atomic_write  # noqa: E402
 from haptic_env.cli import output_path  # noqa: E402
 
 
@@ -109,8 +110,8 @@ def main(argv=None) -> int:
                      f"  <!-- {time.perf_counter() - t0:.0f} s -->")
     text = "\n".join(lines) + "\n"
     if args.out is not None:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(text)
+        with atomic_write(args.out, "w") as fh:
+            fh.write(text)
     print(text)
     return 0
 

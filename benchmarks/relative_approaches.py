@@ -31,6 +31,7 @@ import numpy as np
 
 from agents.evaluate import evaluate_agents, markdown_table, summarize
 from agents.random_policy import RandomAgent
+from haptic_env.cache import atomic_write
 from haptic_env.cli import int_in, output_path
 from haptic_env.splits import ENV_VALIDATION_SEEDS
 
@@ -94,8 +95,8 @@ def compare(agents, a: argparse.Namespace, note: str, what: str, argv=None) -> l
             f"{markdown_table(rows)}")
     print(text)
     if a.out is not None:
-        a.out.parent.mkdir(parents=True, exist_ok=True)
-        a.out.write_text(f"python benchmarks/{Path(sys.argv[0]).name} {' '.join(argv or sys.argv[1:])}\n\n{text}\n")
+        with atomic_write(a.out, "w") as fh:
+            fh.write(f"python benchmarks/{Path(sys.argv[0]).name} {' '.join(argv or sys.argv[1:])}\n\n{text}\n")
     best = max(rows[1:], key=lambda r: r["fewer_than_random"])
     print(f"best {what}: {best['agent']}, {100 * best['fewer_than_random']:.1f} % fewer grasps than random "
           f"({100 * best['success']:.1f} % right at the stop against {100 * rows[0]['success']:.1f} %)")

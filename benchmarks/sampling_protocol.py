@@ -46,6 +46,8 @@ from scipy.spatial import ConvexHull, QhullError
 
 
 def main(argv=None) -> int:
+    from haptic_env.cli import output_path
+
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--fingers", type=int, default=3)
     ap.add_argument("--no-normals", action="store_true")
@@ -57,7 +59,7 @@ def main(argv=None) -> int:
     ap.add_argument("--curve", default=None, metavar="SIZES",
                     help="instead of the table: kNN accuracy against training grasps per object (comma list), on the "
                          "decimated meshes, face centres against area-uniform points")
-    ap.add_argument("--plot", default=None, metavar="PNG",
+    ap.add_argument("--plot", default=None, metavar="PNG", type=output_path(),
                     help="with --curve: also draw the curves, with the paper's kNN, into this PNG file")
     args = ap.parse_args(argv)
     try:
@@ -247,7 +249,10 @@ def _curve(decimated, sizes: list[int], data, args, held: str) -> int:
         ax.set_title(f"kit8, n = {args.fingers}, {'without' if args.no_normals else 'with'} normals{held}", fontsize=9)
         ax.legend(fontsize=8)
         fig.tight_layout()
-        fig.savefig(args.plot, dpi=110)
+        from haptic_env.cache import atomic_write
+
+        with atomic_write(args.plot) as fh:
+            fig.savefig(fh, format="png", dpi=110)
         print(f"\nplot: {args.plot}")
     return 0
 

@@ -40,6 +40,7 @@ from typing import Any  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
+from haptic_env.cache import atomic_write  # noqa: E402
 from haptic_env.cli import output_path  # noqa: E402
 
 #: name -> (env id, config overrides); the options run on the default geometric env
@@ -269,8 +270,8 @@ def main(argv: list[str] | None = None) -> int:
     print()
     print(md)
     if args.out is not None:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(md + "\n")
+        with atomic_write(args.out, "w") as fh:
+            fh.write(md + "\n")
         partial.unlink(missing_ok=True)
     ran = [(n, r) for n, r in rows if "skipped" not in r]
     crashed = [n for n, r in ran if "error" in r]

@@ -50,6 +50,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.hand_experiment import (PAPER, SETUPS, env_config, query_pools, run_query, seed_std,  # noqa: E402
                                         training_config, write_table)
+from haptic_env.cache import atomic_write  # noqa: E402
 from haptic_env.cli import output_path  # noqa: E402
 from haptic_env.config import HAND_APPROACHES  # noqa: E402
 from haptic_env.dataset import support_frame  # noqa: E402
@@ -227,7 +228,8 @@ def main(argv=None) -> int:
                      fontsize=9)
         ax.legend(fontsize=7)
         fig.tight_layout()
-        fig.savefig(args.out / "frontier.png", dpi=120)
+        with atomic_write(args.out / "frontier.png") as fh:
+            fig.savefig(fh, format="png", dpi=120)
     best = []
     for hand, normals, method, usable, S, Gr in results:
         paper = PAPER[method][cols[(SETUPS[hand][0], normals)]]
