@@ -171,6 +171,16 @@ def fit_state_path(out: Path, cell, h: str) -> Path:
     return out / "cells" / f".{cell_name(cell)}-{h}.fit.pt"
 
 
+def lacks_exp2(cell, out: Path, h: str, args) -> bool:
+    """Whether a finished cell lacks the experiment-2 results that ``--exp2`` asks of it (a run without ``--exp2``
+    finished it; ``--exp2`` is not part of the settings hash). Its model is not kept, so it is trained again."""
+    _, _, g, model = cell
+    path = cell_path(out, cell, h)
+    if not (args.exp2 and model.startswith("mlp-") and g <= args.exp2_max_grasps and path.exists()):
+        return False
+    return "exp2" not in json.loads(path.read_text())
+
+
 def write_json_atomic(path: Path, obj) -> None:
     with atomic_write(path, "w") as fh:
         json.dump(obj, fh, indent=1, sort_keys=True)
@@ -457,8 +467,10 @@ def main(argv=None) -> int:
     torch.set_num_threads(args.threads)
     h = settings_hash(args)
     cells = cell_list(args)
-    todo = [c for c in cells if args.force or not cell_path(out, c, h).exists()]
+    todo = [c for c in cells if args.force or not cell_path(out, c, h).exists() or lacks_exp2(c, out, h, args)]
     print(f"{len(cells)} cells, {len(cells) - len(todo)} done, {len(todo)} to run (settings {h})", flush=True)
+    if not args.force and (again := sum(cell_path(out, c, h).exists() for c in todo)):
+        print(f"{again} finished MLP cells lack the --exp2 results asked for: trained again with them", flush=True)
     objects = load_object_set(args.objects, data_dir=args.data_dir)  # missing data: an error before any file
     out.mkdir(parents=True, exist_ok=True)
     with open(out / "commands.txt", "a") as fh:

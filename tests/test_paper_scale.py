@@ -231,3 +231,23 @@ def test_sampling_protocol_chooses_k_on_validation(load_benchmark):
     assert (accs, j) == ([0.0, 1.0, 1.0], 0)  # k = 1 chosen, and its test accuracy is the row's figure
     assert sp.knn_accuracy(X, y, here, np.array([0])) == accs
     assert "**0.0 %** | 100.0 % | 100.0 % | 1" == sp._cells(accs, j)
+
+
+def test_exp2_asked_of_finished_cells_trains_them_again(paper_scale, tmp_path, capsys):
+    """--exp2 is not in the settings hash: MLP cells finished without it are trained again with it (they were
+    skipped as done, so --exp2 gave no experiment-2 results); the kNN cell and cells with them stay."""
+    out = tmp_path / "ps"
+    base = [*TINY, "--out", str(out), "--grasps", "300", "--trials-per-object", "2"]
+    assert paper_scale.main(base) == 0
+    mlp = next((out / "cells").glob("n3-w-g300-mlp-default-*.json"))
+    knn = next((out / "cells").glob("n3-w-g300-knn-*.json"))
+    assert "exp2" not in json.loads(mlp.read_text())
+    stamp = knn.stat().st_mtime_ns
+    capsys.readouterr()
+    assert paper_scale.main([*base, "--exp2"]) == 0
+    said = capsys.readouterr().out
+    assert "2 cells, 1 done, 1 to run" in said and "1 finished MLP cells lack the --exp2 results" in said
+    assert "exp2" in json.loads(mlp.read_text()) and knn.stat().st_mtime_ns == stamp
+    capsys.readouterr()
+    assert paper_scale.main([*base, "--exp2"]) == 0
+    assert "2 cells, 2 done, 0 to run" in capsys.readouterr().out
