@@ -32,7 +32,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from haptic_env.cli import int_in  # noqa: E402
+from haptic_env.cli import int_in, int_list_in  # noqa: E402
 from haptic_env.dataset import sample_grasps  # noqa: E402
 from haptic_env.grasp_features import phi, surface_area  # noqa: E402
 from haptic_env.objects import load_object_set  # noqa: E402
@@ -78,15 +78,17 @@ def rate(fn, C, N, batch: int, repeats: int) -> float:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--grasps", type=int_in(1), default=200_000, help="grasps per n (the large batch)")
-    ap.add_argument("--fingers", default="2,3,4,8")
-    ap.add_argument("--batches", default="1,64,200000", help="batch sizes (small ones timed on fewer grasps)")
+    ap.add_argument("--fingers", type=int_list_in(2), default=(2, 3, 4, 8))
+    ap.add_argument("--batches", type=int_list_in(1), default=(1, 64, 200_000),
+                    help="batch sizes (small ones timed on fewer grasps)")
     ap.add_argument("--repeats", type=int_in(1), default=3)
     ap.add_argument("--source", default="surface", choices=("surface", "gaussian"),
                     help="surface: grasps of the default set (box faces give planar hull faces: Qhull in both "
                          "paths); gaussian: contacts in general position")
     args = ap.parse_args(argv)
-    fingers = [int(x) for x in args.fingers.split(",")]
-    batches = [int(x) for x in args.batches.split(",")]
+    fingers, batches = list(args.fingers), list(args.batches)
+    if max(batches) < args.grasps:  # the headline is the whole batch's speed
+        ap.error(f"--batches {args.batches} needs one batch >= --grasps {args.grasps} (the headline's)")
     headline = []
     print(f"{'n':>2} {'batch':>7} {'grasps':>7} | {'numba phi/s':>12} {'NumPy phi/s':>12} {'ratio':>6} | "
           f"{'numba area/s':>12} {'NumPy area/s':>12} {'ratio':>6}")

@@ -12,7 +12,8 @@ object without replacement). Success = decided and correct at the stop. Also pri
 class under the one-shot posterior on half B (the criterion of ``calibration.select_correction``), and the argmax
 accuracy of the summed scores after m grasps (does the belief converge on the right object at all?). Test grasps are
 never used.
-Headline (last line): BC-NP success with the correction against the one-shot temperature at the largest n.
+Headline (last line): BC-NP success with the correction against the one-shot temperature at the last ``--fingers``
+entry (the largest n of the default list), with its trial count (one seed).
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from haptic_env.cli import int_in  # noqa: E402
+from haptic_env.cli import int_in, int_list_in  # noqa: E402
 from haptic_env.dataset import build_dataset  # noqa: E402
 from haptic_env.experiments.config import AnalysisConfig  # noqa: E402
 from haptic_env.experiments.report import kde_temperature  # noqa: E402
@@ -45,7 +46,7 @@ def argmax_accuracy(S: list[np.ndarray], m: int, rng: np.random.Generator, draws
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--objects", default="default")
-    ap.add_argument("--fingers", default="4,5,8")
+    ap.add_argument("--fingers", type=int_list_in(2), default=(4, 5, 8), help="comma list of finger counts")
     ap.add_argument("--no-normals", action="store_true")
     ap.add_argument("--trials", type=int_in(1), default=600)
     args = ap.parse_args(argv)
@@ -58,7 +59,7 @@ def main(argv=None) -> None:
     print("| n | scores | BC-NP success % | grasps | held-out one-shot NLL | argmax after 1 / 5 / 10 / 30 grasps % |")
     print("|---|---|---|---|---|---|")
     last = None
-    for n in (int(x) for x in args.fingers.split(",")):
+    for n in args.fingers:
         rc = cfg.recognizer_config()
         rec = build_recognizer(objects, n, normals, config=rc, models=("kde",), progress=False)
         ds = build_dataset(objects, rc.dataset_config(n, normals, hand_fingers=n), progress=False)
@@ -91,7 +92,9 @@ def main(argv=None) -> None:
         last = (n, res["one-shot T"], res["correction"])
     if last:
         n, a, b = last
-        print(f"\nBC-NP success on validation at n = {n}: {a:.1f} % (one-shot T) -> {b:.1f} % (learned correction)")
+        se = 100 * np.sqrt(0.25 / args.trials)  # the binomial standard error's largest value, at 50 %
+        print(f"\nBC-NP success on validation at n = {n} ({args.trials} trials, one seed; binomial SE <= {se:.1f} "
+              f"points): {a:.1f} % (one-shot T) -> {b:.1f} % (learned correction)")
 
 
 if __name__ == "__main__":

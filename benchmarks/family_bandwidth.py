@@ -124,8 +124,15 @@ def main(argv=None):
     p.add_argument("--trials", type=int_in(1), default=600, help="vote draws per vote column")
     p.add_argument("--out", type=output_path("file"), default=None, help="also write the table (markdown) here")
     a = p.parse_args(argv)
-    factors = tuple(v if v in ("auto", "hgb") else float(v) for v in a.factors.split(","))
-    floors = tuple(float(v) for v in a.floors.split(","))
+    try:
+        factors = tuple(v if v in ("auto", "hgb") else float(v) for v in a.factors.split(","))
+        floors = tuple(float(v) for v in a.floors.split(","))
+    except ValueError as exc:
+        p.error(f"--factors / --floors: comma lists of numbers ({exc})")
+    if bad := [f for f in factors if not isinstance(f, str) and not (np.isfinite(f) and f > 0)]:
+        p.error(f"--factors: bandwidth factors are finite and > 0 (or auto, hgb), got {bad}")
+    if bad := [q for q in floors if not 0 <= q < 1]:
+        p.error(f"--floors: quantiles in [0, 1) (0: no floor), got {bad}")
     t0 = time.time()
     cfg = AnalysisConfig(experiments=(5,), normals=False, family_source="hand", family_members=a.members,
                          family_size_range=(0.7, 1.6), grasps_per_object=1000, seed=a.seed)

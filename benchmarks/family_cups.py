@@ -24,6 +24,7 @@ import dataclasses
 import numpy as np
 import trimesh
 
+from haptic_env.cli import int_in
 from haptic_env.dataset import hand_vectors
 from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.families import family_models, grasp_config
@@ -90,8 +91,8 @@ def cup_contacts(mesh: trimesh.Trimesh, C: np.ndarray) -> tuple[np.ndarray, np.n
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--members", type=int, default=40)
+    p.add_argument("--seed", type=int_in(0), default=0)
+    p.add_argument("--members", type=int_in(1), default=40)
     p.add_argument("--no-floor", action="store_true", help="without experiment 5's outlier floor (--family-floors 0)")
     a = p.parse_args(argv)
     # experiment 5's reported setting; its MLP is fitted too (family_models), but only the KDE is used: two epochs

@@ -124,7 +124,7 @@ def main(argv=None) -> int:
                     help="also a column of force-closure grasps whose epsilon quality reaches this (0: none)")
     ap.add_argument("--hand", default=None, help="also score ycb10 surface-trained kNN on this hand's grasps")
     ap.add_argument("--speed-grasps", type=int_in(10), default=3_000, help="grasps per object of the speed check")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int_in(0), default=0)
     args = ap.parse_args(argv)
     try:
         fingers = [int(x) for x in args.fingers.split(",") if x.strip()]

@@ -203,8 +203,15 @@ def main(argv=None):
     a = p.parse_args(argv)
     if a.lo > a.hi:
         p.error(f"--lo {a.lo} must be <= --hi {a.hi}")
-    ms = tuple(int(v) for v in a.ms.split(","))
+    try:
+        ms = tuple(int(v) for v in a.ms.split(","))
+    except ValueError:
+        p.error(f"--ms: a comma list of grasp counts, got {a.ms!r}")
+    if min(ms) < 1:
+        p.error(f"--ms: grasp counts >= 1, got {a.ms!r}")
     models = set(a.models.split(","))
+    if unknown := models - {"member", "mlp", "rf"}:
+        p.error(f"--models: unknown {sorted(unknown)}; choose among member, mlp, rf")
     if a.sweep == "spread":
         cells = [(lo, hi, False, True) for lo, hi in ((1, 1), (0.9, 1.1), (0.75, 1.25), (0.5, 1.5))]
     elif a.sweep == "norm":

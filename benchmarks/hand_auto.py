@@ -67,6 +67,10 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int_in(0), default=0)
     ap.add_argument("--reports", action="store_true", help="print what the automatic path chose per hand")
     args = ap.parse_args(argv)
+    for h in [x for x in args.hands.split(",") if x]:  # every name before the first hand runs
+        if not (h in MENAGERIE or (h.startswith("generic") and h.removeprefix("generic").isdigit()
+                                   and int(h.removeprefix("generic")) >= 2)):
+            ap.error(f"--hands: unknown hand {h!r}; choose from {', '.join(MENAGERIE)} or genericN (N >= 2)")
     warnings.filterwarnings("ignore", message="Attach")  # MuJoCo's notes on attaching specs
     if data_dir() is None:
         print("shared data absent (HAPTIC_DATA): ycb10 and the Menagerie hands are needed")

@@ -57,7 +57,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from haptic_env import variant_config  # noqa: E402
 from haptic_env.cache import atomic_write  # noqa: E402
-from haptic_env.cli import int_in, output_path  # noqa: E402
+from haptic_env.cli import distinct, float_in, int_in, output_path  # noqa: E402
 from haptic_env.config import HAND_APPROACHES, HapticRecogConfig  # noqa: E402
 from haptic_env.dataset import DatasetConfig, support_frame  # noqa: E402
 from haptic_env.grasp_features import NORMAL_AXES, NORMAL_AXIS_WORDS  # noqa: E402
@@ -287,13 +287,14 @@ def main(argv=None) -> int:
                     help=f"hands of {list(SETUPS)}; NAME=MODEL grasps with another model of that hand, e.g. "
                          "shadow=shadow_hand/right_hand (the automatic path of the Menagerie file)")
     ap.add_argument("--regimes", nargs="+", default=["surface", "hand"], choices=["surface", "hand"])
-    ap.add_argument("--queries", type=int, default=10, help="queries per object and seed (paper: 10)")
-    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="test seeds (spread: std over them)")
+    ap.add_argument("--queries", type=int_in(1), default=10, help="queries per object and seed (paper: 10)")
+    ap.add_argument("--seeds", type=int_in(0), nargs="+", default=[0, 1, 2], help="test seeds (spread: std over them)")
     ap.add_argument("--split", choices=["test", "validation"], default="test",
                     help="query pools: test (seeds 1000 + s, for reporting) or validation (500 + s, for tuning)")
     ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
-    ap.add_argument("--max-grasps", type=int, default=DEFAULT_MAX_GRASPS, help="grasps per query at most")
-    ap.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD, help="certainty threshold lambda")
+    ap.add_argument("--max-grasps", type=int_in(1), default=DEFAULT_MAX_GRASPS, help="grasps per query at most")
+    ap.add_argument("--threshold", type=float_in(0.0, 1.0, lo_open=True, hi_open=True), default=DEFAULT_THRESHOLD,
+                    help="certainty threshold lambda")
     ap.add_argument("--approaches", type=int_in(1), default=None,
                     help="hand regime: training approaches per object (default: the hand's registered env's "
                          f"setting, HapticRecogConfig.training_grasps, else {HAND_APPROACHES})")
@@ -342,6 +343,11 @@ def main(argv=None) -> int:
         ap.error(f"--kde-bandwidth {args.kde_bandwidth} sets the KDE, which --likelihood hgb replaces")
     if args.touch_weight is not None and not (np.isfinite(args.touch_weight) and args.touch_weight >= 0):
         ap.error(f"--touch-weight must be a finite number >= 0, got {args.touch_weight}")
+    distinct(ap, "--seeds", args.seeds)
+    try:  # every seed in its split before the first pool is built
+        [hand_pool_seed(args.split, s) for s in args.seeds]
+    except ValueError as exc:
+        ap.error(f"--seeds: {exc}")
     for spec in args.hands:  # every name checked before the first hand's pools are built
         if spec.partition("=")[0] not in SETUPS:
             ap.error(f"--hands: unknown hand {spec.partition('=')[0]!r}; choose from {list(SETUPS)}")

@@ -33,6 +33,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from haptic_env.cli import int_in  # noqa: E402
 from haptic_env.dataset import build_dataset  # noqa: E402
 from haptic_env.experiments.config import AnalysisConfig  # noqa: E402
 from haptic_env.experiments.trials import simulate_trials  # noqa: E402
@@ -57,10 +58,11 @@ def bc_np(S: list[np.ndarray], trials: int) -> tuple[str, float]:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--objects", default="default")
-    ap.add_argument("--fingers", type=int, default=2, help="grasp vectors without normals (the cells in question)")
+    ap.add_argument("--fingers", type=int_in(2), default=2,
+                    help="grasp vectors without normals (the cells in question)")
     ap.add_argument("--bound", choices=("histogram", "data"), default="histogram")
-    ap.add_argument("--big", type=int, default=100_000, help="grasps per object of the reference")
-    ap.add_argument("--trials", type=int, default=3000)
+    ap.add_argument("--big", type=int_in(100), default=100_000, help="grasps per object of the reference")
+    ap.add_argument("--trials", type=int_in(1), default=3000)
     args = ap.parse_args(argv)
     if args.bound == "histogram" and args.fingers != 2:
         ap.error(f"--bound histogram needs --fingers 2 (one distance per grasp), got {args.fingers}")

@@ -37,7 +37,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.stop_floor import (CHECK_SEED_OFFSET, analysis_config, choose_and_check, emit,  # noqa: E402
-                                   experiment2_parser, kept_parts, md_table)
+                                   experiment2_parser, finger_counts, kept_parts, md_table)
 from haptic_env.cache import save_keyed_json  # noqa: E402
 from haptic_env.experiments.fresh_grasps import fresh_pool  # noqa: E402
 from haptic_env.experiments.stop_scale import STOP_SCALES, VALIDATION_GRASPS, VALIDATION_TRIALS  # noqa: E402
@@ -58,7 +58,7 @@ def main(argv=None):
     cfg = analysis_config(a)
     rows, frontier = [], []
     state, key, parts = kept_parts(a, "stop_classifier")
-    for n in (int(v) for v in a.fingers.split(",")):
+    for n in finger_counts(a):
         if str(n) in parts:  # an interrupted run finished it
             rows += parts[str(n)]["rows"]
             frontier += parts[str(n)]["frontier"]

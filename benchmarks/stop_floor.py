@@ -32,7 +32,7 @@ import numpy as np
 from scipy.special import log_softmax
 
 from haptic_env.cache import atomic_write, cache_dir, config_key, resume_state, save_keyed_json
-from haptic_env.cli import float_in, int_in, output_path
+from haptic_env.cli import float_in, int_in, int_list_in, output_path
 from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.families import floored
 from haptic_env.experiments.fresh_grasps import fresh_pool
@@ -53,12 +53,23 @@ def posterior_floor(LL: np.ndarray, eps: float) -> np.ndarray:
     return np.asarray(LL) if eps == 0 else floored(log_softmax(np.asarray(LL, dtype=np.float64), axis=1), np.log(eps))
 
 
+def _fingers(text: str) -> str:
+    """argparse ``type`` of ``--fingers``: checked as a comma list of counts >= 2, kept as text (the resume key)."""
+    int_list_in(2)(text)
+    return text
+
+
+def finger_counts(a: argparse.Namespace) -> tuple[int, ...]:
+    """``--fingers`` as numbers (``"3-5"`` is 3, 4, 5)."""
+    return int_list_in(2)(a.fingers)
+
+
 def experiment2_parser(description: str) -> argparse.ArgumentParser:
     """The arguments every experiment-2 validation benchmark takes (:func:`analysis_config` reads them)."""
     p = argparse.ArgumentParser(description=description)
     p.add_argument("--objects", default="kit8")
     p.add_argument("--no-normals", action="store_true")
-    p.add_argument("--fingers", default="3,4,5")
+    p.add_argument("--fingers", default="3,4,5", type=_fingers, help="comma list of finger counts (>= 2)")
     p.add_argument("--grasps-per-object", type=int_in(10), default=200_000)
     p.add_argument("--threshold", type=float_in(0.0, 1.0, lo_open=True), default=DEFAULT_THRESHOLD)
     p.add_argument("--seed", type=int_in(0), default=0)
@@ -123,7 +134,7 @@ def main(argv=None):
     cfg = analysis_config(a)
     rows, frontier = [], []
     state, key, parts = kept_parts(a, "stop_floor")
-    for n in (int(v) for v in a.fingers.split(",")):
+    for n in finger_counts(a):
         if str(n) in parts:  # an interrupted run finished it
             rows += parts[str(n)]["rows"]
             frontier += parts[str(n)]["frontier"]

@@ -51,7 +51,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.hand_experiment import (PAPER, SETUPS, env_config, query_pools, run_query, seed_std,  # noqa: E402
                                         training_config, write_table)
 from haptic_env.cache import atomic_write  # noqa: E402
-from haptic_env.cli import output_path  # noqa: E402
+from haptic_env.cli import distinct, int_in, output_path  # noqa: E402
 from haptic_env.config import HAND_APPROACHES  # noqa: E402
 from haptic_env.dataset import support_frame  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
@@ -119,9 +119,9 @@ def main(argv=None) -> int:
     ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
     ap.add_argument("--split", choices=["validation", "test"], default="validation",
                     help="query pools: validation (pool seeds 500 + s, the default: for choosing) or test (1000 + s)")
-    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="pool seeds (spread: std over them)")
-    ap.add_argument("--queries", type=int, default=10, help="queries per object and seed")
-    ap.add_argument("--max-grasps", type=int, default=DEFAULT_MAX_GRASPS)
+    ap.add_argument("--seeds", type=int_in(0), nargs="+", default=[0, 1, 2], help="pool seeds (spread: std over them)")
+    ap.add_argument("--queries", type=int_in(1), default=10, help="queries per object and seed")
+    ap.add_argument("--max-grasps", type=int_in(1), default=DEFAULT_MAX_GRASPS)
     ap.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD, help="certainty threshold lambda")
     ap.add_argument("--scales", type=float, nargs="+", default=[0.5, 0.7, 1.0, 1.4, 2.0, 3.0, 4.0, 6.0, 10.0],
                     help="multipliers of the calibrated per-grasp log-likelihood (1: the hand table's belief)")
@@ -136,6 +136,7 @@ def main(argv=None) -> int:
         ap.error("--scales must include 1 (the hand table's belief, checked against its updaters)")
     if not 0 < args.threshold < 1:
         ap.error(f"--threshold must be in (0, 1), got {args.threshold}")
+    distinct(ap, "--seeds", args.seeds)
     if data_dir() is None:
         print("the stop frontier needs the YCB meshes (ycb/ in the shared data folder; set HAPTIC_DATA)")
         return 1

@@ -117,6 +117,27 @@ def int_list(text: str) -> tuple[int, ...]:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def int_list_in(lo: int):
+    """argparse ``type``: :func:`int_list` with at least one number, each ``>= lo``."""
+
+    def parse(text: str) -> tuple[int, ...]:
+        values = int_list(text)
+        if not values or min(values) < lo:
+            raise argparse.ArgumentTypeError(f"expected a comma list of whole numbers >= {lo}, got {text!r}")
+        return values
+
+    return parse
+
+
+def distinct(parser: argparse.ArgumentParser, flag: str, values) -> None:
+    """``parser.error`` when a value of ``flag`` repeats: a seed given twice would count its runs twice (a narrower
+    spread over the same evidence)."""
+    values = list(values)
+    twice = sorted({v for i, v in enumerate(values) if v in values[:i]})
+    if twice:
+        parser.error(f"{flag}: each value once, got {values} ({', '.join(map(str, twice))} more than once)")
+
+
 def output_path(kind: str = "file"):
     """argparse ``type``: a ``Path`` that a long run can write at its end, checked now without creating anything:
     ``kind="file"``: not an existing folder; ``kind="folder"``: not an existing file; and the nearest existing

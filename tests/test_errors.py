@@ -392,6 +392,22 @@ def test_ctrl_c_in_a_subcommand_is_one_line_saying_what_a_rerun_keeps(monkeypatc
     ("family_bandwidth", ["--members", "0"], r"argument --members: must be >= 1, got 0"),
     ("stop_floor", ["--threshold", "1.5"], r"argument --threshold: must be a finite number in \(0.0, 1.0\], got 1.5"),
     ("hand_auto", ["--approaches", "0"], r"argument --approaches: must be >= 1, got 0"),
+    ("hand_auto", ["--hands", "allegro,foo"], r"--hands: unknown hand 'foo'"),
+    ("hand_experiment", ["--seeds", "0", "0"], r"--seeds: each value once, got \[0, 0\] \(0 more than once\)"),
+    ("hand_experiment", ["--split", "validation", "--seeds", "600"], r"--seeds: seed must be an int in \[0, 500\)"),
+    ("hand_experiment", ["--queries", "0"], r"argument --queries: must be >= 1, got 0"),
+    ("hand_experiment", ["--threshold", "1.5"], r"argument --threshold: must be a finite number in \(0.0, 1.0\)"),
+    ("stop_frontier", ["--seeds", "1", "1"], r"--seeds: each value once"),
+    ("hand_classifiers", ["--seeds", "2", "2"], r"--seeds: each value once"),
+    ("family_bandwidth", ["--floors", "0,1.5"], r"--floors: quantiles in \[0, 1\) \(0: no floor\), got \[1.5\]"),
+    ("family_bandwidth", ["--factors", "0"], r"--factors: bandwidth factors are finite and > 0"),
+    ("geometry_families", ["--models", "mlp,xx"], r"--models: unknown \['xx'\]"),
+    ("geometry_families", ["--ms", "0,3"], r"--ms: grasp counts >= 1"),
+    ("stop_floor", ["--fingers", "1,3"], r"argument --fingers: expected a comma list of whole numbers >= 2"),
+    ("correction_validation", ["--fingers", "x"], r"argument --fingers: expected a comma list"),
+    ("bench_phi", ["--batches", "1,64"], r"--batches \(1, 64\) needs one batch >= --grasps 200000"),
+    ("likelihood_bound", ["--trials", "0"], r"argument --trials: must be >= 1, got 0"),
+    ("family_cups", ["--seed", "-1"], r"argument --seed: must be >= 0, got -1"),
 ])
 def test_benchmarks_refuse_bad_counts_before_any_work(load_benchmark, usage_error, bench, argv, match):
     usage_error(load_benchmark(bench).main, argv, match=match)
