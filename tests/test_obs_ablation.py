@@ -56,6 +56,15 @@ def test_zero_and_yaw_touch_only_the_named_parts(ablation, env_config):
         np.testing.assert_allclose(np.linalg.norm(b, axis=1), np.linalg.norm(a, axis=1), rtol=1e-5, atol=1e-6)
         np.testing.assert_allclose(b[:, 2], a[:, 2], atol=1e-6)  # a turn about the world z axis
     assert not np.allclose(y[sl["contacts"]], obs[sl["contacts"]])
+    # one turn for every contact and normal of the observation (still a plausible grasp): the angle read off the
+    # touched contact farthest from the axis turns every 3-vector of both parts into the ablated ones
+    a = obs[sl["contacts"]].reshape(-1, 3)
+    k = int(np.argmax(np.linalg.norm(a[:, :2], axis=1)))
+    b = y[sl["contacts"]].reshape(-1, 3)
+    t = np.arctan2(b[k, 1], b[k, 0]) - np.arctan2(a[k, 1], a[k, 0])
+    R = np.array([[np.cos(t), -np.sin(t), 0.0], [np.sin(t), np.cos(t), 0.0], [0.0, 0.0, 1.0]])
+    for p in parts:
+        np.testing.assert_allclose(y[sl[p]].reshape(-1, 3), obs[sl[p]].reshape(-1, 3) @ R.T, atol=1e-5)
     yaw.reset(env, seed=0)  # seeded: the same turn again
     yaw.act(obs, env)
     np.testing.assert_array_equal(rec.seen[-1], y)
