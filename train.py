@@ -18,6 +18,10 @@ save a checkpoint (SAC: with its replay buffer) and exit with one line naming it
 files ``monitor/<rank>.part<k>.monitor.csv`` and its flags to ``args.part<k>.json`` (every earlier file and line
 is kept; the learning-curve reader merges the segments by wall time). PPO drops an unfinished rollout (its
 steps are not counted; so does recurrent PPO), so the resumed run ends at the same step count as an uninterrupted one.
+It goes on in the checkpoint's run folder (``--run-dir`` defaults to it; a folder that holds another run is
+refused), and it draws fresh numbers rather than replaying the start's: its envs start ``(k - 1) x n_envs`` seeds
+after the run's first and its model is seeded from ``(--seed, k)`` (:func:`segment_seeds`, recorded in its
+``args.part<k>.json``), so a resumed run is not bit-identical to an uninterrupted one.
 Evaluate the result with the ``evaluate`` sub-command::
 
     python -m haptic_env.cli evaluate --agents random greedy ppo=runs/ppo/ppo_final.zip \\
@@ -110,6 +114,18 @@ def env_seed(args: Args) -> int:
     return args.env_seed if args.env_seed >= 0 else training_env_seed(args.seed)
 
 
+def segment_seeds(args: Args, part: int) -> tuple[int, int]:
+    """``(model seed, first env seed)`` of run segment ``part`` (1: the run's start; ``k > 1``: its ``k - 1``-th resume).
+    The start has ``--seed`` and :func:`env_seed`; a resumed segment draws fresh numbers instead of replaying the
+    start's (stable-baselines3's load would reseed the model with ``--seed``, and the envs would begin again at their
+    first episodes): its envs start ``(k - 1) x n_envs`` seeds later, still inside the run's block of training env
+    seeds, and its model seed is drawn from ``(seed, k)``."""
+    if part == 1:
+        return args.seed, env_seed(args)
+    model_seed = int(np.random.SeedSequence([args.seed, part]).generate_state(1)[0] % 2**31)
+    return model_seed, env_seed(args) + (part - 1) * args.n_envs
+
+
 def _usage_error(message: str):
     """A one-line usage error (exit status 2) before any run file is written."""
     print(f"usage: train.py [-h] [OPTIONS]\ntrain.py: error: {message}", file=sys.stderr, flush=True)
@@ -172,6 +188,9 @@ def parse_args(argv: list[str] | None = None) -> Args:
         other = next((a for a in ALGOS if a != args.algo and Path(args.resume).name.startswith(a + "_")), None)
         if other is not None:
             _usage_error(f"argument --resume: {args.resume} is a {other} checkpoint, not {args.algo} (pass --algo {other})")
+        if not any(a in ("--run-dir", "--run_dir") or a.startswith(("--run-dir=", "--run_dir=")) for a in argv):
+            # a resumed run goes on in its own folder, not in the default one (which may hold another run)
+            args = dataclasses.replace(args, run_dir=str(run_folder(Path(args.resume))))
         saved = _saved_approaches(Path(args.resume))
         if saved is not None and saved != args.discrete_approaches:
             _usage_error(f"argument --discrete-approaches: {args.resume} was trained with --discrete-approaches "
@@ -179,15 +198,21 @@ def parse_args(argv: list[str] | None = None) -> Args:
     return args
 
 
+def run_folder(checkpoint: Path) -> Path:
+    """The run folder a checkpoint belongs to: the one above its ``checkpoints/``, else its own."""
+    return checkpoint.parent.parent if checkpoint.parent.name == "checkpoints" else checkpoint.parent
+
+
 def refuse_a_held_run_dir(args: Args) -> None:
-    """A fresh run (no ``--resume``) into a ``--run-dir`` that holds a run's checkpoints or final model is a usage
-    error before any file is written: a later ``--resume`` would go on from that run's model under this run's
-    settings."""
+    """A run into a ``--run-dir`` that holds another run's checkpoints or final model is a usage error before any
+    file is written: a fresh run there would mix with it (a later ``--resume`` would go on from that run's model
+    under this run's settings), and a resumed one would replace its checkpoints and final model. A resumed run in
+    its own folder (the default with ``--resume``) goes on."""
     from agents.sb3 import latest_checkpoint
 
-    if args.resume:
-        return
     run_dir = Path(args.run_dir)
+    if args.resume and run_dir.resolve() == run_folder(Path(args.resume)).resolve():
+        return
     checkpoint = latest_checkpoint(run_dir)
     final = next(iter(sorted(run_dir.glob("*_final.zip"))), None)
     if checkpoint is not None:
@@ -230,7 +255,7 @@ def env_config(args: Args) -> HapticRecogConfig:
 
 #: What a resumed segment may change without note: its length, its checkpoints, its output and its machine's threads
 _SEGMENT_ONLY = ("total_timesteps", "max_minutes", "checkpoint_freq", "progress_bar", "verbose", "torch_threads",
-                 "resume", "run_dir")
+                 "resume", "run_dir", "segment_seed", "segment_env_seed")
 
 
 def settings_changed(record: dict, checkpoint: Path) -> list[str]:
@@ -238,7 +263,7 @@ def settings_changed(record: dict, checkpoint: Path) -> list[str]:
     ``args*.json``) that differs from the ``args.json`` of the run ``checkpoint`` belongs to (its folder, or the one
     above ``checkpoints/``); nothing when that file is missing or unreadable. Fine-tuning a checkpoint on another env
     is allowed; it is said, not silent."""
-    folder = checkpoint.parent.parent if checkpoint.parent.name == "checkpoints" else checkpoint.parent
+    folder = run_folder(checkpoint)
     try:
         old = json.loads((folder / "args.json").read_text())
     except (OSError, ValueError):
@@ -276,20 +301,21 @@ def main(argv: list[str] | None = None) -> Path:
 
     from agents import sb3
 
-    # explicit seeding: python, numpy, torch; env rank r is seeded env_seed(args) + r by make_vec_env
-    random.seed(args.seed)
-    np.random.seed(args.seed)  # only for third-party code that still uses the global RNG
-    torch.manual_seed(args.seed)
-    torch.set_num_threads(args.torch_threads)
-
     run_dir = Path(args.run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     config = env_config(args)
     first_env_seed = env_seed(args)
     part = _next_part(run_dir) if args.resume else 1  # a resumed run keeps the earlier args and Monitor files
     suffix = "" if part == 1 else f".part{part}"
+    seed, segment_env_seed = segment_seeds(args, part)
+    # explicit seeding: python, numpy, torch; env rank r is seeded segment_env_seed + r by make_vec_env
+    random.seed(seed)
+    np.random.seed(seed)  # only for third-party code that still uses the global RNG
+    torch.manual_seed(seed)
+    torch.set_num_threads(args.torch_threads)
     record = {**{f.name: getattr(args, f.name) for f in dataclasses.fields(args) if f.name != "env"},
               "first_env_seed": first_env_seed,
+              **({} if part == 1 else {"segment_seed": seed, "segment_env_seed": segment_env_seed}),
               "env_config": {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(config).items()}}
     if args.resume:
         changed = settings_changed(record, Path(args.resume))
@@ -300,7 +326,7 @@ def main(argv: list[str] | None = None) -> Path:
     (run_dir / f"args{suffix}.json").write_text(json.dumps(record, indent=2, default=str))
 
     t0 = time.time()
-    venv = sb3.make_vec_env(config, n_envs=args.n_envs, seed=first_env_seed, log_dir=run_dir, vec=args.vec,
+    venv = sb3.make_vec_env(config, n_envs=args.n_envs, seed=segment_env_seed, log_dir=run_dir, vec=args.vec,
                             env_id=args.env_id, monitor_suffix=suffix, discrete_approaches=args.discrete_approaches)
     action = (f"one of {args.discrete_approaches} approaches" if args.discrete_approaches
               else f"{venv.action_space.shape[0]}-dim action")
@@ -309,7 +335,7 @@ def main(argv: list[str] | None = None) -> Path:
     t0 = time.time()
     try:
         model, path = sb3.train(
-            args.algo, venv, args.total_timesteps, run_dir, seed=args.seed, checkpoint_freq=args.checkpoint_freq,
+            args.algo, venv, args.total_timesteps, run_dir, seed=seed, checkpoint_freq=args.checkpoint_freq,
             resume=args.resume or None, progress_bar=args.progress_bar, verbose=args.verbose,
             max_minutes=args.max_minutes or None,
             **json.loads(args.hyperparams),

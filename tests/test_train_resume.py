@@ -239,9 +239,12 @@ def test_training_envs_keep_their_seeds_when_the_model_is_built_or_loaded(env_co
             first.append(kw.get("seed"))
             return _real(*a, **kw)
         env.reset = reset
-    sb3.train("ppo", venv, 64 if resume else 32, tmp_path, seed=0, checkpoint_freq=32, resume=ckpt, **hp)
+    sb3.train("ppo", venv, 64 if resume else 32, tmp_path, seed=7, checkpoint_freq=32, resume=ckpt, **hp)
     venv.close()
     assert first[:2] == [10000, 10001]
+    import torch
+
+    assert torch.initial_seed() == 7  # a resumed model is seeded with the caller's seed, not the checkpoint's 0
 
 
 def test_a_fresh_run_is_refused_a_folder_that_holds_a_run_and_a_resume_says_what_it_changes(
@@ -266,6 +269,33 @@ def test_a_fresh_run_is_refused_a_folder_that_holds_a_run_and_a_resume_says_what
     err = capsys.readouterr().err
     assert "with other settings than its run's: env.max_grasps: 10 -> 8" in err
     assert "hyperparams: " in err and "(--hyperparams: the checkpoint's are kept)" in err
+    # the resumed segment draws fresh episodes and numbers (its own seeds, recorded), not its start's again
+    part2 = json.loads((run / "args.part2.json").read_text())
+    assert part2["segment_env_seed"] == part2["first_env_seed"] + 1 and part2["segment_seed"] != part2["seed"]
+    assert train.segment_seeds(train.parse_args(first), 1) == (0, part2["first_env_seed"])
+
+
+def test_a_resume_goes_on_in_its_own_run_folder(small_recognizer_kwargs, tmp_path, usage_error, monkeypatch):
+    """``--resume`` without ``--run-dir`` goes on in the checkpoint's run folder (it wrote into the default
+    ``runs/ppo``, replacing another run's checkpoints and final model there); a ``--run-dir`` that holds another run
+    is refused."""
+    monkeypatch.syspath_prepend(str(ROOT))
+    import train
+
+    hp = {"n_steps": 64, "batch_size": 64, "n_epochs": 1}
+    run, other = tmp_path / "run", tmp_path / "other"
+    first = _args("ppo", 128, run, small_recognizer_kwargs, hp)
+    train.main(first)
+    train.main(_args("ppo", 128, other, small_recognizer_kwargs, hp))
+    more = _args("ppo", 192, run, small_recognizer_kwargs, hp)
+    i = more.index("--run-dir")
+    without = more[:i] + more[i + 2:]
+    assert train.parse_args(without + ["--resume", str(run)]).run_dir == str(run)
+    more[i + 1] = str(other)
+    usage_error(train.main, more + ["--resume", str(run)], match=r"--run-dir: .*other already holds a run")
+    monkeypatch.chdir(tmp_path)
+    assert train.main(without + ["--resume", str(run)]) == run / "ppo_final.zip"
+    assert not (tmp_path / "runs").exists()  # nothing written into the default folder
 
 
 def test_a_failed_first_reset_still_saves_and_names_its_checkpoint(env_config, tmp_path, monkeypatch):
