@@ -508,6 +508,8 @@ def _load_part(part: Path | None) -> tuple[np.ndarray, np.ndarray] | None:
         return None
     try:
         arrays = load_npz(part, required=("X_train", "X_val"))
+    except FileNotFoundError:  # another process finished the dataset and removed its parts since the check
+        return None
     except CacheError as exc:
         warnings.warn(f"{exc}; generating that object again", RuntimeWarning, stacklevel=3)
         return None

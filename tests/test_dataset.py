@@ -319,3 +319,18 @@ def test_an_interrupted_force_closure_dataset_resumes_at_its_first_unfinished_ob
     for a in ("X_train", "y_train", "X_val", "y_val"):
         np.testing.assert_array_equal(getattr(ds, a), getattr(whole, a))
     assert path.exists() and not list(path.parent.glob(".*obj*.npz"))
+
+
+def test_a_part_removed_by_another_build_is_generated_again(tmp_path, monkeypatch):
+    """Two builds of one dataset: the other one finishes and removes the per-object parts between this build's
+    exists() and its load; the part is then generated again, not a crash (FileNotFoundError)."""
+    import haptic_env.dataset as dataset
+
+    part = tmp_path / ".kit8.obj0.npz"
+    part.write_bytes(b"")
+
+    def gone(path, required=()):
+        raise FileNotFoundError(path)
+
+    monkeypatch.setattr(dataset, "load_npz", gone)
+    assert dataset._load_part(part) is None
