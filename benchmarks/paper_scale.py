@@ -253,7 +253,9 @@ def run_cell(cell, data: _Data, args, checkpoint: Path | None = None) -> dict:
                         threads=args.threads, progress=not args.quiet)
         t0 = time.perf_counter()
         # an interrupted fit resumes from its last epoch (a 7 x 500 cell at 200k grasps trains for hours)
-        clf = MLPClassifier(cfg).fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val, n_classes=K, checkpoint=checkpoint)
+        # the fit's state stays until main() has written the cell (an interrupt during exp2 keeps the fit)
+        clf = MLPClassifier(cfg).fit(ds.X_train, ds.y_train, ds.X_val, ds.y_val, n_classes=K, checkpoint=checkpoint,
+                                     keep_checkpoint=True)
         res["train_seconds"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         pred = clf.predict(Xt)
@@ -488,6 +490,7 @@ def main(argv=None) -> int:
             bar.set_postfix_str(cell_name(cell))
             res = run_cell(cell, data, args, checkpoint=fit_state_path(out, cell, h))
             write_json_atomic(cell_path(out, cell, h), res)
+            fit_state_path(out, cell, h).unlink(missing_ok=True)  # the cell is saved: its fit state is not needed
             tqdm.write(f"{cell_name(cell)}: {100 * res['accuracy']:.1f} % ({res['seconds']:.0f} s)")
             write_report(out, args, command)
     except KeyboardInterrupt:

@@ -151,6 +151,16 @@ def test_an_interrupted_fit_resumes_from_its_epoch_checkpoint(tmp_path, monkeypa
     seen[:] = []
     MLPClassifier(cfg).fit(X, y, checkpoint=ckpt)
     assert len(seen) == 5
+    # keep_checkpoint: the finished fit's file stays for the caller (paper_scale removes it once its cell is saved);
+    # the fit called again with it runs no epoch and gives the same model
+    seen[:] = []
+    kept = MLPClassifier(cfg).fit(X, y, checkpoint=ckpt, keep_checkpoint=True)
+    assert len(seen) == 5 and ckpt.exists()
+    seen[:] = []
+    again = MLPClassifier(cfg).fit(X, y, checkpoint=ckpt, keep_checkpoint=True)
+    assert not seen and again.temperature == kept.temperature
+    for k, v in kept.net.state_dict().items():
+        torch.testing.assert_close(again.net.state_dict()[k], v, rtol=0, atol=0)
 
 
 def test_a_fit_without_validation_rows_needs_two_rows_and_keeps_one_for_training():

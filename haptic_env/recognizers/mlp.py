@@ -123,7 +123,7 @@ class MLPClassifier:
 
     # ------------------------------------------------------------------------------ training
     def fit(self, X, y, X_val=None, y_val=None, *, n_classes: int | None = None,
-            checkpoint: str | os.PathLike | None = None) -> MLPClassifier:
+            checkpoint: str | os.PathLike | None = None, keep_checkpoint: bool = False) -> MLPClassifier:
         """Train on ``X (N, d)``, ``y (N,)`` (class indices); early stopping on ``(X_val, y_val)``.
 
         Without an explicit validation set, ``config.val_fraction`` of ``X`` is held out. After training,
@@ -133,10 +133,15 @@ class MLPClassifier:
         ``checkpoint``: a file that keeps the training state after every epoch (written atomically; removed when
         the fit ends). A fit interrupted and called again with the same file, config and data goes on from its last
         finished epoch and ends with the weights an uninterrupted fit gives. A file of another config or data (its
-        fingerprint differs) is ignored and overwritten.
+        fingerprint differs) is ignored and overwritten. ``keep_checkpoint=True`` leaves the finished fit's file for
+        the caller to remove once it has saved what it made of the model (a fit called again with it then runs no
+        epoch), so an interrupt between the fit and that save does not lose the fit.
         """
         with torch_threads(self.config.threads):
-            return self._fit(X, y, X_val, y_val, n_classes=n_classes, checkpoint=checkpoint)
+            self._fit(X, y, X_val, y_val, n_classes=n_classes, checkpoint=checkpoint)
+        if checkpoint is not None and not keep_checkpoint:
+            Path(checkpoint).unlink(missing_ok=True)
+        return self
 
     def _fit(self, X, y, X_val, y_val, *, n_classes: int | None, checkpoint: str | os.PathLike | None) -> MLPClassifier:
         cfg = self.config
@@ -227,8 +232,6 @@ class MLPClassifier:
         with torch.no_grad():  # temperature scaling on the validation logits (calibration.fit_temperature)
             logits = torch.cat([self.net(Xv[lo : lo + 65536]) for lo in range(0, len(Xv), 65536)])
         self.temperature = fit_temperature(logits.double().numpy(), y_val)
-        if checkpoint is not None:
-            checkpoint.unlink(missing_ok=True)
         return self
 
     @torch.no_grad()
