@@ -635,7 +635,13 @@ class SB3Agent:
 
     def reset(self, env: Any, seed: int | None = None) -> None:
         if seed is not None:
-            self.model.set_random_seed(seed)
+            # not SB3's set_random_seed, which seeds Python's, NumPy's and torch's global generators: a deterministic
+            # policy draws nothing, and a stochastic one samples from torch's (SB3's distributions know no other)
+            self.model.action_space.seed(seed)
+            if not self.deterministic:
+                import torch
+
+                torch.manual_seed(seed)
         self._clear_memory()
 
     def _clear_memory(self) -> None:

@@ -839,3 +839,23 @@ def test_greedy_infer_pose_scores_the_episodes_grasps_for_the_yaw(env_config, sm
     finally:
         env.close()
         geometric.close()
+
+
+def test_a_deterministic_sb3_agent_leaves_the_global_generators_alone(env_config, tmp_path):
+    """SB3Agent.reset(seed) seeded Python's, NumPy's and torch's global generators (SB3's set_random_seed): a
+    deterministic policy draws nothing, so its resets now leave them as they were."""
+    import random
+
+    import torch
+
+    from agents import sb3
+
+    venv = sb3.make_vec_env(env_config.replace(max_grasps=5), n_envs=1, seed=10000, vec="dummy")
+    model = sb3.build_model("ppo", venv, seed=0, n_steps=8, batch_size=8)
+    venv.close()
+    agent = sb3.SB3Agent(model)
+    np.random.seed(123), random.seed(123), torch.manual_seed(123)
+    before = (np.random.get_state()[1].copy(), random.getstate(), torch.random.get_rng_state().clone())
+    agent.reset(None, seed=7)
+    assert np.array_equal(np.random.get_state()[1], before[0]) and random.getstate() == before[1]
+    assert torch.equal(torch.random.get_rng_state(), before[2])
