@@ -30,7 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.hand_experiment import seed_std  # noqa: E402
 from haptic_env.cache import atomic_write  # noqa: E402
-from haptic_env.cli import int_in, output_path  # noqa: E402
+from haptic_env.cli import distinct, int_in, output_path  # noqa: E402
 from haptic_env.dataset import DatasetConfig, support_frame  # noqa: E402
 from haptic_env.grasp_features import phi  # noqa: E402
 from haptic_env.hand_grasps import hand_grasp_pool, pool_actions, pool_rows  # noqa: E402
@@ -85,10 +85,12 @@ def main(argv=None) -> int:
     ap.add_argument("--hands", nargs="+", default=list(SETUPS), choices=list(SETUPS))
     ap.add_argument("--approaches", type=int_in(1), default=6000,
                     help="training pool approaches per object (the envs')")
-    ap.add_argument("--validation-seeds", type=int_in(0), nargs="+", default=[500, 501, 502])
+    ap.add_argument("--validation-seeds", type=int_in(500, 999), nargs="+", default=[500, 501, 502],
+                    help="pool seeds of the queries: validation pools (500-999; 0 and 1 are training, 1000+ test)")
     ap.add_argument("--queries", type=int_in(1), default=300, help="approaches per object of each validation pool")
     ap.add_argument("--out", type=output_path("folder"), default=None)
     args = ap.parse_args(argv)
+    distinct(ap, "--validation-seeds", args.validation_seeds)
     if data_dir() is None:
         print("needs the YCB meshes and the menagerie hands (set HAPTIC_DATA and MENAGERIE_ROOT)")
         return 1
