@@ -167,6 +167,10 @@ def test_analysis_calibration_experiment(tmp_path, cache):
     assert "## 7. Calibration" in text
     for model in ("BC (KDE)", "MLP"):
         assert f"| 4 | yes | {model} |" in text and f"| 3 | no | {model} |" in text
+    # each variant's own accuracy beside its confidence (a learned correction moves the argmax; T does not)
+    assert "| acc raw % | ECE raw | NLL raw | conf raw % | acc cal % | ECE cal | NLL cal | conf cal % |" in text
+    mlp = next(line for line in text.splitlines() if line.startswith("| 4 | yes | MLP |")).split("|")
+    assert mlp[5] == mlp[9]  # the MLP's calibration is a temperature only: the same argmax
     for kind in ("ic", "bc-np", "bc-ip"):
         for scores in ("raw", "calibrated"):
             assert f"| 4 | yes | {kind} | {scores} |" in text
