@@ -249,8 +249,12 @@ def success_curve(records: Sequence[EpisodeRecord], max_grasps: int) -> np.ndarr
     return np.array([(g <= k).mean() for k in range(1, max_grasps + 1)]) if len(g) else np.zeros(max_grasps)
 
 
-def summarize(records: Sequence[EpisodeRecord], baseline: str = "random") -> list[dict[str, Any]]:
-    """One summary dict per agent (in order of first appearance); see the module docstring."""
+def summarize(records: Sequence[EpisodeRecord], baseline: str = "random",
+              period: int | None = None) -> list[dict[str, Any]]:
+    """One summary dict per agent (in order of first appearance); see the module docstring. With ``period`` (a
+    sweep: each agent seed played the same ``period`` episodes per env seed) every interval is a paired stratified
+    cluster bootstrap (:func:`cluster_intervals`) instead: the replays of one situation by an agent's seeds are not
+    independent episodes, so Wilson intervals and episode bootstraps over them would be too narrow."""
     names = list(dict.fromkeys(r.agent for r in records))
     by = {n: [r for r in records if r.agent == n] for n in names}
     base = np.array([r.grasps for r in by.get(baseline, [])], dtype=np.float64)
@@ -275,8 +279,30 @@ def summarize(records: Sequence[EpisodeRecord], baseline: str = "random") -> lis
         if base.size and n != baseline:
             row["fewer_than_random"], lo, hi = _ratio_ci(g, base)
             row["fewer_than_random_ci"] = (lo, hi)
+        if period is not None:
+            row.update(_clustered_summary(records, n, baseline if base.size and n != baseline else None, period))
         rows.append(row)
     return rows
+
+
+def _clustered_summary(records: Sequence[EpisodeRecord], agent: str, baseline: str | None,
+                       period: int) -> dict[str, Any]:
+    """:func:`summarize`'s intervals of ``agent`` by the paired stratified cluster bootstrap (:func:`cluster_intervals`;
+    the fewer-grasps ratio with ``baseline``'s episodes resampled by the same draws)."""
+    G = score_matrix(records, agent, lambda r: r.grasps)
+    C = score_matrix(records, agent, lambda r: float(r.correct))
+    DC = score_matrix(records, agent, lambda r: float(r.correct and r.decided))
+    scores = {"success": C, "decided_correct": DC, "grasps_mean": G, "grasps_median": G}
+    fns = {"success": np.mean, "decided_correct": np.mean, "grasps_mean": np.mean, "grasps_median": np.median}
+    out = {}
+    for k, (key, m) in enumerate(scores.items()):
+        _, ci = cluster_intervals({key: m}, lambda x, f=fns[key]: np.array([f(x)]), period, seed=10 + k)
+        out[f"{key}_ci"] = tuple(map(float, ci[key][:, 0]))
+    if baseline is not None:
+        B = score_matrix(records, baseline, lambda r: r.grasps)
+        _, ci = cluster_intervals({"r": [G, B]}, lambda a, b: np.array([1.0 - a.mean() / b.mean()]), period, seed=20)
+        out["fewer_than_random_ci"] = tuple(map(float, ci["r"][:, 0]))
+    return out
 
 
 # ----------------------------------------------------------------------------- RL aggregates
@@ -295,14 +321,55 @@ def score_matrix(records: Sequence[EpisodeRecord], agent: str, value: Callable[[
     return np.array([[value(c[e]) for c in cols] for e in range(E)], dtype=np.float64)
 
 
+def cluster_intervals(scores: dict[str, Any], fn: Callable[..., np.ndarray], period: int, reps: int = 2000,
+                      seed: int = 0, alpha: float = 0.05) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """Point estimates and ``1 - alpha`` percentile intervals of ``fn`` by a stratified cluster bootstrap, in
+    rliable's ``get_interval_estimates`` layout (``(point, {name: (2, k) array})``).
+
+    ``scores[name]`` is a :func:`score_matrix` ``(R, T)`` (or a list of them, passed to ``fn`` together, e.g. an
+    agent's and the baseline's for the probability of improvement) whose row ``r x period + u`` is replicate ``r`` of
+    situation ``u`` of its env seed: the episodes of several agent (training) seeds on one env seed play the same
+    ``period`` situations (objects and poses), so they are not independent runs. Each resample draws ``period``
+    situations with replacement per env seed and keeps every replicate of each; the draws are the same for every
+    name and every matrix of a name (paired). With one replicate per situation this is rliable's stratified bootstrap
+    with draws shared across agents."""
+    if not (isinstance(period, (int, np.integer)) and period >= 1):
+        raise ValueError(f"period must be an int >= 1, got {period!r}")
+    mats = {n: [np.asarray(m, dtype=np.float64) for m in (v if isinstance(v, list) else [v])] for n, v in scores.items()}
+    T = next(iter(mats.values()))[0].shape[1]
+    for n, ms in mats.items():
+        for m in ms:
+            if m.ndim != 2 or m.shape[1] != T or m.shape[0] % period or m.shape[0] == 0:
+                raise ValueError(f"{n}: a score matrix of (replicates x {period}, {T}) rows and env seeds, got "
+                                 f"{m.shape}")
+    point = {n: np.atleast_1d(np.asarray(fn(*ms), dtype=np.float64)) for n, ms in mats.items()}
+    rng = np.random.default_rng(seed)
+    cols = np.arange(T)
+    draws = {n: [] for n in mats}
+    for _ in range(reps):
+        D = rng.integers(0, period, size=(period, T))  # the situations drawn per env seed, shared by all
+
+        def pick(m: np.ndarray) -> np.ndarray:
+            k = m.shape[0] // period
+            rows = (np.arange(k)[:, None, None] * period + D[None]).reshape(k * period, T)
+            return m[rows, cols]
+
+        for n, ms in mats.items():
+            draws[n].append(np.atleast_1d(np.asarray(fn(*(pick(m) for m in ms)), dtype=np.float64)))
+    ci = {n: np.percentile(np.stack(d), [100 * alpha / 2, 100 * (1 - alpha / 2)], axis=0) for n, d in draws.items()}
+    return point, ci
+
+
 def _grasps_to_success(r: EpisodeRecord) -> float:
     return float(r.grasps) if (r.decided and r.correct) else np.inf
 
 
 def rl_aggregates(records: Sequence[EpisodeRecord], max_grasps: int, baseline: str = "random", reps: int = 2000,
-                  seed: int = 0) -> dict[str, Any]:
+                  seed: int = 0, period: int | None = None) -> dict[str, Any]:
     """rliable aggregates of each agent (Agarwal et al. 2021), with 95% stratified bootstrap CIs (``reps``
-    resamples of the episodes within each env seed; :func:`score_matrix`):
+    resamples of the episodes within each env seed; :func:`score_matrix`). With ``period`` (a sweep: each agent seed
+    played the same ``period`` episodes per env seed) the situations are resampled with all their replicates
+    (:func:`cluster_intervals`), since an agent's seeds replaying one situation are not independent runs:
 
     * ``grasps_iqm``: interquartile mean of the grasps at the stop (robust to the episodes censored at
       ``max_grasps``);
@@ -324,6 +391,8 @@ def rl_aggregates(records: Sequence[EpisodeRecord], max_grasps: int, baseline: s
     to_success = {n: score_matrix(records, n, _grasps_to_success) for n in names}
     tau = np.arange(1, max_grasps + 1)
     def est(scores, fn, k):
+        if period is not None:
+            return cluster_intervals(scores, fn, period, reps=reps, seed=seed + k)
         # rliable's StratifiedBootstrap draws its resamples from NumPy's global RNG, whatever random_state says:
         # seed it for this call and put the caller's state back, so that a report is the same every time
         state = np.random.get_state()
@@ -338,10 +407,13 @@ def rl_aggregates(records: Sequence[EpisodeRecord], max_grasps: int, baseline: s
     g_iqm, g_ci = est(grasps, lambda x: np.array([metrics.aggregate_iqm(x)]), 0)
     s_mean, s_ci = est(correct, lambda x: np.array([metrics.aggregate_mean(x)]), 1)
     # per-seed success rates: one run per seed, one task
-    seed_rates = {n: correct[n].mean(axis=0, keepdims=True).T for n in names}
-    s_iqm, s_iqm_ci = est(seed_rates, lambda x: np.array([metrics.aggregate_iqm(x)]), 2)
+    if period is None:
+        seed_rates = {n: correct[n].mean(axis=0, keepdims=True).T for n in names}
+        s_iqm, s_iqm_ci = est(seed_rates, lambda x: np.array([metrics.aggregate_iqm(x)]), 2)
+    else:  # episodes (situations) resampled, then each seed's rate
+        s_iqm, s_iqm_ci = est(correct, lambda x: np.array([metrics.aggregate_iqm(x.mean(0, keepdims=True).T)]), 2)
     prof, prof_ci = est(to_success, lambda x: np.array([np.mean(x <= t) for t in tau]), 3)
-    out: dict[str, Any] = {"reps": reps, "tau": tau.tolist(), "agents": {}}
+    out: dict[str, Any] = {"reps": reps, "tau": tau.tolist(), "agents": {}, "period": period}
     for n in names:
         row = {"grasps_iqm": float(g_iqm[n][0]), "grasps_iqm_ci": tuple(map(float, g_ci[n][:, 0])),
                "success": float(s_mean[n][0]), "success_ci": tuple(map(float, s_ci[n][:, 0])),
@@ -392,14 +464,16 @@ def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
 
 
 def write_report(records: Sequence[EpisodeRecord], out: str | Path, max_grasps: int,
-                 title: str = "HapticRecog evaluation", extra: str = "") -> dict[str, Path]:
-    """Write results.md / results.json / episodes.csv and the PNG plots; returns their paths."""
+                 title: str = "HapticRecog evaluation", extra: str = "", period: int | None = None) -> dict[str, Path]:
+    """Write results.md / results.json / episodes.csv and the PNG plots; returns their paths. ``period``: the
+    episodes per env seed that each agent seed replays (a sweep), for cluster bootstrap intervals
+    (:func:`summarize`, :func:`rl_aggregates`)."""
     from matplotlib.figure import Figure  # no pyplot: no global backend switch, no window
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    rows = summarize(records)
-    agg = rl_aggregates(records, max_grasps)
+    rows = summarize(records, period=period)
+    agg = rl_aggregates(records, max_grasps, period=period)
     paths = {"md": out / "results.md", "json": out / "results.json", "csv": out / "episodes.csv",
              "curve": out / "success_vs_grasps.png", "box": out / "grasps_boxplot.png",
              "profile": out / "performance_profile.png"}
@@ -408,7 +482,13 @@ def write_report(records: Sequence[EpisodeRecord], out: str | Path, max_grasps: 
         f"# {title}\n\n{extra}\n\n{markdown_table(rows)}\n\n"
         + (f"## Errors at the stop\n\n{errors_markdown(conf)}\n\n" if conf else "")
         + f"## RL aggregates (rliable)\n\n{rl_markdown_table(agg)}\n\n"
-        f"95% stratified bootstrap CIs ({agg['reps']} resamples of the episodes within each env seed). IQM: "
+        + (f"95% stratified bootstrap CIs ({agg['reps']} resamples of the episodes within each env seed). "
+           if period is None else
+           f"95% stratified cluster bootstrap CIs ({agg['reps']} resamples of the {period} situations within each "
+           "env seed, each with its replays by every agent seed, the same draws for every agent; so are the first "
+           "table's intervals: the agent seeds replay the same objects and poses, so their episodes are not "
+           "independent). ")
+        + "IQM: "
         "interquartile mean. Success at the stop is a 0/1 outcome per episode, so its IQM is taken over the seeds' "
         "success rates. P(...): probability of improvement over random (an episode of the agent against an "
         "episode of random on the same seed, ties counted half). Performance profile (`performance_profile.png`): "

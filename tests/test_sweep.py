@@ -528,3 +528,13 @@ def test_a_train_jobs_key_holds_how_its_envs_are_seeded():
     spec = parse_spec({"name": "s", "env_ids": ["HapticRecog-v0"], "agent": [{"name": "ppo", "algo": "ppo"}]})
     train = next(j for j in spec.jobs if j.kind == "train")
     assert train.params["seeding"] == "env_seed kept" and train.params["env_seed"] == 10_000
+
+
+def test_status_of_a_report_only_run_into_a_new_folder_is_written(tmp_path):
+    """``--report-only --out NEW --prior-report OLD``: NEW does not exist yet; its status.json is written (it crashed
+    with FileNotFoundError before the report)."""
+    from haptic_env.sweep.runner import SweepResult, write_status
+
+    spec = parse_spec(_smoke_doc(), source="smoke")
+    path = write_status(SweepResult(out=tmp_path / "new" / "sweep"), spec)
+    assert path.is_file() and json.loads(path.read_text())["sweep"] == spec.name

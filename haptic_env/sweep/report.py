@@ -8,7 +8,9 @@ of improvement over random) becomes the env's table in ``report.md`` and one row
 grasps, success, P(fewer grasps than random), with their 95% CIs).
 
 Strata and runs: the env seeds are rliable's tasks (every agent sees the same objects and poses per env seed),
-the episodes of all agent seeds (training seeds) on an env seed its runs.
+the episodes of all agent seeds (training seeds) on an env seed its runs. Every agent seed replays the same episodes
+of an env seed, so the intervals resample those episodes (situations) with all their replays together
+(:func:`agents.evaluate.cluster_intervals`), not each replay as an independent run.
 
 An earlier report of the same spec can stand in for run folders that are gone (``--prior-report``,
 :func:`load_prior_records`): its ``report/<env>/episodes.csv`` fills the evaluate jobs not finished here.
@@ -219,7 +221,8 @@ def write_sweep_report(spec: SweepSpec, result: SweepResult, command: list[str] 
                       + ", ".join(f"{a} {sorted(s)}" for a, s in from_prior.items()) + ".")
         if missing:
             extra += " Not run (or not finished): " + ", ".join(f"{a} {s}" for a, s in missing.items()) + "."
-        write_report(records, env_out, _max_grasps(env_id, kwargs), title=f"Sweep {spec.name}: {env}", extra=extra)
+        write_report(records, env_out, _max_grasps(env_id, kwargs), title=f"Sweep {spec.name}: {env}", extra=extra,
+                     period=p["episodes"])  # every agent seed replays the same episodes per env seed: clusters
         agg = json.loads((env_out / "results.json").read_text())["rliable"]
         aggs[env] = agg
         rel = env_out.relative_to(out)
@@ -231,9 +234,10 @@ def write_sweep_report(spec: SweepSpec, result: SweepResult, command: list[str] 
         _leaderboard_png(aggs, out / "leaderboard.png")
         lines[lines.index("## Jobs")] = ("![leaderboard](leaderboard.png)\n\nIQM: interquartile mean of the grasps at "
                                           "the stop; success at the stop (mean over episodes); P: probability of "
-                                          "improvement over random; 95% stratified bootstrap CIs "
+                                          "improvement over random; 95% stratified cluster bootstrap CIs "
                                           f"({next(iter(aggs.values()))['reps']} resamples; strata = env "
-                                          "seeds).\n\n## Jobs")
+                                          "seeds; clusters = the episodes that every agent seed replays, resampled "
+                                          "with all their replays).\n\n## Jobs")
 
     ds = [j for j in spec.jobs if j.kind == "dataset" and is_done(j.run_dir(out))]
     if ds:

@@ -196,6 +196,9 @@ def write_status(result: SweepResult, spec: SweepSpec) -> Path:
         rows.append({"id": j.id, "kind": j.kind, "state": state, "attempts": len(a),
                      "errors": [x.get("error") for x in a if x.get("error")],
                      "error": result.failed.get(j.id), "run_dir": str(rd)})
+    from haptic_env.cache import atomic_write
+
     path = result.out / "status.json"
-    path.write_text(json.dumps({"sweep": spec.name, "seconds": result.seconds, "jobs": rows}, indent=2))
+    with atomic_write(path, "w") as fh:  # makes the folder (a --report-only into a new --out has none yet)
+        fh.write(json.dumps({"sweep": spec.name, "seconds": result.seconds, "jobs": rows}, indent=2))
     return path
