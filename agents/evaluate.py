@@ -374,8 +374,8 @@ def rl_aggregates(records: Sequence[EpisodeRecord], max_grasps: int, baseline: s
     * ``grasps_iqm``: interquartile mean of the grasps at the stop (robust to the episodes censored at
       ``max_grasps``);
     * ``success_iqm_seeds``: IQM over the env seeds of the success rate at the stop (the IQM of a 0/1 outcome
-      per episode would be 0 or 1 whenever success is below 25 % or above 75 %), and ``success``, the mean
-      over episodes;
+      per episode would be 0 or 1 whenever success is below 25 % or above 75 %; its interval resamples the
+      episodes, then takes each seed's rate), and ``success``, the mean over episodes;
     * ``p_fewer_grasps``: probability of improvement over ``baseline``: P(an episode of the agent stops after
       fewer grasps than an episode of the baseline on the same seed), ties counted half; ``p_success``: the same
       for correct at the stop;
@@ -407,11 +407,9 @@ def rl_aggregates(records: Sequence[EpisodeRecord], max_grasps: int, baseline: s
     g_iqm, g_ci = est(grasps, lambda x: np.array([metrics.aggregate_iqm(x)]), 0)
     s_mean, s_ci = est(correct, lambda x: np.array([metrics.aggregate_mean(x)]), 1)
     # per-seed success rates: one run per seed, one task
-    if period is None:
-        seed_rates = {n: correct[n].mean(axis=0, keepdims=True).T for n in names}
-        s_iqm, s_iqm_ci = est(seed_rates, lambda x: np.array([metrics.aggregate_iqm(x)]), 2)
-    else:  # episodes (situations) resampled, then each seed's rate
-        s_iqm, s_iqm_ci = est(correct, lambda x: np.array([metrics.aggregate_iqm(x.mean(0, keepdims=True).T)]), 2)
+    # the episodes resampled within each seed, then each seed's rate and their IQM (resampling the 3-5 seed rates
+    # themselves gave no 95 % interval: about 83 % coverage at 3 seeds)
+    s_iqm, s_iqm_ci = est(correct, lambda x: np.array([metrics.aggregate_iqm(x.mean(0, keepdims=True).T)]), 2)
     prof, prof_ci = est(to_success, lambda x: np.array([np.mean(x <= t) for t in tau]), 3)
     out: dict[str, Any] = {"reps": reps, "tau": tau.tolist(), "agents": {}, "period": period}
     for n in names:
