@@ -146,6 +146,18 @@ def config_key(*parts: Any, length: int = 16) -> str:
     return hashlib.sha256(blob.encode()).hexdigest()[:length]
 
 
+def source_fingerprint(*packages: str | os.PathLike) -> str:
+    """sha256 of the Python sources of the package folders ``packages`` (each file's ``<package>/<relative path>``
+    and bytes, in order): the code that made a saved partial result, so that a resume after a code change starts
+    those parts again instead of mixing them with the new code's."""
+    h = hashlib.sha256()
+    for pkg in map(Path, packages):
+        for f in sorted(pkg.rglob("*.py")):
+            h.update(f"{pkg.name}/{f.relative_to(pkg).as_posix()}\0".encode())
+            h.update(f.read_bytes())
+    return h.hexdigest()
+
+
 def _umask() -> int:
     """The process's umask (read by setting it and putting it back: once, at import)."""
     mask = os.umask(0o022)

@@ -353,6 +353,17 @@ def test_an_interrupted_analysis_resumes_after_its_finished_experiments(tmp_path
     analysis.run_analysis(dataclasses.replace(cfg, seed=1), tmp_path / "other")
     assert calls == [1, 2, 3]  # another seed: nothing of the saved run is reused
 
+    # other code (or other meshes under the same names) than the saved run's: started over, not mixed in
+    calls.clear()
+    fail["at"] = 3
+    with pytest.raises(KeyboardInterrupt):
+        analysis.run_analysis(cfg, tmp_path / "code")
+    calls.clear()
+    fail["at"] = None
+    monkeypatch.setattr(analysis, "source_fingerprint", lambda *packages: "other code")
+    analysis.run_analysis(cfg, tmp_path / "code")
+    assert calls == [1, 2, 3]
+
 
 def test_analysis_refuses_a_bad_family_hand_before_writing_anything(tmp_path):
     """Experiment 5's hand is resolved before any experiment runs or the output folder is made."""

@@ -18,7 +18,7 @@ from types import ModuleType
 
 import numpy as np
 
-from haptic_env.cache import config_key, load_keyed_json, save_keyed_json
+from haptic_env.cache import config_key, load_keyed_json, save_keyed_json, source_fingerprint
 from haptic_env.experiments import calibration, families, oneshot, scaled, sequential, success_vs_grasps, zfinger
 from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.report import Report
@@ -49,7 +49,7 @@ def run_analysis(cfg: AnalysisConfig, out: str | Path, command: str | None = Non
     objects = load_object_set(cfg.objects, data_dir=cfg.data_dir, units=cfg.units, up=cfg.up)
     rep = Report(out)
     rng = np.random.default_rng(cfg.seed)
-    state_path, key = out / STATE_FILE, settings_key(cfg)
+    state_path, key = out / STATE_FILE, settings_key(cfg, objects)
     state = load_keyed_json(state_path, key)  # the saved state of an unfinished run with these settings
     if state is not None:
         rep.lines, done = state["lines"], state["done"]
@@ -81,10 +81,15 @@ def run_analysis(cfg: AnalysisConfig, out: str | Path, command: str | None = Non
 STATE_FILE = ".analysis_state.json"
 
 
-def settings_key(cfg: AnalysisConfig) -> str:
-    """What a run's results depend on (every setting but ``progress``), hashed (:func:`~haptic_env.cache.config_key`):
-    a saved state resumes only a run with the same key."""
-    return config_key(dataclasses.replace(cfg, progress=False))
+def settings_key(cfg: AnalysisConfig, objects) -> str:
+    """What a run's results depend on, hashed (:func:`~haptic_env.cache.config_key`): every setting but ``progress``,
+    the objects' meshes (:attr:`~haptic_env.objects.ObjectSet.identity`: another data folder's files under the same
+    names) and the package's code (:func:`~haptic_env.cache.source_fingerprint`); a saved state resumes only a run
+    with the same key, so a report never mixes experiments of other meshes or code."""
+    import haptic_env
+
+    return config_key(dataclasses.replace(cfg, progress=False), objects.identity,
+                      source_fingerprint(Path(haptic_env.__file__).parent))
 
 
 def _run(cfg, objects, rep: Report, rng, done: list[int], state_path: Path, key: str) -> Path:
