@@ -188,6 +188,12 @@ def parse_args(argv: list[str] | None = None) -> Args:
         other = next((a for a in ALGOS if a != args.algo and Path(args.resume).name.startswith(a + "_")), None)
         if other is not None:
             _usage_error(f"argument --resume: {args.resume} is a {other} checkpoint, not {args.algo} (pass --algo {other})")
+        later = latest_checkpoint(run_folder(Path(args.resume)), args.algo)
+        if later is not None and later.resolve() != Path(args.resume).resolve():
+            # the resumed run's checkpoints would sit beside the later ones of the line it leaves, and a later
+            # --resume of the folder would go on from those
+            _usage_error(f"argument --resume: {args.resume} is not its run's latest checkpoint ({later.name}); move "
+                         "the later checkpoints away to go on from this one, or resume from the latest")
         if not any(a in ("--run-dir", "--run_dir") or a.startswith(("--run-dir=", "--run_dir=")) for a in argv):
             # a resumed run goes on in its own folder, not in the default one (which may hold another run)
             args = dataclasses.replace(args, run_dir=str(run_folder(Path(args.resume))))

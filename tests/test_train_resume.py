@@ -293,6 +293,14 @@ def test_a_resume_goes_on_in_its_own_run_folder(small_recognizer_kwargs, tmp_pat
     assert train.parse_args(without + ["--resume", str(run)]).run_dir == str(run)
     more[i + 1] = str(other)
     usage_error(train.main, more + ["--resume", str(run)], match=r"--run-dir: .*other already holds a run")
+    # an earlier checkpoint of a run with later ones: refused (a later --resume would go back to those)
+    import shutil
+
+    ckpts = run / "checkpoints"
+    shutil.copy(ckpts / "ppo_128_steps.zip", ckpts / "ppo_64_steps.zip")
+    usage_error(train.main, without + ["--resume", str(ckpts / "ppo_64_steps.zip")],
+                match=r"--resume: .*ppo_64_steps.zip is not its run's latest checkpoint \(ppo_128_steps.zip\)")
+    (ckpts / "ppo_64_steps.zip").unlink()
     monkeypatch.chdir(tmp_path)
     assert train.main(without + ["--resume", str(run)]) == run / "ppo_final.zip"
     assert not (tmp_path / "runs").exists()  # nothing written into the default folder
