@@ -329,7 +329,10 @@ def main(argv: list[str] | None = None) -> Path:
             print(f"[train] resuming {args.resume} with other settings than its run's: {'; '.join(changed)}"
                   + (" (--hyperparams: the checkpoint's are kept)" if any(c.startswith("hyperparams") for c in changed)
                      else ""), file=sys.stderr, flush=True)
-    (run_dir / f"args{suffix}.json").write_text(json.dumps(record, indent=2, default=str))
+    from haptic_env.cache import atomic_write
+
+    with atomic_write(run_dir / f"args{suffix}.json", "w") as fh:  # whole or absent: a resume compares with it
+        fh.write(json.dumps(record, indent=2, default=str))
 
     t0 = time.time()
     venv = sb3.make_vec_env(config, n_envs=args.n_envs, seed=segment_env_seed, log_dir=run_dir, vec=args.vec,
