@@ -21,9 +21,10 @@ for it on validation grasps (``touch_weight``; RESULTS.md). The plain envs keep 
 leaderboard and RL results are theirs.
 
 All take ``config=HapticRecogConfig(...)`` and/or single config fields as keyword arguments, see
-:class:`haptic_env.env.HapticRecogEnv`. A variant's own fields (:data:`ENV_VARIANTS`) are passed as keyword
-arguments and so win over ``config``'s (``make`` refuses a config that set one of them otherwise): for a variant
-with changes, ``haptic_env.make(variant_config(id, **changes), env_id=id)``.
+:class:`haptic_env.env.HapticRecogEnv`. A variant's own fields (:data:`ENV_VARIANTS`) go over ``config``'s and
+keyword arguments over both (``make`` refuses a config that set a variant field otherwise without a keyword argument
+for it: :func:`haptic_env.config.resolve_env_config`): for a variant with changes,
+``haptic_env.make(variant_config(id, **changes), env_id=id)`` or ``gym.make(id, **changes)``.
 """
 
 from __future__ import annotations
@@ -61,9 +62,11 @@ ENV_VARIANTS.update({f"HapticRecog{hand}Heights-v0": {**ENV_VARIANTS[f"HapticRec
 _VECTOR_ENTRY = "haptic_env.vector_env:HapticRecogVectorEnv"
 
 # no max_episode_steps: the env truncates itself after config.max_grasps grasps (the one source of the episode length)
+# each id passes its name (``variant=id``): the env puts the variant's fields over a given config and keyword
+# arguments over both (haptic_env.config.resolve_env_config), and can tell the variant's fields from the caller's
 for _id, _kwargs in ENV_VARIANTS.items():
     if _id not in registry:
-        register(id=_id, entry_point=_ENTRY, kwargs=dict(_kwargs),
+        register(id=_id, entry_point=_ENTRY, kwargs={"variant": _id} if _kwargs else {},
                  vector_entry_point=_VECTOR_ENTRY if _kwargs.get("backend", "geometric") == "geometric" else None)
 
 

@@ -309,6 +309,41 @@ class HapticRecogConfig:
         return dataclasses.replace(self, **changes)
 
 
+def resolve_env_config(config: HapticRecogConfig | None = None, variant: str | None = None,
+                       overrides: Mapping[str, Any] | None = None) -> HapticRecogConfig:
+    """The config an env is built with: ``config`` (None: the defaults), the registered ``variant``'s fields
+    (``haptic_env.ENV_VARIANTS[variant]``; ``gym.make(id)`` passes ``variant=id``) over it, then ``overrides`` (the
+    keyword arguments) over both.
+
+    A ``config`` that set a field of the variant to something else (not its default, not the variant's value) and
+    no keyword argument naming that field is refused by name: the variant's value would silently replace the
+    config's choice (``gym.make("HapticRecogShadow-v0", config=HapticRecogConfig(z_fingers=2))`` ran with z = 3).
+    A field left at its default takes the variant's value (so a field set to its default value, e.g.
+    ``touch_weight=0.0``, cannot be told apart and takes the variant's); ``haptic_env.make(config, env_id=...)``
+    keeps the whole config."""
+    config = config if config is not None else HapticRecogConfig()
+    if not isinstance(config, HapticRecogConfig):
+        raise TypeError(f"config must be a HapticRecogConfig, got {type(config).__name__}")
+    overrides = dict(overrides or {})
+    if variant is not None:
+        from haptic_env import ENV_VARIANTS
+
+        if variant not in ENV_VARIANTS:
+            raise ValueError(f"unknown variant {variant!r}; choose from {list(ENV_VARIANTS)}")
+        fields = ENV_VARIANTS[variant]
+        default, theirs = HapticRecogConfig(), config.replace(**fields)
+        lost = {k: (getattr(config, k), getattr(theirs, k)) for k in fields if k not in overrides
+                and getattr(config, k) != getattr(default, k) and getattr(config, k) != getattr(theirs, k)}
+        if lost:
+            said = ", ".join(f"{k}={mine!r} (the variant's {v!r})" for k, (mine, v) in lost.items())
+            raise ValueError(
+                f"{variant} sets {', '.join(lost)} over the given config: {said}. Build the whole config with "
+                f"haptic_env.variant_config({variant!r}, ...) and make it with haptic_env.make(config, "
+                f"env_id={variant!r}), or pass those fields as keyword arguments")
+        config = theirs
+    return config.replace(**overrides) if overrides else config
+
+
 def backend_hand(config: HapticRecogConfig) -> Any:
     """The hand of a hand backend's env: ``backend_kwargs["hand"]``, else the backend's own default
     (``MujocoConfig.hand``, ``ReplayConfig.hand``)."""

@@ -18,7 +18,7 @@ import numpy as np
 from gymnasium import utils
 
 from haptic_env.belief import Belief, get_recognizer
-from haptic_env.config import HapticRecogConfig
+from haptic_env.config import HapticRecogConfig, resolve_env_config
 from haptic_env.grasp_features import feature_dim
 from haptic_env.recognizers.updaters import UPDATERS
 from haptic_env.scene import POSE_MODES, Scene, random_pose, reset_options
@@ -147,9 +147,10 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     ## Arguments
     One frozen dataclass :class:`HapticRecogConfig` holds every setting. Pass it as ``config=`` and/or
     override single fields as flat keyword arguments (applied on top of ``config``). A registered variant
-    (``HapticRecogShadow-v0``, ...) passes its own fields so, over ``config``: ``make`` refuses a ``config`` that
-    set one of them otherwise; build such a config with ``haptic_env.variant_config(id, ...)`` and make it with
-    ``haptic_env.make(config, env_id=id)``::
+    (``HapticRecogShadow-v0``, ...) puts its own fields over ``config`` (keyword arguments go over both):
+    ``make`` refuses a ``config`` that set one of them otherwise without a keyword argument for it
+    (:func:`~haptic_env.config.resolve_env_config`); build such a config with
+    ``haptic_env.variant_config(id, ...)`` and make it with ``haptic_env.make(config, env_id=id)``::
 
         env = gym.make("HapticRecog-v0")                                  # defaults
         env = gym.make("HapticRecog-v0", config=HapticRecogConfig(n_fingers=3, normals=False))
@@ -172,14 +173,10 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 4}
 
-    def __init__(self, config: HapticRecogConfig | None = None, render_mode: str | None = None, **overrides: Any):
-        utils.EzPickle.__init__(self, config, render_mode, **overrides)
-        config = config if config is not None else HapticRecogConfig()
-        if not isinstance(config, HapticRecogConfig):
-            raise TypeError(f"config must be a HapticRecogConfig, got {type(config).__name__}")
-        if overrides:
-            _refuse_overridden_config(config, overrides)
-            config = config.replace(**overrides)
+    def __init__(self, config: HapticRecogConfig | None = None, render_mode: str | None = None,
+                 variant: str | None = None, **overrides: Any):
+        utils.EzPickle.__init__(self, config, render_mode, variant, **overrides)
+        config = resolve_env_config(config, variant, overrides)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         if render_mode == "human":
@@ -406,32 +403,6 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
         certainty = self._belief.certainty if self._belief is not None else float(self._probs.max())
         return self.task.info(self.object_names, self.scene.target, self._probs, certainty, grasps=self._grasps,
                               usable=usable, decided=decided)
-
-
-def _refuse_overridden_config(config: HapticRecogConfig, overrides: dict[str, Any]) -> None:
-    """Refuse a ``config`` whose own choices a registered variant's fields would silently replace.
-
-    ``gymnasium.make(id, config=config)`` passes the variant's fields (``ENV_VARIANTS[id]``) as keyword overrides,
-    which win over ``config``: a field that ``config`` set away from the default and the variant sets to another
-    value would be lost (``gym.make("HapticRecogShadow-v0", config=HapticRecogConfig(z_fingers=2))`` would run
-    with the Shadow's 3). Fields ``config`` leaves at their defaults take the variant's values, as expected (so a
-    field set to its default value, e.g. ``touch_weight=0.0``, cannot be told apart and takes the variant's)."""
-    from haptic_env import ENV_VARIANTS
-
-    matched = [(env_id, fields) for env_id, fields in ENV_VARIANTS.items()
-               if fields and all(k in overrides and overrides[k] == v for k, v in fields.items())]
-    if not matched:
-        return
-    env_id, fields = max(matched, key=lambda m: len(m[1]))  # the most specific (a Heights id holds its plain one's)
-    default, variant = HapticRecogConfig(), config.replace(**fields)
-    lost = {k: (getattr(config, k), getattr(variant, k)) for k in fields
-            if getattr(config, k) != getattr(default, k) and getattr(config, k) != getattr(variant, k)}
-    if lost:
-        said = ", ".join(f"{k}={mine!r} (the variant's {theirs!r})" for k, (mine, theirs) in lost.items())
-        raise ValueError(
-            f"{env_id} sets {', '.join(lost)} over the given config: {said}. Build the whole config with "
-            f"haptic_env.variant_config({env_id!r}, ...) and make it with haptic_env.make(config, env_id={env_id!r}), "
-            "or pass those fields as keyword arguments")
 
 
 def _require_display() -> None:

@@ -52,7 +52,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from haptic_env.belief import Belief, check_grasp_vectors, get_recognizer
-from haptic_env.config import HapticRecogConfig
+from haptic_env.config import HapticRecogConfig, resolve_env_config
 from haptic_env.grasp_features import feature_dim
 from haptic_env.scene import Scene, reset_options
 from haptic_env.task import Task, entropy, touched_rows
@@ -74,15 +74,11 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
 
     def __init__(self, num_envs: int = 1, config: HapticRecogConfig | None = None, *,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP, render_mode: str | None = None,
-                 max_episode_steps: int | None = None, **overrides: Any):
+                 max_episode_steps: int | None = None, variant: str | None = None, **overrides: Any):
         utils.EzPickle.__init__(self, num_envs, config, autoreset_mode=autoreset_mode, render_mode=render_mode,
-                                max_episode_steps=max_episode_steps, **overrides)
+                                max_episode_steps=max_episode_steps, variant=variant, **overrides)
         whole_at_least(num_envs, 1, "num_envs")
-        config = config if config is not None else HapticRecogConfig()
-        if not isinstance(config, HapticRecogConfig):
-            raise TypeError(f"config must be a HapticRecogConfig, got {type(config).__name__}")
-        if overrides:
-            config = config.replace(**overrides)
+        config = resolve_env_config(config, variant, overrides)  # as the single env's (HapticRecogEnv)
         if render_mode is not None:
             raise ValueError("HapticRecogVectorEnv does not render (render_mode=None); render a single HapticRecogEnv")
         if max_episode_steps is not None:

@@ -164,6 +164,15 @@ def test_a_variant_refuses_a_config_whose_choices_it_would_replace():
         haptic_env.make(cfg, env_id="HapticRecogKIT-v0")
     plain = gym.make("HapticRecog-v0", config=HapticRecogConfig(n_fingers=3), grasp_cost=0.01).unwrapped.config
     assert plain.n_fingers == 3 and plain.grasp_cost == 0.01  # explicit keyword arguments still go on top
+    # keyword arguments that happen to be a variant's fields are the caller's, not a variant's: no refusal
+    with pytest.raises(FileNotFoundError, match="absent"):  # got as far as loading kit8
+        gym.make("HapticRecog-v0", config=HapticRecogConfig(objects="ycb10"), objects="kit8",
+                 object_kwargs={"data_dir": "absent"})
+    with pytest.raises(FileNotFoundError, match="absent"):  # a keyword argument for the variant's field wins
+        gym.make("HapticRecogKIT-v0", config=HapticRecogConfig(objects="kit20"), objects="kit8",
+                 object_kwargs={"data_dir": "absent"})
+    with pytest.raises(ValueError, match="HapticRecogKIT-v0 sets objects"):  # the native vector env alike
+        gym.make_vec("HapticRecogKIT-v0", num_envs=2, config=HapticRecogConfig(objects="kit20"))
 
 
 def test_kit_variant_without_data_raises_clearly(tmp_path):
