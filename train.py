@@ -188,8 +188,11 @@ def parse_args(argv: list[str] | None = None) -> Args:
         other = next((a for a in ALGOS if a != args.algo and Path(args.resume).name.startswith(a + "_")), None)
         if other is not None:
             _usage_error(f"argument --resume: {args.resume} is a {other} checkpoint, not {args.algo} (pass --algo {other})")
+        from agents.sb3 import checkpoint_steps
+
         later = latest_checkpoint(run_folder(Path(args.resume)), args.algo)
-        if later is not None and later.resolve() != Path(args.resume).resolve():
+        steps = checkpoint_steps(Path(args.resume))  # None for a final model: no checkpoint comes after it
+        if later is not None and steps is not None and checkpoint_steps(later) > steps:
             # the resumed run's checkpoints would sit beside the later ones of the line it leaves, and a later
             # --resume of the folder would go on from those
             _usage_error(f"argument --resume: {args.resume} is not its run's latest checkpoint ({later.name}); move "
@@ -205,7 +208,9 @@ def parse_args(argv: list[str] | None = None) -> Args:
 
 
 def run_folder(checkpoint: Path) -> Path:
-    """The run folder a checkpoint belongs to: the one above its ``checkpoints/``, else its own."""
+    """The run folder a checkpoint belongs to: the one above its ``checkpoints/``, else its own (the path resolved:
+    ``--resume ppo_64_steps.zip`` from inside ``checkpoints/`` names the run above it)."""
+    checkpoint = checkpoint.resolve()
     return checkpoint.parent.parent if checkpoint.parent.name == "checkpoints" else checkpoint.parent
 
 
@@ -311,7 +316,9 @@ def main(argv: list[str] | None = None) -> Path:
     run_dir.mkdir(parents=True, exist_ok=True)
     config = env_config(args)
     first_env_seed = env_seed(args)
-    part = _next_part(run_dir) if args.resume else 1  # a resumed run keeps the earlier args and Monitor files
+    # a resumed run keeps the earlier args and Monitor files; its segment number counts the segments of its
+    # checkpoint's run too (a resume into a new folder is not that run's start: other seeds than the start's)
+    part = max(2, _next_part(run_dir), _next_part(run_folder(Path(args.resume)))) if args.resume else 1
     suffix = "" if part == 1 else f".part{part}"
     seed, segment_env_seed = segment_seeds(args, part)
     # explicit seeding: python, numpy, torch; env rank r is seeded segment_env_seed + r by make_vec_env

@@ -326,6 +326,13 @@ def load_model(path: str | os.PathLike, algo: str | None = None, env=None):
 _CHECKPOINT = re.compile(r"^(?P<algo>[a-z0-9]+)_(?P<steps>\d+)_steps\.zip$")
 
 
+def checkpoint_steps(path: str | os.PathLike) -> int | None:
+    """The step count in a checkpoint's name (``ppo_20000_steps.zip``: 20000); None for another name (a final
+    model)."""
+    m = _CHECKPOINT.match(Path(path).name)
+    return int(m["steps"]) if m else None
+
+
 def latest_checkpoint(run_dir: str | os.PathLike, algo: str | None = None) -> Path | None:
     """The ``<algo>_<steps>_steps.zip`` with the most steps in ``<run_dir>/checkpoints`` (or in ``run_dir``
     itself when it has no ``checkpoints`` folder); ``None`` when there is none."""
@@ -554,7 +561,8 @@ def train(algo: str, venv, total_timesteps: int, log_dir: str | os.PathLike, *, 
         if hasattr(model, "load_replay_buffer"):  # SAC: without its buffer it would go on as another run
             if "replay_buffer" not in extras:
                 raise ValueError(f"checkpoint {resume} has no replay buffer beside it ({Path(resume).name} from a run "
-                                 "killed while saving?); resume from an earlier checkpoint, or delete this one")
+                                 "killed while saving?); delete it (and any later ones) and resume from the one "
+                                 "before it")
             model.load_replay_buffer(str(extras["replay_buffer"]))
     else:
         model = build_model(algo, venv, seed=seed, log_dir=log_dir, verbose=verbose, **hyperparams)

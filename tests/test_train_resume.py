@@ -301,9 +301,19 @@ def test_a_resume_goes_on_in_its_own_run_folder(small_recognizer_kwargs, tmp_pat
     usage_error(train.main, without + ["--resume", str(ckpts / "ppo_64_steps.zip")],
                 match=r"--resume: .*ppo_64_steps.zip is not its run's latest checkpoint \(ppo_128_steps.zip\)")
     (ckpts / "ppo_64_steps.zip").unlink()
+    # a finished run's final model goes on (no checkpoint comes after it), in its own folder, as a later segment
+    assert train.main(without + ["--resume", str(run / "ppo_final.zip"), "--total-timesteps", "256"]) == \
+        run / "ppo_final.zip"
+    assert json.loads((run / "args.part2.json").read_text())["resume"].endswith("ppo_final.zip")
     monkeypatch.chdir(tmp_path)
-    assert train.main(without + ["--resume", str(run)]) == run / "ppo_final.zip"
+    assert train.main(without + ["--resume", str(run), "--total-timesteps", "320"]) == run / "ppo_final.zip"
     assert not (tmp_path / "runs").exists()  # nothing written into the default folder
+    assert (run / "args.part3.json").is_file()  # the third segment of the run, with seeds of its own
+    # a resume into a new folder is a later segment of its checkpoint's run, not a start: other seeds than the start's
+    fork = tmp_path / "fork"
+    train.main(more[:i + 1] + [str(fork)] + more[i + 2:] + ["--resume", str(run), "--total-timesteps", "384"])
+    seg = json.loads(next(fork.glob("args.part*.json")).read_text())
+    assert seg["segment_env_seed"] > seg["first_env_seed"] and seg["segment_seed"] != seg["seed"]
 
 
 def test_a_failed_first_reset_still_saves_and_names_its_checkpoint(env_config, tmp_path, monkeypatch):
