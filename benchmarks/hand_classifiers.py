@@ -50,10 +50,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.hand_experiment import (PAPER, SETUPS, env_config, query_pools, seed_std,  # noqa: E402
+from benchmarks.hand_experiment import (PAPER, SETUPS, check_pool_seeds, env_config, query_pools, seed_std,  # noqa: E402
                                         training_config, write_table)
 from benchmarks.stop_frontier import grasp_scores, replay  # noqa: E402
-from haptic_env.cli import distinct, int_in, output_path  # noqa: E402
+from haptic_env.cli import int_in, output_path  # noqa: E402
 from haptic_env.cache import atomic_write, cache_dir, config_key, resume_state, save_keyed_json  # noqa: E402
 from haptic_env.config import HAND_APPROACHES  # noqa: E402
 from haptic_env.dataset import build_dataset, support_frame  # noqa: E402
@@ -195,7 +195,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int_in(0), nargs="+", default=[0, 1, 2], help="pool seeds (spread: std over them)")
     ap.add_argument("--out", type=output_path("folder"), default=None, help="write classifiers.md, frontier.png here")
     args = ap.parse_args(argv)
-    distinct(ap, "--seeds", args.seeds)
+    check_pool_seeds(ap, args.split, args.seeds)
     bad = [s for s in args.scales if not (np.isfinite(s) and s > 0)]
     if bad:
         ap.error(f"--scales must be finite and > 0, got {bad}")

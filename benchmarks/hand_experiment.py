@@ -104,6 +104,17 @@ def seed_std(x: np.ndarray) -> float:
     return float(np.std(x, ddof=min(1, len(x) - 1)))
 
 
+def check_pool_seeds(ap: argparse.ArgumentParser, split: str, seeds) -> None:
+    """``ap.error`` unless every ``--seeds`` value is given once and lies in ``split``'s pool range (before the first
+    pool is built; the hand benchmarks' one check)."""
+    distinct(ap, "--seeds", seeds)
+    try:
+        for s in seeds:
+            hand_pool_seed(split, s)
+    except ValueError as exc:
+        ap.error(f"--seeds: {exc}")
+
+
 def query_pools(objects, hand: str, n: int, split: str, seeds, queries: int, max_grasps: int) -> tuple[list, float] | None:
     """The query pools of ``split`` (``"test"``: pool seeds ``1000 + s``; ``"validation"``: ``500 + s``), one per seed
     with ``queries x max_grasps`` random-approach grasps per object, and their usable rate (>= 3 touching
@@ -343,11 +354,7 @@ def main(argv=None) -> int:
         ap.error(f"--kde-bandwidth {args.kde_bandwidth} sets the KDE, which --likelihood hgb replaces")
     if args.touch_weight is not None and not (np.isfinite(args.touch_weight) and args.touch_weight >= 0):
         ap.error(f"--touch-weight must be a finite number >= 0, got {args.touch_weight}")
-    distinct(ap, "--seeds", args.seeds)
-    try:  # every seed in its split before the first pool is built
-        [hand_pool_seed(args.split, s) for s in args.seeds]
-    except ValueError as exc:
-        ap.error(f"--seeds: {exc}")
+    check_pool_seeds(ap, args.split, args.seeds)
     for spec in args.hands:  # every name checked before the first hand's pools are built
         if spec.partition("=")[0] not in SETUPS:
             ap.error(f"--hands: unknown hand {spec.partition('=')[0]!r}; choose from {list(SETUPS)}")

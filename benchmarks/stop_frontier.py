@@ -48,10 +48,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.hand_experiment import (PAPER, SETUPS, env_config, query_pools, run_query, seed_std,  # noqa: E402
-                                        training_config, write_table)
+from benchmarks.hand_experiment import (PAPER, SETUPS, check_pool_seeds, env_config, query_pools,  # noqa: E402
+                                        run_query, seed_std, training_config, write_table)
 from haptic_env.cache import atomic_write  # noqa: E402
-from haptic_env.cli import distinct, int_in, output_path  # noqa: E402
+from haptic_env.cli import int_in, output_path  # noqa: E402
 from haptic_env.config import HAND_APPROACHES  # noqa: E402
 from haptic_env.dataset import support_frame  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
@@ -136,7 +136,7 @@ def main(argv=None) -> int:
         ap.error("--scales must include 1 (the hand table's belief, checked against its updaters)")
     if not 0 < args.threshold < 1:
         ap.error(f"--threshold must be in (0, 1), got {args.threshold}")
-    distinct(ap, "--seeds", args.seeds)
+    check_pool_seeds(ap, args.split, args.seeds)
     if data_dir() is None:
         print("the stop frontier needs the YCB meshes (ycb/ in the shared data folder; set HAPTIC_DATA)")
         return 1

@@ -398,6 +398,8 @@ def test_ctrl_c_in_a_subcommand_is_one_line_saying_what_a_rerun_keeps(monkeypatc
     ("hand_experiment", ["--queries", "0"], r"argument --queries: must be >= 1, got 0"),
     ("hand_experiment", ["--threshold", "1.5"], r"argument --threshold: must be a finite number in \(0.0, 1.0\)"),
     ("stop_frontier", ["--seeds", "1", "1"], r"--seeds: each value once"),
+    ("stop_frontier", ["--seeds", "0", "500"], r"--seeds: seed must be an int in \[0, 500\)"),
+    ("hand_classifiers", ["--seeds", "0", "500"], r"--seeds: seed must be an int in \[0, 500\)"),
     ("hand_classifiers", ["--seeds", "2", "2"], r"--seeds: each value once"),
     ("family_bandwidth", ["--floors", "0,1.5"], r"--floors: quantiles in \[0, 1\) \(0: no floor\), got \[1.5\]"),
     ("family_bandwidth", ["--factors", "0"], r"--factors: bandwidth factors are finite and > 0"),
