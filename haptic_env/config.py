@@ -331,16 +331,20 @@ def resolve_env_config(config: HapticRecogConfig | None = None, variant: str | N
         if variant not in ENV_VARIANTS:
             raise ValueError(f"unknown variant {variant!r}; choose from {list(ENV_VARIANTS)}")
         fields = ENV_VARIANTS[variant]
-        default, theirs = HapticRecogConfig(), config.replace(**fields)
-        lost = {k: (getattr(config, k), getattr(theirs, k)) for k in fields if k not in overrides
-                and getattr(config, k) != getattr(default, k) and getattr(config, k) != getattr(theirs, k)}
+        default = HapticRecogConfig()
+
+        def same(a, b) -> bool:
+            return dict(a) == dict(b) if isinstance(a, Mapping) and isinstance(b, Mapping) else a == b
+
+        lost = {k: (getattr(config, k), v) for k, v in fields.items() if k not in overrides
+                and not same(getattr(config, k), getattr(default, k)) and not same(getattr(config, k), v)}
         if lost:
             said = ", ".join(f"{k}={mine!r} (the variant's {v!r})" for k, (mine, v) in lost.items())
             raise ValueError(
                 f"{variant} sets {', '.join(lost)} over the given config: {said}. Build the whole config with "
                 f"haptic_env.variant_config({variant!r}, ...) and make it with haptic_env.make(config, "
                 f"env_id={variant!r}), or pass those fields as keyword arguments")
-        config = theirs
+        overrides = {**fields, **overrides}  # one replace: no in-between config to fail the checks
     return config.replace(**overrides) if overrides else config
 
 

@@ -173,6 +173,12 @@ def test_a_variant_refuses_a_config_whose_choices_it_would_replace():
                  object_kwargs={"data_dir": "absent"})
     with pytest.raises(ValueError, match="HapticRecogKIT-v0 sets objects"):  # the native vector env alike
         gym.make_vec("HapticRecogKIT-v0", num_envs=2, config=HapticRecogConfig(objects="kit20"))
+    # a variant's config with changes that only hold together (each alone with the variant's fields would fail the
+    # config's checks): one replace, no in-between config
+    from haptic_env.config import resolve_env_config
+
+    cfg = haptic_env.variant_config("HapticRecogShadow-v0", updater="ic", touch_weight=0.0)
+    assert resolve_env_config(cfg, "HapticRecogShadow-v0", haptic_env.config_kwargs(cfg, "HapticRecogShadow-v0", {})) == cfg
 
 
 def test_kit_variant_without_data_raises_clearly(tmp_path):
