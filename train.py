@@ -33,6 +33,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import re
 import random
 import sys
 import time
@@ -191,7 +192,7 @@ def parse_args(argv: list[str] | None = None) -> Args:
         from agents.sb3 import checkpoint_steps
 
         later = latest_checkpoint(run_folder(Path(args.resume)), args.algo)
-        steps = checkpoint_steps(Path(args.resume))  # None for a final model: no checkpoint comes after it
+        steps = _saved_steps(Path(args.resume))  # a final model's from its file
         if later is not None and steps is not None and checkpoint_steps(later) > steps:
             # the resumed run's checkpoints would sit beside the later ones of the line it leaves, and a later
             # --resume of the folder would go on from those
@@ -210,7 +211,7 @@ def parse_args(argv: list[str] | None = None) -> Args:
 def run_folder(checkpoint: Path) -> Path:
     """The run folder a checkpoint belongs to: the one above its ``checkpoints/``, else its own (the path resolved:
     ``--resume ppo_64_steps.zip`` from inside ``checkpoints/`` names the run above it)."""
-    checkpoint = checkpoint.resolve()
+    checkpoint = Path(os.path.abspath(checkpoint))  # not resolve(): a linked file belongs to its link's run
     return checkpoint.parent.parent if checkpoint.parent.name == "checkpoints" else checkpoint.parent
 
 
@@ -232,6 +233,23 @@ def refuse_a_held_run_dir(args: Args) -> None:
     if final is not None:
         _usage_error(f"argument --run-dir: {run_dir} already holds a finished run ({final.name}); choose another "
                      "--run-dir")
+
+
+def _saved_steps(path: Path) -> int | None:
+    """The steps a model file was saved at: a checkpoint's name says (``ppo_20000_steps.zip``), a final model's
+    data holds them (None: a file SB3 cannot read, left to the loader to report)."""
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    from agents.sb3 import checkpoint_steps
+
+    steps = checkpoint_steps(path)
+    if steps is not None:
+        return steps
+    try:
+        data, _, _ = load_from_zip_file(path, load_data=True, device="cpu")
+    except ValueError:
+        return None
+    return int((data or {}).get("num_timesteps", 0))
 
 
 def _saved_approaches(path: Path) -> int | None:
@@ -272,12 +290,14 @@ _SEGMENT_ONLY = ("total_timesteps", "max_minutes", "checkpoint_freq", "progress_
 def settings_changed(record: dict, checkpoint: Path) -> list[str]:
     """On ``--resume``: ``"name: old -> new"`` for each run setting of ``record`` (what this segment writes to its
     ``args*.json``) that differs from the ``args.json`` of the run ``checkpoint`` belongs to (its folder, or the one
-    above ``checkpoints/``); nothing when that file is missing or unreadable. Fine-tuning a checkpoint on another env
+    above ``checkpoints/``; a folder a run was resumed into: its earliest segment's ``args.part<k>.json``); nothing
+    when there is none or it is unreadable. Fine-tuning a checkpoint on another env
     is allowed; it is said, not silent."""
     folder = run_folder(checkpoint)
-    try:
-        old = json.loads((folder / "args.json").read_text())
-    except (OSError, ValueError):
+    parts = {k: p for k, p in _parts(folder).items() if p is not None}
+    try:  # the run's start, or (a run resumed into this folder from another) its earliest segment here
+        old = json.loads(parts[min(parts)].read_text())
+    except (OSError, ValueError):  # none (min of nothing), unreadable, not JSON
         return []
     new = json.loads(json.dumps(record, default=str))
     out = []
@@ -292,17 +312,25 @@ def settings_changed(record: dict, checkpoint: Path) -> list[str]:
     return out
 
 
+def _parts(run_dir: Path) -> dict[int, Path | None]:
+    """The run segments with files in ``run_dir``: ``k -> its args file`` (None if only its Monitor CSVs are there);
+    segment 1 writes ``args.json`` + ``monitor/<rank>.monitor.csv``, segment ``k`` ``args.part<k>.json`` +
+    ``monitor/<rank>.part<k>.monitor.csv``."""
+    found: dict[int, Path | None] = {}
+    for p in (run_dir / "monitor").glob("*.monitor.csv"):
+        m = re.search(r"\.part(\d+)\.monitor\.csv$", p.name)
+        found.setdefault(int(m[1]) if m else 1, None)
+    for p in run_dir.glob("args*.json"):
+        m = re.fullmatch(r"args(?:\.part(\d+))?\.json", p.name)
+        if m:
+            found[int(m[1]) if m[1] else 1] = p
+    return found
+
+
 def _next_part(run_dir: Path) -> int:
-    """The first run segment ``k`` whose files (``args.json`` + ``monitor/<rank>.monitor.csv`` for ``k = 1``,
-    ``args.part<k>.json`` + ``monitor/<rank>.part<k>.monitor.csv`` after) do not exist yet."""
-    k = 1
-    while True:
-        suffix = "" if k == 1 else f".part{k}"
-        monitors = [p for p in (run_dir / "monitor").glob(f"*{suffix}.monitor.csv")
-                    if k > 1 or ".part" not in p.name]
-        if not (run_dir / f"args{suffix}.json").exists() and not monitors:
-            return k
-        k += 1
+    """One past the last run segment with files in ``run_dir`` (:func:`_parts`; 1 in a new folder): a segment's
+    files are never written over, and its seeds are its own (:func:`segment_seeds`)."""
+    return max(_parts(run_dir), default=0) + 1
 
 
 def main(argv: list[str] | None = None) -> Path:

@@ -314,6 +314,17 @@ def test_a_resume_goes_on_in_its_own_run_folder(small_recognizer_kwargs, tmp_pat
     train.main(more[:i + 1] + [str(fork)] + more[i + 2:] + ["--resume", str(run), "--total-timesteps", "384"])
     seg = json.loads(next(fork.glob("args.part*.json")).read_text())
     assert seg["segment_env_seed"] > seg["first_env_seed"] and seg["segment_seed"] != seg["seed"]
+    # resumed again in that folder: the next segment (its files and seeds its own), not that one again
+    before = {p.name: p.read_bytes() for p in fork.glob("args.part*.json")}
+    train.main(more[:i + 1] + [str(fork)] + more[i + 2:] + ["--resume", str(fork), "--total-timesteps", "448"])
+    after = {p.name: p.read_bytes() for p in fork.glob("args.part*.json")}
+    assert len(after) == len(before) + 1 and all(after[k] == v for k, v in before.items())
+    # a final model older than its run's latest checkpoint (the run went on after it) is refused too: its steps are
+    # read from the file (320 here)
+    shutil.copy(ckpts / "ppo_128_steps.zip", ckpts / "ppo_9984_steps.zip")
+    usage_error(train.main, without + ["--resume", str(run / "ppo_final.zip")],
+                match=r"ppo_final.zip is not its run's latest checkpoint \(ppo_9984_steps.zip\)")
+    (ckpts / "ppo_9984_steps.zip").unlink()
 
 
 def test_a_failed_first_reset_still_saves_and_names_its_checkpoint(env_config, tmp_path, monkeypatch):
