@@ -116,7 +116,7 @@ def env_seed(args: Args) -> int:
 
 
 def segment_seeds(args: Args, part: int) -> tuple[int, int]:
-    """``(model seed, first env seed)`` of run segment ``part`` (1: the run's start; ``k > 1``: its ``k - 1``-th resume).
+    """``(model seed, first env seed)`` of run segment ``part`` (1: the run's start; ``k > 1``: a resume).
     The start has ``--seed`` and :func:`env_seed`; a resumed segment draws fresh numbers instead of replaying the
     start's (stable-baselines3's load would reseed the model with ``--seed``, and the envs would begin again at their
     first episodes): its envs start ``(k - 1) x n_envs`` seeds later, still inside the run's block of training env

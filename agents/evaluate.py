@@ -335,7 +335,8 @@ def cluster_intervals(scores: dict[str, Any], fn: Callable[..., np.ndarray], per
     with draws shared across agents."""
     if not (isinstance(period, (int, np.integer)) and period >= 1):
         raise ValueError(f"period must be an int >= 1, got {period!r}")
-    mats = {n: [np.asarray(m, dtype=np.float64) for m in (v if isinstance(v, list) else [v])] for n, v in scores.items()}
+    mats = {n: [np.asarray(m, dtype=np.float64) for m in (v if isinstance(v, list) else [v])]
+            for n, v in scores.items()}
     T = next(iter(mats.values()))[0].shape[1]
     for n, ms in mats.items():
         for m in ms:

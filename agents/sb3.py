@@ -534,9 +534,9 @@ def train(algo: str, venv, total_timesteps: int, log_dir: str | os.PathLike, *, 
     resumed with the same settings ends at the same step count. A resumed model's random numbers (torch, NumPy,
     Python's, the action space's) are seeded with ``seed``: stable-baselines3's load seeds them with the
     checkpoint's seed, which would replay the first segment's draws, so a caller gives each resumed segment a seed
-    of its own (``train.segment_seeds``), as it gives its envs their seeds. ``max_minutes`` stops learning early after that
-    much wall-clock time (a checkpoint and the final model are saved). SIGINT / SIGTERM (a second one: at once)
-    or a dead ``SubprocVecEnv`` worker (``EOFError``, ``BrokenPipeError``, ``ConnectionResetError``) stop
+    of its own (``train.segment_seeds``), as it gives its envs their seeds. ``max_minutes`` stops learning early
+    after that much wall-clock time (a checkpoint and the final model are saved). SIGINT / SIGTERM (a second one:
+    at once) or a dead ``SubprocVecEnv`` worker (``EOFError``, ``BrokenPipeError``, ``ConnectionResetError``) stop
     learning, save a checkpoint (see ``RunGuard`` in :func:`_run_guard`) and raise :class:`TrainingInterrupted`
     naming it; closing ``venv`` is left to the caller (:func:`close_vec_env`).
     """
@@ -556,7 +556,7 @@ def train(algo: str, venv, total_timesteps: int, log_dir: str | os.PathLike, *, 
             else:
                 venv = loaded
         model = load_model(resume, algo, env=venv)
-        model.set_random_seed(seed)  # not the checkpoint's seed again (SB3's load set it): the caller's for this segment
+        model.set_random_seed(seed)  # not the checkpoint's seed again (SB3's load set it): this segment's
         model.tensorboard_log = str(log_dir / "tb")
         if hasattr(model, "load_replay_buffer"):  # SAC: without its buffer it would go on as another run
             if "replay_buffer" not in extras:

@@ -4,9 +4,10 @@
 numba call; the baseline is the same model scored through scikit-learn (the fallback path,
 ``HistGradientBoostingClassifier.predict_proba``), in the same process on the same vectors. Both are timed on one
 vector per call (an env step scores one grasp) and on a batch (the analyses' trials), in three blocks (scikit-learn,
-compiled, scikit-learn again: the baseline is the faster of its two), best of ``--repeats``; the two paths must agree to rounding first. In an env the physics between two grasps pushes the trees
-out of the CPU caches, so the one-vector calls are also timed cold: ``--evict-mb`` MB of other memory written before
-each call (outside the timing; 0 skips it).
+compiled, scikit-learn again: the baseline is the faster of its two), best of ``--repeats``; the two paths must
+agree to rounding first. In an env the physics between two grasps pushes the trees out of the CPU caches, so the
+one-vector calls are also timed cold: ``--evict-mb`` MB of other memory written before each call (outside the
+timing; 0 skips it).
 
     OMP_NUM_THREADS=1 python benchmarks/bench_boosted.py --objects default --fingers 4 --grasps-per-object 10000
 

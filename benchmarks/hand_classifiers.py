@@ -27,8 +27,8 @@ with each classifier as the likelihood, ``log p(object | q) - log (the object's 
 env scores the KDE (BC-NP: the touching contacts' vector; z = 3: the 3-subsets' sum, weighted by the env's
 ``subset_k``; the env's touch-pattern term added alike), and multiplied by each scale ``s``. The KDE's row at
 ``s = 1`` is the hand table's belief (the env's settings, the KDE summed per object where the env pools its
-neighbour search: ``stop_frontier.py``'s docstring). If a classifier's frontier (success at the stop against grasps) lay above the KDE's,
-it would tell more per grasp. Nothing is chosen here; the default split uses no test grasp.
+neighbour search: ``stop_frontier.py``'s docstring). If a classifier's frontier (success at the stop against
+grasps) lay above the KDE's, it would tell more per grasp. Nothing is chosen here; the default split uses no test grasp.
 
     OMP_NUM_THREADS=1 python benchmarks/hand_classifiers.py [--hands allegro aero] [--split validation]
         [--classifiers knn hgb extra-trees mlp] [--frontier hgb extra-trees] [--scales ...] [--out DIR]
@@ -50,8 +50,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.hand_experiment import (PAPER, SETUPS, check_pool_seeds, env_config, query_pools, seed_std,  # noqa: E402
-                                        training_config, write_table)
+from benchmarks.hand_experiment import (PAPER, SETUPS, check_pool_seeds, env_config, query_pools,  # noqa: E402
+                                        seed_std, training_config, write_table)
 from benchmarks.stop_frontier import grasp_scores, replay  # noqa: E402
 from haptic_env.cli import int_in, output_path  # noqa: E402
 from haptic_env.cache import atomic_write, cache_dir, config_key, resume_state, save_keyed_json  # noqa: E402
@@ -306,7 +306,8 @@ def main(argv=None) -> int:
     if len(front) > 2:
         text += ("\n\nThe stop frontier with each likelihood (success at the stop, decided and correct, mean +- sample "
                  f"std over the pools / mean grasps; {QUERIES} queries of at most {MAX_GRASPS} grasps per object and "
-                 f"pool, lambda = {DEFAULT_THRESHOLD}; the KDE at s = 1 is the hand table's belief):\n\n" + "\n".join(front))
+                 f"pool, lambda = {DEFAULT_THRESHOLD}; the KDE at s = 1 is the hand table's belief):\n\n"
+                 + "\n".join(front))
     if args.out is not None:
         write_table(args.out, "classifiers.md", "hand_classifiers.py", argv, time.perf_counter() - t0, text)
         if curves:

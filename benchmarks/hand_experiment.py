@@ -398,8 +398,8 @@ def main(argv=None) -> int:
         f"{'; grasp vectors with the contacts heights above the table (--heights)' if args.heights else ''}"
         f"{'' if args.normal_axis == 't2' else f'; Phi_n with normal_axis={args.normal_axis!r}: ' + NORMAL_AXIS_WORDS[args.normal_axis]}. "
         "Success = decided and correct at the stop; accuracy = final prediction correct (decided or not). "
-        f"Mean +- sample std (ddof = 1) over the {args.split} seeds. Paper: Pisa/IIT SoftHand for the 5-finger rows, real Allegro "
-        "for the 4-finger rows.",
+        f"Mean +- sample std (ddof = 1) over the {args.split} seeds. Paper: Pisa/IIT SoftHand for the 5-finger rows, "
+        "real Allegro for the 4-finger rows.",
         "",
         f"{TABLE_HEADER} usable grasps | T ({args.likelihood.upper()} / MLP) | K | training grasps / object | "
         "touch w |",

@@ -30,7 +30,8 @@ def main(argv=None) -> int:
     models = [m for m in args.models.split(",") if m]
     bad = [m for m in models if m not in ("knn", "kde", "mlp")]
     if args.fingers < 3 or args.grasps < 100 or args.test_grasps < 1 or args.seed < 0 or bad or not models:
-        ap.error(f"need --fingers >= 3, --grasps >= 100, --test-grasps >= 1, --seed >= 0 and --models among knn, kde, mlp; "
+        ap.error(f"need --fingers >= 3, --grasps >= 100, --test-grasps >= 1, --seed >= 0 and --models among knn, "
+                 f"kde, mlp; "
                  f"got {vars(args)}")
     from sklearn.neighbors import KNeighborsClassifier
 

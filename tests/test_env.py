@@ -178,7 +178,8 @@ def test_a_variant_refuses_a_config_whose_choices_it_would_replace():
     from haptic_env.config import resolve_env_config
 
     cfg = haptic_env.variant_config("HapticRecogShadow-v0", updater="ic", touch_weight=0.0)
-    assert resolve_env_config(cfg, "HapticRecogShadow-v0", haptic_env.config_kwargs(cfg, "HapticRecogShadow-v0", {})) == cfg
+    kw = haptic_env.config_kwargs(cfg, "HapticRecogShadow-v0", {})
+    assert resolve_env_config(cfg, "HapticRecogShadow-v0", kw) == cfg
 
 
 def test_kit_variant_without_data_raises_clearly(tmp_path):

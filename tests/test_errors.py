@@ -410,7 +410,8 @@ def test_ctrl_c_in_a_subcommand_is_one_line_saying_what_a_rerun_keeps(monkeypatc
     ("bench_phi", ["--batches", "1,64"], r"--batches \(1, 64\) needs one batch >= --grasps 200000"),
     ("likelihood_bound", ["--trials", "0"], r"argument --trials: must be >= 1, got 0"),
     ("family_cups", ["--seed", "-1"], r"argument --seed: must be >= 0, got -1"),
-    ("heights_information", ["--validation-seeds", "0"], r"argument --validation-seeds: must be in \[500, 999\], got 0"),
+    ("heights_information", ["--validation-seeds", "0"],
+     r"argument --validation-seeds: must be in \[500, 999\], got 0"),
     ("heights_information", ["--validation-seeds", "500", "500"], r"--validation-seeds: each value once"),
 ])
 def test_benchmarks_refuse_bad_counts_before_any_work(load_benchmark, usage_error, monkeypatch, bench, argv, match):

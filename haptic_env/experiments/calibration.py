@@ -68,7 +68,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
                 LL, PR = scores[v]
                 P = oneshot_posterior(np.concatenate(LL)) if model.startswith("BC") else np.concatenate(PR)
                 s = calibration_summary(P, y, cfg.ece_bins)  # the calibrated scores' own argmax (a correction moves it)
-                row += [f"{100 * s['accuracy']:.1f}", f"{s['ece']:.3f}", f"{s['nll']:.3f}", f"{100 * s['confidence']:.1f}"]
+                row += [f"{100 * s['accuracy']:.1f}", f"{s['ece']:.3f}", f"{s['nll']:.3f}",
+                        f"{100 * s['confidence']:.1f}"]
                 curves.setdefault(model, {})[v] = (P, y, Tm)
             ece_rows.append(row)
         title = f"n = {n}, {'with' if normals else 'without'} normals"
@@ -105,8 +106,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     rep.p(f"Test grasps: {cfg.test_grasps} fresh grasps per object (seed {cfg.seed + TEST_SEED_OFFSET}), never used to "
           f"fit T (T is fitted on the training data's validation split). One-shot posterior: BC = softmax of the KDE "
           f"log-likelihoods ({_kde_calibration(cfg.kde)}), MLP = softmax(logits / T). ECE over {cfg.ece_bins} equal-width confidence bins; NLL "
-          "of the true class; conf = mean max posterior; acc = one-shot accuracy of each variant's own argmax (a temperature "
-          "does not move it, the KDE's learned correction can). Reliability diagrams: "
+          "of the true class; conf = mean max posterior; acc = one-shot accuracy of each variant's own argmax (a "
+          "temperature does not move it, the KDE's learned correction can). Reliability diagrams: "
           "`reliability_<cell>.png`.")
     rep.table(["n", "normals", "model", "T", "acc raw %", "ECE raw", "NLL raw", "conf raw %", "acc cal %", "ECE cal",
                "NLL cal", "conf cal %"], ece_rows)
