@@ -191,16 +191,18 @@ def parse_args(argv: list[str] | None = None) -> Args:
             _usage_error(f"argument --resume: {args.resume} is a {other} checkpoint, not {args.algo} (pass --algo {other})")
         from agents.sb3 import checkpoint_steps
 
-        later = latest_checkpoint(run_folder(Path(args.resume)), args.algo)
-        steps = _saved_steps(Path(args.resume))  # a final model's from its file
-        if later is not None and steps is not None and checkpoint_steps(later) > steps:
-            # the resumed run's checkpoints would sit beside the later ones of the line it leaves, and a later
-            # --resume of the folder would go on from those
-            _usage_error(f"argument --resume: {args.resume} is not its run's latest checkpoint ({later.name}); move "
-                         "the later checkpoints away to go on from this one, or resume from the latest")
+        home = run_folder(Path(args.resume))
         if not any(a in ("--run-dir", "--run_dir") or a.startswith(("--run-dir=", "--run_dir=")) for a in argv):
             # a resumed run goes on in its own folder, not in the default one (which may hold another run)
-            args = dataclasses.replace(args, run_dir=str(run_folder(Path(args.resume))))
+            args = dataclasses.replace(args, run_dir=str(home))
+        later = latest_checkpoint(home, args.algo)
+        steps = _saved_steps(Path(args.resume))  # a final model's from its file
+        if (Path(args.run_dir).resolve() == home.resolve() and later is not None and steps is not None
+                and checkpoint_steps(later) > steps):
+            # in its run's folder the resumed run's checkpoints would sit beside the later ones of the line it
+            # leaves, and a later --resume of the folder would go on from those (another --run-dir: a new line)
+            _usage_error(f"argument --resume: {args.resume} is not its run's latest checkpoint ({later.name}); go on "
+                         "from it into another --run-dir, move the later checkpoints away, or resume from the latest")
         saved = _saved_approaches(Path(args.resume))
         if saved is not None and saved != args.discrete_approaches:
             _usage_error(f"argument --discrete-approaches: {args.resume} was trained with --discrete-approaches "
