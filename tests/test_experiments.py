@@ -344,25 +344,27 @@ def test_an_interrupted_analysis_resumes_after_its_finished_experiments(tmp_path
     assert analysis.run_analysis(cfg, tmp_path / "cut").read_text() == whole and calls == [3]
     assert not (tmp_path / "cut" / analysis.STATE_FILE).exists()
 
-    calls.clear()
-    fail["at"] = 2
-    with pytest.raises(KeyboardInterrupt):
-        analysis.run_analysis(cfg, tmp_path / "other")
-    calls.clear()
-    fail["at"] = None
-    analysis.run_analysis(dataclasses.replace(cfg, seed=1), tmp_path / "other")
-    assert calls == [1, 2, 3]  # another seed: nothing of the saved run is reused
+    def cut_then_again(folder: str, at: int, again) -> list[int]:
+        """Interrupt a run in experiment ``at``, then run ``again()`` in the same folder: the experiments it ran."""
+        calls.clear()
+        fail["at"] = at
+        with pytest.raises(KeyboardInterrupt):
+            analysis.run_analysis(cfg, tmp_path / folder)
+        calls.clear()
+        fail["at"] = None
+        again(tmp_path / folder)
+        return list(calls)
 
-    # other code (or other meshes under the same names) than the saved run's: started over, not mixed in
-    calls.clear()
-    fail["at"] = 3
-    with pytest.raises(KeyboardInterrupt):
-        analysis.run_analysis(cfg, tmp_path / "code")
-    calls.clear()
-    fail["at"] = None
-    monkeypatch.setattr(analysis, "source_fingerprint", lambda *packages: "other code")
-    analysis.run_analysis(cfg, tmp_path / "code")
-    assert calls == [1, 2, 3]
+    # another seed: nothing of the saved run is reused
+    seed1 = dataclasses.replace(cfg, seed=1)
+    assert cut_then_again("other", 2, lambda out: analysis.run_analysis(seed1, out)) == [1, 2, 3]
+
+    # other code than the saved run's (the key holds the meshes' identity alike): started over, not mixed in
+    def other_code(out):
+        monkeypatch.setattr(analysis, "source_fingerprint", lambda *packages: "other code")
+        analysis.run_analysis(cfg, out)
+
+    assert cut_then_again("code", 3, other_code) == [1, 2, 3]
 
 
 def test_analysis_refuses_a_bad_family_hand_before_writing_anything(tmp_path):
