@@ -273,7 +273,8 @@ def summarize(records: Sequence[EpisodeRecord], baseline: str = "random",
             "decided_correct": float((c * d).mean()), "decided_correct_ci": proportion_ci(int((c * d).sum()), len(c)),
             "grasps_mean": float(g.mean()), "grasps_mean_ci": bootstrap_ci(g),
             "grasps_median": float(np.median(g)), "grasps_median_ci": bootstrap_ci(g, np.median),
-            "grasps_seed_std": float(np.std(seed_means, ddof=1)) if len(seeds) > 1 else 0.0,
+            # over the env seeds' means; one seed has no spread to give (NaN, shown as "-"), not 0
+            "grasps_seed_std": float(np.std(seed_means, ddof=1)) if len(seeds) > 1 else float("nan"),
             "return_mean": float(np.mean([r.ret for r in rs])),
         }
         if base.size and n != baseline:
@@ -457,7 +458,8 @@ def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
             f"| {r['agent']} | {r['episodes']} ({r['seeds']}) | {_fmt_ci(r['success'], r['success_ci'], pct=True)} "
             f"| {100 * r['decided']:.1f}% | {_fmt_ci(r['decided_correct'], r['decided_correct_ci'], pct=True)} "
             f"| {_fmt_ci(r['grasps_mean'], r['grasps_mean_ci'])} "
-            f"| {_fmt_ci(r['grasps_median'], r['grasps_median_ci'])} | {r['grasps_seed_std']:.2f} | {fewer} |"
+            f"| {_fmt_ci(r['grasps_median'], r['grasps_median_ci'])} | "
+            f"{'-' if np.isnan(r['grasps_seed_std']) else format(r['grasps_seed_std'], '.2f')} | {fewer} |"
         )
     return "\n".join(lines)
 

@@ -51,3 +51,14 @@ def test_summaries_of_a_sweep_take_the_replays_as_one_situation():
         for key in ("success_ci", "grasps_mean_ci", "fewer_than_random_ci"):
             assert rows["ppo"][key] == pytest.approx(first[0]["ppo"][key])
         assert agg["ppo"]["grasps_iqm_ci"] == pytest.approx(first[1]["ppo"]["grasps_iqm_ci"])
+
+
+def test_one_env_seed_has_no_seed_spread():
+    """The spread over env seeds of one seed is not 0 (it was printed 0.00): NaN, shown as "-"."""
+    from agents.evaluate import markdown_table
+
+    recs = [EpisodeRecord(agent="random", seed=0, episode=e, object="x", grasps=e % 4 + 1, decided=True, correct=True,
+                          certainty=0.9, ret=0.0) for e in range(10)]
+    row = summarize(recs)[0]
+    assert np.isnan(row["grasps_seed_std"])
+    assert "| - |" in markdown_table([row])
