@@ -16,7 +16,8 @@ save a checkpoint (SAC: with its replay buffer) and exit with one line naming it
 ``--resume`` (a checkpoint, or the run directory: its latest checkpoint) continues the step counter up to
 ``--total-timesteps`` in all, in the same TensorBoard run; the Monitor CSVs of each resumed segment go to new
 files ``monitor/<rank>.part<k>.monitor.csv`` and its flags to ``args.part<k>.json`` (every earlier file and line
-is kept; the learning-curve reader merges the segments by wall time). PPO drops an unfinished rollout (its
+is kept; the learning-curve reader merges the segments by wall time and leaves out a killed segment's episodes past
+the step the next one resumed at, recorded as ``resumed_at_step``). PPO drops an unfinished rollout (its
 steps are not counted; so does recurrent PPO), so the resumed run ends at the same step count as an uninterrupted one.
 It goes on in the checkpoint's run folder (``--run-dir`` defaults to it; a folder that holds another run is
 refused), and it draws fresh numbers rather than replaying the start's: its envs start ``(k - 1) x n_envs`` seeds
@@ -286,7 +287,7 @@ def env_config(args: Args) -> HapticRecogConfig:
 
 #: What a resumed segment may change without note: its length, its checkpoints, its output and its machine's threads
 _SEGMENT_ONLY = ("total_timesteps", "max_minutes", "checkpoint_freq", "progress_bar", "verbose", "torch_threads",
-                 "resume", "run_dir", "segment_seed", "segment_env_seed")
+                 "resume", "run_dir", "segment_seed", "segment_env_seed", "resumed_at_step")
 
 
 def settings_changed(record: dict, checkpoint: Path) -> list[str]:
@@ -358,7 +359,8 @@ def main(argv: list[str] | None = None) -> Path:
     torch.set_num_threads(args.torch_threads)
     record = {**{f.name: getattr(args, f.name) for f in dataclasses.fields(args) if f.name != "env"},
               "first_env_seed": first_env_seed,
-              **({} if part == 1 else {"segment_seed": seed, "segment_env_seed": segment_env_seed}),
+              **({} if part == 1 else {"segment_seed": seed, "segment_env_seed": segment_env_seed,
+                                       "resumed_at_step": _saved_steps(Path(args.resume))}),
               "env_config": {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(config).items()}}
     if args.resume:
         changed = settings_changed(record, Path(args.resume))

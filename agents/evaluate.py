@@ -40,8 +40,10 @@ Command line (a sub-command of ``python -m haptic_env.cli``)::
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
+import re
 import shutil
 import time
 import warnings
@@ -608,12 +610,19 @@ def plot_confusion(conf: dict[str, tuple[list[str], np.ndarray]], path: Path) ->
 
 def read_monitor(folder: str | Path) -> dict[str, np.ndarray]:
     """All ``*.monitor.csv`` of ``folder`` (SB3 ``Monitor`` format) merged and sorted by wall time:
-    ``{"r", "l", "t", ...info keywords}`` as float arrays."""
+    ``{"r", "l", "t", ...info keywords}`` as float arrays.
+
+    A resumed run's segments (``<rank>.part<k>.monitor.csv``) overlap: segment ``k`` went on past the checkpoint the
+    next one resumed from (up to a checkpoint interval after a kill), and the next segment played those steps again.
+    Where the run folder's ``args.part<k>.json`` records the step its segment resumed at (``resumed_at_step``,
+    written by ``train.py`` since 2026-12-06), the episodes of the segment before it past that step are dropped, so
+    the steps count each step once and the curve is of the line the final model learned from."""
     files = sorted(Path(folder).glob("*monitor.csv"))
     if not files:
         raise FileNotFoundError(f"no *.monitor.csv in {folder} (train with agents.sb3.make_vec_env(log_dir=...))")
-    rows: list[dict[str, str]] = []
+    segments: dict[int, list[dict[str, str]]] = {}
     for f in files:
+        m = re.search(r"\.part(\d+)\.monitor\.csv$", f.name)
         with open(f) as fh:
             first = fh.readline()
             if not first.startswith("#"):
@@ -621,7 +630,19 @@ def read_monitor(folder: str | Path) -> dict[str, np.ndarray]:
             t0 = float(json.loads(first[1:]).get("t_start", 0.0))
             for row in csv.DictReader(fh):
                 row["t"] = str(float(row["t"]) + t0)
-                rows.append(row)
+                segments.setdefault(int(m[1]) if m else 1, []).append(row)
+    starts = {1: 0}
+    for k in segments:
+        with contextlib.suppress(OSError, ValueError, KeyError, TypeError):
+            starts[k] = int(json.loads((Path(folder).parent / f"args.part{k}.json").read_text())["resumed_at_step"])
+    rows: list[dict[str, str]] = []
+    for k in sorted(segments):
+        seg = sorted(segments[k], key=lambda r: float(r["t"]))
+        after = [starts[j] for j in sorted(segments) if j > k and j in starts]
+        if k in starts and after:  # keep this segment's episodes up to the step the next one resumed at
+            steps = starts[k] + np.cumsum([float(r["l"]) for r in seg])
+            seg = [r for r, s in zip(seg, steps) if s <= after[0]]
+        rows += seg
     if not rows:
         return {"r": np.zeros(0), "l": np.zeros(0), "t": np.zeros(0)}
     keys = [k for k in rows[0] if all(k in r for r in rows)]

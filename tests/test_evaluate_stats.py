@@ -62,3 +62,27 @@ def test_one_env_seed_has_no_seed_spread():
     row = summarize(recs)[0]
     assert np.isnan(row["grasps_seed_std"])
     assert "| - |" in markdown_table([row])
+
+
+def test_learning_curves_drop_the_steps_a_resume_played_again(tmp_path):
+    """A segment killed after its last checkpoint went on past the step the next segment resumed at (which played
+    those steps again): its episodes past that step are dropped, so each step counts once; a run without the
+    recorded step (older runs) keeps every episode."""
+    import json
+
+    from agents.evaluate import read_monitor
+
+    mon = tmp_path / "run" / "monitor"
+    mon.mkdir(parents=True)
+
+    def monitor(name, t_start, lengths):
+        lines = [f'#{{"t_start": {t_start}, "env_id": "x"}}', "r,l,t"] + [f"0.0,{n},{i + 1}.0"
+                                                                           for i, n in enumerate(lengths)]
+        (mon / name).write_text("\n".join(lines) + "\n")
+
+    monitor("0.monitor.csv", 0.0, [10] * 10)  # steps 10..100; the checkpoint was at 50, then a kill
+    monitor("0.part2.monitor.csv", 1000.0, [10] * 5)  # resumed at 50: steps 60..100 again
+    assert len(read_monitor(mon)["l"]) == 15  # no step recorded: every episode (as before)
+    (tmp_path / "run" / "args.part2.json").write_text(json.dumps({"resumed_at_step": 50}))
+    data = read_monitor(mon)
+    assert len(data["l"]) == 10 and data["l"].sum() == 100  # 5 + 5 episodes: each step once
