@@ -252,7 +252,8 @@ def _saved_steps(path: Path) -> int | None:
         data, _, _ = load_from_zip_file(path, load_data=True, device="cpu")
     except ValueError:
         return None
-    return int((data or {}).get("num_timesteps", 0))
+    steps = (data or {}).get("num_timesteps")
+    return None if steps is None else int(steps)
 
 
 def _saved_approaches(path: Path) -> int | None:

@@ -623,6 +623,8 @@ def read_monitor(folder: str | Path) -> dict[str, np.ndarray]:
     segments: dict[int, list[dict[str, str]]] = {}
     for f in files:
         m = re.search(r"\.part(\d+)\.monitor\.csv$", f.name)
+        k = int(m[1]) if m else 1
+        segments.setdefault(k, [])  # a segment with no finished episode yet still marks where the one before stops
         with open(f) as fh:
             first = fh.readline()
             if not first.startswith("#"):
@@ -630,18 +632,19 @@ def read_monitor(folder: str | Path) -> dict[str, np.ndarray]:
             t0 = float(json.loads(first[1:]).get("t_start", 0.0))
             for row in csv.DictReader(fh):
                 row["t"] = str(float(row["t"]) + t0)
-                segments.setdefault(int(m[1]) if m else 1, []).append(row)
+                segments[k].append(row)
+    run = Path(folder).parent if Path(folder).name == "monitor" else Path(folder)  # where the args files are
     starts = {1: 0}
     for k in segments:
         with contextlib.suppress(OSError, ValueError, KeyError, TypeError):
-            starts[k] = int(json.loads((Path(folder).parent / f"args.part{k}.json").read_text())["resumed_at_step"])
+            starts[k] = int(json.loads((run / f"args.part{k}.json").read_text())["resumed_at_step"])
     rows: list[dict[str, str]] = []
     for k in sorted(segments):
         seg = sorted(segments[k], key=lambda r: float(r["t"]))
         after = [starts[j] for j in sorted(segments) if j > k and j in starts]
-        if k in starts and after:  # keep this segment's episodes up to the step the next one resumed at
+        if k in starts and after:  # keep this segment's episodes up to the earliest step a later one resumed at
             steps = starts[k] + np.cumsum([float(r["l"]) for r in seg])
-            seg = [r for r, s in zip(seg, steps) if s <= after[0]]
+            seg = [r for r, s in zip(seg, steps) if s <= min(after)]
         rows += seg
     if not rows:
         return {"r": np.zeros(0), "l": np.zeros(0), "t": np.zeros(0)}

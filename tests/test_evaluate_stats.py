@@ -86,3 +86,7 @@ def test_learning_curves_drop_the_steps_a_resume_played_again(tmp_path):
     (tmp_path / "run" / "args.part2.json").write_text(json.dumps({"resumed_at_step": 50}))
     data = read_monitor(mon)
     assert len(data["l"]) == 10 and data["l"].sum() == 100  # 5 + 5 episodes: each step once
+    # a third segment resumed from an earlier checkpoint (step 30, the later ones moved away): both before it stop there
+    monitor("0.part3.monitor.csv", 2000.0, [10] * 7)
+    (tmp_path / "run" / "args.part3.json").write_text(json.dumps({"resumed_at_step": 30}))
+    assert read_monitor(mon)["l"].sum() == 30 + 70
