@@ -130,8 +130,9 @@ def run_episodes(agent, make_env: Callable[[], Any], n_episodes: int, seed: int,
 
 def repeated_names(agents: Sequence[Any]) -> list[str]:
     """The names (``agent.name``) that more than one of ``agents`` carries, sorted: a summary would pool them."""
-    names = [a.name for a in agents]
-    return sorted({n for n in names if names.count(n) > 1})
+    from haptic_env.numbers import repeated
+
+    return repeated(a.name for a in agents)
 
 
 def evaluate_agents(agents: Sequence[Any], make_env: Callable[[], Any], n_episodes: int,
@@ -145,9 +146,11 @@ def evaluate_agents(agents: Sequence[Any], make_env: Callable[[], Any], n_episod
     env it runs in changes (:func:`_main` hashes the command's arguments and model files into it)."""
     from tqdm.auto import tqdm
 
+    from haptic_env.numbers import repeated
+
     _check_episodes(n_episodes)
     seeds = list(seeds)
-    if len(set(seeds)) < len(seeds):  # the same episodes twice would count as twice the evidence
+    if repeated(seeds):  # the same episodes twice would count as twice the evidence
         raise ValueError(f"seeds must be distinct, got {seeds}")
     twice = repeated_names(agents)
     if twice:  # the summary groups episodes by name: two agents of one name would be pooled into one row
@@ -798,6 +801,7 @@ def add_parser(subparsers) -> None:
 def _main(args) -> int:
     import haptic_env
     from haptic_env.cli import UsageError
+    from haptic_env.numbers import repeated
 
     kwargs = args.env_kwargs if isinstance(args.env_kwargs, dict) else json.loads(args.env_kwargs)
     try:
@@ -807,7 +811,7 @@ def _main(args) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {out} is a file; give a folder for the report")
-    if len(set(args.seeds)) < len(args.seeds):  # a seed twice would count its episodes twice (narrower intervals)
+    if repeated(args.seeds):  # a seed twice would count its episodes twice (narrower intervals)
         raise UsageError(f"--seeds: each seed once, got {args.seeds}")
     curves = {}
     for spec in args.learning_curves:

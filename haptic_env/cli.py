@@ -132,8 +132,10 @@ def int_list_in(lo: int):
 def distinct(parser: argparse.ArgumentParser, flag: str, values) -> None:
     """``parser.error`` when a value of ``flag`` repeats: a seed given twice would count its runs twice (a narrower
     spread over the same evidence)."""
+    from haptic_env.numbers import repeated
+
     values = list(values)
-    twice = sorted({v for i, v in enumerate(values) if v in values[:i]})
+    twice = repeated(values)
     if twice:
         parser.error(f"{flag}: each value once, got {values} ({', '.join(map(str, twice))} more than once)")
 

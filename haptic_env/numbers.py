@@ -1,5 +1,5 @@
-"""What a setting accepts as a real number, a whole number, a yes/no flag or a range: the checks behind the configs'
-fields.
+"""What a setting accepts as a real number, a whole number, a yes/no flag, a range or a list of distinct values:
+the checks behind the configs' fields.
 
 ``np.isfinite`` alone is not that check: it raises numpy's own ``TypeError`` (naming neither the field nor the
 value) for a string or for a Python ``int`` beyond int64, and it takes ``True`` as 1. The configs call
@@ -13,7 +13,14 @@ import math
 import numpy as np
 
 __all__ = ["finite_number", "whole_number", "flag", "items", "positive_range", "positive_number", "whole_at_least",
-           "checked_flag", "check_whole_fields", "check_flag_fields"]
+           "checked_flag", "check_whole_fields", "check_flag_fields", "repeated"]
+
+
+def repeated(values) -> list:
+    """The values that ``values`` holds more than once, sorted (empty: each once). A seed given twice would count its
+    episodes or runs twice (a narrower spread over the same evidence); a name twice would pool two agents."""
+    values = list(values)
+    return sorted({v for i, v in enumerate(values) if v in values[:i]})
 
 
 def finite_number(value) -> float | None:

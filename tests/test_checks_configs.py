@@ -294,3 +294,10 @@ def test_int_in_and_int_lists_read_the_same_forms():
         if text:
             with pytest.raises(ValueError, match=re.escape(repr(text))):
                 parse_int_list(text)
+
+
+def test_repeated_names_the_values_given_more_than_once():
+    from haptic_env.numbers import repeated
+
+    assert repeated([3, 1, 3, 2, 1, 3]) == [1, 3] and repeated([0, 1, 2]) == [] and repeated([]) == []
+    assert repeated(iter(["a", "b", "a"])) == ["a"]

@@ -257,7 +257,9 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
     _check_keys(ev, _EVALUATE, "evaluate")
     episodes = _int(ev.get("episodes", 20), "evaluate.episodes", 1)
     env_seeds = [_int(s, "evaluate.env_seeds") for s in _as_list(ev.get("env_seeds", list(SWEEP_ENV_SEEDS)))]
-    if len(set(env_seeds)) < len(env_seeds):  # a seed twice: the same episodes twice, as twice the evidence
+    from haptic_env.numbers import repeated
+
+    if repeated(env_seeds):  # a seed twice: the same episodes twice, as twice the evidence
         raise SpecError(f"evaluate.env_seeds: each seed once, got {env_seeds}")
     eval_cpus = _cpus(ev, "evaluate")
     jobs: list[Job] = []
@@ -273,7 +275,7 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
         trained = "algo" in a
         _check_keys(a, _TRAINED if trained else _BASELINE, where)
         a_seeds = [_int(s, f"{where}.seeds") for s in _as_list(a.get("seeds", seeds))]
-        if len(set(a_seeds)) < len(a_seeds):
+        if repeated(a_seeds):
             raise SpecError(f"{where}.seeds: each seed once, got {a_seeds}")
         if trained and a["algo"] not in ALGOS:
             raise SpecError(f"{where}: algo must be one of {ALGOS}, got {a['algo']!r}")
