@@ -193,18 +193,19 @@ def parse_args(argv: list[str] | None = None) -> Args:
         from agents.sb3 import checkpoint_steps
 
         home = run_folder(Path(args.resume))
-        if not any(a in ("--run-dir", "--run_dir") or a.startswith(("--run-dir=", "--run_dir=")) for a in argv):
+        if _flag(argv, "run-dir") is None:
             # a resumed run goes on in its own folder, not in the default one (which may hold another run)
             args = dataclasses.replace(args, run_dir=str(home))
         later = latest_checkpoint(home, args.algo)
-        steps = _saved_steps(Path(args.resume))  # a final model's from its file
+        data = _saved_data(Path(args.resume))  # read once: its steps (a final model's) and its action space
+        steps = _saved_steps(Path(args.resume), data)
         if (Path(args.run_dir).resolve() == home.resolve() and later is not None and steps is not None
                 and checkpoint_steps(later) > steps):
             # in its run's folder the resumed run's checkpoints would sit beside the later ones of the line it
             # leaves, and a later --resume of the folder would go on from those (another --run-dir: a new line)
             _usage_error(f"argument --resume: {args.resume} is not its run's latest checkpoint ({later.name}); go on "
                          "from it into another --run-dir, move the later checkpoints away, or resume from the latest")
-        saved = _saved_approaches(Path(args.resume))
+        saved = _saved_approaches(data)
         if saved is not None and saved != args.discrete_approaches:
             _usage_error(f"argument --discrete-approaches: {args.resume} was trained with --discrete-approaches "
                          f"{saved}, got {args.discrete_approaches} (resume with the N it was started with)")
@@ -238,47 +239,58 @@ def refuse_a_held_run_dir(args: Args) -> None:
                      "--run-dir")
 
 
-def _saved_steps(path: Path) -> int | None:
-    """The steps a model file was saved at: a checkpoint's name says (``ppo_20000_steps.zip``), a final model's
-    data holds them (None: a file SB3 cannot read, left to the loader to report)."""
+def _saved_data(path: Path) -> dict | None:
+    """The data a model file was saved with (SB3's ``data``), or None for a file SB3 cannot read (not a zip file:
+    the resume itself names the problem)."""
     from stable_baselines3.common.save_util import load_from_zip_file
 
+    try:
+        data, _, _ = load_from_zip_file(path, load_data=True, device="cpu")
+    except ValueError:
+        return None
+    return data or {}
+
+
+def _saved_steps(path: Path, data: dict | None = None) -> int | None:
+    """The steps a model file was saved at: a checkpoint's name says (``ppo_20000_steps.zip``), a final model's data
+    holds them (``data``: its :func:`_saved_data`, read here if not given); None if neither does."""
     from agents.sb3 import checkpoint_steps
 
     steps = checkpoint_steps(path)
     if steps is not None:
         return steps
-    try:
-        data, _, _ = load_from_zip_file(path, load_data=True, device="cpu")
-    except ValueError:
-        return None
-    steps = (data or {}).get("num_timesteps")
-    return None if steps is None else int(steps)
+    data = _saved_data(path) if data is None else data
+    return None if data is None or data.get("num_timesteps") is None else int(data["num_timesteps"])
 
 
-def _saved_approaches(path: Path) -> int | None:
-    """The ``--discrete-approaches`` a checkpoint was trained with (0: the continuous action; None: a file SB3 cannot
-    read, left to the loader to report)."""
+def _saved_approaches(data: dict | None) -> int | None:
+    """The ``--discrete-approaches`` a model file (its :func:`_saved_data` ``data``) was trained with (0: the
+    continuous action; None: a file SB3 cannot read, left to the loader to report)."""
     import gymnasium as gym
-    from stable_baselines3.common.save_util import load_from_zip_file
 
-    try:
-        data, _, _ = load_from_zip_file(path, load_data=True, device="cpu")
-    except ValueError:  # not a zip file: the resume itself names the problem
+    if data is None:
         return None
-    space = (data or {}).get("action_space")
+    space = data.get("action_space")
     return int(space.n) if isinstance(space, gym.spaces.Discrete) else 0
+
+
+def _flag(argv: list[str], name: str) -> str | None:
+    """The value of flag ``--<name>`` in ``argv`` (its last one, as tyro reads it; ``--a-b`` or ``--a_b``, with a
+    space or ``=``), or None when it is not given."""
+    spellings = (f"--{name}", f"--{name.replace('-', '_')}")
+    value = None
+    for i, a in enumerate(argv):
+        if a in spellings and i + 1 < len(argv):
+            value = argv[i + 1]
+        elif a.startswith(tuple(s + "=" for s in spellings)):
+            value = a.split("=", 1)[1]
+    return value
 
 
 def _env_id(argv: list[str]) -> str:
     """The ``--env-id`` of ``argv`` (its last one, as tyro reads it), or the default."""
-    env_id = Args.env_id
-    for i, a in enumerate(argv):
-        if a in ("--env-id", "--env_id") and i + 1 < len(argv):
-            env_id = argv[i + 1]
-        elif a.startswith(("--env-id=", "--env_id=")):
-            env_id = a.split("=", 1)[1]
-    return env_id
+    env_id = _flag(argv, "env-id")
+    return Args.env_id if env_id is None else env_id
 
 
 def env_config(args: Args) -> HapticRecogConfig:
