@@ -332,14 +332,14 @@ def _parts(run_dir: Path) -> dict[int, Path | None]:
     """The run segments with files in ``run_dir``: ``k -> its args file`` (None if only its Monitor CSVs are there);
     segment 1 writes ``args.json`` + ``monitor/<rank>.monitor.csv``, segment ``k`` ``args.part<k>.json`` +
     ``monitor/<rank>.part<k>.monitor.csv``."""
+    from agents.evaluate import run_segment
+
     found: dict[int, Path | None] = {}
     for p in (run_dir / "monitor").glob("*.monitor.csv"):
-        m = re.search(r"\.part(\d+)\.monitor\.csv$", p.name)
-        found.setdefault(int(m[1]) if m else 1, None)
+        found.setdefault(run_segment(p.name), None)
     for p in run_dir.glob("args*.json"):
-        m = re.fullmatch(r"args(?:\.part(\d+))?\.json", p.name)
-        if m:
-            found[int(m[1]) if m[1] else 1] = p
+        if re.fullmatch(r"args(\.part\d+)?\.json", p.name):
+            found[run_segment(p.name)] = p
     return found
 
 
@@ -363,7 +363,9 @@ def main(argv: list[str] | None = None) -> Path:
     # a resumed run keeps the earlier args and Monitor files; its segment number counts the segments of its
     # checkpoint's run too (a resume into a new folder is not that run's start: other seeds than the start's)
     part = max(2, _next_part(run_dir), _next_part(run_folder(Path(args.resume)))) if args.resume else 1
-    suffix = "" if part == 1 else f".part{part}"
+    from agents.evaluate import segment_suffix
+
+    suffix = segment_suffix(part)
     seed, segment_env_seed = segment_seeds(args, part)
     # explicit seeding: python, numpy, torch; env rank r is seeded segment_env_seed + r by make_vec_env
     random.seed(seed)

@@ -611,6 +611,24 @@ def plot_confusion(conf: dict[str, tuple[list[str], np.ndarray]], path: Path) ->
     fig.savefig(path, dpi=120, bbox_inches="tight")
 
 
+#: a resumed training segment's files: ``<rank>.part<k>.monitor.csv`` and ``args.part<k>.json`` (``train.py``)
+_SEGMENT = re.compile(r"\.part(\d+)\.(?:monitor\.csv|json)$")
+
+
+def segment_suffix(k: int) -> str:
+    """The file-name suffix of a training run's segment ``k``: none for its start (``args.json``,
+    ``monitor/<rank>.monitor.csv``), ``.part<k>`` for a resume (``args.part<k>.json``,
+    ``<rank>.part<k>.monitor.csv``)."""
+    return "" if k == 1 else f".part{k}"
+
+
+def run_segment(name: str) -> int:
+    """The segment ``k`` of a training run that a file of that run (a Monitor CSV, an args file) belongs to
+    (:func:`segment_suffix`)."""
+    m = _SEGMENT.search(name)
+    return int(m[1]) if m else 1
+
+
 def read_monitor(folder: str | Path) -> dict[str, np.ndarray]:
     """All ``*.monitor.csv`` of ``folder`` (SB3 ``Monitor`` format) merged and sorted by wall time:
     ``{"r", "l", "t", ...info keywords}`` as float arrays.
@@ -625,8 +643,7 @@ def read_monitor(folder: str | Path) -> dict[str, np.ndarray]:
         raise FileNotFoundError(f"no *.monitor.csv in {folder} (train with agents.sb3.make_vec_env(log_dir=...))")
     segments: dict[int, list[dict[str, str]]] = {}
     for f in files:
-        m = re.search(r"\.part(\d+)\.monitor\.csv$", f.name)
-        k = int(m[1]) if m else 1
+        k = run_segment(f.name)
         segments.setdefault(k, [])  # a segment with no finished episode yet still marks where the one before stops
         with open(f) as fh:
             first = fh.readline()
@@ -638,13 +655,13 @@ def read_monitor(folder: str | Path) -> dict[str, np.ndarray]:
                 segments[k].append(row)
     run = Path(folder).parent if Path(folder).name == "monitor" else Path(folder)  # where the args files are
     starts = {1: 0}
-    for k in segments:
+    for k in set(segments) - {1}:
         with contextlib.suppress(OSError, ValueError, KeyError, TypeError):
-            starts[k] = int(json.loads((run / f"args.part{k}.json").read_text())["resumed_at_step"])
+            starts[k] = int(json.loads((run / f"args{segment_suffix(k)}.json").read_text())["resumed_at_step"])
     rows: list[dict[str, str]] = []
     for k in sorted(segments):
         seg = sorted(segments[k], key=lambda r: float(r["t"]))
-        after = [starts[j] for j in sorted(segments) if j > k and j in starts]
+        after = [s for j, s in starts.items() if j > k]
         if k in starts and after:  # keep this segment's episodes up to the earliest step a later one resumed at
             steps = starts[k] + np.cumsum([float(r["l"]) for r in seg])
             seg = [r for r, s in zip(seg, steps) if s <= min(after)]
