@@ -73,11 +73,11 @@ for _id, _kwargs in ENV_VARIANTS.items():
 def variant_config(env_id: str = "HapticRecog-v0", **changes: Any):
     """The whole :class:`~haptic_env.config.HapticRecogConfig` of a registered env: the defaults, the fields its
     variant sets (:data:`ENV_VARIANTS`), then ``changes``."""
-    from haptic_env.config import HapticRecogConfig
+    from haptic_env.config import resolve_env_config
 
     if env_id not in ENV_VARIANTS:
         raise ValueError(f"unknown env id {env_id!r}; choose one of {list(ENV_VARIANTS)}")
-    return HapticRecogConfig().replace(**{**ENV_VARIANTS[env_id], **changes})
+    return resolve_env_config(None, env_id, changes)  # as the env builds it
 
 
 def make(config=None, env_id: str = "HapticRecog-v0", **kwargs):

@@ -384,10 +384,8 @@ def _run(phases, todo, put, args, workers: int, objects) -> None:
             futs = {ex.submit(_grasp_chunk, *args(k, lo, hi)): (k, lo, hi) for k, lo, hi in todo(tasks)}
             for f in as_completed(futs):
                 put(*futs[f], f.result())
-    except BaseException:
-        ex.shutdown(wait=True, cancel_futures=True)  # the chunks not started are dropped, the running ones finish
-        raise
-    ex.shutdown(wait=True)
+    finally:  # on an error or an interrupt the chunks not started are dropped (done: none is left), running ones finish
+        ex.shutdown(wait=True, cancel_futures=True)
 
 
 def pool_rows(pool: HandGraspPool, k: int, z: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
