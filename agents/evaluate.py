@@ -271,24 +271,37 @@ def summarize(records: Sequence[EpisodeRecord], baseline: str = "random",
         d = np.array([r.decided for r in rs], dtype=np.float64)
         seeds = sorted({r.seed for r in rs})
         seed_means = [np.mean([r.grasps for r in rs if r.seed == s]) for s in seeds]
+        against = baseline if base.size and n != baseline else None
+        ci = (_clustered_summary(records, n, against, period) if period is not None
+              else _episode_intervals(c, d, g, base if against else None))
         row = {
             "agent": n, "episodes": len(rs), "seeds": len(seeds),
-            "success": float(c.mean()), "success_ci": proportion_ci(int(c.sum()), len(c)),
+            "success": float(c.mean()), "success_ci": ci["success_ci"],
             "decided": float(d.mean()),
-            "decided_correct": float((c * d).mean()), "decided_correct_ci": proportion_ci(int((c * d).sum()), len(c)),
-            "grasps_mean": float(g.mean()), "grasps_mean_ci": bootstrap_ci(g),
-            "grasps_median": float(np.median(g)), "grasps_median_ci": bootstrap_ci(g, np.median),
+            "decided_correct": float((c * d).mean()), "decided_correct_ci": ci["decided_correct_ci"],
+            "grasps_mean": float(g.mean()), "grasps_mean_ci": ci["grasps_mean_ci"],
+            "grasps_median": float(np.median(g)), "grasps_median_ci": ci["grasps_median_ci"],
             # over the env seeds' means; one seed has no spread to give (NaN, shown as "-"), not 0
             "grasps_seed_std": float(np.std(seed_means, ddof=1)) if len(seeds) > 1 else float("nan"),
             "return_mean": float(np.mean([r.ret for r in rs])),
         }
-        if base.size and n != baseline:
-            row["fewer_than_random"], lo, hi = _ratio_ci(g, base)
-            row["fewer_than_random_ci"] = (lo, hi)
-        if period is not None:
-            row.update(_clustered_summary(records, n, baseline if base.size and n != baseline else None, period))
+        if against:
+            row["fewer_than_random"] = float(1.0 - g.mean() / base.mean())
+            row["fewer_than_random_ci"] = ci["fewer_than_random_ci"]
         rows.append(row)
     return rows
+
+
+def _episode_intervals(c: np.ndarray, d: np.ndarray, g: np.ndarray, base: np.ndarray | None) -> dict[str, Any]:
+    """:func:`summarize`'s intervals over independent episodes (correct ``c``, decided ``d``, grasps ``g``; the
+    fewer-grasps ratio against the baseline's grasps ``base``): Wilson intervals of the shares, percentile bootstraps
+    of the grasps."""
+    out = {"success_ci": proportion_ci(int(c.sum()), len(c)),
+           "decided_correct_ci": proportion_ci(int((c * d).sum()), len(c)),
+           "grasps_mean_ci": bootstrap_ci(g), "grasps_median_ci": bootstrap_ci(g, np.median)}
+    if base is not None:
+        out["fewer_than_random_ci"] = _ratio_ci(g, base)[1:]
+    return out
 
 
 def _clustered_summary(records: Sequence[EpisodeRecord], agent: str, baseline: str | None,
