@@ -26,13 +26,9 @@ if os.environ.get("CI"):
 def haptic_cache(tmp_path_factory):
     """Point ``$HAPTIC_CACHE`` at a fresh session directory (no test reads or pollutes ~/.cache)."""
     path = tmp_path_factory.mktemp("haptic_cache")
-    old = os.environ.get("HAPTIC_CACHE")
-    os.environ["HAPTIC_CACHE"] = str(path)
-    yield path
-    if old is None:
-        os.environ.pop("HAPTIC_CACHE", None)
-    else:
-        os.environ["HAPTIC_CACHE"] = old
+    with pytest.MonkeyPatch.context() as mp:  # the session's monkeypatch: the variable is put back at the end
+        mp.setenv("HAPTIC_CACHE", str(path))
+        yield path
 
 
 @pytest.fixture(scope="session", autouse=True)
@@ -41,15 +37,10 @@ def no_menagerie_download(tmp_path_factory):
     points at a folder that does not exist and its cache at a session directory. A hand is then read from
     ``$MENAGERIE_ROOT`` or the data folder's ``menagerie/``, or it is unavailable at once (the tests skip) instead
     of after a download attempt that depends on the network."""
-    saved = {k: os.environ.get(k) for k in ("MENAGERIE_BASE_URL", "MENAGERIE_CACHE_DIR")}
-    os.environ["MENAGERIE_BASE_URL"] = (tmp_path_factory.mktemp("menagerie_offline") / "absent").as_uri()
-    os.environ["MENAGERIE_CACHE_DIR"] = str(tmp_path_factory.mktemp("menagerie_cache"))
-    yield
-    for k, v in saved.items():
-        if v is None:
-            os.environ.pop(k, None)
-        else:
-            os.environ[k] = v
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("MENAGERIE_BASE_URL", (tmp_path_factory.mktemp("menagerie_offline") / "absent").as_uri())
+        mp.setenv("MENAGERIE_CACHE_DIR", str(tmp_path_factory.mktemp("menagerie_cache")))
+        yield
 
 
 @pytest.fixture(scope="session")
