@@ -9,7 +9,8 @@ settings (``--algo``, ``--total-timesteps``, ...) and every env setting as ``--e
 :class:`~haptic_env.config.HapticRecogConfig`: the env's own defaults, e.g. ``--env.grasp-cost 0.02``,
 ``--env.max-grasps 10``); ``--env-kwargs`` takes the mapping fields (``recognizer_kwargs`` etc.) as JSON. The run
 directory gets ``args.json``, ``monitor/*.monitor.csv`` (one per env), ``tb/`` (TensorBoard), ``checkpoints/`` and
-``<algo>_final.zip``.
+``<algo>_final.zip``, and ``.train.lock``, held while a training runs there: a second training into a folder in use
+is refused.
 
 Nothing is lost: Ctrl-C / SIGINT or SIGTERM (a second one stops at once) or a dead env worker stop learning,
 save a checkpoint (SAC: with its replay buffer) and exit with one line naming it (exit status 130 / 143 / 1).
@@ -31,6 +32,7 @@ Evaluate the result with the ``evaluate`` sub-command::
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import os
@@ -40,7 +42,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import Iterator, Literal
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")  # before numpy/torch: one thread per env process
 
@@ -223,7 +225,8 @@ def refuse_a_held_run_dir(args: Args) -> None:
     """A run into a ``--run-dir`` that holds another run's checkpoints or final model is a usage error before any
     file is written: a fresh run there would mix with it (a later ``--resume`` would go on from that run's model
     under this run's settings), and a resumed one would replace its checkpoints and final model. A resumed run in
-    its own folder (the default with ``--resume``) goes on."""
+    its own folder (the default with ``--resume``) goes on. A run still training there is refused by
+    :func:`hold_run_dir` (which :func:`main` enters first, so a run that began meanwhile is seen here)."""
     from agents.sb3 import latest_checkpoint
 
     run_dir = Path(args.run_dir)
@@ -237,6 +240,34 @@ def refuse_a_held_run_dir(args: Args) -> None:
     if final is not None:
         _usage_error(f"argument --run-dir: {run_dir} already holds a finished run ({final.name}); choose another "
                      "--run-dir")
+
+
+@contextlib.contextmanager
+def hold_run_dir(run_dir: Path) -> Iterator[None]:
+    """Hold ``run_dir`` for this training (created if missing): a second training into the same folder while this
+    one runs is a usage error, since their Monitor files, args and checkpoints would mix. An advisory lock
+    (``fcntl.flock``) on ``run_dir/.train.lock``, which holds the holder's pid; the system releases it when the
+    process ends, however it ends (a killed run leaves no stale lock). Where ``fcntl`` is missing (Windows) the
+    folder is not held."""
+    run_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        yield
+        return
+    fd = os.open(run_dir / ".train.lock", os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "unknown"
+            _usage_error(f"argument --run-dir: {run_dir} is in use by another training (pid {holder}); wait for it "
+                         "or choose another --run-dir")
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, str(os.getpid()).encode(), 0)
+        yield
+    finally:
+        os.close(fd)  # closing releases the lock
 
 
 def _saved_data(path: Path) -> dict | None:
@@ -351,13 +382,18 @@ def _next_part(run_dir: Path) -> int:
 
 def main(argv: list[str] | None = None) -> Path:
     args = parse_args(argv)
-    refuse_a_held_run_dir(args)
+    with hold_run_dir(Path(args.run_dir)):  # checked held: a run that began meanwhile has its files there now
+        refuse_a_held_run_dir(args)
+        return _train(args)
+
+
+def _train(args: Args) -> Path:
+    """Train in ``args.run_dir``, which :func:`main` holds."""
     import torch
 
     from agents import sb3
 
     run_dir = Path(args.run_dir)
-    run_dir.mkdir(parents=True, exist_ok=True)
     config = env_config(args)
     first_env_seed = env_seed(args)
     # a resumed run keeps the earlier args and Monitor files; its segment number counts the segments of its

@@ -282,6 +282,31 @@ def test_a_fresh_run_is_refused_a_folder_that_holds_a_run_and_a_resume_says_what
     assert train.segment_seeds(train.parse_args(first), 1) == (0, part2["first_env_seed"])
 
 
+def test_a_run_folder_in_use_by_another_training_is_refused(small_recognizer_kwargs, tmp_path, usage_error,
+                                                              monkeypatch):
+    """Two trainings into one folder at once would mix their Monitor files, args and checkpoints (the held-run check
+    sees only checkpoints, which a young run has none of): the second is refused, naming the first's pid, before it
+    writes anything; the folder is free again once the first process is gone, however it ended."""
+    monkeypatch.syspath_prepend(str(ROOT))
+    import train
+
+    run = tmp_path / "run"
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time, train; from pathlib import Path\n"
+                               f"with train.hold_run_dir(Path({str(run)!r})):\n"
+                               "    print('held', flush=True); time.sleep(60)"],
+                              cwd=ROOT, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        args = _args("ppo", 64, run, small_recognizer_kwargs, {"n_steps": 64, "batch_size": 64, "n_epochs": 1})
+        usage_error(train.main, args, match=rf"--run-dir: .*run is in use by another training \(pid {holder.pid}\)")
+        assert sorted(p.name for p in run.iterdir()) == [".train.lock"]
+    finally:
+        holder.kill()
+        holder.wait()
+    with train.hold_run_dir(run):  # a killed holder leaves no stale lock
+        pass
+
+
 def test_a_resume_goes_on_in_its_own_run_folder(small_recognizer_kwargs, tmp_path, usage_error, monkeypatch):
     """``--resume`` without ``--run-dir`` goes on in the checkpoint's run folder (it wrote into the default
     ``runs/ppo``, replacing another run's checkpoints and final model there); a ``--run-dir`` that holds another run
