@@ -6,7 +6,7 @@ or a concurrent writer never leaves a half-written file behind. A writer killed 
 leaves its hidden temporary file (``.<name>.pid<PID>.<random>.tmp``); :func:`cache_dir` removes such
 files once their writer is gone (or after :data:`STALE_TMP_SECONDS`). :func:`cache_dir` also checks that
 the folder is writable, so a read-only cache fails before any work is done, not when saving its result
-(``HAPTIC_CACHE_READONLY=1`` allows a read-only cache that already holds everything needed).
+(``HAPTIC_CACHE_READONLY=1`` allows a read-only cache; what it lacks is computed and, with a warning, not saved).
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ import re
 import sys
 import tempfile
 import time
+import warnings
 from pathlib import Path
 from typing import Any, Iterator
 
@@ -45,14 +46,27 @@ class CacheNotWritableError(CacheError, PermissionError):
     """The cache folder cannot be created or written."""
 
 
+def _cache_root() -> Path:
+    return Path(os.environ.get("HAPTIC_CACHE", Path.home() / ".cache" / "haptic_recog")).expanduser()
+
+
+def _readonly_ok() -> bool:
+    return os.environ.get("HAPTIC_CACHE_READONLY", "") not in ("", "0")
+
+
+def _in_readonly_cache(path: Path) -> bool:
+    """Whether ``path`` lies in the cache while ``HAPTIC_CACHE_READONLY`` allows it to be read-only."""
+    return _readonly_ok() and Path(os.path.abspath(path)).is_relative_to(os.path.abspath(_cache_root()))
+
+
 def cache_dir(sub: str | None = None) -> Path:
     """Root of the cache (``$HAPTIC_CACHE``, default ``~/.cache/haptic_recog``), created on demand.
 
     Raises :class:`CacheNotWritableError` (naming the folder) if it cannot be created or is not writable,
     unless ``$HAPTIC_CACHE_READONLY`` is set; removes stale temporary files of killed writers."""
-    root = Path(os.environ.get("HAPTIC_CACHE", Path.home() / ".cache" / "haptic_recog")).expanduser()
+    root = _cache_root()
     path = root / sub if sub else root
-    readonly_ok = os.environ.get("HAPTIC_CACHE_READONLY", "") not in ("", "0")
+    readonly_ok = _readonly_ok()
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -61,7 +75,8 @@ def cache_dir(sub: str | None = None) -> Path:
     if not readonly_ok:
         if not os.access(path, os.W_OK | os.X_OK):
             raise CacheNotWritableError(f"the cache folder {path} is not writable; {_HELP} "
-                                        "(HAPTIC_CACHE_READONLY=1 reads a complete read-only cache)")
+                                        "(HAPTIC_CACHE_READONLY=1 reads a read-only cache and computes what it lacks "
+                                        "without saving it)")
         clean_stale_tmp(path)
     return path
 
@@ -170,14 +185,24 @@ _UMASK = _umask()
 
 @contextlib.contextmanager
 def atomic_write(path: str | os.PathLike, mode: str = "wb") -> Iterator[Any]:
-    """Open a temporary file next to ``path``; on clean exit fsync it and rename it into place."""
+    """Open a temporary file next to ``path``; on clean exit fsync it and rename it into place.
+
+    In a read-only cache that ``HAPTIC_CACHE_READONLY`` allows, a file that cannot be written there (a miss: the
+    cache did not hold everything) is not saved: the writer's result is used all the same, and a warning names the
+    file, which is computed again next time."""
     path = Path(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         # hidden, with the writer's pid: clean_stale_tmp removes it if this process is killed mid-write
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.pid{os.getpid()}.", suffix=".tmp", dir=path.parent)
     except OSError as exc:
-        raise CacheNotWritableError(f"cannot write {path} ({exc.strerror or exc}); is its folder writable?") from exc
+        if not _in_readonly_cache(path):
+            raise CacheNotWritableError(f"cannot write {path} ({exc.strerror or exc}); is its folder writable?") from exc
+        warnings.warn(f"not saved: {path} ({exc.strerror or exc}; the cache is read-only, HAPTIC_CACHE_READONLY): "
+                      "it is computed again each time it is needed", stacklevel=3)
+        with open(os.devnull, mode) as fh:
+            yield fh
+        return
     try:
         with os.fdopen(fd, mode) as fh:
             yield fh

@@ -7,6 +7,7 @@ import re
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 import warnings
 from pathlib import Path
@@ -232,6 +233,23 @@ def test_read_only_cache_fails_before_any_work(tmp_path, monkeypatch):
             build_dataset(objs.subset(objs.names[:2]), DatasetConfig(grasps_per_object=100_000), progress=False)
     monkeypatch.setenv("HAPTIC_CACHE_READONLY", "1")  # a complete read-only cache may still be read
     assert cache_dir("datasets") == root / "datasets"
+    # ... and what it lacks is computed and used, not saved (it failed when saving the result, after the work)
+    real_mkstemp = tempfile.mkstemp
+
+    def read_only(*a, dir=None, **k):
+        if str(dir).startswith(str(root)):
+            raise PermissionError(13, "Read-only file system")
+        return real_mkstemp(*a, dir=dir, **k)
+
+    monkeypatch.setattr(tempfile, "mkstemp", read_only)
+    with pytest.warns(UserWarning, match=r"not saved: .*ro/datasets/.*Read-only file system.*HAPTIC_CACHE_READONLY"):
+        ds = build_dataset(objs.subset(objs.names[:2]), DatasetConfig(grasps_per_object=50), progress=False)
+    assert len(ds.X_train) + len(ds.X_val) == 100 and not any(root.rglob("*.npz"))
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path / "elsewhere"))
+    with pytest.raises(CacheNotWritableError, match=r"cannot write .*out.json"):  # outside the cache: an error still
+        with atomic_write(root / "out.json", "w") as fh:
+            fh.write("{}")
+    monkeypatch.setenv("HAPTIC_CACHE", str(root))
     # a cache path that cannot even be created
     blocker = tmp_path / "file"
     blocker.write_text("x")
