@@ -55,8 +55,9 @@ def _wait_for(path: Path, proc: subprocess.Popen, timeout: float = 180) -> None:
 
 
 def _snapshot(run: Path) -> dict[str, str]:
+    """The run's files and their hashes (the lock, which holds the running training's pid, is no run file)."""
     return {str(p.relative_to(run)): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(run.rglob("*")) if p.is_file()}
+            for p in sorted(run.rglob("*")) if p.is_file() and p.name != ".train.lock"}
 
 
 def _saved_checkpoint(err: str, run: Path, algo: str) -> Path:
