@@ -251,6 +251,7 @@ class HapticRecogConfig:
         for name in ("recognizer_kwargs", "object_kwargs", "backend_kwargs"):
             if not isinstance(getattr(self, name), Mapping):
                 raise TypeError(f"{name} must be a mapping (dict), got {getattr(self, name)!r}")
+        self._check_backend()
         if self.recognizer_kwargs:  # checked here, at make, not at the first reset (imports the recognisers)
             import inspect
 
@@ -276,6 +277,21 @@ class HapticRecogConfig:
                              "data_dir, units and up") from exc
         if k is not None and k < 2:
             raise ValueError(f"object set {self.objects!r} has {k} object(s); recognising one needs at least 2")
+
+    def _check_backend(self) -> None:
+        """``backend`` and ``backend_kwargs`` checked at make through the backend's own config (they failed when the
+        scene built the backend; a hand's finger count is still checked when the hand is loaded)."""
+        from haptic_env.grasping.base import BACKENDS, backend_config
+
+        if not isinstance(self.backend, str) or self.backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {BACKENDS}, got {self.backend!r}")
+        if "n_fingers" in self.backend_kwargs:
+            raise ValueError(f"backend_kwargs must not set n_fingers ({self.backend_kwargs['n_fingers']!r}): it is the "
+                             f"config's own n_fingers field (now {self.n_fingers!r})")
+        try:
+            backend_config(self.backend, self.n_fingers, **dict(self.backend_kwargs))
+        except TypeError as exc:
+            raise ValueError(f"invalid backend_kwargs for backend {self.backend!r} ({exc})") from exc
 
     def _check_recognizer_settings(self) -> None:
         """``recognizer_kwargs`` that contradict the env's own settings, refused at make (they failed at the first

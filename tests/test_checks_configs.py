@@ -102,6 +102,14 @@ BAD = [
     (lambda v: H(calibrate_grasps=v), True, r"calibrate_grasps must be an int >= 1, got True"),
     (lambda v: H(max_grasps=v), True, r"max_grasps must be an int >= 1, got True"),
     (lambda v: H(threshold=v), True, r"threshold must be in \(0, 1\], got True"),
+    # the backend and its keyword arguments at make, through the backend's own config (they failed at the build)
+    (lambda v: H(backend=v), "nope", r"backend must be one of \('geometric', .*got 'nope'"),
+    (lambda v: H(backend=v), 3, r"backend must be one of .*got 3"),
+    (lambda v: H(backend_kwargs=v), {"foo": 1}, r"invalid backend_kwargs for backend 'geometric'.*'foo'"),
+    (lambda v: H(backend_kwargs=v), {"n_fingers": 3}, r"backend_kwargs must not set n_fingers \(3\)"),
+    (lambda v: H(n_fingers=v), 50, r"n_fingers must be an integer in \[2, 16\], got 50"),
+    (lambda v: H(backend="mujoco", backend_kwargs={"hand": "allegro", "friction": v}), -1,
+     r"friction must be finite and >= 0, got -1"),
     # DatasetConfig: whole numbers are ints (4.0 was stored as 4.0), fractions numbers, yes/no fields bools
     (lambda v: D(n_fingers=v), 4.0, r"n_fingers must be an int >= 2, got 4.0"),
     (lambda v: D(n_fingers=v), np.float64(4.0), r"n_fingers must be an int >= 2, got np.float64\(4.0\)"),

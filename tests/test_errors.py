@@ -160,8 +160,12 @@ def test_one_object_set_fails_at_make(tmp_path, haptic_cache):
     before = sorted(p.name for p in haptic_cache.rglob("*"))
     with pytest.raises(ValueError, match="1 object.*at least 2"):
         gym.make("HapticRecog-v0", objects=str(folder))
-    with pytest.raises(ValueError, match=r"bad families spec 'families:0'.*N >= 1"):
+    with pytest.raises(ValueError, match=r"bad families spec 'families:0'.*1 <= N <= 1000"):
         HapticRecogConfig(objects="families:0")
+    with pytest.raises(ValueError, match=r"bad families spec 'families:100000000'.*1 <= N <= 1000"):
+        HapticRecogConfig(objects="families:100000000")  # it generated members without end
+    with pytest.raises(ValueError, match=r"unknown units 'furlong'"):
+        HapticRecogConfig(object_kwargs={"units": "furlong"})  # a named set ignores a good unit, not a bad one
     assert sorted(p.name for p in haptic_cache.rglob("*")) == before  # nothing trained or cached
 
 

@@ -355,20 +355,44 @@ def make_backend(name: str = "geometric", n_fingers: int | None = None, **cfg: A
     recorded MuJoCo grasps of the nearest recorded approach (:mod:`.replay`: fast, to train agents on).
     ``n_fingers=None``: 4, or for ``"mujoco"`` and ``"replay"`` the hand's own count.
     """
+    config = backend_config(name, n_fingers, **cfg)
     if name == "geometric":
-        from .geometric import GeometricBackend, GeometricConfig
+        from .geometric import GeometricBackend
 
-        return GeometricBackend(GeometricConfig(n_fingers=4 if n_fingers is None else n_fingers, **cfg))
+        return GeometricBackend(config)
     if name == "uniform":
-        from .uniform import UniformBackend, UniformConfig
+        from .uniform import UniformBackend
 
-        return UniformBackend(UniformConfig(n_fingers=4 if n_fingers is None else n_fingers, **cfg))
+        return UniformBackend(config)
     if name == "mujoco":
-        from .mujoco_backend import MujocoBackend, MujocoConfig
+        from .mujoco_backend import MujocoBackend
 
-        return MujocoBackend(MujocoConfig(n_fingers=n_fingers, **cfg))  # None: the hand's own count
-    if name == "replay":
-        from .replay import ReplayBackend, ReplayConfig
+        return MujocoBackend(config)
+    from .replay import ReplayBackend
 
-        return ReplayBackend(ReplayConfig(n_fingers=n_fingers, **cfg))  # a hand's recorded MuJoCo grasps
-    raise ValueError(f"unknown grasp backend {name!r}; choose one of {BACKENDS}")
+    return ReplayBackend(config)  # a hand's recorded MuJoCo grasps
+
+
+def backend_config(name: str = "geometric", n_fingers: int | None = None, **cfg: Any) -> Any:
+    """The config dataclass that :func:`make_backend` builds backend ``name`` from, its values checked (cheap: no
+    hand or mesh is loaded; whether a hand has ``n_fingers`` fingers is checked when it is). A ValueError names an
+    unknown backend, a TypeError the ``cfg`` keys its config does not have."""
+    if not isinstance(name, str) or name not in BACKENDS:
+        raise ValueError(f"unknown grasp backend {name!r}; choose one of {BACKENDS}")
+    if "n_fingers" in cfg:  # it would reach the config twice
+        raise TypeError("n_fingers is make_backend's own argument, not one of the config's keyword arguments")
+    if name == "geometric":
+        from .geometric import GeometricConfig
+
+        return GeometricConfig(n_fingers=4 if n_fingers is None else n_fingers, **cfg)
+    if name == "uniform":
+        from .uniform import UniformConfig
+
+        return UniformConfig(n_fingers=4 if n_fingers is None else n_fingers, **cfg)
+    if name == "mujoco":
+        from .mujoco_backend import MujocoConfig
+
+        return MujocoConfig(n_fingers=n_fingers, **cfg)  # None: the hand's own count
+    from .replay import ReplayConfig
+
+    return ReplayConfig(n_fingers=n_fingers, **cfg)

@@ -5,7 +5,7 @@ Specs understood by :func:`load_object_set`:
 ``"default"``
     9 everyday-like shapes generated in code (no files).
 ``"families"`` / ``"families:N"``
-    The paper's boxes / elliptic cylinders / ellipsoids, ``N`` (default 10) per family, seed 0.
+    The paper's boxes / elliptic cylinders / ellipsoids, ``N`` (default 10, at most 1,000) per family, seed 0.
 ``"kit8"``, ``"kit20"``
     KIT meshes from ``<data>/kit/*.stl`` (millimetres, converted to metres; y up in the files, stood up so
     that z is up: a bottle stands on the table instead of lying on its side). ``kit20`` is every file
@@ -205,6 +205,7 @@ def object_count(spec: str | Path = "default", *, data_dir: str | Path | None = 
     their data is missing). Takes the same arguments as ``load_object_set``, and rejects a bad ``up`` and an unknown
     spec (:func:`check_object_spec`) as it does."""
     up_rotation(up)
+    unit_scale(units)
     s = check_object_spec(spec)
     if s == "default":
         from .primitives import DEFAULT_SHAPES
@@ -235,7 +236,8 @@ def load_object_set(spec: str | Path = "default", *, data_dir: str | Path | None
         up: a folder's files' up axis (``"x"``, ``"y"`` or ``"z"``), turned to z so that the objects stand on a
             table as they should; named sets use their known axis (KIT: y) and ignore it.
     """
-    up_rotation(up)  # a bad axis is named first, whatever the spec
+    up_rotation(up)  # a bad axis or unit is named first, whatever the spec (named sets ignore a good one)
+    unit_scale(units)
     s = check_object_spec(spec)
     if s == "default":
         return default_set()
@@ -261,21 +263,25 @@ def _family_members(spec: str) -> int:
     return int(spec.split(":", 1)[1]) if ":" in spec else 10
 
 
+#: The most members per family ``families:N`` takes (3 N objects; the experiments use up to 40).
+MAX_FAMILY_MEMBERS = 1000
+
 #: The object sets :func:`load_object_set` knows by name (besides ``families:N`` and folders).
 NAMED_SETS = ("default", "families", "kit8", "kit20", "ycb10")
 
 
 def check_object_spec(spec: str | Path) -> str:
     """``spec`` as :func:`load_object_set` reads it, checked without loading anything: a named set, ``families:N``
-    (``N >= 1``) or an existing folder; otherwise a ``ValueError`` that names it. (Whether a named file set's data is
-    there is checked when it loads.)"""
+    (``1 <= N <= MAX_FAMILY_MEMBERS``) or an existing folder; otherwise a ``ValueError`` that names it. (Whether a
+    named file set's data is there is checked when it loads.)"""
     s = str(spec)
     if s in NAMED_SETS:
         return s
     if s.startswith("families:"):
         n = s.split(":", 1)[1]
-        if not (n.isdigit() and int(n) >= 1):
-            raise ValueError(f"bad families spec {s!r}; expected 'families' or 'families:N' with N >= 1")
+        if not (n.isdigit() and 1 <= int(n) <= MAX_FAMILY_MEMBERS):
+            raise ValueError(f"bad families spec {s!r}; expected 'families' or 'families:N' with "
+                             f"1 <= N <= {MAX_FAMILY_MEMBERS}")
         return s
     if Path(s).expanduser().is_dir():
         return s
