@@ -108,6 +108,8 @@ class Args:
 #: (field, minimum) of the run settings checked at parse time
 _MINIMUM = {"total_timesteps": 1, "n_envs": 1, "checkpoint_freq": 1, "max_minutes": 0.0, "torch_threads": 1, "seed": 0,
             "env_seed": -1, "discrete_approaches": 0}
+#: numpy's legacy seeding takes seeds below 2**32
+_MAXIMUM = {"seed": 2**32 - 1, "env_seed": 2**32 - 1}
 
 
 def env_seed(args: Args) -> int:
@@ -154,8 +156,16 @@ def parse_args(argv: list[str] | None = None) -> Args:
         _usage_error(f"env settings: {exc}")
     for name, lo in _MINIMUM.items():
         value = getattr(args, name)
-        if value < lo:
+        if not value >= lo:  # NaN too (--max-minutes nan was no limit)
             _usage_error(f"argument --{name.replace('_', '-')}: must be >= {lo}, got {value}")
+    for name, hi in _MAXIMUM.items():
+        value = getattr(args, name)
+        if value > hi:
+            _usage_error(f"argument --{name.replace('_', '-')}: must be <= {hi}, got {value}")
+    if not np.isfinite(args.max_minutes):  # inf was taken as a limit never reached
+        _usage_error(f"argument --max-minutes: must be finite (0: no limit), got {args.max_minutes}")
+    if not args.run_dir.strip():
+        _usage_error("argument --run-dir: must name a folder, got ''")
     from agents.sb3 import discrete_approaches_problem
 
     problem = discrete_approaches_problem(args.discrete_approaches, args.algo, args.vec)
@@ -175,9 +185,14 @@ def parse_args(argv: list[str] | None = None) -> Args:
     except ValueError as exc:
         _usage_error(f"argument --hyperparams: {exc}")
     try:
-        env_config(args)
+        config = env_config(args)
     except (TypeError, ValueError, FileNotFoundError) as exc:
         _usage_error(f"env settings: {exc}")
+    from haptic_env.vector_env import NATIVE_BACKENDS
+
+    if args.vec == "native" and config.backend not in NATIVE_BACKENDS:
+        _usage_error(f"argument --vec: the native vector env steps the backends {NATIVE_BACKENDS}, got "
+                     f"--env.backend {config.backend!r}; use --vec subproc or dummy")
     if args.resume:
         from agents.sb3 import latest_checkpoint
 

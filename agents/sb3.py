@@ -41,7 +41,7 @@ import gymnasium as gym
 import numpy as np
 
 from haptic_env.grasping.base import approach_table
-from haptic_env.numbers import whole_at_least
+from haptic_env.numbers import finite_number, whole_at_least, whole_number
 
 __all__ = ["ALGOS", "DEFAULT_HYPERPARAMS", "make_vec_env", "build_model", "load_model", "algo_of_file", "train",
            "SB3Agent", "TrainingInterrupted", "latest_checkpoint", "checkpoint_extras", "close_vec_env",
@@ -274,15 +274,34 @@ def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.
 _SET_BY_BUILD = ("policy", "env", "seed", "tensorboard_log", "verbose", "device")
 
 
+#: Hyperparameters that are counts, and their least value (PPO asserts batch_size > 1).
+_WHOLE_AT_LEAST = {"n_steps": 1, "batch_size": 2, "n_epochs": 1, "buffer_size": 1, "learning_starts": 0}
+#: Hyperparameters that are numbers: (lower-bound test, upper bound, the range in words).
+_NUMBER_IN = {"learning_rate": (lambda f: f > 0, np.inf, "> 0"), "gamma": (lambda f: f >= 0, 1.0, "in [0, 1]"),
+              "gae_lambda": (lambda f: f >= 0, 1.0, "in [0, 1]"), "clip_range": (lambda f: f > 0, np.inf, "> 0"),
+              "ent_coef": (lambda f: f >= 0, np.inf, ">= 0"), "vf_coef": (lambda f: f >= 0, np.inf, ">= 0"),
+              "max_grad_norm": (lambda f: f > 0, np.inf, "> 0"), "tau": (lambda f: f > 0, 1.0, "in (0, 1]")}
+
+
 def check_hyperparams(algo: str, hyperparams: dict) -> None:
     """A ``ValueError`` naming every key of ``hyperparams`` that the SB3 ``algo`` class does not take (or that
-    :func:`build_model` sets itself), before any env or run file is made."""
+    :func:`build_model` sets itself), or a common count or number out of its range (``n_steps``, ``batch_size``,
+    ``gamma``, ``learning_rate``, ...), before any env or run file is made."""
     import inspect
 
     taken = set(inspect.signature(_algo_class(algo).__init__).parameters) - {"self", *_SET_BY_BUILD}
     bad = sorted(set(hyperparams) - taken)
     if bad:
         raise ValueError(f"unknown {algo.upper()} hyperparameter(s) {bad}; valid: {sorted(taken)}")
+    for key, value in hyperparams.items():  # the common numbers' ranges (SB3 asserts some only when it builds)
+        if key in _WHOLE_AT_LEAST and (whole_number(value) is None or value < _WHOLE_AT_LEAST[key]):
+            raise ValueError(f"{algo.upper()} hyperparameter {key} must be an int >= {_WHOLE_AT_LEAST[key]}, "
+                             f"got {value!r}")
+        if key in _NUMBER_IN and not isinstance(value, str):  # a string: SB3's own forms ("auto" ent_coef)
+            lo, hi, text = _NUMBER_IN[key]
+            f = finite_number(value)
+            if f is None or not lo(f) or f > hi:
+                raise ValueError(f"{algo.upper()} hyperparameter {key} must be a number {text}, got {value!r}")
 
 
 def build_model(algo: str, venv, seed: int = 0, log_dir: str | os.PathLike | None = None, verbose: int = 0,

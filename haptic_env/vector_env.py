@@ -58,7 +58,10 @@ from haptic_env.scene import Scene, reset_options
 from haptic_env.task import Task, entropy, touched_rows
 from haptic_env.numbers import whole_at_least
 
-__all__ = ["HapticRecogVectorEnv", "make_vector_env"]
+__all__ = ["HapticRecogVectorEnv", "make_vector_env", "NATIVE_BACKENDS"]
+
+#: The grasp backends the native vector env steps (those with ``grasp_placed``: one batched call per object).
+NATIVE_BACKENDS = ("geometric",)
 
 #: snake-case names of Gymnasium's autoreset modes (their values, "NextStep" etc., are accepted too)
 _MODE_ALIASES = {"next_step": AutoresetMode.NEXT_STEP, "same_step": AutoresetMode.SAME_STEP,
@@ -89,6 +92,9 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
         except ValueError:
             raise ValueError(f"autoreset_mode must be one of {[m.value for m in AutoresetMode]}, "
                              f"got {autoreset_mode!r}") from None
+        if config.backend not in NATIVE_BACKENDS:  # before the scene: a hand backend would load its hand first
+            raise NotImplementedError(f"HapticRecogVectorEnv needs a backend with grasp_placed {NATIVE_BACKENDS}, "
+                                      f"got {config.backend!r}; use gymnasium.vector.SyncVectorEnv of HapticRecogEnv")
         self.config = config
         self.num_envs = B = int(num_envs)
         self.autoreset_mode = mode
@@ -96,9 +102,6 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
         self.render_mode = None
 
         self.scene = Scene(config)  # objects + backend; its per-episode state is each sub-env's reset scratch
-        if not hasattr(self.scene.backend, "placed_objects"):
-            raise NotImplementedError(f"HapticRecogVectorEnv needs a backend with grasp_placed (the geometric one), "
-                                      f"got {config.backend!r}; use gymnasium.vector.SyncVectorEnv of HapticRecogEnv")
         self.objects, self.object_names, self.backend = self.scene.objects, self.scene.names, self.scene.backend
         self.n_classes, self.action_dim = self.scene.n_classes, self.scene.action_dim
         self.feature_dim = feature_dim(config.n_fingers, config.normals, heights=config.grasp_heights,

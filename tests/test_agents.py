@@ -543,6 +543,29 @@ def test_train_env_flags_change_the_fields_a_variant_sets(small_recognizer_kwarg
     usage_error(train.parse_args, ["--env-id", "Nope-v0"], match="--env-id: unknown env 'Nope-v0'")
 
 
+@pytest.mark.parametrize("argv, match", [
+    # each of these was taken, then failed after the run folder was written (or, for nan / inf, never stopped)
+    (["--seed", str(2**32)], r"--seed: must be <= 4294967295, got 4294967296"),
+    (["--max-minutes", "nan"], r"--max-minutes: must be >= 0.0, got nan"),
+    (["--max-minutes", "inf"], r"--max-minutes: must be finite \(0: no limit\), got inf"),
+    (["--run-dir", ""], r"--run-dir: must name a folder, got ''"),
+    (["--hyperparams", '{"n_steps": 0}'], r"PPO hyperparameter n_steps must be an int >= 1, got 0"),
+    (["--hyperparams", '{"batch_size": 1}'], r"PPO hyperparameter batch_size must be an int >= 2, got 1"),
+    (["--hyperparams", '{"gamma": 1.5}'], r"PPO hyperparameter gamma must be a number in \[0, 1\], got 1.5"),
+    (["--algo", "sac", "--hyperparams", '{"tau": 0}'], r"SAC hyperparameter tau must be a number in \(0, 1\]"),
+    (["--vec", "native", "--env.backend", "uniform"], r"--vec: the native vector env steps the backends "
+                                                        r"\('geometric',\), got --env.backend 'uniform'"),
+    (["--env-kwargs", '{"backend_kwargs": {"foo": 1}}'], r"invalid backend_kwargs for backend 'geometric'.*'foo'"),
+])
+def test_train_refuses_bad_values_before_its_run_folder(argv, match, usage_error, tmp_path):
+    import train
+
+    run = tmp_path / "run"
+    usage_error(train.main, ["--run-dir", str(run), *argv] if "--run-dir" not in argv else argv, match=match)
+    assert not run.exists()
+    assert train.parse_args(["--algo", "sac", "--hyperparams", '{"ent_coef": "auto_0.1", "tau": 1}']).algo == "sac"
+
+
 def test_evaluate_writes_table_and_plots(env_config, tmp_path):
     make = lambda: haptic_env.make(env_config.replace(max_grasps=8))  # noqa: E731
     second = RandomAgent()
