@@ -695,6 +695,13 @@ def _rolling_mean(x: np.ndarray, window: int) -> np.ndarray:
     return (c[i] - c[lo]) / (i - lo)
 
 
+def monitor_folder(log_dir: str | Path) -> Path:
+    """Where a training run's Monitor CSVs are: ``<log_dir>/monitor`` (:func:`agents.sb3.make_vec_env`'s layout), else
+    ``log_dir`` itself."""
+    d = Path(log_dir)
+    return d / "monitor" if (d / "monitor").is_dir() else d
+
+
 def plot_learning_curves(log_dirs: dict[str, str | Path], out: str | Path, window: int = 200) -> Path:
     """Episode length (= grasps), return and success vs env steps from the ``Monitor`` CSVs of each run
     (``<log_dir>/monitor/*.monitor.csv``, as written by :func:`agents.sb3.make_vec_env`)."""
@@ -703,9 +710,7 @@ def plot_learning_curves(log_dirs: dict[str, str | Path], out: str | Path, windo
     fig = Figure(figsize=(13, 3.8))
     axes = fig.subplots(1, 3)
     for name, d in log_dirs.items():
-        d = Path(d)
-        mon = d / "monitor" if (d / "monitor").is_dir() else d
-        data = read_monitor(mon)
+        data = read_monitor(monitor_folder(d))
         steps = np.cumsum(data["l"])
         for ax, col in zip(axes, ["l", "r", "correct"]):
             if col in data:
@@ -799,7 +804,7 @@ def _block_key(spec: str, args, kwargs: dict, code: str) -> str:
 
 def add_parser(subparsers) -> None:
     from haptic_env import ENV_VARIANTS
-    from haptic_env.cli import int_in, json_object
+    from haptic_env.cli import int_in, json_object, output_path
     from haptic_env.splits import ENV_TEST_SEEDS
 
     p = subparsers.add_parser("evaluate", help="evaluate agents on HapticRecog (table + plots)",
@@ -821,7 +826,7 @@ def add_parser(subparsers) -> None:
                         "model acts so always, as it was trained: for it the flag only adds the suffix)")
     p.add_argument("--env-id", default="HapticRecog-v0", choices=list(ENV_VARIANTS))
     p.add_argument("--env-kwargs", type=json_object, default={}, help="JSON dict of HapticRecogConfig fields")
-    p.add_argument("--out", default="outputs/eval")
+    p.add_argument("--out", type=output_path("folder"), default="outputs/eval")
     p.add_argument("--learning-curves", nargs="*", default=[], metavar="NAME=LOG_DIR",
                    help="training log dirs (agents/sb3 layout) to plot learning curves from")
     p.set_defaults(func=_main, interrupt_note="every finished agent-seed block is saved; the same command resumes "
@@ -838,9 +843,7 @@ def _main(args) -> int:
         config = haptic_env.variant_config(args.env_id, **kwargs)  # --env-id is one of its choices
     except (TypeError, ValueError, FileNotFoundError) as exc:
         raise UsageError(f"--env-kwargs: {exc}") from exc
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise UsageError(f"--out {out} is a file; give a folder for the report")
+    out = Path(args.out)  # a folder, checked by its argparse type (cli.output_path)
     if repeated(args.seeds):  # a seed twice would count its episodes twice (narrower intervals)
         raise UsageError(f"--seeds: each seed once, got {args.seeds}")
     curves = {}
@@ -848,6 +851,10 @@ def _main(args) -> int:
         name, _, path = spec.partition("=") if "=" in spec else (Path(spec).name, "", spec)
         if not Path(path).is_dir():
             raise UsageError(f"--learning-curves {spec}: {path} is not a folder")
+        try:  # read now, not after every episode has run
+            read_monitor(monitor_folder(path))
+        except (FileNotFoundError, ValueError) as exc:
+            raise UsageError(f"--learning-curves {spec}: {exc}") from exc
         curves[name] = path
     agents = []
     for spec in args.agents:

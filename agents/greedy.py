@@ -50,6 +50,10 @@ from haptic_env.task import entropy
 __all__ = ["GreedyInfoGainAgent"]
 
 
+#: The most simulated grasps one decision may take (``n_candidates x n_samples``; the committed runs use 16 x 4).
+MAX_LOOKAHEAD = 100_000
+
+
 class GreedyInfoGainAgent:
     """One-step greedy expected-entropy-reduction policy (see the module docstring)."""
 
@@ -60,6 +64,9 @@ class GreedyInfoGainAgent:
                  pose_known: bool = True, infer_pose: bool = False, yaw_bins: int = 72):
         for name, v in (("n_candidates", n_candidates), ("n_samples", n_samples)):
             whole_at_least(v, 1, name)  # 2.7 is not cut to 2, nor True taken as 1
+        if n_candidates * n_samples > MAX_LOOKAHEAD:  # its arrays grow with the product (1e9 x 1e9: 30 GiB)
+            raise ValueError(f"n_candidates x n_samples must be <= {MAX_LOOKAHEAD:,} simulated grasps per decision, "
+                             f"got {n_candidates} x {n_samples}")
         if simulate not in ("geometric", "env"):
             raise ValueError(f"simulate must be 'geometric' or 'env', got {simulate!r}")
         if simulate == "env" and backend_kwargs is not None:
