@@ -20,6 +20,7 @@ import numpy as np
 from haptic_env.grasp_features import check_normal_axis
 from haptic_env.numbers import check_flag_fields, finite_number, positive_range, whole_at_least, whole_number
 from haptic_env.recognizers.boosted import check_likelihood
+from haptic_env.recognizers.calibration import check_calibrate_grasps
 from haptic_env.recognizers.touch import check_touch_weight
 from haptic_env.recognizers.updaters import (DEFAULT_IC_CERTAINTY, DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD,
                                              DEFAULT_UPDATER, UPDATERS, check_ic_certainty, check_threshold)
@@ -193,7 +194,7 @@ class HapticRecogConfig:
         check_flag_fields(self, ("normals", "score_subsets", "calibrated", "observe_contacts", "grasp_heights",
                                  "observe_yaw"),
                           "True or False")
-        whole_at_least(self.calibrate_grasps, 1, "calibrate_grasps")
+        check_calibrate_grasps(self.calibrate_grasps, 1, "calibrate_grasps")
         if self.training_grasps is not None and (whole_number(self.training_grasps) or 0) < 1:
             raise ValueError(f"training_grasps must be None or an int >= 1, got {self.training_grasps!r}")
         if (whole_number(self.n_fingers) or 0) < 2:
@@ -403,6 +404,7 @@ def recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
     ``calibrate_grasps``."""
     from haptic_env.dataset import DatasetConfig
     from haptic_env.recognizers import KDEConfig, MLPConfig, RecognizerConfig
+    from haptic_env.recognizers.recognizer import check_build_options
 
     kw = dict(config.recognizer_kwargs)
     if config.touch_weight > 0:
@@ -451,4 +453,7 @@ def recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
             rc["kde"] = KDEConfig(**{"method": config.kde_method, "calibrate_grasps": int(config.calibrate_grasps),
                                      **kde})
         kw["config"] = RecognizerConfig(**rc)
+    elif not isinstance(rc, RecognizerConfig):
+        raise ValueError(f"recognizer_kwargs['config'] must be a RecognizerConfig or a JSON-style dict, got {rc!r}")
+    check_build_options(**{k: kw[k] for k in ("models", "touch", "cache", "progress") if k in kw})
     return kw

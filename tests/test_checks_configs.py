@@ -102,6 +102,12 @@ BAD = [
     (lambda v: H(calibrate_grasps=v), True, r"calibrate_grasps must be an int >= 1, got True"),
     (lambda v: H(max_grasps=v), True, r"max_grasps must be an int >= 1, got True"),
     (lambda v: H(threshold=v), True, r"threshold must be in \(0, 1\], got True"),
+    # the longest calibrated belief (sequence_scores makes max x rows sums), and the recogniser's options at make
+    (lambda v: H(calibrate_grasps=v), 10**9, r"calibrate_grasps must be <= 100 .*got 1000000000"),
+    (lambda v: H(recognizer_kwargs={"config": v}), 5, r"recognizer_kwargs\['config'\] must be a RecognizerConfig"),
+    (lambda v: H(recognizer_kwargs={"config": {"kde": v}}), "x", r"kde must be a KDEConfig, got str"),
+    (lambda v: H(recognizer_kwargs={"models": v}), "kde", r"models must be a sequence of model names.*got 'kde'"),
+    (lambda v: H(recognizer_kwargs={"cache": v}), "no", r"cache must be True or False, got 'no'"),
     # the backend and its keyword arguments at make, through the backend's own config (they failed at the build)
     (lambda v: H(backend=v), "nope", r"backend must be one of \('geometric', .*got 'nope'"),
     (lambda v: H(backend=v), 3, r"backend must be one of .*got 3"),

@@ -32,6 +32,7 @@ from scipy.special import expit, softmax
 
 from haptic_env.cache import KEY_ONLY_WHEN_SET
 from haptic_env.numbers import whole_at_least
+from haptic_env.recognizers.calibration import check_calibrate_grasps
 
 __all__ = ["BoostedConfig", "BoostedLikelihood", "LIKELIHOODS", "check_likelihood"]
 
@@ -68,7 +69,7 @@ class BoostedConfig:
         whole_at_least(self.max_iter, 1, "max_iter")
         whole_at_least(self.max_train_per_class, 1, "max_train_per_class")
         whole_at_least(self.seed, 0, "seed")
-        whole_at_least(self.calibrate_grasps, 0, "calibrate_grasps")
+        check_calibrate_grasps(self.calibrate_grasps, 0, "calibrate_grasps")
         whole_at_least(self.n_calibrate, 1, "n_calibrate")
         if isinstance(self.floor, bool) or not (isinstance(self.floor, (int, float)) and 0.0 < self.floor < 1.0):
             raise ValueError(f"floor must be a number in (0, 1), got {self.floor!r}")

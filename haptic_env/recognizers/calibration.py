@@ -230,6 +230,19 @@ def calibration_rows(y, n_classes: int, per_class: int, rng: np.random.Generator
     return np.concatenate([rng.permutation(np.flatnonzero(y == c))[:per_class] for c in range(n_classes)])
 
 
+#: The longest belief a sequence temperature is fitted for: :func:`sequence_scores` makes ``max_grasps x rows``
+#: sums (the committed runs use 1-10; 10**9 would fill the memory).
+MAX_CALIBRATE_GRASPS = 100
+
+
+def check_calibrate_grasps(value, lo: int, name: str) -> int:
+    """``value`` as a whole number in ``[lo, MAX_CALIBRATE_GRASPS]``; a ValueError names ``name`` otherwise."""
+    whole_at_least(value, lo, name)
+    if value > MAX_CALIBRATE_GRASPS:
+        raise ValueError(f"{name} must be <= {MAX_CALIBRATE_GRASPS} (the longest calibrated belief), got {value!r}")
+    return int(value)
+
+
 def sequence_scores(scores, y, max_grasps: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Scores of beliefs after ``k = 1 .. max_grasps`` grasps of one object, for fitting a sequence temperature.
 
@@ -251,7 +264,7 @@ def sequence_scores(scores, y, max_grasps: int, rng: np.random.Generator) -> tup
         largest class's row count (``S (M, K)``, ``M = max_grasps * m * classes``), and their classes ``Y (M,)``.
     """
     S, Y = _check(scores, y)
-    whole_at_least(max_grasps, 1, "max_grasps")
+    check_calibrate_grasps(max_grasps, 1, "max_grasps")
     if max_grasps == 1 or len(Y) == 0:
         return S, Y
     classes, counts = np.unique(Y, return_counts=True)

@@ -73,8 +73,8 @@ from scipy.spatial import cKDTree
 
 from haptic_env.numbers import finite_number, flag, whole_at_least, whole_number
 from haptic_env.recognizers.calibration import (CORRECTIONS, PowerCorrection, ScoreCorrection, calibration_rows,
-                                                check_corrections, fit_temperature, select_calibration,
-                                                sequence_scores)
+                                                check_calibrate_grasps, check_corrections, fit_temperature,
+                                                select_calibration, sequence_scores)
 from haptic_env.recognizers.knn import KDTree, pooled_log_density
 from haptic_env.recognizers.preprocess import Standardizer
 from haptic_env.recognizers.preprocess import check_xy as _check_xy
@@ -161,6 +161,7 @@ class KDEConfig:
             raise ValueError(f"KDEConfig.factor_grid must hold positive factors, got {self.factor_grid!r}")
         for name in ("n_calibrate", "calibrate_grasps", "k", "k_max", "max_samples", "select_samples", "n_select"):
             whole_at_least(getattr(self, name), 1, f"KDEConfig.{name}")
+        check_calibrate_grasps(self.calibrate_grasps, 1, "KDEConfig.calibrate_grasps")
         seed, eps = whole_number(self.seed), finite_number(self.eps)
         if seed is None or seed < 0:
             raise ValueError(f"KDEConfig.seed must be an int >= 0, got {self.seed!r}")

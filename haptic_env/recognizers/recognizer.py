@@ -20,6 +20,7 @@ import json
 import time
 import warnings
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from scipy.special import softmax
@@ -70,8 +71,9 @@ class RecognizerConfig:
 
     def __post_init__(self):
         check_likelihood(self.likelihood)
-        if not isinstance(self.boosted, BoostedConfig):
-            raise ValueError(f"boosted must be a BoostedConfig, got {type(self.boosted).__name__}")
+        for name, cls in (("grasps", DatasetConfig), ("mlp", MLPConfig), ("kde", KDEConfig), ("boosted", BoostedConfig)):
+            if not isinstance(getattr(self, name), cls):  # a wrong type failed later, deep in training
+                raise ValueError(f"{name} must be a {cls.__name__}, got {type(getattr(self, name)).__name__}")
 
     def model_config(self, model: str):
         """The config that keys a cached ``model`` (:data:`MODELS`): the MLP's, or the likelihood slot's."""
@@ -258,6 +260,21 @@ def models_for(updater: str) -> tuple[str, ...]:
     return {"bc-np": ("kde",), "bc-ip": MODELS}.get(updater, ("mlp",))
 
 
+def check_build_options(*, models: Any = MODELS, touch: Any = False, cache: Any = True,
+                        progress: Any = True) -> tuple[str, ...]:
+    """:func:`build_recognizer`'s options checked (a ValueError names the bad one); returns ``models`` as a tuple.
+    The env's config checks its ``recognizer_kwargs`` with it at make."""
+    for name, value in (("progress", progress), ("touch", touch), ("cache", cache)):
+        checked_flag(value, name, "True or False")
+    if isinstance(models, str):  # tuple("kde") would be its letters
+        raise ValueError(f"models must be a sequence of model names from {MODELS} (e.g. ['kde']), got {models!r}")
+    models = tuple(models)
+    bad = [m for m in models if m not in MODELS]
+    if bad or not models:
+        raise ValueError(f"models must be a non-empty subset of {MODELS}, got {models!r}")
+    return models
+
+
 def build_recognizer(objects, n_fingers: int, normals: bool = True, *, z_values=(), config: RecognizerConfig | None = None,
                      models: tuple[str, ...] = MODELS, touch: bool = False, cache: bool = True, progress: bool = True,
                      dataset_fn=None) -> Recognizer:
@@ -277,12 +294,7 @@ def build_recognizer(objects, n_fingers: int, normals: bool = True, *, z_values=
     """
     config = config or RecognizerConfig()
     whole_at_least(n_fingers, 2, "n_fingers")
-    for name, value in (("progress", progress), ("touch", touch), ("cache", cache)):
-        checked_flag(value, name, "True or False")
-    models = tuple(models)
-    bad = [m for m in models if m not in MODELS]
-    if bad or not models:
-        raise ValueError(f"models must be a non-empty subset of {MODELS}, got {models!r}")
+    models = check_build_options(models=models, touch=touch, cache=cache, progress=progress)
     if touch and config.grasps.source != "hand":
         raise ValueError(f"touch=True needs hand-matched training grasps (config.grasps.source='hand'), got "
                          f"source={config.grasps.source!r}: only a hand's own grasps give its touch patterns")
