@@ -53,6 +53,8 @@ __all__ = [
 _CACHE_VERSION = "grasp-dataset-v1"
 #: Values of :attr:`DatasetConfig.source`.
 SOURCES = ("surface", "geometric", "hand")
+#: The most contacts per grasp the command lines take (``dataset --fingers``, ``analysis --fingers``).
+MAX_CLI_FINGERS = 20
 _ARRAYS = ("X_train", "y_train", "X_val", "y_val", "names")
 #: Resampling rounds used to replace degenerate grasps before giving up.
 _MAX_TOPUP_ROUNDS = 20
@@ -618,7 +620,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="a folder's mesh files' up axis, turned to z (named sets know theirs: KIT y)")
     from haptic_env.cli import float_in, int_in
 
-    p.add_argument("--fingers", type=int_in(2, 20), default=4, help="contacts per grasp, 2..20 (default 4)")
+    p.add_argument("--fingers", type=int_in(2, MAX_CLI_FINGERS), default=4,
+                   help=f"contacts per grasp, 2..{MAX_CLI_FINGERS} (default 4)")
     p.add_argument("--no-normals", action="store_true", help="grasp vectors without contact normals")
     p.add_argument("--grasps", type=int_in(1), default=20_000, help="grasps per object (default 20000)")
     p.add_argument("--noise", type=float_in(0.0), default=0.0, help="contact noise std in metres (default 0)")
@@ -638,7 +641,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "--grasps then counts approaches per object) (default surface)")
     p.add_argument("--hand", default=None,
                    help="hand source: allegro | shadow | aero | robotiq | generic | an MJCF path")
-    p.add_argument("--hand-fingers", type=int_in(2, 20), default=None,
+    p.add_argument("--hand-fingers", type=int_in(2, MAX_CLI_FINGERS), default=None,
                    help="geometric / hand source: fingers of the simulated hand (default --fingers)")
     p.add_argument("--support", choices=SUPPORTS, default="table",
                    help="geometric / hand source: approaches from the upper hemisphere (table) or the sphere")

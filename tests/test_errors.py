@@ -320,7 +320,7 @@ def test_truncated_recognizer_json_is_rebuilt(tmp_path, monkeypatch):
     (["evaluate", "--env-kwargs", '{"nope": 1}'], r"--env-kwargs: unknown HapticRecogConfig field\(s\) \['nope'\]"),
     (["evaluate", "--env-kwargs", '{"kde_method": "nope"}'], "--env-kwargs: kde_method"),
     (["evaluate", "--env-kwargs", '{"objects": "nosuch"}'], "--env-kwargs: unknown object set 'nosuch'"),
-    (["analysis", "--out", "/nonexistent/out", "--objects", "nosuch"], "unknown object set 'nosuch'"),
+    (["analysis", "--out", "outputs/never", "--objects", "nosuch"], "unknown object set 'nosuch'"),
     (["evaluate", "--agents", "robot"], "--agents: unknown agent spec 'robot'"),
     (["evaluate", "--agents", "ppo=/no/model.zip"], "model file /no/model.zip does not exist"),
     (["evaluate", "--episodes", "0"], "argument --episodes: must be >= 1"),
@@ -332,10 +332,16 @@ def test_truncated_recognizer_json_is_rebuilt(tmp_path, monkeypatch):
     (["evaluate", "--out", "README.md/sub"], "argument --out: cannot create README.md/sub: "),
     (["evaluate", "--learning-curves", "x=tests"], "--learning-curves x=tests: no *.monitor.csv in tests"),
     (["evaluate", "--env-id", "Nope-v0"], "argument --env-id: invalid choice"),
-    (["analysis", "--out", "/nonexistent/out", "--trials", "-1"], "trials must be an int >= 1, got -1"),
-    (["analysis", "--out", "/nonexistent/out", "--max-grasps", "0"], "max_grasps must be an int >= 1, got 0"),
-    (["analysis", "--out", "/nonexistent/out", "--classifiers", "mlp,svm"], r"unknown classifier\(s\) \['svm'\]"),
-    (["analysis", "--out", "/nonexistent/out", "--threshold", "2"], r"threshold must be in \(0, 1\], got 2.0"),
+    (["analysis", "--out", "outputs/never", "--trials", "-1"], "trials must be an int >= 1, got -1"),
+    # these failed after work, or with a traceback (missing data), or were taken (a repeated experiment ran twice)
+    (["analysis", "--out", "outputs/never", "--experiments", "1,1"], r"experiments must be .* each once, got \(1, 1\)"),
+    (["analysis", "--out", "outputs/never", "--fingers", "2-100"], r"fingers must be a tuple of ints in \[2, 20\]"),
+    (["analysis", "--out", "README.md/x"], "argument --out: cannot create README.md/x: "),
+    (["analysis", "--out", "outputs/never", "--objects", "kit8", "--data-dir", "/nonexistent"],
+     "--objects kit8: data folder /nonexistent does not exist"),
+    (["analysis", "--out", "outputs/never", "--max-grasps", "0"], "max_grasps must be an int >= 1, got 0"),
+    (["analysis", "--out", "outputs/never", "--classifiers", "mlp,svm"], r"unknown classifier\(s\) \['svm'\]"),
+    (["analysis", "--out", "outputs/never", "--threshold", "2"], r"threshold must be in \(0, 1\], got 2.0"),
 ])
 def test_cli_bad_values_are_one_line_usage_errors(argv, match, capsys):
     import re

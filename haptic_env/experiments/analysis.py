@@ -44,9 +44,9 @@ def run_analysis(cfg: AnalysisConfig, out: str | Path, command: str | None = Non
         from haptic_env.grasping.hands import load_hand
 
         load_hand(cfg.family_hand, n_fingers=4)  # a bad name fails now, not after experiments 1-4 (nothing written)
+    objects = load_object_set(cfg.objects, data_dir=cfg.data_dir, units=cfg.units, up=cfg.up)  # missing data: now
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    objects = load_object_set(cfg.objects, data_dir=cfg.data_dir, units=cfg.units, up=cfg.up)
     rep = Report(out)
     rng = np.random.default_rng(cfg.seed)
     state_path, key = out / STATE_FILE, settings_key(cfg, objects)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import shlex
 
-from haptic_env.cli import float_in, parse_int_list
+from haptic_env.cli import float_in, output_path, parse_int_list
 from haptic_env.grasp_features import NORMAL_AXES
 from haptic_env.objects.base import UP_AXES
 from haptic_env.experiments.config import FAMILY_SOURCES, AnalysisConfig
@@ -97,7 +97,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--up", default=d.up, choices=UP_AXES,
                    help="a folder's meshes' up axis, turned to z so that they stand on the table (named sets know "
                         "theirs: KIT y)")
-    p.add_argument("--out", required=True, help="output folder for results.md and PNG plots")
+    p.add_argument("--out", type=output_path("folder"), required=True, help="output folder for results.md and PNG plots")
     p.add_argument("--experiments", default="1,2,3,4,5,6,7", help="comma list / ranges of 1..7 (default all)")
     p.add_argument("--grasps-per-object", type=int, default=d.grasps_per_object, help="training grasps per object (paper: 200000)")
     p.add_argument("--test-grasps", type=int, default=d.test_grasps, help="fresh test grasps per object")
@@ -191,7 +191,14 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def _run_cli(args) -> int:
     from haptic_env.experiments.analysis import run_analysis
 
+    from haptic_env.cli import UsageError
+    from haptic_env.objects.loaders import check_object_data
+
     cfg = config_from_args(args)
+    try:
+        check_object_data(cfg.objects, cfg.data_dir)  # missing data: a usage error before any work
+    except FileNotFoundError as exc:
+        raise UsageError(f"--objects {cfg.objects}: {exc}") from exc
     path = run_analysis(cfg, args.out, command=_equivalent_command(args))
     print(path.read_text())
     print(f"wrote {path}")

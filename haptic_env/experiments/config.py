@@ -9,10 +9,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from haptic_env.cache import KEY_ONLY_WHEN_SET
-from haptic_env.dataset import DatasetConfig
+from haptic_env.dataset import MAX_CLI_FINGERS, DatasetConfig
 from haptic_env.force_closure import check_friction
 from haptic_env.grasp_features import check_normal_axis
-from haptic_env.numbers import check_flag_fields, check_whole_fields, finite_number, items, positive_range, whole_number
+from haptic_env.numbers import (check_flag_fields, check_whole_fields, finite_number, items, positive_range, repeated,
+                                whole_number)
 from haptic_env.objects.base import up_rotation
 from haptic_env.objects.loaders import check_object_spec, unit_scale
 from haptic_env.objects.primitives import FAMILY_SCALE_RANGE
@@ -179,15 +180,17 @@ class AnalysisConfig:
         cap = self.baseline_max_train
         if cap is not None and (whole_number(cap) or 0) < 1:
             raise ValueError(f"baseline_max_train must be None or an int >= 1, got {self.baseline_max_train!r}")
-        if not items(self.experiments) or not all(whole_number(e) in EXPERIMENTS for e in self.experiments):
+        if (not items(self.experiments) or not all(whole_number(e) in EXPERIMENTS for e in self.experiments)
+                or repeated(self.experiments)):
             raise ValueError(f"experiments must be a non-empty tuple of experiment numbers {sorted(EXPERIMENTS)}, "
-                             f"got {self.experiments!r}")
+                             f"each once, got {self.experiments!r}")
         # experiment 3 scores 3- and 4-finger subsets of an n-finger hand, so a hand needs n >= 4
         for name, lo in (("fingers", 2), ("oneshot_fingers", 2), ("calib_fingers", 2), ("calib_fingers_no_normals", 2),
                          ("zfinger_hands", 4)):
-            ns = items(getattr(self, name))
-            if ns is None or not all((whole_number(n) or 0) >= lo for n in ns):  # empty: the experiment skips it
-                raise ValueError(f"{name} must be a tuple of ints >= {lo}, got {getattr(self, name)!r}")
+            ns = items(getattr(self, name))  # empty: the experiment skips it
+            if ns is None or not all(lo <= (whole_number(n) or 0) <= MAX_CLI_FINGERS for n in ns) or repeated(ns):
+                raise ValueError(f"{name} must be a tuple of ints in [{lo}, {MAX_CLI_FINGERS}], each once, got "
+                                 f"{getattr(self, name)!r}")
         cl = items(self.classifiers) or ()
         bad = [c for c in cl if c not in CLASSIFIERS]
         if not cl or bad:

@@ -187,14 +187,10 @@ def load_folder(folder: str | Path, *, units: str | float = "m", name: str | Non
 
 
 def _kit(root: Path, names: tuple[str, ...] | None, set_name: str) -> ObjectSet:
+    """The KIT meshes ``names`` (None: the whole folder) of a data folder that :func:`check_object_data` checked."""
     kit = root / "kit"
-    if not kit.is_dir():
-        raise FileNotFoundError(f"KIT meshes missing: {kit} does not exist; {_DATA_HELP}")
     if names is None:
         return load_folder(kit, units="mm", name=set_name, up=KIT_UP)
-    missing = [n for n in names if not (kit / f"{n}.stl").is_file()]
-    if missing:
-        raise FileNotFoundError(f"KIT meshes missing from {kit}: {[m + '.stl' for m in missing]}; {_DATA_HELP}")
     return ObjectSet(set_name, [load_mesh_object(kit / f"{n}.stl", units="mm", up=KIT_UP) for n in names])
 
 
@@ -244,18 +240,32 @@ def load_object_set(spec: str | Path = "default", *, data_dir: str | Path | None
     if s == "families" or s.startswith("families:"):
         return family_set(_family_members(s), np.random.default_rng(0))
     if s in ("kit8", "kit20", "ycb10"):
-        root = Path(data_dir).expanduser() if data_dir is not None else globals()["data_dir"](required=True)
-        if not root.is_dir():
-            raise FileNotFoundError(f"data folder {root} does not exist; {_DATA_HELP}")
+        root = check_object_data(s, data_dir)
         if s == "kit8":
             return _kit(root, KIT8, "kit8")
         if s == "kit20":
             return _kit(root, None, "kit20")
-        ycb = root / "ycb"
-        if not ycb.is_dir():
-            raise FileNotFoundError(f"YCB meshes missing: {ycb} does not exist; {_DATA_HELP}")
-        return load_folder(ycb, units="m", name="ycb10")
+        return load_folder(root / "ycb", units="m", name="ycb10")
     return load_folder(Path(s).expanduser(), units=units, up=up)
+
+
+def check_object_data(spec: str | Path, data_dir: str | Path | None = None) -> Path | None:
+    """Whether the files of a named file set (``kit8``, ``kit20``, ``ycb10``) are there, without reading a mesh:
+    a ``FileNotFoundError`` says what is missing and where to put it; returns the data folder (None for the other
+    specs, which need no shared data)."""
+    s = check_object_spec(spec)
+    if s not in ("kit8", "kit20", "ycb10"):
+        return None
+    root = Path(data_dir).expanduser() if data_dir is not None else globals()["data_dir"](required=True)
+    if not root.is_dir():
+        raise FileNotFoundError(f"data folder {root} does not exist; {_DATA_HELP}")
+    sub = root / ("ycb" if s == "ycb10" else "kit")
+    if not sub.is_dir():
+        raise FileNotFoundError(f"{'YCB' if s == 'ycb10' else 'KIT'} meshes missing: {sub} does not exist; {_DATA_HELP}")
+    missing = [f"{n}.stl" for n in KIT8 if not (sub / f"{n}.stl").is_file()] if s == "kit8" else []
+    if missing:
+        raise FileNotFoundError(f"KIT meshes missing from {sub}: {missing}; {_DATA_HELP}")
+    return root
 
 
 def _family_members(spec: str) -> int:
