@@ -107,6 +107,8 @@ def write_assets(folder: str | Path | None = None) -> list[Path]:
 # ---------------------------------------------------------------------------------------- CLI
 def add_parser(subparsers):
     """Register the ``scene`` sub-command: write a hand's grasp scene for MuJoCo's viewer."""
+    from haptic_env.cli import output_path
+
     p = subparsers.add_parser("scene", help="write a hand's grasp scene (MJCF) to open in MuJoCo's viewer",
                               description="Grasp an object once with a MuJoCo hand and write the scene as MJCF, "
                                           "with the grasp as keyframes 'approach' (press play: the hand closes) "
@@ -118,7 +120,8 @@ def add_parser(subparsers):
                    f"first object whose name contains it, else the set's first)")
     p.add_argument("--action", default=",".join(str(v) for v in SCENE_ACTION),
                    help="the approach, 4 comma-separated values in [-1, 1]: azimuth, elevation, roll, spread")
-    p.add_argument("--out", type=Path, default=Path(SCENE_FILE), help=f"the MJCF file to write (default {SCENE_FILE})")
+    p.add_argument("--out", type=output_path("file"), default=Path(SCENE_FILE),
+                   help=f"the MJCF file to write (default {SCENE_FILE})")
     p.set_defaults(func=_run_cli)
     return p
 
@@ -132,8 +135,6 @@ def _run_cli(args) -> int:
         raise UsageError(f"--action must be 4 comma-separated numbers, got {args.action!r}") from None
     if len(action) != 4:
         raise UsageError(f"--action must be 4 comma-separated numbers, got {args.action!r}")
-    if args.out.is_dir():
-        raise UsageError(f"--out {args.out} is a folder; give a file name such as {args.out / SCENE_FILE}")
     from haptic_env.grasping.hands import HandUnavailableError
     from haptic_env.objects import load_object_set
 

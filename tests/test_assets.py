@@ -139,6 +139,10 @@ def test_scene_command_refuses_a_folder(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["scene", "--out", str(tmp_path)])
     assert "is a folder" in capsys.readouterr().err
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(SystemExit) as exc:  # a path under a file was refused only after the grasp
+        main(["scene", "--out", str(tmp_path / "file" / "s.xml")])
+    assert exc.value.code == 2 and "is not a writable folder" in capsys.readouterr().err
 
 
 def test_a_menagerie_hand_scene_references_its_meshes_by_absolute_path(tmp_path, monkeypatch):

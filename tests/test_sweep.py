@@ -191,6 +191,16 @@ def test_cli_dry_run_and_bad_spec(tmp_path, capsys):
         main(["sweep", str(SMOKE), "--report-only", "--out", str(tmp_path / "new"), "--prior-report", str(tmp_path)])
     assert exc.value.code == 2 and "is not a sweep report folder" in capsys.readouterr().err
     assert not (tmp_path / "new").exists()
+    # a report of a folder without finished jobs (a mistyped --out) was an empty report in a new folder, exit 0
+    with pytest.raises(SystemExit) as exc:
+        main(["sweep", str(SMOKE), "--report-only", "--out", str(tmp_path / "typo")])
+    assert exc.value.code == 2 and "holds no finished job of smoke" in capsys.readouterr().err
+    assert not (tmp_path / "typo").exists()
+    for argv, said in ((["sweep", str(SMOKE), "--dry-run", "--report-only"], "give one of them"),
+                       (["sweep", str(tmp_path)], "(it is a folder; give the spec's .toml file)")):
+        with pytest.raises(SystemExit) as exc:
+            main(argv)
+        assert exc.value.code == 2 and said in capsys.readouterr().err
 
 
 def test_match_selects_jobs_and_what_they_need(tmp_path, capsys):

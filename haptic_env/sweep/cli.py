@@ -65,7 +65,10 @@ def _main(args) -> int:
     from .spec import SpecError, load_spec
 
     if not args.spec.is_file():
-        raise UsageError(f"spec {args.spec} does not exist")
+        raise UsageError(f"spec {args.spec} does not exist" + (" (it is a folder; give the spec's .toml file)"
+                                                                 if args.spec.is_dir() else ""))
+    if args.dry_run and args.report_only:
+        raise UsageError("--dry-run lists the jobs and --report-only writes the report: give one of them")
     try:
         spec = load_spec(args.spec)
     except SpecError as exc:
@@ -102,6 +105,9 @@ def _main(args) -> int:
         return 0
     if args.report_only:
         done = [j for j in spec.jobs if is_done(j.run_dir(out))]
+        if not done and args.prior_report is None:  # a mistyped --out wrote an empty report (and a new folder)
+            raise UsageError(f"--report-only: {out} holds no finished job of {spec.name} (and no --prior-report "
+                             "stands in for them): nothing to report")
         result = SweepResult(out=out, skipped=[j.id for j in done], done={j.id: read_done(j.run_dir(out)) for j in done})
     else:
         if not ray_available():
