@@ -36,7 +36,7 @@ def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--jobs", type=int_in(1), default=4)
     ap.add_argument("--grasps", type=int_in(1), default=100_000, help="grasps per object of each dataset job")
-    ap.add_argument("--fingers", type=int, default=4)
+    ap.add_argument("--fingers", type=int_in(2, 20), default=4)
     ap.add_argument("--num-cpus", type=int_in(1), default=2)
     ap.add_argument("--rounds", type=int_in(1), default=2,
                     help="pairs of runs, the order alternating; the median ratio")

@@ -90,17 +90,17 @@ def main(argv=None) -> None:
     ap.add_argument("--gains", default="", help="comma-separated factors on the actuators' kp, e.g. 2,4 (none: off)")
     args = ap.parse_args(argv)
     if args.approaches < 1:
-        sys.exit(f"--approaches must be >= 1, got {args.approaches}")
+        ap.error(f"--approaches must be >= 1, got {args.approaches}")
     try:
         gains = [float(g) for g in args.gains.split(",") if g.strip()]
     except ValueError:
-        sys.exit(f"--gains must be comma-separated numbers, got {args.gains!r}")
+        ap.error(f"--gains must be comma-separated numbers, got {args.gains!r}")
     if any(not (np.isfinite(g) and g > 0) for g in gains):
-        sys.exit(f"--gains must be numbers > 0, got {args.gains!r}")
+        ap.error(f"--gains must be numbers > 0, got {args.gains!r}")
     hands = args.hands.split(",")
     bad = [h for h in hands if h not in CAPS]
     if bad:
-        sys.exit(f"--hands: unknown hand(s) {bad}; choose from {sorted(CAPS)}")
+        ap.error(f"--hands: unknown hand(s) {bad}; choose from {sorted(CAPS)}")
     if data_dir() is None:
         sys.exit("needs the shared data (ycb10 meshes and MuJoCo Menagerie): set HAPTIC_DATA / MENAGERIE_ROOT")
     objects = load_object_set("ycb10")

@@ -309,8 +309,9 @@ def main(argv=None) -> int:
     ap.add_argument("--approaches", type=int_in(1), default=None,
                     help="hand regime: training approaches per object (default: the hand's registered env's "
                          f"setting, HapticRecogConfig.training_grasps, else {HAND_APPROACHES})")
-    ap.add_argument("--surface-grasps", type=int, default=20_000, help="surface regime: training grasps per object")
-    ap.add_argument("--surface-noise", type=float, default=0.0, help="surface regime: contact noise std (m)")
+    ap.add_argument("--surface-grasps", type=int_in(1), default=20_000,
+                    help="surface regime: training grasps per object")
+    ap.add_argument("--surface-noise", type=float_in(0.0), default=0.0, help="surface regime: contact noise std (m)")
     ap.add_argument("--surface-normal-noise", type=float, default=0.0, help="surface regime: normal noise (deg)")
     ap.add_argument("--calibrate-grasps", type=int_in(1), default=None,
                     help="fit the KDE temperature for beliefs of 1..K grasps of one object (1: one-shot; default: "

@@ -98,11 +98,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", type=int, nargs="+", default=list(ENV_VALIDATION_SEEDS))
     ap.add_argument("--out", default="results/obs_ablation")
     args = ap.parse_args(argv)
-    kwargs = json.loads(args.env_kwargs)
+    try:
+        kwargs = json.loads(args.env_kwargs)
+    except json.JSONDecodeError as exc:
+        ap.error(f"--env-kwargs is not valid JSON ({exc.msg}): {args.env_kwargs!r}")
     if not isinstance(kwargs, dict):
-        raise SystemExit(f"--env-kwargs must be a JSON object, got {args.env_kwargs!r}")
+        ap.error(f"--env-kwargs must be a JSON object, got {args.env_kwargs!r}")
     if not Path(args.model).is_file():
-        raise SystemExit(f"--model {args.model!r} is not a file")
+        ap.error(f"--model {args.model!r} is not a file")
 
     def make_env():
         return gym.make(args.env_id, **kwargs)
@@ -111,8 +114,8 @@ def main(argv: list[str] | None = None) -> int:
     missing = [p for p in args.parts if p not in probe.unwrapped.obs_slices]
     probe.close()
     if missing:
-        raise SystemExit(f"--parts {missing} not in {args.env_id}'s observation {list(probe.unwrapped.obs_slices)} "
-                         f"(with --env-kwargs {kwargs})")
+        ap.error(f"--parts {missing} not in {args.env_id}'s observation {list(probe.unwrapped.obs_slices)} "
+                 f"(with --env-kwargs {kwargs})")
     name = Path(args.model).stem.split("_")[0]
     agents = [make_agent("random"), make_agent(f"{name}={args.model}")]
     agents += [ObsAblation(make_agent(f"{name}={args.model}"), args.parts, mode) for mode in args.modes]

@@ -103,8 +103,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--normal-axis", choices=NORMAL_AXES, default="t2",
                    help="each normal's second angle in Phi_n (n >= 4): to t2's normal (the paper's) or to the edge ab; "
                         "frame: three angles per normal, to the axes of t1's frame")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--time-budget", type=float, default=None, help="seconds: start no new cell after this")
+    p.add_argument("--seed", type=cli.int_in(0), default=0)
+    p.add_argument("--time-budget", type=cli.float_in(0.0, lo_open=True), default=None,
+                   help="seconds: start no new cell after this")
     p.add_argument("--force", action="store_true", help="rerun cells that are already done")
     p.add_argument("--report-only", action="store_true", help="only rewrite the report from the cell files")
     p.add_argument("--quiet", action="store_true", help="no progress bars")

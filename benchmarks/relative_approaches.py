@@ -32,7 +32,7 @@ import numpy as np
 from agents.evaluate import evaluate_agents, markdown_table, summarize
 from agents.random_policy import RandomAgent
 from haptic_env.cache import atomic_write
-from haptic_env.cli import int_in, output_path
+from haptic_env.cli import float_in, int_in, output_path
 from haptic_env.splits import ENV_VALIDATION_SEEDS
 
 importlib.import_module("haptic_env")  # registers the envs
@@ -65,7 +65,7 @@ class TurnedAgent(RandomAgent):
 
 def main(argv=None) -> int:
     p = compare_parser(__doc__.split("\n\n")[0])
-    p.add_argument("--turns", type=float, nargs="+", default=[0.5, 1.0], help="turns in units of pi")
+    p.add_argument("--turns", type=float_in(), nargs="+", default=[0.5, 1.0], help="turns in units of pi")
     a = p.parse_args(argv)
     agents = [RandomAgent()] + [TurnedAgent(t, k) for t in a.turns for k in (False, True)]
     compare(agents, a, "", "turned policy", argv)
@@ -76,7 +76,7 @@ def compare_parser(description: str) -> argparse.ArgumentParser:
     """The arguments that :func:`compare` reads: ``--env-id``, ``--seeds``, ``--episodes``, ``--out``."""
     p = argparse.ArgumentParser(description=description)
     p.add_argument("--env-id", default="HapticRecogMuJoCo-v0")
-    p.add_argument("--seeds", type=int, nargs="+", default=list(ENV_VALIDATION_SEEDS),
+    p.add_argument("--seeds", type=int_in(0), nargs="+", default=list(ENV_VALIDATION_SEEDS),
                    help="env seeds (500-504: the hand envs' validation seeds)")
     p.add_argument("--episodes", type=int_in(1), default=40, help="episodes per seed")
     p.add_argument("--out", type=output_path("file"), default=None, help="also write the table to this markdown file")

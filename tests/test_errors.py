@@ -532,3 +532,25 @@ def test_int_lists_have_one_parser_that_refuses_what_is_not_whole():
             parse_int_list(bad)
     with pytest.raises(argparse.ArgumentTypeError, match="whole numbers"):
         int_list("3.5")
+
+
+@pytest.mark.parametrize("bench, argv, match", [
+    # each was taken, then failed with a traceback or ran on a nonsense value (nan passed every soak variant)
+    ("soak", ["--max-growth-mb", "nan"], r"--max-growth-mb: must be a finite number in \[0.0, inf\], got nan"),
+    ("soak", ["--timeout", "-1"], r"--timeout: must be a finite number in \[0.0, inf\], got -1"),
+    ("hand_experiment", ["--surface-grasps", "0"], r"--surface-grasps: must be >= 1, got 0"),
+    ("hand_experiment", ["--surface-noise", "-1"], r"--surface-noise: must be a finite number in \[0.0, inf\]"),
+    ("relative_approaches", ["--seeds", "-1"], r"--seeds: must be >= 0, got -1"),
+    ("relative_approaches", ["--turns", "nan"], r"--turns: must be a finite number"),
+    ("ece_bandwidth", ["--factors", "0.5,nan"], r"--factors: must be a finite number in \(0.0, inf\], got nan"),
+    ("ece_bandwidth", ["--factors", "abc"], r"--factors: expected a number, got 'abc'"),
+    ("ece_bandwidth", ["--test-grasps", "0"], r"--test-grasps: must be >= 1, got 0"),
+    ("paper_scale", ["--seed", "-1"], r"--seed: must be >= 0, got -1"),
+    ("paper_scale", ["--time-budget", "-5"], r"--time-budget: must be a finite number in \(0.0, inf\], got -5"),
+    ("bench_sweep", ["--fingers", "-3"], r"--fingers: must be in \[2, 20\], got -3"),
+    ("closing_time", ["--approaches", "-1"], r"error: --approaches must be >= 1, got -1"),
+    ("obs_ablation", ["--model", "/nonexistent.zip"], r"error: --model '/nonexistent.zip' is not a file"),
+    ("obs_ablation", ["--model", "x", "--env-kwargs", "{"], r"error: --env-kwargs is not valid JSON"),
+])
+def test_benchmark_flags_are_usage_errors_before_any_work(bench, argv, match, load_benchmark, usage_error):
+    usage_error(load_benchmark(bench).main, argv, match=match)
