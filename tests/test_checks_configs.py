@@ -150,10 +150,10 @@ BAD = [
     (lambda v: A(family_floors=v), 0.1, r"family_floors must be a non-empty tuple of quantiles .*, got 0.1"),
     (lambda v: A(incomplete_pn=v), ((3, True),), r"incomplete_pn must be .*, got \(\(3, True\),\)"),
     (lambda v: A(incomplete_pn=v), (3, 0.2), r"incomplete_pn must be .*, got \(3, 0.2\)"),
-    (lambda v: A(fingers=v), 3, r"fingers must be a tuple of ints >= 2, got 3"),
-    (lambda v: A(zfinger_hands=v), 5, r"zfinger_hands must be a tuple of ints >= 4, got 5"),
+    (lambda v: A(fingers=v), 3, r"fingers must be a tuple of ints in \[2, 20\], each once, got 3"),
+    (lambda v: A(zfinger_hands=v), 5, r"zfinger_hands must be a tuple of ints in \[4, 20\], each once, got 5"),
     (lambda v: A(classifiers=v), 3, r"classifiers must name at least one of .*, got 3"),
-    (lambda v: A(experiments=v), (99,), r"experiments must be .* experiment numbers \[1, .*, 7\], got \(99,\)"),
+    (lambda v: A(experiments=v), (99,), r"experiments must be .* experiment numbers \[1, .*, 7\], each once, got \(99,\)"),
     (lambda v: A(experiments=v), (-1,), r"experiments must be .* experiment numbers .*, got \(-1,\)"),
     # experiment 5's and the stop scale's own arguments
     (_family_temperatures, True, r"grasps must be an int >= 1, got True"),

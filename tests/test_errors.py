@@ -166,6 +166,10 @@ def test_one_object_set_fails_at_make(tmp_path, haptic_cache):
         HapticRecogConfig(objects="families:100000000")  # it generated members without end
     with pytest.raises(ValueError, match=r"unknown units 'furlong'"):
         HapticRecogConfig(object_kwargs={"units": "furlong"})  # a named set ignores a good unit, not a bad one
+    from haptic_env.objects import load_object_set
+
+    with pytest.raises(ValueError, match=r"data_dir must be a folder path or None, got 5"):  # was a bare TypeError
+        load_object_set("kit8", data_dir=5)
     assert sorted(p.name for p in haptic_cache.rglob("*")) == before  # nothing trained or cached
 
 

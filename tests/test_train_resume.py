@@ -304,6 +304,7 @@ def test_a_run_folder_in_use_by_another_training_is_refused(small_recognizer_kwa
     finally:
         holder.kill()
         holder.wait()
+        holder.stdout.close()
     with train.hold_run_dir(run):  # a killed holder leaves no stale lock
         pass
 

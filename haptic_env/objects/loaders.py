@@ -256,6 +256,8 @@ def check_object_data(spec: str | Path, data_dir: str | Path | None = None) -> P
     s = check_object_spec(spec)
     if s not in ("kit8", "kit20", "ycb10"):
         return None
+    if data_dir is not None and not isinstance(data_dir, (str, os.PathLike)):
+        raise ValueError(f"data_dir must be a folder path or None, got {data_dir!r}")
     root = Path(data_dir).expanduser() if data_dir is not None else globals()["data_dir"](required=True)
     if not root.is_dir():
         raise FileNotFoundError(f"data folder {root} does not exist; {_DATA_HELP}")
