@@ -230,3 +230,69 @@ def test_a_refused_update_changes_nothing():
         with pytest.raises(ValueError, match="probabilities"):
             u.update_scores(log_lik=np.zeros((1, 2)))
         assert u.n_grasps == 0
+
+
+def test_scores_of_another_shape_or_not_probabilities_are_refused_before_anything_changes():
+    """A transposed or other-K score array was reshaped into other rows (a belief from nonsense); NaN, inf, negative
+    or > 1 probabilities made IC and BC-IP's beliefs NaN for good or decided at once. Each is a ValueError that
+    changes nothing."""
+    from haptic_env.recognizers.updaters import bayes_steps
+
+    K = 3
+    for make, kw, bad in [
+        (lambda: BayesianUpdater(None, 0.85, n_classes=K), "log_lik", np.zeros((K, 2))),  # (K, m): transposed
+        (lambda: BayesianUpdater(None, 0.85, n_classes=K), "log_lik", np.zeros((2, K + 1))),
+        (lambda: IterativeClassification(None, 0.85, n_classes=K), "proba", np.full((1, 4), 0.25)),
+        (lambda: BCIP(None, None, 0.85, n_classes=K), "proba", np.full((2, K + 1), 0.25)),
+    ]:
+        u = make()
+        with pytest.raises(ValueError, match=rf"{kw} must have shape \(m, 3\)"):
+            u.update_scores(**{kw: bad})
+        assert u.n_grasps == 0
+    for p in ([np.nan, 0.5, 0.5], [np.inf, 0.5, 0.5], [-0.2, 0.6, 0.6], [5.0, 0.0, 0.0], [1e308, 1e308, 1.0]):
+        for u in (IterativeClassification(None, 0.85, n_classes=K), BCIP(None, None, 0.85, n_classes=K)):
+            before = u.belief.copy()
+            with pytest.raises(ValueError, match=r"proba must hold probabilities"):
+                u.update_scores(proba=[p])
+            assert u.n_grasps == 0 and np.array_equal(u.belief, before)
+    one = BayesianUpdater(None, 0.85, n_classes=K)
+    one.update_scores(log_lik=np.array([0.0, -1.0, -2.0]))  # one row as (K,) is still one grasp
+    assert one.n_grasps == 1 and one.prediction == 0
+    with pytest.raises(ValueError, match=r"log_lik must have shape \(m, 3\)"):
+        bayes_steps(np.zeros((2, K)), np.zeros((K, 2)), np.array([0, 1, 2]))
+    for bad in ({"combine": "mean "}, {"max_log_ratio": -5.0}):
+        with pytest.raises(ValueError, match="combine|max_log_ratio"):
+            bayes_steps(np.zeros((1, K)), np.zeros((1, K)), np.array([0, 1]), **bad)
+    with pytest.raises(ValueError, match="starts must be whole numbers"):
+        bayes_steps(np.zeros((2, K)), np.zeros((2, K)), np.array([0, 1.5, 2]))
+
+
+def test_an_infinite_or_overflowing_log_likelihood_is_an_error_not_no_information():
+    """+inf (or rows summing past the float range) was taken as 'no information': the grasp was spent, the belief
+    kept; now it is refused as NaN is, with nothing changed."""
+    from haptic_env.recognizers.updaters import bayes_steps
+
+    for L in ([[np.inf, 0.0, 0.0]], [[1e308, 0.0, 0.0], [1e308, 0.0, 0.0]], [[np.inf, 0.0, 0.0], [-np.inf, 0.0, 0.0]]):
+        u = BayesianUpdater(None, 0.85, n_classes=3)
+        with pytest.raises(ValueError, match=r"NaN or \+inf"):
+            u.update_scores(log_lik=np.array(L))
+        assert u.n_grasps == 0
+        with pytest.raises(ValueError, match=r"NaN or \+inf"):
+            bayes_steps(np.zeros((1, 3)), np.array(L), np.array([0, len(L)]))
+
+
+def test_a_prior_normalises_without_overflow_and_its_zeros_stay_impossible():
+    """Huge prior entries overflowed their sum (a belief of zeros, or of 1e-300s that did not sum to 1); a class the
+    prior gives 0 was 1e-300 likely, so that evidence against the allowed class made it win."""
+    for kind in ("bc-np", "ic"):
+        m = FixedModel([[1.0 / 3] * 3])
+        u = make_updater(kind, classifier=m, likelihood=m)
+        b = u.reset([1e308] * 3)
+        np.testing.assert_allclose(b, [1 / 3] * 3)
+    u = BayesianUpdater(None, 0.85, n_classes=3)
+    u.reset([1.0, 0.0, 0.0])
+    assert u.certainty == 1.0
+    u.update_scores(log_lik=np.array([[-1000.0, 0.0, 0.0]]))  # fits the ruled-out classes better: still ruled out
+    np.testing.assert_array_equal(u.belief, [1.0, 0.0, 0.0])  # no information: the belief stays
+    u.update_scores(log_lik=np.array([[-1.0, 0.0, -5.0]]))
+    np.testing.assert_array_equal(u.belief, [1.0, 0.0, 0.0])

@@ -94,7 +94,8 @@ _OK, _NO_INFORMATION, _NAN = 0, 1, 2
 def _bayes_step(log_belief, L, product, max_log_ratio):
     """``log b + sum_rows L`` (or the row mean), shifted by its best class and renormalised in log space.
 
-    Returns ``(new log belief, status)``: ``_NAN`` if ``L`` holds a NaN, ``_NO_INFORMATION`` if every class
+    Returns ``(new log belief, status)``: ``_NAN`` if ``L`` holds a NaN or +inf, or a class's rows sum past the
+    float range (+inf: not a likelihood; it was taken as no information), ``_NO_INFORMATION`` if every class
     has log-likelihood -inf (the belief is returned unchanged), else ``_OK``. ``max_log_ratio``: a class's
     log-likelihood is raised to at least ``best - max_log_ratio`` (``inf``: the plain rule).
     """
@@ -103,13 +104,16 @@ def _bayes_step(log_belief, L, product, max_log_ratio):
     for r in range(m):
         for c in range(K):
             v = L[r, c]
-            if np.isnan(v):
+            if np.isnan(v) or v == np.inf:
                 return log_belief, _NAN
             ll[c] += v
     if not product:
         ll /= m
+    for c in range(K):
+        if np.isnan(ll[c]) or ll[c] == np.inf:  # a sum past the float range
+            return log_belief, _NAN
     top = ll.max()
-    if not np.isfinite(top):
+    if top == -np.inf:
         return log_belief, _NO_INFORMATION
     post = np.empty(K)
     for c in range(K):
@@ -139,20 +143,26 @@ def bayes_steps(log_beliefs, log_lik, starts, *, combine: str = "product", max_l
     Belief ``b`` is updated by the score rows ``log_lik[starts[b]:starts[b + 1]]`` (``starts (B + 1,)``,
     ascending; an empty range leaves it unchanged). Returns the new log beliefs ``(B, K)`` and a boolean
     ``(B,)``: True where the belief was updated, False where every class had log-likelihood -inf (no
-    information: that belief is returned unchanged). NaN scores raise ``ValueError``.
+    information: that belief is returned unchanged). NaN or +inf scores (or rows that sum past the float range)
+    raise ``ValueError``, as do a ``log_lik`` that is not ``(R, K)`` and options :class:`BayesianUpdater` refuses.
     """
     logb = np.ascontiguousarray(log_beliefs, dtype=np.float64)
-    L = np.ascontiguousarray(log_lik, dtype=np.float64).reshape(-1, logb.shape[1])
+    if logb.ndim != 2:
+        raise ValueError(f"bayes_steps: log_beliefs must be (B, K), got shape {logb.shape}")
+    L = score_rows(log_lik, logb.shape[1], "log_lik")
+    starts = np.asarray(starts)
+    if starts.dtype.kind not in "iu":  # 1.5 was cut to 1
+        raise ValueError(f"bayes_steps: starts must be whole numbers, got {starts}")
     starts = np.ascontiguousarray(starts, dtype=np.int64)
-    if logb.ndim != 2 or starts.shape != (len(logb) + 1,) or starts[0] != 0 or starts[-1] != len(L) or \
-            (np.diff(starts) < 0).any():
+    if starts.shape != (len(logb) + 1,) or starts[0] != 0 or starts[-1] != len(L) or (np.diff(starts) < 0).any():
         raise ValueError(f"bayes_steps: starts must rise from 0 to {len(L)} with {len(logb) + 1} entries, got {starts}")
+    check_combine(combine)
+    mlr = check_max_log_ratio(max_log_ratio)
     out = np.empty_like(logb)
     status = np.empty(len(logb), dtype=np.int64)
-    mlr = np.inf if max_log_ratio is None else float(max_log_ratio)
     _bayes_steps(logb, L, starts, combine == "product", mlr, out, status)
     if (status == _NAN).any():
-        raise ValueError("log-likelihood contains NaN")
+        raise ValueError("log-likelihood contains NaN or +inf, or its rows sum past the float range")
     empty = starts[1:] == starts[:-1]
     out[empty] = logb[empty]
     return out, (status == _OK) & ~empty
@@ -170,6 +180,39 @@ def _grouped(Q, starts) -> tuple[np.ndarray, np.ndarray]:
     if starts.ndim != 1 or len(starts) < 1 or starts[0] != 0 or starts[-1] != len(Q) or (np.diff(starts) < 0).any():
         raise ValueError(f"starts must rise from 0 to {len(Q)}, got {starts}")
     return Q, starts
+
+
+def score_rows(x, n_classes: int, name: str) -> np.ndarray:
+    """Precomputed scores of one grasp's rows as ``(m, K)`` float64: ``(m, K)`` or one row ``(K,)``; any other
+    shape is a ValueError naming ``name`` (a transposed or other-K array was reshaped into other rows)."""
+    X = np.asarray(x, dtype=np.float64)
+    if X.ndim == 1 and X.shape[0] == n_classes:
+        return X[None]
+    if X.ndim != 2 or X.shape[1] != n_classes:
+        raise ValueError(f"{name} must have shape (m, {n_classes}) (m rows of {n_classes} classes), got {X.shape}")
+    return X
+
+
+def _probabilities(proba, n_classes: int) -> np.ndarray:
+    """:func:`score_rows` of classifier probabilities, each finite and in [0, 1] (a NaN made the belief NaN for
+    good; inf decided at once)."""
+    P = score_rows(proba, n_classes, "proba")
+    if not (np.isfinite(P).all() and (P >= 0).all() and (P <= 1).all()):
+        raise ValueError(f"proba must hold probabilities (finite, in [0, 1]), got {P.tolist()}")
+    return P
+
+
+def check_combine(combine) -> str:
+    if combine not in ("product", "mean"):
+        raise ValueError(f"combine must be 'product' or 'mean', got {combine!r}")
+    return combine
+
+
+def check_max_log_ratio(max_log_ratio) -> float:
+    """``max_log_ratio`` (None, a positive number or inf) as the kernels take it (None: inf)."""
+    if max_log_ratio is not None and not (max_log_ratio == math.inf or (finite_number(max_log_ratio) or 0) > 0):
+        raise ValueError(f"max_log_ratio must be positive or None, got {max_log_ratio!r}")
+    return math.inf if max_log_ratio is None else float(max_log_ratio)
 
 
 def _check_weight(weight) -> float:
@@ -205,8 +248,9 @@ class BeliefUpdater(ABC):
         if prior is None:
             return np.full(self.n_classes, 1.0 / self.n_classes)
         p = np.asarray(prior, dtype=np.float64)
-        if p.shape != (self.n_classes,) or not np.isfinite(p).all() or (p < 0).any() or p.sum() <= 0:
+        if p.shape != (self.n_classes,) or not np.isfinite(p).all() or (p < 0).any() or not p.max() > 0:
             raise ValueError(f"prior must be {self.n_classes} non-negative finite numbers with a positive sum, got {prior!r}")
+        p = p / p.max()  # first: the sum of huge entries overflowed (1e308 each gave a belief of zeros)
         return p / p.sum()
 
     @abstractmethod
@@ -304,7 +348,7 @@ class IterativeClassification(BeliefUpdater):
     def update_scores(self, log_lik=None, proba=None) -> np.ndarray:
         if proba is None:  # before anything changes
             raise ValueError("IC updates need classifier probabilities (proba)")
-        P = np.asarray(proba, dtype=np.float64).reshape(-1, self.n_classes)
+        P = _probabilities(proba, self.n_classes)  # before anything changes
         self.n_grasps += 1
         if len(P) == 0:  # no usable (sub-)grasp: the grasp is spent, the scores stay
             return self.belief
@@ -334,17 +378,16 @@ class BayesianUpdater(BeliefUpdater):
         ``max_log_ratio``: if set, one grasp can lower a class's log-likelihood by at most this much
         below the best class (robustness against an outlier grasp); ``None`` is the plain rule.
         """
-        if combine not in ("product", "mean"):
-            raise ValueError(f"combine must be 'product' or 'mean', got {combine!r}")
-        if max_log_ratio is not None and not (max_log_ratio == math.inf or (finite_number(max_log_ratio) or 0) > 0):
-            raise ValueError(f"max_log_ratio must be positive or None, got {max_log_ratio!r}")
+        check_combine(combine)
+        check_max_log_ratio(max_log_ratio)
         self.likelihood = likelihood
         self.combine = combine
         self.max_log_ratio = max_log_ratio
         super().__init__(n_classes or likelihood.n_classes, threshold)
 
     def reset(self, prior=None) -> np.ndarray:
-        self.log_belief = np.log(np.maximum(self._check_prior(prior), 1e-300))
+        with np.errstate(divide="ignore"):  # a class the prior rules out is impossible (-inf), not 1e-300 likely
+            self.log_belief = np.log(self._check_prior(prior))
         self.n_grasps = 0
         return self.belief
 
@@ -358,20 +401,20 @@ class BayesianUpdater(BeliefUpdater):
         return math.exp(float(np.maximum.reduce(self.log_belief)))
 
     def _bayes(self, log_lik: np.ndarray) -> None:
-        L = np.asarray(log_lik, dtype=np.float64).reshape(-1, self.n_classes)
+        L = score_rows(log_lik, self.n_classes, "log_lik")
         if len(L) == 0:
             return
         mlr = np.inf if self.max_log_ratio is None else float(self.max_log_ratio)
         post, status = _bayes_step(self.log_belief, L, self.combine == "product", mlr)
         if status == _NAN:
-            raise ValueError("log-likelihood contains NaN")
+            raise ValueError("log-likelihood contains NaN or +inf, or its rows sum past the float range")
         if status == _OK:  # else every class is impossible: no information, the belief stays
             self.log_belief = post
 
     def update_scores(self, log_lik=None, proba=None) -> np.ndarray:
         if log_lik is None:
             raise ValueError("Bayesian updates need log-likelihoods (log_lik)")
-        self._bayes(log_lik)  # raises on NaN before anything changes
+        self._bayes(log_lik)  # raises on NaN, +inf or a bad shape before anything changes
         self.n_grasps += 1
         return self.belief
 
@@ -420,7 +463,7 @@ class BCIP(BayesianUpdater):
             return super().update_scores(log_lik=log_lik)
         if proba is None:  # before anything changes
             raise ValueError("the first BC-IP update needs classifier probabilities (proba)")
-        P = np.asarray(proba, dtype=np.float64).reshape(-1, self.n_classes)
+        P = _probabilities(proba, self.n_classes)  # before anything changes
         self.n_grasps += 1
         if len(P):
             p = np.maximum(P.mean(axis=0), self.eps)
