@@ -14,9 +14,10 @@ Spatial grasps, ``n >= 3`` (:func:`phi`)
        already visited facet and adds one new contact; the second (``t2``) is thus the largest facet next to
        ``t1`` on any of its three edges, not necessarily on ``ab``, and adds the fourth contact ``d``. A facet
        adds its two interior angles at the shared edge (earlier contact of the chain first) and the signed
-       dihedral angle (radians, in ``(-pi, pi]``) from the facet it is attached to. Facets of exactly equal
-       area (a measure-zero case, e.g. a square pyramid's side and base halves) are ranked by rounding, so
-       there the vector may depend on the pose or the finger order.
+       dihedral angle (radians, in ``(-pi, pi]``) from the facet it is attached to. Exact ties are ranked by
+       rounding, so there the vector may depend on the pose or the finger order: facets of exactly equal area
+       (e.g. a square pyramid's side and base halves), and a ``t1`` with two equally long longest edges (an
+       isosceles ``t1``: which is ``ab``). Both are measure-zero cases, but a symmetric grasp can meet them.
     3. Contacts that are no hull vertex (inside the polyhedron; possible on concave objects) are
        attached to ``ab`` of ``t1`` as a virtual facet with the same three values, taken in the
        order of their angle at ``a``.
@@ -58,7 +59,8 @@ Planar grasps (:func:`phi_planar`, ``(B, n, 2)``)
     The polygon of the contacts sorted counter-clockwise about their centroid; starting at the
     longest counter-clockwise edge ``v0 v1``: ``|v0 v1|``, then for each further vertex the signed
     interior angle at the previous vertex and the next edge length: ``2n - 3`` values; normals add
-    their signed angle to ``v0 v1``: ``3n - 3``.
+    their signed angle to ``v0 v1``: ``3n - 3``. Ties are ranked by rounding, as in 3-D: two equally long
+    longest edges (a kite, an isosceles triangle) and a contact exactly at the centroid (no angle about it).
 
 Degenerate grasps
     Coincident contacts, collinear contacts, and (for ``n >= 4``) coplanar contacts have no

@@ -37,6 +37,9 @@ def test_scorer_needs_a_pooled_kde_of_the_right_dimension():
         GraspScorer(4, False, KDELikelihood(KDEConfig(factor=1.0, method="tree")).fit(X, y))
     with pytest.raises(ValueError, match="features"):
         GraspScorer(4, True, KDELikelihood(KDEConfig(factor=1.0, method="pooled")).fit(X, y))
+    two = KDELikelihood(KDEConfig(factor=1.0, method="pooled")).fit(X[:, :1], y)  # q of two contacts: a distance
+    with pytest.raises(ValueError, match="GraspScorer needs n_fingers >= 3"):  # its first call failed in numba
+        GraspScorer(2, False, two)
 
 
 @pytest.mark.parametrize("n, normals, heights", [(4, True, False), (5, False, True)])

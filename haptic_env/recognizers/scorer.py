@@ -17,6 +17,7 @@ from numba import njit
 
 from haptic_env import _phi_kernels as phik
 from haptic_env.grasp_features import DEFAULT_TOL, _topology, feature_dim, normals_code, phi
+from haptic_env.numbers import whole_number
 from haptic_env.recognizers.boosted import BoostedLikelihood
 from haptic_env.recognizers.knn import log_density_row, workspace
 
@@ -34,6 +35,9 @@ class GraspScorer:
     """
 
     def __init__(self, n_fingers: int, normals: bool, kde, post=None, heights: bool = False, normal_axis: str = "t2"):
+        if (whole_number(n_fingers) or 0) < 3:  # n = 2 (a distance) has no facets: the kernel failed to compile
+            raise ValueError(f"GraspScorer needs n_fingers >= 3 (two contacts are scored by the KDE directly), "
+                             f"got {n_fingers!r}")
         if post is not None and not callable(post):
             raise TypeError(f"post must be a callable (B, K) -> (B, K) or None, got {type(post).__name__}")
         self.post = post
