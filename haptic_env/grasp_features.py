@@ -231,7 +231,8 @@ def _as_batch(contacts, normals, dim: int) -> tuple[np.ndarray, np.ndarray | Non
         bad = ~(np.isfinite(norm) & (norm > 1e-12))
         if bad.any():
             i, j = np.argwhere(bad)[0]
-            raise ValueError(f"normal {j} of grasp {i} is zero or not finite: {N[i, j].tolist()}")
+            raise ValueError(f"normal {j} of grasp {i} is zero, shorter than 1e-12, longer than about 1e154 or not "
+                             f"finite: {N[i, j].tolist()}")
         N = N / norm[..., None]
     return P, N, single
 
@@ -339,7 +340,8 @@ def phi(contacts, normals=None, *, strict: bool = False, tol: float = DEFAULT_TO
 
     Args:
         contacts: ``(B, n, 3)`` or ``(n, 3)`` contact points, ``n >= 2``.
-        normals: optional contact normals of the same shape (need not be unit length).
+        normals: optional contact normals of the same shape (need not be unit length; each longer than 1e-12 and
+            short enough to square, below about 1e154).
         strict: raise :class:`DegenerateGraspError` for the first degenerate grasp instead of
             flagging it in ``valid``.
         tol: relative tolerance of the degeneracy tests, a finite number ``> 0`` (``ValueError`` otherwise).
