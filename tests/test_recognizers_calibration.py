@@ -7,6 +7,8 @@ import pytest
 
 from haptic_env.recognizers import KDEConfig, KDELikelihood
 from haptic_env.recognizers.calibration import (
+    PowerCorrection,
+    ScoreCorrection,
     calibration_rows,
     expected_calibration_error,
     fit_correction,
@@ -57,6 +59,14 @@ def test_minus_inf_scores_and_degenerate_input():
         fit_temperature(np.zeros((2, 3)), np.array([0, 3]))
     with pytest.raises(ValueError, match="NaN"):
         fit_temperature(np.full((1, 2), np.nan), np.array([0]))
+    # +inf was put at the floor (the surest class scored as the least likely: T at its upper bound)
+    with pytest.raises(ValueError, match=r"NaN or \+inf"):
+        fit_temperature(np.array([[np.inf, 0.0, 0.0]]), np.array([0]))
+    for fit in (ScoreCorrection(W=np.eye(3), b=np.zeros(3), floor=-50.0), PowerCorrection(p=1.5, cap=50.0)):
+        for bad in (np.inf, np.nan):  # both were put at the floor silently when a correction was applied
+            with pytest.raises(ValueError, match=r"NaN or \+inf"):
+                fit(np.array([[bad, 0.0, -1.0]]))
+        assert np.isfinite(fit(np.array([[-np.inf, 0.0, -1.0]]))).any()  # -inf: a class ruled out, as before
     with pytest.raises(ValueError, match="bins"):
         reliability(np.full((1, 2), 0.5), np.array([0]), bins=0)
 

@@ -44,8 +44,7 @@ def _check(scores, y) -> tuple[np.ndarray, np.ndarray]:
         raise ValueError(f"scores must have shape (B, K) with K >= 2, got {S.shape}")
     if Y.shape != (S.shape[0],) or not np.issubdtype(Y.dtype, np.integer) or (Y < 0).any() or (Y >= S.shape[1]).any():
         raise ValueError(f"y must be ({S.shape[0]},) class indices in [0, {S.shape[1]}), got shape {Y.shape}")
-    if np.isnan(S).any():
-        raise ValueError("scores contain NaN")
+    _finite_or_minus_inf(S)  # +inf was put at the floor: the surest class made the least likely
     return S, Y.astype(np.int64)
 
 
@@ -53,6 +52,17 @@ def _row_top(S: np.ndarray) -> np.ndarray:
     """``(B, 1)``: each row's best finite score (0 for a row with none)."""
     top = np.max(np.where(np.isfinite(S), S, -np.inf), axis=1, keepdims=True)
     return np.where(np.isfinite(top), top, 0.0)
+
+
+def _finite_or_minus_inf(scores, n_classes: int | None = None) -> np.ndarray:
+    """Scores to correct as ``(B, K)`` float64 (``K = n_classes`` when given), each finite or -inf: a ValueError
+    otherwise (NaN and +inf were put at the floor silently)."""
+    S = np.asarray(scores, dtype=np.float64)
+    if S.ndim != 2 or (n_classes is not None and S.shape[1] != n_classes):
+        raise ValueError(f"scores must have shape (B, {'K' if n_classes is None else n_classes}), got {S.shape}")
+    if np.isnan(S).any() or (S == np.inf).any():
+        raise ValueError("scores contain NaN or +inf (log-likelihoods are finite or -inf)")
+    return S
 
 
 def _finite_rows(S: np.ndarray) -> np.ndarray:
@@ -85,9 +95,7 @@ class ScoreCorrection:
 
     def __call__(self, scores) -> np.ndarray:
         """``(B, K)`` scores -> ``(B, K)`` corrected log-posteriors (rows sum to 1 in probability)."""
-        S = np.asarray(scores, dtype=np.float64)
-        if S.ndim != 2 or S.shape[1] != len(self.b):
-            raise ValueError(f"scores must have shape (B, {len(self.b)}), got {S.shape}")
+        S = _finite_or_minus_inf(scores, len(self.b))
         # row by row (no BLAS matrix product): a row's result does not depend on the batch it came in
         X = _centred(S, self.floor)
         return log_softmax((X[:, None, :] * self.W[None]).sum(axis=2) + self.b, axis=1)
@@ -164,9 +172,7 @@ class PowerCorrection:
 
     def __call__(self, scores) -> np.ndarray:
         """``(B, K)`` scores -> ``(B, K)`` corrected scores (the best class at 0, the others below)."""
-        S = np.asarray(scores, dtype=np.float64)
-        if S.ndim != 2:
-            raise ValueError(f"scores must have shape (B, K), got {S.shape}")
+        S = _finite_or_minus_inf(scores)
         return -(-_centred(S, -self.cap)) ** self.p
 
 
