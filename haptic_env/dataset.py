@@ -156,6 +156,13 @@ class DatasetConfig:
         check_support(self.support)
         if self.hand_budget not in BUDGETS:
             raise ValueError(f"hand_budget must be one of {BUDGETS}, got {self.hand_budget!r}")
+        # settings of other sources were taken and ignored (the dataset command refused only --hand)
+        ignored = [f"{k}={getattr(self, k)!r}" for k, default, sources in (
+            ("hand_fingers", None, ("geometric", "hand")), ("support", "table", ("geometric", "hand")),
+            ("hand_budget", "uniform", ("hand",))) if getattr(self, k) != default and self.source not in sources]
+        if ignored:
+            raise ValueError(f"{', '.join(ignored)} would be ignored with source={self.source!r}: hand_fingers and "
+                             "support apply to the geometric and hand sources, hand_budget to the hand source")
         if (self.source == "hand") != (self.hand is not None):
             raise ValueError(f"hand (got {self.hand!r}) is required with source='hand' and only then "
                              f"(source={self.source!r})")
@@ -618,7 +625,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--units", default="m", help="units of a folder's mesh files: m, cm, mm or metres per unit")
     p.add_argument("--up", default="z", choices=UP_AXES,
                    help="a folder's mesh files' up axis, turned to z (named sets know theirs: KIT y)")
-    from haptic_env.cli import float_in, int_in
+    from haptic_env.cli import float_in, int_in, output_path
 
     p.add_argument("--fingers", type=int_in(2, MAX_CLI_FINGERS), default=4,
                    help=f"contacts per grasp, 2..{MAX_CLI_FINGERS} (default 4)")
@@ -649,7 +656,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="hand source: the same approaches for every object, or the same total spread towards the "
                         "objects whose grasps rarely complete (default %(default)s)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--out", type=Path, default=None, help="also write the dataset to this .npz")
+    p.add_argument("--out", type=output_path("file"), default=None, help="also write the dataset to this .npz")
     p.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_run_cli)
@@ -660,8 +667,6 @@ def _run_cli(args: argparse.Namespace) -> int:
     from haptic_env.cli import UsageError
 
     t0 = time.perf_counter()
-    if args.out is not None and args.out.is_dir():  # checked before the work, not when saving its result
-        raise UsageError(f"--out {args.out} is a folder; give a file name such as {args.out / 'grasps.npz'}")
     try:
         objects = load_object_set(args.objects, units=args.units, up=args.up)
         config = _cli_config(args)

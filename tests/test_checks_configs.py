@@ -124,6 +124,11 @@ BAD = [
     (lambda v: D(n_fingers=v), math.inf, r"n_fingers must be an int >= 2, got inf"),
     (lambda v: D(n_fingers=v), None, r"n_fingers must be an int >= 2, got None"),
     (lambda v: D(grasps_per_object=v), True, r"grasps_per_object must be an int >= 1, got True"),
+    # another source's settings were taken and ignored
+    (lambda v: D(hand_fingers=v), 7, r"hand_fingers=7 would be ignored with source='surface'"),
+    (lambda v: D(support=v), "floating", r"support='floating' would be ignored with source='surface'"),
+    (lambda v: D(source="geometric", hand_budget=v), "balanced", r"hand_budget='balanced' would be ignored with "
+                                                                   r"source='geometric'"),
     (lambda v: D(grasps_per_object=v), 100.0, r"grasps_per_object must be an int >= 1, got 100.0"),
     (lambda v: D(source="geometric", hand_fingers=v), 5.0, r"hand_fingers must be an int >= n_fingers=4, got 5.0"),
     (lambda v: D(source="geometric", hand_fingers=v), "x", r"hand_fingers must be an int >= n_fingers=4, got 'x'"),

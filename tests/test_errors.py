@@ -373,6 +373,12 @@ def test_dataset_out_folder_fails_before_the_work(tmp_path, capsys, monkeypatch)
     with pytest.raises(SystemExit) as exc:
         main(["dataset", "--grasps", "1000000", "--out", str(tmp_path), "--no-cache", "--quiet"])
     assert exc.value.code == 2 and "is a folder" in capsys.readouterr().err
+    for argv, said in ((["--out", str(tmp_path / "file" / "g.npz")], "is not a writable folder"),  # after the work
+                       (["--source", "surface", "--hand-fingers", "5"], "hand_fingers=5 would be ignored")):
+        (tmp_path / "file").write_text("x")
+        with pytest.raises(SystemExit) as exc:
+            main(["dataset", "--grasps", "1000000", "--no-cache", "--quiet", *argv])
+        assert exc.value.code == 2 and said in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("argv, match", [
