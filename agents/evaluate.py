@@ -705,12 +705,16 @@ def monitor_folder(log_dir: str | Path) -> Path:
 def plot_learning_curves(log_dirs: dict[str, str | Path], out: str | Path, window: int = 200) -> Path:
     """Episode length (= grasps), return and success vs env steps from the ``Monitor`` CSVs of each run
     (``<log_dir>/monitor/*.monitor.csv``, as written by :func:`agents.sb3.make_vec_env`)."""
+    return _plot_curves({name: read_monitor(monitor_folder(d)) for name, d in log_dirs.items()}, out, window)
+
+
+def _plot_curves(runs: dict[str, dict[str, np.ndarray]], out: str | Path, window: int = 200) -> Path:
+    """:func:`plot_learning_curves` of runs already read (``name -> read_monitor(...)``)."""
     from matplotlib.figure import Figure  # no pyplot: no global backend switch, no window
 
     fig = Figure(figsize=(13, 3.8))
     axes = fig.subplots(1, 3)
-    for name, d in log_dirs.items():
-        data = read_monitor(monitor_folder(d))
+    for name, data in runs.items():
         steps = np.cumsum(data["l"])
         for ax, col in zip(axes, ["l", "r", "correct"]):
             if col in data:
@@ -851,11 +855,10 @@ def _main(args) -> int:
         name, _, path = spec.partition("=") if "=" in spec else (Path(spec).name, "", spec)
         if not Path(path).is_dir():
             raise UsageError(f"--learning-curves {spec}: {path} is not a folder")
-        try:  # read now, not after every episode has run
-            read_monitor(monitor_folder(path))
+        try:  # read now, not after every episode has run (and once: the plot at the end draws these)
+            curves[name] = read_monitor(monitor_folder(path))
         except (FileNotFoundError, ValueError) as exc:
             raise UsageError(f"--learning-curves {spec}: {exc}") from exc
-        curves[name] = path
     agents = []
     for spec in args.agents:
         if "=" in spec or spec.endswith(".zip"):
@@ -896,6 +899,6 @@ def _main(args) -> int:
                                f"{args.seeds}; {time.time() - t0:.0f} s{note}.")
     shutil.rmtree(store, ignore_errors=True)
     if curves:
-        plot_learning_curves(curves, Path(args.out) / "learning_curves.png")
+        _plot_curves(curves, Path(args.out) / "learning_curves.png")
     print(paths["md"].read_text())
     return 0
