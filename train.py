@@ -188,7 +188,7 @@ def parse_args(argv: list[str] | None = None) -> Args:
         config = env_config(args)
     except (TypeError, ValueError, FileNotFoundError) as exc:
         _usage_error(f"env settings: {exc}")
-    from haptic_env.vector_env import NATIVE_BACKENDS
+    from haptic_env import NATIVE_BACKENDS
 
     if args.vec == "native" and config.backend not in NATIVE_BACKENDS:
         _usage_error(f"argument --vec: the native vector env steps the backends {NATIVE_BACKENDS}, got "

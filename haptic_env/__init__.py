@@ -57,8 +57,10 @@ ENV_VARIANTS.update({f"HapticRecog{hand}Heights-v0": {**ENV_VARIANTS[f"HapticRec
                                                        "touch_weight": w}
                      for hand, w in (("MuJoCo", 1.0), ("Shadow", 0.5), ("Aero", 1.0), ("Robotiq", 1.0))})
 
-#: the native vector env (:mod:`haptic_env.vector_env`) of the geometric variants:
-#: ``gym.make_vec(id, num_envs, vectorization_mode="vector_entry_point")`` (also make_vec's default for them)
+#: the native vector env (:mod:`haptic_env.vector_env`) of the variants on these backends (those with
+#: ``grasp_placed``: one batched call per object): ``gym.make_vec(id, num_envs, vectorization_mode=
+#: "vector_entry_point")`` (also make_vec's default for them)
+NATIVE_BACKENDS = ("geometric",)
 _VECTOR_ENTRY = "haptic_env.vector_env:HapticRecogVectorEnv"
 
 # no max_episode_steps: the env truncates itself after config.max_grasps grasps (the one source of the episode length)
@@ -67,7 +69,7 @@ _VECTOR_ENTRY = "haptic_env.vector_env:HapticRecogVectorEnv"
 for _id, _kwargs in ENV_VARIANTS.items():
     if _id not in registry:
         register(id=_id, entry_point=_ENTRY, kwargs={"variant": _id} if _kwargs else {},
-                 vector_entry_point=_VECTOR_ENTRY if _kwargs.get("backend", "geometric") == "geometric" else None)
+                 vector_entry_point=_VECTOR_ENTRY if _kwargs.get("backend", "geometric") in NATIVE_BACKENDS else None)
 
 
 def variant_config(env_id: str = "HapticRecog-v0", **changes: Any):

@@ -51,6 +51,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from haptic_env import NATIVE_BACKENDS
 from haptic_env.belief import Belief, check_grasp_vectors, get_recognizer
 from haptic_env.config import HapticRecogConfig, resolve_env_config
 from haptic_env.grasp_features import feature_dim
@@ -59,9 +60,6 @@ from haptic_env.task import Task, entropy, touched_rows
 from haptic_env.numbers import whole_at_least
 
 __all__ = ["HapticRecogVectorEnv", "make_vector_env", "NATIVE_BACKENDS"]
-
-#: The grasp backends the native vector env steps (those with ``grasp_placed``: one batched call per object).
-NATIVE_BACKENDS = ("geometric",)
 
 #: snake-case names of Gymnasium's autoreset modes (their values, "NextStep" etc., are accepted too)
 _MODE_ALIASES = {"next_step": AutoresetMode.NEXT_STEP, "same_step": AutoresetMode.SAME_STEP,
