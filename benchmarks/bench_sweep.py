@@ -30,13 +30,14 @@ sys.path.insert(0, str(ROOT))
 import numpy as np  # noqa: E402
 
 from haptic_env.cli import int_in, output_path  # noqa: E402
+from haptic_env.dataset import MAX_CLI_FINGERS  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--jobs", type=int_in(1), default=4)
     ap.add_argument("--grasps", type=int_in(1), default=100_000, help="grasps per object of each dataset job")
-    ap.add_argument("--fingers", type=int_in(2, 20), default=4)
+    ap.add_argument("--fingers", type=int_in(2, MAX_CLI_FINGERS), default=4)
     ap.add_argument("--num-cpus", type=int_in(1), default=2)
     ap.add_argument("--rounds", type=int_in(1), default=2,
                     help="pairs of runs, the order alternating; the median ratio")
