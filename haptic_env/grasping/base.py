@@ -28,6 +28,7 @@ are handed (the generator is only used for sensing noise / random surface points
 
 from __future__ import annotations
 
+import importlib
 import math
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
@@ -341,7 +342,12 @@ def validate_pose(pose: Any) -> np.ndarray:
     return T
 
 
-BACKENDS = ("geometric", "uniform", "mujoco", "replay")
+#: backend name -> (its module, config class, backend class, ``n_fingers`` when none is given: None is the hand's own)
+_KINDS = {"geometric": (".geometric", "GeometricConfig", "GeometricBackend", 4),
+          "uniform": (".uniform", "UniformConfig", "UniformBackend", 4),
+          "mujoco": (".mujoco_backend", "MujocoConfig", "MujocoBackend", None),
+          "replay": (".replay", "ReplayConfig", "ReplayBackend", None)}  # a hand's recorded MuJoCo grasps
+BACKENDS = tuple(_KINDS)
 
 
 def make_backend(name: str = "geometric", n_fingers: int | None = None, **cfg: Any) -> GraspBackend:
@@ -356,21 +362,8 @@ def make_backend(name: str = "geometric", n_fingers: int | None = None, **cfg: A
     ``n_fingers=None``: 4, or for ``"mujoco"`` and ``"replay"`` the hand's own count.
     """
     config = backend_config(name, n_fingers, **cfg)
-    if name == "geometric":
-        from .geometric import GeometricBackend
-
-        return GeometricBackend(config)
-    if name == "uniform":
-        from .uniform import UniformBackend
-
-        return UniformBackend(config)
-    if name == "mujoco":
-        from .mujoco_backend import MujocoBackend
-
-        return MujocoBackend(config)
-    from .replay import ReplayBackend
-
-    return ReplayBackend(config)  # a hand's recorded MuJoCo grasps
+    module, _, backend, _ = _KINDS[name]
+    return getattr(importlib.import_module(module, __package__), backend)(config)
 
 
 def backend_config(name: str = "geometric", n_fingers: int | None = None, **cfg: Any) -> Any:
@@ -381,18 +374,6 @@ def backend_config(name: str = "geometric", n_fingers: int | None = None, **cfg:
         raise ValueError(f"unknown grasp backend {name!r}; choose one of {BACKENDS}")
     if "n_fingers" in cfg:  # it would reach the config twice
         raise TypeError("n_fingers is make_backend's own argument, not one of the config's keyword arguments")
-    if name == "geometric":
-        from .geometric import GeometricConfig
-
-        return GeometricConfig(n_fingers=4 if n_fingers is None else n_fingers, **cfg)
-    if name == "uniform":
-        from .uniform import UniformConfig
-
-        return UniformConfig(n_fingers=4 if n_fingers is None else n_fingers, **cfg)
-    if name == "mujoco":
-        from .mujoco_backend import MujocoConfig
-
-        return MujocoConfig(n_fingers=n_fingers, **cfg)  # None: the hand's own count
-    from .replay import ReplayConfig
-
-    return ReplayConfig(n_fingers=n_fingers, **cfg)
+    module, config, _, default_fingers = _KINDS[name]
+    n = default_fingers if n_fingers is None else n_fingers
+    return getattr(importlib.import_module(module, __package__), config)(n_fingers=n, **cfg)
