@@ -29,6 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_grasp_solver import N_FINGERS, run  # noqa: E402  (the same approaches per variant, interleaved per object)
 
+from haptic_env.cli import float_list_in  # noqa: E402
 from haptic_env.grasping.hands import HandDescription, HandUnavailableError, load_hand  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 #: caps tried per hand (its default: allegro 60, shadow 75, aero 200, robotiq 300 steps)
@@ -87,16 +88,12 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--approaches", type=int, default=20, help="random approaches per object")
     ap.add_argument("--hands", default="shadow,aero,allegro")
-    ap.add_argument("--gains", default="", help="comma-separated factors on the actuators' kp, e.g. 2,4 (none: off)")
+    ap.add_argument("--gains", type=float_list_in(0.0, lo_open=True), default="",
+                    help="comma-separated factors (> 0) on the actuators' kp, e.g. 2,4 (none: off)")
     args = ap.parse_args(argv)
     if args.approaches < 1:
         ap.error(f"--approaches must be >= 1, got {args.approaches}")
-    try:
-        gains = [float(g) for g in args.gains.split(",") if g.strip()]
-    except ValueError:
-        ap.error(f"--gains must be comma-separated numbers, got {args.gains!r}")
-    if any(not (np.isfinite(g) and g > 0) for g in gains):
-        ap.error(f"--gains must be numbers > 0, got {args.gains!r}")
+    gains = args.gains
     hands = args.hands.split(",")
     bad = [h for h in hands if h not in CAPS]
     if bad:

@@ -29,7 +29,7 @@ from scipy.special import log_softmax, softmax
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from haptic_env.cli import float_in, int_in  # noqa: E402
+from haptic_env.cli import float_list_in, int_in  # noqa: E402
 from haptic_env.dataset import build_dataset  # noqa: E402
 from haptic_env.experiments.config import AnalysisConfig  # noqa: E402
 from haptic_env.experiments.fresh_grasps import fresh_pool  # noqa: E402
@@ -42,24 +42,20 @@ def _nll(S: np.ndarray, y: np.ndarray) -> float:
     return float(-log_softmax(S, axis=1)[np.arange(len(y)), y].mean())
 
 
-def _factors(text: str) -> list[float]:
-    """argparse ``type``: a comma list of finite numbers > 0 (a bad one is a one-line error naming the flag)."""
-    positive = float_in(0.0, lo_open=True)
-    return [positive(word) for word in text.split(",") if word.strip()] or positive("")
-
-
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--objects", default="default")
     p.add_argument("--fingers", type=int_in(2), default=4)
     p.add_argument("--no-normals", action="store_true")
-    p.add_argument("--factors", type=_factors, default="0.35,0.5,0.7,1.0,1.4,2.0,2.8",
+    p.add_argument("--factors", type=float_list_in(0.0, lo_open=True), default="0.35,0.5,0.7,1.0,1.4,2.0,2.8",
                    help="comma list of bandwidth factors, each a finite number > 0")
     p.add_argument("--test-grasps", type=int_in(1), default=400)
     p.add_argument("--select", default=None, choices=SELECTS,
                    help="the (auto) row's bandwidth criterion (default: the analyses' KDEConfig.select)")
     a = p.parse_args(argv)
     factors = list(a.factors)
+    if not factors:
+        p.error("argument --factors: give at least one factor")
     normals = not a.no_normals
     objects = load_object_set(a.objects)
     cfg = dataclasses.replace(AnalysisConfig(), objects=a.objects, test_grasps=a.test_grasps, progress=False)

@@ -79,6 +79,17 @@ def float_in(lo: float | None = None, hi: float | None = None, *, lo_open: bool 
     return parse
 
 
+def float_list_in(lo: float | None = None, hi: float | None = None, *, lo_open: bool = False,
+                  hi_open: bool = False):
+    """argparse ``type``: a comma list of numbers, each as :func:`float_in` takes it (``""``: an empty list)."""
+    one = float_in(lo, hi, lo_open=lo_open, hi_open=hi_open)
+
+    def parse(text: str) -> list[float]:
+        return [one(word.strip()) for word in text.split(",") if word.strip()]
+
+    return parse
+
+
 def parse_int_list(text: str) -> tuple[int, ...]:
     """``"2-4,7"`` -> ``(2, 3, 4, 7)``: whole numbers (:func:`whole_text`: ``2e5`` is 200000) and ranges ``a-b``,
     comma-separated; a ``ValueError`` naming the text for anything else (``3.5``, ``x``, ``4-2``)."""
