@@ -71,6 +71,19 @@ def test_same_seed_same_grasp(generic):
     assert np.array_equal(r1.contacts, r2.contacts) and np.array_equal(r1.touched, r2.touched)
 
 
+def test_a_hand_whose_fingertips_close_behind_its_palm_grasps_a_small_ball():
+    """The generic hand's closed fingertips meet 3.8 cm behind its palm (``g . n < 0``); the pre-grasp search started
+    the palm that far past a small object's centre, already free of it and facing away, so no fingertip ever touched
+    a 6.7 cm ball (the default set's)."""
+    be = make_backend("mujoco", 4, hand="generic")
+    be.set_object(GraspObject("ball", trimesh.creation.icosphere(subdivisions=3, radius=0.0335)))
+    n, _, g = be._calibrated
+    assert g @ n < -0.02  # the case this test is about
+    rng = np.random.default_rng(0)
+    res = [be.grasp(a, rng) for a in rng.uniform(-1, 1, (10, 4))]
+    assert np.mean([r.usable for r in res]) >= 0.8, [r.n_touched for r in res]
+
+
 def test_missing_fingers_reported():
     be = make_backend("mujoco", 5, hand="generic")
     be.set_object(GraspObject("pole", trimesh.creation.cylinder(0.006, 0.2, sections=24)))

@@ -653,7 +653,9 @@ class MujocoBackend:
         step_time0, steps0 = sc.step_time, sc.steps
         # pre-grasp: grasp centre on the approach axis, as close to the object as collision-free
         s_max = float(np.max(self._hull_vw @ u - self._centre @ u)) + 0.3
-        s, free = 0.0, False
+        # start with the palm (the mount) no further in than the object's centre: a hand whose closed fingertips
+        # meet behind its palm (g . n < 0) would otherwise start past a small object, free, facing away from it
+        s, free = max(0.0, -float(g @ n)), False
         while s <= s_max:
             sc.set_mount(self._centre + s * u - R @ g, R)
             if sc.hand_object_contacts() == 0:
