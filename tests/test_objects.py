@@ -150,6 +150,20 @@ def test_family_set_labels_and_scales():
         load_object_set("families:x")
 
 
+@pytest.mark.parametrize("kwargs, match", [
+    ({"families": "box"}, "families must be a non-empty list or tuple"),  # its letters were read as families
+    ({"families": ("box", "torus")}, "torus"),
+    ({"families": ()}, "non-empty"),
+    ({"size_range": (1e-9, 1e-9)}, "smallest member would be 4e-11 m"),
+    ({"scale_range": (0.001, 1.0)}, "smallest member would be 8e-05 m"),
+])
+def test_family_set_refuses_bad_families_and_sizes_before_drawing(kwargs, match):
+    rng = np.random.default_rng(0)
+    with pytest.raises(ValueError, match=match):
+        family_set(2, rng, **kwargs)
+    assert rng.uniform() == np.random.default_rng(0).uniform()  # nothing drawn
+
+
 # ---------------------------------------------------------------------------------- folders
 def _write_meshes(folder, units_scale=1.0):
     folder.mkdir(parents=True, exist_ok=True)
@@ -187,6 +201,42 @@ def test_folder_loader_errors(tmp_path):
     for units in ("inch", -1.0, float("nan")):
         with pytest.raises(ValueError, match="units"):
             unit_scale(units)
+
+
+def test_a_file_in_the_wrong_units_is_warned_of_with_the_units_the_user_gave(tmp_path):
+    """Too large (a millimetre file read as metres) and too small (a metre file read as millimetres) objects are named
+    with the units as the user wrote them (``load_folder`` passed its numeric factor on, so "units=1.0")."""
+    _write_meshes(tmp_path / "mm", 1000.0)
+    with pytest.warns(UserWarning, match=r"brick.*across with units='m'; are the file's coordinates in millimetres"):
+        load_object_set(str(tmp_path / "mm"), units="m")
+    _write_meshes(tmp_path / "m")
+    with pytest.warns(UserWarning, match=r"brick.*across with units='mm'; are the file's coordinates in metres"):
+        load_object_set(str(tmp_path / "m"), units="mm")
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_object_set(str(tmp_path / "m"), units="m")  # plausible sizes: no warning
+        cube = tmp_path / "cube"
+        cube.mkdir()
+        trimesh.creation.box(extents=[1.0, 1.0, 1.0]).export(cube / "cube.stl")
+        assert load_object_set(str(cube), units="mm")["cube"].extents.max() == pytest.approx(1e-3)  # the KIT cube
+
+
+def test_faces_wound_against_their_neighbours_are_turned_outward(tmp_path):
+    """A mesh with a quarter of its faces flipped (inconsistent winding) loaded with those faces' normals inward
+    (its volume was meaningless, so the outward check was skipped)."""
+    box = trimesh.creation.box(extents=[0.1, 0.06, 0.04])
+    box = trimesh.Trimesh(box.vertices, box.faces, process=False)
+    faces = box.faces.copy()
+    faces[::4] = faces[::4, ::-1]
+    bad = trimesh.Trimesh(box.vertices, faces, process=False)
+    assert not bad.is_winding_consistent
+    (tmp_path / "wind").mkdir()
+    bad.export(tmp_path / "wind" / "box.stl")
+    obj = load_object_set(str(tmp_path / "wind"))["box"]
+    assert obj.mesh.is_winding_consistent and obj.mesh.volume == pytest.approx(0.1 * 0.06 * 0.04, rel=1e-4)
+    centres = obj.mesh.triangles_center
+    assert np.all(np.einsum("ij,ij->i", obj.mesh.face_normals, centres) > 0)  # every face normal points outward
 
 
 def test_up_axis_stands_a_folder_up(tmp_path):

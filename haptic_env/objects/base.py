@@ -65,7 +65,10 @@ def prepare_mesh(mesh: trimesh.Trimesh, name: str, scale: float = 1.0, up: str =
         T[:3, :3] = R
         m.apply_transform(T)
     m.remove_unreferenced_vertices()
-    # Outward winding: a (nearly) closed mesh with consistent winding has positive signed volume.
+    # Outward winding: faces wound against their neighbours are turned to agree first (without that the volume is
+    # meaningless and those faces' normals point inward), then a (nearly) closed mesh has positive signed volume.
+    if not m.is_winding_consistent:
+        trimesh.repair.fix_winding(m)
     with np.errstate(divide="ignore", invalid="ignore"):  # a flat mesh has volume 0 (its centre of mass: 0 / 0)
         if m.is_winding_consistent and m.volume < 0:
             m.invert()

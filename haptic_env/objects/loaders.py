@@ -99,6 +99,9 @@ def unit_scale(units: str | float) -> float:
 
 #: A loaded object larger than this (m) gets a warning: its file is probably in millimetres (or cm).
 MAX_PLAUSIBLE_SIZE = 3.0
+#: A loaded object smaller than this (m) gets a warning: its file is probably in metres loaded as millimetres (an
+#: object up to 50 cm across read with units="mm"). The KIT cube, 1 mm as shipped, stays above it.
+MIN_PLAUSIBLE_SIZE = 5e-4
 #: A file coordinate beyond this (in the file's units) is rejected: no real object file holds one.
 MAX_FILE_COORDINATE = 1e9
 
@@ -150,6 +153,10 @@ def load_mesh_object(path: str | Path, *, units: str | float = "m", name: str | 
         warnings.warn(f"mesh file {path}: object {name!r} is {size:.3g} m across with units={units!r}; are the file's "
                       "coordinates in millimetres? (load it with units='mm', e.g. object_kwargs={'units': 'mm'})",
                       UserWarning, stacklevel=2)
+    elif size < MIN_PLAUSIBLE_SIZE:
+        warnings.warn(f"mesh file {path}: object {name!r} is {size:.3g} m across with units={units!r}; are the file's "
+                      "coordinates in metres? (load it with units='m', e.g. object_kwargs={'units': 'm'})",
+                      UserWarning, stacklevel=2)
     return GraspObject(name, mesh, source=path, collision_paths=tuple(collision_paths), offset=offset, rotation=R,
                        unit_scale=unit_scale(units))
 
@@ -166,18 +173,18 @@ def load_folder(folder: str | Path, *, units: str | float = "m", name: str | Non
     folder = Path(folder).expanduser()
     if not folder.is_dir():
         raise FileNotFoundError(f"object folder {folder} does not exist")
-    scale = unit_scale(units)
+    unit_scale(units)  # a bad value is named before any file is read
     up_rotation(up)
     files = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in MESH_SUFFIXES)
     set_name = name or folder.name
     if files:
-        return ObjectSet(set_name, [load_mesh_object(p, units=scale, up=up) for p in files])
+        return ObjectSet(set_name, [load_mesh_object(p, units=units, up=up) for p in files])
     subs = sorted(p for p in folder.iterdir() if (p / "mesh.stl").is_file())
     if subs:
         return ObjectSet(
             set_name,
             [
-                load_mesh_object(p / "mesh.stl", units=scale, name=p.name, up=up,
+                load_mesh_object(p / "mesh.stl", units=units, name=p.name, up=up,
                                  collision_paths=tuple(sorted(p.glob("collision_*.stl"))))
                 for p in subs
             ],

@@ -24,6 +24,9 @@ FAMILIES = ("box", "elliptic_cylinder", "ellipsoid")
 FAMILY_BASE_SIZE = 0.08
 #: Range of the per-axis scale factors of family members.
 FAMILY_SCALE_RANGE = (0.5, 1.5)
+#: The smallest extent (m) a family member may be drawn with: below it no hand grasps it, and the meshes lose their
+#: shape to rounding (``size_range=(1e-9, 1e-9)`` gave members 1e-10 m across).
+MIN_FAMILY_MEMBER_SIZE = 1e-3
 
 
 # ------------------------------------------------------------------------------------ helpers
@@ -207,11 +210,19 @@ def family_set(n_per_family: int, rng: np.random.Generator, families=FAMILIES,
     """
     whole_at_least(n_per_family, 1, "n_per_family")
     checked_flag(lying, "lying")
+    fams = tuple(families) if isinstance(families, (list, tuple)) else ()
+    if not fams or not all(isinstance(f, str) and f in FAMILIES for f in fams):
+        raise ValueError(f"families must be a non-empty list or tuple of names from {FAMILIES}, got {families!r}")
     lo, hi = positive_range(scale_range, "scale_range")
+    slo = 1.0
     if size_range is not None:
         slo, shi = positive_range(size_range, "size_range")
+    if FAMILY_BASE_SIZE * lo * slo < MIN_FAMILY_MEMBER_SIZE:
+        raise ValueError(f"the smallest member would be {FAMILY_BASE_SIZE * lo * slo:.3g} m across (base "
+                         f"{FAMILY_BASE_SIZE} m x scale_range {scale_range!r} x size_range {size_range!r}); members "
+                         f"must be at least {MIN_FAMILY_MEMBER_SIZE} m")
     objs = []
-    for fam in families:
+    for fam in fams:
         for i in range(int(n_per_family)):
             s = rng.uniform(lo, hi, size=3)
             if size_range is not None:
