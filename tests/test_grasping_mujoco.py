@@ -226,6 +226,38 @@ def test_wrong_finger_count_for_hand():
         make_backend("mujoco", 7, hand="generic")
 
 
+@pytest.mark.parametrize("kwargs, match", [
+    ({"tip_radius": -0.01}, "tip_radius must be a finite number > 0"),  # failed at compile, naming no parameter
+    ({"tip_radius": 0.5}, r"tip_radius must be in \(0, 0.05\]"),
+    ({"palm_radius": float("nan")}, "palm_radius"),
+    ({"kp": (-1.0, 1.0, 1.0)}, r"kp\[0\] must be a finite number > 0"),  # a destabilising servo compiled
+    ({"kp": (1.0, 1.0)}, "kp must be 3 finite numbers"),
+    ({"close": (5.0, 5.0, 5.0)}, r"close\[0\] must be within link 0's joint range"),
+    ({"finger_length": "long"}, "finger_length"),
+])
+def test_generic_hand_parameters_are_checked_before_building(kwargs, match):
+    from haptic_env.grasping.hands import generic_hand
+
+    with pytest.raises(ValueError, match=match):
+        generic_hand(4, **kwargs)
+
+
+def test_a_named_hand_refuses_keyword_arguments_and_takes_its_own_finger_count():
+    """``hand_kwargs`` meant for the generic hand were dropped without a word for a named hand; ``load_hand``'s
+    default finger count (4) refused the 5-finger hands by name."""
+    from haptic_env.grasping.hands import load_hand
+
+    with pytest.raises(TypeError, match=r"'allegro' takes no keyword arguments, got \['finger_lenght'\]"):
+        make_backend("mujoco", 4, hand="allegro", hand_kwargs={"finger_lenght": 0.2})
+    with pytest.raises(TypeError, match="'robotiq' takes no keyword arguments"):
+        load_hand("robotiq", None, tips=("a", "b"))
+    assert load_hand("generic").n_fingers == 4
+    try:
+        assert load_hand("shadow").n_fingers == 5
+    except HandUnavailableError as exc:
+        pytest.skip(str(exc))
+
+
 def test_any_mjcf_hand_from_file(tmp_path):
     from haptic_env.grasping.hands import generic_hand
 

@@ -27,6 +27,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from haptic_env.numbers import finite_number, items, positive_number
+
 __all__ = [
     "HandDescription",
     "HandUnavailableError",
@@ -82,14 +84,30 @@ class HandDescription:
 
 
 # --------------------------------------------------------------------------------------- generic
+#: The generic hand's joint ranges (rad) of its three links per finger, base to tip.
+_GENERIC_LINK_RANGES = ((-0.8, 1.6), (-0.2, 1.6), (-0.2, 1.6))
+
+
 def generic_hand(n_fingers: int = 4, *, finger_length: float = 0.12, palm_radius: float = 0.045,
                  tip_radius: float = 0.01, kp: tuple[float, float, float] = (1.0, 1.0, 1.0),
                  close: tuple[float, float, float] = (1.6, 1.6, 1.6)) -> HandDescription:
     """An n-finger hand (3 <= n <= 6) built with MjSpec; palm normal +z, thumb towards +x."""
     if not (isinstance(n_fingers, (int, np.integer)) and 3 <= n_fingers <= 6):
         raise ValueError(f"the generic hand has 3..6 fingers, got n_fingers={n_fingers!r}")
-    if not (0.03 <= finger_length <= 0.4):
+    f = finite_number(finger_length)
+    if f is None or not 0.03 <= f <= 0.4:
         raise ValueError(f"finger_length must be in [0.03, 0.4] m, got {finger_length!r}")
+    for name, v, hi in (("palm_radius", palm_radius, 0.2), ("tip_radius", tip_radius, 0.05)):
+        if not positive_number(v, name) <= hi:
+            raise ValueError(f"{name} must be in (0, {hi}] m, got {v!r}")
+    for name, v in (("kp", kp), ("close", close)):
+        if len(items(v) or ()) != 3 or any(finite_number(x) is None for x in v):
+            raise ValueError(f"{name} must be 3 finite numbers (one per finger link), got {v!r}")
+    for k, x in enumerate(kp):
+        positive_number(x, f"kp[{k}]")
+    for k, (x, (lo, hi)) in enumerate(zip(close, _GENERIC_LINK_RANGES)):
+        if not lo <= x <= hi:
+            raise ValueError(f"close[{k}] must be within link {k}'s joint range [{lo}, {hi}] rad, got {x!r}")
     spec = mujoco.MjSpec()
     spec.modelname = f"generic_hand_{n_fingers}"
     spec.compiler.degree = False
@@ -112,7 +130,7 @@ def generic_hand(n_fingers: int = 4, *, finger_length: float = 0.12, palm_radius
         body.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[cap_r, 0, 0], contype=0, conaffinity=0,
                       rgba=[0.3, 0.3, 0.35, 1], density=800)  # knuckle (mass for the swivel joint)
         parent = body
-        ranges = [[-0.8, 1.6], [-0.2, 1.6], [-0.2, 1.6]]
+        ranges = [list(r) for r in _GENERIC_LINK_RANGES]
         for k, L in enumerate(lengths):
             link = parent.add_body(name=f"{f}_l{k}", pos=[0, 0, 0 if k == 0 else lengths[k - 1]])
             link.add_joint(name=f"{f}_j{k}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, -1, 0], range=ranges[k],
@@ -342,12 +360,21 @@ def finger_of_bodies(m: mujoco.MjModel, tip_ids) -> np.ndarray:
     return finger
 
 
-def load_hand(hand: str | Path | HandDescription, n_fingers: int | None = 4, **kw) -> HandDescription:
+#: The hands :func:`load_hand` builds from their own descriptions (no keyword arguments).
+_NAMED_HANDS = ("allegro", "allegro_right", "allegro_left", "shadow", "shadow_right", "shadow_left", "aero",
+                "aero_right", "aero_left", "robotiq")
+
+
+def load_hand(hand: str | Path | HandDescription, n_fingers: int | None = None, **kw) -> HandDescription:
     """``"generic"`` (n fingers), ``"allegro"`` (4), ``"shadow"`` (5), ``"aero"`` (5), ``"robotiq"`` (2),
     a HandDescription, an MJCF path or a MuJoCo Menagerie name (``robot`` or ``robot/entry``): those go
     through :func:`mjcf_hand` (``tips=`` optional: detected when absent, with the closing synergy found
     automatically). ``_right``/``_left`` suffixes pick the side of the Allegro, Shadow and Aero hands.
-    ``n_fingers=None``: the hand's own count (4 for ``"generic"``)."""
+    ``n_fingers=None``: the hand's own count (4 for ``"generic"``). Keyword arguments go to :func:`generic_hand` or
+    :func:`mjcf_hand`; the named Menagerie hands and a HandDescription take none (a TypeError names them)."""
+    if kw and (isinstance(hand, HandDescription) or hand in _NAMED_HANDS):
+        raise TypeError(f"hand {hand if isinstance(hand, str) else hand.name!r} takes no keyword arguments, got "
+                        f"{sorted(kw)} (they are for the generic hand and for MJCF files)")
     if isinstance(hand, HandDescription):
         desc = hand
     elif hand == "generic":
