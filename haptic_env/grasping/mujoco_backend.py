@@ -34,7 +34,7 @@ from __future__ import annotations
 import os
 import time
 from collections import OrderedDict
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -42,6 +42,7 @@ import numpy as np
 
 import mujoco
 
+from haptic_env.cache import KEY_ONLY_WHEN_SET
 from haptic_env.numbers import checked_flag, finite_number, whole_number
 
 from .base import (
@@ -95,12 +96,18 @@ class MujocoConfig:
     contact_noise: float = 0.0  # std (m) on reported contacts
     normal_noise_deg: float = 0.0
     collision: CollisionConfig = CollisionConfig()
+    #: the hand collides with the table (support "table" only): no fingertip sinks into it, and the pre-grasp pose
+    #: is free of it too. Off by default, the scene every hand figure so far was measured in (README: "Two limits of
+    #: the MuJoCo scene"); keyed only when set, so the caches of the visual table stay.
+    solid_table: bool = field(default=False, metadata={KEY_ONLY_WHEN_SET: True})
 
     def __post_init__(self) -> None:
         if self.n_fingers is not None and (whole_number(self.n_fingers) is None or self.n_fingers < 2):
             raise ValueError(f"n_fingers must be an int >= 2 or None, got {self.n_fingers!r}")
         check_support(self.support)
         checked_flag(self.normals, "normals")
+        if checked_flag(self.solid_table, "solid_table") and self.support != "table":
+            raise ValueError(f"solid_table needs support='table', got support={self.support!r}")
         if self.solver is not None and self.solver not in SOLVERS:
             raise ValueError(f"solver must be one of {tuple(SOLVERS)}, got {self.solver!r}")
         if self.torque_source not in ("actuator", "constraint"):
@@ -176,7 +183,8 @@ class GraspScene:
 
     def __init__(self, hand: HandDescription, pieces: list | None, pose: np.ndarray, *, table_z: float | None,
                  timestep: float, friction: float, joint_frictionloss: float | None = 0.0,
-                 solver: str | None = None) -> None:  # timestep, friction: MujocoConfig's (the one default of each)
+                 solver: str | None = None, solid_table: bool = False) -> None:
+        # timestep, friction, solid_table: MujocoConfig's (the one default of each)
         self.hand = hand
         spec = mujoco.MjSpec()
         spec.modelname = "grasp_scene"
@@ -190,9 +198,11 @@ class GraspScene:
         spec.visual.global_.offwidth = 1280
         spec.visual.global_.offheight = 1280
         spec.worldbody.add_light(pos=[0, 0, 2], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
-        if table_z is not None:
+        if table_z is not None:  # solid: it collides with the hand (as the object does), never with the object
+            solid = dict(contype=OBJ_BITS[0], conaffinity=OBJ_BITS[1], friction=[friction, 0.005, 1e-4], condim=3)
             spec.worldbody.add_geom(name="table", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[1, 1, 0.01],
-                                    pos=[0, 0, table_z - 1e-4], rgba=[0.6, 0.55, 0.5, 1], contype=0, conaffinity=0)
+                                    pos=[0, 0, table_z - 1e-4], rgba=[0.6, 0.55, 0.5, 1],
+                                    **(solid if solid_table else dict(contype=0, conaffinity=0)))
         # object: static body at the pose, one mesh geom per convex piece
         obj_body = spec.worldbody.add_body(name="object", pos=pose[:3, 3], quat=quat_from_matrix(pose[:3, :3]))
         self.object_geom_names: list[str] = []
@@ -245,6 +255,9 @@ class GraspScene:
             self._geom_tip[m.geom_bodyid == b] = i
         self._is_obj_geom = np.zeros(m.ngeom, dtype=bool)
         self._is_obj_geom[self.obj_geom_ids] = True
+        self._blocks_hand = self._is_obj_geom.copy()  # what the pre-grasp pose must be free of
+        if solid_table and self._table_geom >= 0:
+            self._blocks_hand[self._table_geom] = True
         act_names = [m.actuator(i).name for i in range(m.nu)]
         self.act_index = {n.removeprefix("hand/"): i for i, n in enumerate(act_names)}
         for d in (hand.open_ctrl, hand.close_ctrl, hand.spread):
@@ -382,14 +395,15 @@ class GraspScene:
         self.data.mocap_quat[0] = quat_from_matrix(R)
 
     def hand_object_contacts(self) -> int:
-        """Run kinematics + collision only and count hand-object contacts."""
+        """Run kinematics + collision only and count the hand's contacts with the object (and with the table where it
+        is solid): the pre-grasp search's test of a pose."""
         m, d = self.model, self.data
         mujoco.mj_kinematics(m, d)
         mujoco.mj_collision(m, d)
         if d.ncon == 0:
             return 0
         g = d.contact.geom[: d.ncon]
-        return int(np.count_nonzero(self._is_obj_geom[g[:, 0]] ^ self._is_obj_geom[g[:, 1]]))
+        return int(np.count_nonzero(self._blocks_hand[g[:, 0]] ^ self._blocks_hand[g[:, 1]]))
 
     def step(self, n: int) -> None:
         t = time.perf_counter()
@@ -579,7 +593,7 @@ class MujocoBackend:
             pieces = convex_pieces(obj, self.config.collision)  # of the unscaled mesh: cached once per mesh
             scene = GraspScene(self.hand, pieces, T, table_z=table_z, timestep=self.config.timestep or self.hand.timestep,
                                friction=self.config.friction, joint_frictionloss=self.config.joint_frictionloss,
-                               solver=self.config.solver)
+                               solver=self.config.solver, solid_table=self.config.solid_table)
             while len(self._scenes) >= MAX_SCENES:  # least recently used first
                 self._scenes.popitem(last=False)[1].close()
         scene.scale_object(scale)
