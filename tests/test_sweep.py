@@ -548,3 +548,21 @@ def test_status_of_a_report_only_run_into_a_new_folder_is_written(tmp_path):
     spec = parse_spec(_smoke_doc(), source="smoke")
     path = write_status(SweepResult(out=tmp_path / "new" / "sweep"), spec)
     assert path.is_file() and json.loads(path.read_text())["sweep"] == spec.name
+
+
+def test_a_matched_run_counts_every_finished_job_as_done(tmp_path):
+    """A run of ``--match`` counts the jobs finished outside its selection as done (before), as status.json does: the
+    report's table called them "not run"."""
+    from haptic_env.sweep.report import _jobs_table
+    from haptic_env.sweep.runner import run_jobs_inline, write_status
+
+    spec = parse_spec({"name": "abc", "command": [{"name": n, "run": _cmd("pass")} for n in "abc"]})
+    out = tmp_path / "sweep"
+    assert run_jobs_inline(spec, out, match="command/[ab]-").ok
+    res = run_jobs_inline(spec, out, match="command/c-")
+    assert res.ok and sorted(res.skipped) == sorted(j.id for j in spec.jobs[:2]) and set(res.done) == {
+        j.id for j in spec.jobs}
+    row = _jobs_table(spec, res).splitlines()[-1]
+    assert row.startswith("| command | 3 | 1 | 2 | 0 | 0 |"), row
+    states = [r["state"] for r in json.loads(write_status(res, spec).read_text())["jobs"]]
+    assert states == ["skipped", "skipped", "done"]

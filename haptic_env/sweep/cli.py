@@ -59,9 +59,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def _main(args) -> int:
     from haptic_env.cli import UsageError
 
-    from .jobs import is_done, read_done
+    from .jobs import is_done
     from .report import write_sweep_report
-    from .runner import SweepResult, ray_available, run_sweep, select_jobs, write_status
+    from .runner import finished_before, ray_available, run_sweep, select_jobs, write_status
     from .spec import SpecError, load_spec
 
     if not args.spec.is_file():
@@ -104,11 +104,10 @@ def _main(args) -> int:
         print(f"{len(jobs)} of the spec's {len(spec.jobs)} jobs; sweep folder {out}")
         return 0
     if args.report_only:
-        done = [j for j in spec.jobs if is_done(j.run_dir(out))]
-        if not done and args.prior_report is None:  # a mistyped --out wrote an empty report (and a new folder)
+        result = finished_before(spec, out)
+        if not result.done and args.prior_report is None:  # a mistyped --out wrote an empty report (and a new folder)
             raise UsageError(f"--report-only: {out} holds no finished job of {spec.name} (and no --prior-report "
                              "stands in for them): nothing to report")
-        result = SweepResult(out=out, skipped=[j.id for j in done], done={j.id: read_done(j.run_dir(out)) for j in done})
     else:
         if not ray_available():
             raise UsageError("the sweep runs on Ray, which is not installed: pip install 'haptic-recog[sweep]' "

@@ -21,7 +21,7 @@ from typing import Any, Callable
 from .jobs import attempts, execute, is_done, read_done
 from .spec import Job, SweepSpec
 
-__all__ = ["SweepResult", "run_sweep", "run_jobs_inline", "ray_available", "select_jobs"]
+__all__ = ["SweepResult", "run_sweep", "run_jobs_inline", "ray_available", "select_jobs", "finished_before"]
 
 #: environment variables every worker gets from the driver (cache, data, rendering)
 FORWARD_ENV = ("HAPTIC_CACHE", "HAPTIC_CACHE_READONLY", "HAPTIC_DATA", "MENAGERIE_ROOT", "MUJOCO_GL")
@@ -46,6 +46,14 @@ class SweepResult:
     @property
     def ok(self) -> bool:
         return not self.failed
+
+
+def finished_before(spec: SweepSpec, out: Path) -> SweepResult:
+    """The result of a run that has not run anything yet: every job of ``spec`` whose run folder under ``out`` holds
+    its ``done.json`` (:func:`~.jobs.is_done`) is done and skipped, inside a ``--match`` / ``--only`` selection or
+    not, so that the report and ``status.json`` count every finished job as done."""
+    done = [j for j in spec.jobs if is_done(j.run_dir(out))]
+    return SweepResult(out=out, skipped=[j.id for j in done], done={j.id: read_done(j.run_dir(out)) for j in done})
 
 
 def select_jobs(spec: SweepSpec, kinds: set[str] | None = None, match: str | None = None,
@@ -106,9 +114,7 @@ def run_sweep(spec: SweepSpec, out: str | Path | None = None, *, address: str | 
     retries = spec.max_retries if max_retries is None else max_retries
     by_id = spec.by_id()
     todo, done_before = _plan(spec, out, kinds, match)
-    result = SweepResult(out=out, skipped=[j.id for j in done_before])
-    for j in done_before:
-        result.done[j.id] = read_done(j.run_dir(out))
+    result = finished_before(spec, out)
     t0 = time.time()
     if not todo:
         return result
@@ -168,8 +174,8 @@ def run_jobs_inline(spec: SweepSpec, out: str | Path | None = None, *, kinds: se
     benchmark; no retries)."""
     out = Path(out or spec.default_out()).resolve()
     by_id = spec.by_id()
-    todo, done_before = _plan(spec, out, kinds, match)
-    result = SweepResult(out=out, skipped=[j.id for j in done_before])
+    todo, _ = _plan(spec, out, kinds, match)
+    result = finished_before(spec, out)
     t0 = time.time()
     for j in todo:
         if any(d in result.failed for d in j.deps):
