@@ -47,6 +47,7 @@ __all__ = [
     "hand_vectors",
     "hand_dataset",
     "dataset_cache_path",
+    "TooFewGraspsError",
     "add_parser",
 ]
 
@@ -58,6 +59,11 @@ MAX_CLI_FINGERS = 20
 _ARRAYS = ("X_train", "y_train", "X_val", "y_val", "names")
 #: Resampling rounds used to replace degenerate grasps before giving up.
 _MAX_TOPUP_ROUNDS = 20
+
+
+class TooFewGraspsError(RuntimeError):
+    """A hand's grasps of an object gave too few training rows for its settings (approaches, fingers): the dataset
+    command reports it as a one-line usage error."""
 
 
 @dataclass(frozen=True)
@@ -531,25 +537,26 @@ def _save_dataset(ds: GraspDataset) -> None:
                         names=np.array(ds.names, dtype=str))
 
 
-def hand_pool(objects: ObjectSet, config: DatasetConfig, progress: bool = True):
-    """The hand grasp pool (:func:`~haptic_env.hand_grasps.hand_grasp_pool`, cached) that ``source="hand"`` training
-    grasps of ``config`` come from: its hand, ``hand_fingers`` (default ``n_fingers``), approaches, support, seed
-    and budget. The training grasps and the recogniser's touch model read this one pool."""
+def hand_pool(objects: ObjectSet, config: DatasetConfig, progress: bool = True, *, cache: bool = True):
+    """The hand grasp pool (:func:`~haptic_env.hand_grasps.hand_grasp_pool`, cached unless ``cache`` is false) that
+    ``source="hand"`` training grasps of ``config`` come from: its hand, ``hand_fingers`` (default ``n_fingers``),
+    approaches, support, seed and budget. The training grasps and the recogniser's touch model read this one pool."""
     from .hand_grasps import hand_grasp_pool
 
     if config.source != "hand":
         raise ValueError(f"only source='hand' grasps come from a hand grasp pool, got source={config.source!r}")
     return hand_grasp_pool(objects, config.hand, config.hand_fingers or config.n_fingers, config.grasps_per_object,
-                           support=config.support, seed=config.seed, budget=config.hand_budget, progress=progress)
+                           support=config.support, seed=config.seed, budget=config.hand_budget, progress=progress,
+                           cache=cache)
 
 
-def _hand_rows(objects: ObjectSet, config: DatasetConfig, progress: bool):
+def _hand_rows(objects: ObjectSet, config: DatasetConfig, progress: bool, cache: bool = True):
     """Yield ``(k, X, rng, C)`` per object: the valid ``n_fingers``-finger grasp vectors (float32) of ``source="hand"``,
     the object's generator, positioned for the train/validation split, and the rows' contacts ``(G_k, n, 3)`` in the
     object's frame."""
     from .hand_grasps import pool_rows
 
-    pool = hand_pool(objects, config, progress)
+    pool = hand_pool(objects, config, progress, cache=cache)
     streams = np.random.SeedSequence([config.seed, 1]).spawn(len(objects))
     for k, ss in enumerate(streams):
         rng = np.random.default_rng(ss)
@@ -578,16 +585,16 @@ def hand_dataset(objects: ObjectSet, config: DatasetConfig, *, progress: bool = 
     whole_at_least(min_rows, 1, "hand_dataset: min_rows")
     ds, left_out = _split_hand_rows(objects, config, progress, min_rows)
     if ds is None:
-        raise RuntimeError(f"none of the {len(objects)} objects was touched with >= {config.n_fingers} fingers "
-                           f"(non-degenerate) in {min_rows} of its {config.hand} grasps (budget "
-                           f"{config.hand_budget!r}, {config.grasps_per_object} approaches per object)")
+        raise TooFewGraspsError(f"none of the {len(objects)} objects was touched with >= {config.n_fingers} fingers "
+                                f"(non-degenerate) in {min_rows} of its {config.hand} grasps (budget "
+                                f"{config.hand_budget!r}, {config.grasps_per_object} approaches per object)")
     return ds, left_out
 
 
 def _split_hand_rows(objects: ObjectSet, config: DatasetConfig, progress: bool,
-                     min_rows: int) -> tuple[GraspDataset | None, dict[str, int]]:
+                     min_rows: int, cache: bool = True) -> tuple[GraspDataset | None, dict[str, int]]:
     Xtr, Ytr, Xva, Yva, left_out = [], [], [], [], {}
-    for k, X, rng, _ in _hand_rows(objects, config, progress):
+    for k, X, rng, _ in _hand_rows(objects, config, progress, cache):
         if len(X) < min_rows:
             left_out[objects.names[k]] = len(X)
             continue
@@ -604,14 +611,14 @@ def _split_hand_rows(objects: ObjectSet, config: DatasetConfig, progress: bool,
 
 
 def _hand_dataset(objects: ObjectSet, config: DatasetConfig, path: Path | None, progress: bool) -> GraspDataset:
-    """``source="hand"`` for :func:`build_dataset`: every object must have at least two rows."""
-    ds, left_out = _split_hand_rows(objects, config, progress, 2)
+    """``source="hand"`` for :func:`build_dataset`: every object must have at least two rows (its hand pool cached
+    when the dataset is, ``path`` not None)."""
+    ds, left_out = _split_hand_rows(objects, config, progress, 2, cache=path is not None)
     if left_out:
         name, n = next(iter(left_out.items()))
-        raise RuntimeError(f"object {name!r}: {n} of its {config.hand} grasps (budget {config.hand_budget!r}, "
-                           f"{config.grasps_per_object} approaches per object) touched it with >= {config.n_fingers} "
-                           "fingers (non-degenerate); "
-                           "use more approaches or fewer fingers")
+        raise TooFewGraspsError(f"object {name!r}: {n} of its {config.hand} grasps (budget {config.hand_budget!r}, "
+                                f"{config.grasps_per_object} approaches per object) touched it with >= "
+                                f"{config.n_fingers} fingers (non-degenerate); use more approaches or fewer fingers")
     return replace(ds, cache_path=path)
 
 
@@ -676,7 +683,10 @@ def _run_cli(args: argparse.Namespace) -> int:
             load_hand(config.hand, None)
     except (ValueError, TypeError, FileNotFoundError) as exc:  # bad --objects / --units / --hand / combinations
         raise UsageError(str(exc)) from exc
-    ds = build_dataset(objects, config, cache=not args.no_cache, progress=not args.quiet)
+    try:
+        ds = build_dataset(objects, config, cache=not args.no_cache, progress=not args.quiet)
+    except TooFewGraspsError as exc:  # --grasps / --fingers too few for the hand (found once it has grasped)
+        raise UsageError(f"{exc} (--grasps, --fingers)") from None
     if args.out is not None:
         save_npz_atomic(args.out, X_train=ds.X_train, y_train=ds.y_train, X_val=ds.X_val, y_val=ds.y_val,
                         names=np.array(ds.names, dtype=str))

@@ -303,3 +303,33 @@ def test_pose_information_benchmark_scores_turned_pairs(load_benchmark):
     out = bench.score_pool(records, pool, 7, np.arange(360) * np.pi / 180, 0.005, 1)
     assert out["one"] == out["one_complete"] == out["naive2"] == out["joint2"] == 1.0
     assert out["mass2"].shape == (2,) and np.all(out["mass2"] > 0.9)
+
+
+def test_an_uncached_hand_dataset_neither_reads_nor_writes_its_pool_and_too_few_grasps_are_a_usage_error(
+        two_objects, monkeypatch, usage_error):
+    """``build_dataset(cache=False)`` (``dataset --no-cache``) with the hand source asks for its pool uncached (it read
+    and wrote the pool cache), and too few grasps for ``--grasps`` / ``--fingers`` are a one-line usage error, not a
+    traceback (synthetic pool: no grasping)."""
+    import haptic_env.hand_grasps as hg
+    from haptic_env.cli import main
+    from haptic_env.hand_grasps import HandGraspPool
+
+    asked = []
+
+    def fake_pool(objects, hand, n_fingers, approaches, *, cache=True, **kw):
+        asked.append(cache)
+        T = np.zeros((len(objects), approaches, n_fingers), bool)
+        T[:, :1] = True  # one complete grasp per object: too few for a train/validation split
+        C = np.random.default_rng(0).normal(0, 0.03, T.shape + (3,))
+        return HandGraspPool(C, np.tile([0.0, 0.0, 1.0], T.shape + (1,)), T, tuple(objects.names), hand, 0.0)
+
+    monkeypatch.setattr(hg, "hand_grasp_pool", fake_pool)
+    cfg = DatasetConfig(n_fingers=3, grasps_per_object=12, source="hand", hand="generic")
+    with pytest.raises(RuntimeError, match="'can': 1 of its generic grasps"):
+        build_dataset(two_objects, cfg, cache=False, progress=False)
+    assert asked == [False]
+    usage_error(main, ["dataset", "--objects", "default", "--fingers", "3", "--source", "hand", "--hand", "generic",
+                       "--grasps", "12", "--no-cache", "--quiet"],
+                match=r"error: object '\w+': 1 of its generic grasps .* use more approaches or fewer fingers "
+                      r"\(--grasps, --fingers\)")
+    assert asked == [False, False]
