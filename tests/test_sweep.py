@@ -170,6 +170,25 @@ def test_a_changed_env_variant_is_a_new_job(monkeypatch):
     ({"name": "x", "analysis": [{"flags": {"trials": 0}}]}, r"analysis\[0\].flags: trials must be an int >= 1, got 0"),
     ({"name": "x", "analysis": [{"flags": {"experiments": "2", "force_closure": 0.5}}]},
      "force_closure needs every finger count >= 3"),
+    # refused at load: each failed on its worker after its retries, crashed the parse, or gave no job without a word
+    ({"name": "x", "dataset": [{"objects": ["default", "no_such_set"]}]},
+     r"dataset\[0\]\.objects: unknown object set 'no_such_set'"),
+    ({"name": "x", "dataset": [{"fingers": []}]}, r"dataset\[0\]\.fingers: expected a value or a non-empty list"),
+    ({"name": "x", "env_ids": ["HapticRecog-v0"], "agent": [{"name": "random"}], "evaluate": {"env_seeds": []}},
+     r"evaluate\.env_seeds: expected at least one env seed, got \[\]"),
+    ({"name": "x", "env_ids": ["HapticRecog-v0"], "agent": [{"name": "random", "seeds": []}]},
+     r"agent\[0\]\.seeds: expected at least one seed \(its own seeds or the spec's\), got \[\]"),
+    ({"name": "x", "seeds": [], "env_ids": ["HapticRecog-v0"], "agent": [{"name": "random"}]},
+     r"agent\[0\]\.seeds: expected at least one seed"),
+    ({"name": "x", "env_ids": ["HapticRecog-v0"], "agent": [{"name": "r", "spec": 3}]},
+     r"agent\[0\]\.spec: expected an agent spec string .*, got 3"),
+    ({"name": "x", "env": [{"id": "HapticRecog-v0", "kwargs": [1, 2]}], "agent": [{"name": "random"}]},
+     r"env\[0\]\.kwargs: expected a table of HapticRecogConfig fields, got \[1, 2\]"),
+    ({"name": "x", "command": [{"name": "c", "run": "true", "env": "FOO=1"}]},
+     r"command\[0\]\.env: expected a table of environment variables \(strings or numbers\), got 'FOO=1'"),
+    ({"name": "x", "command": [{"name": "c", "run": "true", "env": {"FOO": [1]}}]}, r"command\[0\]\.env"),
+    ({"name": "x", "command": [{"name": "c", "run": []}]}, r"command\[0\]\.run: expected a command, got \[\]"),
+    ({"name": "x", "command": [{"name": "c", "run": "  "}]}, r"command\[0\]\.run: expected a command, got '  '"),
 ])
 def test_bad_specs_are_one_line_errors(doc, match):
     with pytest.raises(SpecError, match=match):

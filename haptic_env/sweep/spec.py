@@ -229,7 +229,10 @@ def _envs(doc: dict) -> dict[str, tuple[str, dict[str, Any]]]:
         env_id = t.get("id", "HapticRecog-v0")
         if env_id not in ENV_VARIANTS:
             raise SpecError(f"{where}: unknown env id {env_id!r}; choose from {list(ENV_VARIANTS)}")
-        kwargs = {**common, **t.get("kwargs", {})}
+        own = t.get("kwargs", {})
+        if not isinstance(own, dict):
+            raise SpecError(f"{where}.kwargs: expected a table of HapticRecogConfig fields, got {own!r}")
+        kwargs = {**common, **own}
         clash = sorted(k for k in kwargs if k in ENV_VARIANTS[env_id] and kwargs[k] != ENV_VARIANTS[env_id][k])
         if clash:  # a row named after a registered env is that env (changes beyond its variant: HapticRecog-v0)
             raise SpecError(f"{where}: kwargs {clash} change what {env_id} sets ({ENV_VARIANTS[env_id]}); "
@@ -261,6 +264,8 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
 
     if repeated(env_seeds):  # a seed twice: the same episodes twice, as twice the evidence
         raise SpecError(f"evaluate.env_seeds: each seed once, got {env_seeds}")
+    if agents and not env_seeds:  # an evaluate job without episodes failed on its worker
+        raise SpecError(f"evaluate.env_seeds: expected at least one env seed, got {ev['env_seeds']!r}")
     eval_cpus = _cpus(ev, "evaluate")
     jobs: list[Job] = []
     names = set()
@@ -277,10 +282,16 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
         a_seeds = [_int(s, f"{where}.seeds") for s in _as_list(a.get("seeds", seeds))]
         if repeated(a_seeds):
             raise SpecError(f"{where}.seeds: each seed once, got {a_seeds}")
+        if not a_seeds:  # the agent had no jobs, without a word
+            raise SpecError(f"{where}.seeds: expected at least one seed (its own seeds or the spec's), got "
+                            f"{a.get('seeds', seeds)!r}")
         if trained and a["algo"] not in ALGOS:
             raise SpecError(f"{where}: algo must be one of {ALGOS}, got {a['algo']!r}")
         if not trained:
             spec = a.get("spec", a["name"])
+            if not isinstance(spec, str):
+                raise SpecError(f"{where}.{'spec' if 'spec' in a else 'name'}: expected an agent spec string "
+                                f"(random, greedy, ..., or a model .zip), got {spec!r}")
             if not spec.endswith(".zip"):  # what the evaluate job will build, checked by the one parser of specs
                 from agents.evaluate import make_agent
 
@@ -326,6 +337,7 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
 def _dataset_jobs(doc: dict) -> list[Job]:
     from haptic_env.dataset import DatasetConfig
     from haptic_env.numbers import flag
+    from haptic_env.objects.loaders import check_object_spec
 
     fields = set(DatasetConfig.__dataclass_fields__) - {"n_fingers", "normals"}
     jobs = []
@@ -333,8 +345,16 @@ def _dataset_jobs(doc: dict) -> list[Job]:
         where = f"dataset[{i}]"
         _check_keys(t, _DATASET_KEYS | fields, where)
         rest = {k: v for k, v in t.items() if k in fields}
-        for objects, n, normals in product(_as_list(t.get("objects", "default")), _as_list(t.get("fingers", 4)),
-                                           _as_list(t.get("normals", True))):
+        axes = {k: _as_list(t.get(k, d)) for k, d in (("objects", "default"), ("fingers", 4), ("normals", True))}
+        empty = [k for k, v in axes.items() if not v]
+        if empty:  # the entry had no jobs, without a word
+            raise SpecError(f"{where}.{empty[0]}: expected a value or a non-empty list, got []")
+        for objects in axes["objects"]:  # an unknown set failed on its worker, after its retries
+            try:
+                check_object_spec(objects)
+            except ValueError as exc:
+                raise SpecError(f"{where}.objects: {exc}") from None
+        for objects, n, normals in product(axes["objects"], axes["fingers"], axes["normals"]):
             b = flag(normals)
             if b is None:  # bool("false") is True
                 raise SpecError(f"{where}.normals: expected true or false (or a list of them), got {normals!r}")
@@ -426,6 +446,10 @@ def _analysis_jobs(doc: dict, datasets: list[Job]) -> list[Job]:
 
 
 def _command_jobs(doc: dict) -> list[Job]:
+    import shlex
+
+    from haptic_env.numbers import finite_number
+
     jobs = []
     for i, t in enumerate(doc.get("command", [])):
         where = f"command[{i}]"
@@ -435,8 +459,14 @@ def _command_jobs(doc: dict) -> list[Job]:
         run = t["run"]
         if not (isinstance(run, str) or (isinstance(run, list) and all(isinstance(w, str) for w in run))):
             raise SpecError(f"{where}: run must be a string or a list of strings")
-        jobs.append(Job("command", _safe(t["name"]), {"run": run, "env": t.get("env", {})},
-                        cpus=_cpus(t, where)))
+        if not (shlex.split(run) if isinstance(run, str) else run):  # no command to run: it failed on its worker
+            raise SpecError(f"{where}.run: expected a command, got {run!r}")
+        env = t.get("env", {})
+        if not isinstance(env, dict) or not all(isinstance(v, str) or finite_number(v) is not None
+                                                for v in env.values()):
+            raise SpecError(f"{where}.env: expected a table of environment variables (strings or numbers), "
+                            f"got {env!r}")
+        jobs.append(Job("command", _safe(t["name"]), {"run": run, "env": env}, cpus=_cpus(t, where)))
     return jobs
 
 
