@@ -185,12 +185,14 @@ class DatasetConfig:
 
     def source_key(self) -> str:
         """The identity of the grasp source beyond this config: the hand's physics for ``source="hand"``
-        (:func:`~haptic_env.hand_grasps.hand_physics_key`), else empty. Part of every cache key built on it."""
+        (:func:`~haptic_env.hand_grasps.hand_physics_key`) and, for a balanced budget, how its pool is spread
+        (:func:`~haptic_env.hand_grasps.budget_key`), else empty. Part of every cache key built on it."""
         if self.source != "hand":
             return ""
-        from .hand_grasps import hand_physics_key
+        from .hand_grasps import budget_key, hand_physics_key
 
-        return hand_physics_key(self.hand, self.hand_fingers or self.n_fingers)
+        return ":".join([hand_physics_key(self.hand, self.hand_fingers or self.n_fingers),
+                         *budget_key(self.hand_budget, self.grasps_per_object)])
 
     @property
     def feature_dim(self) -> int:

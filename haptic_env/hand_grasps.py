@@ -19,9 +19,11 @@ with at least ``z``), which the dataset's ``"hand"`` source maps through Phi_n.
 Budgets. ``budget="uniform"`` gives every object the same number of approaches. The Aero hand completes a
 grasp (every finger touching) on nearly every approach to an apple but on 4 % of those to a plate lying on the
 table, so the plate's model is learned from a few hundred grasps and the apple's from thousands.
-``budget="balanced"`` keeps the total (``K x approaches``) and spreads it by :func:`balanced_counts`: the first
-chunk of every object is grasped first, its complete-grasp rate measured, and the rest of the budget goes
-towards the objects whose grasps rarely complete (weights between 1/2 and 2, then scaled to the total).
+``budget="balanced"`` keeps the total (``K x approaches``, up to rounding) and spreads it by :func:`balanced_counts`:
+the first :func:`balanced_probe` approaches of every object (a quarter of the budget, at most :data:`PROBE`) are
+grasped first, its complete-grasp rate measured, and the rest of the budget goes towards the objects whose grasps
+rarely complete (weights between 1/2 and 2, then scaled to the total, none below what it already has). The pool does
+not depend on :data:`CHUNK` (the cache key holds the probe).
 Object ``k``'s approaches are one random stream whatever its count, so a balanced pool's first approaches of
 an object are the uniform pool's.
 """
@@ -47,7 +49,8 @@ from .grasping.base import approach_table, validate_actions
 from .numbers import finite_number, whole_at_least
 
 __all__ = ["HandGraspPool", "hand_grasp_pool", "pool_actions", "table_actions", "pool_rows", "pool_cache_path",
-           "hand_physics_key", "CHUNK", "BUDGETS", "balanced_counts", "parts_dir"]
+           "hand_physics_key", "CHUNK", "BUDGETS", "balanced_counts", "parts_dir", "PROBE", "balanced_probe",
+           "budget_key"]
 
 _CACHE_VERSION = "hand-grasps-v2"  # v2: the key holds the hand's physics (hand_physics_key)
 #: values of ``hand_grasp_pool(budget=...)`` (and ``DatasetConfig.hand_budget``)
@@ -55,6 +58,21 @@ BUDGETS = ("uniform", "balanced")
 #: Approaches per worker task. A task builds its own backend and scene (0.1-0.5 s for the Menagerie hands, about
 #: 1-2 s of grasping at 250 approaches), so a chunk of 1,000 keeps that under 5 % of the task.
 CHUNK = 1000
+#: The most approaches per object of a balanced budget's first phase (:func:`balanced_probe`).
+PROBE = 1000
+
+
+def balanced_probe(approaches: int) -> int:
+    """Approaches per object that a balanced budget of ``approaches`` grasps first to measure each object's
+    complete-grasp rate: a quarter of the budget (at least 1), at most :data:`PROBE`; an object's share seldom falls
+    below it (weights of at least 1/2 against at most 2), and :func:`balanced_counts` keeps the total when it does."""
+    return min(int(PROBE), max(1, int(approaches) // 4))
+
+
+def budget_key(budget: str, approaches: int) -> list:
+    """What a pool's ``budget`` adds to the cache keys of the pool and of the data sets built on it: nothing for
+    ``"uniform"`` (the keys of before budgets existed); for ``"balanced"`` its name and :func:`balanced_probe`."""
+    return [] if budget == "uniform" else [budget, f"probe={balanced_probe(approaches)}"]
 
 
 @dataclass(frozen=True)
@@ -129,7 +147,7 @@ def pool_cache_path(objects, hand: str, n_fingers: int, approaches: int, support
                     budget: str = "uniform", actions: np.ndarray | None = None) -> Path:
     given = [] if actions is None else [hashlib.sha256(np.ascontiguousarray(actions, np.float64)).hexdigest()]
     key = config_key(_CACHE_VERSION, objects.identity, hand, int(n_fingers), int(approaches), support, int(seed),
-                     hand_physics_key(hand, n_fingers), *([] if budget == "uniform" else [budget]), *given)
+                     hand_physics_key(hand, n_fingers), *budget_key(budget, approaches), *given)
     return cache_dir("hand_grasps") / f"{file_stem(hand, 'hand')}-{key}.npz"  # a hand may be an MJCF path
 
 
@@ -138,11 +156,13 @@ def balanced_counts(complete_rate, approaches: int, *, lo: float = 0.5, hi: floa
 
     Object ``k``'s weight is ``median(rate) / rate_k`` clipped to ``[lo, hi]`` (a rate of 0 takes ``hi``), so
     each object's expected number of complete grasps moves towards the median object's; the counts are the
-    weights scaled to the total, at least ``minimum`` each.
+    weights scaled to the total, at least ``minimum`` each: an object whose share falls below it gets ``minimum``
+    and the others share the rest of the total by their weights.
 
     Args:
         complete_rate: ``(K,)`` fraction of each object's approaches that gave a complete grasp, in ``[0, 1]``.
         approaches: the uniform count (the total is ``K * approaches``, up to rounding).
+        minimum: an int in ``[0, approaches]``.
 
     Returns:
         ``(K,)`` int approaches per object.
@@ -153,12 +173,19 @@ def balanced_counts(complete_rate, approaches: int, *, lo: float = 0.5, hi: floa
     whole_at_least(approaches, 1, "approaches")
     if not (finite_number(lo) is not None and finite_number(hi) is not None and 0 < lo <= 1 <= hi):
         raise ValueError(f"need 0 < lo <= 1 <= hi, both finite, got lo={lo!r}, hi={hi!r}")
-    whole_at_least(minimum, 0, "minimum")
+    if whole_at_least(minimum, 0, "minimum") > approaches:
+        raise ValueError(f"minimum must be <= approaches={approaches} (the total is K x approaches), got {minimum!r}")
     med = float(np.median(r))
     with np.errstate(divide="ignore"):
         w = np.where(r > 0, med / np.where(r > 0, r, 1.0), hi) if med > 0 else np.ones_like(r)
     w = np.clip(w, lo, hi)
-    return np.maximum(np.rint(len(r) * int(approaches) * w / w.sum()).astype(np.int64), int(minimum))
+    total, low = len(r) * int(approaches), np.zeros(len(r), bool)
+    while True:  # the objects whose share is below the minimum get it; the others share the rest (at most K rounds)
+        share = (total - int(minimum) * int(low.sum())) * w / w[~low].sum()
+        below = ~low & (share < minimum)
+        if not below.any():
+            return np.where(low, int(minimum), np.rint(share)).astype(np.int64)
+        low |= below
 
 
 def table_actions(table: int, yaws: int) -> np.ndarray:
@@ -246,8 +273,8 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
             MJCF path; ``n_fingers`` its fingers.
         approaches: random approaches per object ("uniform"), or their mean ("balanced"); with ``actions``, their
             count.
-        budget: "uniform" or "balanced" (:func:`balanced_counts` of the first chunk's complete-grasp rates; see
-            the module docstring).
+        budget: "uniform" or "balanced" (:func:`balanced_counts` of the complete-grasp rates of every object's first
+            :func:`balanced_probe` approaches; see the module docstring).
         workers: processes (default: all cores); 1 runs in this process.
         cache: read / write ``cache_dir("hand_grasps")``.
         actions: ``(approaches, 4)`` approaches in ``[-1, 1]`` to grasp every object along, in this order, instead
@@ -284,7 +311,7 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
         except CacheError as exc:
             warnings.warn(f"{exc}; rebuilding it", RuntimeWarning, stacklevel=2)
     K = len(objects)
-    first = min(CHUNK, int(approaches))
+    first = balanced_probe(approaches)
     results: dict[tuple[int, int], tuple] = {}
     workers = min(K * -(-int(approaches) // CHUNK), int(workers or os.cpu_count() or 1))
     if workers > 1 and current_process().daemon:  # e.g. an SB3 SubprocVecEnv worker: it may not start processes
@@ -311,8 +338,9 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
             yield chunks(np.full(K, approaches))
             return
         yield chunks(np.full(K, first))
-        rate = np.array([results[k, 0][2].all(axis=1).mean() for k in range(K)])
-        counts = np.maximum(balanced_counts(rate, approaches), first)
+        rate = np.array([np.concatenate([r[2] for (j, _), r in results.items() if j == k]).all(axis=1).mean()
+                         for k in range(K)])  # over the first phase's chunks (all the results so far)
+        counts = balanced_counts(rate, approaches, minimum=first)
         bar.total = int(counts.sum())
         bar.refresh()
         yield chunks(counts, start=first)

@@ -126,15 +126,16 @@ def test_balanced_counts_spread_the_budget_towards_rarely_complete_objects():
         balanced_counts([0.5], 0)
 
 
-def test_balanced_pool_keeps_each_objects_first_approaches(two_objects, monkeypatch):
+def test_balanced_pool_keeps_each_objects_first_approaches(two_objects, monkeypatch, tmp_path):
     """A balanced budget grasps the first chunk of every object, then spreads the rest; an object's first approaches
     are the uniform pool's, approaches beyond its count are never grasped, and the counts survive the cache."""
     import haptic_env.hand_grasps as hg
 
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path))  # a pool of a patched CHUNK stays out of the session's cache
     monkeypatch.setattr(hg, "CHUNK", 4)
     uni = hand_grasp_pool(two_objects, "generic", 3, 8, seed=6, cache=False, workers=1, progress=False)
     bal = hand_grasp_pool(two_objects, "generic", 3, 8, seed=6, budget="balanced", workers=1, progress=False)
-    assert bal.counts is not None and bal.counts.min() >= 4 and abs(int(bal.counts.sum()) - 16) <= 2
+    assert bal.counts is not None and bal.counts.min() >= hg.balanced_probe(8) and abs(int(bal.counts.sum()) - 16) <= 2
     np.testing.assert_array_equal(bal.approaches, bal.counts)
     for k in range(2):
         m = min(int(bal.counts[k]), 8)
@@ -333,3 +334,37 @@ def test_an_uncached_hand_dataset_neither_reads_nor_writes_its_pool_and_too_few_
                 match=r"error: object '\w+': 1 of its generic grasps .* use more approaches or fewer fingers "
                       r"\(--grasps, --fingers\)")
     assert asked == [False, False]
+
+
+def _rate_chunk(obj, hand, n, support, actions, seed):
+    """A stand-in for ``_grasp_chunk``: a grasp is complete where its first action value is below the object's rate
+    (``can`` 1.0, else 0.1 of the range [-1, 1]), so the rates are known and no hand grasps anything."""
+    m = len(actions)
+    T = np.repeat((actions[:, :1] < (1.0 if obj.name == "can" else -0.8)), n, axis=1)
+    return np.zeros((m, n, 3)), np.zeros((m, n, 3)), T, 0.01
+
+
+@pytest.mark.parametrize("approaches", [40, 1200])
+def test_a_balanced_budget_keeps_its_total_whatever_the_chunk(two_objects, monkeypatch, approaches):
+    """A balanced pool keeps the total (K x approaches): its first phase grasped min(CHUNK, approaches) of every object
+    and no count went below it, so 2 x 40 approaches became 96 (CHUNK 1000; 80 at CHUNK 20, under the same key).
+    The counts do not depend on CHUNK now, and the cache keys of the pool and of its data set hold the probe."""
+    import haptic_env.hand_grasps as hg
+
+    monkeypatch.setattr(hg, "_grasp_chunk", _rate_chunk)
+    counts = []
+    for chunk in (1000, 20, 7):
+        monkeypatch.setattr(hg, "CHUNK", chunk)
+        pool = hand_grasp_pool(two_objects, "generic", 3, approaches, seed=1, budget="balanced", workers=1,
+                               cache=False, progress=False)
+        counts.append(pool.counts)
+    assert all(np.array_equal(c, counts[0]) for c in counts), counts
+    assert abs(int(counts[0].sum()) - 2 * approaches) <= 2 and counts[0][0] < approaches < counts[0][1]
+    cfg = DatasetConfig(n_fingers=3, grasps_per_object=approaches, source="hand", hand="generic",
+                        hand_budget="balanced")
+    keys = [(hg.pool_cache_path(two_objects, "generic", 3, approaches, "table", 0, "balanced"), cfg.source_key())]
+    monkeypatch.setattr(hg, "PROBE", 3)  # another first phase: other pools, other keys
+    keys.append((hg.pool_cache_path(two_objects, "generic", 3, approaches, "table", 0, "balanced"), cfg.source_key()))
+    assert keys[0][0] != keys[1][0] and keys[0][1] != keys[1][1]
+    uniform = DatasetConfig(n_fingers=3, grasps_per_object=approaches, source="hand", hand="generic")
+    assert uniform.source_key() == hg.hand_physics_key("generic", 3)  # the uniform budget's keys are as before
