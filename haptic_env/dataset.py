@@ -143,6 +143,7 @@ class DatasetConfig:
             f = finite_number(v)
             if f is None or f < 0:
                 raise ValueError(f"{fname} must be finite and >= 0, got {v!r}")
+            object.__setattr__(self, fname, f)  # stored as the float: a TOML 0 keys as the command line's 0.0
         if self.scale_range is not None:
             object.__setattr__(self, "scale_range", positive_range(self.scale_range, "scale_range"))
         check_normal_axis(self.normal_axis)
@@ -151,6 +152,7 @@ class DatasetConfig:
         vf = finite_number(self.val_fraction)
         if vf is None or not 0.0 <= vf < 1.0:
             raise ValueError(f"val_fraction must be in [0, 1), got {self.val_fraction!r}")
+        object.__setattr__(self, "val_fraction", vf)
         if self.source not in SOURCES:
             raise ValueError(f"source must be one of {SOURCES}, got {self.source!r}")
         if self.hand_fingers is not None:
@@ -182,6 +184,18 @@ class DatasetConfig:
                 raise ValueError(f"force_closure needs n_fingers >= 3 (two point contacts never are), "
                                  f"got n_fingers={self.n_fingers}")
             object.__setattr__(self, "force_closure", mu)
+
+    def key_config(self) -> DatasetConfig:
+        """This config as the cache keys read it: the settings its grasps ignore at their defaults (``sampling`` with
+        the geometric and hand sources, ``normal_noise_deg`` without normals), so that configs that give the same
+        grasps share their cached files. A config at those defaults is itself (its keys are as before). (``hand_fingers``
+        None and ``n_fingers`` give the same grasps but keep their two keys: the envs' recognisers key the one, the
+        dataset command the other.)"""
+        fields = type(self).__dataclass_fields__
+        ignored = ([("sampling", fields["sampling"].default)] if self.source != "surface" else []) + (
+            [] if self.normals else [("normal_noise_deg", fields["normal_noise_deg"].default)])
+        changed = {k: v for k, v in ignored if getattr(self, k) != v}
+        return replace(self, **changed) if changed else self
 
     def source_key(self) -> str:
         """The identity of the grasp source beyond this config: the hand's physics for ``source="hand"``
@@ -421,7 +435,7 @@ def _object_grasps(obj: GraspObject, config: DatasetConfig, rng: np.random.Gener
 
 def dataset_cache_path(objects: ObjectSet, config: DatasetConfig) -> Path:
     """Where :func:`build_dataset` caches the dataset of ``objects`` under ``config``."""
-    key = config_key(_CACHE_VERSION, objects.identity, config, *filter(None, [config.source_key()]))
+    key = config_key(_CACHE_VERSION, objects.identity, config.key_config(), *filter(None, [config.source_key()]))
     return cache_dir("datasets") / f"{file_stem(objects.name, 'objects')}-{key}.npz"
 
 

@@ -334,3 +334,31 @@ def test_a_part_removed_by_another_build_is_generated_again(tmp_path, monkeypatc
 
     monkeypatch.setattr(dataset, "load_npz", gone)
     assert dataset._load_part(part) is None
+
+
+def test_cache_keys_are_normalised_and_keep_the_keys_of_configs_at_their_defaults(objects):
+    """A TOML ``contact_noise = 0`` keyed apart from the command line's 0.0, and settings a source ignores (the
+    sampling of the geometric and hand sources, the normal noise without normals) gave other keys for the same grasps;
+    configs at the defaults of those settings (the envs' and the command line's) keep their keys as before."""
+    import haptic_env
+    from haptic_env.cache import config_key
+    from haptic_env.config import recognizer_kwargs
+    from haptic_env.dataset import _CACHE_VERSION
+
+    def key(**kw):
+        return dataset_cache_path(objects, DatasetConfig(**kw)).name
+
+    assert DatasetConfig(contact_noise=0, normal_noise_deg=np.int64(2), val_fraction=0).contact_noise.__class__ is float
+    assert key(contact_noise=0) == key(contact_noise=0.0) == key() and key(contact_noise=1) == key(contact_noise=1.0)
+    assert key(normal_noise_deg=0, val_fraction=0) == key(normal_noise_deg=0.0, val_fraction=0.0)
+    assert key(normals=False, normal_noise_deg=5.0) == key(normals=False) != key(normal_noise_deg=5.0)
+    for source in ("geometric", "hand"):
+        hand = {"hand": "generic"} if source == "hand" else {}
+        assert key(source=source, sampling="centroid", **hand) == key(source=source, **hand)
+    assert key(sampling="centroid") != key()  # the surface source samples by it
+    # the keys of configs at those defaults are the pre-normalisation key of the config itself
+    rc = recognizer_kwargs(haptic_env.variant_config("HapticRecog-v0"))["config"]
+    for cfg in (DatasetConfig(), DatasetConfig(normals=False), DatasetConfig(source="geometric", contact_noise=0.001),
+                rc.dataset_config(4, True, hand_fingers=4), rc.dataset_config(3, False, hand_fingers=4)):
+        assert cfg.key_config() is cfg
+        assert dataset_cache_path(objects, cfg).name.endswith(f"-{config_key(_CACHE_VERSION, objects.identity, cfg)}.npz")

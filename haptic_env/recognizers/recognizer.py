@@ -316,7 +316,8 @@ def build_recognizer(objects, n_fingers: int, normals: bool = True, *, z_values=
     root = cache_dir("recognizers") if cache else None
     for z in zs:
         dcfg = config.dataset_config(z, bool(normals), hand_fingers=int(n_fingers))
-        key = config_key("recognizer", RECOGNIZER_VERSION, okey, z, bool(normals), dcfg, *filter(None, [dcfg.source_key()]))
+        key = config_key("recognizer", RECOGNIZER_VERSION, okey, z, bool(normals), dcfg.key_config(),
+                         *filter(None, [dcfg.source_key()]))
         built = {m: _load(root, f"{key}-{config_key(config.model_config(m))}", m, config) if cache else None
                  for m in MODELS if m in models}
         if any(v is None for v in built.values()):
