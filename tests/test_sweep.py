@@ -585,3 +585,47 @@ def test_a_matched_run_counts_every_finished_job_as_done(tmp_path):
     assert row.startswith("| command | 3 | 1 | 2 | 0 | 0 |"), row
     states = [r["state"] for r in json.loads(write_status(res, spec).read_text())["jobs"]]
     assert states == ["skipped", "skipped", "done"]
+
+
+def test_a_prior_report_of_other_episodes_or_env_seeds_is_refused(tmp_path, usage_error):
+    """``--prior-report`` from a spec with other ``episodes`` or ``env_seeds``: its episodes were taken for other
+    runs (only an index beyond the agent seeds was refused); now each agent seed must have ``episodes`` episodes on
+    each of the spec's env seeds."""
+    import csv
+
+    from haptic_env.cli import main
+    from haptic_env.sweep.report import load_prior_records
+
+    doc = {**_smoke_doc(), "seeds": [0, 1], "agent": [{"name": "random"}], "evaluate": {"episodes": 2,
+                                                                                       "env_seeds": [1000, 1001]}}
+    spec = parse_spec(doc)
+
+    def prior(rows) -> Path:
+        folder = tmp_path / f"prior{len(list(tmp_path.iterdir()))}"
+        (folder / "report" / "default").mkdir(parents=True)
+        with open(folder / "report" / "default" / "episodes.csv", "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=["agent", "seed", "episode", "object", "grasps", "decided", "correct",
+                                               "certainty", "ret", "predicted"])
+            w.writeheader()
+            for env_seed, episode in rows:
+                w.writerow({"agent": "random", "seed": env_seed, "episode": episode, "object": "ball", "grasps": 3,
+                            "decided": True, "correct": True, "certainty": 0.9, "ret": 0.5, "predicted": "ball"})
+        return folder
+
+    same = [(s, i * 2 + e) for i in (0, 1) for s in (1000, 1001) for e in (0, 1)]
+    got = load_prior_records(spec, prior(same), "default")
+    assert sorted(got) == [("random", 0), ("random", 1)] and all(len(r) == 4 for r in got.values())
+    for rows, why in (([(s, i * 2 + e) for i in (0, 1) for s in (1000, 1002) for e in (0, 1)],  # another env seed
+                       r"agent 'random' seed 0 has episodes per env seed \{1000: 2, 1002: 2\}, this spec 2 on each "
+                       r"of env seeds \[1000, 1001\]"),
+                      ([(s, i * 2 + e) for i in (0, 1) for s in (1000,) for e in (0, 1)], "seed 0 has episodes"),
+                      ([(s, e) for s in (1000, 1001) for e in (0,)] + [(s, 2 + e) for s in (1000, 1001) for e in (0, 1)],
+                       r"seed 0 has episodes per env seed \{1000: 1, 1001: 1\}")):  # 1 episode per seed, of 2
+        folder = prior(rows)
+        with pytest.raises(ValueError, match=why):
+            load_prior_records(spec, folder, "default")
+    spec_file = tmp_path / "spec.toml"
+    spec_file.write_text(_toml(doc))
+    usage_error(main, ["sweep", str(spec_file), "--report-only", "--out", str(tmp_path / "new"), "--prior-report",
+                       str(folder)], match="--prior-report: .* seed 0 has episodes per env seed")
+    assert not (tmp_path / "new").exists()

@@ -72,13 +72,17 @@ def load_prior_records(spec: SweepSpec, prior: Path, env: str) -> dict[tuple[str
     run folders were gone); the agent seed is read back from the episode offset (see :func:`load_records`).
     Empty if the earlier report has no such file.
 
-    Raises ``ValueError`` if an agent of the file is not evaluated on ``env`` by this spec, or if an episode index
-    lies beyond its agent's seeds: the file is of another spec."""
+    Raises ``ValueError`` if an agent of the file is not evaluated on ``env`` by this spec, if an episode index
+    lies beyond its agent's seeds, or if an agent seed's episodes are not ``episodes`` on each of the spec's
+    ``env_seeds``: the file is of another spec (its episodes would be taken for other runs)."""
+    from collections import Counter
+
     path = prior / "report" / env / "episodes.csv"
     if not path.is_file():
         return {}
     seeds = _agent_seeds(spec, env)
-    episodes = next(j.params["episodes"] for j in spec.jobs if j.kind == "evaluate" and j.params["env"] == env)
+    p = next(j.params for j in spec.jobs if j.kind == "evaluate" and j.params["env"] == env)
+    episodes, env_seeds = p["episodes"], p["env_seeds"]
     by_job: dict[tuple[str, int], list] = {}
     for r in _read_episodes(path):
         if r.agent not in seeds:
@@ -89,6 +93,12 @@ def load_prior_records(spec: SweepSpec, prior: Path, env: str) -> dict[tuple[str
             raise ValueError(f"{path}: episode {r.episode} of agent {r.agent!r} lies beyond its {len(seeds[r.agent])} "
                              f"agent seed(s) x {episodes} episodes (the earlier report is of another spec)")
         by_job.setdefault((r.agent, seeds[r.agent][idx]), []).append(r)
+    for (agent, seed), recs in by_job.items():
+        got = Counter(r.seed for r in recs)
+        if got != dict.fromkeys(env_seeds, episodes):
+            raise ValueError(f"{path}: agent {agent!r} seed {seed} has episodes per env seed {dict(sorted(got.items()))}"
+                             f", this spec {episodes} on each of env seeds {env_seeds} (the earlier report is of "
+                             "another spec)")
     return by_job
 
 
