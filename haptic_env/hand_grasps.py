@@ -47,6 +47,7 @@ from tqdm.auto import tqdm
 from .cache import CacheError, cache_dir, clean_stale_tmp, config_key, file_stem, load_npz, save_npz_atomic
 from .grasping.base import approach_table, validate_actions
 from .numbers import finite_number, whole_at_least
+from .processes import die_with_parent
 
 __all__ = ["HandGraspPool", "hand_grasp_pool", "pool_actions", "table_actions", "pool_rows", "pool_cache_path",
            "hand_physics_key", "CHUNK", "BUDGETS", "balanced_counts", "parts_dir", "PROBE", "balanced_probe",
@@ -406,7 +407,8 @@ def _run(phases, todo, put, args, workers: int, objects) -> None:
     for obj in objects:
         convex_pieces(obj)
     ctx = get_context("fork" if "fork" in get_all_start_methods() else "spawn")
-    ex = ProcessPoolExecutor(workers, mp_context=ctx)
+    # the workers end with this process: a build killed alone (SIGKILL) left them grasping for good
+    ex = ProcessPoolExecutor(workers, mp_context=ctx, initializer=die_with_parent, initargs=(os.getpid(),))
     try:
         for tasks in phases():
             futs = {ex.submit(_grasp_chunk, *args(k, lo, hi)): (k, lo, hi) for k, lo, hi in todo(tasks)}

@@ -368,3 +368,62 @@ def test_a_balanced_budget_keeps_its_total_whatever_the_chunk(two_objects, monke
     assert keys[0][0] != keys[1][0] and keys[0][1] != keys[1][1]
     uniform = DatasetConfig(n_fingers=3, grasps_per_object=approaches, source="hand", hand="generic")
     assert uniform.source_key() == hg.hand_physics_key("generic", 3)  # the uniform budget's keys are as before
+
+
+_KILLED_BUILD = """
+import os, sys, time
+import haptic_env.grasping.collision as collision
+import haptic_env.hand_grasps as hg
+from haptic_env.objects import load_object_set
+
+def chunk(obj, hand, n, support, actions, seed):  # a worker marks itself and grasps for good
+    with open(sys.argv[1], "a") as fh:
+        fh.write(f"{os.getpid()}\\n")
+    time.sleep(600)
+
+hg._grasp_chunk = chunk  # the forked workers see it
+collision.convex_pieces = lambda obj: None
+hg.hand_grasp_pool(load_object_set("default").subset(("can", "mug"), name="two"), "generic", 3, 4, workers=2,
+                   cache=False, progress=False)
+"""
+
+
+def test_the_workers_of_a_build_killed_alone_end_with_it(tmp_path):
+    """A parallel pool build whose process is killed alone (SIGKILL: no clean-up runs) leaves no worker grasping: the
+    workers get SIGTERM from the kernel when their parent dies (they ran on forever)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    marks = tmp_path / "workers"
+    proc = subprocess.Popen([sys.executable, "-c", _KILLED_BUILD, str(marks)])
+    pids: list[int] = []
+    try:
+        t0 = time.monotonic()
+        while len(pids) < 2 and time.monotonic() - t0 < 120:
+            time.sleep(0.2)
+            pids = [int(p) for p in marks.read_text().split()] if marks.exists() else []
+        assert len(pids) == 2, "the workers did not start"
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(10)
+        t0 = time.monotonic()
+        while any(_alive(p) for p in pids) and time.monotonic() - t0 < 10:
+            time.sleep(0.1)
+        assert not any(_alive(p) for p in pids), "a worker outlived its killed parent"
+    finally:
+        proc.kill()
+        for p in pids:
+            if _alive(p):
+                os.kill(p, signal.SIGKILL)
+
+
+def _alive(pid: int) -> bool:
+    """The process runs (not gone, not a zombie awaiting its reaper)."""
+    from pathlib import Path
+
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0] != "Z"
+    except OSError:
+        return False

@@ -33,6 +33,8 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+from haptic_env.processes import die_with_parent
+
 __all__ = ["execute", "is_done", "read_done", "attempts", "TRAIN_PY"]
 
 #: train.py of the source checkout this package lives in
@@ -111,15 +113,6 @@ def _ray_node() -> str | None:
 
 
 # ------------------------------------------------------------------------------------- subprocess
-def _die_with_parent() -> None:  # preexec_fn: SIGTERM when the worker that started us dies (Linux)
-    try:
-        import ctypes
-
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        pass
-
-
 def _run_logged(cmd: list[str], log: Path, cwd: Path | None = None, env: dict[str, str] | None = None,
                 pidfile: Path | None = None) -> int:
     """Run ``cmd`` with its output appended to ``log``; a stop of this process (task cancelled) is passed on as
@@ -128,7 +121,7 @@ def _run_logged(cmd: list[str], log: Path, cwd: Path | None = None, env: dict[st
         fh.write(f"\n$ {shlex.join(cmd)}\n")
         fh.flush()
         proc = subprocess.Popen(cmd, stdout=fh, stderr=subprocess.STDOUT, cwd=cwd, env=env,
-                                preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)
+                                preexec_fn=die_with_parent if sys.platform.startswith("linux") else None)
         if pidfile is not None:
             pidfile.write_text(str(proc.pid))
         try:
