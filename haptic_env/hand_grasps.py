@@ -45,7 +45,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .cache import CacheError, cache_dir, clean_stale_tmp, config_key, file_stem, load_npz, save_npz_atomic
-from .grasping.base import approach_table, validate_actions
+from .grasping.base import approach_table, check_support, validate_actions
 from .numbers import finite_number, whole_at_least
 from .processes import die_with_parent
 
@@ -294,6 +294,11 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
     whole_at_least(seed, 0, "seed")
     if budget not in BUDGETS:
         raise ValueError(f"budget must be one of {BUDGETS}, got {budget!r}")
+    check_support(support)
+    if not cache:  # the cache key reads the hand (hand_physics_key); without it, an unknown one is named here too
+        from .grasping.hands import load_hand
+
+        load_hand(hand, int(n_fingers))
     if actions is not None:
         actions = validate_actions(actions, 4)
         if len(actions) != approaches or budget != "uniform":

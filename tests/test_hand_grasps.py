@@ -427,3 +427,22 @@ def _alive(pid: int) -> bool:
         return Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0] != "Z"
     except OSError:
         return False
+
+
+@pytest.mark.parametrize("cache", [False, True])
+def test_a_bad_hand_or_support_is_named_before_any_work(two_objects, monkeypatch, cache):
+    """An unknown hand or a bad support is refused before the meshes are decomposed and the workers start (without
+    the cache both were found only in the workers, with it the support)."""
+    import haptic_env.grasping.collision as collision
+    import haptic_env.hand_grasps as hg
+
+    def work(*a, **kw):
+        raise AssertionError("the work started")
+
+    monkeypatch.setattr(collision, "convex_pieces", work)
+    monkeypatch.setattr(hg, "_grasp_chunk", work)
+    for kw, why in (({"hand": "no_such_hand"}, "unknown hand 'no_such_hand'"),
+                    ({"support": "wall"}, "support must be 'table' or 'floating', got 'wall'")):
+        with pytest.raises(ValueError, match=why):
+            hand_grasp_pool(two_objects, **{"hand": "generic", **kw}, n_fingers=3, approaches=4, workers=2,
+                            cache=cache, progress=False)
