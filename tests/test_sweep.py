@@ -629,3 +629,22 @@ def test_a_prior_report_of_other_episodes_or_env_seeds_is_refused(tmp_path, usag
     usage_error(main, ["sweep", str(spec_file), "--report-only", "--out", str(tmp_path / "new"), "--prior-report",
                        str(folder)], match="--prior-report: .* seed 0 has episodes per env seed")
     assert not (tmp_path / "new").exists()
+
+
+def test_a_retried_job_that_did_not_fail_in_this_run_is_not_called_failed(tmp_path):
+    """The report's retried jobs: a job with earlier attempts that neither finished nor failed in this run (left out
+    by --match, or stopped) was labelled failed."""
+    from haptic_env.sweep.report import write_sweep_report
+    from haptic_env.sweep.runner import SweepResult
+
+    spec = parse_spec({"name": "r", "command": [{"name": n, "run": _cmd("pass")} for n in "ab"]})
+    out = tmp_path / "sweep"
+    for j in spec.jobs:
+        j.run_dir(out).mkdir(parents=True)
+        (j.run_dir(out) / "attempts.jsonl").write_text("\n".join(json.dumps(r) for r in (
+            {"event": "start", "attempt": 1}, {"event": "error", "attempt": 1, "error": "boom"},
+            {"event": "start", "attempt": 2})) + "\n")
+    a, b = spec.jobs
+    text = write_sweep_report(spec, SweepResult(out=out, failed={a.id: "boom"})).read_text()
+    assert f"- `{a.id}`: 2 attempts, failed;" in text
+    assert f"- `{b.id}`: 2 attempts, not finished (not run this time, or stopped);" in text

@@ -192,7 +192,8 @@ def write_sweep_report(spec: SweepSpec, result: SweepResult, command: list[str] 
         for j, a in retried:
             errs = "; ".join(x.get("error", "worker died") .splitlines()[0] if x.get("error") else
                              ("worker died / stopped" if "outcome" not in x else x["outcome"]) for x in a[:-1])
-            state = "done" if is_done(j.run_dir(out)) else "failed"
+            state = ("done" if is_done(j.run_dir(out)) else "failed" if j.id in result.failed
+                     else "not finished (not run this time, or stopped)")
             lines.append(f"- `{j.id}`: {len(a)} attempts, {state}; earlier attempts: {errs}")
         lines.append("")
 
