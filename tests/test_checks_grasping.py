@@ -74,6 +74,7 @@ CASES = [  # (what is called with the bad value, bad values, regex naming the fi
      r"seed must be an int >= 0"),
     (lambda v: balanced_counts([0.5, 0.2], 10, hi=v), [math.inf, "2", math.nan], r"need 0 < lo <= 1 <= hi"),
     (lambda v: balanced_counts([0.5, 0.2], 10, minimum=v), [-1, 0.5, True], r"minimum must be an int >= 0"),
+    (lambda v: balanced_counts([0.5, 0.2], 10, minimum=v), [11], r"minimum must be <= approaches=10"),
     (lambda v: family_set(v, np.random.default_rng(0)), [1.9, "3", True], r"n_per_family must be an int >= 1"),
     (unit_scale, [True, np.True_], r"units must be 'm', 'cm', 'mm' or a positive number"),
     (unit_scale, [10**310], r"units factor must be positive and finite"),
