@@ -188,9 +188,9 @@ class DatasetConfig:
     def key_config(self) -> DatasetConfig:
         """This config as the cache keys read it: the settings its grasps ignore at their defaults (``sampling`` with
         the geometric and hand sources, ``normal_noise_deg`` without normals), so that configs that give the same
-        grasps share their cached files. A config at those defaults is itself (its keys are as before). (``hand_fingers``
-        None and ``n_fingers`` give the same grasps but keep their two keys: the envs' recognisers key the one, the
-        dataset command the other.)"""
+        grasps share their cached files. A config at those defaults is itself (its keys are as before).
+        (``hand_fingers`` None and ``n_fingers`` give the same grasps but keep their two keys: the envs' recognisers
+        key the one, the dataset command the other.)"""
         fields = type(self).__dataclass_fields__
         ignored = ([("sampling", fields["sampling"].default)] if self.source != "surface" else []) + (
             [] if self.normals else [("normal_noise_deg", fields["normal_noise_deg"].default)])

@@ -619,7 +619,7 @@ def test_a_prior_report_of_other_episodes_or_env_seeds_is_refused(tmp_path, usag
                        r"agent 'random' seed 0 has episodes per env seed \{1000: 2, 1002: 2\}, this spec 2 on each "
                        r"of env seeds \[1000, 1001\]"),
                       ([(s, i * 2 + e) for i in (0, 1) for s in (1000,) for e in (0, 1)], "seed 0 has episodes"),
-                      ([(s, e) for s in (1000, 1001) for e in (0,)] + [(s, 2 + e) for s in (1000, 1001) for e in (0, 1)],
+                      ([(s, 0) for s in (1000, 1001)] + [(s, 2 + e) for s in (1000, 1001) for e in (0, 1)],
                        r"seed 0 has episodes per env seed \{1000: 1, 1001: 1\}")):  # 1 episode per seed, of 2
         folder = prior(rows)
         with pytest.raises(ValueError, match=why):

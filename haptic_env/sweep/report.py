@@ -96,9 +96,9 @@ def load_prior_records(spec: SweepSpec, prior: Path, env: str) -> dict[tuple[str
     for (agent, seed), recs in by_job.items():
         got = Counter(r.seed for r in recs)
         if got != dict.fromkeys(env_seeds, episodes):
-            raise ValueError(f"{path}: agent {agent!r} seed {seed} has episodes per env seed {dict(sorted(got.items()))}"
-                             f", this spec {episodes} on each of env seeds {env_seeds} (the earlier report is of "
-                             "another spec)")
+            raise ValueError(f"{path}: agent {agent!r} seed {seed} has episodes per env seed "
+                             f"{dict(sorted(got.items()))}, this spec {episodes} on each of env seeds {env_seeds} "
+                             "(the earlier report is of another spec)")
     return by_job
 
 
