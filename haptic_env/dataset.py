@@ -102,6 +102,8 @@ class DatasetConfig:
         hand_budget: with ``source="hand"``, ``"uniform"`` (``grasps_per_object`` approaches for every object) or
             ``"balanced"`` (the same total, spread towards the objects whose grasps rarely complete;
             :func:`~haptic_env.hand_grasps.balanced_counts`).
+        solid_table: with ``source="hand"`` and ``support="table"``, the hand collides with the table
+            (``MujocoConfig.solid_table``); off: the visual table every hand figure so far was measured with.
         heights: append the contacts' heights above the table the object rests on (``phi(heights=True)``:
             ``n`` more values; contacts are taken in the support frame of the object at its identity pose,
             :func:`~haptic_env.grasping.base.support_height`). Only for objects that keep that resting pose
@@ -134,10 +136,11 @@ class DatasetConfig:
     heights: bool = False
     normal_axis: str = "t2"
     force_closure: float | None = field(default=None, metadata={KEY_ONLY_WHEN_SET: True})
+    solid_table: bool = field(default=False, metadata={KEY_ONLY_WHEN_SET: True})
 
     def __post_init__(self) -> None:
         check_whole_fields(self, (("n_fingers", 2), ("grasps_per_object", 1), ("seed", 0)))
-        check_flag_fields(self, ("normals", "normalize_scale", "heights"))
+        check_flag_fields(self, ("normals", "normalize_scale", "heights", "solid_table"))
         for fname in ("contact_noise", "normal_noise_deg"):
             v = getattr(self, fname)
             f = finite_number(v)
@@ -167,10 +170,14 @@ class DatasetConfig:
         # settings of other sources were taken and ignored (the dataset command refused only --hand)
         ignored = [f"{k}={getattr(self, k)!r}" for k, default, sources in (
             ("hand_fingers", None, ("geometric", "hand")), ("support", "table", ("geometric", "hand")),
-            ("hand_budget", "uniform", ("hand",))) if getattr(self, k) != default and self.source not in sources]
+            ("hand_budget", "uniform", ("hand",)), ("solid_table", False, ("hand",)))
+            if getattr(self, k) != default and self.source not in sources]
         if ignored:
             raise ValueError(f"{', '.join(ignored)} would be ignored with source={self.source!r}: hand_fingers and "
-                             "support apply to the geometric and hand sources, hand_budget to the hand source")
+                             "support apply to the geometric and hand sources, hand_budget and solid_table to the hand "
+                             "source")
+        if self.solid_table and self.support != "table":
+            raise ValueError(f"solid_table needs support='table', got support={self.support!r}")
         if (self.source == "hand") != (self.hand is not None):
             raise ValueError(f"hand (got {self.hand!r}) is required with source='hand' and only then "
                              f"(source={self.source!r})")
@@ -563,7 +570,7 @@ def hand_pool(objects: ObjectSet, config: DatasetConfig, progress: bool = True, 
         raise ValueError(f"only source='hand' grasps come from a hand grasp pool, got source={config.source!r}")
     return hand_grasp_pool(objects, config.hand, config.hand_fingers or config.n_fingers, config.grasps_per_object,
                            support=config.support, seed=config.seed, budget=config.hand_budget, progress=progress,
-                           cache=cache)
+                           cache=cache, solid_table=config.solid_table)
 
 
 def _hand_rows(objects: ObjectSet, config: DatasetConfig, progress: bool, cache: bool = True):
@@ -678,6 +685,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--hand-budget", choices=BUDGETS, default=DatasetConfig.hand_budget,
                    help="hand source: the same approaches for every object, or the same total spread towards the "
                         "objects whose grasps rarely complete (default %(default)s)")
+    p.add_argument("--solid-table", action="store_true",
+                   help="hand source: the hand collides with the table (default: a visual table it can reach into)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=output_path("file"), default=None, help="also write the dataset to this .npz")
     p.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
@@ -728,6 +737,7 @@ def _cli_config(args: argparse.Namespace) -> DatasetConfig:
         hand=args.hand,
         hand_budget=args.hand_budget,
         force_closure=args.force_closure,
+        solid_table=args.solid_table,
     )
 
 
@@ -739,10 +749,7 @@ def _print_summary(args: argparse.Namespace, objects, config: DatasetConfig, ds,
     for name, (tr, va) in ds.counts().items():
         print(f"  {name:<{width}}  train {tr:>7}  val {va:>7}")
     if config.source == "hand" and not args.no_cache:  # the pool is cached: reading it back gives its build time
-        from .hand_grasps import hand_grasp_pool
-
-        pool = hand_grasp_pool(objects, config.hand, config.hand_fingers or config.n_fingers, config.grasps_per_object,
-                               support=config.support, seed=config.seed, budget=config.hand_budget, progress=False)
+        pool = hand_pool(objects, config, progress=False)
         print(f"hand grasps ({config.hand}): {pool.touched.shape[1]} approaches x {len(objects)} objects built in "
               f"{pool.seconds:.1f} s ({pool.grasps_per_second:.0f} grasps/s on all cores)")
     src = "hit" if ds.from_cache else ("written" if ds.cache_path else "disabled")

@@ -46,7 +46,7 @@ from tqdm.auto import tqdm
 
 from .cache import CacheError, cache_dir, clean_stale_tmp, config_key, file_stem, load_npz, save_npz_atomic
 from .grasping.base import approach_table, check_support, validate_actions
-from .numbers import finite_number, whole_at_least
+from .numbers import checked_flag, finite_number, whole_at_least
 from .processes import die_with_parent
 
 __all__ = ["HandGraspPool", "hand_grasp_pool", "pool_actions", "table_actions", "pool_rows", "pool_cache_path",
@@ -145,10 +145,11 @@ def _plain_servo(act) -> bool:
 
 
 def pool_cache_path(objects, hand: str, n_fingers: int, approaches: int, support: str, seed: int,
-                    budget: str = "uniform", actions: np.ndarray | None = None) -> Path:
+                    budget: str = "uniform", actions: np.ndarray | None = None, solid_table: bool = False) -> Path:
     given = [] if actions is None else [hashlib.sha256(np.ascontiguousarray(actions, np.float64)).hexdigest()]
     key = config_key(_CACHE_VERSION, objects.identity, hand, int(n_fingers), int(approaches), support, int(seed),
-                     hand_physics_key(hand, n_fingers), *budget_key(budget, approaches), *given)
+                     hand_physics_key(hand, n_fingers), *budget_key(budget, approaches), *given,
+                     *(["solid_table"] if solid_table else []))  # keyed only when set: the visual table's keys stay
     return cache_dir("hand_grasps") / f"{file_stem(hand, 'hand')}-{key}.npz"  # a hand may be an MJCF path
 
 
@@ -206,12 +207,13 @@ def pool_actions(seed: int, k: int, count: int) -> np.ndarray:
     return np.random.default_rng(np.random.SeedSequence([int(seed), int(k)])).uniform(-1, 1, (int(count), 4))
 
 
-def _grasp_chunk(obj, hand: str, n_fingers: int, support: str, actions: np.ndarray, seed) -> tuple:
+def _grasp_chunk(obj, hand: str, n_fingers: int, support: str, actions: np.ndarray, seed,
+                 solid_table: bool = False) -> tuple:
     """Worker: grasp ``obj`` along ``actions (m, 4)`` -> contacts, normals, touched, seconds."""
     from .grasping import make_backend
 
     t0 = time.perf_counter()
-    be = make_backend("mujoco", n_fingers=n_fingers, hand=hand, support=support, normals=True)
+    be = make_backend("mujoco", n_fingers=n_fingers, hand=hand, support=support, normals=True, solid_table=solid_table)
     try:
         be.set_object(obj)
         rng = np.random.default_rng(seed)
@@ -264,8 +266,8 @@ def _load_parts(folder: Path, n_fingers: int) -> tuple[dict[tuple[int, int, int]
 
 
 def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, support: str = "table", seed: int = 0,
-                    budget: str = "uniform", workers: int | None = None, cache: bool = True,
-                    progress: bool = True, actions: np.ndarray | None = None) -> HandGraspPool:
+                    budget: str = "uniform", workers: int | None = None, cache: bool = True, progress: bool = True,
+                    actions: np.ndarray | None = None, solid_table: bool = False) -> HandGraspPool:
     """Grasp every object of ``objects`` with ``hand`` along uniformly random approaches (or along given ones).
 
     Args:
@@ -280,6 +282,7 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
         cache: read / write ``cache_dir("hand_grasps")``.
         actions: ``(approaches, 4)`` approaches in ``[-1, 1]`` to grasp every object along, in this order, instead
             of the random ones (e.g. :func:`table_actions`); the cache key holds them. Needs ``budget="uniform"``.
+        solid_table: the hand collides with the table (``MujocoConfig.solid_table``; support "table" only).
 
     Object ``k``'s approaches come from ``SeedSequence([seed, k])`` (or are ``actions``) and chunk ``lo`` grasps with
     the random stream ``[seed, k, lo]``, so the pool does not depend on ``workers``, and an object's first
@@ -295,6 +298,8 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
     if budget not in BUDGETS:
         raise ValueError(f"budget must be one of {BUDGETS}, got {budget!r}")
     check_support(support)
+    if checked_flag(solid_table, "solid_table") and support != "table":
+        raise ValueError(f"solid_table needs support='table', got support={support!r}")
     if not cache:  # the cache key reads the hand (hand_physics_key); without it, an unknown one is named here too
         from .grasping.hands import load_hand
 
@@ -304,7 +309,8 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
         if len(actions) != approaches or budget != "uniform":
             raise ValueError(f"given actions need approaches == len(actions) and budget='uniform', got {len(actions)} "
                              f"actions, approaches={approaches!r}, budget={budget!r}")
-    path = pool_cache_path(objects, hand, n_fingers, approaches, support, seed, budget, actions) if cache else None
+    path = pool_cache_path(objects, hand, n_fingers, approaches, support, seed, budget, actions,
+                           solid_table) if cache else None
     if path is not None and path.exists():
         try:
             a = load_npz(path, ("contacts", "normals", "touched", "names", "seconds"))
@@ -333,7 +339,7 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
 
     def args(k, lo, hi):  # object k's approach stream, whatever its length, starts the same
         chunk = pool_actions(seed, k, hi)[lo:] if actions is None else actions[lo:hi]
-        return (objects[k], hand, n_fingers, support, chunk, [seed, k, lo])
+        return (objects[k], hand, n_fingers, support, chunk, [seed, k, lo], solid_table)
 
     def chunks(counts, start=0):
         return [(k, lo, min(lo + CHUNK, int(counts[k]))) for k in range(K) for lo in range(start, int(counts[k]), CHUNK)]

@@ -162,7 +162,7 @@ def test_interrupted_pool_build_resumes_from_its_saved_chunks(two_objects, monke
     def interrupted(*a):
         if len(calls) == 3:
             raise KeyboardInterrupt  # Ctrl-C during the fourth chunk
-        calls.append(a[-1])
+        calls.append(a[5])  # the chunk's seed
         return real(*a)
 
     monkeypatch.setattr(hg, "_grasp_chunk", interrupted)
@@ -174,7 +174,7 @@ def test_interrupted_pool_build_resumes_from_its_saved_chunks(two_objects, monke
     (parts / sorted(p.name for p in parts.glob("*.npz"))[0]).write_bytes(b"not an npz")  # a damaged chunk
 
     calls.clear()
-    monkeypatch.setattr(hg, "_grasp_chunk", lambda *a: calls.append(a[-1]) or real(*a))
+    monkeypatch.setattr(hg, "_grasp_chunk", lambda *a: calls.append(a[5]) or real(*a))
     with pytest.warns(RuntimeWarning, match="grasping that chunk again"):
         resumed = hand_grasp_pool(two_objects, "generic", 3, 12, seed=7, workers=1, progress=False)
     assert len(calls) == 4  # the 3 chunks never saved and the damaged one
@@ -236,7 +236,7 @@ def _pool_in_a_daemon(objects, out) -> None:
         out.put(repr(exc))
 
 
-def _failing_chunk(obj, hand, n, support, actions, seed):
+def _failing_chunk(obj, hand, n, support, actions, seed, solid_table=False):
     """A stand-in for ``_grasp_chunk`` (module level: a worker's task is pickled by name): the first chunk of object
     0 fails; every other one takes 0.5 s (long beside the main process's reaction to the failure, even on a loaded
     machine) and leaves a mark in the log."""
@@ -336,7 +336,7 @@ def test_an_uncached_hand_dataset_neither_reads_nor_writes_its_pool_and_too_few_
     assert asked == [False, False]
 
 
-def _rate_chunk(obj, hand, n, support, actions, seed):
+def _rate_chunk(obj, hand, n, support, actions, seed, solid_table=False):
     """A stand-in for ``_grasp_chunk``: a grasp is complete where its first action value is below the object's rate
     (``can`` 1.0, else 0.1 of the range [-1, 1]), so the rates are known and no hand grasps anything."""
     m = len(actions)
@@ -376,7 +376,7 @@ import haptic_env.grasping.collision as collision
 import haptic_env.hand_grasps as hg
 from haptic_env.objects import load_object_set
 
-def chunk(obj, hand, n, support, actions, seed):  # a worker marks itself and grasps for good
+def chunk(obj, hand, n, support, actions, seed, solid_table=False):  # a worker marks itself and grasps for good
     with open(sys.argv[1], "a") as fh:
         fh.write(f"{os.getpid()}\\n")
     time.sleep(600)
@@ -446,3 +446,33 @@ def test_a_bad_hand_or_support_is_named_before_any_work(two_objects, monkeypatch
         with pytest.raises(ValueError, match=why):
             hand_grasp_pool(two_objects, **{"hand": "generic", **kw}, n_fingers=3, approaches=4, workers=2,
                             cache=cache, progress=False)
+
+
+def test_a_solid_table_pool_is_its_own_and_reaches_the_envs_recogniser(two_objects, monkeypatch, tmp_path):
+    """``solid_table`` reaches the pool's grasps (the hand no longer reaches into the table), its cache key (only when
+    set: the visual table's pools keep theirs), the hand data set and an env's hand-matched recogniser."""
+    from haptic_env.config import HapticRecogConfig, recognizer_kwargs
+    from haptic_env.dataset import dataset_cache_path
+    from haptic_env.hand_grasps import pool_cache_path
+
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path))
+    mug = two_objects.subset(("mug",), name="mug")
+    visual = hand_grasp_pool(mug, "generic", 3, 10, seed=5, workers=1, cache=False, progress=False)
+    solid = hand_grasp_pool(mug, "generic", 3, 10, seed=5, workers=1, cache=False, progress=False, solid_table=True)
+    assert not np.array_equal(visual.touched, solid.touched) or not np.allclose(visual.contacts, solid.contacts)
+    key = pool_cache_path(mug, "generic", 3, 10, "table", 5)
+    assert pool_cache_path(mug, "generic", 3, 10, "table", 5, solid_table=False) == key
+    assert pool_cache_path(mug, "generic", 3, 10, "table", 5, solid_table=True) != key
+    with pytest.raises(ValueError, match="solid_table needs support='table'"):
+        hand_grasp_pool(mug, "generic", 3, 10, support="floating", solid_table=True, cache=False, progress=False)
+    cfg = DatasetConfig(n_fingers=3, source="hand", hand="generic", grasps_per_object=10)
+    assert dataset_cache_path(mug, cfg) != dataset_cache_path(mug, DatasetConfig(
+        n_fingers=3, source="hand", hand="generic", grasps_per_object=10, solid_table=True))
+    for bad in ({"solid_table": True}, {"source": "hand", "hand": "generic", "support": "floating", "solid_table": True},
+                {"source": "hand", "hand": "generic", "solid_table": 1}):
+        with pytest.raises(ValueError, match="solid_table"):
+            DatasetConfig(**bad)
+    env = HapticRecogConfig(backend="mujoco", backend_kwargs={"hand": "allegro", "solid_table": True}, objects="ycb10")
+    assert recognizer_kwargs(env)["config"].grasps.solid_table
+    plain = HapticRecogConfig(backend="mujoco", backend_kwargs={"hand": "allegro"}, objects="ycb10")
+    assert not recognizer_kwargs(plain)["config"].grasps.solid_table
