@@ -280,13 +280,30 @@ _WHOLE_AT_LEAST = {"n_steps": 1, "batch_size": 2, "n_epochs": 1, "buffer_size": 
 _NUMBER_IN = {"learning_rate": (lambda f: f > 0, np.inf, "> 0"), "gamma": (lambda f: f >= 0, 1.0, "in [0, 1]"),
               "gae_lambda": (lambda f: f >= 0, 1.0, "in [0, 1]"), "clip_range": (lambda f: f > 0, np.inf, "> 0"),
               "ent_coef": (lambda f: f >= 0, np.inf, ">= 0"), "vf_coef": (lambda f: f >= 0, np.inf, ">= 0"),
-              "max_grad_norm": (lambda f: f > 0, np.inf, "> 0"), "tau": (lambda f: f > 0, 1.0, "in (0, 1]")}
+              "max_grad_norm": (lambda f: f > 0, np.inf, "> 0"), "tau": (lambda f: f > 0, 1.0, "in (0, 1]"),
+              "target_entropy": (lambda f: True, np.inf, "(any finite value)")}
+#: The strings SB3 takes for a number, by algorithm and key: SAC's ``ent_coef`` "auto" (learned from 1) or "auto_<x>"
+#: (learned from x > 0) and its ``target_entropy`` "auto" (minus the action's dimension); SB3 float()s any other.
+_AUTO = {("sac", "ent_coef"), ("sac", "target_entropy")}
+
+
+def _auto_problem(key: str, value: str) -> str | None:
+    """Why ``value`` is not one of SB3's strings for SAC's ``key`` (:data:`_AUTO`), or None if it is."""
+    if value == "auto":
+        return None
+    if key == "ent_coef" and value.startswith("auto_"):
+        with contextlib.suppress(ValueError):
+            if 0 < float(value.removeprefix("auto_")) < np.inf:
+                return None
+    return "'auto'" if key == "target_entropy" else "'auto' or 'auto_<initial value > 0>'"
 
 
 def check_hyperparams(algo: str, hyperparams: dict) -> None:
     """A ``ValueError`` naming every key of ``hyperparams`` that the SB3 ``algo`` class does not take (or that
     :func:`build_model` sets itself), or a common count or number out of its range (``n_steps``, ``batch_size``,
-    ``gamma``, ``learning_rate``, ...), before any env or run file is made."""
+    ``gamma``, ``learning_rate``, ...), before any env or run file is made. A number given as a string is refused
+    (SB3 would fail on it mid-training) except SB3's own strings, SAC's ``ent_coef`` ``"auto"`` / ``"auto_0.1"``
+    and ``target_entropy`` ``"auto"`` (:data:`_AUTO`)."""
     import inspect
 
     taken = set(inspect.signature(_algo_class(algo).__init__).parameters) - {"self", *_SET_BY_BUILD}
@@ -297,8 +314,14 @@ def check_hyperparams(algo: str, hyperparams: dict) -> None:
         if key in _WHOLE_AT_LEAST and (whole_number(value) is None or value < _WHOLE_AT_LEAST[key]):
             raise ValueError(f"{algo.upper()} hyperparameter {key} must be an int >= {_WHOLE_AT_LEAST[key]}, "
                              f"got {value!r}")
-        if key in _NUMBER_IN and not isinstance(value, str):  # a string: SB3's own forms ("auto" ent_coef)
+        if key in _NUMBER_IN:
             lo, hi, text = _NUMBER_IN[key]
+            if isinstance(value, str) and (algo.lower(), key) in _AUTO:  # SB3's own forms (SAC's "auto" ent_coef)
+                forms = _auto_problem(key, value)
+                if forms is not None:
+                    raise ValueError(f"{algo.upper()} hyperparameter {key} must be a number {text} or {forms}, "
+                                     f"got {value!r}")
+                continue
             f = finite_number(value)
             if f is None or not lo(f) or f > hi:
                 raise ValueError(f"{algo.upper()} hyperparameter {key} must be a number {text}, got {value!r}")

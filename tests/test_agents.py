@@ -566,6 +566,27 @@ def test_train_refuses_bad_values_before_its_run_folder(argv, match, usage_error
     assert train.parse_args(["--algo", "sac", "--hyperparams", '{"ent_coef": "auto_0.1", "tau": 1}']).algo == "sac"
 
 
+@pytest.mark.parametrize("argv, match", [
+    (["--hyperparams", '{"gamma": "0.9"}'], r"PPO hyperparameter gamma must be a number in \[0, 1\], got '0.9'"),
+    (["--hyperparams", '{"ent_coef": "auto"}'], r"PPO hyperparameter ent_coef must be a number >= 0, got 'auto'"),
+    (["--algo", "sac", "--hyperparams", '{"learning_rate": "auto"}'], r"SAC hyperparameter learning_rate must be"),
+    (["--algo", "sac", "--hyperparams", '{"ent_coef": "0.1"}'],
+     r"SAC hyperparameter ent_coef must be a number >= 0 or 'auto' or 'auto_<initial value > 0>', got '0.1'"),
+    (["--algo", "sac", "--hyperparams", '{"ent_coef": "auto_0"}'], r"SAC hyperparameter ent_coef .* got 'auto_0'"),
+    (["--algo", "sac", "--hyperparams", '{"target_entropy": "auto_1"}'],
+     r"SAC hyperparameter target_entropy must be a number \(any finite value\) or 'auto', got 'auto_1'"),
+])
+def test_train_refuses_a_number_given_as_a_string(argv, match, usage_error):
+    """A string for a numeric hyperparameter was taken, then failed inside SB3 after the first rollout (the run's
+    files written); only SAC's own strings ("auto" ent_coef / target_entropy) pass."""
+    import train
+
+    usage_error(train.parse_args, argv, match=match)
+    for sac in ('{"ent_coef": "auto_0.1"}', '{"ent_coef": "auto", "target_entropy": "auto"}',
+                '{"ent_coef": 0.1, "target_entropy": -3.5}'):
+        assert train.parse_args(["--algo", "sac", "--hyperparams", sac]).algo == "sac"
+
+
 def test_evaluate_writes_table_and_plots(env_config, tmp_path):
     make = lambda: haptic_env.make(env_config.replace(max_grasps=8))  # noqa: E731
     second = RandomAgent()
