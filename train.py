@@ -140,7 +140,8 @@ def _usage_error(message: str):
 
 def parse_args(argv: list[str] | None = None) -> Args:
     """The flags as :class:`Args`; bad values (unknown algorithm, zero steps or envs, JSON that is not an object,
-    env settings ``HapticRecogConfig`` rejects, a missing ``--resume`` file) exit with a one-line usage error."""
+    env settings ``HapticRecogConfig`` rejects, a missing ``--resume`` file or one this run cannot go on from:
+    :func:`_resume_problem`) exit with a one-line usage error."""
     import tyro
 
     from haptic_env import ENV_VARIANTS, variant_config
@@ -226,7 +227,38 @@ def parse_args(argv: list[str] | None = None) -> Args:
         if saved is not None and saved != args.discrete_approaches:
             _usage_error(f"argument --discrete-approaches: {args.resume} was trained with --discrete-approaches "
                          f"{saved}, got {args.discrete_approaches} (resume with the N it was started with)")
+        problem = _resume_problem(args, data, config)
+        if problem is not None:
+            _usage_error(f"argument --resume: {problem}")
     return args
+
+
+def _resume_problem(args: Args, data: dict | None, config: HapticRecogConfig) -> str | None:
+    """Why ``args.resume`` (its :func:`_saved_data` ``data``) cannot go on in this run's env (``config``), or None:
+    a SAC checkpoint without its replay buffer (``agents.sb3.replay_buffer_problem``), or a model whose observation
+    (or continuous action) space is not the env's, which stable-baselines3's load refuses only once the segment's
+    files are written."""
+    import haptic_env
+    from agents.sb3 import replay_buffer_problem
+
+    problem = replay_buffer_problem(args.resume, args.algo)
+    if problem is not None or data is None:
+        return problem
+    env = haptic_env.make(config, env_id=args.env_id)
+    try:
+        spaces = [("observation", data.get("observation_space"), env.observation_space)]
+        if not args.discrete_approaches:  # the fixed approaches' count is checked above
+            spaces.append(("action", data.get("action_space"), env.action_space))
+    finally:
+        env.close()
+    for what, saved, now in spaces:
+        if saved is not None and saved != now:
+            size = lambda space: "x".join(map(str, getattr(space, "shape", None) or ())) + "-dim"  # noqa: E731
+            other = (f"a {size(saved)} {what}, this run's env has a {size(now)} one" if size(saved) != size(now)
+                     else f"another {what} space than this run's env ({saved} != {now})")
+            return (f"{args.resume} was trained with {other}: resume with the --env-id and --env.* settings it was "
+                    "trained with (its run's args.json)")
+    return None
 
 
 def run_folder(checkpoint: Path) -> Path:

@@ -45,8 +45,8 @@ from haptic_env.numbers import finite_number, whole_at_least, whole_number
 
 __all__ = ["ALGOS", "DEFAULT_HYPERPARAMS", "make_vec_env", "build_model", "load_model", "algo_of_file", "train",
            "SB3Agent", "TrainingInterrupted", "latest_checkpoint", "checkpoint_extras", "close_vec_env",
-           "check_hyperparams", "approach_table", "DiscreteApproaches", "DISCRETE_ALGOS", "discrete_approaches_problem",
-           "RepeatTracker", "RepeatMask"]
+           "check_hyperparams", "replay_buffer_problem", "approach_table", "DiscreteApproaches", "DISCRETE_ALGOS",
+           "discrete_approaches_problem", "RepeatTracker", "RepeatMask"]
 
 #: ``rppo``: sb3-contrib's ``RecurrentPPO`` (an LSTM policy); ``mppo``: sb3-contrib's ``MaskablePPO`` over fixed
 #: approaches, trained and acting with :class:`RepeatMask`. Their model files are named ``rppo_*`` / ``mppo_*``.
@@ -404,6 +404,20 @@ def checkpoint_extras(path: str | os.PathLike) -> dict[str, Path]:
     return out
 
 
+#: the algorithms that learn from a replay buffer, which a resume needs beside its checkpoint
+_OFF_POLICY = ("sac",)
+
+
+def replay_buffer_problem(checkpoint: str | os.PathLike, algo: str) -> str | None:
+    """Why ``algo``'s ``checkpoint`` cannot be resumed for want of its replay buffer (SAC: without it the run would go
+    on as another one), or None (a buffer is beside it, or ``algo`` keeps none). :func:`train` refuses such a
+    resume, and ``train.py`` before any run file is written."""
+    if algo.lower() not in _OFF_POLICY or "replay_buffer" in checkpoint_extras(checkpoint):
+        return None
+    return (f"checkpoint {checkpoint} has no replay buffer beside it ({Path(checkpoint).name} from a run killed while "
+            "saving?); delete it (and any later ones) and resume from the one before it")
+
+
 class TrainingInterrupted(Exception):
     """Learning stopped early (a signal, a dead env worker); the state was saved to ``path`` first."""
 
@@ -587,6 +601,9 @@ def train(algo: str, venv, total_timesteps: int, log_dir: str | os.PathLike, *, 
     algo = algo.lower()
     env_seeds = list(venv.unwrapped._seeds)  # the caller's: SB3 replaces them when it builds or loads the model
     if resume is not None:
+        problem = replay_buffer_problem(resume, algo)
+        if problem is not None:
+            raise ValueError(problem)
         extras = checkpoint_extras(resume)
         if "vecnormalize" in extras:  # the saved statistics, into the caller's VecNormalize or a new one
             from stable_baselines3.common.vec_env import VecNormalize
@@ -600,11 +617,7 @@ def train(algo: str, venv, total_timesteps: int, log_dir: str | os.PathLike, *, 
         model = load_model(resume, algo, env=venv)
         model.set_random_seed(seed)  # not the checkpoint's seed again (SB3's load set it): this segment's
         model.tensorboard_log = str(log_dir / "tb")
-        if hasattr(model, "load_replay_buffer"):  # SAC: without its buffer it would go on as another run
-            if "replay_buffer" not in extras:
-                raise ValueError(f"checkpoint {resume} has no replay buffer beside it ({Path(resume).name} from a run "
-                                 "killed while saving?); delete it (and any later ones) and resume from the one "
-                                 "before it")
+        if "replay_buffer" in extras and hasattr(model, "load_replay_buffer"):  # SAC's (replay_buffer_problem)
             model.load_replay_buffer(str(extras["replay_buffer"]))
     else:
         model = build_model(algo, venv, seed=seed, log_dir=log_dir, verbose=verbose, **hyperparams)

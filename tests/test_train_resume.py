@@ -413,3 +413,37 @@ def test_checkpoints_are_written_whole_extras_first(env_config, tmp_path, monkey
             sb3.train("sac", venv, 96, tmp_path / "run", checkpoint_freq=32, resume=ckpt)
     finally:
         venv.close()
+
+
+def test_a_resume_the_env_or_its_files_cannot_take_is_refused_before_any_file(small_recognizer_kwargs, tmp_path,
+                                                                               usage_error, monkeypatch):
+    """A checkpoint whose observation space is not the env's (another ``--env.*`` setting) and a SAC checkpoint
+    without its replay buffer failed only once the new segment's args and Monitor files were written (and each try
+    used up a segment number): both are usage errors before the lock or any file."""
+    monkeypatch.syspath_prepend(str(ROOT))
+    import train
+    from agents import sb3
+
+    run = tmp_path / "run"
+    hp = {"n_steps": 64, "batch_size": 64, "n_epochs": 1}
+    train.main(_args("ppo", 128, run, small_recognizer_kwargs, hp))
+    before = _snapshot(run)
+    more = _args("ppo", 192, run, small_recognizer_kwargs, hp) + ["--resume", str(run)]
+    usage_error(train.main, more + ["--env.observe-contacts"],
+                match=r"--resume: .*ppo_128_steps.zip was trained with a 33-dim observation, this run's env has a "
+                      r"57-dim one: resume with the --env-id and --env.\* settings it was trained with")
+    assert _snapshot(run) == before
+    train.main(more)  # the settings it was trained with: the run's second segment
+    assert (run / "args.part2.json").is_file() and not (run / "args.part3.json").exists()
+
+    sac = tmp_path / "sac"
+    venv = sb3.make_vec_env(train.env_config(train.parse_args(more)), n_envs=1, vec="dummy")
+    sb3.train("sac", venv, 32, sac, checkpoint_freq=32, learning_starts=16, batch_size=16, buffer_size=500,
+              train_freq=8, gradient_steps=1)
+    venv.close()
+    ckpt = sb3.latest_checkpoint(sac, "sac")
+    sb3.checkpoint_extras(ckpt)["replay_buffer"].unlink()
+    before = _snapshot(sac)
+    usage_error(train.main, _args("sac", 64, sac, small_recognizer_kwargs, {}) + ["--resume", str(ckpt)],
+                match=r"--resume: checkpoint .*sac_32_steps.zip has no replay buffer beside it")
+    assert _snapshot(sac) == before and not (sac / ".train.lock").exists()
