@@ -21,9 +21,10 @@ is kept; the learning-curve reader merges the segments by wall time and leaves o
 the step the next one resumed at, recorded as ``resumed_at_step``). PPO drops an unfinished rollout (its
 steps are not counted; so does recurrent PPO), so the resumed run ends at the same step count as an uninterrupted one.
 It goes on in the checkpoint's run folder (``--run-dir`` defaults to it; a folder that holds another run is
-refused), and it draws fresh numbers rather than replaying the start's: its envs start ``(k - 1) x n_envs`` seeds
-after the run's first and its model is seeded from ``(--seed, k)`` (:func:`segment_seeds`, recorded in its
-``args.part<k>.json``), so a resumed run is not bit-identical to an uninterrupted one.
+refused), and it draws fresh numbers rather than replaying the start's: its envs start one past the last seed any
+earlier segment's envs had (``(k - 1) x n_envs`` seeds after the run's first while ``--n-envs`` stays the same) and
+its model is seeded from ``(--seed, k)`` (:func:`segment_seeds`, recorded in its ``args.part<k>.json``), so a
+resumed run is not bit-identical to an uninterrupted one.
 Evaluate the result with the ``evaluate`` sub-command::
 
     python -m haptic_env.cli evaluate --agents random greedy ppo=runs/ppo/ppo_final.zip \\
@@ -120,16 +121,41 @@ def env_seed(args: Args) -> int:
     return args.env_seed if args.env_seed >= 0 else training_env_seed(args.seed)
 
 
-def segment_seeds(args: Args, part: int) -> tuple[int, int]:
+def segment_seeds(args: Args, part: int, used: dict[int, tuple[int, int]] | None = None) -> tuple[int, int]:
     """``(model seed, first env seed)`` of run segment ``part`` (1: the run's start; ``k > 1``: a resume).
     The start has ``--seed`` and :func:`env_seed`; a resumed segment draws fresh numbers instead of replaying the
     start's (stable-baselines3's load would reseed the model with ``--seed``, and the envs would begin again at their
-    first episodes): its envs start ``(k - 1) x n_envs`` seeds later, still inside the run's block of training env
-    seeds, and its model seed is drawn from ``(seed, k)``."""
+    first episodes): its envs start one past the last seed any earlier segment's envs had, still inside the run's
+    block of training env seeds, and its model seed is drawn from ``(seed, k)``. ``used``: ``{j: (first env seed,
+    n_envs)}`` of earlier segments ``j`` (their args files: :func:`used_env_seeds`); one not in it is taken to have
+    had this segment's ``n_envs``, so with ``n_envs`` unchanged segment ``k``'s envs start ``(k - 1) x n_envs``
+    seeds after the run's first."""
     if part == 1:
         return args.seed, env_seed(args)
     model_seed = int(np.random.SeedSequence([args.seed, part]).generate_state(1)[0] % 2**31)
-    return model_seed, env_seed(args) + (part - 1) * args.n_envs
+    used = used or {}
+    ends = [used[j][0] + used[j][1] if j in used else env_seed(args) + j * args.n_envs for j in range(1, part)]
+    return model_seed, max(ends)
+
+
+def used_env_seeds(*folders: Path) -> dict[int, tuple[int, int]]:
+    """``{segment: (first env seed, n_envs)}`` of the run segments whose args files in ``folders`` say them
+    (``args.json``: ``first_env_seed``; ``args.part<k>.json``: ``segment_env_seed``); an unreadable one is left out.
+    A segment in two folders (a run resumed into another) counts with the later of its seed ranges' ends."""
+    from haptic_env.numbers import whole_number
+
+    used: dict[int, tuple[int, int]] = {}
+    for folder in folders:
+        for k, path in _parts(folder).items():
+            try:
+                record = json.loads(path.read_text()) if path is not None else {}
+            except (OSError, ValueError):
+                continue
+            first = whole_number(record.get("first_env_seed" if k == 1 else "segment_env_seed"))
+            n = whole_number(record.get("n_envs"))
+            if first is not None and n is not None and n >= 1 and (k not in used or first + n > sum(used[k])):
+                used[k] = (first, n)
+    return used
 
 
 def _usage_error(message: str):
@@ -449,7 +475,8 @@ def _train(args: Args) -> Path:
     from agents.evaluate import segment_suffix
 
     suffix = segment_suffix(part)
-    seed, segment_env_seed = segment_seeds(args, part)
+    used = used_env_seeds(run_dir, run_folder(Path(args.resume))) if args.resume else {}
+    seed, segment_env_seed = segment_seeds(args, part, used)
     # explicit seeding: python, numpy, torch; env rank r is seeded segment_env_seed + r by make_vec_env
     random.seed(seed)
     np.random.seed(seed)  # only for third-party code that still uses the global RNG

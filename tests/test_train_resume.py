@@ -447,3 +447,37 @@ def test_a_resume_the_env_or_its_files_cannot_take_is_refused_before_any_file(sm
     usage_error(train.main, _args("sac", 64, sac, small_recognizer_kwargs, {}) + ["--resume", str(ckpt)],
                 match=r"--resume: checkpoint .*sac_32_steps.zip has no replay buffer beside it")
     assert _snapshot(sac) == before and not (sac / ".train.lock").exists()
+
+
+def test_a_resumed_segment_starts_past_every_earlier_segments_env_seeds(small_recognizer_kwargs, tmp_path,
+                                                                        monkeypatch):
+    """Segment ``k``'s envs started ``(k - 1) x n_envs`` seeds after the run's first with this segment's
+    ``n_envs``: a start with 4 envs (seeds 10000-10003) resumed with 2 replayed its ranks 2 and 3 (10002, 10003).
+    They start past the last seed any earlier segment had (each one's ``n_envs`` from its args file); with
+    ``n_envs`` unchanged that is ``(k - 1) x n_envs`` as before."""
+    monkeypatch.syspath_prepend(str(ROOT))
+    import train
+
+    run = tmp_path / "run"
+    run.mkdir()
+    two = train.parse_args(["--run-dir", str(run), "--n-envs", "2"])
+    assert [train.segment_seeds(two, k)[1] for k in (1, 2, 3, 4)] == [10000, 10002, 10004, 10006]
+    (run / "args.json").write_text(json.dumps({"n_envs": 2, "first_env_seed": 10000}))
+    (run / "args.part2.json").write_text(json.dumps({"n_envs": 2, "segment_env_seed": 10002}))
+    assert train.used_env_seeds(run) == {1: (10000, 2), 2: (10002, 2)}
+    assert train.segment_seeds(two, 3, train.used_env_seeds(run)) == train.segment_seeds(two, 3) == \
+        (train.segment_seeds(two, 3)[0], 10004)
+    (run / "args.json").write_text(json.dumps({"n_envs": 4, "first_env_seed": 10000}))
+    (run / "args.part2.json").unlink()
+    assert train.segment_seeds(two, 2, train.used_env_seeds(run))[1] == 10004  # not 10002: part 1's rank 2
+    (run / "args.part2.json").write_text(json.dumps({"n_envs": 2, "segment_env_seed": 10004}))
+    eight = train.parse_args(["--run-dir", str(run), "--n-envs", "8"])
+    assert train.segment_seeds(eight, 3, train.used_env_seeds(run))[1] == 10006
+
+    # a real run: started with 2 envs, resumed with 1
+    real = tmp_path / "real"
+    hp = {"n_steps": 64, "batch_size": 64, "n_epochs": 1}
+    train.main(_args("ppo", 128, real, small_recognizer_kwargs, hp, n_envs=2))
+    train.main(_args("ppo", 192, real, small_recognizer_kwargs, hp, n_envs=1) + ["--resume", str(real)])
+    start = json.loads((real / "args.json").read_text())["first_env_seed"]
+    assert json.loads((real / "args.part2.json").read_text())["segment_env_seed"] == start + 2
