@@ -872,6 +872,11 @@ def _main(args) -> int:
     twice = repeated_names(agents)
     if twice:  # before any episode: evaluate_agents would refuse them after the env is built
         raise UsageError(f"--agents: {twice} named more than once; give each a name, NAME=model.zip")
+    for spec, agent in zip(args.agents, agents):  # an agent the env does not suit: before any episode, not at its first
+        try:
+            getattr(agent, "check_config", lambda _: None)(config)
+        except ValueError as exc:
+            raise UsageError(f"--agents {spec}: {exc}") from exc
     make_env = lambda: haptic_env.make(env_id=args.env_id, **kwargs)  # noqa: E731  (overrides the variant's fields)
     models = [(spec, a.model) for spec, a in zip(args.agents, agents) if hasattr(a, "model")]
     if models:  # a model trained on another env or other settings: said before any episode

@@ -123,13 +123,24 @@ class GreedyInfoGainAgent:
             self.yaw_belief = base.scene.yaw_belief(self.yaw_bins)
         return self.yaw_belief
 
+    def check_config(self, config) -> None:
+        """A ``ValueError`` if this agent cannot play an env of ``config`` (a ``HapticRecogConfig``): every look-ahead
+        simulates world-frame approaches (``action_frame='world'``), and ``infer_pose`` needs what a yaw belief needs
+        (:func:`haptic_env.config.check_yaw_belief`: a hand backend, ``pose='table-yaw'``). :meth:`reset` checks it;
+        ``evaluate`` checks it before any episode."""
+        if config.action_frame != "world":  # the look-ahead simulates its candidates as world-frame approaches
+            raise ValueError("the greedy look-ahead simulates world-frame approaches; it needs action_frame='world', "
+                             f"got {config.action_frame!r}")
+        if self.infer_pose:
+            from haptic_env.config import check_yaw_belief
+
+            check_yaw_belief(config, "infer_pose (the greedy look-ahead's yaw posterior)")
+
     def reset(self, env: Any, seed: int | None = None) -> None:
         if seed is not None:
             self._rng = np.random.default_rng(seed)
         base = env.unwrapped
-        if base.config.action_frame != "world":  # the look-ahead simulates its candidates as world-frame approaches
-            raise ValueError("the greedy look-ahead simulates world-frame approaches; it needs action_frame='world', "
-                             f"got {base.config.action_frame!r}")
+        self.check_config(base.config)
         if self.pose_known:
             pose = base.pose
         else:

@@ -336,6 +336,13 @@ def test_truncated_recognizer_json_is_rebuilt(tmp_path, monkeypatch):
     (["evaluate", "--out", "README.md/sub"], "argument --out: cannot create README.md/sub: "),
     (["evaluate", "--learning-curves", "x=tests"], "--learning-curves x=tests: no *.monitor.csv in tests"),
     (["evaluate", "--env-id", "Nope-v0"], "argument --env-id: invalid choice"),
+    # an agent the env does not suit raised a ValueError traceback at its first episode, after the others had run
+    (["evaluate", "--agents", "random", "greedy-env-infer", "--episodes", "1", "--seeds", "0", "--out", "outputs/never"],
+     r"--agents greedy-env-infer: infer_pose \(the greedy look-ahead's yaw posterior\) needs a hand backend"),
+    (["evaluate", "--agents", "random", "greedy-blind", "--episodes", "1", "--seeds", "0", "--out", "outputs/never",
+      "--env-kwargs", '{"backend": "mujoco", "action_frame": "oracle"}'],
+     r"--agents greedy-blind: the greedy look-ahead simulates world-frame approaches; it needs action_frame='world', "
+     r"got 'oracle'"),
     (["analysis", "--out", "outputs/never", "--trials", "-1"], "trials must be an int >= 1, got -1"),
     # these failed after work, or with a traceback (missing data), or were taken (a repeated experiment ran twice)
     (["analysis", "--out", "outputs/never", "--experiments", "1,1"], r"experiments must be .* each once, got \(1, 1\)"),
