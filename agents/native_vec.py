@@ -3,7 +3,8 @@
 ``train.py --vec native`` (through :func:`agents.sb3.make_vec_env`) trains on it. The vector env runs in
 ``"same_step"`` autoreset mode, which is SB3's convention; this adapter only renames: ``terminated | truncated``
 -> ``dones``, Gymnasium's ``info["final_obs"]`` -> ``infos[i]["terminal_observation"]``,
-``infos[i]["TimeLimit.truncated"]``, and a list of per-sub-env info dicts (the single env's keys). It also does
+``infos[i]["TimeLimit.truncated"]``, and a list of per-sub-env info dicts at every step (the single env's keys and
+values, as ``DummyVecEnv`` gives them; an episode's last step: its final info). It also does
 SB3 ``Monitor``'s job for every sub-env: ``infos[i]["episode"] = {"r", "l", "t"}`` at an episode's end and, with a
 ``monitor_dir``, ``<monitor_dir>/<rank><suffix>.monitor.csv`` per sub-env with the same columns as the
 ``SubprocVecEnv`` run's (``r, l, t, correct, grasps``), so ``evaluate --learning-curves`` reads either.
@@ -51,7 +52,7 @@ class NativeVecEnv(VecEnv):
 
     def reset(self):
         obs, info = self.venv.reset(seed=list(self._seeds) if any(s is not None for s in self._seeds) else None)
-        self.reset_infos = [_row(info, i) for i in range(self.num_envs)]
+        self.reset_infos = _rows(info, self.num_envs)
         self._reset_seeds()
         self._reset_options()
         self._ep_return[:] = 0.0
@@ -66,12 +67,14 @@ class NativeVecEnv(VecEnv):
         dones = terminated | truncated
         self._ep_return += rewards
         self._ep_len += 1
-        infos = [{} for _ in range(self.num_envs)]
+        infos = _rows(info, self.num_envs)  # a sub-env whose episode goes on: its step's info, as DummyVecEnv's
+        for fi in infos:
+            fi["TimeLimit.truncated"] = False  # DummyVecEnv sets it at every step (an ending one's: below)
         if dones.any():
-            final = info["final_info"]
+            final = _rows(info["final_info"], self.num_envs)
             now = round(time.time() - self._t_start, 6)
             for i in np.flatnonzero(dones).tolist():
-                fi = _row(final, i)
+                fi = final[i]
                 fi["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
                 fi["terminal_observation"] = info["final_obs"][i]
                 ep = {"r": round(float(self._ep_return[i]), 6), "l": int(self._ep_len[i]), "t": now}
@@ -109,18 +112,21 @@ class NativeVecEnv(VecEnv):
         raise NotImplementedError("the native vector env does not render")
 
 
-def _row(info: dict[str, Any], i: int) -> dict[str, Any]:
-    """Sub-env ``i``'s entries of a Gymnasium vector info (where its ``_<key>`` mask is set) as a plain dict."""
-    out: dict[str, Any] = {}
+def _rows(info: dict[str, Any], n: int) -> list[dict[str, Any]]:
+    """The ``n`` sub-envs' entries of a Gymnasium vector info (each where its ``_<key>`` mask is set) as plain dicts:
+    Python scalars, and arrays of their own (rows of a copy, not views of the env's buffers). Column by column
+    (``tolist``), which costs a fraction of a row-by-row walk."""
+    keys, cols, masks = [], [], []
     for key, value in info.items():
         if key.startswith("_") or key in ("final_obs", "final_info"):
             continue
         mask = info.get("_" + key)
-        if mask is not None and not mask[i]:
-            continue
+        keys.append(key)
+        masks.append(None if mask is None else np.asarray(mask).tolist())
         if isinstance(value, dict):
-            out[key] = _row(value, i)
+            cols.append(_rows(value, n))
+        elif isinstance(value, np.ndarray) and value.ndim > 1:
+            cols.append(list(value.copy()))
         else:
-            v = value[i]
-            out[key] = v.copy() if isinstance(v, np.ndarray) else (v.item() if isinstance(v, np.generic) else v)
-    return out
+            cols.append(value.tolist() if isinstance(value, np.ndarray) else list(value))
+    return [{k: c[i] for k, c, m in zip(keys, cols, masks) if m is None or m[i]} for i in range(n)]

@@ -295,8 +295,9 @@ def test_scorer_batch_equals_one_grasp_at_a_time(env_config):
 
 
 def test_sb3_adapter_steps_like_dummy_vec_env(env_config, tmp_path):
-    """train.py --vec native: the adapter gives DummyVecEnv's observations, rewards, dones and terminal
-    observations for the same seeds and actions, and writes Monitor files with the same columns."""
+    """train.py --vec native: the adapter gives DummyVecEnv's observations, rewards, dones, terminal
+    observations and info dicts (every sub-env's at every step: those whose episode went on were empty) for the same
+    seeds and actions, and writes Monitor files with the same columns."""
     from agents.sb3 import make_vec_env
 
     cfg = env_config.replace(grasp_cost=0.05, max_grasps=5)
@@ -311,6 +312,9 @@ def test_sb3_adapter_steps_like_dummy_vec_env(env_config, tmp_path):
         np.testing.assert_array_equal(r1, r2)
         np.testing.assert_array_equal(d1, d2)
         for x, y in zip(inf1, inf2):
+            assert set(x) == set(y) and x  # the single env's keys, every step
+            for key in set(y) - {"terminal_observation", "episode"}:
+                np.testing.assert_equal(x[key], y[key])
             if "terminal_observation" in y:
                 episodes += 1
                 np.testing.assert_array_equal(x["terminal_observation"], y["terminal_observation"])
