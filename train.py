@@ -13,7 +13,8 @@ directory gets ``args.json``, ``monitor/*.monitor.csv`` (one per env), ``tb/`` (
 is refused.
 
 Nothing is lost: Ctrl-C / SIGINT or SIGTERM (a second one stops at once) or a dead env worker stop learning,
-save a checkpoint (SAC: with its replay buffer) and exit with one line naming it (exit status 130 / 143 / 1).
+save a checkpoint (SAC: with its replay buffer) and exit with one line naming it (exit status 130 / 143 / 1); a
+signal before learning began (the envs and the model being built or loaded) exits with one line too, nothing saved.
 ``--resume`` (a checkpoint, or the run directory: its latest checkpoint) continues the step counter up to
 ``--total-timesteps`` in all, in the same TensorBoard run; the Monitor CSVs of each resumed segment go to new
 files ``monitor/<rank>.part<k>.monitor.csv`` and its flags to ``args.part<k>.json`` (every earlier file and line
@@ -453,6 +454,39 @@ def _next_part(run_dir: Path) -> int:
     return max(_parts(run_dir), default=0) + 1
 
 
+class _SetUpStopped(Exception):
+    """SIGINT / SIGTERM before learning began (:func:`_signals_stop_the_set_up`)."""
+
+    def __init__(self, signum: int):
+        import signal
+
+        super().__init__(signal.Signals(signum).name)
+        self.signum, self.name = signum, signal.Signals(signum).name
+
+
+@contextlib.contextmanager
+def _signals_stop_the_set_up() -> Iterator[None]:
+    """SIGINT / SIGTERM while the envs and the model are built or loaded raise :class:`_SetUpStopped` (which
+    :func:`_train` turns into one line and exit status 130 / 143, not a traceback); ``agents.sb3.train`` puts its own
+    handlers over these while it learns (stop at the next step, save a checkpoint) and puts these back after."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():  # handlers only work there
+        yield
+        return
+
+    def handler(signum, frame):
+        raise _SetUpStopped(signum)
+
+    old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
 def main(argv: list[str] | None = None) -> Path:
     args = parse_args(argv)
     with hold_run_dir(Path(args.run_dir)):  # checked held: a run that began meanwhile has its files there now
@@ -498,28 +532,36 @@ def _train(args: Args) -> Path:
     with atomic_write(run_dir / f"args{suffix}.json", "w") as fh:  # whole or absent: a resume compares with it
         fh.write(json.dumps(record, indent=2, default=str))
 
-    t0 = time.time()
-    venv = sb3.make_vec_env(config, n_envs=args.n_envs, seed=segment_env_seed, log_dir=run_dir, vec=args.vec,
-                            env_id=args.env_id, monitor_suffix=suffix, discrete_approaches=args.discrete_approaches)
-    action = (f"one of {args.discrete_approaches} approaches" if args.discrete_approaches
-              else f"{venv.action_space.shape[0]}-dim action")
-    print(f"[train] {args.algo} on {args.env_id} ({args.n_envs} envs, {venv.observation_space.shape[0]}-dim obs, "
-          f"{action}); envs ready in {time.time() - t0:.1f} s", flush=True)
-    t0 = time.time()
+    venv = None
     try:
-        model, path = sb3.train(
-            args.algo, venv, args.total_timesteps, run_dir, seed=seed, checkpoint_freq=args.checkpoint_freq,
-            resume=args.resume or None, progress_bar=args.progress_bar, verbose=args.verbose,
-            max_minutes=args.max_minutes or None,
-            **json.loads(args.hyperparams),
-        )
+        with _signals_stop_the_set_up():  # learn() has its own (a checkpoint); this covers building the envs and model
+            t0 = time.time()
+            venv = sb3.make_vec_env(config, n_envs=args.n_envs, seed=segment_env_seed, log_dir=run_dir, vec=args.vec,
+                                    env_id=args.env_id, monitor_suffix=suffix,
+                                    discrete_approaches=args.discrete_approaches)
+            action = (f"one of {args.discrete_approaches} approaches" if args.discrete_approaches
+                      else f"{venv.action_space.shape[0]}-dim action")
+            print(f"[train] {args.algo} on {args.env_id} ({args.n_envs} envs, {venv.observation_space.shape[0]}-dim "
+                  f"obs, {action}); envs ready in {time.time() - t0:.1f} s", flush=True)
+            t0 = time.time()
+            model, path = sb3.train(
+                args.algo, venv, args.total_timesteps, run_dir, seed=seed, checkpoint_freq=args.checkpoint_freq,
+                resume=args.resume or None, progress_bar=args.progress_bar, verbose=args.verbose,
+                max_minutes=args.max_minutes or None,
+                **json.loads(args.hyperparams),
+            )
+    except _SetUpStopped as exc:
+        print(f"[train] stopped by {exc.name} before learning began (nothing learned, nothing saved); run the same "
+              "command again", file=sys.stderr, flush=True)
+        raise SystemExit(128 + exc.signum) from None
     except sb3.TrainingInterrupted as exc:
-        sb3.close_vec_env(venv)
         extra = " (+ replay buffer)" if sb3.checkpoint_extras(exc.path).get("replay_buffer") else ""
         print(f"[train] {exc.reason} at {exc.num_timesteps} steps; saved {exc.path}{extra}; "
               f"continue with the same flags plus --resume {run_dir}", file=sys.stderr, flush=True)
         raise SystemExit(exc.exit_code) from None
-    sb3.close_vec_env(venv)
+    finally:
+        if venv is not None:  # however training ended (its env workers are ended with it)
+            sb3.close_vec_env(venv)
     dt = time.time() - t0
     steps = int(model.num_timesteps)
     new = steps - int(getattr(model, "_num_timesteps_at_start", 0)) if args.resume else steps

@@ -481,3 +481,50 @@ def test_a_resumed_segment_starts_past_every_earlier_segments_env_seeds(small_re
     train.main(_args("ppo", 192, real, small_recognizer_kwargs, hp, n_envs=1) + ["--resume", str(real)])
     start = json.loads((real / "args.json").read_text())["first_env_seed"]
     assert json.loads((real / "args.part2.json").read_text())["segment_env_seed"] == start + 2
+
+
+def test_the_envs_are_closed_and_a_signal_before_learning_is_one_line(small_recognizer_kwargs, tmp_path, capsys,
+                                                                       monkeypatch):
+    """The vec env was closed only when learning ended or was interrupted (a failure building or loading the model
+    left it, and its workers, open), and a Ctrl-C while the model was built was a KeyboardInterrupt traceback: the
+    env is closed however training ends, and SIGINT / SIGTERM before learning exit 130 / 143 with one line."""
+    monkeypatch.syspath_prepend(str(ROOT))
+    import train
+    from agents import sb3
+
+    made, closed = [], []
+    real, close = sb3.make_vec_env, sb3.close_vec_env
+    monkeypatch.setattr(sb3, "make_vec_env", lambda *a, **k: made.append(real(*a, **k)) or made[-1])
+    monkeypatch.setattr(sb3, "close_vec_env", lambda venv: closed.append(venv) or close(venv))
+    hp = {"n_steps": 64, "batch_size": 64, "n_epochs": 1}
+
+    def broken(*a, **k):
+        raise RuntimeError("model build failed")
+
+    monkeypatch.setattr(sb3, "build_model", broken)
+    with pytest.raises(RuntimeError, match="model build failed"):
+        train.main(_args("ppo", 64, tmp_path / "a", small_recognizer_kwargs, hp))
+    assert len(made) == 1 and closed == made
+
+    def fallback(signum, frame):  # without train.py's own handler a SIGTERM would end the test run
+        raise AssertionError(f"{signal.Signals(signum).name} reached the test's handler, not train.py's")
+
+    previous = signal.signal(signal.SIGTERM, fallback)
+    try:
+        for sig, code in ((signal.SIGINT, 130), (signal.SIGTERM, 143)):
+            def interrupted(*a, _sig=sig, **k):
+                os.kill(os.getpid(), _sig)  # delivered to this (main) thread before the call returns
+                raise AssertionError("the signal did not stop the set-up")
+
+            monkeypatch.setattr(sb3, "build_model", interrupted)
+            capsys.readouterr()
+            with pytest.raises(SystemExit) as exc:
+                train.main(_args("ppo", 64, tmp_path / sig.name, small_recognizer_kwargs, hp))
+            err = capsys.readouterr().err
+            assert exc.value.code == code and closed == made
+            assert err.strip() == (f"[train] stopped by {sig.name} before learning began (nothing learned, nothing "
+                                   "saved); run the same command again")
+        assert signal.getsignal(signal.SIGTERM) is fallback  # put back
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the handlers are put back
