@@ -832,7 +832,7 @@ def test_greedy_infer_pose_scores_the_episodes_grasps_for_the_yaw(env_config, sm
         GreedyInfoGainAgent(pose_known=False, infer_pose=True, yaw_bins=2)
     geometric = haptic_env.make(env_config)
     geometric.reset(seed=0)
-    with pytest.raises(ValueError, match="a yaw belief needs a hand backend .* backend='geometric'"):
+    with pytest.raises(ValueError, match="infer_pose .* needs a hand backend .* backend='geometric'"):
         GreedyInfoGainAgent(pose_known=False, infer_pose=True).reset(geometric)
     cfg = HapticRecogConfig(backend="replay", backend_kwargs={"hand": "generic", "approaches": 40, "progress": False},
                             recognizer_source="surface", recognizer_kwargs=small_recognizer_kwargs, max_grasps=3,

@@ -509,6 +509,7 @@ def test_the_envs_are_closed_and_a_signal_before_learning_is_one_line(small_reco
     def fallback(signum, frame):  # without train.py's own handler a SIGTERM would end the test run
         raise AssertionError(f"{signal.Signals(signum).name} reached the test's handler, not train.py's")
 
+    sigint_before = signal.getsignal(signal.SIGINT)  # Python's default_int_handler, or SIG_IGN in a background job
     previous = signal.signal(signal.SIGTERM, fallback)
     try:
         for sig, code in ((signal.SIGINT, 130), (signal.SIGTERM, 143)):
@@ -527,4 +528,4 @@ def test_the_envs_are_closed_and_a_signal_before_learning_is_one_line(small_reco
         assert signal.getsignal(signal.SIGTERM) is fallback  # put back
     finally:
         signal.signal(signal.SIGTERM, previous)
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the handlers are put back
+    assert signal.getsignal(signal.SIGINT) is sigint_before  # the handlers are put back
