@@ -26,7 +26,7 @@ axes: its estimate is the normal projected into the finger's plane.
 
 Gravity is off (equivalent to a gravity-compensated hand; the object is fixed anyway). The hand
 only collides with the object (no self-collision, the table is a visual plane that restricts the
-approach to the upper hemisphere).
+approach to the upper hemisphere), unless ``MujocoConfig.solid_table``: then the hand collides with the table too.
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ __all__ = ["MujocoConfig", "GraspScene", "MujocoBackend", "quat_from_matrix"]
 
 #: Compiled scenes (one per object mesh) a backend keeps; a reset with a known object only moves it.
 MAX_SCENES = 16
-HAND_BITS = (1, 2)  # (contype, conaffinity) of hand geoms: collide with the object only
+HAND_BITS = (1, 2)  # (contype, conaffinity) of hand geoms: collide with the object (and a solid table) only
 OBJ_BITS = (2, 1)
 #: MuJoCo's constraint solvers by name (``MujocoConfig.solver``; a hand may pick one in ``HandDescription.option``).
 #: ``benchmarks/bench_grasp_solver.py``: CG gives the same grasps as Newton on every hand (both stop at MuJoCo's
@@ -342,8 +342,8 @@ class GraspScene:
         self._unscaled = (*self._unscaled[:9], scale)
 
     def place_object(self, pose: np.ndarray, table_z: float | None) -> None:
-        """Move the (static) object body to ``pose`` and the visual table plane to ``table_z``, without
-        recompiling: the model's body pose is read by the next kinematics pass."""
+        """Move the (static) object body to ``pose`` and the table plane (visual, or solid with ``solid_table``) to
+        ``table_z``, without recompiling: the model's body pose is read by the next kinematics pass."""
         m = self.model
         m.body_pos[self.obj_body_id] = pose[:3, 3]
         m.body_quat[self.obj_body_id] = quat_from_matrix(pose[:3, :3])
@@ -669,14 +669,15 @@ class MujocoBackend:
         s_max = float(np.max(self._hull_vw @ u - self._centre @ u)) + 0.3
         # start with the palm (the mount) no further in than the object's centre: a hand whose closed fingertips
         # meet behind its palm (g . n < 0) would otherwise start past a small object, free, facing away from it
-        s, free = max(0.0, -float(g @ n)), False
+        start = max(0.0, -float(g @ n))
+        s, free = start, False
         while s <= s_max:
             sc.set_mount(self._centre + s * u - R @ g, R)
             if sc.hand_object_contacts() == 0:
                 free = True
                 break
             s += cfg.march_step
-        if free and s > 0:  # refine between the last colliding and the first free position
+        if free and s > start:  # refine between the last colliding and the first free position
             lo, hi = s - cfg.march_step, s
             for _ in range(4):
                 mid = 0.5 * (lo + hi)
