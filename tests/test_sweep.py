@@ -189,6 +189,7 @@ def test_a_changed_env_variant_is_a_new_job(monkeypatch):
     ({"name": "x", "command": [{"name": "c", "run": "true", "env": {"FOO": [1]}}]}, r"command\[0\]\.env"),
     ({"name": "x", "command": [{"name": "c", "run": []}]}, r"command\[0\]\.run: expected a command, got \[\]"),
     ({"name": "x", "command": [{"name": "c", "run": "  "}]}, r"command\[0\]\.run: expected a command, got '  '"),
+    ({"name": "x", "command": [{"name": "c", "run": "echo 'open"}]}, r"command\[0\]\.run: No closing quotation"),
 ])
 def test_bad_specs_are_one_line_errors(doc, match):
     with pytest.raises(SpecError, match=match):

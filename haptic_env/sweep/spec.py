@@ -459,7 +459,11 @@ def _command_jobs(doc: dict) -> list[Job]:
         run = t["run"]
         if not (isinstance(run, str) or (isinstance(run, list) and all(isinstance(w, str) for w in run))):
             raise SpecError(f"{where}: run must be a string or a list of strings")
-        if not (shlex.split(run) if isinstance(run, str) else run):  # no command to run: it failed on its worker
+        try:
+            words = shlex.split(run) if isinstance(run, str) else run
+        except ValueError as exc:  # an unclosed quote: the shell's words of it cannot be told
+            raise SpecError(f"{where}.run: {exc} in {run!r}") from None
+        if not words:  # no command to run: it failed on its worker
             raise SpecError(f"{where}.run: expected a command, got {run!r}")
         env = t.get("env", {})
         if not isinstance(env, dict) or not all(isinstance(v, str) or finite_number(v) is not None
