@@ -25,6 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from haptic_env.cli import float_in, int_in  # noqa: E402
 from haptic_env.grasping import make_backend  # noqa: E402
+from haptic_env.grasping.base import support_height  # noqa: E402
 from haptic_env.grasping.hands import HANDS, HandUnavailableError  # noqa: E402
 from haptic_env.objects import load_object_set  # noqa: E402
 
@@ -46,7 +47,7 @@ def run(hand: str, objects, approaches: int, seed: int, solid: bool) -> dict[str
     try:
         for k, obj in enumerate(objects):
             be.set_object(obj)
-            table_z = float(obj.mesh.vertices[:, 2].min())  # identity pose: the table under the lowest vertex
+            table_z = support_height(obj.mesh.vertices)  # the backend's table top at the identity pose
             acts = np.random.default_rng(np.random.SeedSequence([seed, k])).uniform(-1, 1, (approaches, be.action_dim))
             rng = np.random.default_rng([seed, k, 1])
             res = [be.grasp(a, rng) for a in acts]
@@ -98,7 +99,8 @@ def main(argv=None) -> int:
             if hand == hands[0]:
                 headline = (headline or ()) + (deep.mean(),)
     if headline is not None and len(headline) == 2:
-        print(f"\nHEADLINE: {hands[0]} grasps reaching into the table: {headline[0]:.3f} visual, {headline[1]:.3f} solid")
+        print(f"\nHEADLINE: {hands[0]} grasps reaching into the table: {headline[0]:.3f} visual, "
+              f"{headline[1]:.3f} solid")
     return 0
 
 

@@ -84,20 +84,13 @@ def test_a_hand_whose_fingertips_close_behind_its_palm_grasps_a_small_ball():
     assert np.mean([r.usable for r in res]) >= 0.8, [r.n_touched for r in res]
 
 
-def _below_table(be, results) -> np.ndarray:
-    """Per grasp: how far (m) its lowest touching fingertip sphere reaches under the table top (0: none does)."""
-    zt = be.obj.mesh.vertices[:, 2].min()
-    out = []
-    for r in results:
-        low = r.info["tip_sites"][:, 2] - be.scene.tip_radius - zt
-        out.append(max(0.0, -low[r.touched].min()) if r.touched.any() else 0.0)
-    return np.array(out)
-
-
-def test_a_solid_table_keeps_the_fingertips_out_of_it():
+def test_a_solid_table_keeps_the_fingertips_out_of_it(load_benchmark):
     """The table is a visual plane unless ``solid_table``: fingertips sink into it to touch a ball low down (10 of
     these 12 random approaches reach 2 mm or more under the table top); a solid table stops them, and the ball is
     still grasped from above."""
+    from haptic_env.grasping.base import support_height
+
+    depth_below_table = load_benchmark("table_reach").depth_below_table  # its one owner
     ball = GraspObject("ball", trimesh.creation.icosphere(subdivisions=3, radius=0.0335))
     acts = np.random.default_rng(1).uniform(-1, 1, (12, 4))
     below = {}
@@ -106,7 +99,9 @@ def test_a_solid_table_keeps_the_fingertips_out_of_it():
         be.set_object(ball)
         rng = np.random.default_rng(0)
         res = [be.grasp(a, rng) for a in acts]
-        below[solid] = _below_table(be, res)
+        table_z = support_height(ball.mesh.vertices)
+        below[solid] = np.array([depth_below_table(r.info["tip_sites"], be.scene.tip_radius, r.touched, table_z)
+                                 for r in res])
         if solid:
             assert sum(r.usable for r in res) >= 3
     assert np.mean(below[False] > 2e-3) >= 0.5, below[False]

@@ -360,9 +360,18 @@ def finger_of_bodies(m: mujoco.MjModel, tip_ids) -> np.ndarray:
     return finger
 
 
-#: The hands :func:`load_hand` builds from their own descriptions (no keyword arguments).
-_NAMED_HANDS = ("allegro", "allegro_right", "allegro_left", "shadow", "shadow_right", "shadow_left", "aero",
-                "aero_right", "aero_left", "robotiq")
+def _named_hand(hand) -> HandDescription | None:
+    """The hand-written description of a named Menagerie hand (``"allegro"``, ``"shadow"``, ``"aero"``, each with an
+    optional ``_right`` / ``_left``, or ``"robotiq"``), None for any other ``hand``. The one list of those names."""
+    sided = {"allegro": allegro_hand, "shadow": shadow_hand, "aero": aero_hand}
+    if not isinstance(hand, str):
+        return None
+    if hand == "robotiq":
+        return robotiq_hand
+    base, _, side = hand.partition("_")
+    if base in sided and side in ("", "right", "left"):
+        return lambda: sided[base](side or "right")
+    return None
 
 
 def load_hand(hand: str | Path | HandDescription, n_fingers: int | None = None, **kw) -> HandDescription:
@@ -372,21 +381,16 @@ def load_hand(hand: str | Path | HandDescription, n_fingers: int | None = None, 
     automatically). ``_right``/``_left`` suffixes pick the side of the Allegro, Shadow and Aero hands.
     ``n_fingers=None``: the hand's own count (4 for ``"generic"``). Keyword arguments go to :func:`generic_hand` or
     :func:`mjcf_hand`; the named Menagerie hands and a HandDescription take none (a TypeError names them)."""
-    if kw and (isinstance(hand, HandDescription) or hand in _NAMED_HANDS):
+    named = _named_hand(hand)
+    if kw and (isinstance(hand, HandDescription) or named is not None):
         raise TypeError(f"hand {hand if isinstance(hand, str) else hand.name!r} takes no keyword arguments, got "
                         f"{sorted(kw)} (they are for the generic hand and for MJCF files)")
     if isinstance(hand, HandDescription):
         desc = hand
     elif hand == "generic":
         desc = generic_hand(4 if n_fingers is None else n_fingers, **kw)
-    elif hand in ("allegro", "allegro_right", "allegro_left"):
-        desc = allegro_hand("left" if hand.endswith("left") else "right")
-    elif hand in ("shadow", "shadow_right", "shadow_left"):
-        desc = shadow_hand("left" if hand.endswith("left") else "right")
-    elif hand in ("aero", "aero_right", "aero_left"):
-        desc = aero_hand("left" if hand.endswith("left") else "right")
-    elif hand == "robotiq":
-        desc = robotiq_hand()
+    elif named is not None:
+        desc = named()
     elif isinstance(hand, (str, Path)) and str(hand):
         desc = mjcf_hand(hand, **kw)  # a file or a Menagerie name; ValueError naming it when it is neither
     else:
