@@ -337,7 +337,8 @@ def test_truncated_recognizer_json_is_rebuilt(tmp_path, monkeypatch):
     (["evaluate", "--learning-curves", "x=tests"], "--learning-curves x=tests: no *.monitor.csv in tests"),
     (["evaluate", "--env-id", "Nope-v0"], "argument --env-id: invalid choice"),
     # an agent the env does not suit raised a ValueError traceback at its first episode, after the others had run
-    (["evaluate", "--agents", "random", "greedy-env-infer", "--episodes", "1", "--seeds", "0", "--out", "outputs/never"],
+    (["evaluate", "--agents", "random", "greedy-env-infer", "--episodes", "1", "--seeds", "0",
+      "--out", "outputs/never"],
      r"--agents greedy-env-infer: infer_pose \(the greedy look-ahead's yaw posterior\) needs a hand backend"),
     (["evaluate", "--agents", "random", "greedy-blind", "--episodes", "1", "--seeds", "0", "--out", "outputs/never",
       "--env-kwargs", '{"backend": "mujoco", "action_frame": "oracle"}'],

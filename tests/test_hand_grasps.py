@@ -468,7 +468,8 @@ def test_a_solid_table_pool_is_its_own_and_reaches_the_envs_recogniser(two_objec
     cfg = DatasetConfig(n_fingers=3, source="hand", hand="generic", grasps_per_object=10)
     assert dataset_cache_path(mug, cfg) != dataset_cache_path(mug, DatasetConfig(
         n_fingers=3, source="hand", hand="generic", grasps_per_object=10, solid_table=True))
-    for bad in ({"solid_table": True}, {"source": "hand", "hand": "generic", "support": "floating", "solid_table": True},
+    for bad in ({"solid_table": True},
+                {"source": "hand", "hand": "generic", "support": "floating", "solid_table": True},
                 {"source": "hand", "hand": "generic", "solid_table": 1}):
         with pytest.raises(ValueError, match="solid_table"):
             DatasetConfig(**bad)
