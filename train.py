@@ -469,22 +469,13 @@ def _signals_stop_the_set_up() -> Iterator[None]:
     """SIGINT / SIGTERM while the envs and the model are built or loaded raise :class:`_SetUpStopped` (which
     :func:`_train` turns into one line and exit status 130 / 143, not a traceback); ``agents.sb3.train`` puts its own
     handlers over these while it learns (stop at the next step, save a checkpoint) and puts these back after."""
-    import signal
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():  # handlers only work there
-        yield
-        return
+    from agents.sb3 import handling_signals
 
     def handler(signum, frame):
         raise _SetUpStopped(signum)
 
-    old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
+    with handling_signals(handler):
         yield
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
 
 
 def main(argv: list[str] | None = None) -> Path:

@@ -534,14 +534,27 @@ def _save_atomic(path, save) -> None:
 
 
 @contextlib.contextmanager
-def _stop_on_signals(guard):
-    """SIGINT / SIGTERM ask ``guard`` to stop at the next env step; a second one raises KeyboardInterrupt."""
+def handling_signals(handler: Callable[[int, Any], None]):
+    """SIGINT and SIGTERM go to ``handler(signum, frame)`` inside the block and back to their previous handlers after
+    it; outside the main thread, where Python allows no handlers, nothing changes."""
     import signal
     import threading
 
-    if threading.current_thread() is not threading.main_thread():  # handlers only work there
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
+    old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
+@contextlib.contextmanager
+def _stop_on_signals(guard):
+    """SIGINT / SIGTERM ask ``guard`` to stop at the next env step; a second one raises KeyboardInterrupt."""
+    import signal
 
     def handler(signum, frame):
         if guard.stop_reason is not None and guard.signum is not None:
@@ -550,12 +563,8 @@ def _stop_on_signals(guard):
             raise KeyboardInterrupt
         guard.request_stop(signal.Signals(signum).name, signum)
 
-    old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
+    with handling_signals(handler):
         yield
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
 
 
 def close_vec_env(venv) -> None:
