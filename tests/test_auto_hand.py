@@ -198,6 +198,11 @@ def _check_hand(hand: str, n: int, n_grasps: int, min_usable: float) -> None:
 @pytest.mark.parametrize("name", list(SPEC_HANDS))
 def test_spec_hands_through_the_automatic_path(name, tmp_path):
     build, n = SPEC_HANDS[name]
+    if name == "coupled3":
+        # its tendon-driven fingers curl 4.2 cm behind the palm; until 2026-12-07 the pre-grasp pose put the palm past
+        # the cylinder's centre, so 2 of these 8 grasps came from behind the palm; from the front, 6 of 24 (8 of 40)
+        _check_hand(_write(tmp_path, name, build()), n, n_grasps=24, min_usable=0.15)
+        return
     _check_hand(_write(tmp_path, name, build()), n, n_grasps=8, min_usable=0.25)
 
 
