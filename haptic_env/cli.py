@@ -210,6 +210,11 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except (UsageError, cli.UsageError) as exc:
         getattr(args, "_cli_parser", parser).error(str(exc))  # prints usage + one error line, exits 2
+    except RuntimeError as exc:  # an env's or experiment's settings that leave a hand too few grasps to train on
+        dataset = sys.modules.get("haptic_env.dataset")  # loaded if it raised (not imported for every command)
+        if dataset is None or not isinstance(exc, dataset.TooFewGraspsError):
+            raise
+        getattr(args, "_cli_parser", parser).error(f"{exc} (found once the hand had grasped; change the settings)")
     except KeyboardInterrupt:  # Ctrl-C: one line (and what a rerun keeps, where the sub-command says), not a traceback
         note = getattr(args, "interrupt_note", "")
         print(f"haptic-recog {args.command}: interrupted" + (f"; {note}" if note else ""), file=sys.stderr)
