@@ -206,13 +206,16 @@ def test_folder_loader_errors(tmp_path):
 def test_a_file_in_the_wrong_units_is_warned_of_with_the_units_the_user_gave(tmp_path):
     """Too large (a millimetre file read as metres) and too small (a metre file read as millimetres) objects are named
     with the units as the user wrote them (``load_folder`` passed its numeric factor on, so "units=1.0")."""
-    _write_meshes(tmp_path / "mm", 1000.0)
-    with pytest.warns(UserWarning, match=r"brick.*across with units='m'; are the file's coordinates in millimetres"):
-        load_object_set(str(tmp_path / "mm"), units="m")
-    _write_meshes(tmp_path / "m")
-    with pytest.warns(UserWarning, match=r"brick.*across with units='mm'; are the file's coordinates in metres"):
-        load_object_set(str(tmp_path / "m"), units="mm")
     import warnings
+
+    for folder, scale, units, guess in (("mm", 1000.0, "m", "millimetres"), ("m", 1.0, "mm", "metres")):
+        _write_meshes(tmp_path / folder, scale)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            load_object_set(str(tmp_path / folder), units=units)
+        said = [str(w.message) for w in caught]
+        assert len(said) == 3 and all(f"across with units={units!r}; are the file's coordinates in {guess}" in m
+                                      for m in said), said  # brick, marble and peg, each once
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         load_object_set(str(tmp_path / "m"), units="m")  # plausible sizes: no warning
