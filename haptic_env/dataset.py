@@ -28,7 +28,7 @@ from tqdm.auto import tqdm
 from .cache import KEY_ONLY_WHEN_SET, CacheError, cache_dir, config_key, file_stem, load_npz, save_npz_atomic
 from .force_closure import DEFAULT_EDGES, FRAMES, check_friction, force_closure
 from .grasp_features import check_normal_axis, feature_dim, normalize_scale, phi
-from .grasping.base import SUPPORTS, check_support, support_height
+from .grasping.base import SUPPORTS, check_solid_table, check_support, support_height
 from .hand_grasps import BUDGETS
 from .numbers import check_flag_fields, check_whole_fields, finite_number, positive_range, whole_at_least, whole_number
 from .objects import SAMPLING_METHODS, UP_AXES, GraspObject, ObjectSet, load_object_set
@@ -140,7 +140,7 @@ class DatasetConfig:
 
     def __post_init__(self) -> None:
         check_whole_fields(self, (("n_fingers", 2), ("grasps_per_object", 1), ("seed", 0)))
-        check_flag_fields(self, ("normals", "normalize_scale", "heights", "solid_table"))
+        check_flag_fields(self, ("normals", "normalize_scale", "heights"))
         for fname in ("contact_noise", "normal_noise_deg"):
             v = getattr(self, fname)
             f = finite_number(v)
@@ -165,6 +165,7 @@ class DatasetConfig:
                                  f"got {self.hand_fingers!r}")
             object.__setattr__(self, "hand_fingers", hf)
         check_support(self.support)
+        check_solid_table(self.solid_table, self.support)
         if self.hand_budget not in BUDGETS:
             raise ValueError(f"hand_budget must be one of {BUDGETS}, got {self.hand_budget!r}")
         # settings of other sources were taken and ignored (the dataset command refused only --hand)
@@ -176,8 +177,6 @@ class DatasetConfig:
             raise ValueError(f"{', '.join(ignored)} would be ignored with source={self.source!r}: hand_fingers and "
                              "support apply to the geometric and hand sources, hand_budget and solid_table to the hand "
                              "source")
-        if self.solid_table and self.support != "table":
-            raise ValueError(f"solid_table needs support='table', got support={self.support!r}")
         if (self.source == "hand") != (self.hand is not None):
             raise ValueError(f"hand (got {self.hand!r}) is required with source='hand' and only then "
                              f"(source={self.source!r})")

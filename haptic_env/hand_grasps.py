@@ -45,8 +45,8 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .cache import CacheError, cache_dir, clean_stale_tmp, config_key, file_stem, load_npz, save_npz_atomic
-from .grasping.base import approach_table, check_support, validate_actions
-from .numbers import checked_flag, finite_number, whole_at_least
+from .grasping.base import approach_table, check_solid_table, check_support, validate_actions
+from .numbers import finite_number, whole_at_least
 from .processes import die_with_parent
 
 __all__ = ["HandGraspPool", "hand_grasp_pool", "pool_actions", "table_actions", "pool_rows", "pool_cache_path",
@@ -298,8 +298,7 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
     if budget not in BUDGETS:
         raise ValueError(f"budget must be one of {BUDGETS}, got {budget!r}")
     check_support(support)
-    if checked_flag(solid_table, "solid_table") and support != "table":
-        raise ValueError(f"solid_table needs support='table', got support={support!r}")
+    check_solid_table(solid_table, support)
     if not cache:  # the cache key reads the hand (hand_physics_key); without it, an unknown one is named here too
         from .grasping.hands import load_hand
 

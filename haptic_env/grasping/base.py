@@ -35,7 +35,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from haptic_env.numbers import positive_number, whole_at_least
+from haptic_env.numbers import checked_flag, positive_number, whole_at_least
 
 __all__ = [
     "ACTION_DIM",
@@ -79,6 +79,14 @@ def check_support(support) -> str:
     if support not in SUPPORTS:
         raise ValueError(f"support must be 'table' or 'floating', got {support!r}")
     return support
+
+
+def check_solid_table(solid_table, support: str) -> bool:
+    """``solid_table`` as a bool (a ``ValueError`` unless it is one) and refused with any support but ``"table"``
+    (there is no table to collide with): the MuJoCo backend's, the hand pools' and the dataset's one check."""
+    if checked_flag(solid_table, "solid_table") and support != "table":
+        raise ValueError(f"solid_table needs support='table', got support={support!r}")
+    return bool(solid_table)
 
 
 def usable_touch(touched: np.ndarray) -> np.ndarray:

@@ -50,6 +50,7 @@ from .base import (
     GraspBatch,
     GraspResult,
     approach_frame,
+    check_solid_table,
     check_support,
     decode_approach,
     support_height,
@@ -106,8 +107,7 @@ class MujocoConfig:
             raise ValueError(f"n_fingers must be an int >= 2 or None, got {self.n_fingers!r}")
         check_support(self.support)
         checked_flag(self.normals, "normals")
-        if checked_flag(self.solid_table, "solid_table") and self.support != "table":
-            raise ValueError(f"solid_table needs support='table', got support={self.support!r}")
+        check_solid_table(self.solid_table, self.support)
         if self.solver is not None and self.solver not in SOLVERS:
             raise ValueError(f"solver must be one of {tuple(SOLVERS)}, got {self.solver!r}")
         if self.torque_source not in ("actuator", "constraint"):
@@ -394,7 +394,7 @@ class GraspScene:
         self.data.mocap_pos[0] = pos
         self.data.mocap_quat[0] = quat_from_matrix(R)
 
-    def hand_object_contacts(self) -> int:
+    def hand_blocking_contacts(self) -> int:
         """Run kinematics + collision only and count the hand's contacts with the object (and with the table where it
         is solid): the pre-grasp search's test of a pose."""
         m, d = self.model, self.data
@@ -673,7 +673,7 @@ class MujocoBackend:
         s, free = start, False
         while s <= s_max:
             sc.set_mount(self._centre + s * u - R @ g, R)
-            if sc.hand_object_contacts() == 0:
+            if sc.hand_blocking_contacts() == 0:
                 free = True
                 break
             s += cfg.march_step
@@ -682,7 +682,7 @@ class MujocoBackend:
             for _ in range(4):
                 mid = 0.5 * (lo + hi)
                 sc.set_mount(self._centre + mid * u - R @ g, R)
-                if sc.hand_object_contacts() == 0:
+                if sc.hand_blocking_contacts() == 0:
                     hi = mid
                 else:
                     lo = mid
