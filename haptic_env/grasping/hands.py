@@ -23,6 +23,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Callable
 
 import mujoco
 import numpy as np
@@ -360,9 +361,10 @@ def finger_of_bodies(m: mujoco.MjModel, tip_ids) -> np.ndarray:
     return finger
 
 
-def _named_hand(hand) -> HandDescription | None:
-    """The hand-written description of a named Menagerie hand (``"allegro"``, ``"shadow"``, ``"aero"``, each with an
-    optional ``_right`` / ``_left``, or ``"robotiq"``), None for any other ``hand``. The one list of those names."""
+def _named_hand(hand) -> Callable[[], HandDescription] | None:
+    """The builder of a named Menagerie hand's hand-written description (``"allegro"``, ``"shadow"``, ``"aero"``, each
+    with an optional ``_right`` / ``_left``, or ``"robotiq"``), None for any other ``hand``. The one list of those
+    names."""
     sided = {"allegro": allegro_hand, "shadow": shadow_hand, "aero": aero_hand}
     if not isinstance(hand, str):
         return None

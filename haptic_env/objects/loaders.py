@@ -149,14 +149,12 @@ def load_mesh_object(path: str | Path, *, units: str | float = "m", name: str | 
         raise MeshLoadError(f"mesh file {path}: surface area {area} m^2 with units={units!r} (all faces degenerate, "
                             "or coordinates out of range); nothing to grasp")
     size = float(np.max(mesh.extents))
-    if size > MAX_PLAUSIBLE_SIZE:
+    likely = ("millimetres", "mm") if size > MAX_PLAUSIBLE_SIZE else ("metres", "m") if size < MIN_PLAUSIBLE_SIZE \
+        else None
+    if likely is not None:
         warnings.warn(f"mesh file {path}: object {name!r} is {size:.3g} m across with units={units!r}; are the file's "
-                      "coordinates in millimetres? (load it with units='mm', e.g. object_kwargs={'units': 'mm'})",
-                      UserWarning, stacklevel=2)
-    elif size < MIN_PLAUSIBLE_SIZE:
-        warnings.warn(f"mesh file {path}: object {name!r} is {size:.3g} m across with units={units!r}; are the file's "
-                      "coordinates in metres? (load it with units='m', e.g. object_kwargs={'units': 'm'})",
-                      UserWarning, stacklevel=2)
+                      f"coordinates in {likely[0]}? (load it with units='{likely[1]}', e.g. object_kwargs={{'units': "
+                      f"'{likely[1]}'}})", UserWarning, stacklevel=2)
     return GraspObject(name, mesh, source=path, collision_paths=tuple(collision_paths), offset=offset, rotation=R,
                        unit_scale=unit_scale(units))
 
@@ -270,7 +268,8 @@ def check_object_data(spec: str | Path, data_dir: str | Path | None = None) -> P
         raise FileNotFoundError(f"data folder {root} does not exist; {_DATA_HELP}")
     sub = root / ("ycb" if s == "ycb10" else "kit")
     if not sub.is_dir():
-        raise FileNotFoundError(f"{'YCB' if s == 'ycb10' else 'KIT'} meshes missing: {sub} does not exist; {_DATA_HELP}")
+        raise FileNotFoundError(f"{'YCB' if s == 'ycb10' else 'KIT'} meshes missing: {sub} does not exist; "
+                                f"{_DATA_HELP}")
     missing = [f"{n}.stl" for n in KIT8 if not (sub / f"{n}.stl").is_file()] if s == "kit8" else []
     if missing:
         raise FileNotFoundError(f"KIT meshes missing from {sub}: {missing}; {_DATA_HELP}")
