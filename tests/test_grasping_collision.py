@@ -66,4 +66,48 @@ def test_shipped_pieces_of_a_millimetre_folder_are_in_metres_like_their_mesh(tmp
     np.testing.assert_allclose(pieces[0].bounds, obj.mesh.bounds, atol=1e-9)
     assert obj.unit_scale == 1e-3
     objects = load_folder(tmp_path, units="mm")  # its pools, built with pieces in mm before, get a new key
-    assert objects.identity == [("box", obj.mesh_hash, "pieces x0.001")]
+    metres = load_folder(tmp_path, units=1e-3 * (1 + 1e-9))  # the same files in other units: another key
+    assert objects.identity[0][:2] == ("box", obj.mesh_hash) and objects.identity[0][2].startswith("pieces ")
+    assert objects.identity[0][2] != metres.identity[0][2]
+
+
+def _shipped(tmp_path, piece: trimesh.Trimesh):
+    from haptic_env.objects.loaders import load_folder
+
+    (tmp_path / "obj").mkdir()
+    piece.export(tmp_path / "obj" / "mesh.stl")  # the object ships its own mesh as its one "piece", as YCB's drill
+    piece.export(tmp_path / "obj" / "collision_00.stl")
+    return load_folder(tmp_path)[0]
+
+
+def test_hull_depth_is_zero_on_the_hull_and_the_nearest_face_inside():
+    from haptic_env.grasping.collision import hull_depth
+
+    box = trimesh.creation.box((0.06, 0.06, 0.1))
+    assert hull_depth(box.vertices, box.convex_hull) == pytest.approx(0.0, abs=1e-12)
+    assert hull_depth(box.triangles_center, box.convex_hull) == pytest.approx(0.0, abs=1e-12)
+    inside = np.array([[0.0, 0.0, 0.0], [0.02, 0.0, 0.04]])  # 0.03 and 0.01 from the nearest face
+    assert hull_depth(inside, box.convex_hull) == pytest.approx(0.03)
+    assert hull_depth(np.empty((0, 3)), box.convex_hull) == 0.0
+
+
+def test_a_non_convex_shipped_piece_is_decomposed_not_collided_as_its_hull(tmp_path, monkeypatch, caplog):
+    """YCB's drill ships its whole (non-convex) mesh as one "piece"; MuJoCo would collide its hull. The object is
+    decomposed instead (logged); ``method="files"`` keeps the piece as shipped."""
+    import logging
+
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path / "cache"))
+    obj = _shipped(tmp_path, _l_shape().mesh)
+    with caplog.at_level(logging.INFO, logger="haptic_env.grasping.collision"):
+        pieces = convex_pieces(obj, CollisionConfig(threshold=0.05))
+    assert "collision_00.stl" in caplog.text and "not convex" in caplog.text
+    assert len(pieces) >= 2 and list((tmp_path / "cache" / "collision").glob("*.npz"))
+    kept = convex_pieces(obj, CollisionConfig(method="files"))
+    assert len(kept) == 1
+
+
+def test_a_convex_shipped_piece_is_used_as_shipped(tmp_path, monkeypatch):
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path / "cache"))
+    obj = _shipped(tmp_path, trimesh.creation.box((0.06, 0.06, 0.1)))
+    pieces = convex_pieces(obj)
+    assert len(pieces) == 1 and not (tmp_path / "cache" / "collision").exists()

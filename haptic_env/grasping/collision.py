@@ -3,7 +3,12 @@
 Sources, in order for ``method="auto"``:
 
 1. the object's shipped pieces (``obj.collision_paths``, e.g. YCB ``collision_NN.stl``, in the
-   file frame; turned by ``obj.rotation`` and shifted by ``obj.offset`` to the centred mesh frame);
+   file frame; turned by ``obj.rotation`` and shifted by ``obj.offset`` to the centred mesh frame), when each
+   is convex (its hull no more than ``convex_tol`` larger, no face centre deeper than ``convex_tol`` of its size
+   inside its hull: :func:`hull_depth`).
+   A shipped piece that is not (YCB's 035 power drill and 006 mustard bottle ship their whole mesh as one
+   "piece") would be collided as its hull, so the object is decomposed as in 3 instead (logged);
+   ``method="files"`` takes the pieces as shipped;
 2. the convex hull, when the mesh is (nearly) convex (hull volume within ``convex_tol`` of the mesh);
 3. a ``coacd`` approximate convex decomposition, cached in ``cache_dir("collision")`` keyed by
    the mesh geometry and the config (atomic ``.npz`` writes).
@@ -23,7 +28,7 @@ import trimesh
 from ..cache import cache_dir, config_key, load_npz, save_npz_atomic
 from ..numbers import finite_number, whole_number
 
-__all__ = ["CollisionConfig", "convex_pieces"]
+__all__ = ["CollisionConfig", "convex_pieces", "hull_depth"]
 
 log = logging.getLogger(__name__)
 
@@ -90,6 +95,39 @@ def _from_files(obj: Any) -> list[trimesh.Trimesh]:
     return pieces
 
 
+def hull_depth(vertices: np.ndarray, hull: trimesh.Trimesh) -> float:
+    """Deepest of ``vertices (m, 3)`` inside their convex ``hull`` (same units; 0 for a convex piece, whose every
+    vertex lies on its hull): for a point inside a convex polytope, the distance to its boundary is the smallest
+    distance to a facet's plane."""
+    v = np.asarray(vertices, dtype=np.float64)
+    if len(v) == 0:
+        return 0.0
+    normals = np.asarray(hull.face_normals, dtype=np.float64)  # (F, 3) outward
+    offsets = np.einsum("ij,ij->i", normals, np.asarray(hull.triangles[:, 0], dtype=np.float64))  # (F,)
+    depth = np.full(len(v), np.inf)
+    for lo in range(0, len(v), 4096):  # (chunk, F) at a time
+        depth[lo:lo + 4096] = (offsets[None, :] - v[lo:lo + 4096] @ normals.T).min(axis=1)
+    return float(max(depth.max(), 0.0))
+
+
+def _non_convex_piece(pieces: list[trimesh.Trimesh], paths, tol: float) -> str | None:
+    """A description of the first of ``pieces`` that is not convex, or None when every piece is: a watertight piece
+    whose hull's volume exceeds its own by more than ``tol``, or any piece with a face centre deeper than ``tol`` x
+    its bounding-box diagonal inside its hull (a non-convex piece's vertices can all lie on its hull's boundary: an
+    L-shaped prism's inner corner lies on the hull's top and bottom faces)."""
+    for piece, path in zip(pieces, paths):
+        hull = piece.convex_hull
+        if piece.is_watertight and abs(float(piece.volume)) > 0:
+            ratio = float(hull.volume) / abs(float(piece.volume))
+            if ratio > 1.0 + tol:
+                return f"{Path(path).name} (its hull {ratio:.2f}x its volume)"
+        size = float(np.linalg.norm(piece.extents))
+        depth = hull_depth(piece.triangles_center, hull)
+        if size > 0 and depth > tol * size:
+            return f"{Path(path).name} ({depth * 1e3:.1f} mm inside its hull, {size * 1e3:.0f} mm across)"
+    return None
+
+
 def _is_convex(mesh: trimesh.Trimesh, tol: float) -> bool:
     try:
         vol = abs(float(mesh.volume)) if mesh.is_watertight else 0.0
@@ -133,7 +171,13 @@ def convex_pieces(obj: Any, config: CollisionConfig | None = None, *, cache: boo
     if cfg.method == "files" or (cfg.method == "auto" and getattr(obj, "collision_paths", ())):
         if not getattr(obj, "collision_paths", ()):
             raise ValueError(f"object {name!r} ships no collision pieces (collision_paths is empty)")
-        return _from_files(obj)
+        pieces = _from_files(obj)
+        bad = _non_convex_piece(pieces, obj.collision_paths, cfg.convex_tol) if cfg.method == "auto" else None
+        if bad is None:
+            return pieces
+        log.info("object %r: shipped collision piece %s is not convex, and MuJoCo would collide it as its hull; "
+                 "decomposing the mesh with coacd instead", name, bad)
+        return _coacd(mesh, cfg, name, cache)
     if cfg.method == "hull" or (cfg.method == "auto" and _is_convex(mesh, cfg.convex_tol)):
         return [mesh.convex_hull]
     return _coacd(mesh, cfg, name, cache)

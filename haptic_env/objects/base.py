@@ -23,6 +23,9 @@ SAMPLING_METHODS = ("area", "centroid")
 
 #: A mesh file's up axis (:func:`up_rotation`): the axis that points up when the object stands on a table.
 UP_AXES = ("x", "y", "z")
+#: how a physics backend collides shipped pieces, in the cache keys of objects that ship them
+#: (:func:`haptic_env.grasping.collision.convex_pieces`): since 2026-12-07 a non-convex shipped piece is decomposed
+PIECES_RULE = "convex-checked"
 
 
 def up_rotation(up: str) -> np.ndarray:
@@ -143,6 +146,18 @@ class GraspObject:
         h.update(np.ascontiguousarray(self.mesh.faces, dtype=np.int64).tobytes())
         return h.hexdigest()
 
+    @cached_property
+    def pieces_hash(self) -> str | None:
+        """SHA-1 of the shipped collision pieces (:attr:`unit_scale` and each file's bytes, in order), or None when
+        none are shipped: what a physics backend collides, for cache keys."""
+        if not self.collision_paths:
+            return None
+        h = hashlib.sha1(repr(float(self.unit_scale)).encode())
+        for p in self.collision_paths:
+            h.update(Path(p).name.encode())
+            h.update(Path(p).read_bytes())
+        return h.hexdigest()
+
     @property
     def area(self) -> float:
         """Surface area in m^2."""
@@ -250,11 +265,11 @@ class ObjectSet:
 
     @property
     def identity(self) -> list[tuple[str, str]]:
-        """``[(name, mesh hash), ...]``: what a cache key of anything built from this set needs (and, for an object
-        whose shipped collision pieces are in other units than metres, that scale: they were read unscaled before
-        2026-12-06, so its hand pools are built again)."""
-        return [(o.name, o.mesh_hash) + ((f"pieces x{o.unit_scale:g}",) if o.collision_paths and o.unit_scale != 1.0
-                                         else ()) for o in self._objects]
+        """``[(name, mesh hash), ...]``: what a cache key of anything built from this set needs; an object that ships
+        collision pieces adds ``"pieces <hash>"`` (:attr:`GraspObject.pieces_hash`, the files and their units, with
+        :data:`PIECES_RULE`: how a physics backend chooses between them and a decomposition)."""
+        return [(o.name, o.mesh_hash) + ((f"pieces {o.pieces_hash[:16]} {PIECES_RULE}",) if o.collision_paths else ())
+                for o in self._objects]
 
     def index(self, name: str) -> int:
         """Position (class label) of the object called ``name``."""
