@@ -1,8 +1,8 @@
 """How far a MuJoCo hand's fingertips reach into the table, with the visual table and with a solid one.
 
-The MuJoCo backend's table has been a visual plane (the hand collides with the object only), so a fingertip can sink
-into it and touch an object low on its side or underneath. ``MujocoConfig(solid_table=True)`` makes the table collide
-with the hand. This benchmark grasps the same random approaches to each object with both tables, one process, and
+Until 2026-12-07 the MuJoCo backend's table was a visual plane (the hand collided with the object only), so a
+fingertip could sink into it and touch an object low on its side or underneath; ``MujocoConfig(solid_table=False)``
+gives that table back, and the default (solid) makes it collide with the hand. This benchmark grasps the same random approaches to each object with both tables, one process, and
 reports per hand and table: the share of grasps with a touching fingertip sphere more than ``--depth`` (m) below the
 table top, the median depth of those, and the share of usable grasps (>= 3 fingertips on the object; both pads for
 the 2-finger gripper), per object and overall.

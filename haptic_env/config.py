@@ -426,7 +426,7 @@ def recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
                                  f"(a cache key), got {type(hand).__name__}")
             grasps.setdefault("hand", hand)
             grasps.setdefault("grasps_per_object", HAND_APPROACHES)
-            grasps.setdefault("solid_table", bool(dict(config.backend_kwargs).get("solid_table", False)))
+            grasps.setdefault("solid_table", dict(config.backend_kwargs).get("solid_table"))  # None: the default
         if grasps["source"] in ("geometric", "hand"):
             grasps.setdefault("support", dict(config.backend_kwargs).get("support", "table"))
         grasps.setdefault("heights", bool(config.grasp_heights))

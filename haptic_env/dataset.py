@@ -102,8 +102,9 @@ class DatasetConfig:
         hand_budget: with ``source="hand"``, ``"uniform"`` (``grasps_per_object`` approaches for every object) or
             ``"balanced"`` (the same total, spread towards the objects whose grasps rarely complete;
             :func:`~haptic_env.hand_grasps.balanced_counts`).
-        solid_table: with ``source="hand"`` and ``support="table"``, the hand collides with the table
-            (``MujocoConfig.solid_table``); off: the visual table every hand figure so far was measured with.
+        solid_table: with ``source="hand"``, whether the hand collides with the table (``MujocoConfig.solid_table``:
+            None, the default, wherever there is one, ``support="table"``; ``False``: the visual table of the hand
+            figures before 2026-12-07). Settable with the hand source only.
         heights: append the contacts' heights above the table the object rests on (``phi(heights=True)``:
             ``n`` more values; contacts are taken in the support frame of the object at its identity pose,
             :func:`~haptic_env.grasping.base.support_height`). Only for objects that keep that resting pose
@@ -136,7 +137,7 @@ class DatasetConfig:
     heights: bool = False
     normal_axis: str = "t2"
     force_closure: float | None = field(default=None, metadata={KEY_ONLY_WHEN_SET: True})
-    solid_table: bool = field(default=False, metadata={KEY_ONLY_WHEN_SET: True})
+    solid_table: bool | None = field(default=None, metadata={KEY_ONLY_WHEN_SET: True})
 
     def __post_init__(self) -> None:
         check_whole_fields(self, (("n_fingers", 2), ("grasps_per_object", 1), ("seed", 0)))
@@ -171,7 +172,7 @@ class DatasetConfig:
         # settings of other sources were taken and ignored (the dataset command refused only --hand)
         ignored = [f"{k}={getattr(self, k)!r}" for k, default, sources in (
             ("hand_fingers", None, ("geometric", "hand")), ("support", "table", ("geometric", "hand")),
-            ("hand_budget", "uniform", ("hand",)), ("solid_table", False, ("hand",)))
+            ("hand_budget", "uniform", ("hand",)), ("solid_table", None, ("hand",)))
             if getattr(self, k) != default and self.source not in sources]
         if ignored:
             raise ValueError(f"{', '.join(ignored)} would be ignored with source={self.source!r}: hand_fingers and "
@@ -196,10 +197,13 @@ class DatasetConfig:
         the geometric and hand sources, ``normal_noise_deg`` without normals), so that configs that give the same
         grasps share their cached files. A config at those defaults is itself (its keys are as before).
         (``hand_fingers`` None and ``n_fingers`` give the same grasps but keep their two keys: the envs' recognisers
-        key the one, the dataset command the other.)"""
+        key the one, the dataset command the other.) The hand source's table is keyed as its pool keys it: a solid
+        one (the default, ``None``, resolved) as ``True``, the visual one unkeyed, as before 2026-12-07."""
         fields = type(self).__dataclass_fields__
         ignored = ([("sampling", fields["sampling"].default)] if self.source != "surface" else []) + (
             [] if self.normals else [("normal_noise_deg", fields["normal_noise_deg"].default)])
+        if self.source == "hand":
+            ignored.append(("solid_table", True if check_solid_table(self.solid_table, self.support) else None))
         changed = {k: v for k, v in ignored if getattr(self, k) != v}
         return replace(self, **changed) if changed else self
 
@@ -684,8 +688,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--hand-budget", choices=BUDGETS, default=DatasetConfig.hand_budget,
                    help="hand source: the same approaches for every object, or the same total spread towards the "
                         "objects whose grasps rarely complete (default %(default)s)")
-    p.add_argument("--solid-table", action="store_true",
-                   help="hand source: the hand collides with the table (default: a visual table it can reach into)")
+    p.add_argument("--visual-table", action="store_true",
+                   help="hand source: a visual table the hand can reach into, the scene of the hand figures before "
+                        "2026-12-07 (default: the hand collides with the table)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=output_path("file"), default=None, help="also write the dataset to this .npz")
     p.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
@@ -736,7 +741,7 @@ def _cli_config(args: argparse.Namespace) -> DatasetConfig:
         hand=args.hand,
         hand_budget=args.hand_budget,
         force_closure=args.force_closure,
-        solid_table=args.solid_table,
+        solid_table=False if args.visual_table else None,
     )
 
 

@@ -145,11 +145,12 @@ def _plain_servo(act) -> bool:
 
 
 def pool_cache_path(objects, hand: str, n_fingers: int, approaches: int, support: str, seed: int,
-                    budget: str = "uniform", actions: np.ndarray | None = None, solid_table: bool = False) -> Path:
+                    budget: str = "uniform", actions: np.ndarray | None = None, solid_table: bool | None = None) -> Path:
     given = [] if actions is None else [hashlib.sha256(np.ascontiguousarray(actions, np.float64)).hexdigest()]
     key = config_key(_CACHE_VERSION, objects.identity, hand, int(n_fingers), int(approaches), support, int(seed),
                      hand_physics_key(hand, n_fingers), *budget_key(budget, approaches), *given,
-                     *(["solid_table"] if solid_table else []))  # keyed only when set: the visual table's keys stay
+                     *(["solid_table"] if check_solid_table(solid_table, support) else []))  # the visual table's
+    # pools (the default before 2026-12-07) keep their keys
     return cache_dir("hand_grasps") / f"{file_stem(hand, 'hand')}-{key}.npz"  # a hand may be an MJCF path
 
 
@@ -208,7 +209,7 @@ def pool_actions(seed: int, k: int, count: int) -> np.ndarray:
 
 
 def _grasp_chunk(obj, hand: str, n_fingers: int, support: str, actions: np.ndarray, seed,
-                 solid_table: bool = False) -> tuple:
+                 solid_table: bool | None = None) -> tuple:
     """Worker: grasp ``obj`` along ``actions (m, 4)`` -> contacts, normals, touched, seconds."""
     from .grasping import make_backend
 
@@ -267,7 +268,7 @@ def _load_parts(folder: Path, n_fingers: int) -> tuple[dict[tuple[int, int, int]
 
 def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, support: str = "table", seed: int = 0,
                     budget: str = "uniform", workers: int | None = None, cache: bool = True, progress: bool = True,
-                    actions: np.ndarray | None = None, solid_table: bool = False) -> HandGraspPool:
+                    actions: np.ndarray | None = None, solid_table: bool | None = None) -> HandGraspPool:
     """Grasp every object of ``objects`` with ``hand`` along uniformly random approaches (or along given ones).
 
     Args:
@@ -282,7 +283,8 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
         cache: read / write ``cache_dir("hand_grasps")``.
         actions: ``(approaches, 4)`` approaches in ``[-1, 1]`` to grasp every object along, in this order, instead
             of the random ones (e.g. :func:`table_actions`); the cache key holds them. Needs ``budget="uniform"``.
-        solid_table: the hand collides with the table (``MujocoConfig.solid_table``; support "table" only).
+        solid_table: whether the hand collides with the table (``MujocoConfig.solid_table``: by default wherever
+            there is one; ``False``: the visual table of the hand figures before 2026-12-07).
 
     Object ``k``'s approaches come from ``SeedSequence([seed, k])`` (or are ``actions``) and chunk ``lo`` grasps with
     the random stream ``[seed, k, lo]``, so the pool does not depend on ``workers``, and an object's first
@@ -298,7 +300,7 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
     if budget not in BUDGETS:
         raise ValueError(f"budget must be one of {BUDGETS}, got {budget!r}")
     check_support(support)
-    check_solid_table(solid_table, support)
+    solid_table = check_solid_table(solid_table, support)
     if not cache:  # the cache key reads the hand (hand_physics_key); without it, an unknown one is named here too
         from .grasping.hands import load_hand
 

@@ -119,7 +119,7 @@ DEFAULTS = {"n_fingers": 4, "hand": "generic", "hand_kwargs": (), "support": "ta
             "max_steps": None,
             "min_time": 0.08, "check_interval": 0.02, "squeeze": 0.15, "rest_qvel": 0.05, "joint_frictionloss": 0.0,
             "friction": 0.1, "march_step": 0.01, "standoff": None, "contact_noise": 0.0, "normal_noise_deg": 0.0,
-            "collision": CollisionConfig(), "solid_table": False}
+            "collision": CollisionConfig(), "solid_table": None}
 COLLISION_DEFAULTS = {"method": "auto", "threshold": 0.08, "max_convex_hull": 24, "max_ch_vertex": 64,
                       "preprocess_resolution": 30, "resolution": 500, "mcts_iterations": 40, "mcts_nodes": 8,
                       "mcts_max_depth": 2, "convex_tol": 0.02, "seed": 0}

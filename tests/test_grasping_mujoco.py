@@ -30,7 +30,9 @@ def _angles(results):
 
 @pytest.fixture(scope="module")
 def generic():
-    be = make_backend("mujoco", 4, hand="generic")
+    # the visual table: these tests are about the contacts and normals of the approaches a table does not block
+    # (with the default solid table, 20 of these 30 are usable; test_a_solid_table_keeps_the_fingertips_out_of_it)
+    be = make_backend("mujoco", 4, hand="generic", solid_table=False)
     be.set_object(_cyl())
     return be
 
@@ -74,14 +76,16 @@ def test_same_seed_same_grasp(generic):
 def test_a_hand_whose_fingertips_close_behind_its_palm_grasps_a_small_ball():
     """The generic hand's closed fingertips meet 3.8 cm behind its palm (``g . n < 0``); the pre-grasp search started
     the palm that far past a small object's centre, already free of it and facing away, so no fingertip ever touched
-    a 6.7 cm ball (the default set's)."""
-    be = make_backend("mujoco", 4, hand="generic")
-    be.set_object(GraspObject("ball", trimesh.creation.icosphere(subdivisions=3, radius=0.0335)))
-    n, _, g = be._calibrated
-    assert g @ n < -0.02  # the case this test is about
-    rng = np.random.default_rng(0)
-    res = [be.grasp(a, rng) for a in rng.uniform(-1, 1, (10, 4))]
-    assert np.mean([r.usable for r in res]) >= 0.8, [r.n_touched for r in res]
+    a 6.7 cm ball (the default set's). With the visual table every approach reaches it; with the default solid one,
+    those that the table leaves room for (14 of 30 here)."""
+    for solid, least in ((False, 0.8), (True, 0.3)):
+        be = make_backend("mujoco", 4, hand="generic", solid_table=solid)
+        be.set_object(GraspObject("ball", trimesh.creation.icosphere(subdivisions=3, radius=0.0335)))
+        n, _, g = be._calibrated
+        assert g @ n < -0.02  # the case this test is about
+        rng = np.random.default_rng(0)
+        res = [be.grasp(a, rng) for a in rng.uniform(-1, 1, (30, 4))]
+        assert np.mean([r.usable for r in res]) >= least, (solid, [r.n_touched for r in res])
 
 
 def test_a_solid_table_keeps_the_fingertips_out_of_it(load_benchmark):

@@ -448,32 +448,44 @@ def test_a_bad_hand_or_support_is_named_before_any_work(two_objects, monkeypatch
                             cache=cache, progress=False)
 
 
-def test_a_solid_table_pool_is_its_own_and_reaches_the_envs_recogniser(two_objects, monkeypatch, tmp_path):
-    """``solid_table`` reaches the pool's grasps (the hand no longer reaches into the table), its cache key (only when
-    set: the visual table's pools keep theirs), the hand data set and an env's hand-matched recogniser."""
+def test_the_table_is_solid_by_default_and_the_visual_one_keeps_its_keys(two_objects, monkeypatch, tmp_path):
+    """The table is solid by default (since 2026-12-07) in the pool's grasps (the hand no longer reaches into it),
+    its cache key (the visual table's pools, the default before, keep their keys, and the solid table's keep the keys
+    they had when it was opt-in), the hand data set and an env's hand-matched recogniser."""
+    import json
+
+    from haptic_env.cache import _jsonable, config_key
     from haptic_env.config import HapticRecogConfig, recognizer_kwargs
     from haptic_env.dataset import dataset_cache_path
-    from haptic_env.hand_grasps import pool_cache_path
+    from haptic_env.hand_grasps import _CACHE_VERSION, hand_physics_key, pool_cache_path
 
     monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path))
     mug = two_objects.subset(("mug",), name="mug")
-    visual = hand_grasp_pool(mug, "generic", 3, 10, seed=5, workers=1, cache=False, progress=False)
-    solid = hand_grasp_pool(mug, "generic", 3, 10, seed=5, workers=1, cache=False, progress=False, solid_table=True)
+    visual = hand_grasp_pool(mug, "generic", 3, 10, seed=5, workers=1, cache=False, progress=False, solid_table=False)
+    solid = hand_grasp_pool(mug, "generic", 3, 10, seed=5, workers=1, cache=False, progress=False)
     assert not np.array_equal(visual.touched, solid.touched) or not np.allclose(visual.contacts, solid.contacts)
     key = pool_cache_path(mug, "generic", 3, 10, "table", 5)
-    assert pool_cache_path(mug, "generic", 3, 10, "table", 5, solid_table=False) == key
-    assert pool_cache_path(mug, "generic", 3, 10, "table", 5, solid_table=True) != key
+    assert pool_cache_path(mug, "generic", 3, 10, "table", 5, solid_table=True) == key
+    visual_key = pool_cache_path(mug, "generic", 3, 10, "table", 5, solid_table=False)
+    assert visual_key != key and visual_key.name.endswith(config_key(  # the key it had as the default
+        _CACHE_VERSION, mug.identity, "generic", 3, 10, "table", 5, hand_physics_key("generic", 3)) + ".npz")
+    assert pool_cache_path(mug, "generic", 3, 10, "floating", 5) == pool_cache_path(
+        mug, "generic", 3, 10, "floating", 5, solid_table=False)  # no table to make solid
     with pytest.raises(ValueError, match="solid_table needs support='table'"):
         hand_grasp_pool(mug, "generic", 3, 10, support="floating", solid_table=True, cache=False, progress=False)
     cfg = DatasetConfig(n_fingers=3, source="hand", hand="generic", grasps_per_object=10)
-    assert dataset_cache_path(mug, cfg) != dataset_cache_path(mug, DatasetConfig(
+    assert dataset_cache_path(mug, cfg) == dataset_cache_path(mug, DatasetConfig(
         n_fingers=3, source="hand", hand="generic", grasps_per_object=10, solid_table=True))
-    for bad in ({"solid_table": True},
+    visual_cfg = DatasetConfig(n_fingers=3, source="hand", hand="generic", grasps_per_object=10, solid_table=False)
+    assert dataset_cache_path(mug, cfg) != dataset_cache_path(mug, visual_cfg)
+    assert "solid_table" not in json.dumps(_jsonable(visual_cfg.key_config()))  # unkeyed, as when it was the default
+    for bad in ({"solid_table": True}, {"solid_table": False},
                 {"source": "hand", "hand": "generic", "support": "floating", "solid_table": True},
                 {"source": "hand", "hand": "generic", "solid_table": 1}):
         with pytest.raises(ValueError, match="solid_table"):
             DatasetConfig(**bad)
-    env = HapticRecogConfig(backend="mujoco", backend_kwargs={"hand": "allegro", "solid_table": True}, objects="ycb10")
-    assert recognizer_kwargs(env)["config"].grasps.solid_table
+    env = HapticRecogConfig(backend="mujoco", backend_kwargs={"hand": "allegro", "solid_table": False}, objects="ycb10")
+    assert recognizer_kwargs(env)["config"].grasps.solid_table is False
     plain = HapticRecogConfig(backend="mujoco", backend_kwargs={"hand": "allegro"}, objects="ycb10")
-    assert not recognizer_kwargs(plain)["config"].grasps.solid_table
+    grasps = recognizer_kwargs(plain)["config"].grasps
+    assert grasps.solid_table is None and grasps.key_config().solid_table is True

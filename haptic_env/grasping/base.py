@@ -82,8 +82,13 @@ def check_support(support) -> str:
 
 
 def check_solid_table(solid_table, support: str) -> bool:
-    """``solid_table`` as a bool (a ``ValueError`` unless it is one) and refused with any support but ``"table"``
-    (there is no table to collide with): the MuJoCo backend's, the hand pools' and the dataset's one check."""
+    """Whether the hand collides with the table: ``None`` (the default everywhere) is solid wherever there is a table
+    (``support="table"``); a bool is taken as given (``False``: the visual table every hand figure before 2026-12-07
+    was measured with), anything else is a ``ValueError``, and ``True`` is refused with any support but ``"table"``
+    (there is no table to collide with). The MuJoCo backend's, the hand pools' and the dataset's one check and
+    one default."""
+    if solid_table is None:
+        return support == "table"
     if checked_flag(solid_table, "solid_table") and support != "table":
         raise ValueError(f"solid_table needs support='table', got support={support!r}")
     return bool(solid_table)

@@ -25,8 +25,10 @@ parallel (a planar finger without abduction) cannot sense the force component al
 axes: its estimate is the normal projected into the finger's plane.
 
 Gravity is off (equivalent to a gravity-compensated hand; the object is fixed anyway). The hand
-only collides with the object (no self-collision, the table is a visual plane that restricts the
-approach to the upper hemisphere), unless ``MujocoConfig.solid_table``: then the hand collides with the table too.
+collides with the object and, with ``support="table"``, with the table (``MujocoConfig.solid_table``, since
+2026-12-07; no self-collision). ``solid_table=False`` makes the table a visual plane that only restricts the approach
+to the upper hemisphere, the scene of every hand figure before then: a third of the Allegro's random grasps reached a
+fingertip into it.
 """
 
 from __future__ import annotations
@@ -97,17 +99,23 @@ class MujocoConfig:
     contact_noise: float = 0.0  # std (m) on reported contacts
     normal_noise_deg: float = 0.0
     collision: CollisionConfig = CollisionConfig()
-    #: the hand collides with the table (support "table" only): no fingertip sinks into it, and the pre-grasp pose
-    #: is free of it too. Off by default, the scene every hand figure so far was measured in (README: "Two limits of
-    #: the MuJoCo scene"); keyed only when set, so the caches of the visual table stay.
-    solid_table: bool = field(default=False, metadata={KEY_ONLY_WHEN_SET: True})
+    #: the hand collides with the table: no fingertip sinks into it, and the pre-grasp pose is free of it too. None:
+    #: solid wherever there is a table (support "table"; :func:`~.base.check_solid_table`, :attr:`table_is_solid`);
+    #: False: the visual table of the hand figures before 2026-12-07. Keyed only when set (the pools key the table
+    #: themselves, :func:`haptic_env.hand_grasps.pool_cache_path`).
+    solid_table: bool | None = field(default=None, metadata={KEY_ONLY_WHEN_SET: True})
+
+    @property
+    def table_is_solid(self) -> bool:
+        """Whether the hand collides with the table (``solid_table`` resolved for the support)."""
+        return check_solid_table(self.solid_table, self.support)
 
     def __post_init__(self) -> None:
         if self.n_fingers is not None and (whole_number(self.n_fingers) is None or self.n_fingers < 2):
             raise ValueError(f"n_fingers must be an int >= 2 or None, got {self.n_fingers!r}")
         check_support(self.support)
         checked_flag(self.normals, "normals")
-        check_solid_table(self.solid_table, self.support)
+        check_solid_table(self.solid_table, self.support)  # refused here, resolved by table_is_solid
         if self.solver is not None and self.solver not in SOLVERS:
             raise ValueError(f"solver must be one of {tuple(SOLVERS)}, got {self.solver!r}")
         if self.torque_source not in ("actuator", "constraint"):
@@ -593,7 +601,7 @@ class MujocoBackend:
             pieces = convex_pieces(obj, self.config.collision)  # of the unscaled mesh: cached once per mesh
             scene = GraspScene(self.hand, pieces, T, table_z=table_z, timestep=self.config.timestep or self.hand.timestep,
                                friction=self.config.friction, joint_frictionloss=self.config.joint_frictionloss,
-                               solver=self.config.solver, solid_table=self.config.solid_table)
+                               solver=self.config.solver, solid_table=self.config.table_is_solid)
             while len(self._scenes) >= MAX_SCENES:  # least recently used first
                 self._scenes.popitem(last=False)[1].close()
         scene.scale_object(scale)
