@@ -575,16 +575,16 @@ def test_benchmark_flags_are_usage_errors_before_any_work(bench, argv, match, lo
 
 
 def test_too_few_hand_grasps_for_an_envs_settings_is_one_line(monkeypatch, usage_error):
-    """An env whose settings leave its hand too few grasps of an object to train on (the Aero with a solid table: one
-    5-finger grasp of the plate in 6,000) stopped evaluate with a TooFewGraspsError traceback at its first make."""
+    """An env whose settings leave its hand too few grasps of an object to train on (an object that no approach
+    grasps with every finger) stopped evaluate with a TooFewGraspsError traceback at its first make."""
     import agents.evaluate
     from haptic_env.cli import main
     from haptic_env.dataset import TooFewGraspsError
 
     def too_few(args):
-        raise TooFewGraspsError("object '029_plate': 1 of its aero grasps (budget 'uniform', 6000 approaches per "
+        raise TooFewGraspsError("object '029_plate': 0 of its aero grasps (budget 'uniform', 6000 approaches per "
                                 "object) touched it with >= 5 fingers (non-degenerate)")
 
     monkeypatch.setattr(agents.evaluate, "_main", too_few)
     usage_error(main, ["evaluate", "--agents", "random", "--episodes", "1", "--seeds", "0"],
-                match=r"evaluate: error: object '029_plate': 1 of its aero grasps .* change the settings")
+                match=r"evaluate: error: object '029_plate': 0 of its aero grasps .* change the settings")

@@ -320,20 +320,40 @@ def test_an_uncached_hand_dataset_neither_reads_nor_writes_its_pool_and_too_few_
     def fake_pool(objects, hand, n_fingers, approaches, *, cache=True, **kw):
         asked.append(cache)
         T = np.zeros((len(objects), approaches, n_fingers), bool)
-        T[:, :1] = True  # one complete grasp per object: too few for a train/validation split
+        T[1:, :1] = True  # the first object never grasped with every finger, the others once
         C = np.random.default_rng(0).normal(0, 0.03, T.shape + (3,))
         return HandGraspPool(C, np.tile([0.0, 0.0, 1.0], T.shape + (1,)), T, tuple(objects.names), hand, 0.0)
 
     monkeypatch.setattr(hg, "hand_grasp_pool", fake_pool)
     cfg = DatasetConfig(n_fingers=3, grasps_per_object=12, source="hand", hand="generic")
-    with pytest.raises(RuntimeError, match="'can': 1 of its generic grasps"):
+    with pytest.raises(RuntimeError, match=f"'{two_objects.names[0]}': 0 of its generic grasps"):
         build_dataset(two_objects, cfg, cache=False, progress=False)
     assert asked == [False]
     usage_error(main, ["dataset", "--objects", "default", "--fingers", "3", "--source", "hand", "--hand", "generic",
                        "--grasps", "12", "--no-cache", "--quiet"],
-                match=r"error: object '\w+': 1 of its generic grasps .* use more approaches or fewer fingers "
+                match=r"error: object '\w+': 0 of its generic grasps .* use more approaches or fewer fingers "
                       r"\(--grasps, --fingers\)")
     assert asked == [False, False]
+
+
+def test_an_object_with_one_complete_grasp_keeps_it_for_training(two_objects, monkeypatch):
+    """The Aero's plate on a solid table: 1 complete grasp in 6,000 approaches. The data set keeps it (training only,
+    no validation row) instead of refusing the object; an object with none is still refused (test above)."""
+    import haptic_env.hand_grasps as hg
+    from haptic_env.hand_grasps import HandGraspPool
+
+    def fake_pool(objects, hand, n_fingers, approaches, *, cache=True, **kw):
+        T = np.zeros((len(objects), approaches, n_fingers), bool)
+        T[0, :1] = True
+        T[1, :] = True
+        C = np.random.default_rng(0).normal(0, 0.03, T.shape + (3,))
+        return HandGraspPool(C, np.tile([0.0, 0.0, 1.0], T.shape + (1,)), T, tuple(objects.names), hand, 0.0)
+
+    monkeypatch.setattr(hg, "hand_grasp_pool", fake_pool)
+    cfg = DatasetConfig(n_fingers=3, grasps_per_object=20, source="hand", hand="generic")
+    ds = build_dataset(two_objects, cfg, cache=False, progress=False)
+    assert np.bincount(ds.y_train, minlength=2)[0] == 1 and 0 not in ds.y_val
+    assert np.bincount(ds.y_train, minlength=2)[1] + np.bincount(ds.y_val, minlength=2)[1] == 20
 
 
 def _rate_chunk(obj, hand, n, support, actions, seed, solid_table=False):
