@@ -45,7 +45,7 @@ ENV_VARIANTS: dict[str, dict[str, Any]] = {
                              "z_fingers": 2, "calibrate_grasps": 5, "training_grasps": 6000, "touch_weight": 0.75},
     "HapticRecogShadow-v0": {"backend": "mujoco", "backend_kwargs": {"hand": "shadow"}, "objects": "ycb10",
                              "n_fingers": 5, "normals": False, "z_fingers": 3, "calibrate_grasps": 5,
-                             "training_grasps": 6000, "touch_weight": 0.25},
+                             "training_grasps": 6000, "touch_weight": 0.5},  # 0.25 before the solid table
     "HapticRecogAero-v0": {"backend": "mujoco", "backend_kwargs": {"hand": "aero"}, "objects": "ycb10",
                            "n_fingers": 5, "normals": False, "z_fingers": 3, "calibrate_grasps": 5,
                            "training_grasps": 6000, "touch_weight": 0.5},
