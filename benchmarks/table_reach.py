@@ -2,10 +2,10 @@
 
 Until 2026-12-07 the MuJoCo backend's table was a visual plane (the hand collided with the object only), so a
 fingertip could sink into it and touch an object low on its side or underneath; ``MujocoConfig(solid_table=False)``
-gives that table back, and the default (solid) makes it collide with the hand. This benchmark grasps the same random approaches to each object with both tables, one process, and
-reports per hand and table: the share of grasps with a touching fingertip sphere more than ``--depth`` (m) below the
-table top, the median depth of those, and the share of usable grasps (>= 3 fingertips on the object; both pads for
-the 2-finger gripper), per object and overall.
+gives that table back, and the default (solid) makes it collide with the hand. This benchmark grasps the same random
+approaches to each object with both tables, one process, and reports per hand and table: the share of grasps with a
+touching fingertip sphere more than ``--depth`` (m) below the table top, the median depth of those, and the share of
+usable grasps (>= 3 fingertips on the object; both pads for the 2-finger gripper), per object and overall.
 
     OMP_NUM_THREADS=1 python benchmarks/table_reach.py [--hands allegro,shadow,aero,robotiq] [--objects ycb10]
         [--approaches 30] [--seed 0] [--depth 0.002]

@@ -145,7 +145,8 @@ def _plain_servo(act) -> bool:
 
 
 def pool_cache_path(objects, hand: str, n_fingers: int, approaches: int, support: str, seed: int,
-                    budget: str = "uniform", actions: np.ndarray | None = None, solid_table: bool | None = None) -> Path:
+                    budget: str = "uniform", actions: np.ndarray | None = None,
+                    solid_table: bool | None = None) -> Path:
     given = [] if actions is None else [hashlib.sha256(np.ascontiguousarray(actions, np.float64)).hexdigest()]
     key = config_key(_CACHE_VERSION, objects.identity, hand, int(n_fingers), int(approaches), support, int(seed),
                      hand_physics_key(hand, n_fingers), *budget_key(budget, approaches), *given,
