@@ -720,12 +720,14 @@ def test_greedy_look_ahead_with_grasp_heights(env_config):
 
 
 def test_heights_hand_envs_are_the_plain_ones_with_grasp_heights():
-    """The Heights hand envs change only the grasp vector (heights) and the touch weight chosen for it on validation."""
+    """The Heights hand envs change only the grasp vector (heights) and the touch weight chosen for it on validation,
+    and the Allegro's keeps the z_fingers it was validated with (3; the plain env's 2 since the solid table)."""
     from haptic_env import ENV_VARIANTS
 
-    for hand, w in (("MuJoCo", 1.0), ("Shadow", 0.5), ("Aero", 1.0), ("Robotiq", 1.0)):
+    for hand, w, more in (("MuJoCo", 1.0, {"z_fingers": 3}), ("Shadow", 0.5, {}), ("Aero", 1.0, {}),
+                          ("Robotiq", 1.0, {})):
         plain, heights = ENV_VARIANTS[f"HapticRecog{hand}-v0"], ENV_VARIANTS[f"HapticRecog{hand}Heights-v0"]
-        assert heights == {**plain, "grasp_heights": True, "touch_weight": w}
+        assert heights == {**plain, "grasp_heights": True, "touch_weight": w, **more}
         assert haptic_env.variant_config(f"HapticRecog{hand}Heights-v0").grasp_heights
         assert not haptic_env.variant_config(f"HapticRecog{hand}-v0").grasp_heights
 
