@@ -1,0 +1,10 @@
+import time, gymnasium as gym, haptic_env
+t0 = time.perf_counter()
+env = gym.make("HapticRecogMuJoCo-v0")
+env.reset(seed=0)
+t1 = time.perf_counter()
+env.close()
+t2 = time.perf_counter()
+env = gym.make("HapticRecogMuJoCo-v0"); env.reset(seed=0)
+t3 = time.perf_counter()
+print(f"FIRST make+reset {t1-t0:.1f} s; later make+reset {t3-t2:.1f} s")
