@@ -416,6 +416,26 @@ def test_standoff_trial_picks_the_best_rate_ties_to_the_larger(rates, best, tmp_
     assert rep.standoff == cands[best] and np.isclose(rep.standoff, _best_standoff(rep.standoff_trial), atol=5e-5)
 
 
+def test_the_standoff_trial_keeps_the_visual_table_it_was_calibrated_with(monkeypatch):
+    """The trial that picks a hand's standoff ran with the visual table, and the cached hands keep its choice
+    (AUTO_VERSION); with the solid table as the backend's default (2026-12-07) a fresh cache picked another
+    standoff for the Allegro (0 instead of 0.02), so another hand than the measured one. The trial pins its table."""
+    import haptic_env.grasping.mujoco_backend as mb
+    from haptic_env.grasping.auto_hand import standoff_trial
+
+    seen = []
+
+    class Probe:
+        def __init__(self, config):
+            seen.append(config)
+            raise RuntimeError("probe")
+
+    monkeypatch.setattr(mb, "MujocoBackend", Probe)
+    with pytest.raises(RuntimeError, match="probe"):
+        standoff_trial(generic_hand(4), [0.01, 0.0])
+    assert seen and seen[0].solid_table is False and not seen[0].table_is_solid
+
+
 def test_pads_and_finger_couplings(tmp_path):
     desc = auto_hand(_write(tmp_path, "grip", gripper()), cache=False)
     rep = report(desc)

@@ -695,7 +695,10 @@ def standoff_trial(desc: HandDescription, candidates: list[float]) -> np.ndarray
             GraspObject("trial_box", trimesh.creation.box([0.05, 0.08, 0.12])),
             GraspObject("trial_ball", trimesh.creation.icosphere(2, 0.035)),
             GraspObject("trial_bar", trimesh.creation.box([0.025, 0.025, 0.15]))]
-    be = MujocoBackend(MujocoConfig(hand=desc, n_fingers=None))
+    # the visual table, as this trial was calibrated with before the table became solid (2026-12-07): the standoff is
+    # a property of the hand, kept by AUTO_VERSION's cached hands, and a solid table here picked another one (the
+    # Allegro's 0 instead of 0.02) on an empty cache only
+    be = MujocoBackend(MujocoConfig(hand=desc, n_fingers=None, solid_table=False))
     rates = np.zeros(len(candidates))
     try:
         for i, obj in enumerate(objs):
