@@ -209,7 +209,8 @@ class Scene:
         kw = dict(cfg.backend_kwargs)
         own = {k: kw[k] for k in ("approaches", "pool_seed") if cfg.backend == "replay" and k in kw}
         replay = ReplayBackend(ReplayConfig(hand=backend_hand(cfg), n_fingers=cfg.n_fingers,
-                                            support=kw.get("support", "table"), **own))
+                                            support=kw.get("support", "table"), solid_table=kw.get("solid_table"),
+                                            **own))
         replay.prepare(self.objects)
         records = [replay.records(o) for o in self.objects]
         # a small pool (a replay env's own, e.g. in tests) has fewer records than the kernel's default neighbours

@@ -535,3 +535,37 @@ def test_a_hand_envs_hand_is_its_backends_default_when_not_given():
     assert backend_hand(HapticRecogConfig(backend="mujoco")) == "generic"
     assert backend_hand(HapticRecogConfig(backend="replay", backend_kwargs={"hand": "shadow"})) == "shadow"
     assert recognizer_kwargs(HapticRecogConfig(backend="replay"))["config"].grasps.hand == "allegro"
+
+
+def test_the_replay_backend_and_the_yaw_belief_record_the_envs_table(two_objects, monkeypatch):
+    """``solid_table`` reaches the replay's recordings and an env's yaw belief (they recorded the default, solid,
+    table whatever the env's; a replay env with ``solid_table=False`` was a TypeError)."""
+    import haptic_env.hand_grasps as hg
+    from haptic_env.grasping.replay import ReplayBackend
+    from haptic_env.scene import Scene
+
+    asked = []
+
+    def fake_pool(objects, hand, n_fingers, approaches, **kw):
+        asked.append(kw.get("solid_table"))
+        raise RuntimeError("recorded")
+
+    monkeypatch.setattr(hg, "hand_grasp_pool", fake_pool)
+    for table in (None, False):
+        with pytest.raises(RuntimeError, match="recorded"):
+            ReplayBackend(ReplayConfig(hand="generic", approaches=4, solid_table=table)).prepare(two_objects)
+    with pytest.raises(ValueError, match="solid_table needs support='table'"):
+        ReplayConfig(hand="generic", support="floating", solid_table=True)
+    scene = Scene.__new__(Scene)  # only what yaw_belief reads: the config and the objects
+    scene.config = dataclasses.replace(_plain_hand_config(), backend_kwargs={"hand": "generic", "solid_table": False})
+    scene.objects = two_objects
+    with pytest.raises(RuntimeError, match="recorded"):
+        scene.yaw_belief()
+    assert asked == [None, False, False]
+
+
+def _plain_hand_config():
+    from haptic_env.env import HapticRecogConfig
+
+    return HapticRecogConfig(backend="mujoco", backend_kwargs={"hand": "generic"}, recognizer_source="surface",
+                             action_frame="estimated")

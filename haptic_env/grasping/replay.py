@@ -45,8 +45,8 @@ import numpy as np
 
 from haptic_env.numbers import checked_flag, finite_number, whole_at_least, whole_number
 
-from .base import (ACTION_DIM, GraspBatch, GraspResult, check_support, validate_action, validate_actions,
-                   validate_pose)
+from .base import (ACTION_DIM, GraspBatch, GraspResult, check_solid_table, check_support, validate_action,
+                   validate_actions, validate_pose)
 
 __all__ = ["ReplayConfig", "ReplayBackend", "approach_embedding", "turned_azimuth", "yaw_log_likelihood", "YawBelief",
            "YAW_SIGMA", "YAW_NEIGHBOURS", "YAW_MISS", "YAW_WINDOW"]
@@ -78,6 +78,9 @@ class ReplayConfig:
     #: env's yaw belief, ``action_frame="estimated"``, still reads the random-approach pool: ``Scene.yaw_belief``)
     table: int = 0
     yaws: int = 72  #: recorded yaws per approach of ``table`` (72: every 5 degrees)
+    #: the recordings' table (``MujocoConfig.solid_table``: None, solid wherever there is one; False: the visual table
+    #: of the hand figures before 2026-12-07)
+    solid_table: bool | None = None
 
     def __post_init__(self) -> None:
         if self.n_fingers is not None and (whole_number(self.n_fingers) is None or self.n_fingers < 2):
@@ -92,6 +95,7 @@ class ReplayConfig:
         if isinstance(self.pool_seed, bool) or not isinstance(self.pool_seed, (int, np.integer)) or self.pool_seed < 0:
             raise ValueError(f"pool_seed must be an int >= 0, got {self.pool_seed!r}")
         check_support(self.support)
+        check_solid_table(self.solid_table, self.support)
         whole_at_least(self.table, 0, "table")
         whole_at_least(self.yaws, 1, "yaws")
         if isinstance(self.neighbours, bool) or not (isinstance(self.neighbours, (int, np.integer))
@@ -316,7 +320,8 @@ class ReplayBackend:
         subset = objects if len(todo) == len(objects) else ObjectSet(objects.name, todo)
         table = table_actions(cfg.table, cfg.yaws) if cfg.table else None
         pool = hand_grasp_pool(subset, cfg.hand, self.n_fingers, cfg.records, support=cfg.support,
-                               seed=int(cfg.pool_seed), progress=cfg.progress, actions=table)
+                               seed=int(cfg.pool_seed), progress=cfg.progress, actions=table,
+                               solid_table=cfg.solid_table)
         shared = None if table is None else cKDTree(approach_embedding(table))  # every object's table is the same
         for k, obj in enumerate(subset):
             tree = shared
