@@ -18,7 +18,8 @@ with ``--split validation``, ``1000 + s`` with ``--split test``). Per grasp the 
   ``k`` the env's ``subset_k`` (4), its ``score_subsets`` rule (:func:`~haptic_env.recognizers.zfinger.subset_weight`;
   with 4 fingers all 4 subsets, as the hand table);
 
-both plus the touch pattern's log-likelihood weighted as in the hand's env (``touch_weight``; the Allegro's is 0).
+both plus the touch pattern's log-likelihood weighted as in the hand's env (``touch_weight``; the Allegro's 0.75 since
+2026-12-07, 0 when this frontier was measured).
 
 With ``--heights`` the grasp vectors carry the contacts' heights above the table, and the settings are the hand's
 ``Heights`` env's (``hand_experiment.py --heights``).

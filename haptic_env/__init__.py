@@ -17,7 +17,8 @@
 
 The ``Heights`` hand envs differ from their plain ones only in the grasp vector (the paper's frame-invariant
 Phi_n plus each contact's height above the table, ``grasp_heights``) and in the belief settings chosen
-for it on validation grasps (``touch_weight``; RESULTS.md). The plain envs keep the paper's vector, and the
+for it on validation grasps (``touch_weight``; RESULTS.md), and the Allegro's keeps the ``z_fingers=3`` it was
+validated with (the plain Allegro env's is 2 since the solid table). The plain envs keep the paper's vector, and the
 leaderboard and RL results are theirs.
 
 All take ``config=HapticRecogConfig(...)`` and/or single config fields as keyword arguments, see

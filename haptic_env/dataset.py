@@ -624,7 +624,7 @@ def _split_hand_rows(objects: ObjectSet, config: DatasetConfig, progress: bool,
         if len(X) < min_rows:
             left_out[objects.names[k]] = len(X)
             continue
-        n_val = int(round(config.val_fraction * len(X)))
+        n_val = min(int(round(config.val_fraction * len(X))), len(X) - 1)  # one row at least for training
         perm = rng.permutation(len(X))
         Xva.append(X[perm[:n_val]])
         Xtr.append(X[perm[n_val:]])

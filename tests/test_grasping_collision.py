@@ -111,3 +111,10 @@ def test_a_convex_shipped_piece_is_used_as_shipped(tmp_path, monkeypatch):
     obj = _shipped(tmp_path, trimesh.creation.box((0.06, 0.06, 0.1)))
     pieces = convex_pieces(obj)
     assert len(pieces) == 1 and not (tmp_path / "cache" / "collision").exists()
+
+
+def test_a_missing_shipped_piece_is_named_when_a_cache_key_reads_it(tmp_path):
+    obj = _shipped(tmp_path, trimesh.creation.box((0.06, 0.06, 0.1)))
+    obj.collision_paths[0].unlink()
+    with pytest.raises(FileNotFoundError, match=r"collision piece .*collision_00\.stl of object 'obj' is missing"):
+        obj.pieces_hash

@@ -89,7 +89,7 @@ def test_a_hand_whose_fingertips_close_behind_its_palm_grasps_a_small_ball():
 
 
 def test_a_solid_table_keeps_the_fingertips_out_of_it(load_benchmark):
-    """The table is a visual plane unless ``solid_table``: fingertips sink into it to touch a ball low down (10 of
+    """With ``solid_table=False`` the table is a visual plane: fingertips sink into it to touch a ball low down (10 of
     these 12 random approaches reach 2 mm or more under the table top); a solid table stops them, and the ball is
     still grasped from above."""
     from haptic_env.grasping.base import support_height

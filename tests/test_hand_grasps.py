@@ -354,6 +354,10 @@ def test_an_object_with_one_complete_grasp_keeps_it_for_training(two_objects, mo
     ds = build_dataset(two_objects, cfg, cache=False, progress=False)
     assert np.bincount(ds.y_train, minlength=2)[0] == 1 and 0 not in ds.y_val
     assert np.bincount(ds.y_train, minlength=2)[1] + np.bincount(ds.y_val, minlength=2)[1] == 20
+    # however large the validation share, an object keeps a training row (round(0.9 x 1) sent its one row away)
+    wide = build_dataset(two_objects, DatasetConfig(n_fingers=3, grasps_per_object=20, source="hand", hand="generic",
+                                                    val_fraction=0.9), cache=False, progress=False)
+    assert np.bincount(wide.y_train, minlength=2).tolist() == [1, 2] and 0 not in wide.y_val
 
 
 def _rate_chunk(obj, hand, n, support, actions, seed, solid_table=False):

@@ -102,8 +102,12 @@ def hull_depth(vertices: np.ndarray, hull: trimesh.Trimesh) -> float:
     v = np.asarray(vertices, dtype=np.float64)
     if len(v) == 0:
         return 0.0
-    normals = np.asarray(hull.face_normals, dtype=np.float64)  # (F, 3) outward
-    offsets = np.einsum("ij,ij->i", normals, np.asarray(hull.triangles[:, 0], dtype=np.float64))  # (F,)
+    normals = np.asarray(hull.face_normals, dtype=np.float64)  # (F, 3) outward; a zero-area face's is zero
+    keep = np.linalg.norm(normals, axis=1) > 0.5  # a zero normal would put every point on its "plane"
+    normals = normals[keep]
+    offsets = np.einsum("ij,ij->i", normals, np.asarray(hull.triangles[keep, 0], dtype=np.float64))  # (F,)
+    if len(normals) == 0:
+        return 0.0
     depth = np.full(len(v), np.inf)
     for lo in range(0, len(v), 4096):  # (chunk, F) at a time
         depth[lo:lo + 4096] = (offsets[None, :] - v[lo:lo + 4096] @ normals.T).min(axis=1)

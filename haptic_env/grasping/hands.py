@@ -189,11 +189,11 @@ def allegro_hand(side: str = "right") -> HandDescription:
     The closing synergy, open pose, approach axis and standoff are the automatic path's
     (:func:`~haptic_env.grasping.auto_hand.auto_hand` on the Menagerie file), as for the Shadow: every
     flexion actuator closes to the top of its range and the thumb opposes, so fingers close until they
-    touch. On 400 ycb10 approaches (one core) that gives complete 4-finger grasps on 0.40 of them against
-    0.26 for the earlier hand-written synergy (proximal joints stopped at 1.1 rad), and >= 3 fingertips on
-    0.75 against 0.65. Physics: a 4 ms step with the earlier description's 0.24 s of closing (60 steps;
-    contacts checked every 20 ms) keeps those rates of the 2 ms step at 1.4x its grasps/s (192 against 135
-    grasps/s; the earlier synergy at 2 ms: 157)."""
+    touch. On 400 ycb10 approaches (one core; with the visual table of the scene before 2026-12-07) that gives
+    complete 4-finger grasps on 0.40 of them against 0.26 for the earlier hand-written synergy (proximal joints
+    stopped at 1.1 rad), and >= 3 fingertips on 0.75 against 0.65. Physics: a 4 ms step with the earlier
+    description's 0.24 s of closing (60 steps; contacts checked every 20 ms) keeps those rates of the 2 ms step at
+    1.4x its grasps/s (192 against 135 grasps/s; the earlier synergy at 2 ms: 157)."""
     if side not in ("right", "left"):
         raise ValueError(f"side must be 'right' or 'left', got {side!r}")
     from .auto_hand import auto_hand
@@ -208,8 +208,9 @@ def shadow_hand(side: str = "right") -> HandDescription:
     The closing synergy, open pose, approach axis and standoff are the automatic path's
     (:func:`~haptic_env.grasping.auto_hand.auto_hand` on the Menagerie file): every flexion actuator closes
     to the top of its range and the thumb opposes, so fingers close until they touch. On 240 ycb10
-    approaches that gives complete 5-finger grasps on 0.54 of them against 0.30 for the earlier hand-written
-    synergy (flexion stopped at 1.3 / 2.2 rad), and >= 3 fingertips on 0.85 against 0.75. On validation hand
+    approaches (with the visual table of the scene before 2026-12-07) that gives complete 5-finger grasps on 0.54
+    of them against 0.30 for the earlier hand-written synergy (flexion stopped at 1.3 / 2.2 rad), and >= 3
+    fingertips on 0.85 against 0.75. On validation hand
     grasps (pool seeds 500-502, 3,000 training approaches per object) BC-NP without normals stops correct in
     87.0 % of queries after 4.9 grasps, against 79-83 % after 8.1-8.4 with the earlier synergy.
 
@@ -242,7 +243,8 @@ def aero_hand(side: str = "right") -> HandDescription:
     ``tetheria_mount``. The planar fingers have no abduction joint, so their torque-derived normals
     miss the component along the joint axes (see :mod:`~haptic_env.grasping.mujoco_backend`). The
     thumb is slow to settle: up to 0.8 s of closing (200 steps of 4 ms). The 4 ms step keeps the usable
-    (0.85) and complete (0.56) grasp rates and the contact error of 2 ms on 400 ycb10 approaches at 1.3x the
+    (0.85) and complete (0.56) grasp rates (the visual table, before 2026-12-07) and the contact error of 2 ms on 400
+    ycb10 approaches at 1.3x the
     grasps/s, and the recognition: validation BC-NP (pool seeds 500-502, 3,000 training approaches) 85.0 +- 2.2 %
     in 5.94 grasps against 85.3 +- 2.6 % in 5.96 at 2 ms."""
     if side not in ("right", "left"):

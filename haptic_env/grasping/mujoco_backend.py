@@ -191,8 +191,8 @@ class GraspScene:
 
     def __init__(self, hand: HandDescription, pieces: list | None, pose: np.ndarray, *, table_z: float | None,
                  timestep: float, friction: float, joint_frictionloss: float | None = 0.0,
-                 solver: str | None = None, solid_table: bool = False) -> None:
-        # timestep, friction, solid_table: MujocoConfig's (the one default of each)
+                 solver: str | None = None, solid_table: bool) -> None:
+        # timestep, friction, solid_table: MujocoConfig's (the one default of each; solid_table resolved)
         self.hand = hand
         spec = mujoco.MjSpec()
         spec.modelname = "grasp_scene"

@@ -154,6 +154,8 @@ class GraspObject:
             return None
         h = hashlib.sha1(repr(float(self.unit_scale)).encode())
         for p in self.collision_paths:
+            if not Path(p).is_file():
+                raise FileNotFoundError(f"collision piece {p} of object {self.name!r} is missing")
             h.update(Path(p).name.encode())
             h.update(Path(p).read_bytes())
         return h.hexdigest()
