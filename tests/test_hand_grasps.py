@@ -513,3 +513,24 @@ def test_the_table_is_solid_by_default_and_the_visual_one_keeps_its_keys(two_obj
     plain = HapticRecogConfig(backend="mujoco", backend_kwargs={"hand": "allegro"}, objects="ycb10")
     grasps = recognizer_kwargs(plain)["config"].grasps
     assert grasps.solid_table is None and grasps.key_config().solid_table is True
+
+
+def test_the_dataset_commands_visual_table_flag_reaches_the_pool(monkeypatch):
+    """``haptic-recog dataset --source hand --visual-table`` asks for the visual table's pool; without it the default
+    (solid wherever there is a table). Synthetic pool: no grasping."""
+    import haptic_env.hand_grasps as hg
+    from haptic_env.cli import main
+
+    asked = []
+
+    def fake_pool(objects, hand, n_fingers, approaches, **kw):
+        asked.append(kw.get("solid_table"))
+        raise RuntimeError("pooled")
+
+    monkeypatch.setattr(hg, "hand_grasp_pool", fake_pool)
+    base = ["dataset", "--objects", "default", "--fingers", "3", "--source", "hand", "--hand", "generic", "--grasps",
+            "4", "--no-cache", "--quiet"]
+    for extra in ([], ["--visual-table"]):
+        with pytest.raises(RuntimeError, match="pooled"):
+            main([*base, *extra])
+    assert asked == [None, False]
