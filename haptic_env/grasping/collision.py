@@ -104,10 +104,10 @@ def hull_depth(vertices: np.ndarray, hull: trimesh.Trimesh) -> float:
         return 0.0
     normals = np.asarray(hull.face_normals, dtype=np.float64)  # (F, 3) outward; a zero-area face's is zero
     keep = np.linalg.norm(normals, axis=1) > 0.5  # a zero normal would put every point on its "plane"
+    if not keep.any():
+        return 0.0
     normals = normals[keep]
     offsets = np.einsum("ij,ij->i", normals, np.asarray(hull.triangles[keep, 0], dtype=np.float64))  # (F,)
-    if len(normals) == 0:
-        return 0.0
     depth = np.full(len(v), np.inf)
     for lo in range(0, len(v), 4096):  # (chunk, F) at a time
         depth[lo:lo + 4096] = (offsets[None, :] - v[lo:lo + 4096] @ normals.T).min(axis=1)
@@ -120,24 +120,29 @@ def _non_convex_piece(pieces: list[trimesh.Trimesh], paths, tol: float) -> str |
     its bounding-box diagonal inside its hull (a non-convex piece's vertices can all lie on its hull's boundary: an
     L-shaped prism's inner corner lies on the hull's top and bottom faces)."""
     for piece, path in zip(pieces, paths):
-        hull = piece.convex_hull
-        if piece.is_watertight and abs(float(piece.volume)) > 0:
-            ratio = float(hull.volume) / abs(float(piece.volume))
-            if ratio > 1.0 + tol:
-                return f"{Path(path).name} (its hull {ratio:.2f}x its volume)"
+        ratio = _hull_ratio(piece)
+        if ratio is not None and ratio > 1.0 + tol:
+            return f"{Path(path).name} (its hull {ratio:.2f}x its volume)"
         size = float(np.linalg.norm(piece.extents))
-        depth = hull_depth(piece.triangles_center, hull)
+        depth = hull_depth(piece.triangles_center, piece.convex_hull)
         if size > 0 and depth > tol * size:
             return f"{Path(path).name} ({depth * 1e3:.1f} mm inside its hull, {size * 1e3:.0f} mm across)"
     return None
 
 
-def _is_convex(mesh: trimesh.Trimesh, tol: float) -> bool:
+def _hull_ratio(mesh: trimesh.Trimesh) -> float | None:
+    """The volume of ``mesh``'s convex hull over its own, or None when that is unknown (not watertight, no volume, or
+    no hull)."""
     try:
         vol = abs(float(mesh.volume)) if mesh.is_watertight else 0.0
-        return vol > 0 and float(mesh.convex_hull.volume) <= (1.0 + tol) * vol
+        return float(mesh.convex_hull.volume) / vol if vol > 0 else None
     except Exception:
-        return False
+        return None
+
+
+def _is_convex(mesh: trimesh.Trimesh, tol: float) -> bool:
+    ratio = _hull_ratio(mesh)
+    return ratio is not None and ratio <= 1.0 + tol
 
 
 def _coacd(mesh: trimesh.Trimesh, cfg: CollisionConfig, name: str, cache: bool) -> list[trimesh.Trimesh]:
