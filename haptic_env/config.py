@@ -143,8 +143,8 @@ class HapticRecogConfig:
     training grasps (the mujoco or replay backend). The Shadow and Aero envs use 0.5, chosen per hand on validation
     grasps (RESULTS.md; the Shadow's 0.25 before the solid table); the Allegro 0.75 since 2026-12-07, chosen with
     ``z_fingers=2`` on validation grasps with the solid table (with the visual table its success at the stop did not
-    change, and it kept 0). The
-    ``Heights`` envs use 1.0 / 0.5 / 1.0 / 1.0 (Allegro / Shadow / Aero / Robotiq), chosen for them on validation."""
+    change, and it kept 0). The ``Heights`` envs use 1.0 / 0.5 / 1.0 / 1.0 (Allegro / Shadow / Aero / Robotiq),
+    chosen for them on validation."""
     grasp_heights: bool = False
     """Append the contacts' heights above the table to the grasp vector (``n`` more values, in the chain order of
     :math:`\\Phi_n`; ``DatasetConfig.heights``, ``phi(heights=True)``), for the recogniser and the observation. The

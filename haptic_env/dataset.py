@@ -200,11 +200,11 @@ class DatasetConfig:
         key the one, the dataset command the other.) The hand source's table is keyed as its pool keys it: a solid
         one (the default, ``None``, resolved) as ``True``, the visual one unkeyed, as before 2026-12-07."""
         fields = type(self).__dataclass_fields__
-        ignored = ([("sampling", fields["sampling"].default)] if self.source != "surface" else []) + (
+        keyed_as = ([("sampling", fields["sampling"].default)] if self.source != "surface" else []) + (
             [] if self.normals else [("normal_noise_deg", fields["normal_noise_deg"].default)])
         if self.source == "hand":
-            ignored.append(("solid_table", True if check_solid_table(self.solid_table, self.support) else None))
-        changed = {k: v for k, v in ignored if getattr(self, k) != v}
+            keyed_as.append(("solid_table", True if check_solid_table(self.solid_table, self.support) else None))
+        changed = {k: v for k, v in keyed_as if getattr(self, k) != v}
         return replace(self, **changed) if changed else self
 
     def source_key(self) -> str:

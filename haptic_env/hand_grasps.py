@@ -148,10 +148,10 @@ def pool_cache_path(objects, hand: str, n_fingers: int, approaches: int, support
                     budget: str = "uniform", actions: np.ndarray | None = None,
                     solid_table: bool | None = None) -> Path:
     given = [] if actions is None else [hashlib.sha256(np.ascontiguousarray(actions, np.float64)).hexdigest()]
+    # a marker for the solid table only: the visual table's pools (the default before 2026-12-07) keep their keys
     key = config_key(_CACHE_VERSION, objects.identity, hand, int(n_fingers), int(approaches), support, int(seed),
                      hand_physics_key(hand, n_fingers), *budget_key(budget, approaches), *given,
-                     *(["solid_table"] if check_solid_table(solid_table, support) else []))  # the visual table's
-    # pools (the default before 2026-12-07) keep their keys
+                     *(["solid_table"] if check_solid_table(solid_table, support) else []))
     return cache_dir("hand_grasps") / f"{file_stem(hand, 'hand')}-{key}.npz"  # a hand may be an MJCF path
 
 
