@@ -8,7 +8,8 @@ touching fingertips carries no information but is spent; an incomplete grasp wit
 by the t-finger model. Every method sees the same grasp sequences (common random numbers). In the hand regime
 the BC-NP rows also weigh each grasp's touch pattern (which fingertips touched) by ``--touch-weight``, by default
 the hand's registered env's ``touch_weight`` (:mod:`haptic_env.recognizers.touch`); then every grasp carries
-information.
+information. The paper's BC-IP row does not; the row ``BC-IP, touch`` (hand regime only, not the paper's method)
+weighs it as BC-NP does, its classifier prior set by the first grasp the classifier scores.
 
 Two training regimes per hand, both computed from the meshes alone:
 
@@ -80,7 +81,10 @@ ENV_IDS = {"allegro": "HapticRecogMuJoCo-v0", "shadow": "HapticRecogShadow-v0", 
 HEIGHTS_ENV_IDS = {name: env_id.replace("-v0", "Heights-v0") for name, env_id in ENV_IDS.items()}
 #: label -> (updater kind, z, random subsets per grasp)
 METHODS = {"IC": ("ic", None, None), "BC-NP": ("bc-np", None, None), "BC-IP": ("bc-ip", None, None),
-           "IC, z=3": ("ic", 3, 4), "BC-NP, z=3": ("bc-np", 3, 4)}
+           "IC, z=3": ("ic", 3, 4), "BC-NP, z=3": ("bc-np", 3, 4), "BC-IP, touch": ("bc-ip", None, None)}
+#: the rows that weigh the touch pattern in the hand regime (the paper's BC-IP row does not; its figure stands beside
+#: "BC-IP, touch" too)
+TOUCH_ROWS = ("BC-NP", "BC-NP, z=3", "BC-IP, touch")
 #: the paper's table (success % / grasps): Pisa/IIT SoftHand (5, w/o), Allegro (4, w/o), Allegro (4, w/)
 PAPER = {
     "IC": {"5-": (89, 3.76), "4-": (81, 2.97), "4+": (87, 3.78)},
@@ -89,10 +93,11 @@ PAPER = {
     "IC, z=3": {"5-": (51, 1.04), "4-": (52, 1.25), "4+": (49, 1.14)},
     "BC-NP, z=3": {"5-": (92, 4.22), "4-": (93, 4.85), "4+": (94, 1.62)},
 }
+PAPER["BC-IP, touch"] = PAPER["BC-IP"]
 
 
 #: method -> its marker in the plot; training regime -> its colour (the paper's figures: hollow, black)
-MARKERS = {"IC": "o", "BC-NP": "s", "BC-IP": "D", "IC, z=3": "^", "BC-NP, z=3": "v"}
+MARKERS = {"IC": "o", "BC-NP": "s", "BC-IP": "D", "IC, z=3": "^", "BC-NP, z=3": "v", "BC-IP, touch": "P"}
 REGIME_COLORS = {"hand": "C0", "surface": "0.55"}
 #: the table's header, as :func:`main` writes it (the temperature column names the likelihood)
 TABLE_HEADER = ("| hand | fingers | normals | training | method | success % | accuracy % | grasps | "
@@ -232,14 +237,15 @@ def plot_hand_table(rows: list[dict], path: Path, threshold: float = DEFAULT_THR
 def run_query(updater, C, N, T, normals: bool, touch=None) -> tuple[int, int, bool]:
     """Feed one query's grasps ``C, N (G, n, 3)``, ``T (G, n)`` until decided -> (prediction, grasps, decided).
 
-    ``touch (G, K)``: each grasp's weighted touch-pattern log-likelihood, added at every grasp (BC-NP only; the
-    same sum as the env's one Bayes step per grasp, :meth:`haptic_env.belief.Belief.update`), or None."""
+    ``touch (G, K)``: each grasp's weighted touch-pattern log-likelihood, added at every grasp in the grasp's one
+    Bayes step (BC-NP and BC-IP, as the env's :meth:`haptic_env.belief.Belief.update`), or None."""
     updater.reset()
     for k in range(len(C)):
-        if touch is not None:
-            updater.update_scores(log_lik=touch[k:k + 1])
+        evidence = None if touch is None else touch[k:k + 1]
         if T[k].sum() >= 3:
-            updater.update_grasp(C[k], N[k] if normals else None, T[k])
+            updater.update_grasp(C[k], N[k] if normals else None, T[k], evidence=evidence)
+        elif evidence is not None:
+            updater.update_scores(evidence=evidence)
         if updater.decided:
             return updater.prediction, k + 1, True
     return updater.prediction, len(C), False
@@ -262,18 +268,20 @@ def training_config(regime: str, hand: str, args, calibrate_grasps: int = 1,
 
 def evaluate(rec, pools, objects, n: int, normals: bool, args, touch_weight: float = 0.0) -> dict[str, dict]:
     """label -> {success (S,), accuracy (S,), grasps (S,)} over seeds of the pools of ``objects``; ``touch_weight``:
-    the BC-NP rows' weight of the touch pattern (``rec.touch``; 0: off). The queries' contacts are read as the
+    the :data:`TOUCH_ROWS`' weight of the touch pattern (``rec.touch``; 0: off, and no "BC-IP, touch" row). The queries' contacts are read as the
     recogniser's training grasps were (:func:`~haptic_env.dataset.support_frame`: from each object's table when its
     vectors carry heights)."""
     out = {}
     for label in args.methods:
         kind, z, k = METHODS[label]
+        if label == "BC-IP, touch" and touch_weight == 0:  # the paper's BC-IP row
+            continue
         succ, acc, used = [], [], []
         for s, pool in enumerate(pools):
             rng = np.random.default_rng([7, s])
             upd = rec.make_updater(kind, threshold=args.threshold, z=z, k=k, rng=rng, calibrated=not args.raw,
                                    ic_certainty=args.ic_certainty)
-            w = touch_weight if kind == "bc-np" else 0.0
+            w = touch_weight if label in TOUCH_ROWS else 0.0
             res = []
             for i in range(pool.touched.shape[0]):
                 C = support_frame(pool.contacts[i], objects[i], rec.config.grasps).reshape(args.queries,
@@ -321,8 +329,8 @@ def main(argv=None) -> int:
     ap.add_argument("--kde-bandwidth", choices=BANDWIDTHS, default="shared",
                     help="KDE bandwidths (KDEConfig.bandwidth; the envs use shared) (default shared)")
     ap.add_argument("--touch-weight", type=float, default=None,
-                    help="hand regime, BC-NP rows: weight of the touch-pattern log-likelihood (HapticRecogConfig."
-                         "touch_weight; default: the hand's registered env's setting; 0: off)")
+                    help="hand regime, BC-NP and 'BC-IP, touch' rows: weight of the touch-pattern log-likelihood "
+                         "(HapticRecogConfig.touch_weight; default: the hand's registered env's setting; 0: off)")
     ap.add_argument("--raw", action="store_true", help="the paper's raw scores (no calibration temperatures)")
     ap.add_argument("--ic-certainty", choices=IC_CERTAINTIES, default=DEFAULT_IC_CERTAINTY,
                     help="the IC rows' certainty: count (ours, default) or share (the authors' code)")
@@ -378,7 +386,7 @@ def main(argv=None) -> int:
         for regime in args.regimes:
             cfg = training_config(regime, hand, args, K, A, args.kde_bandwidth)
             data = cfg.grasps.grasps_per_object
-            # the touch pattern needs the hand's own grasps (the hand regime); BC-NP rows only
+            # the touch pattern needs the hand's own grasps (the hand regime); TOUCH_ROWS only
             w = (args.touch_weight if args.touch_weight is not None else env.touch_weight) \
                 if regime == "hand" else 0.0
             for normals in normal_settings:
@@ -387,7 +395,7 @@ def main(argv=None) -> int:
                 res = evaluate(rec, pools, objects, n, normals, args, w)
                 for label, r in tqdm(res.items(), desc=f"{hand} {regime}", disable=True):
                     rows.append((hand, n, normals, regime, label, r, usable, temps, K, data,
-                                 w if METHODS[label][0] == "bc-np" else 0.0))
+                                 w if label in TOUCH_ROWS else 0.0))
     cols = {(4, True): "4+", (4, False): "4-", (5, False): "5-"}
     lik = "gradient boosting's" if args.likelihood == "hgb" else "the KDE's"
     calib = "raw scores" if args.raw else (f"calibrated scores (temperatures fitted on validation grasps; {lik} "

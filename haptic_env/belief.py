@@ -126,8 +126,8 @@ class Belief:
         subset_k: with ``score_subsets``, the subsets a Bayesian step counts at most (see the module docstring; the
             paper's 4, as the env config's); None: all of them, the plain product of Algorithm 3.
         touch_weight: ``w`` of the touch-pattern log-likelihood added at every grasp
-            (:mod:`~haptic_env.recognizers.touch`; BC-NP only, and the recogniser needs its ``touch`` model);
-            0: off, the paper's method.
+            (:mod:`~haptic_env.recognizers.touch`; BC-NP and BC-IP, whose classifier prior then comes with the first
+            grasp the classifier scores; the recogniser needs its ``touch`` model); 0: off, the paper's method.
         ic_certainty: with ``kind="ic"``, IC's certainty rule (``IterativeClassification``): "count" or "share".
     """
 
@@ -142,8 +142,8 @@ class Belief:
         min_fingers = check_min_fingers(min_fingers, z_fingers, score_subsets)
         subset_k = check_subset_k(subset_k)
         touch_weight = check_touch_weight(touch_weight)
-        if touch_weight > 0 and kind != "bc-np":
-            raise ValueError(f"touch_weight={touch_weight} needs the 'bc-np' updater, got {kind!r}")
+        if touch_weight > 0 and kind not in ("bc-np", "bc-ip"):
+            raise ValueError(f"touch_weight={touch_weight} needs a Bayesian updater ('bc-np' or 'bc-ip'), got {kind!r}")
         if touch_weight > 0 and getattr(recognizer, "touch", None) is None:
             raise ValueError(f"touch_weight={touch_weight} needs a recogniser with its touch model "
                              "(build_recognizer(touch=True), hand-matched training grasps)")
@@ -266,7 +266,7 @@ class Belief:
         contacts = self._support_frame(contacts)  # from here on in the support frame: rows(..., support_z=0.0)
         if self._touch is None:
             if (self._scorer is not None and self.compiled and np.count_nonzero(touched) == touched.size
-                    and (self.kind == "bc-np" or self.updater.n_grasps > 0)):  # BC-IP: its prior from the classifier
+                    and (self.kind == "bc-np" or self.updater.prior_set)):  # BC-IP: its prior from the classifier
                 q, log_lik = self._scorer(contacts, normals)  # = rows + the likelihood of updater.update
                 if log_lik is None:
                     return q, False
@@ -277,14 +277,19 @@ class Belief:
                 return q, False
             self._set(self._update(Q))
             return q, True
-        # with the touch pattern: its row joins the contacts' rows in one Bayes step (BC-NP; every grasp has one)
+        # with the touch pattern: its row joins the contacts' rows in one Bayes step (every grasp has one)
+        rows = self.touch_rows(touched[None])
+        if self.kind == "bc-ip" and not self.updater.prior_set:  # the classifier's prior comes with the first grasp
+            q, Q = self.rows(contacts, normals, touched, support_z=0.0)  # it scores, the pattern's row beside it
+            proba = None if Q is None else self.models.predict_proba(Q)
+            self._set(self.updater.update_scores(proba=proba, evidence=rows))
+            return q, True
         if self._scorer is not None and self.compiled and np.count_nonzero(touched) == touched.size:
             q, log_lik = self._scorer(contacts, normals)
         else:
             q, Q = self.rows(contacts, normals, touched, support_z=0.0)
             log_lik = None if Q is None else self.row_weight(len(Q)) * self.models.log_likelihood(Q)
-        rows = self.touch_rows(touched[None])
-        self._set(self.updater.update_scores(log_lik=rows if log_lik is None else np.concatenate([log_lik, rows])))
+        self._set(self.updater.update_scores(log_lik=log_lik, evidence=rows))
         return q, True
 
     def row_weight(self, m: int) -> float:
@@ -396,8 +401,10 @@ class Belief:
         touch = self.touch_rows(touched)
         B = len(touch)
         per = [np.zeros((0, self.n_classes))] * B
+        prior = self.kind == "bc-ip" and not self.updater.prior_set  # a scored grasp would set the classifier prior
         for g, i in enumerate(scored):
-            per[i] = self.row_weight(len(rows[g])) * self.models.log_likelihood(rows[g])
+            per[i] = (self.updater.prior_row(self.models.predict_proba(rows[g]))[None] if prior
+                      else self.row_weight(len(rows[g])) * self.models.log_likelihood(rows[g]))
         L = np.concatenate([np.concatenate([per[i], touch[i:i + 1]]) for i in range(B)]) if B else touch
         starts = np.concatenate([[0], np.cumsum([len(per[i]) + 1 for i in range(B)])]).astype(np.int64)
         post, _ = bayes_steps(np.broadcast_to(self.updater.log_belief, (B, self.n_classes)), L, starts)

@@ -137,10 +137,11 @@ class HapticRecogConfig:
     validation grasps (RESULTS.md); the Aero's together with its ``touch_weight`` (without the touch pattern its
     belief needed twice the grasps at 5 for no more success, and it kept 1)."""
     touch_weight: float = 0.0
-    """Weight ``w`` of the hand's touch-pattern log-likelihood ``w log P(pattern | object)`` that BC-NP adds at
-    every grasp (which fingertips touched: :mod:`haptic_env.recognizers.touch`, estimated from the same
-    hand-matched training grasps as the KDE); 0: off, the paper's method. Needs the "bc-np" updater and "hand"
-    training grasps (the mujoco or replay backend). The Shadow and Aero envs use 0.5, chosen per hand on validation
+    """Weight ``w`` of the hand's touch-pattern log-likelihood ``w log P(pattern | object)`` that BC-NP (or BC-IP)
+    adds at every grasp (which fingertips touched: :mod:`haptic_env.recognizers.touch`, estimated from the same
+    hand-matched training grasps as the KDE); 0: off, the paper's method. Needs a Bayesian updater ("bc-np", or
+    "bc-ip", whose classifier prior then comes with the first grasp the classifier scores) and "hand" training
+    grasps (the mujoco or replay backend). The Shadow and Aero envs use 0.5, chosen per hand on validation
     grasps (RESULTS.md; the Shadow's 0.25 before the solid table); the Allegro 0.75 since 2026-12-07, chosen with
     ``z_fingers=2`` on validation grasps with the solid table (with the visual table its success at the stop did not
     change, and it kept 0). The ``Heights`` envs use 1.0 / 0.5 / 1.0 / 1.0 (Allegro / Shadow / Aero / Robotiq),
@@ -210,8 +211,8 @@ class HapticRecogConfig:
             raise ValueError(f"updater must be one of {UPDATERS}, got {self.updater!r}")
         check_ic_certainty(self.ic_certainty)
         w = check_touch_weight(self.touch_weight)
-        if w > 0 and self.updater != "bc-np":
-            raise ValueError(f"touch_weight={w} needs updater='bc-np', got {self.updater!r}")
+        if w > 0 and self.updater not in ("bc-np", "bc-ip"):
+            raise ValueError(f"touch_weight={w} needs a Bayesian updater ('bc-np' or 'bc-ip'), got {self.updater!r}")
         if w > 0 and (self.backend not in HAND_BACKENDS or self.recognizer_source not in ("auto", "hand")):
             raise ValueError(f"touch_weight={w} needs hand-matched training grasps (backend {HAND_BACKENDS} with "
                              f"recognizer_source 'auto' or 'hand'), got backend={self.backend!r}, "

@@ -208,6 +208,52 @@ def test_touch_pattern_adds_w_log_p_at_every_grasp(touch_recognizer):
         np.testing.assert_allclose(p, cp.probs, rtol=1e-9, atol=1e-12)
 
 
+def test_touch_pattern_with_bc_ip_sets_the_classifier_prior_at_the_first_scored_grasp(touch_recognizer):
+    """BC-IP with the touch pattern: a grasp without contacts moves the belief by its pattern and leaves the prior
+    to come; the first complete grasp multiplies in the classifier's prior and its pattern in one step; later
+    grasps are KDE + pattern steps, the compiled path as the general one; predict_grasps = updating a copy."""
+    from haptic_env.grasping import make_backend
+    from haptic_env.objects import load_object_set
+
+    w = 0.5
+    belief = Belief(touch_recognizer, "bc-ip", z_fingers=3, touch_weight=w)
+    none = np.zeros(4, dtype=bool)
+    assert belief.update(np.zeros((4, 3)), np.zeros((4, 3)), none)[1]
+    lp = w * touch_recognizer.touch.log_p[:, 0]
+    np.testing.assert_allclose(belief.probs, np.exp(lp - logsumexp_(lp)), rtol=1e-12)
+    assert not belief.updater.prior_set and belief.n_grasps == 1
+
+    backend = make_backend("geometric", n_fingers=4)
+    backend.set_object(load_object_set("default")[1], np.eye(4))
+    res = backend.grasp_batch(np.random.default_rng(1).uniform(-1, 1, (24, 4)), np.random.default_rng(2))
+    full = np.flatnonzero(res.touched.all(axis=1))
+    post, scored = belief.predict_grasps(res.contacts, res.normals, res.touched)  # before the prior
+    for p, i in zip(post, scored):
+        cp = copy.deepcopy(belief)
+        cp.update(res.contacts[i], res.normals[i], res.touched[i])
+        np.testing.assert_allclose(p, cp.probs, rtol=1e-9, atol=1e-12)
+    before = np.log(belief.probs)
+    _, Q = belief.rows(res.contacts[full[0]], res.normals[full[0]], res.touched[full[0]])
+    row = belief.updater.prior_row(belief.models.predict_proba(Q))
+    belief.update(res.contacts[full[0]], res.normals[full[0]], res.touched[full[0]])
+    lb = before + row + belief.touch_rows(res.touched[full[0]])[0]
+    np.testing.assert_allclose(belief.probs, np.exp(lb - logsumexp_(lb)), rtol=1e-9)
+    assert belief.updater.prior_set and belief.n_grasps == 2
+
+    general = copy.deepcopy(belief)
+    general.compiled = False
+    for b in (belief, general):
+        b.update(res.contacts[full[1]], res.normals[full[1]], res.touched[full[1]])
+    np.testing.assert_allclose(belief.probs, general.probs, rtol=1e-9, atol=1e-12)
+    post, scored = belief.predict_grasps(res.contacts, res.normals, res.touched)  # after it
+    for p, i in zip(post, scored):
+        cp = copy.deepcopy(belief)
+        cp.update(res.contacts[i], res.normals[i], res.touched[i])
+        np.testing.assert_allclose(p, cp.probs, rtol=1e-9, atol=1e-12)
+    belief.reset()
+    assert not belief.updater.prior_set and belief.n_grasps == 0
+
+
 def test_touch_weight_is_checked(recognizer, touch_recognizer):
     with pytest.raises(ValueError, match="touch model"):
         Belief(recognizer, "bc-np", touch_weight=0.5)

@@ -486,6 +486,7 @@ def test_touch_weight_is_checked_at_make_and_reaches_the_recogniser(env_config):
     assert "touch" not in _recognizer_kwargs(env_config)
     hand = HapticRecogConfig(backend="mujoco", backend_kwargs={"hand": "generic"}, touch_weight=0.5)
     assert _recognizer_kwargs(hand)["touch"] is True
+    assert _recognizer_kwargs(hand.replace(updater="bc-ip"))["touch"] is True  # BC-IP weighs it too
     assert ENV_VARIANTS["HapticRecogShadow-v0"]["touch_weight"] == 0.5  # chosen per hand on validation grasps
     assert ENV_VARIANTS["HapticRecogAero-v0"]["touch_weight"] == 0.5
     for bad, match in [({"touch_weight": -1.0}, "touch_weight"), ({"touch_weight": float("nan")}, "touch_weight"),

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from haptic_env.recognizers.boosted import BoostedConfig
@@ -28,6 +29,39 @@ def test_hgb_takes_the_kdes_place_with_the_same_k(bench, regime):
     assert hgb.grasps == kde.grasps  # the same training grasps; only the likelihood differs
     # the callers that pass their own args without the flag (stop_frontier.py, hand_classifiers.py) keep the KDE
     assert bench.training_config(regime, "allegro", _args(), calibrate_grasps=4, approaches=300) == kde
+
+
+class _Constant:
+    """A model that gives every row the same scores (log-likelihoods or probabilities)."""
+
+    def __init__(self, row):
+        self.row = np.asarray(row, dtype=float)
+        self.n_classes = len(self.row)
+
+    def log_likelihood(self, Q):
+        return np.tile(self.row, (len(Q), 1))
+
+    predict_proba = log_likelihood
+
+
+def test_run_query_gives_bc_ip_the_touch_pattern_at_every_grasp(bench):
+    """BC-IP, touch: a grasp with too few touching fingertips adds its pattern's row alone, the first complete grasp
+    the classifier's prior and its row, a later one the KDE's row and its own: one Bayes step each."""
+    from scipy.special import logsumexp
+
+    from haptic_env.recognizers.updaters import BCIP
+    from haptic_env.recognizers.zfinger import ZFingerUpdater
+
+    proba, ll = np.array([0.6, 0.3, 0.1]), np.log([0.2, 0.5, 0.3])
+    upd = ZFingerUpdater(BCIP(_Constant(proba), _Constant(ll), threshold=0.999999))
+    rng = np.random.default_rng(0)
+    C, N = rng.normal(size=(3, 4, 3)), None
+    T = np.array([[1, 1, 0, 0], [1, 1, 1, 1], [1, 1, 1, 1]], dtype=bool)
+    touch = np.log(rng.dirichlet(np.ones(3), size=3))
+    assert bench.run_query(upd, C, N, T, False, touch)[1:] == (3, False)
+    lb = touch.sum(0) + np.log(proba) + ll
+    np.testing.assert_allclose(upd.belief, np.exp(lb - logsumexp(lb)), rtol=1e-12)
+    assert upd.n_grasps == 3 and upd.prior_set
 
 
 def test_command_line_errors_name_the_bad_value(bench, usage_error):

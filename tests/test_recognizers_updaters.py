@@ -224,6 +224,48 @@ def test_a_grasp_that_fits_only_ruled_out_classes_leaves_the_belief_as_it_was():
     np.testing.assert_array_equal(post, log_b)  # the belief as it was
 
 
+def test_evidence_rows_join_a_bayes_step_and_wait_for_bc_ips_prior():
+    """Evidence (the touch pattern) is a Bayes step of its own before BC-IP's prior, joins the prior's step on the
+    first grasp the classifier scores, and the KDE's step after; BC-NP's = log_lik and evidence as one step; IC and
+    bad rows are refused before anything changes."""
+    proba = np.array([[0.7, 0.2, 0.1]])
+    ll = np.log([[0.2, 0.5, 0.3]])
+    ev = np.log([[0.5, 0.25, 0.25]])
+    u = BCIP(FixedModel(proba), FixedModel(ll), threshold=0.99)
+    b = u.update_scores(evidence=ev)  # a grasp the classifier does not score
+    np.testing.assert_allclose(b, [0.5, 0.25, 0.25])
+    assert not u.prior_set and u.n_grasps == 1
+    u.update_scores(proba=np.zeros((0, 3)), evidence=ev)  # no usable row: the grasp is spent, its evidence counts
+    assert not u.prior_set and u.n_grasps == 2
+    b = u.update([0.0], evidence=ev)  # the classifier's prior and the evidence in one step
+    e = np.array([0.5, 0.25, 0.25]) ** 3 * proba[0]
+    np.testing.assert_allclose(b, e / e.sum())
+    assert u.prior_set and u.n_grasps == 3
+    b = u.update([0.0], evidence=ev)
+    e = e * np.exp(ll[0]) * [0.5, 0.25, 0.25]
+    np.testing.assert_allclose(b, e / e.sum())
+    for bad in (dict(log_lik=ll, evidence=np.full((1, 3), np.nan)), dict(log_lik=ll, evidence=np.zeros((1, 2)))):
+        with pytest.raises(ValueError, match="evidence|NaN"):
+            u.update_scores(**bad)
+        np.testing.assert_allclose(u.belief, e / e.sum())
+    u.reset()
+    assert not u.prior_set
+    with pytest.raises(ValueError, match="NaN"):
+        u.update_scores(proba=proba, evidence=np.full((1, 3), np.nan))
+    assert not u.prior_set and u.n_grasps == 0 and np.allclose(u.belief, 1 / 3)
+    with pytest.raises(ValueError, match="probabilities"):  # the contacts' log_lik without the classifier's proba
+        u.update_scores(log_lik=ll, evidence=ev)
+
+    np_ = BayesianUpdater(FixedModel(ll))
+    np_.update_scores(log_lik=ll, evidence=ev)
+    e = np.exp(ll[0]) * [0.5, 0.25, 0.25]
+    np.testing.assert_allclose(np_.belief, e / e.sum())
+    np_.update_scores(evidence=ev)
+    assert np_.n_grasps == 2
+    with pytest.raises(ValueError, match="evidence"):
+        IterativeClassification(FixedModel(proba), 0.85).update_scores(proba=proba, evidence=ev)
+
+
 def test_a_refused_update_changes_nothing():
     """IC and BC-IP's first grasp refuse an update without classifier probabilities before counting the grasp."""
     for u in (IterativeClassification(None, 0.85, n_classes=2), BCIP(None, None, 0.85, n_classes=2)):

@@ -30,6 +30,12 @@ BC-IP — informative prior
     The first grasp's classifier probabilities (clipped at ``eps``) form the prior; later grasps
     are KDE likelihood updates as in BC-NP.
 
+Evidence other than the grasp vector (the hand's touch pattern, :mod:`~haptic_env.recognizers.touch`) enters a
+Bayesian updater as ``evidence (r, K)`` log-likelihood rows of the same grasp: ``update_scores(log_lik, proba,
+evidence=E)`` takes them in the same step (BC-NP: beside the KDE's rows; BC-IP: also on the grasp that sets the
+classifier's prior), and ``update_scores(evidence=E)`` alone is a grasp the models do not score (BC-IP: its prior
+then waits for the first grasp the classifier scores, :attr:`BCIP.prior_set`). IC takes none.
+
 A decision is made once ``certainty >= threshold`` (``lambda_s``, default :data:`DEFAULT_THRESHOLD`).
 
 :meth:`BeliefUpdater.predict` gives the beliefs after one more grasp for ``G`` candidate grasps at once
@@ -215,6 +221,14 @@ def check_max_log_ratio(max_log_ratio) -> float:
     return math.inf if max_log_ratio is None else float(max_log_ratio)
 
 
+def _joined(log_lik, evidence, n_classes: int) -> np.ndarray:
+    """One grasp's log-likelihood rows ``(m + r, K)``: the models' ``log_lik (m, K)`` and the ``evidence (r, K)``
+    (either may be None), each checked (:func:`score_rows`)."""
+    parts = [score_rows(x, n_classes, name) for x, name in ((log_lik, "log_lik"), (evidence, "evidence"))
+             if x is not None]
+    return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+
 def _check_weight(weight) -> float:
     w = finite_number(weight)
     if w is None or not w > 0:
@@ -258,8 +272,9 @@ class BeliefUpdater(ABC):
         """Forget all grasps; returns the initial belief ``(K,)``."""
 
     @abstractmethod
-    def update_scores(self, log_lik=None, proba=None) -> np.ndarray:
-        """One grasp from precomputed scores of its ``m`` rows: ``log_lik (m, K)``, ``proba (m, K)``."""
+    def update_scores(self, log_lik=None, proba=None, *, evidence=None) -> np.ndarray:
+        """One grasp from precomputed scores of its ``m`` rows: ``log_lik (m, K)``, ``proba (m, K)``; ``evidence
+        (r, K)``: log-likelihood rows of the same grasp from outside the grasp vector (Bayesian updaters only)."""
 
     @abstractmethod
     def update(self, q) -> np.ndarray:
@@ -345,8 +360,10 @@ class IterativeClassification(BeliefUpdater):
             return self._prior.copy()
         return self.scores / self.n_grasps
 
-    def update_scores(self, log_lik=None, proba=None) -> np.ndarray:
-        if proba is None:  # before anything changes
+    def update_scores(self, log_lik=None, proba=None, *, evidence=None) -> np.ndarray:
+        if evidence is not None:  # before anything changes
+            raise ValueError("IC takes no evidence rows (the touch pattern needs a Bayesian updater: 'bc-np', 'bc-ip')")
+        if proba is None:
             raise ValueError("IC updates need classifier probabilities (proba)")
         P = _probabilities(proba, self.n_classes)  # before anything changes
         self.n_grasps += 1
@@ -411,21 +428,22 @@ class BayesianUpdater(BeliefUpdater):
         if status == _OK:  # else every class is impossible: no information, the belief stays
             self.log_belief = post
 
-    def update_scores(self, log_lik=None, proba=None) -> np.ndarray:
-        if log_lik is None:
-            raise ValueError("Bayesian updates need log-likelihoods (log_lik)")
-        self._bayes(log_lik)  # raises on NaN, +inf or a bad shape before anything changes
+    def update_scores(self, log_lik=None, proba=None, *, evidence=None) -> np.ndarray:
+        if log_lik is None and evidence is None:
+            raise ValueError("Bayesian updates need log-likelihoods (log_lik or evidence rows)")
+        self._bayes(_joined(log_lik, evidence, self.n_classes))  # raises on NaN, +inf, a bad shape before any change
         self.n_grasps += 1
         return self.belief
 
-    def update(self, q, weight: float = 1.0) -> np.ndarray:
+    def update(self, q, weight: float = 1.0, *, evidence=None) -> np.ndarray:
         """One grasp's rows ``q (d,)`` or ``(m, d)``; ``weight`` (> 0) multiplies their combined log-likelihood (a
         tempered step: z-subset scoring counts ``C(t, z)`` correlated subsets as ``k``, see
-        :class:`~haptic_env.belief.Belief`)."""
+        :class:`~haptic_env.belief.Belief`); ``evidence (r, K)``: the same grasp's other log-likelihood rows (the
+        touch pattern), not weighted."""
         w = _check_weight(weight)  # before the model runs: a bad weight (True, '2') is refused, not read as a number
         Q = _rows(q)
         L = self.likelihood.log_likelihood(Q) if len(Q) else np.zeros((0, self.n_classes))
-        return self.update_scores(log_lik=L if w == 1.0 else w * L)
+        return self.update_scores(log_lik=L if w == 1.0 else w * L, evidence=evidence)
 
     def predict(self, Q, starts=None, weights=None) -> np.ndarray:
         """:meth:`BeliefUpdater.predict` in one likelihood call and one batched Bayes step (:func:`bayes_steps`);
@@ -447,7 +465,10 @@ BCNP = BayesianUpdater
 
 
 class BCIP(BayesianUpdater):
-    """BC with the informative prior of the first grasp's classifier probabilities."""
+    """BC with the informative prior of the first grasp's classifier probabilities.
+
+    "First grasp": the first the classifier scores. Before it, only ``evidence`` rows (the touch pattern) may
+    update the belief (:meth:`update_scores`); :attr:`prior_set` tells whether the prior is in."""
 
     kind = "bc-ip"
 
@@ -458,30 +479,61 @@ class BCIP(BayesianUpdater):
         self.eps = float(eps)
         super().__init__(likelihood, threshold, **kw)
 
-    def update_scores(self, log_lik=None, proba=None) -> np.ndarray:
-        if self.n_grasps > 0:
-            return super().update_scores(log_lik=log_lik)
-        if proba is None:  # before anything changes
-            raise ValueError("the first BC-IP update needs classifier probabilities (proba)")
-        P = _probabilities(proba, self.n_classes)  # before anything changes
+    def reset(self, prior=None) -> np.ndarray:
+        self.prior_set = False
+        return super().reset(prior)
+
+    def prior_row(self, proba) -> np.ndarray:
+        """``(K,)``: the log prior factor of one grasp's classifier probabilities ``proba (m, K)``, ``m >= 1``: the
+        rows' mean clipped at ``eps``, normalised (a Bayes step with this row sets the prior)."""
+        P = _probabilities(proba, self.n_classes)
+        if len(P) == 0:
+            raise ValueError("a classifier prior needs at least one row of probabilities")
+        p = np.maximum(P.mean(axis=0), self.eps)
+        return np.log(p / p.sum())
+
+    def update_scores(self, log_lik=None, proba=None, *, evidence=None) -> np.ndarray:
+        """After the prior: a Bayes step of ``log_lik`` and ``evidence``. Before it: ``proba`` rows set the prior (the
+        grasp's ``log_lik`` unused, as the paper's first grasp) and ``evidence`` joins in the same step; with
+        ``proba`` of no rows (no usable row) the grasp is spent; ``evidence`` alone is a Bayes step (a grasp the
+        classifier does not score) and the prior waits."""
+        if self.prior_set:
+            return super().update_scores(log_lik=log_lik, evidence=evidence)
+        if proba is None and (evidence is None or log_lik is not None):  # before anything changes
+            raise ValueError("the first BC-IP update needs classifier probabilities (proba), or evidence rows alone")
+        E = None if evidence is None else score_rows(evidence, self.n_classes, "evidence")
+        if proba is None:
+            return super().update_scores(evidence=E)
+        P = _probabilities(proba, self.n_classes)
+        row = self.prior_row(P) if len(P) else None
+        log_b = self.log_belief
+        if row is not None:
+            log_b = log_b + row
+            log_b = log_b - _logsumexp(log_b)
+        if E is not None and len(E):  # the step computed aside, so that a bad row changes nothing
+            mlr = np.inf if self.max_log_ratio is None else float(self.max_log_ratio)
+            post, status = _bayes_step(log_b, E, self.combine == "product", mlr)
+            if status == _NAN:
+                raise ValueError("evidence contains NaN or +inf, or its rows sum past the float range")
+            if status == _OK:  # else every class is impossible: no information from the evidence
+                log_b = post
+        self.log_belief = log_b
+        self.prior_set = self.prior_set or row is not None
         self.n_grasps += 1
-        if len(P):
-            p = np.maximum(P.mean(axis=0), self.eps)
-            post = self.log_belief + np.log(p / p.sum())
-            self.log_belief = post - _logsumexp(post)
         return self.belief
 
-    def update(self, q, weight: float = 1.0) -> np.ndarray:
+    def update(self, q, weight: float = 1.0, *, evidence=None) -> np.ndarray:
         """As :meth:`BayesianUpdater.update`; the first grasp's classifier prior takes no weight."""
         Q = _rows(q)
         if len(Q) == 0:
-            return self.update_scores(log_lik=np.zeros((0, self.n_classes)), proba=np.zeros((0, self.n_classes)))
-        if self.n_grasps == 0:
-            return self.update_scores(proba=self.classifier.predict_proba(Q))
-        return super().update(Q, weight)
+            return self.update_scores(log_lik=np.zeros((0, self.n_classes)), proba=np.zeros((0, self.n_classes)),
+                                      evidence=evidence)
+        if not self.prior_set:
+            return self.update_scores(proba=self.classifier.predict_proba(Q), evidence=evidence)
+        return super().update(Q, weight, evidence=evidence)
 
     def predict(self, Q, starts=None, weights=None) -> np.ndarray:
-        if self.n_grasps == 0:  # the first grasp sets the classifier prior: not a Bayes step (no weight)
+        if not self.prior_set:  # the first scored grasp sets the classifier prior: not a Bayes step (no weight)
             return BeliefUpdater.predict(self, Q, starts)
         return super().predict(Q, starts, weights)
 

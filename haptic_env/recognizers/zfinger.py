@@ -175,16 +175,17 @@ class ZFingerUpdater:
         Bayesian updater)."""
         return self.base.update(q, **kw)
 
-    def update_scores(self, log_lik=None, proba=None) -> np.ndarray:
+    def update_scores(self, log_lik=None, proba=None, *, evidence=None) -> np.ndarray:
         """Precomputed scores of one grasp's rows (see ``BeliefUpdater.update_scores``)."""
-        return self.base.update_scores(log_lik=log_lik, proba=proba)
+        return self.base.update_scores(log_lik=log_lik, proba=proba, evidence=evidence)
 
-    def update_grasp(self, contacts, normals=None, touched=None) -> np.ndarray:
+    def update_grasp(self, contacts, normals=None, touched=None, *, evidence=None) -> np.ndarray:
         """One grasp from raw contacts ``(n, 3)`` (+ inward normals; with ``heights``, in the support frame) -> new
-        belief ``(K,)``."""
+        belief ``(K,)``; ``evidence (r, K)``: the grasp's other log-likelihood rows (the touch pattern; Bayesian
+        updaters)."""
         Q = subset_vectors(contacts, normals, self.z, k=self.k, rng=self.rng, touched=touched, normalize=self.normalize,
                            heights=self.heights, normal_axis=self.normal_axis)
-        return self.base.update(Q)
+        return self.base.update(Q) if evidence is None else self.base.update(Q, evidence=evidence)
 
 
 def sample_finger_counts(p_n, size: int, rng: np.random.Generator) -> np.ndarray:
