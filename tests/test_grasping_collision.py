@@ -102,15 +102,32 @@ def test_a_non_convex_shipped_piece_is_decomposed_not_collided_as_its_hull(tmp_p
         pieces = convex_pieces(obj, CollisionConfig(threshold=0.05))
     assert "collision_00.stl" in caplog.text and "not convex" in caplog.text
     assert len(pieces) >= 2 and list((tmp_path / "cache" / "collision").glob("*.npz"))
+    again = convex_pieces(obj, CollisionConfig(threshold=0.05))  # the cached verdict: decomposed again (cached)
+    assert len(again) == len(pieces) and "collision_00.stl" in caplog.text
     kept = convex_pieces(obj, CollisionConfig(method="files"))
     assert len(kept) == 1
 
 
 def test_a_convex_shipped_piece_is_used_as_shipped(tmp_path, monkeypatch):
+    """... and the verdict is cached: a second call (another process, another pool chunk) does not test the pieces
+    again; an unreadable verdict file is tested again, with a warning; ``cache=False`` writes none."""
+    from haptic_env.grasping import collision
+
     monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path / "cache"))
     obj = _shipped(tmp_path, trimesh.creation.box((0.06, 0.06, 0.1)))
+    assert len(convex_pieces(obj, cache=False)) == 1 and not (tmp_path / "cache" / "collision").exists()
     pieces = convex_pieces(obj)
-    assert len(pieces) == 1 and not (tmp_path / "cache" / "collision").exists()
+    verdicts = list((tmp_path / "cache" / "collision").glob("*-convexity-*.json"))
+    assert len(pieces) == 1 and len(verdicts) == 1 and not list((tmp_path / "cache" / "collision").glob("*.npz"))
+    tested = []
+    real = collision._non_convex_piece
+    monkeypatch.setattr(collision, "_non_convex_piece", lambda *a: tested.append(1) or real(*a))
+    again = convex_pieces(obj)
+    assert not tested and np.allclose(again[0].vertices, pieces[0].vertices)
+    verdicts[0].write_text("{not json")
+    with pytest.warns(RuntimeWarning, match="convexity verdict .* unreadable"):
+        assert len(convex_pieces(obj)) == 1
+    assert tested == [1] and '"non_convex": null' in verdicts[0].read_text()  # tested and saved again
 
 
 def test_a_missing_shipped_piece_is_named_when_a_cache_key_reads_it(tmp_path):

@@ -8,7 +8,8 @@ Sources, in order for ``method="auto"``:
    inside its hull: :func:`hull_depth`).
    A shipped piece that is not (YCB's 035 power drill and 006 mustard bottle ship their whole mesh as one
    "piece") would be collided as its hull, so the object is decomposed as in 3 instead (logged);
-   ``method="files"`` takes the pieces as shipped;
+   ``method="files"`` takes the pieces as shipped. The verdict is cached beside the decompositions (a small JSON
+   keyed by the pieces' files and ``convex_tol``), so that every process and pool chunk does not test them again;
 2. the convex hull, when the mesh is (nearly) convex (hull volume within ``convex_tol`` of the mesh);
 3. a ``coacd`` approximate convex decomposition, cached in ``cache_dir("collision")`` keyed by
    the mesh geometry and the config (atomic ``.npz`` writes).
@@ -17,7 +18,9 @@ Sources, in order for ``method="auto"``:
 from __future__ import annotations
 
 import hashlib
+import json
 import logging
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,7 +28,7 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from ..cache import cache_dir, config_key, load_npz, save_npz_atomic
+from ..cache import atomic_write, cache_dir, config_key, load_npz, save_npz_atomic
 from ..numbers import finite_number, whole_number
 
 __all__ = ["CollisionConfig", "convex_pieces", "hull_depth"]
@@ -130,6 +133,30 @@ def _non_convex_piece(pieces: list[trimesh.Trimesh], paths, tol: float) -> str |
     return None
 
 
+def _shipped_verdict(obj: Any, name: str, cfg: CollisionConfig, cache: bool) -> tuple[str | None, list | None]:
+    """``(_non_convex_piece of obj's shipped pieces, the pieces or None)``: the verdict read from its cache file when
+    there is one (then the pieces are not loaded), else tested on the loaded pieces and saved (atomically) when
+    ``cache``. A cache file that cannot be read is tested again (warned)."""
+    digest = getattr(obj, "pieces_hash", None)  # the files' bytes and units (GraspObject); None: no key, test
+    path = (cache_dir("collision") / f"{name}-convexity-{config_key(digest, float(cfg.convex_tol))}.json"
+            if cache and digest is not None else None)
+    if path is not None and path.is_file():
+        try:
+            bad = json.loads(path.read_text())["non_convex"]
+            if bad is None or isinstance(bad, str):
+                return bad, None
+            raise TypeError(f"non_convex is {bad!r}")
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            warnings.warn(f"convexity verdict {path} unreadable ({exc}); testing the pieces again", RuntimeWarning,
+                          stacklevel=3)
+    pieces = _from_files(obj)
+    bad = _non_convex_piece(pieces, obj.collision_paths, cfg.convex_tol)
+    if path is not None:
+        with atomic_write(path, "w") as fh:
+            json.dump({"object": name, "non_convex": bad}, fh)
+    return bad, pieces
+
+
 def _hull_ratio(mesh: trimesh.Trimesh) -> float | None:
     """The volume of ``mesh``'s convex hull over its own, or None when that is unknown (not watertight, no volume, or
     no hull)."""
@@ -180,10 +207,11 @@ def convex_pieces(obj: Any, config: CollisionConfig | None = None, *, cache: boo
     if cfg.method == "files" or (cfg.method == "auto" and getattr(obj, "collision_paths", ())):
         if not getattr(obj, "collision_paths", ()):
             raise ValueError(f"object {name!r} ships no collision pieces (collision_paths is empty)")
-        pieces = _from_files(obj)
-        bad = _non_convex_piece(pieces, obj.collision_paths, cfg.convex_tol) if cfg.method == "auto" else None
+        if cfg.method == "files":
+            return _from_files(obj)
+        bad, pieces = _shipped_verdict(obj, name, cfg, cache)
         if bad is None:
-            return pieces
+            return _from_files(obj) if pieces is None else pieces
         log.info("object %r: shipped collision piece %s is not convex, and MuJoCo would collide it as its hull; "
                  "decomposing the mesh with coacd instead", name, bad)
         return _coacd(mesh, cfg, name, cache)
