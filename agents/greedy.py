@@ -40,6 +40,7 @@ Approximations (documented, deliberate):
 
 from __future__ import annotations
 
+import weakref
 from typing import Any
 
 import numpy as np
@@ -87,13 +88,17 @@ class GreedyInfoGainAgent:
         self.backend_kwargs = backend_kwargs
         self._rng = np.random.default_rng(seed)
         self._backends: list[Any] | None = None
-        self._env_id: int | None = None
+        self._env_ref = None  # () -> the env the backends were built for, or None once freed (not its id: reused)
         self.last_scores: np.ndarray | None = None  #: expected posterior entropy of each candidate, last step
         self.yaw_belief = None  #: infer_pose: the episode's :class:`~haptic_env.grasping.replay.YawBelief`
         self._pose: np.ndarray | None = None  # the hypotheses' pose this episode (reset)
 
+    def _built_for(self, base) -> bool:
+        """Whether the simulation backends were built for ``base`` (the same env object, still alive)."""
+        return self._backends is not None and self._env_ref is not None and self._env_ref() is base
+
     def _sim_backends(self, base) -> list[Any]:
-        if self._backends is None or self._env_id != id(base):
+        if not self._built_for(base):
             from haptic_env.grasping import make_backend
 
             cfg = base.config
@@ -112,7 +117,10 @@ class GreedyInfoGainAgent:
                 self._backends = [shared] * len(base.objects)
             else:
                 self._backends = [make_backend(kind, n_fingers=cfg.n_fingers, **kw) for _ in base.objects]
-            self._env_id = id(base)
+            try:
+                self._env_ref = weakref.ref(base)
+            except TypeError:  # an env-like object without weak references: held
+                self._env_ref = lambda env=base: env
             self.yaw_belief = None
         return self._backends
 
@@ -157,7 +165,7 @@ class GreedyInfoGainAgent:
 
     def act(self, obs: np.ndarray, env: Any) -> np.ndarray:
         base = env.unwrapped
-        if self._backends is None or self._env_id != id(base):
+        if not self._built_for(base):
             self.reset(env)
         space = env.action_space
         M, S = self.n_candidates, self.n_samples

@@ -129,6 +129,28 @@ def test_greedy_picks_the_lowest_expected_entropy(env_config):
     np.testing.assert_array_equal(a, cands[np.argmin(agent.last_scores)].astype(space.dtype))
 
 
+def test_greedy_builds_its_backends_again_for_another_env_even_at_a_reused_id(env_config):
+    """The look-ahead's backends belong to the env they were built for: a new env (which may get the id of one that
+    was freed) gets its own, not a stale one."""
+    env = haptic_env.make(env_config)
+    env.reset(seed=5)
+    agent = GreedyInfoGainAgent(n_candidates=4, seed=0)
+    agent.reset(env, seed=0)
+    first = agent._sim_backends(env.unwrapped)
+    assert agent._built_for(env.unwrapped) and agent._sim_backends(env.unwrapped) is first  # kept for that env
+    other = haptic_env.make(env_config)
+    other.reset(seed=6)
+    assert not agent._built_for(other.unwrapped)
+    agent.act(other.reset(seed=6)[0], other)
+    assert agent._built_for(other.unwrapped) and agent._sim_backends(other.unwrapped) is not first
+    base = other.unwrapped
+    del other, base  # freed: the agent does not keep it alive, nor take a later env at its id for it
+    import gc
+
+    gc.collect()
+    assert agent._env_ref() is None and not agent._built_for(env.unwrapped)
+
+
 def test_greedy_env_lookahead_simulates_the_envs_own_backend(env_config):
     """simulate="env": on the geometric env it is the default look-ahead (same actions); on a MuJoCo hand config its
     hypotheses are grasped by MuJoCo backends of that hand; "-blind" hides the pose. Bad settings fail at
