@@ -208,14 +208,15 @@ class DatasetConfig:
         return replace(self, **changed) if changed else self
 
     def source_key(self) -> str:
-        """The identity of the grasp source beyond this config: the hand's physics for ``source="hand"``
+        """The identity of the grasp source beyond this config: for ``source="hand"`` the pools' cache version
+        (:data:`~haptic_env.hand_grasps.POOL_VERSION`: a new pool format gives new data sets too), the hand's physics
         (:func:`~haptic_env.hand_grasps.hand_physics_key`) and, for a balanced budget, how its pool is spread
         (:func:`~haptic_env.hand_grasps.budget_key`), else empty. Part of every cache key built on it."""
         if self.source != "hand":
             return ""
-        from .hand_grasps import budget_key, hand_physics_key
+        from .hand_grasps import POOL_VERSION, budget_key, hand_physics_key
 
-        return ":".join([hand_physics_key(self.hand, self.hand_fingers or self.n_fingers),
+        return ":".join([POOL_VERSION, hand_physics_key(self.hand, self.hand_fingers or self.n_fingers),
                          *budget_key(self.hand_budget, self.grasps_per_object)])
 
     @property

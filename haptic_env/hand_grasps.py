@@ -53,7 +53,9 @@ __all__ = ["HandGraspPool", "hand_grasp_pool", "pool_actions", "table_actions", 
            "hand_physics_key", "CHUNK", "BUDGETS", "balanced_counts", "parts_dir", "PROBE", "balanced_probe",
            "budget_key"]
 
-_CACHE_VERSION = "hand-grasps-v2"  # v2: the key holds the hand's physics (hand_physics_key)
+#: the pools' cache version, also in the keys of the data sets built on them (``DatasetConfig.source_key``); v2: the
+#: key holds the hand's physics (hand_physics_key)
+POOL_VERSION = "hand-grasps-v2"
 #: values of ``hand_grasp_pool(budget=...)`` (and ``DatasetConfig.hand_budget``)
 BUDGETS = ("uniform", "balanced")
 #: Approaches per worker task. A task builds its own backend and scene (0.1-0.5 s for the Menagerie hands, about
@@ -149,7 +151,7 @@ def pool_cache_path(objects, hand: str, n_fingers: int, approaches: int, support
                     solid_table: bool | None = None) -> Path:
     given = [] if actions is None else [hashlib.sha256(np.ascontiguousarray(actions, np.float64)).hexdigest()]
     # a marker for the solid table only: the visual table's pools (the default before 2026-12-07) keep their keys
-    key = config_key(_CACHE_VERSION, objects.identity, hand, int(n_fingers), int(approaches), support, int(seed),
+    key = config_key(POOL_VERSION, objects.identity, hand, int(n_fingers), int(approaches), support, int(seed),
                      hand_physics_key(hand, n_fingers), *budget_key(budget, approaches), *given,
                      *(["solid_table"] if check_solid_table(solid_table, support) else []))
     return cache_dir("hand_grasps") / f"{file_stem(hand, 'hand')}-{key}.npz"  # a hand may be an MJCF path

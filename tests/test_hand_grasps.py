@@ -391,7 +391,8 @@ def test_a_balanced_budget_keeps_its_total_whatever_the_chunk(two_objects, monke
     keys.append((hg.pool_cache_path(two_objects, "generic", 3, approaches, "table", 0, "balanced"), cfg.source_key()))
     assert keys[0][0] != keys[1][0] and keys[0][1] != keys[1][1]
     uniform = DatasetConfig(n_fingers=3, grasps_per_object=approaches, source="hand", hand="generic")
-    assert uniform.source_key() == hg.hand_physics_key("generic", 3)  # the uniform budget's keys are as before
+    # the uniform budget's: the pools' version and the hand's physics (a new pool version gives new data sets too)
+    assert uniform.source_key() == f"{hg.POOL_VERSION}:{hg.hand_physics_key('generic', 3)}"
 
 
 _KILLED_BUILD = """
@@ -481,7 +482,7 @@ def test_the_table_is_solid_by_default_and_the_visual_one_keeps_its_keys(two_obj
     from haptic_env.cache import _jsonable, config_key
     from haptic_env.config import HapticRecogConfig, recognizer_kwargs
     from haptic_env.dataset import dataset_cache_path
-    from haptic_env.hand_grasps import _CACHE_VERSION, hand_physics_key, pool_cache_path
+    from haptic_env.hand_grasps import POOL_VERSION, hand_physics_key, pool_cache_path
 
     monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path))
     mug = two_objects.subset(("mug",), name="mug")
@@ -492,7 +493,7 @@ def test_the_table_is_solid_by_default_and_the_visual_one_keeps_its_keys(two_obj
     assert pool_cache_path(mug, "generic", 3, 10, "table", 5, solid_table=True) == key
     visual_key = pool_cache_path(mug, "generic", 3, 10, "table", 5, solid_table=False)
     assert visual_key != key and visual_key.name.endswith(config_key(  # the key it had as the default
-        _CACHE_VERSION, mug.identity, "generic", 3, 10, "table", 5, hand_physics_key("generic", 3)) + ".npz")
+        POOL_VERSION, mug.identity, "generic", 3, 10, "table", 5, hand_physics_key("generic", 3)) + ".npz")
     assert pool_cache_path(mug, "generic", 3, 10, "floating", 5) == pool_cache_path(
         mug, "generic", 3, 10, "floating", 5, solid_table=False)  # no table to make solid
     with pytest.raises(ValueError, match="solid_table needs support='table'"):
