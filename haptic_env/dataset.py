@@ -196,12 +196,15 @@ class DatasetConfig:
         """This config as the cache keys read it: the settings its grasps ignore at their defaults (``sampling`` with
         the geometric and hand sources, ``normal_noise_deg`` without normals), so that configs that give the same
         grasps share their cached files. A config at those defaults is itself (its keys are as before).
-        (``hand_fingers`` None and ``n_fingers`` give the same grasps but keep their two keys: the envs' recognisers
-        key the one, the dataset command the other.) The hand source's table is keyed as its pool keys it: a solid
-        one (the default, ``None``, resolved) as ``True``, the visual one unkeyed, as before 2026-12-07."""
+        ``hand_fingers`` None (the geometric and hand sources: ``n_fingers``) is keyed as ``n_fingers``, as the envs
+        give it, which gives the same grasps (since 2026-12-07; before, the dataset command's and the hand benchmarks'
+        None kept files apart from the envs'). The hand source's table is keyed as its pool keys it: a solid one (the
+        default, ``None``, resolved) as ``True``, the visual one unkeyed, as before 2026-12-07."""
         fields = type(self).__dataclass_fields__
         keyed_as = ([("sampling", fields["sampling"].default)] if self.source != "surface" else []) + (
             [] if self.normals else [("normal_noise_deg", fields["normal_noise_deg"].default)])
+        if self.source != "surface":
+            keyed_as.append(("hand_fingers", self.hand_fingers or self.n_fingers))
         if self.source == "hand":
             keyed_as.append(("solid_table", True if check_solid_table(self.solid_table, self.support) else None))
         changed = {k: v for k, v in keyed_as if getattr(self, k) != v}

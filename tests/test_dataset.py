@@ -356,9 +356,15 @@ def test_cache_keys_are_normalised_and_keep_the_keys_of_configs_at_their_default
         hand = {"hand": "generic"} if source == "hand" else {}
         assert key(source=source, sampling="centroid", **hand) == key(source=source, **hand)
     assert key(sampling="centroid") != key()  # the surface source samples by it
+    for source in ("geometric", "hand"):  # hand_fingers None is n_fingers, as the envs key it
+        hand = {"hand": "generic"} if source == "hand" else {}
+        assert key(source=source, **hand) == key(source=source, hand_fingers=4, **hand) != key(
+            source=source, hand_fingers=5, **hand)
     # the keys of configs at those defaults are the pre-normalisation key of the config itself
     rc = recognizer_kwargs(haptic_env.variant_config("HapticRecog-v0"))["config"]
-    for cfg in (DatasetConfig(), DatasetConfig(normals=False), DatasetConfig(source="geometric", contact_noise=0.001),
+    # (a geometric config with hand_fingers None is keyed as hand_fingers=n_fingers since 2026-12-07, the envs' key)
+    for cfg in (DatasetConfig(), DatasetConfig(normals=False),
+                DatasetConfig(source="geometric", contact_noise=0.001, hand_fingers=4),
                 rc.dataset_config(4, True, hand_fingers=4), rc.dataset_config(3, False, hand_fingers=4)):
         assert cfg.key_config() is cfg
         before = config_key(_CACHE_VERSION, objects.identity, cfg)
