@@ -94,6 +94,8 @@ PAPER = {
     "BC-NP, z=3": {"5-": (92, 4.22), "4-": (93, 4.85), "4+": (94, 1.62)},
 }
 PAPER["BC-IP, touch"] = PAPER["BC-IP"]
+#: rows whose paper figure is another method's (the plot joins them to it without a marker of their own)
+BORROWED = ("BC-IP, touch",)
 
 
 #: method -> its marker in the plot; training regime -> its colour (the paper's figures: hollow, black)
@@ -202,7 +204,8 @@ def plot_hand_table(rows: list[dict], path: Path, threshold: float = DEFAULT_THR
                         fmt=MARKERS[r["method"]], color=REGIME_COLORS.get(r["training"], "C1"), ms=6, capsize=2)
         for method in dict.fromkeys(r["method"] for r in mine):
             ps, pg = next(r["paper"] for r in mine if r["method"] == method)
-            ax.plot(pg, 100 * ps, MARKERS[method], mfc="none", mec="k", ms=8)
+            if method not in BORROWED:
+                ax.plot(pg, 100 * ps, MARKERS[method], mfc="none", mec="k", ms=8)
             matched = next((r for r in mine if r["method"] == method and r["training"] == "hand"), None)
             if matched is not None:
                 ax.plot([pg, matched["grasps"]], [100 * ps, 100 * matched["success"]], ls="--", lw=0.8, color="k",
@@ -268,13 +271,15 @@ def training_config(regime: str, hand: str, args, calibrate_grasps: int = 1,
 
 def evaluate(rec, pools, objects, n: int, normals: bool, args, touch_weight: float = 0.0) -> dict[str, dict]:
     """label -> {success (S,), accuracy (S,), grasps (S,)} over seeds of the pools of ``objects``; ``touch_weight``:
-    the :data:`TOUCH_ROWS`' weight of the touch pattern (``rec.touch``; 0: off, and no "BC-IP, touch" row). The queries' contacts are read as the
-    recogniser's training grasps were (:func:`~haptic_env.dataset.support_frame`: from each object's table when its
+    the :data:`TOUCH_ROWS`' weight of the touch pattern (``rec.touch``; 0: off, and no "BC-IP, touch" row). The
+    queries' contacts are read as the recogniser's training grasps were (:func:`~haptic_env.dataset.support_frame`: from each object's table when its
     vectors carry heights)."""
     out = {}
     for label in args.methods:
         kind, z, k = METHODS[label]
         if label == "BC-IP, touch" and touch_weight == 0:  # the paper's BC-IP row
+            print("no 'BC-IP, touch' row without a touch weight (surface training, or --touch-weight 0): "
+                  "the BC-IP row is it")
             continue
         succ, acc, used = [], [], []
         for s, pool in enumerate(pools):

@@ -401,13 +401,18 @@ class Belief:
         touch = self.touch_rows(touched)
         B = len(touch)
         per = [np.zeros((0, self.n_classes))] * B
-        prior = self.kind == "bc-ip" and not self.updater.prior_set  # a scored grasp would set the classifier prior
-        for g, i in enumerate(scored):
-            per[i] = (self.updater.prior_row(self.models.predict_proba(rows[g]))[None] if prior
-                      else self.row_weight(len(rows[g])) * self.models.log_likelihood(rows[g]))
+        base = np.broadcast_to(self.updater.log_belief, (B, self.n_classes))
+        if self.kind == "bc-ip" and not self.updater.prior_set:  # a scored grasp would set the classifier prior,
+            base = base.copy()  # multiplied into its log belief before the step (as BCIP.update_scores)
+            for g, i in enumerate(scored):
+                b = base[i] + self.updater.prior_row(self.models.predict_proba(rows[g]))
+                base[i] = b - np.logaddexp.reduce(b)
+        else:
+            for g, i in enumerate(scored):
+                per[i] = self.row_weight(len(rows[g])) * self.models.log_likelihood(rows[g])
         L = np.concatenate([np.concatenate([per[i], touch[i:i + 1]]) for i in range(B)]) if B else touch
         starts = np.concatenate([[0], np.cumsum([len(per[i]) + 1 for i in range(B)])]).astype(np.int64)
-        post, _ = bayes_steps(np.broadcast_to(self.updater.log_belief, (B, self.n_classes)), L, starts)
+        post, _ = bayes_steps(base, L, starts, combine=self.updater.combine, max_log_ratio=self.updater.max_log_ratio)
         return np.exp(post), np.arange(B)
 
     # ----------------------------------------------------------------------------------- scores

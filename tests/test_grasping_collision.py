@@ -102,8 +102,18 @@ def test_a_non_convex_shipped_piece_is_decomposed_not_collided_as_its_hull(tmp_p
         pieces = convex_pieces(obj, CollisionConfig(threshold=0.05))
     assert "collision_00.stl" in caplog.text and "not convex" in caplog.text
     assert len(pieces) >= 2 and list((tmp_path / "cache" / "collision").glob("*.npz"))
-    again = convex_pieces(obj, CollisionConfig(threshold=0.05))  # the cached verdict: decomposed again (cached)
-    assert len(again) == len(pieces) and "collision_00.stl" in caplog.text
+    import json
+
+    from haptic_env.grasping import collision
+
+    (verdict,) = (tmp_path / "cache" / "collision").glob("*-convexity-*.json")
+    assert json.loads(verdict.read_text())["non_convex"].startswith("collision_00.stl")
+    called = []
+    monkeypatch.setattr(collision, "_non_convex_piece", lambda *a: called.append("test"))
+    monkeypatch.setattr(collision, "_from_files", lambda *a: called.append("load"))
+    again = convex_pieces(obj, CollisionConfig(threshold=0.05))  # the cached verdict: neither loaded nor tested
+    assert len(again) == len(pieces) and not called
+    monkeypatch.undo()
     kept = convex_pieces(obj, CollisionConfig(method="files"))
     assert len(kept) == 1
 

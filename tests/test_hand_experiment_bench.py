@@ -62,6 +62,16 @@ def test_run_query_gives_bc_ip_the_touch_pattern_at_every_grasp(bench):
     lb = touch.sum(0) + np.log(proba) + ll
     np.testing.assert_allclose(upd.belief, np.exp(lb - logsumexp(lb)), rtol=1e-12)
     assert upd.n_grasps == 3 and upd.prior_set
+    state = upd.rng, upd.belief.copy()
+    for bad, match in ((np.full((1, 3), np.nan), "NaN"), (np.zeros((1, 2)), "evidence")):
+        with pytest.raises(ValueError, match=match):  # refused before the grasp's subsets are drawn
+            upd.update_grasp(C[1], None, T[1], evidence=bad)
+    assert upd.rng is state[0] and np.array_equal(upd.belief, state[1]) and upd.n_grasps == 3
+    from haptic_env.recognizers.updaters import IterativeClassification
+
+    with pytest.raises(ValueError, match="no evidence rows"):
+        ZFingerUpdater(IterativeClassification(_Constant(proba), 0.9)).update_grasp(C[1], None, T[1],
+                                                                                   evidence=touch[:1])
 
 
 def test_command_line_errors_name_the_bad_value(bench, usage_error):

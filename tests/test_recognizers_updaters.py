@@ -267,11 +267,31 @@ def test_evidence_rows_join_a_bayes_step_and_wait_for_bc_ips_prior():
 
 
 def test_a_refused_update_changes_nothing():
-    """IC and BC-IP's first grasp refuse an update without classifier probabilities before counting the grasp."""
+    """IC and BC-IP's first grasp refuse an update without classifier probabilities before counting the grasp; a
+    bad prior leaves BC-IP as it was (its prior still set)."""
     for u in (IterativeClassification(None, 0.85, n_classes=2), BCIP(None, None, 0.85, n_classes=2)):
         with pytest.raises(ValueError, match="probabilities"):
             u.update_scores(log_lik=np.zeros((1, 2)))
         assert u.n_grasps == 0
+    u = BCIP(None, None, 0.85, n_classes=2)
+    u.update_scores(proba=[[0.7, 0.3]])
+    with pytest.raises(ValueError, match="prior"):
+        u.reset(prior=[-1.0, 1.0])
+    assert u.prior_set and u.n_grasps == 1 and np.allclose(u.belief, [0.7, 0.3])
+
+
+def test_bc_ip_without_evidence_keeps_the_papers_first_grasp():
+    """A first grasp with no usable row is the prior's all the same (it stays uniform) when no evidence comes with
+    it: the next grasp is a KDE step, as before evidence rows existed; with evidence the prior waits."""
+    proba, ll = np.array([[0.7, 0.2, 0.1]]), np.log([[0.2, 0.5, 0.3]])
+    u = BCIP(FixedModel(proba), FixedModel(ll), threshold=0.99)
+    u.update(np.zeros((0, 1)))
+    assert u.prior_set and u.n_grasps == 1
+    np.testing.assert_allclose(u.update([0.0]), [0.2, 0.5, 0.3])
+    u.reset()
+    u.update(np.zeros((0, 1)), evidence=np.zeros((1, 3)))
+    assert not u.prior_set
+    np.testing.assert_allclose(u.update([0.0]), proba[0])
 
 
 def test_scores_of_another_shape_or_not_probabilities_are_refused_before_anything_changes():

@@ -30,6 +30,7 @@ import trimesh
 
 from ..cache import atomic_write, cache_dir, config_key, load_npz, save_npz_atomic
 from ..numbers import finite_number, whole_number
+from ..objects.base import PIECES_RULE
 
 __all__ = ["CollisionConfig", "convex_pieces", "hull_depth"]
 
@@ -133,13 +134,18 @@ def _non_convex_piece(pieces: list[trimesh.Trimesh], paths, tol: float) -> str |
     return None
 
 
+#: the convexity verdicts' cache version (with :data:`~haptic_env.objects.base.PIECES_RULE` in their key): a change to
+#: :func:`_non_convex_piece` bumps it, so that no verdict of the old test is reused
+_VERDICT_VERSION = "convexity-v1"
+
+
 def _shipped_verdict(obj: Any, name: str, cfg: CollisionConfig, cache: bool) -> tuple[str | None, list | None]:
     """``(_non_convex_piece of obj's shipped pieces, the pieces or None)``: the verdict read from its cache file when
     there is one (then the pieces are not loaded), else tested on the loaded pieces and saved (atomically) when
     ``cache``. A cache file that cannot be read is tested again (warned)."""
     digest = getattr(obj, "pieces_hash", None)  # the files' bytes and units (GraspObject); None: no key, test
-    path = (cache_dir("collision") / f"{name}-convexity-{config_key(digest, float(cfg.convex_tol))}.json"
-            if cache and digest is not None else None)
+    key = config_key(_VERDICT_VERSION, PIECES_RULE, digest, float(cfg.convex_tol))
+    path = cache_dir("collision") / f"{name}-convexity-{key}.json" if cache and digest is not None else None
     if path is not None and path.is_file():
         try:
             bad = json.loads(path.read_text())["non_convex"]

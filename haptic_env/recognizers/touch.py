@@ -4,7 +4,8 @@ Which of its ``n`` fingertips a hand touches an object with, when it closes alon
 on the object: a flat plate stops two or three fingers of a 5-finger hand, an apple all five. A grasp's
 *pattern* (the set of touching fingertips, known from the hand's joint torques like the contacts themselves)
 is therefore evidence too, and it is there for every grasp, also for those whose contacts are too few to
-score (fewer than ``z`` fingertips). The paper's method ignores it; BC-NP can multiply it in:
+score (fewer than ``z`` fingertips). The paper's method ignores it; BC-NP (and BC-IP, beside its classifier
+prior) can multiply it in:
 
 .. math:: \log b_{t}(c) = \log b_{t-1}(c) + \ell_{\mathrm{KDE}}(q_t \mid c) / T + w \log P(\text{pattern}_t \mid c)
 

@@ -28,7 +28,7 @@ BC-NP — Bayesian classification, non-informative prior
     ``log b <- log b + log p(q | c)``, renormalised with logsumexp (exact in log space).
 BC-IP — informative prior
     The first grasp's classifier probabilities (clipped at ``eps``) form the prior; later grasps
-    are KDE likelihood updates as in BC-NP.
+    are KDE likelihood updates as in BC-NP. With evidence rows (below), the first grasp the classifier scores.
 
 Evidence other than the grasp vector (the hand's touch pattern, :mod:`~haptic_env.recognizers.touch`) enters a
 Bayesian updater as ``evidence (r, K)`` log-likelihood rows of the same grasp: ``update_scores(log_lik, proba,
@@ -480,8 +480,9 @@ class BCIP(BayesianUpdater):
         super().__init__(likelihood, threshold, **kw)
 
     def reset(self, prior=None) -> np.ndarray:
+        b = super().reset(prior)  # a bad prior raises before anything changes
         self.prior_set = False
-        return super().reset(prior)
+        return b
 
     def prior_row(self, proba) -> np.ndarray:
         """``(K,)``: the log prior factor of one grasp's classifier probabilities ``proba (m, K)``, ``m >= 1``: the
@@ -495,8 +496,9 @@ class BCIP(BayesianUpdater):
     def update_scores(self, log_lik=None, proba=None, *, evidence=None) -> np.ndarray:
         """After the prior: a Bayes step of ``log_lik`` and ``evidence``. Before it: ``proba`` rows set the prior (the
         grasp's ``log_lik`` unused, as the paper's first grasp) and ``evidence`` joins in the same step; with
-        ``proba`` of no rows (no usable row) the grasp is spent; ``evidence`` alone is a Bayes step (a grasp the
-        classifier does not score) and the prior waits."""
+        ``proba`` of no rows (no usable row) the grasp is spent (without evidence the prior then stays uniform, as
+        the paper's first grasp; with evidence it waits); ``evidence`` alone is a Bayes step (a grasp the classifier
+        does not score) and the prior waits."""
         if self.prior_set:
             return super().update_scores(log_lik=log_lik, evidence=evidence)
         if proba is None and (evidence is None or log_lik is not None):  # before anything changes
@@ -518,7 +520,7 @@ class BCIP(BayesianUpdater):
             if status == _OK:  # else every class is impossible: no information from the evidence
                 log_b = post
         self.log_belief = log_b
-        self.prior_set = self.prior_set or row is not None
+        self.prior_set = row is not None or E is None  # no evidence: the first grasp was the prior's, usable or not
         self.n_grasps += 1
         return self.belief
 
