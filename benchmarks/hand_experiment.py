@@ -272,8 +272,8 @@ def training_config(regime: str, hand: str, args, calibrate_grasps: int = 1,
 def evaluate(rec, pools, objects, n: int, normals: bool, args, touch_weight: float = 0.0) -> dict[str, dict]:
     """label -> {success (S,), accuracy (S,), grasps (S,)} over seeds of the pools of ``objects``; ``touch_weight``:
     the :data:`TOUCH_ROWS`' weight of the touch pattern (``rec.touch``; 0: off, and no "BC-IP, touch" row). The
-    queries' contacts are read as the recogniser's training grasps were (:func:`~haptic_env.dataset.support_frame`: from each object's table when its
-    vectors carry heights)."""
+    queries' contacts are read as the recogniser's training grasps were (:func:`~haptic_env.dataset.support_frame`:
+    from each object's table when its vectors carry heights)."""
     out = {}
     for label in args.methods:
         kind, z, k = METHODS[label]
