@@ -561,6 +561,31 @@ def test_mujoco_hand_variants_run_an_episode(env_id):
     env.close()
 
 
+def test_the_allegro_env_weighs_the_touch_pattern_with_bc_ip_too():
+    """``updater="bc-ip"`` on the Allegro env keeps its touch weight (before, a touch weight needed BC-NP): every
+    grasp updates the belief, and the classifier's prior comes with the first grasp the classifier scores."""
+    from haptic_env.objects import data_dir
+
+    if data_dir() is None:
+        pytest.skip("needs the shared data (ycb/ meshes and the menagerie hands): set HAPTIC_DATA")
+    kw = {"recognizer_kwargs": {"config": {"grasps": {"grasps_per_object": 200}}, "progress": False}}
+    env = haptic_env.make(env_id="HapticRecogMuJoCo-v0", updater="bc-ip", **kw)
+    base = env.unwrapped
+    assert base.config.touch_weight == 0.75 and base.config.updater == "bc-ip"
+    env.reset(seed=3)
+    env.action_space.seed(0)
+    updater = base.belief_state.updater
+    assert not updater.prior_set
+    for _ in range(12):
+        before = base.belief.copy()
+        _, _, terminated, truncated, info = env.step(env.action_space.sample())
+        assert info["usable"] and not np.array_equal(base.belief, before)  # the pattern moves it at every grasp
+        if updater.prior_set or terminated or truncated:
+            break
+    assert updater.prior_set  # set by a grasp its 2-4-finger classifiers scored
+    env.close()
+
+
 def _step_alike(fast, slow, a) -> bool:
     """Step two envs with action ``a`` and check that they agree (observation, belief, reward, end, usable); returns
     whether the episode ended."""
