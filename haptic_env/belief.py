@@ -405,8 +405,7 @@ class Belief:
         if self.kind == "bc-ip" and not self.updater.prior_set:  # a scored grasp would set the classifier prior,
             base = base.copy()  # multiplied into its log belief before the step (as BCIP.update_scores)
             for g, i in enumerate(scored):
-                b = base[i] + self.updater.prior_row(self.models.predict_proba(rows[g]))
-                base[i] = b - np.logaddexp.reduce(b)
+                base[i] = self.updater.with_prior(base[i], self.models.predict_proba(rows[g]))
         else:
             for g, i in enumerate(scored):
                 per[i] = self.row_weight(len(rows[g])) * self.models.log_likelihood(rows[g])

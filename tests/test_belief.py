@@ -234,9 +234,9 @@ def test_touch_pattern_with_bc_ip_sets_the_classifier_prior_at_the_first_scored_
         np.testing.assert_allclose(p, cp.probs, rtol=1e-9, atol=1e-12)
     before = np.log(belief.probs)
     _, Q = belief.rows(res.contacts[full[0]], res.normals[full[0]], res.touched[full[0]])
-    row = belief.updater.prior_row(belief.models.predict_proba(Q))
+    with_prior = belief.updater.with_prior(before, belief.models.predict_proba(Q))
     belief.update(res.contacts[full[0]], res.normals[full[0]], res.touched[full[0]])
-    lb = before + row + belief.touch_rows(res.touched[full[0]])[0]
+    lb = with_prior + belief.touch_rows(res.touched[full[0]])[0]
     np.testing.assert_allclose(belief.probs, np.exp(lb - logsumexp_(lb)), rtol=1e-9)
     assert belief.updater.prior_set and belief.n_grasps == 2
 

@@ -229,6 +229,15 @@ def _joined(log_lik, evidence, n_classes: int) -> np.ndarray:
     return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
 
+def evidence_rows(evidence, n_classes: int) -> np.ndarray:
+    """``evidence (r, K)`` of one grasp (or one row ``(K,)``) checked: :func:`score_rows`, and no NaN or +inf (a
+    ValueError naming it, before anything uses them)."""
+    E = score_rows(evidence, n_classes, "evidence")
+    if np.isnan(E).any() or (E == np.inf).any():
+        raise ValueError("evidence contains NaN or +inf")
+    return E
+
+
 def _check_weight(weight) -> float:
     w = finite_number(weight)
     if w is None or not w > 0:
@@ -418,15 +427,19 @@ class BayesianUpdater(BeliefUpdater):
         return math.exp(float(np.maximum.reduce(self.log_belief)))
 
     def _bayes(self, log_lik: np.ndarray) -> None:
-        L = score_rows(log_lik, self.n_classes, "log_lik")
+        self.log_belief = self._stepped(self.log_belief, score_rows(log_lik, self.n_classes, "log_lik"))
+
+    def _stepped(self, log_belief: np.ndarray, L: np.ndarray, what: str = "log-likelihood") -> np.ndarray:
+        """The log belief after a Bayes step of the checked rows ``L (m, K)`` (this updater's rule), or
+        ``log_belief`` itself when ``L`` has no rows or every class is impossible (no information); raises before
+        anything changes when ``L`` holds NaN or +inf, or its rows sum past the float range (``what``: its name)."""
         if len(L) == 0:
-            return
+            return log_belief
         mlr = np.inf if self.max_log_ratio is None else float(self.max_log_ratio)
-        post, status = _bayes_step(self.log_belief, L, self.combine == "product", mlr)
+        post, status = _bayes_step(log_belief, L, self.combine == "product", mlr)
         if status == _NAN:
-            raise ValueError("log-likelihood contains NaN or +inf, or its rows sum past the float range")
-        if status == _OK:  # else every class is impossible: no information, the belief stays
-            self.log_belief = post
+            raise ValueError(f"{what} contains NaN or +inf, or its rows sum past the float range")
+        return post if status == _OK else log_belief
 
     def update_scores(self, log_lik=None, proba=None, *, evidence=None) -> np.ndarray:
         if log_lik is None and evidence is None:
@@ -484,14 +497,15 @@ class BCIP(BayesianUpdater):
         self.prior_set = False
         return b
 
-    def prior_row(self, proba) -> np.ndarray:
-        """``(K,)``: the log prior factor of one grasp's classifier probabilities ``proba (m, K)``, ``m >= 1``: the
-        rows' mean clipped at ``eps``, normalised (a Bayes step with this row sets the prior)."""
+    def with_prior(self, log_belief: np.ndarray, proba) -> np.ndarray:
+        """``log_belief (K,)`` times the prior of one grasp's classifier probabilities ``proba (m, K)``, ``m >= 1``
+        (the rows' mean clipped at ``eps``), renormalised: the log belief once that grasp has set the prior."""
         P = _probabilities(proba, self.n_classes)
         if len(P) == 0:
             raise ValueError("a classifier prior needs at least one row of probabilities")
         p = np.maximum(P.mean(axis=0), self.eps)
-        return np.log(p / p.sum())
+        post = log_belief + np.log(p / p.sum())
+        return post - _logsumexp(post)
 
     def update_scores(self, log_lik=None, proba=None, *, evidence=None) -> np.ndarray:
         """After the prior: a Bayes step of ``log_lik`` and ``evidence``. Before it: ``proba`` rows set the prior (the
@@ -503,24 +517,15 @@ class BCIP(BayesianUpdater):
             return super().update_scores(log_lik=log_lik, evidence=evidence)
         if proba is None and (evidence is None or log_lik is not None):  # before anything changes
             raise ValueError("the first BC-IP update needs classifier probabilities (proba), or evidence rows alone")
-        E = None if evidence is None else score_rows(evidence, self.n_classes, "evidence")
+        E = None if evidence is None else evidence_rows(evidence, self.n_classes)
         if proba is None:
             return super().update_scores(evidence=E)
         P = _probabilities(proba, self.n_classes)
-        row = self.prior_row(P) if len(P) else None
-        log_b = self.log_belief
-        if row is not None:
-            log_b = log_b + row
-            log_b = log_b - _logsumexp(log_b)
-        if E is not None and len(E):  # the step computed aside, so that a bad row changes nothing
-            mlr = np.inf if self.max_log_ratio is None else float(self.max_log_ratio)
-            post, status = _bayes_step(log_b, E, self.combine == "product", mlr)
-            if status == _NAN:
-                raise ValueError("evidence contains NaN or +inf, or its rows sum past the float range")
-            if status == _OK:  # else every class is impossible: no information from the evidence
-                log_b = post
+        log_b = self.with_prior(self.log_belief, P) if len(P) else self.log_belief
+        if E is not None:  # the step computed aside, so that a bad row changes nothing
+            log_b = self._stepped(log_b, E, "evidence")
         self.log_belief = log_b
-        self.prior_set = row is not None or E is None  # no evidence: the first grasp was the prior's, usable or not
+        self.prior_set = len(P) > 0 or E is None  # no evidence: the first grasp was the prior's, usable or not
         self.n_grasps += 1
         return self.belief
 

@@ -184,14 +184,12 @@ class ZFingerUpdater:
         belief ``(K,)``; ``evidence (r, K)``: the grasp's other log-likelihood rows (the touch pattern; Bayesian
         updaters)."""
         if evidence is not None:  # before the subsets are drawn: a bad evidence row changes nothing, the rng included
-            from .updaters import BayesianUpdater, score_rows
+            from .updaters import BayesianUpdater, evidence_rows
 
             if not isinstance(self.base, BayesianUpdater):
                 raise ValueError(f"{self.base.kind!r} takes no evidence rows (the touch pattern needs a Bayesian "
                                  "updater: 'bc-np', 'bc-ip')")
-            evidence = score_rows(evidence, self.base.n_classes, "evidence")
-            if np.isnan(evidence).any() or (evidence == np.inf).any():
-                raise ValueError("evidence contains NaN or +inf")
+            evidence = evidence_rows(evidence, self.base.n_classes)
         Q = subset_vectors(contacts, normals, self.z, k=self.k, rng=self.rng, touched=touched, normalize=self.normalize,
                            heights=self.heights, normal_axis=self.normal_axis)
         return self.base.update(Q) if evidence is None else self.base.update(Q, evidence=evidence)
