@@ -56,7 +56,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from haptic_env.grasp_features import feature_dim
-from haptic_env.recognizers.touch import check_touch_weight
+from haptic_env.recognizers.touch import check_touch_updater, check_touch_weight
 from haptic_env.recognizers.updaters import DEFAULT_IC_CERTAINTY, DEFAULT_THRESHOLD, DEFAULT_UPDATER, UPDATERS
 from haptic_env.recognizers.zfinger import DEFAULT_SUBSET_K, check_min_fingers, check_subset_k, subset_weight
 
@@ -142,8 +142,7 @@ class Belief:
         min_fingers = check_min_fingers(min_fingers, z_fingers, score_subsets)
         subset_k = check_subset_k(subset_k)
         touch_weight = check_touch_weight(touch_weight)
-        if touch_weight > 0 and kind not in ("bc-np", "bc-ip"):
-            raise ValueError(f"touch_weight={touch_weight} needs a Bayesian updater ('bc-np' or 'bc-ip'), got {kind!r}")
+        check_touch_updater(touch_weight, kind)
         if touch_weight > 0 and getattr(recognizer, "touch", None) is None:
             raise ValueError(f"touch_weight={touch_weight} needs a recogniser with its touch model "
                              "(build_recognizer(touch=True), hand-matched training grasps)")

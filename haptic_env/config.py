@@ -21,7 +21,7 @@ from haptic_env.grasp_features import check_normal_axis
 from haptic_env.numbers import check_flag_fields, finite_number, positive_range, whole_at_least, whole_number
 from haptic_env.recognizers.boosted import check_likelihood
 from haptic_env.recognizers.calibration import check_calibrate_grasps
-from haptic_env.recognizers.touch import check_touch_weight
+from haptic_env.recognizers.touch import check_touch_updater, check_touch_weight
 from haptic_env.recognizers.updaters import (DEFAULT_IC_CERTAINTY, DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD,
                                              DEFAULT_UPDATER, UPDATERS, check_ic_certainty, check_threshold)
 from haptic_env.recognizers.zfinger import DEFAULT_SUBSET_K, check_min_fingers, check_subset_k
@@ -211,8 +211,7 @@ class HapticRecogConfig:
             raise ValueError(f"updater must be one of {UPDATERS}, got {self.updater!r}")
         check_ic_certainty(self.ic_certainty)
         w = check_touch_weight(self.touch_weight)
-        if w > 0 and self.updater not in ("bc-np", "bc-ip"):
-            raise ValueError(f"touch_weight={w} needs a Bayesian updater ('bc-np' or 'bc-ip'), got {self.updater!r}")
+        check_touch_updater(w, self.updater)
         if w > 0 and (self.backend not in HAND_BACKENDS or self.recognizer_source not in ("auto", "hand")):
             raise ValueError(f"touch_weight={w} needs hand-matched training grasps (backend {HAND_BACKENDS} with "
                              f"recognizer_source 'auto' or 'hand'), got backend={self.backend!r}, "

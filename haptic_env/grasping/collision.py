@@ -30,7 +30,7 @@ import trimesh
 
 from ..cache import atomic_write, cache_dir, config_key, load_npz, save_npz_atomic
 from ..numbers import finite_number, whole_number
-from ..objects.base import PIECES_RULE
+from ..objects.base import PIECES_RULE, piece_file
 
 __all__ = ["CollisionConfig", "convex_pieces", "hull_depth"]
 
@@ -88,10 +88,7 @@ def _from_files(obj: Any) -> list[trimesh.Trimesh]:
     T[:3, :3] = np.asarray(getattr(obj, "rotation", np.eye(3)), dtype=np.float64)
     pieces = []
     for p in obj.collision_paths:
-        p = Path(p)
-        if not p.is_file():
-            raise FileNotFoundError(f"collision piece {p} of object {obj.name!r} is missing")
-        m = trimesh.load(p, force="mesh")
+        m = trimesh.load(piece_file(p, obj.name), force="mesh")
         m.apply_scale(float(getattr(obj, "unit_scale", 1.0)))  # the file's units, as its mesh's (mm files: 1e-3)
         m.apply_transform(T)
         m.apply_translation(offset)

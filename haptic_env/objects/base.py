@@ -80,6 +80,15 @@ def prepare_mesh(mesh: trimesh.Trimesh, name: str, scale: float = 1.0, up: str =
     return m, offset
 
 
+def piece_file(path, object_name: str) -> Path:
+    """A shipped collision piece's ``path`` as a Path; a ``FileNotFoundError`` naming it and its object when it is
+    missing (before its bytes are hashed or its mesh loaded)."""
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"collision piece {p} of object {object_name!r} is missing")
+    return p
+
+
 @dataclass(frozen=True, eq=False)
 class GraspObject:
     """A named rigid object to grasp.
@@ -154,10 +163,9 @@ class GraspObject:
             return None
         h = hashlib.sha1(repr(float(self.unit_scale)).encode())
         for p in self.collision_paths:
-            if not Path(p).is_file():
-                raise FileNotFoundError(f"collision piece {p} of object {self.name!r} is missing")
-            h.update(Path(p).name.encode())
-            h.update(Path(p).read_bytes())
+            p = piece_file(p, self.name)
+            h.update(p.name.encode())
+            h.update(p.read_bytes())
         return h.hexdigest()
 
     @property

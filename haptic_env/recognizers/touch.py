@@ -28,7 +28,8 @@ import numpy as np
 
 from haptic_env.numbers import finite_number, positive_number
 
-__all__ = ["MAX_TOUCH_FINGERS", "TouchModel", "check_touch_weight", "touch_patterns"]
+__all__ = ["MAX_TOUCH_FINGERS", "TOUCH_UPDATERS", "TouchModel", "check_touch_weight", "check_touch_updater",
+           "touch_patterns"]
 
 #: fingers a pattern table may have (``2 ** n`` patterns per object)
 MAX_TOUCH_FINGERS = 16
@@ -40,6 +41,16 @@ def check_touch_weight(w) -> float:
     if f is None or f < 0:
         raise ValueError(f"touch_weight must be a finite number >= 0, got {w!r}")
     return f
+
+
+#: the updaters that weigh the touch pattern (the Bayesian ones: IC has no likelihood to add it to)
+TOUCH_UPDATERS = ("bc-np", "bc-ip")
+
+
+def check_touch_updater(weight: float, updater: str) -> None:
+    """A ``ValueError`` naming both when a touch weight ``weight > 0`` comes with an updater that cannot weigh it."""
+    if weight > 0 and updater not in TOUCH_UPDATERS:
+        raise ValueError(f"touch_weight={weight} needs a Bayesian updater ('bc-np' or 'bc-ip'), got {updater!r}")
 
 
 def touch_patterns(touched) -> np.ndarray:
