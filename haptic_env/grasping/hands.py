@@ -210,9 +210,9 @@ def shadow_hand(side: str = "right") -> HandDescription:
     to the top of its range and the thumb opposes, so fingers close until they touch. On 240 ycb10
     approaches (with the visual table of the scene before 2026-12-07) that gives complete 5-finger grasps on 0.54
     of them against 0.30 for the earlier hand-written synergy (flexion stopped at 1.3 / 2.2 rad), and >= 3
-    fingertips on 0.85 against 0.75. On validation hand
-    grasps (pool seeds 500-502, 3,000 training approaches per object) BC-NP without normals stops correct in
-    87.0 % of queries after 4.9 grasps, against 79-83 % after 8.1-8.4 with the earlier synergy.
+    fingertips on 0.85 against 0.75. On validation hand grasps (pool seeds 500-502, 3,000 training approaches per
+    object) BC-NP without normals stops correct in 87.0 % of queries after 4.9 grasps, against 79-83 % after 8.1-8.4
+    with the earlier synergy.
 
     Physics: a 4 ms step with 0.3 s of closing (75 steps; contacts checked every 20 ms): on 400 approaches
     a 4 ms step keeps the usable and complete rates and the contact error of 2 ms at about twice the
@@ -244,8 +244,7 @@ def aero_hand(side: str = "right") -> HandDescription:
     miss the component along the joint axes (see :mod:`~haptic_env.grasping.mujoco_backend`). The
     thumb is slow to settle: up to 0.8 s of closing (200 steps of 4 ms). The 4 ms step keeps the usable
     (0.85) and complete (0.56) grasp rates (the visual table, before 2026-12-07) and the contact error of 2 ms on 400
-    ycb10 approaches at 1.3x the
-    grasps/s, and the recognition: validation BC-NP (pool seeds 500-502, 3,000 training approaches) 85.0 +- 2.2 %
+    ycb10 approaches at 1.3x the grasps/s, and the recognition: validation BC-NP (pool seeds 500-502, 3,000 training approaches) 85.0 +- 2.2 %
     in 5.94 grasps against 85.3 +- 2.6 % in 5.96 at 2 ms."""
     if side not in ("right", "left"):
         raise ValueError(f"side must be 'right' or 'left', got {side!r}")
