@@ -475,7 +475,7 @@ def _from_arrays(arrays: dict, objects: ObjectSet, config: DatasetConfig, path: 
 
 
 def build_dataset(
-    objects: ObjectSet, config: DatasetConfig, *, cache: bool = True, progress: bool = True
+    objects: ObjectSet, config: DatasetConfig, *, cache: bool = True, progress: bool = True, workers: int | None = None
 ) -> GraspDataset:
     """Grasp vectors of every object of ``objects``, split per object into train and validation.
 
@@ -489,6 +489,8 @@ def build_dataset(
         cache: read/write ``cache_dir("datasets")/<set>-<key>.npz`` (key: object names + mesh hashes
             + config). A corrupted cache file is rebuilt with a warning.
         progress: tqdm bar over objects.
+        workers: processes that build a ``source="hand"`` grasp pool (:func:`hand_pool`; default: all cores). Not
+            in the cache key: the pool and the data set do not depend on it.
     """
     if not isinstance(objects, ObjectSet):
         raise TypeError(f"objects must be an ObjectSet, got {type(objects).__name__}")
@@ -499,7 +501,7 @@ def build_dataset(
         except CacheError as exc:
             warnings.warn(f"{exc}; rebuilding it", RuntimeWarning, stacklevel=2)
     if config.source == "hand":
-        ds = _hand_dataset(objects, config, path, progress)
+        ds = _hand_dataset(objects, config, path, progress, workers)
         _save_dataset(ds)
         return ds
     streams = np.random.SeedSequence(config.seed).spawn(len(objects))
@@ -567,26 +569,29 @@ def _save_dataset(ds: GraspDataset) -> None:
                         names=np.array(ds.names, dtype=str))
 
 
-def hand_pool(objects: ObjectSet, config: DatasetConfig, progress: bool = True, *, cache: bool = True):
+def hand_pool(objects: ObjectSet, config: DatasetConfig, progress: bool = True, *, cache: bool = True,
+              workers: int | None = None):
     """The hand grasp pool (:func:`~haptic_env.hand_grasps.hand_grasp_pool`, cached unless ``cache`` is false) that
     ``source="hand"`` training grasps of ``config`` come from: its hand, ``hand_fingers`` (default ``n_fingers``),
-    approaches, support, seed and budget. The training grasps and the recogniser's touch model read this one pool."""
+    approaches, support, seed and budget. The training grasps and the recogniser's touch model read this one pool.
+    ``workers``: the processes that build it (default: all cores; the pool does not depend on them)."""
     from .hand_grasps import hand_grasp_pool
 
     if config.source != "hand":
         raise ValueError(f"only source='hand' grasps come from a hand grasp pool, got source={config.source!r}")
     return hand_grasp_pool(objects, config.hand, config.hand_fingers or config.n_fingers, config.grasps_per_object,
                            support=config.support, seed=config.seed, budget=config.hand_budget, progress=progress,
-                           cache=cache, solid_table=config.solid_table)
+                           cache=cache, solid_table=config.solid_table, workers=workers)
 
 
-def _hand_rows(objects: ObjectSet, config: DatasetConfig, progress: bool, cache: bool = True):
+def _hand_rows(objects: ObjectSet, config: DatasetConfig, progress: bool, cache: bool = True,
+               workers: int | None = None):
     """Yield ``(k, X, rng, C)`` per object: the valid ``n_fingers``-finger grasp vectors (float32) of ``source="hand"``,
     the object's generator, positioned for the train/validation split, and the rows' contacts ``(G_k, n, 3)`` in the
     object's frame."""
     from .hand_grasps import pool_rows
 
-    pool = hand_pool(objects, config, progress, cache=cache)
+    pool = hand_pool(objects, config, progress, cache=cache, workers=workers)
     streams = np.random.SeedSequence([config.seed, 1]).spawn(len(objects))
     for k, ss in enumerate(streams):
         rng = np.random.default_rng(ss)
@@ -621,10 +626,10 @@ def hand_dataset(objects: ObjectSet, config: DatasetConfig, *, progress: bool = 
     return ds, left_out
 
 
-def _split_hand_rows(objects: ObjectSet, config: DatasetConfig, progress: bool,
-                     min_rows: int, cache: bool = True) -> tuple[GraspDataset | None, dict[str, int]]:
+def _split_hand_rows(objects: ObjectSet, config: DatasetConfig, progress: bool, min_rows: int, cache: bool = True,
+                     workers: int | None = None) -> tuple[GraspDataset | None, dict[str, int]]:
     Xtr, Ytr, Xva, Yva, left_out = [], [], [], [], {}
-    for k, X, rng, _ in _hand_rows(objects, config, progress, cache):
+    for k, X, rng, _ in _hand_rows(objects, config, progress, cache, workers):
         if len(X) < min_rows:
             left_out[objects.names[k]] = len(X)
             continue
@@ -640,12 +645,13 @@ def _split_hand_rows(objects: ObjectSet, config: DatasetConfig, progress: bool,
                         objects.names, config), left_out
 
 
-def _hand_dataset(objects: ObjectSet, config: DatasetConfig, path: Path | None, progress: bool) -> GraspDataset:
+def _hand_dataset(objects: ObjectSet, config: DatasetConfig, path: Path | None, progress: bool,
+                  workers: int | None = None) -> GraspDataset:
     """``source="hand"`` for :func:`build_dataset`: every object must have a row (its hand pool cached when the
     dataset is, ``path`` not None). An object with one (the Aero's 5-finger grasps of the plate on a solid table: 1 in
     6,000 approaches) keeps it for training and has no validation rows: its density is that one kernel, and its touch
     pattern (:mod:`~haptic_env.recognizers.touch`) says how rarely such a grasp happens."""
-    ds, left_out = _split_hand_rows(objects, config, progress, 1, cache=path is not None)
+    ds, left_out = _split_hand_rows(objects, config, progress, 1, cache=path is not None, workers=workers)
     if left_out:
         name, n = next(iter(left_out.items()))
         raise TooFewGraspsError(f"object {name!r}: {n} of its {config.hand} grasps (budget {config.hand_budget!r}, "

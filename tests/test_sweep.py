@@ -515,6 +515,34 @@ def test_a_retried_train_job_reuses_a_finished_model_and_resumes_otherwise(tmp_p
                                       "reused_final_model": True}
 
 
+def test_a_dataset_job_builds_its_hand_grasp_pool_in_as_many_processes_as_its_cpus(tmp_path, monkeypatch):
+    """A dataset job asked Ray for ``cpus`` CPUs but built a hand grasp pool on every core of the node (the pool's
+    default): it builds it in ``max(1, int(cpus))`` processes, and the worker count is in no key."""
+    import haptic_env.hand_grasps
+    from haptic_env.sweep import jobs
+
+    class Built(Exception):
+        pass
+
+    asked = []
+
+    def pool(*args, workers=None, **kwargs):
+        asked.append(workers)
+        raise Built  # the job ends here: no grasps, no hand model needed
+
+    monkeypatch.setattr(haptic_env.hand_grasps, "hand_grasp_pool", pool)
+    monkeypatch.setattr(haptic_env.hand_grasps, "hand_physics_key", lambda hand, n: f"{hand}-{n}")  # a cache key
+    ids = set()
+    for cpus in (1, 2.5, 0):
+        doc = {"name": "x", "dataset": [{"objects": "default", "fingers": 3, "normals": False, "source": "hand",
+                                         "hand": "allegro", "grasps_per_object": 10, "cpus": cpus}]}
+        (job,) = parse_spec(doc).jobs
+        ids.add(job.id)
+        with pytest.raises(Built):
+            jobs.execute(job.to_dict(), str(tmp_path / str(cpus)))
+    assert asked == [1, 2, 1] and len(ids) == 1
+
+
 def test_a_false_toggle_is_spelled_out_and_an_unknown_flag_is_refused_even_when_false():
     """``stop_scale = false`` runs ``--no-stop-scale`` (left out, the analysis kept its default, on); a flag that
     ``haptic-recog analysis`` does not have is refused at load, ``false`` or not."""

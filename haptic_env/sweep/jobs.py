@@ -13,7 +13,8 @@ exists is finished: a re-run of the sweep skips it.
   numbers seeded by the env seed and the agent seed (so that a baseline's seeds are distinct runs);
   ``episodes.csv``.
 * ``dataset``: :func:`haptic_env.dataset.build_dataset` through the shared cache (``$HAPTIC_CACHE``): a cluster
-  run and a laptop run write and read the same files.
+  run and a laptop run write and read the same files. A hand grasp pool it builds runs in as many processes as the
+  job's ``cpus`` (at least 1), not on every core of the node.
 * ``analysis``: ``haptic-recog analysis --out <run dir>/analysis --objects ... <flags>`` as a subprocess.
 * ``command``: any command, run in the job folder (``$SWEEP_RUN_DIR``, ``$SWEEP_ATTEMPT`` set).
 """
@@ -242,7 +243,8 @@ def _dataset(p: dict[str, Any], run_dir: Path, attempt: int, job: dict[str, Any]
     cfg = DatasetConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in p["config"].items()})
     objects = load_object_set(p["objects"])
     t0 = time.time()
-    ds = build_dataset(objects, cfg, cache=True, progress=False)
+    # the processes the job asked Ray for, not every core of the node (Ray would place other jobs on those)
+    ds = build_dataset(objects, cfg, cache=True, progress=False, workers=max(1, int(job["cpus"])))
     return {"cache": str(ds.cache_path), "from_cache": bool(ds.from_cache), "objects": len(objects),
             "feature_dim": int(ds.feature_dim), "train": int(len(ds.X_train)), "val": int(len(ds.X_val)),
             "build_seconds": time.time() - t0}
