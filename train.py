@@ -169,6 +169,15 @@ def parse_args(argv: list[str] | None = None) -> Args:
     """The flags as :class:`Args`; bad values (unknown algorithm, zero steps or envs, JSON that is not an object,
     env settings ``HapticRecogConfig`` rejects, a missing ``--resume`` file or one this run cannot go on from:
     :func:`_resume_problem`) exit with a one-line usage error."""
+    args, env = _parse(argv)
+    if env is not None:
+        env.close()
+    return args
+
+
+def _parse(argv: list[str] | None) -> tuple[Args, object | None]:
+    """:func:`parse_args`, and the env a ``--resume``'s spaces were checked in (None when none was built), which
+    :func:`main` hands to the training's envs rather than build it again."""
     import tyro
 
     from haptic_env import ENV_VARIANTS, variant_config
@@ -254,30 +263,39 @@ def parse_args(argv: list[str] | None = None) -> Args:
         if saved is not None and saved != args.discrete_approaches:
             _usage_error(f"argument --discrete-approaches: {args.resume} was trained with --discrete-approaches "
                          f"{saved}, got {args.discrete_approaches} (resume with the N it was started with)")
-        problem = _resume_problem(args, data, config)
+        problem, env = _resume_problem(args, data, config)
         if problem is not None:
             _usage_error(f"argument --resume: {problem}")
-    return args
+        return args, env
+    return args, None
 
 
-def _resume_problem(args: Args, data: dict | None, config: HapticRecogConfig) -> str | None:
+def _resume_problem(args: Args, data: dict | None, config: HapticRecogConfig) -> tuple[str | None, object | None]:
     """Why ``args.resume`` (its :func:`_saved_data` ``data``) cannot go on in this run's env (``config``), or None:
     a SAC checkpoint without its replay buffer (``agents.sb3.replay_buffer_problem``), or a model whose observation
     (or continuous action) space is not the env's, which stable-baselines3's load refuses only once the segment's
-    files are written."""
+    files are written. With the env built to compare the spaces (closed, and None, when there is a problem or no
+    comparison), for the training to take over."""
     import haptic_env
     from agents.sb3 import replay_buffer_problem
 
     problem = replay_buffer_problem(args.resume, args.algo)
     if problem is not None or data is None:
-        return problem
+        return problem, None
     env = haptic_env.make(config, env_id=args.env_id)
-    try:
-        spaces = [("observation", data.get("observation_space"), env.observation_space)]
-        if not args.discrete_approaches:  # the fixed approaches' count is checked above
-            spaces.append(("action", data.get("action_space"), env.action_space))
-    finally:
+    problem = _space_problem(args, data, env)
+    if problem is not None:
         env.close()
+        return problem, None
+    return None, env
+
+
+def _space_problem(args: Args, data: dict, env) -> str | None:
+    """Why ``args.resume`` (its saved ``data``) cannot go on in ``env``: another observation (or continuous action)
+    space, or None."""
+    spaces = [("observation", data.get("observation_space"), env.observation_space)]
+    if not args.discrete_approaches:  # the fixed approaches' count is checked above
+        spaces.append(("action", data.get("action_space"), env.action_space))
     for what, saved, now in spaces:
         if saved is not None and saved != now:
             size = lambda space: "x".join(map(str, getattr(space, "shape", None) or ())) + "-dim"  # noqa: E731
@@ -479,14 +497,20 @@ def _signals_stop_the_set_up() -> Iterator[None]:
 
 
 def main(argv: list[str] | None = None) -> Path:
-    args = parse_args(argv)
-    with hold_run_dir(Path(args.run_dir)):  # checked held: a run that began meanwhile has its files there now
-        refuse_a_held_run_dir(args)
-        return _train(args)
+    args, env = _parse(argv)
+    probes = [] if env is None else [env]  # a --resume's env, built once: the training's envs take it over
+    try:
+        with hold_run_dir(Path(args.run_dir)):  # checked held: a run that began meanwhile has its files there now
+            refuse_a_held_run_dir(args)
+            return _train(args, probes)
+    finally:
+        for env in probes:  # not taken over (refused, or stopped before the envs were built)
+            env.close()
 
 
-def _train(args: Args) -> Path:
-    """Train in ``args.run_dir``, which :func:`main` holds."""
+def _train(args: Args, probes: list | None = None) -> Path:
+    """Train in ``args.run_dir``, which :func:`main` holds. ``probes``: at most one env of the run's config already
+    built (:func:`_parse`'s), which the vec env takes (out of the list) rather than build it again."""
     import torch
 
     from agents import sb3
@@ -529,7 +553,8 @@ def _train(args: Args) -> Path:
             t0 = time.time()
             venv = sb3.make_vec_env(config, n_envs=args.n_envs, seed=segment_env_seed, log_dir=run_dir, vec=args.vec,
                                     env_id=args.env_id, monitor_suffix=suffix,
-                                    discrete_approaches=args.discrete_approaches)
+                                    discrete_approaches=args.discrete_approaches,
+                                    probe=probes.pop() if probes else None)
             action = (f"one of {args.discrete_approaches} approaches" if args.discrete_approaches
                       else f"{venv.action_space.shape[0]}-dim action")
             print(f"[train] {args.algo} on {args.env_id} ({args.n_envs} envs, {venv.observation_space.shape[0]}-dim "

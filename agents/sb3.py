@@ -192,7 +192,9 @@ class RepeatMask(gym.Wrapper):
 
 
 def _env_fn(config, rank: int, monitor_dir: str | None, env_id: str, monitor_suffix: str = "",
-            worker: bool = False, discrete_approaches: int = 0) -> Callable[[], Any]:
+            worker: bool = False, discrete_approaches: int = 0, env=None) -> Callable[[], Any]:
+    """A builder of env ``rank``, monitored; ``env``: one of ``config`` already built (in this process) to use."""
+
     def _init():
         os.environ.setdefault("OMP_NUM_THREADS", "1")
         if worker:
@@ -205,10 +207,10 @@ def _env_fn(config, rank: int, monitor_dir: str | None, env_id: str, monitor_suf
         import haptic_env
         from stable_baselines3.common.monitor import Monitor
 
-        env = haptic_env.make(config, env_id=env_id)
+        built = haptic_env.make(config, env_id=env_id) if env is None else env
         path = os.path.join(monitor_dir, f"{rank}{monitor_suffix}") if monitor_dir else None
-        env = Monitor(env, filename=path, info_keywords=("correct", "grasps"))
-        return RepeatMask(DiscreteApproaches(env, discrete_approaches)) if discrete_approaches else env
+        built = Monitor(built, filename=path, info_keywords=("correct", "grasps"))
+        return RepeatMask(DiscreteApproaches(built, discrete_approaches)) if discrete_approaches else built
 
     return _init
 
@@ -220,12 +222,15 @@ VEC_KINDS = ("subproc", "dummy", "native")
 
 def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.PathLike | None = None,
                  vec: str = "subproc", env_id: str = "HapticRecog-v0", monitor_suffix: str = "",
-                 discrete_approaches: int = 0):
+                 discrete_approaches: int = 0, probe=None):
     """``n_envs`` monitored copies of the env. ``vec="subproc"`` runs each in its own process (which ignores
     SIGINT, so that Ctrl-C reaches only the main process's handler). ``monitor_suffix`` names the Monitor files
     ``<rank><suffix>.monitor.csv`` (a resumed run writes a new segment, e.g. ``.part2``, keeping the old ones).
     ``discrete_approaches=N > 0`` gives each env a ``Discrete(N)`` action (:class:`DiscreteApproaches`; not with
-    ``vec="native"``) and the action mask ``mppo`` trains with (:class:`RepeatMask`)."""
+    ``vec="native"``) and the action mask ``mppo`` trains with (:class:`RepeatMask`). ``probe``: an env of
+    ``config`` already built in this process (``haptic_env.make(config, env_id=env_id)``, not yet reset; e.g.
+    ``train.py``'s check of a resumed checkpoint's spaces), taken over instead of building another: with
+    ``vec="subproc"`` it prepares the workers' cache, with ``"dummy"`` it is env 0; ``"native"`` closes it."""
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
     from haptic_env import variant_config
@@ -246,6 +251,8 @@ def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.
         from agents.native_vec import NativeVecEnv
         from haptic_env.vector_env import make_vector_env
 
+        if probe is not None:  # the batched env steps its own scenes
+            probe.close()
         venv = NativeVecEnv(make_vector_env(n_envs, config, env_id=env_id, autoreset_mode="same_step"),
                             monitor_dir=monitor_dir, monitor_suffix=monitor_suffix, env_id=env_id)
         venv.seed(seed)
@@ -255,15 +262,17 @@ def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.
         # build (or load) the recogniser once here so the workers only read the cache
         import haptic_env
 
-        probe = haptic_env.make(config, env_id=env_id).unwrapped
-        get_recognizer(probe.objects, probe.config)
+        probe = haptic_env.make(config, env_id=env_id) if probe is None else probe
+        inner = probe.unwrapped
+        get_recognizer(inner.objects, inner.config)
         # and whatever a first reset builds (the estimated frame's yaw belief records the hand's replay pool): a
         # worker is a daemonic process, which may not start the pool's processes
-        probe.reset(seed=0)
+        inner.reset(seed=0)
         probe.close()
+        probe = None
     subproc = vec == "subproc" and n_envs > 1
     fns = [_env_fn(config, i, monitor_dir, env_id, monitor_suffix, worker=subproc,
-                   discrete_approaches=discrete_approaches) for i in range(n_envs)]
+                   discrete_approaches=discrete_approaches, env=probe if i == 0 else None) for i in range(n_envs)]
     venv = SubprocVecEnv(fns) if subproc else DummyVecEnv(fns)
     venv.seed(seed)
     venv.action_space.seed(seed)

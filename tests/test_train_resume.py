@@ -433,8 +433,14 @@ def test_a_resume_the_env_or_its_files_cannot_take_is_refused_before_any_file(sm
                 match=r"--resume: .*ppo_128_steps.zip was trained with a 33-dim observation, this run's env has a "
                       r"57-dim one: resume with the --env-id and --env.\* settings it was trained with")
     assert _snapshot(run) == before
+    from haptic_env.env import HapticRecogEnv
+
+    built, init = [], HapticRecogEnv.__init__
+    monkeypatch.setattr(HapticRecogEnv, "__init__", lambda self, *a, **k: built.append(self) or init(self, *a, **k))
     train.main(more)  # the settings it was trained with: the run's second segment
     assert (run / "args.part2.json").is_file() and not (run / "args.part3.json").exists()
+    assert len(built) == 1  # the env the spaces were checked in is the training's (one env, in this process)
+    monkeypatch.setattr(HapticRecogEnv, "__init__", init)
 
     sac = tmp_path / "sac"
     venv = sb3.make_vec_env(train.env_config(train.parse_args(more)), n_envs=1, vec="dummy")
