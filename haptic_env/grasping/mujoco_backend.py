@@ -263,6 +263,7 @@ class GraspScene:
             self._geom_tip[m.geom_bodyid == b] = i
         self._is_obj_geom = np.zeros(m.ngeom, dtype=bool)
         self._is_obj_geom[self.obj_geom_ids] = True
+        self._tip_pairs = self._pair_owner(self._geom_tip)  # contact geom pair -> fingertip touching the object
         self._blocks_hand = self._is_obj_geom.copy()  # what the pre-grasp pose must be free of
         if solid_table and self._table_geom >= 0:
             self._blocks_hand[self._table_geom] = True
@@ -281,6 +282,7 @@ class GraspScene:
         # finger of each actuator (via its joint or its tendon's first joint), -1 for none (e.g. wrist)
         body_finger = finger_of_bodies(m, self.tip_body_ids)  # closed linkages join the finger they connect to
         self._geom_finger = body_finger[m.geom_bodyid]  # finger of every geom (any link), -1 palm/none
+        self._finger_pairs = self._pair_owner(self._geom_finger)
         # fingers each actuator moves: the dofs its transmission acts on (moment arms at qpos0; works
         # for joint, fixed- and spatial-tendon actuators alike). act_fingers[a, i]: actuator a moves
         # finger i; act_finger[a]: its finger when it moves exactly one, else -1 (none, or several as
@@ -304,6 +306,16 @@ class GraspScene:
         self.ctrl_per_length, self.ctrl_offset = servo_equilibrium(
             m.actuator_gaintype, m.actuator_biastype, m.actuator_gainprm[:, 0], m.actuator_biasprm[:, 0],
             m.actuator_biasprm[:, 1])
+        # reset's joints: those a position-like actuator (finite ctrl_per_length, nonzero gear) drives directly, each
+        # set by the last such actuator of it (as a loop over the actuators would), with its limits
+        servo = np.flatnonzero((m.actuator_trntype == mujoco.mjtTrn.mjTRN_JOINT) & np.isfinite(self.ctrl_per_length)
+                               & (m.actuator_gear[:, 0] != 0))
+        joint = m.actuator_trnid[servo, 0]
+        last = np.array([i for i in range(len(servo)) if joint[i] not in joint[i + 1:]], dtype=np.int64)
+        servo, joint = servo[last], joint[last]
+        limited = m.jnt_limited[joint].astype(bool)
+        self._servo = (servo, m.jnt_qposadr[joint], m.actuator_gear[servo, 0].copy(),
+                       np.where(limited, m.jnt_range[joint, 0], -np.inf), np.where(limited, m.jnt_range[joint, 1], np.inf))
         mujoco.mj_resetData(m, self.data)
         self.step_time = 0.0  # seconds spent inside mj_step
         self.steps = 0
@@ -365,13 +377,8 @@ class GraspScene:
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
         d.ctrl[:] = ctrl
-        for a in range(m.nu):
-            gear = m.actuator_gear[a, 0]
-            if m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT and np.isfinite(self.ctrl_per_length[a]) and gear:
-                j = m.actuator_trnid[a, 0]
-                lo, hi = m.jnt_range[j] if m.jnt_limited[j] else (-np.inf, np.inf)
-                q = (ctrl[a] - self.ctrl_offset[a]) / self.ctrl_per_length[a] / gear
-                d.qpos[m.jnt_qposadr[j]] = np.clip(q, lo, hi)
+        a, adr, gear, lo, hi = self._servo
+        d.qpos[adr] = np.clip((d.ctrl[a] - self.ctrl_offset[a]) / self.ctrl_per_length[a] / gear, lo, hi)
 
     def export_spec(self, keys: dict[str, dict[str, np.ndarray]] | None = None) -> mujoco.MjSpec:
         """A copy of the scene as an ``MjSpec`` (``.to_xml()`` for MuJoCo's viewer): the object where
@@ -443,23 +450,29 @@ class GraspScene:
     def tip_positions(self) -> np.ndarray:
         return self.data.site_xpos[self.site_ids].copy()
 
-    def _object_contacts(self, per_geom: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """For each current contact: ``per_geom`` of its hand geom (a finger index; -1 unless the contact is a
-        touching hand-object one with a hand geom that ``per_geom`` maps), and whether the object is its
-        ``geom[0]`` (then MuJoCo's normal points from the object into the hand)."""
-        d = self.data
-        geom = d.contact.geom[: d.ncon]
-        obj0, obj1 = self._is_obj_geom[geom[:, 0]], self._is_obj_geom[geom[:, 1]]
-        owner = np.where(obj0, per_geom[geom[:, 1]], np.where(obj1, per_geom[geom[:, 0]], -1))
-        ok = (owner >= 0) & (obj0 ^ obj1) & (d.contact.dist[: d.ncon] <= 0)
-        return np.where(ok, owner, -1), obj0
+    def _pair_owner(self, per_geom: np.ndarray) -> np.ndarray:
+        """``(ngeom, ngeom)`` table: for a contact between geoms ``(g0, g1)``, ``per_geom`` of its hand geom (a
+        finger index) when exactly one of the two is an object geom, else -1 (:meth:`_object_contacts` reads it)."""
+        obj = self._is_obj_geom
+        per = np.asarray(per_geom, dtype=np.int64)
+        return np.where(obj[:, None] & ~obj[None, :], per[None, :],
+                        np.where(obj[None, :] & ~obj[:, None], per[:, None], -1))
+
+    def _object_contacts(self, pairs: np.ndarray) -> np.ndarray:
+        """For each current contact: the finger index that ``pairs`` (a :meth:`_pair_owner` table) gives its
+        geom pair where it is a touching (``dist <= 0``) hand-object contact, else -1."""
+        c = self.data.contact
+        n = self.data.ncon
+        geom = c.geom[:n]
+        owner = pairs[geom[:, 0], geom[:, 1]]
+        return np.where(c.dist[:n] <= 0, owner, -1)
 
     def tip_touched(self) -> np.ndarray:
         """``(n,)`` bool: fingertip ``i`` touches the object (``tip_contacts()[0]`` without the points and
         normals; the closing loop asks this every check interval)."""
         touched = np.zeros(len(self.site_ids), dtype=bool)
         if self.data.ncon:
-            finger, _ = self._object_contacts(self._geom_tip)
+            finger = self._object_contacts(self._tip_pairs)
             touched[finger[finger >= 0]] = True
         return touched
 
@@ -470,7 +483,8 @@ class GraspScene:
         touched = np.zeros(n, dtype=bool)
         pts, nrm = np.zeros((n, 3)), np.zeros((n, 3))
         if d.ncon:
-            finger, obj0 = self._object_contacts(self._geom_tip)
+            finger = self._object_contacts(self._tip_pairs)
+            obj0 = self._is_obj_geom[d.contact.geom[: d.ncon, 0]]  # then the normal points from the object
             frame = d.contact.frame[: d.ncon, :3]  # normal points from geom[0] to geom[1]
             pos = d.contact.pos[: d.ncon]
             inward = np.where(obj0[:, None], -frame, frame)  # from finger into the object
@@ -486,10 +500,10 @@ class GraspScene:
         """(n,) bool: any link of finger i (tip included unless ``exclude_tip``) touches the object."""
         out = np.zeros(len(self.site_ids), dtype=bool)
         if self.data.ncon:
-            f, _ = self._object_contacts(self._geom_finger)
+            f = self._object_contacts(self._finger_pairs)
             keep = f >= 0
             if exclude_tip:
-                keep &= self._object_contacts(self._geom_tip)[0] < 0
+                keep &= self._object_contacts(self._tip_pairs) < 0
             out[np.unique(f[keep])] = True
         return out
 
