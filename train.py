@@ -21,6 +21,7 @@ files ``monitor/<rank>.part<k>.monitor.csv`` and its flags to ``args.part<k>.jso
 is kept; the learning-curve reader merges the segments by wall time and leaves out a killed segment's episodes past
 the step the next one resumed at, recorded as ``resumed_at_step``). PPO drops an unfinished rollout (its
 steps are not counted; so does recurrent PPO), so the resumed run ends at the same step count as an uninterrupted one.
+SAC resumes with the ``--n-envs`` it was trained with (its replay buffer holds that many envs' transitions per step).
 It goes on in the checkpoint's run folder (``--run-dir`` defaults to it; a folder that holds another run is
 refused), and it draws fresh numbers rather than replaying the start's: its envs start one past the last seed any
 earlier segment's envs had (``(k - 1) x n_envs`` seeds after the run's first while ``--n-envs`` stays the same) and
@@ -263,6 +264,11 @@ def _parse(argv: list[str] | None) -> tuple[Args, object | None]:
         if saved is not None and saved != args.discrete_approaches:
             _usage_error(f"argument --discrete-approaches: {args.resume} was trained with --discrete-approaches "
                          f"{saved}, got {args.discrete_approaches} (resume with the N it was started with)")
+        from agents.sb3 import replay_envs_problem
+
+        problem = replay_envs_problem(args.algo, None if data is None else data.get("n_envs"), args.n_envs)
+        if problem is not None:
+            _usage_error(f"argument --n-envs: {args.resume} {problem}")
         problem, env = _resume_problem(args, data, config)
         if problem is not None:
             _usage_error(f"argument --resume: {problem}")

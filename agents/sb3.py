@@ -45,8 +45,8 @@ from haptic_env.numbers import finite_number, whole_at_least, whole_number
 
 __all__ = ["ALGOS", "DEFAULT_HYPERPARAMS", "make_vec_env", "build_model", "load_model", "algo_of_file", "train",
            "SB3Agent", "TrainingInterrupted", "latest_checkpoint", "checkpoint_extras", "close_vec_env",
-           "check_hyperparams", "replay_buffer_problem", "approach_table", "DiscreteApproaches", "DISCRETE_ALGOS",
-           "discrete_approaches_problem", "RepeatTracker", "RepeatMask"]
+           "check_hyperparams", "replay_buffer_problem", "replay_envs_problem", "approach_table", "DiscreteApproaches",
+           "DISCRETE_ALGOS", "discrete_approaches_problem", "RepeatTracker", "RepeatMask"]
 
 #: ``rppo``: sb3-contrib's ``RecurrentPPO`` (an LSTM policy); ``mppo``: sb3-contrib's ``MaskablePPO`` over fixed
 #: approaches, trained and acting with :class:`RepeatMask`. Their model files are named ``rppo_*`` / ``mppo_*``.
@@ -427,6 +427,18 @@ def replay_buffer_problem(checkpoint: str | os.PathLike, algo: str) -> str | Non
             "saving?); delete it (and any later ones) and resume from the one before it")
 
 
+def replay_envs_problem(algo: str, saved: int | None, n_envs: int) -> str | None:
+    """Why ``algo``'s checkpoint trained with ``saved`` envs cannot go on with ``n_envs``, or None (the same count,
+    ``saved`` unknown, or ``algo`` keeps no replay buffer). SAC's replay buffer holds ``saved`` envs' transitions per
+    step (stable-baselines3 shapes it ``(buffer_size // n_envs, n_envs, ...)``) and cannot store a step of another
+    count: the resumed run failed at its first stored step. :func:`train` refuses such a resume, and ``train.py``
+    before any run file is written."""
+    if algo.lower() not in _OFF_POLICY or saved is None or int(saved) == int(n_envs):
+        return None
+    return (f"was trained with --n-envs {saved}, got {n_envs} ({algo.upper()}'s replay buffer holds {saved} envs' "
+            f"transitions per step; resume with --n-envs {saved})")
+
+
 class TrainingInterrupted(Exception):
     """Learning stopped early (a signal, a dead env worker); the state was saved to ``path`` first."""
 
@@ -637,6 +649,9 @@ def train(algo: str, venv, total_timesteps: int, log_dir: str | os.PathLike, *, 
         model.tensorboard_log = str(log_dir / "tb")
         if "replay_buffer" in extras and hasattr(model, "load_replay_buffer"):  # SAC's (replay_buffer_problem)
             model.load_replay_buffer(str(extras["replay_buffer"]))
+            problem = replay_envs_problem(algo, model.replay_buffer.n_envs, venv.num_envs)
+            if problem is not None:
+                raise ValueError(f"{resume} {problem}")
     else:
         model = build_model(algo, venv, seed=seed, log_dir=log_dir, verbose=verbose, **hyperparams)
     # SB3 seeds the model's env with the model's seed + rank (set_random_seed in _setup_model), which would replay the

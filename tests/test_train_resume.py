@@ -455,6 +455,35 @@ def test_a_resume_the_env_or_its_files_cannot_take_is_refused_before_any_file(sm
     assert _snapshot(sac) == before and not (sac / ".train.lock").exists()
 
 
+def test_a_sac_resume_with_another_n_envs_is_refused_before_any_file(small_recognizer_kwargs, tmp_path, usage_error,
+                                                                    monkeypatch):
+    """SAC's replay buffer holds ``n_envs`` transitions per step (stable-baselines3 shapes it so): a checkpoint's
+    buffer loaded beside another ``--n-envs`` failed at the first step it stored, after the segment's args and
+    Monitor files were written. It is a usage error naming both counts before any file; the same count resumes."""
+    monkeypatch.syspath_prepend(str(ROOT))
+    import train
+
+    run = tmp_path / "sac"
+    hp = {"learning_starts": 16, "batch_size": 16, "buffer_size": 500, "train_freq": 8, "gradient_steps": 1}
+    train.main(_args("sac", 128, run, small_recognizer_kwargs, hp))
+    before = _snapshot(run)
+    usage_error(train.main, _args("sac", 192, run, small_recognizer_kwargs, hp, n_envs=2) + ["--resume", str(run)],
+                match=r"--n-envs: .*sac_128_steps.zip was trained with --n-envs 1, got 2 \(SAC's replay buffer")
+    assert _snapshot(run) == before  # no args.part2.json, no Monitor segment: the next resume is still part 2
+    assert train.main(_args("sac", 192, run, small_recognizer_kwargs, hp) + ["--resume", str(run)]) == \
+        run / "sac_final.zip"
+    assert (run / "args.part2.json").is_file() and not (run / "args.part3.json").exists()
+    from agents import sb3  # train() itself refuses it too, once it has read the buffer
+
+    venv = sb3.make_vec_env(train.env_config(train.parse_args(_args("sac", 256, run, small_recognizer_kwargs, hp))),
+                            n_envs=2, vec="dummy")
+    try:
+        with pytest.raises(ValueError, match=r"sac_\d+_steps.zip was trained with --n-envs 1, got 2"):
+            sb3.train("sac", venv, 256, tmp_path / "other", resume=sb3.latest_checkpoint(run, "sac"))
+    finally:
+        venv.close()
+
+
 def test_a_resumed_segment_starts_past_every_earlier_segments_env_seeds(small_recognizer_kwargs, tmp_path,
                                                                         monkeypatch):
     """Segment ``k``'s envs started ``(k - 1) x n_envs`` seeds after the run's first with this segment's
