@@ -489,6 +489,11 @@ def test_touch_weight_is_checked_at_make_and_reaches_the_recogniser(env_config):
     assert _recognizer_kwargs(hand.replace(updater="bc-ip"))["touch"] is True  # BC-IP weighs it too
     assert ENV_VARIANTS["HapticRecogShadow-v0"]["touch_weight"] == 0.5  # chosen per hand on validation grasps
     assert ENV_VARIANTS["HapticRecogAero-v0"]["touch_weight"] == 0.5
+    # the Shadow's sequence temperature chosen for a margin on validation; its Heights env keeps the one it was
+    # validated with
+    assert ENV_VARIANTS["HapticRecogShadow-v0"]["calibrate_grasps"] == 10
+    assert ENV_VARIANTS["HapticRecogShadowHeights-v0"]["calibrate_grasps"] == 5
+    assert haptic_env.variant_config("HapticRecogShadowHeights-v0").calibrate_grasps == 5
     for bad, match in [({"touch_weight": -1.0}, "touch_weight"), ({"touch_weight": float("nan")}, "touch_weight"),
                        ({"touch_weight": True}, "touch_weight"), ({"touch_weight": 0.5}, "hand-matched"),
                        ({"touch_weight": 0.5, "backend": "mujoco", "updater": "ic"}, "bc-np"),
