@@ -471,8 +471,8 @@ def test_calibrate_grasps_reaches_the_kde_config(env_config):
     assert _recognizer_kwargs(env_config.replace(calibrate_grasps=5))["config"].kde.calibrate_grasps == 5
     own = env_config.replace(calibrate_grasps=5, recognizer_kwargs={"config": {"kde": {"calibrate_grasps": 3}}})
     assert _recognizer_kwargs(own)["config"].kde.calibrate_grasps == 3  # the JSON config's own setting wins
-    for env_id in ("HapticRecogMuJoCo-v0", "HapticRecogShadow-v0", "HapticRecogAero-v0"):  # chosen on validation
-        assert ENV_VARIANTS[env_id]["calibrate_grasps"] == 5
+    for env_id, k in (("HapticRecogMuJoCo-v0", 5), ("HapticRecogShadow-v0", 10), ("HapticRecogAero-v0", 5)):
+        assert ENV_VARIANTS[env_id]["calibrate_grasps"] == k  # chosen on validation (the Shadow's for a margin)
     for bad in (0, 2.0, "5"):
         with pytest.raises(ValueError, match="calibrate_grasps"):
             env_config.replace(calibrate_grasps=bad)
@@ -489,11 +489,6 @@ def test_touch_weight_is_checked_at_make_and_reaches_the_recogniser(env_config):
     assert _recognizer_kwargs(hand.replace(updater="bc-ip"))["touch"] is True  # BC-IP weighs it too
     assert ENV_VARIANTS["HapticRecogShadow-v0"]["touch_weight"] == 0.5  # chosen per hand on validation grasps
     assert ENV_VARIANTS["HapticRecogAero-v0"]["touch_weight"] == 0.5
-    # the Shadow's sequence temperature chosen for a margin on validation; its Heights env keeps the one it was
-    # validated with
-    assert ENV_VARIANTS["HapticRecogShadow-v0"]["calibrate_grasps"] == 10
-    assert ENV_VARIANTS["HapticRecogShadowHeights-v0"]["calibrate_grasps"] == 5
-    assert haptic_env.variant_config("HapticRecogShadowHeights-v0").calibrate_grasps == 5
     for bad, match in [({"touch_weight": -1.0}, "touch_weight"), ({"touch_weight": float("nan")}, "touch_weight"),
                        ({"touch_weight": True}, "touch_weight"), ({"touch_weight": 0.5}, "hand-matched"),
                        ({"touch_weight": 0.5, "backend": "mujoco", "updater": "ic"}, "bc-np"),
@@ -752,12 +747,13 @@ def test_greedy_look_ahead_with_grasp_heights(env_config):
 
 
 def test_heights_hand_envs_are_the_plain_ones_with_grasp_heights():
-    """The Heights hand envs change only the grasp vector (heights) and the touch weight chosen for it on validation,
-    and the Allegro's keeps the z_fingers it was validated with (3; the plain env's 2 since the solid table)."""
+    """The Heights hand envs change only the grasp vector (heights) and the touch weight chosen for it on validation;
+    the Allegro's keeps the z_fingers it was validated with (3; the plain env's 2 since the solid table), the Shadow's
+    its calibrate_grasps (5; the plain env's 10 since 2026-12-07)."""
     from haptic_env import ENV_VARIANTS
 
-    for hand, w, more in (("MuJoCo", 1.0, {"z_fingers": 3}), ("Shadow", 0.5, {}), ("Aero", 1.0, {}),
-                          ("Robotiq", 1.0, {})):
+    for hand, w, more in (("MuJoCo", 1.0, {"z_fingers": 3}), ("Shadow", 0.5, {"calibrate_grasps": 5}),
+                          ("Aero", 1.0, {}), ("Robotiq", 1.0, {})):
         plain, heights = ENV_VARIANTS[f"HapticRecog{hand}-v0"], ENV_VARIANTS[f"HapticRecog{hand}Heights-v0"]
         assert heights == {**plain, "grasp_heights": True, "touch_weight": w, **more}
         assert haptic_env.variant_config(f"HapticRecog{hand}Heights-v0").grasp_heights
