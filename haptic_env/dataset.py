@@ -705,7 +705,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "2026-12-07 (default: the hand collides with the table)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=output_path("file"), default=None, help="also write the dataset to this .npz")
-    p.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
+    p.add_argument("--no-cache", action="store_true",
+                   help="neither read nor write the data set's cache (nor, for the hand source, its grasp pool's); "
+                        "the MuJoCo hand's collision pieces of a mesh are still read from and written to "
+                        "$HAPTIC_CACHE/collision (a decomposition, a shipped piece's convexity verdict)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_run_cli)
     return p

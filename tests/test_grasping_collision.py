@@ -33,6 +33,12 @@ def test_coacd_decomposition_is_cached(tmp_path, monkeypatch):
     files[0].write_bytes(b"garbage")
     with pytest.raises(CacheError, match="corrupted"):
         convex_pieces(obj, cfg)
+    # cache=False neither reads nor writes, nor needs the cache folder (here one that cannot be created)
+    blocked = tmp_path / "a_file"
+    blocked.write_text("")
+    monkeypatch.setenv("HAPTIC_CACHE", str(blocked / "cache"))
+    p3 = convex_pieces(obj, cfg, cache=False)
+    assert len(p3) == len(p1) and all(np.allclose(a.vertices, b.vertices) for a, b in zip(p1, p3))
 
 
 def test_shipped_ycb_pieces_align_with_mesh():

@@ -176,8 +176,10 @@ def _is_convex(mesh: trimesh.Trimesh, tol: float) -> bool:
 
 
 def _coacd(mesh: trimesh.Trimesh, cfg: CollisionConfig, name: str, cache: bool) -> list[trimesh.Trimesh]:
-    path = cache_dir("collision") / f"{name}-{config_key(cfg, _mesh_hash(mesh))}.npz"
-    if cache and path.is_file():
+    """``mesh``'s coacd pieces, read from (and saved to) ``cache_dir("collision")`` when ``cache``; without it the
+    cache folder is not touched (nor required to exist or be writable)."""
+    path = cache_dir("collision") / f"{name}-{config_key(cfg, _mesh_hash(mesh))}.npz" if cache else None
+    if path is not None and path.is_file():
         data = load_npz(path, required=("vertices", "faces", "nv", "nf"))
         out, v0, f0 = [], 0, 0
         for nv, nf in zip(data["nv"], data["nf"]):
@@ -195,7 +197,7 @@ def _coacd(mesh: trimesh.Trimesh, cfg: CollisionConfig, name: str, cache: bool) 
         mcts_iterations=cfg.mcts_iterations, mcts_nodes=cfg.mcts_nodes, mcts_max_depth=cfg.mcts_max_depth,
         seed=cfg.seed)
     out = [trimesh.Trimesh(np.asarray(v), np.asarray(f), process=False) for v, f in parts]
-    if cache:
+    if path is not None:
         save_npz_atomic(path, vertices=np.concatenate([m.vertices for m in out]),
                         faces=np.concatenate([m.faces for m in out]),
                         nv=np.array([len(m.vertices) for m in out]), nf=np.array([len(m.faces) for m in out]))
