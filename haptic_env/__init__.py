@@ -45,7 +45,8 @@ ENV_VARIANTS: dict[str, dict[str, Any]] = {
     "HapticRecogMuJoCo-v0": {"backend": "mujoco", "backend_kwargs": {"hand": "allegro"}, "objects": "ycb10",
                              "z_fingers": 2, "calibrate_grasps": 5, "training_grasps": 6000, "touch_weight": 0.75},
     # the Shadow's touch_weight chosen on validation grasps with the solid table (0.25 before it), its calibrate_grasps
-    # (5 before) on 600 validation episodes for a margin over its 94 % target (RESULTS.md "The Shadow env's margin")
+    # (5 before) on 600 validation episodes for a margin over its 94 % target (RESULTS.md "Latest: the Shadow env with
+    # a margin over its 94 %")
     "HapticRecogShadow-v0": {"backend": "mujoco", "backend_kwargs": {"hand": "shadow"}, "objects": "ycb10",
                              "n_fingers": 5, "normals": False, "z_fingers": 3, "calibrate_grasps": 10,
                              "training_grasps": 6000, "touch_weight": 0.5},
