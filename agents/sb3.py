@@ -230,7 +230,18 @@ def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.
     ``vec="native"``) and the action mask ``mppo`` trains with (:class:`RepeatMask`). ``probe``: an env of
     ``config`` already built in this process (``haptic_env.make(config, env_id=env_id)``, not yet reset; e.g.
     ``train.py``'s check of a resumed checkpoint's spaces), taken over instead of building another: with
-    ``vec="subproc"`` it prepares the workers' cache, with ``"dummy"`` it is env 0; ``"native"`` closes it."""
+    ``vec="subproc"`` it prepares the workers' cache, with ``"dummy"`` it is env 0; ``"native"`` closes it. It is
+    closed here too when the vec env cannot be built (a bad argument, a failing env)."""
+    try:
+        return _vec_env(config, n_envs, seed, log_dir, vec, env_id, monitor_suffix, discrete_approaches, probe)
+    except BaseException:
+        if probe is not None:  # taken over by nothing (closing it twice is harmless)
+            probe.close()
+        raise
+
+
+def _vec_env(config, n_envs, seed, log_dir, vec, env_id, monitor_suffix, discrete_approaches, probe):
+    """:func:`make_vec_env`'s body."""
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
     from haptic_env import variant_config

@@ -63,7 +63,8 @@ ENV_VARIANTS.update({f"HapticRecog{hand}Heights-v0": {**ENV_VARIANTS[f"HapticRec
                                                        "touch_weight": w}
                      for hand, w in (("MuJoCo", 1.0), ("Shadow", 0.5), ("Aero", 1.0), ("Robotiq", 1.0))})
 ENV_VARIANTS["HapticRecogMuJoCoHeights-v0"]["z_fingers"] = 3  # as validated (the plain Allegro env's until 2026-12-07)
-ENV_VARIANTS["HapticRecogShadowHeights-v0"]["calibrate_grasps"] = 5  # as validated (the plain Shadow env's until 2026-12-07)
+# as validated (the plain Shadow env's until 2026-12-07)
+ENV_VARIANTS["HapticRecogShadowHeights-v0"]["calibrate_grasps"] = 5
 
 #: the native vector env (:mod:`haptic_env.vector_env`) of the variants on these backends (those with
 #: ``grasp_placed``: one batched call per object): ``gym.make_vec(id, num_envs, vectorization_mode=

@@ -132,10 +132,11 @@ class HapticRecogConfig:
     calibrate_grasps: int = 1
     """The KDE's temperature is fitted for beliefs of ``k = 1 .. calibrate_grasps`` grasps of one object
     (``KDEConfig.calibrate_grasps``, unless ``recognizer_kwargs`` sets its own; 1: the one-shot temperature).
-    The Allegro, Shadow and Aero envs use 5: their grasps of one object share the KDE's systematic errors, and a
-    belief multiplied over grasps with the one-shot temperature stops wrong more often. Chosen per hand on
-    validation grasps (RESULTS.md); the Aero's together with its ``touch_weight`` (without the touch pattern its
-    belief needed twice the grasps at 5 for no more success, and it kept 1)."""
+    The Allegro and Aero envs use 5, the Shadow env 10 (5 until 2026-12-07, and its ``Heights`` env's): their grasps
+    of one object share the KDE's systematic errors, and a belief multiplied over grasps with the one-shot temperature
+    stops wrong more often. Chosen per hand on validation grasps (RESULTS.md); the Aero's together with its
+    ``touch_weight`` (without the touch pattern its belief needed twice the grasps at 5 for no more success, and it
+    kept 1), the Shadow's 10 on 600 validation episodes for a margin over its 94 % target."""
     touch_weight: float = 0.0
     """Weight ``w`` of the hand's touch-pattern log-likelihood ``w log P(pattern | object)`` that BC-NP (or BC-IP)
     adds at every grasp (which fingertips touched: :mod:`haptic_env.recognizers.touch`, estimated from the same

@@ -713,6 +713,19 @@ def test_make_vec_env_without_a_config_builds_the_registered_env(monkeypatch):
     assert seen[0] == haptic_env.variant_config("HapticRecogKIT-v0") and seen[0].objects == "kit8"
 
 
+def test_make_vec_env_closes_a_probe_it_could_not_take_over(env_config):
+    """A ``probe`` env handed to ``make_vec_env`` is closed when the vec env cannot be built (nothing took it over)."""
+    from agents import sb3
+
+    env = haptic_env.make(env_config)
+    closed = []
+    close = env.close
+    env.close = lambda: (closed.append(True), close())
+    with pytest.raises(ValueError, match="vec must be"):
+        sb3.make_vec_env(env_config, n_envs=2, vec="bogus", probe=env)
+    assert closed == [True]
+
+
 def test_training_envs_are_seeded_apart_from_the_evaluation_seeds():
     """train.py's envs start at 10000 + 1000 * seed by default (no training env replays the episodes of a test
     seed 0-4, a validation seed 500-504 or a sweep seed 1000-1002); --env-seed gives the earlier seed + rank."""

@@ -33,7 +33,10 @@ def test_coacd_decomposition_is_cached(tmp_path, monkeypatch):
     files[0].write_bytes(b"garbage")
     with pytest.raises(CacheError, match="corrupted"):
         convex_pieces(obj, cfg)
-    # cache=False neither reads nor writes, nor needs the cache folder (here one that cannot be created)
+    # cache=False neither reads (the corrupted file is still there) nor writes, nor needs the cache folder (below:
+    # one that cannot be created)
+    p_no = convex_pieces(obj, cfg, cache=False)
+    assert len(p_no) == len(p1) and files[0].read_bytes() == b"garbage"
     blocked = tmp_path / "a_file"
     blocked.write_text("")
     monkeypatch.setenv("HAPTIC_CACHE", str(blocked / "cache"))

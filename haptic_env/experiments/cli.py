@@ -171,7 +171,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         f"on held-out validation grasps (KDEConfig.correct_candidates; of {','.join(CORRECTIONS)})")
     p.add_argument("--calibrate-grasps", type=int, default=d.kde.calibrate_grasps,
                    help="fit the KDE's temperature for beliefs of 1..K grasps of one object (1: one-shot; the hand "
-                        "envs use 5)")
+                        "envs use 5, the Shadow env 10)")
     p.add_argument("--calib-fingers", default=",".join(map(str, d.calib_fingers)),
                    help="experiment 7: finger counts with normals")
     p.add_argument("--calib-fingers-no-normals", default=",".join(map(str, d.calib_fingers_no_normals)),

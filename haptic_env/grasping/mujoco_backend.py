@@ -308,14 +308,14 @@ class GraspScene:
             m.actuator_biasprm[:, 1])
         # reset's joints: those a position-like actuator (finite ctrl_per_length, nonzero gear) drives directly, each
         # set by the last such actuator of it (as a loop over the actuators would), with its limits
-        servo = np.flatnonzero((m.actuator_trntype == mujoco.mjtTrn.mjTRN_JOINT) & np.isfinite(self.ctrl_per_length)
-                               & (m.actuator_gear[:, 0] != 0))
-        joint = m.actuator_trnid[servo, 0]
+        servo = np.flatnonzero((self.act_joint >= 0) & np.isfinite(self.ctrl_per_length) & (m.actuator_gear[:, 0] != 0))
+        joint = self.act_joint[servo]
         last = np.array([i for i in range(len(servo)) if joint[i] not in joint[i + 1:]], dtype=np.int64)
         servo, joint = servo[last], joint[last]
         limited = m.jnt_limited[joint].astype(bool)
         self._servo = (servo, m.jnt_qposadr[joint], m.actuator_gear[servo, 0].copy(),
-                       np.where(limited, m.jnt_range[joint, 0], -np.inf), np.where(limited, m.jnt_range[joint, 1], np.inf))
+                       np.where(limited, m.jnt_range[joint, 0], -np.inf),
+                       np.where(limited, m.jnt_range[joint, 1], np.inf))
         mujoco.mj_resetData(m, self.data)
         self.step_time = 0.0  # seconds spent inside mj_step
         self.steps = 0
@@ -454,9 +454,9 @@ class GraspScene:
         """``(ngeom, ngeom)`` table: for a contact between geoms ``(g0, g1)``, ``per_geom`` of its hand geom (a
         finger index) when exactly one of the two is an object geom, else -1 (:meth:`_object_contacts` reads it)."""
         obj = self._is_obj_geom
-        per = np.asarray(per_geom, dtype=np.int64)
+        per = np.asarray(per_geom, dtype=np.int16)  # finger indices (a scene keeps two tables of ngeom^2 entries)
         return np.where(obj[:, None] & ~obj[None, :], per[None, :],
-                        np.where(obj[None, :] & ~obj[:, None], per[:, None], -1))
+                        np.where(obj[None, :] & ~obj[:, None], per[:, None], np.int16(-1)))
 
     def _object_contacts(self, pairs: np.ndarray) -> np.ndarray:
         """For each current contact: the finger index that ``pairs`` (a :meth:`_pair_owner` table) gives its
