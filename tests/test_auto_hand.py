@@ -451,3 +451,46 @@ def test_pads_and_finger_couplings(tmp_path):
     # round tips keep the distal cap (the generic hand's spheres: their centres)
     g = auto_hand(_write(tmp_path, "g3", generic_hand(3).spec), cache=False)
     assert all(np.allclose(p, 0, atol=1e-9) and np.isclose(r, 0.01) for p, r in g.tip_sites)
+
+
+def test_reset_sets_each_servo_joint_as_a_loop_over_the_actuators_would(tmp_path):
+    """``GraspScene.reset`` (one array step) gives, bit for bit, what a loop over the actuators in order gives: a
+    joint-transmission actuator with a finite ``ctrl_per_length`` and a nonzero gear sets its joint to
+    ``(ctrl - offset) / ctrl_per_length / gear``, clipped to a limited joint's range, the last such actuator of a joint
+    winning; motors and gear-0 actuators leave their joints alone. Here with servos added on driven joints (gear 3,
+    gear -2), a motor and a gear-0 servo beside them, an unlimited joint and a servo with an offset."""
+    spec = sibling_roots_hand()
+    acts = list(spec.actuators)
+    j0, j1, j2 = acts[0].target, acts[1].target, acts[2].target
+    for name, target, kind, gear in (("dup_g3", j0, "position", 3.0), ("dup_motor", j0, "motor", 1.0),
+                                     ("dup_g0", j1, "position", 0.0), ("dup_neg", j2, "position", -2.0)):
+        a = spec.add_actuator(name=name, target=target, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        a.set_to_position(kp=5) if kind == "position" else a.set_to_motor()
+        a.gear[0] = gear
+        a.ctrllimited, a.ctrlrange = mujoco.mjtLimited.mjLIMITED_TRUE, [-1, 1]
+    for jt in spec.joints:
+        if jt.name == acts[3].target:
+            jt.limited = mujoco.mjtLimited.mjLIMITED_FALSE
+    acts[4].set_to_position(kp=3)
+    acts[4].biasprm[0] = 0.7
+    be = make_backend("mujoco", hand=_write(tmp_path, "edge", spec))
+    be.set_object(_cyl())
+    sc = be.scene
+    m, d = sc.model, sc.data
+
+    def by_loop(ctrl):
+        mujoco.mj_resetData(m, d)
+        d.ctrl[:] = ctrl
+        for a in range(m.nu):
+            gear = m.actuator_gear[a, 0]
+            if m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT and np.isfinite(sc.ctrl_per_length[a]) and gear:
+                j = m.actuator_trnid[a, 0]
+                lo, hi = m.jnt_range[j] if m.jnt_limited[j] else (-np.inf, np.inf)
+                d.qpos[m.jnt_qposadr[j]] = np.clip((ctrl[a] - sc.ctrl_offset[a]) / sc.ctrl_per_length[a] / gear, lo, hi)
+        return d.qpos.copy()
+
+    rng = np.random.default_rng(1)
+    for _ in range(50):
+        ctrl = rng.uniform(-3, 3, m.nu)
+        sc.reset(ctrl)
+        assert np.array_equal(d.qpos.copy().view(np.int64), by_loop(ctrl).view(np.int64))
