@@ -472,6 +472,21 @@ def _parts(run_dir: Path) -> dict[int, Path | None]:
     return found
 
 
+def _drop_stale_monitors(run_dir: Path) -> None:
+    """Remove the Monitor files (and segment args) that a run killed before its first checkpoint left in ``run_dir``,
+    before a fresh run writes its own there: its envs' files would otherwise sit beside the new run's (another
+    ``--n-envs`` leaves ranks the new run does not write) and join its learning curves. Called only once
+    :func:`refuse_a_held_run_dir` has found no checkpoint or final model in the folder; says what it removed."""
+    stale = sorted((run_dir / "monitor").glob("*.monitor.csv")) + sorted(
+        p for p in run_dir.glob("args.part*.json") if re.fullmatch(r"args\.part\d+\.json", p.name))
+    if stale:
+        print(f"[train] {run_dir}: removing {len(stale)} file(s) of an earlier run that saved no checkpoint "
+              f"({', '.join(p.name for p in stale[:4])}{', ...' if len(stale) > 4 else ''})", file=sys.stderr,
+              flush=True)
+        for p in stale:
+            p.unlink()
+
+
 def _next_part(run_dir: Path) -> int:
     """One past the last run segment with files in ``run_dir`` (:func:`_parts`; 1 in a new folder): a segment's
     files are never written over, and its seeds are its own (:func:`segment_seeds`)."""
@@ -550,6 +565,8 @@ def _train(args: Args, probes: list | None = None) -> Path:
                      else ""), file=sys.stderr, flush=True)
     from haptic_env.cache import atomic_write
 
+    if part == 1:  # a fresh run: Monitor files here are a killed run's that saved nothing (refuse_a_held_run_dir)
+        _drop_stale_monitors(run_dir)
     with atomic_write(run_dir / f"args{suffix}.json", "w") as fh:  # whole or absent: a resume compares with it
         fh.write(json.dumps(record, indent=2, default=str))
 

@@ -283,6 +283,25 @@ def test_a_fresh_run_is_refused_a_folder_that_holds_a_run_and_a_resume_says_what
     assert train.segment_seeds(train.parse_args(first), 1) == (0, part2["first_env_seed"])
 
 
+def test_a_fresh_run_replaces_the_monitor_files_of_a_killed_run_that_saved_nothing(
+        small_recognizer_kwargs, tmp_path, capsys, monkeypatch):
+    """Monitor files (and segment args) left by a run killed before its first checkpoint are removed before a fresh
+    run writes its own: a rank the new run does not have would otherwise join its learning curves."""
+    monkeypatch.syspath_prepend(str(ROOT))
+    import train
+
+    run = tmp_path / "run"
+    (run / "monitor").mkdir(parents=True)
+    for name in ("0.monitor.csv", "3.monitor.csv", "0.part2.monitor.csv"):
+        (run / "monitor" / name).write_text("stale\n")
+    (run / "args.part2.json").write_text("{}")
+    capsys.readouterr()
+    train.main(_args("ppo", 128, run, small_recognizer_kwargs, {"n_steps": 64, "batch_size": 64, "n_epochs": 1}))
+    assert "removing 4 file(s) of an earlier run that saved no checkpoint" in capsys.readouterr().err
+    assert sorted(p.name for p in (run / "monitor").iterdir()) == ["0.monitor.csv"]
+    assert (run / "monitor" / "0.monitor.csv").read_text() != "stale\n" and not (run / "args.part2.json").exists()
+
+
 def test_a_run_folder_in_use_by_another_training_is_refused(small_recognizer_kwargs, tmp_path, usage_error,
                                                               monkeypatch):
     """Two trainings into one folder at once would mix their Monitor files, args and checkpoints (the held-run check
