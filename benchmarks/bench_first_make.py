@@ -34,7 +34,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
-from haptic_env.cli import int_in  # noqa: E402
+from haptic_env.cli import int_in, json_object  # noqa: E402
 
 FIRST_GOAL_S = 300.0
 LATER_GOAL_S = 5.0
@@ -50,16 +50,6 @@ env.reset(seed=0)
 env.close()
 print(time.perf_counter() - t0)
 """
-
-
-def _env_kwargs(text: str) -> dict:
-    try:
-        kwargs = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise argparse.ArgumentTypeError(f"not JSON ({exc}): {text!r}") from None
-    if not isinstance(kwargs, dict):
-        raise argparse.ArgumentTypeError(f"expected a JSON object of env settings, got {text!r}")
-    return kwargs
 
 
 def timed_make(env_id: str, kwargs: dict, cache: Path) -> float:
@@ -111,7 +101,7 @@ def one_core_rate(pool: dict, objects_name: str, approaches: int, solid_table) -
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--env-id", default="HapticRecogShadow-v0", help="a registered env id")
-    p.add_argument("--env-kwargs", type=_env_kwargs, default={}, help="JSON object of env settings for gym.make")
+    p.add_argument("--env-kwargs", type=json_object, default={}, help="JSON object of env settings for gym.make")
     p.add_argument("--cache", type=Path, default=None,
                    help="the cache folder to build into: empty or missing (default: a new temporary one, removed)")
     p.add_argument("--baseline-approaches", type=int_in(1), default=100,
