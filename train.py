@@ -478,7 +478,7 @@ def _drop_stale_monitors(run_dir: Path) -> None:
     ``--n-envs`` leaves ranks the new run does not write) and join its learning curves. Called only once
     :func:`refuse_a_held_run_dir` has found no checkpoint or final model in the folder; says what it removed."""
     stale = sorted((run_dir / "monitor").glob("*.monitor.csv")) + sorted(
-        p for p in run_dir.glob("args.part*.json") if re.fullmatch(r"args\.part\d+\.json", p.name))
+        p for k, p in _parts(run_dir).items() if k > 1 and p is not None)
     if stale:
         print(f"[train] {run_dir}: removing {len(stale)} file(s) of an earlier run that saved no checkpoint "
               f"({', '.join(p.name for p in stale[:4])}{', ...' if len(stale) > 4 else ''})", file=sys.stderr,
@@ -518,20 +518,19 @@ def _signals_stop_the_set_up() -> Iterator[None]:
 
 
 def main(argv: list[str] | None = None) -> Path:
-    args, env = _parse(argv)
-    probes = [] if env is None else [env]  # a --resume's env, built once: the training's envs take it over
+    args, env = _parse(argv)  # env: a --resume's, built once: the training's envs take it over
     try:
         with hold_run_dir(Path(args.run_dir)):  # checked held: a run that began meanwhile has its files there now
             refuse_a_held_run_dir(args)
-            return _train(args, probes)
+            return _train(args, env)
     finally:
-        for env in probes:  # not taken over (refused, or stopped before the envs were built)
+        if env is not None:  # refused, stopped before the envs were built, or closed with them (again: harmless)
             env.close()
 
 
-def _train(args: Args, probes: list | None = None) -> Path:
-    """Train in ``args.run_dir``, which :func:`main` holds. ``probes``: at most one env of the run's config already
-    built (:func:`_parse`'s), which the vec env takes (out of the list) rather than build it again."""
+def _train(args: Args, probe=None) -> Path:
+    """Train in ``args.run_dir``, which :func:`main` holds. ``probe``: an env of the run's config already built
+    (:func:`_parse`'s), which the vec env takes over rather than build another."""
     import torch
 
     from agents import sb3
@@ -577,7 +576,7 @@ def _train(args: Args, probes: list | None = None) -> Path:
             venv = sb3.make_vec_env(config, n_envs=args.n_envs, seed=segment_env_seed, log_dir=run_dir, vec=args.vec,
                                     env_id=args.env_id, monitor_suffix=suffix,
                                     discrete_approaches=args.discrete_approaches,
-                                    probe=probes.pop() if probes else None)
+                                    probe=probe)
             action = (f"one of {args.discrete_approaches} approaches" if args.discrete_approaches
                       else f"{venv.action_space.shape[0]}-dim action")
             print(f"[train] {args.algo} on {args.env_id} ({args.n_envs} envs, {venv.observation_space.shape[0]}-dim "
