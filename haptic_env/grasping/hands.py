@@ -244,8 +244,8 @@ def aero_hand(side: str = "right") -> HandDescription:
     miss the component along the joint axes (see :mod:`~haptic_env.grasping.mujoco_backend`). The
     thumb is slow to settle: up to 0.8 s of closing (200 steps of 4 ms). The 4 ms step keeps the usable
     (0.85) and complete (0.56) grasp rates (the visual table, before 2026-12-07) and the contact error of 2 ms on 400
-    ycb10 approaches at 1.3x the grasps/s, and the recognition: validation BC-NP (pool seeds 500-502, 3,000 training approaches) 85.0 +- 2.2 %
-    in 5.94 grasps against 85.3 +- 2.6 % in 5.96 at 2 ms."""
+    ycb10 approaches at 1.3x the grasps/s, and the recognition: validation BC-NP (pool seeds 500-502, 3,000 training
+    approaches) 85.0 +- 2.2 % in 5.94 grasps against 85.3 +- 2.6 % in 5.96 at 2 ms."""
     if side not in ("right", "left"):
         raise ValueError(f"side must be 'right' or 'left', got {side!r}")
     spec = _menagerie_spec("tetheria_aero_hand_open", f"{side}_hand")
