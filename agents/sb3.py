@@ -726,6 +726,7 @@ class SB3Agent:
         self.deterministic = deterministic
         self.recurrent = hasattr(model.policy, "lstm_actor")
         space = model.action_space
+        # the approaches of a categorical policy; their dimension follows the env the agent acts in (:meth:`_row`)
         self.table = approach_table(space.n) if isinstance(space, gym.spaces.Discrete) else None
         if no_repeat and (self.table is None or self.recurrent):
             kind = "a recurrent policy" if self.recurrent else f"an action space {space}"
@@ -780,7 +781,7 @@ class SB3Agent:
             self.tracker.see(obs[env.unwrapped.task.obs_slices["belief"]])
             i = self._untried_choice(obs)
             self.tracker.add(i)
-            return self.table[i].copy()
+            return self._row(i, env)
         if not self.recurrent:
             action, _ = self.model.predict(np.asarray(obs), deterministic=self.deterministic)
         else:
@@ -789,5 +790,13 @@ class SB3Agent:
             self._start = np.zeros((1,), dtype=bool)
             action = action[0]
         if self.table is not None:
-            return self.table[int(np.asarray(action).reshape(-1)[0])].copy()
+            return self._row(int(np.asarray(action).reshape(-1)[0]), env)
         return np.asarray(action, dtype=np.float32)
+
+    def _row(self, i: int, env: Any) -> np.ndarray:
+        """Approach ``i`` of the table as :class:`DiscreteApproaches` built it in training: :func:`approach_table`'s
+        rows in the dimension of ``env``'s action (the table is rebuilt once if the env's differs from the last)."""
+        dim = int(np.prod(env.action_space.shape))
+        if self.table.shape[1] != dim:
+            self.table = approach_table(len(self.table), dim)
+        return self.table[i].copy()

@@ -387,13 +387,19 @@ def test_sb3_agent_maps_a_recurrent_or_sampled_categorical_choice_to_its_approac
             self.calls.append(deterministic)
             return (np.array([5]), "state") if self.recurrent else (np.array(5), None)
 
+    env4 = SimpleNamespace(action_space=gym.spaces.Box(-1, 1, (4,)))
     for recurrent in (False, True):
         for deterministic in (True, False):
             model = Stub(recurrent)
             agent = SB3Agent(model, deterministic=deterministic)
             assert agent.recurrent == recurrent
-            np.testing.assert_array_equal(agent.act(np.zeros(3, np.float32), None), approach_table(8)[5])
+            np.testing.assert_array_equal(agent.act(np.zeros(3, np.float32), env4), approach_table(8)[5])
             assert model.calls == [deterministic]
+    # the approaches take the dimension of the env's action, as DiscreteApproaches built them in training
+    env5 = SimpleNamespace(action_space=gym.spaces.Box(-1, 1, (5,)))
+    agent = SB3Agent(Stub(False))
+    np.testing.assert_array_equal(agent.act(np.zeros(3, np.float32), env5), approach_table(8, 5)[5])
+    np.testing.assert_array_equal(agent.act(np.zeros(3, np.float32), env4), approach_table(8)[5])
 
 
 def test_sb3_agent_no_repeat_moves_on_while_the_belief_stays():
@@ -411,7 +417,8 @@ def test_sb3_agent_no_repeat_moves_on_while_the_belief_stays():
     policy = SimpleNamespace(obs_to_tensor=lambda o: (th.as_tensor(o)[None], True), set_training_mode=lambda mode: None,
                              get_distribution=lambda o: SimpleNamespace(distribution=SimpleNamespace(logits=probs.log())))
     model = SimpleNamespace(action_space=gym.spaces.Discrete(8), policy=policy)
-    env = SimpleNamespace(unwrapped=SimpleNamespace(task=SimpleNamespace(obs_slices={"belief": slice(1, 3)})))
+    env = SimpleNamespace(unwrapped=SimpleNamespace(task=SimpleNamespace(obs_slices={"belief": slice(1, 3)})),
+                          action_space=gym.spaces.Box(-1, 1, (4,)))
     table = approach_table(8)
 
     def obs(count, belief):  # [grasp count, belief (2)]
