@@ -56,6 +56,9 @@ import numpy as np
 __all__ = [
     "EpisodeRecord",
     "run_episodes",
+    "agent_seed_for",
+    "AGENT_STREAM",
+    "AGENT_STREAMS",
     "evaluate_agents",
     "summarize",
     "success_curve",
@@ -92,19 +95,43 @@ def _check_episodes(n_episodes) -> None:
     whole_at_least(n_episodes, 1, "n_episodes")
 
 
+#: spawn key of the agents' random numbers under an env seed (:func:`agent_seed_for`)
+AGENT_STREAM = 1
+#: where an agent's random numbers under env seed ``s`` come from (:func:`agent_seed_for`): ``"apart"`` (the
+#: default) a stream apart from the env's; ``"env"`` the env's own, as every evaluation before 2026-12-07 drew them
+#: (to repeat a committed run)
+AGENT_STREAMS = ("apart", "env")
+#: what a report of ``--agent-stream env`` says of its seeding
+STREAM_NOTE = "; the agents' random numbers from the env seeds' own streams (--agent-stream env, as before 2026-12-07)"
+
+
+def agent_seed_for(seed: int, agent_seed: int | None = None, stream: str = "apart") -> int:
+    """The seed of an agent's own random numbers for env seed ``seed``: from ``SeedSequence(seed,
+    spawn_key=(AGENT_STREAM,))``, a stream apart from the env's. Gymnasium seeds the env with ``SeedSequence(seed)``,
+    and so did an agent seeded with ``seed`` itself, as every evaluation did until 2026-12-07 (``stream="env"``
+    repeats it): a random agent's first action then reused the numbers that drew the episode's object and its yaw,
+    its elevation a function of the yaw. With ``agent_seed`` (either stream) from ``SeedSequence([seed,
+    agent_seed])``: the runs of one agent with different seeds differ."""
+    if stream not in AGENT_STREAMS:
+        raise ValueError(f"agent stream must be one of {AGENT_STREAMS}, got {stream!r}")
+    if agent_seed is not None:
+        return int(np.random.SeedSequence([int(seed), int(agent_seed)]).generate_state(1)[0])
+    if stream == "env":
+        return int(seed)
+    return int(np.random.SeedSequence(int(seed), spawn_key=(AGENT_STREAM,)).generate_state(1)[0])
+
+
 def run_episodes(agent, make_env: Callable[[], Any], n_episodes: int, seed: int,
-                 progress: Callable[[int], None] | None = None, agent_seed: int | None = None) -> list[EpisodeRecord]:
+                 progress: Callable[[int], None] | None = None, agent_seed: int | None = None,
+                 agent_stream: str = "apart") -> list[EpisodeRecord]:
     """Run ``n_episodes`` of ``agent`` on a fresh env from ``make_env()``, seeded with ``seed``.
 
-    The agent's own randomness (random actions, greedy's candidates, sampled SB3 actions) is seeded with ``seed``
-    too, so that agents compared on one env seed share their random numbers; with ``agent_seed`` it is seeded
-    with ``SeedSequence([seed, agent_seed])`` instead, so that the runs of one agent with different seeds differ
-    (the objects and poses still depend on ``seed`` alone)."""
+    The agent's own randomness (random actions, greedy's candidates, sampled SB3 actions) is seeded with
+    :func:`agent_seed_for` of ``seed``, so that agents compared on one env seed share their random numbers, which are
+    apart from the env's (``agent_stream="env"``: the env's own, as before 2026-12-07); with ``agent_seed`` the runs
+    of one agent with different agent seeds differ (the objects and poses still depend on ``seed`` alone)."""
     _check_episodes(n_episodes)
-    if agent_seed is None:
-        own = seed
-    else:
-        own = int(np.random.SeedSequence([int(seed), int(agent_seed)]).generate_state(1)[0])
+    own = agent_seed_for(seed, agent_seed, agent_stream)
     env = make_env()
     records = []
     try:
@@ -137,8 +164,8 @@ def repeated_names(agents: Sequence[Any]) -> list[str]:
 
 def evaluate_agents(agents: Sequence[Any], make_env: Callable[[], Any], n_episodes: int,
                     seeds: Iterable[int], progress: bool = True, store: str | Path | None = None,
-                    keys: Sequence[str] | None = None) -> list[EpisodeRecord]:
-    """Every agent x every seed x ``n_episodes`` episodes (tqdm progress).
+                    keys: Sequence[str] | None = None, agent_stream: str = "apart") -> list[EpisodeRecord]:
+    """Every agent x every seed x ``n_episodes`` episodes (tqdm progress; ``agent_stream``: :func:`agent_seed_for`).
 
     With ``store`` (a folder) every finished block (one agent on one seed) is saved there at once, as
     ``<key>-seed<s>.json``, and blocks already saved there are read instead of run, so that an interrupted
@@ -149,6 +176,7 @@ def evaluate_agents(agents: Sequence[Any], make_env: Callable[[], Any], n_episod
     from haptic_env.numbers import repeated
 
     _check_episodes(n_episodes)
+    agent_seed_for(0, stream=agent_stream)  # a bad stream fails here, before any episode
     seeds = list(seeds)
     if repeated(seeds):  # the same episodes twice would count as twice the evidence
         raise ValueError(f"seeds must be distinct, got {seeds}")
@@ -168,7 +196,7 @@ def evaluate_agents(agents: Sequence[Any], make_env: Callable[[], Any], n_episod
                     bar.update(len(saved))
                     continue
                 bar.set_postfix_str(f"{agent.name} seed={s}")
-                recs = run_episodes(agent, make_env, n_episodes, s, progress=bar.update)
+                recs = run_episodes(agent, make_env, n_episodes, s, progress=bar.update, agent_stream=agent_stream)
                 if block is not None:
                     from haptic_env.cache import atomic_write
 
@@ -791,7 +819,7 @@ def code_fingerprint() -> str:
 
 def _block_key(spec: str, args, kwargs: dict, code: str) -> str:
     """What one agent's saved blocks of ``evaluate`` depend on: the agent spec (with its model file's bytes), the env
-    and its overrides, the episodes per seed, ``--stochastic``, ``--no-repeat`` and the code
+    and its overrides, the episodes per seed, ``--stochastic``, ``--no-repeat``, ``--agent-stream`` and the code
     (:func:`code_fingerprint`: a run resumed after the code changed plays its saved blocks again instead of mixing
     them with the new code's)."""
     import hashlib
@@ -803,7 +831,8 @@ def _block_key(spec: str, args, kwargs: dict, code: str) -> str:
     name = spec.partition("=")[0] if "=" in spec else Path(spec).stem
     safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in name)[:40]
     return f"{safe}-" + config_key(spec, model, args.env_id, kwargs, int(args.episodes), bool(args.stochastic),
-                                  *(["no-repeat"] if args.no_repeat else []), code)
+                                  *(["no-repeat"] if args.no_repeat else []),
+                                  *([] if args.agent_stream == "apart" else [f"stream-{args.agent_stream}"]), code)
 
 
 def add_parser(subparsers) -> None:
@@ -828,6 +857,11 @@ def add_parser(subparsers) -> None:
                         "approach twice while the belief stays the same (a grasp that touches too few fingers leaves "
                         "it unchanged, and the policy may repeat it up to the cap); named <name>-norepeat (an mppo "
                         "model acts so always, as it was trained: for it the flag only adds the suffix)")
+    p.add_argument("--agent-stream", choices=AGENT_STREAMS, default="apart",
+                   help="where the agents' random numbers under an env seed come from: apart (default) a stream apart "
+                        "from the env's; env the env seed's own, as every evaluation before 2026-12-07 drew them (to "
+                        "repeat a committed run; a random agent's first action then reused the numbers of the "
+                        "episode's object and yaw)")
     p.add_argument("--env-id", default="HapticRecog-v0", choices=list(ENV_VARIANTS))
     p.add_argument("--env-kwargs", type=json_object, default={}, help="JSON dict of HapticRecogConfig fields")
     p.add_argument("--out", type=output_path("folder"), default="outputs/eval")
@@ -896,12 +930,14 @@ def _main(args) -> int:
         warnings.simplefilter("ignore", RuntimeWarning)
         resumed = sum(_read_block(_block_path(store, k, s), args.episodes) is not None
                       for k in keys for s in args.seeds)
-    records = evaluate_agents(agents, make_env, args.episodes, args.seeds, store=store, keys=keys)
+    records = evaluate_agents(agents, make_env, args.episodes, args.seeds, store=store, keys=keys,
+                              agent_stream=args.agent_stream)
     note = f" (resumed: {resumed} of {len(keys) * len(args.seeds)} agent-seed blocks read from an interrupted run)" \
         if resumed else ""
     paths = write_report(records, args.out, config.max_grasps,
                          extra=f"env `{args.env_id}`, config overrides `{kwargs}`; {args.episodes} episodes x seeds "
-                               f"{args.seeds}; {time.time() - t0:.0f} s{note}.")
+                               f"{args.seeds}; {time.time() - t0:.0f} s{note}"
+                               + (STREAM_NOTE if args.agent_stream == "env" else "") + ".")
     shutil.rmtree(store, ignore_errors=True)
     if curves:
         _plot_curves(curves, Path(args.out) / "learning_curves.png")

@@ -78,6 +78,52 @@ def test_agent_seed_gives_distinct_runs_on_the_same_episodes(env_config):
     assert [(r.grasps, r.ret) for r in runs[0]] != [(r.grasps, r.ret) for r in runs[1]]
 
 
+def test_agent_numbers_are_apart_from_the_env_seeds_stream():
+    """An agent's random numbers under env seed s are not the env's own (gymnasium's SeedSequence(s)): a random
+    agent seeded with s itself drew, in its first action, the very numbers the env drew the object and its yaw with
+    (its elevation a function of the yaw). Neither do they coincide with another env seed's stream, nor with an
+    agent seed's."""
+    from gymnasium.utils import seeding
+
+    from agents.evaluate import agent_seed_for
+
+    for s in range(20):
+        env_rng, _ = seeding.np_random(s)
+        env_draws = env_rng.random(8)
+        own = agent_seed_for(s)
+        assert own not in range(20)
+        assert not np.isin(np.random.default_rng(own).random(8), env_draws).any()
+        assert own != agent_seed_for(s, 0) and own != agent_seed_for(s, 1)
+        assert np.isin(np.random.default_rng(s).random(8), env_draws).all()  # the coupling this replaced
+        assert agent_seed_for(s, stream="env") == s  # the committed runs' seeding, to repeat them
+        assert agent_seed_for(s, 3, stream="env") == agent_seed_for(s, 3)  # an agent seed: the same either way
+    assert len({agent_seed_for(s) for s in range(1000)}) == 1000
+    with pytest.raises(ValueError, match=r"agent stream must be one of \('apart', 'env'\), got 'own'"):
+        agent_seed_for(0, stream="own")
+
+
+def test_evaluate_agents_repeats_the_env_stream_runs_on_request(env_config):
+    """``agent_stream="env"`` plays what an agent seeded with the env seed itself plays (every evaluation before
+    2026-12-07); the default plays other random approaches on the same objects; a bad stream fails before any
+    episode."""
+    from agents.evaluate import evaluate_agents, run_episodes
+
+    make = lambda: haptic_env.make(env_config.replace(max_grasps=12))  # noqa: E731
+    legacy = evaluate_agents([RandomAgent()], make, 4, seeds=[5], progress=False, agent_stream="env")
+
+    class Seeded(RandomAgent):  # seeds itself with the env seed whatever run_episodes passes
+        def reset(self, env, seed=None):
+            super().reset(env, None if seed is None else 5)
+
+    assert legacy == run_episodes(Seeded(), make, 4, seed=5)
+    apart = evaluate_agents([RandomAgent()], make, 4, seeds=[5], progress=False)
+    assert [r.object for r in apart] == [r.object for r in legacy]
+    assert [(r.grasps, r.ret) for r in apart] != [(r.grasps, r.ret) for r in legacy]
+    with pytest.raises(ValueError, match="agent stream"):
+        evaluate_agents([RandomAgent()], lambda: pytest.fail("built an env"), 1, seeds=[0], progress=False,
+                        agent_stream="both")
+
+
 def test_greedy_prediction_matches_the_updater(env_config):
     """Belief.predict (what greedy scores candidates with) equals really updating a copy of the belief."""
     env = haptic_env.make(env_config)
@@ -841,7 +887,7 @@ def test_evaluate_blocks_are_keyed_by_the_code_that_played_them(tmp_path, monkey
     class Stop(Exception):
         pass
 
-    def capture(agents, make_env, n, seeds, progress=True, store=None, keys=None):
+    def capture(agents, make_env, n, seeds, progress=True, store=None, keys=None, agent_stream="apart"):
         seen.append(list(keys))
         raise Stop
 
@@ -852,10 +898,13 @@ def test_evaluate_blocks_are_keyed_by_the_code_that_played_them(tmp_path, monkey
         with pytest.raises(Stop):
             main(argv)
     assert seen[0] == seen[1] != seen[2]
-    for flag in ("--no-repeat", "--stochastic"):  # what the agents do is part of the key: blocks never mix
+    # what the agents do is part of the key: blocks never mix
+    for flag in (["--no-repeat"], ["--stochastic"], ["--agent-stream", "env"]):
         with pytest.raises(Stop):
-            main(argv + [flag])
-    assert len({tuple(k) for k in seen[2:]}) == 3
+            main(argv + flag)
+    with pytest.raises(Stop):  # the default stream named: the same key as unnamed
+        main(argv + ["--agent-stream", "apart"])
+    assert len({tuple(k) for k in seen[2:]}) == 4 and seen[-1] == seen[2]
 
 
 def test_greedy_infer_pose_scores_the_episodes_grasps_for_the_yaw(env_config, small_recognizer_kwargs):
