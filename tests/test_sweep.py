@@ -454,10 +454,12 @@ def test_two_node_cluster(tmp_path, haptic_cache):
 
     temp = Path(tempfile.mkdtemp(prefix="ray", dir="/tmp"))  # Ray's socket paths must stay under 107 bytes
     nodes: list[subprocess.Popen] = []
+    logs = []  # the nodes' log files, closed with the nodes
 
     def start(args: list[str], log: Path) -> None:
+        logs.append(open(log, "w"))
         p = subprocess.Popen([ray_exe, "start", *args, "--num-cpus", "1", "--object-store-memory", "100000000",
-                              "--block"], stdout=open(log, "w"), stderr=subprocess.STDOUT, env=env,
+                              "--block"], stdout=logs[-1], stderr=subprocess.STDOUT, env=env,
                              start_new_session=True)
         nodes.append(p)
         t0 = time.monotonic()
@@ -490,6 +492,8 @@ def test_two_node_cluster(tmp_path, haptic_cache):
                 pass
             _killpg(p.pid, signal.SIGKILL)
             p.wait()
+        for fh in logs:
+            fh.close()
         shutil.rmtree(temp, ignore_errors=True)
     spec = parse_spec(doc)
     node_ids = {attempts(j.run_dir(out))[0]["node"] for j in spec.jobs if j.kind == "command"}
