@@ -32,6 +32,10 @@ in ``<out>/.partial/`` at once, and the same command run again, with the same co
 the env and the agent with its seed, so its episodes are the same either way); the folder is removed once the
 report is written.
 
+The agents' own random numbers under env seed ``s`` (random approaches, the look-ahead's candidates, sampled SB3
+actions) come from a stream apart from the env's (:func:`agent_seed_for`); ``--agent-stream env`` draws them from the
+env seed's own stream, as every run before 2026-12-07 did, to repeat a committed run.
+
 Command line (a sub-command of ``python -m haptic_env.cli``)::
 
     python -m haptic_env.cli evaluate --agents random greedy ppo=runs/ppo/ppo_final.zip \\
@@ -57,7 +61,8 @@ __all__ = [
     "EpisodeRecord",
     "run_episodes",
     "agent_seed_for",
-    "AGENT_STREAM",
+    "check_agent_stream",
+    "AGENT_SPAWN_KEY",
     "AGENT_STREAMS",
     "evaluate_agents",
     "summarize",
@@ -96,29 +101,45 @@ def _check_episodes(n_episodes) -> None:
 
 
 #: spawn key of the agents' random numbers under an env seed (:func:`agent_seed_for`)
-AGENT_STREAM = 1
+AGENT_SPAWN_KEY = 1
 #: where an agent's random numbers under env seed ``s`` come from (:func:`agent_seed_for`): ``"apart"`` (the
-#: default) a stream apart from the env's; ``"env"`` the env's own, as every evaluation before 2026-12-07 drew them
-#: (to repeat a committed run)
+#: default) a stream apart from the env's; ``"env"`` the env's own, as every ``evaluate`` run before 2026-12-07 drew
+#: them (to repeat a committed run)
 AGENT_STREAMS = ("apart", "env")
-#: what a report of ``--agent-stream env`` says of its seeding
-STREAM_NOTE = "; the agents' random numbers from the env seeds' own streams (--agent-stream env, as before 2026-12-07)"
+
+
+def check_agent_stream(stream) -> str:
+    """``stream`` unchanged if it is one of :data:`AGENT_STREAMS`, else a ``ValueError`` naming it."""
+    if stream not in AGENT_STREAMS:
+        raise ValueError(f"agent stream must be one of {AGENT_STREAMS}, got {stream!r}")
+    return stream
+
+
+def stream_words(stream: str) -> str:
+    """What a report says of where its agents' random numbers came from."""
+    if check_agent_stream(stream) == "env":
+        return "the agents' random numbers from the env seeds' own streams (--agent-stream env, as before 2026-12-07)"
+    return "the agents' random numbers apart from the env's (agent_seed_for)"
 
 
 def agent_seed_for(seed: int, agent_seed: int | None = None, stream: str = "apart") -> int:
-    """The seed of an agent's own random numbers for env seed ``seed``: from ``SeedSequence(seed,
-    spawn_key=(AGENT_STREAM,))``, a stream apart from the env's. Gymnasium seeds the env with ``SeedSequence(seed)``,
-    and so did an agent seeded with ``seed`` itself, as every evaluation did until 2026-12-07 (``stream="env"``
-    repeats it): a random agent's first action then reused the numbers that drew the episode's object and its yaw,
-    its elevation a function of the yaw. With ``agent_seed`` (either stream) from ``SeedSequence([seed,
-    agent_seed])``: the runs of one agent with different seeds differ."""
-    if stream not in AGENT_STREAMS:
-        raise ValueError(f"agent stream must be one of {AGENT_STREAMS}, got {stream!r}")
+    """The seed of an agent's own random numbers for env seed ``seed`` (an int >= 0): the first 64-bit word of
+    ``SeedSequence(seed, spawn_key=(AGENT_SPAWN_KEY,))``, a stream apart from the env's. Gymnasium seeds the env with
+    ``SeedSequence(seed)``, and so did an agent seeded with ``seed`` itself, as every ``evaluate`` run did until
+    2026-12-07 (``stream="env"`` repeats it): a random agent's first action then reused the numbers that drew the
+    episode's object and its yaw, its elevation a function of the yaw. With ``agent_seed`` (an int >= 0; either
+    stream) the first 32-bit word of ``SeedSequence([seed, agent_seed])``, as the sweeps' jobs have always drawn it:
+    the runs of one agent with different seeds differ. A ``ValueError`` names a bad seed or stream."""
+    from haptic_env.numbers import whole_at_least
+
+    check_agent_stream(stream)
+    seed = whole_at_least(seed, 0, "seed")
     if agent_seed is not None:
-        return int(np.random.SeedSequence([int(seed), int(agent_seed)]).generate_state(1)[0])
+        agent_seed = whole_at_least(agent_seed, 0, "agent_seed")
+        return int(np.random.SeedSequence([seed, agent_seed]).generate_state(1)[0])
     if stream == "env":
-        return int(seed)
-    return int(np.random.SeedSequence(int(seed), spawn_key=(AGENT_STREAM,)).generate_state(1)[0])
+        return seed
+    return int(np.random.SeedSequence(seed, spawn_key=(AGENT_SPAWN_KEY,)).generate_state(1, np.uint64)[0])
 
 
 def run_episodes(agent, make_env: Callable[[], Any], n_episodes: int, seed: int,
@@ -128,8 +149,9 @@ def run_episodes(agent, make_env: Callable[[], Any], n_episodes: int, seed: int,
 
     The agent's own randomness (random actions, greedy's candidates, sampled SB3 actions) is seeded with
     :func:`agent_seed_for` of ``seed``, so that agents compared on one env seed share their random numbers, which are
-    apart from the env's (``agent_stream="env"``: the env's own, as before 2026-12-07); with ``agent_seed`` the runs
-    of one agent with different agent seeds differ (the objects and poses still depend on ``seed`` alone)."""
+    apart from the env's (``agent_stream="env"``: the env's own, as ``evaluate`` before 2026-12-07); with
+    ``agent_seed`` the runs of one agent with different agent seeds differ (the objects and poses still depend on
+    ``seed`` alone). Bad settings fail before the env is made."""
     _check_episodes(n_episodes)
     own = agent_seed_for(seed, agent_seed, agent_stream)
     env = make_env()
@@ -169,15 +191,18 @@ def evaluate_agents(agents: Sequence[Any], make_env: Callable[[], Any], n_episod
 
     With ``store`` (a folder) every finished block (one agent on one seed) is saved there at once, as
     ``<key>-seed<s>.json``, and blocks already saved there are read instead of run, so that an interrupted
-    evaluation resumes. ``keys[i]`` names agent ``i``'s blocks: it must change whenever what the agent does or the
-    env it runs in changes (:func:`_main` hashes the command's arguments and model files into it)."""
+    evaluation resumes. ``keys[i]`` names agent ``i``'s blocks: it must change whenever what the agent does (its
+    ``agent_stream`` too) or the env it runs in changes (:func:`_main` hashes the command's arguments and model files
+    into it)."""
     from tqdm.auto import tqdm
 
     from haptic_env.numbers import repeated
 
     _check_episodes(n_episodes)
-    agent_seed_for(0, stream=agent_stream)  # a bad stream fails here, before any episode
+    check_agent_stream(agent_stream)
     seeds = list(seeds)
+    for s in seeds:  # a bad seed fails here, before any episode
+        agent_seed_for(s, stream=agent_stream)
     if repeated(seeds):  # the same episodes twice would count as twice the evidence
         raise ValueError(f"seeds must be distinct, got {seeds}")
     twice = repeated_names(agents)
@@ -859,7 +884,7 @@ def add_parser(subparsers) -> None:
                         "model acts so always, as it was trained: for it the flag only adds the suffix)")
     p.add_argument("--agent-stream", choices=AGENT_STREAMS, default="apart",
                    help="where the agents' random numbers under an env seed come from: apart (default) a stream apart "
-                        "from the env's; env the env seed's own, as every evaluation before 2026-12-07 drew them (to "
+                        "from the env's; env the env seed's own, as every evaluate run before 2026-12-07 drew them (to "
                         "repeat a committed run; a random agent's first action then reused the numbers of the "
                         "episode's object and yaw)")
     p.add_argument("--env-id", default="HapticRecog-v0", choices=list(ENV_VARIANTS))
@@ -937,7 +962,7 @@ def _main(args) -> int:
     paths = write_report(records, args.out, config.max_grasps,
                          extra=f"env `{args.env_id}`, config overrides `{kwargs}`; {args.episodes} episodes x seeds "
                                f"{args.seeds}; {time.time() - t0:.0f} s{note}"
-                               + (STREAM_NOTE if args.agent_stream == "env" else "") + ".")
+                               + f"; {stream_words(args.agent_stream)}.")
     shutil.rmtree(store, ignore_errors=True)
     if curves:
         _plot_curves(curves, Path(args.out) / "learning_curves.png")

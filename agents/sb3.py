@@ -45,7 +45,8 @@ from haptic_env.numbers import finite_number, whole_at_least, whole_number
 
 __all__ = ["ALGOS", "DEFAULT_HYPERPARAMS", "make_vec_env", "build_model", "load_model", "algo_of_file", "train",
            "SB3Agent", "TrainingInterrupted", "latest_checkpoint", "checkpoint_extras", "close_vec_env",
-           "check_hyperparams", "replay_buffer_problem", "replay_envs_problem", "approach_table", "DiscreteApproaches",
+           "check_hyperparams", "replay_buffer_problem", "replay_envs_problem", "approach_table", "approaches_for",
+           "DiscreteApproaches",
            "DISCRETE_ALGOS", "discrete_approaches_problem", "RepeatTracker", "RepeatMask"]
 
 #: ``rppo``: sb3-contrib's ``RecurrentPPO`` (an LSTM policy); ``mppo``: sb3-contrib's ``MaskablePPO`` over fixed
@@ -114,12 +115,21 @@ def discrete_approaches_problem(n: int, algo: str | None, vec: str) -> str | Non
     return None
 
 
+def approaches_for(n: int, space) -> np.ndarray:
+    """:func:`approach_table`'s ``n`` approaches in the dimension of ``space``, an env's continuous (``Box``) action
+    space: the table :class:`DiscreteApproaches` maps ``Discrete(n)`` onto, and :class:`SB3Agent` maps its choice back
+    with. A ``ValueError`` names any other space."""
+    if not isinstance(space, gym.spaces.Box):
+        raise ValueError(f"fixed approaches need an env with a continuous (Box) action, got {space}")
+    return approach_table(n, int(np.prod(space.shape)))
+
+
 class DiscreteApproaches(gym.ActionWrapper):
-    """The env with a ``Discrete(n)`` action: action ``i`` is :func:`approach_table`'s row ``i``."""
+    """The env with a ``Discrete(n)`` action: action ``i`` is :func:`approaches_for`'s row ``i``."""
 
     def __init__(self, env, n: int):
         super().__init__(env)
-        self.table = approach_table(n, int(np.prod(env.action_space.shape)))
+        self.table = approaches_for(n, env.action_space)
         self.action_space = gym.spaces.Discrete(len(self.table))
 
     def action(self, action) -> np.ndarray:
@@ -794,9 +804,8 @@ class SB3Agent:
         return np.asarray(action, dtype=np.float32)
 
     def _row(self, i: int, env: Any) -> np.ndarray:
-        """Approach ``i`` of the table as :class:`DiscreteApproaches` built it in training: :func:`approach_table`'s
-        rows in the dimension of ``env``'s action (the table is rebuilt once if the env's differs from the last)."""
-        dim = int(np.prod(env.action_space.shape))
-        if self.table.shape[1] != dim:
-            self.table = approach_table(len(self.table), dim)
+        """Approach ``i`` of the table as :class:`DiscreteApproaches` built it in training (:func:`approaches_for` of
+        ``env``'s action space; built again only when that space's dimension differs from the last one's)."""
+        if self.table.shape[1:] != (int(np.prod(env.action_space.shape)),):
+            self.table = approaches_for(len(self.table), env.action_space)
         return self.table[i].copy()

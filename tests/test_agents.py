@@ -446,6 +446,8 @@ def test_sb3_agent_maps_a_recurrent_or_sampled_categorical_choice_to_its_approac
     agent = SB3Agent(Stub(False))
     np.testing.assert_array_equal(agent.act(np.zeros(3, np.float32), env5), approach_table(8, 5)[5])
     np.testing.assert_array_equal(agent.act(np.zeros(3, np.float32), env4), approach_table(8)[5])
+    with pytest.raises(ValueError, match=r"fixed approaches need an env with a continuous \(Box\) action, got Disc"):
+        agent.act(np.zeros(3, np.float32), SimpleNamespace(action_space=gym.spaces.Discrete(8)))
 
 
 def test_sb3_agent_no_repeat_moves_on_while_the_belief_stays():

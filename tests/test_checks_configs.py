@@ -69,6 +69,18 @@ def _evaluate_agents(n):
     return evaluate_agents([], None, n, [0], progress=False)
 
 
+def _episode_seed(seed, agent_seed=None):
+    from agents.evaluate import run_episodes
+
+    return run_episodes(None, None, 1, seed, agent_seed=agent_seed)  # refused before the env is made
+
+
+def _evaluate_seeds(seeds):
+    from agents.evaluate import evaluate_agents
+
+    return evaluate_agents([], None, 1, seeds, progress=False)  # refused before any episode
+
+
 def _spec_cpus(table: str, cpus):
     tables = {"command": {"name": "a", "run": "true"}, "dataset": {"grasps_per_object": 10},
               "analysis": {"flags": {"experiments": "1"}}}
@@ -181,6 +193,13 @@ BAD = [
     (_run_episodes, 2.5, r"n_episodes must be an int >= 1, got 2.5"),
     (_run_episodes, True, r"n_episodes must be an int >= 1, got True"),
     (_evaluate_agents, True, r"n_episodes must be an int >= 1, got True"),
+    (_episode_seed, 2.5, r"seed must be an int >= 0, got 2.5"),
+    (_episode_seed, True, r"seed must be an int >= 0, got True"),
+    (_episode_seed, "3", r"seed must be an int >= 0, got '3'"),
+    (_episode_seed, -1, r"seed must be an int >= 0, got -1"),
+    (_episode_seed, None, r"seed must be an int >= 0, got None"),
+    (lambda v: _episode_seed(0, v), 1.5, r"agent_seed must be an int >= 0, got 1.5"),
+    (_evaluate_seeds, [0, 2.5], r"seed must be an int >= 0, got 2.5"),
     # sweep specs: a job's CPUs, a dataset's normals
     (lambda v: _spec_cpus("command", v), -2, r"command\[0\]\.cpus: expected a number >= 0 .*, got -2"),
     (lambda v: _spec_cpus("command", v), math.nan, r"command\[0\]\.cpus: .*, got nan"),
