@@ -81,11 +81,12 @@ def test_agent_seed_gives_distinct_runs_on_the_same_episodes(env_config):
 def test_agent_numbers_are_apart_from_the_env_seeds_stream():
     """An agent's random numbers under env seed s are not the env's own (gymnasium's SeedSequence(s)): a random
     agent seeded with s itself drew, in its first action, the very numbers the env drew the object and its yaw with
-    (its elevation a function of the yaw). Neither do they coincide with another env seed's stream, nor with an
-    agent seed's."""
+    (its elevation a function of the yaw). Neither do they coincide with another env seed's stream, an agent seed's,
+    or the approaches of a hand pool of that seed (which the old stream did for the pool's first object)."""
     from gymnasium.utils import seeding
 
     from agents.evaluate import agent_seed_for
+    from haptic_env.hand_grasps import pool_actions
 
     for s in range(20):
         env_rng, _ = seeding.np_random(s)
@@ -96,6 +97,10 @@ def test_agent_numbers_are_apart_from_the_env_seeds_stream():
         assert own != agent_seed_for(s, 0) and own != agent_seed_for(s, 1)
         assert np.isin(np.random.default_rng(s).random(8), env_draws).all()  # the coupling this replaced
         assert agent_seed_for(s, stream="env") == s  # the committed runs' seeding, to repeat them
+        # nor a hand pool's approaches (object 0's stream SeedSequence([s, 0]) is SeedSequence(s), the env's)
+        pool = pool_actions(s, 0, 3)
+        assert not np.isin(np.random.default_rng(own).uniform(-1, 1, (3, 4)), pool).any()
+        np.testing.assert_array_equal(np.random.default_rng(s).uniform(-1, 1, (3, 4)), pool)  # the old stream's
         assert agent_seed_for(s, 3, stream="env") == agent_seed_for(s, 3)  # an agent seed: the same either way
     assert len({agent_seed_for(s) for s in range(1000)}) == 1000
     with pytest.raises(ValueError, match=r"agent stream must be one of \('apart', 'env'\), got 'own'"):
