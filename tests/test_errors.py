@@ -206,6 +206,19 @@ def test_obj_with_a_nan_vertex_is_rejected_naming_the_file(tmp_path):
         load_mesh_object(p)
 
 
+def test_obj_with_a_broken_vertex_line_is_rejected_naming_the_file(tmp_path):
+    """A vertex line split in two (found by the fuzz test) gives trimesh (n, 1) vertices, whose vertex merging
+    overflowed with an OverflowError: now a MeshLoadError naming the file and the shape."""
+    text = trimesh.exchange.obj.export_obj(trimesh.creation.box([0.08, 0.05, 0.03]))
+    lines = text.splitlines()
+    i = [k for k, line in enumerate(lines) if line.startswith("v ")][2]
+    lines[i:i + 1] = [lines[i][:4], lines[i][5:]]  # "v -0" and the rest of the line on the next
+    p = tmp_path / "split.obj"
+    p.write_text("\n".join(lines) + "\n")
+    with pytest.raises(MeshLoadError, match=r"split\.obj: its vertices have shape \(8, 1\), not \(n, 3\)"):
+        load_mesh_object(p)
+
+
 def test_millimetres_loaded_as_metres_warn(tmp_path):
     box = trimesh.creation.box([50.0, 60.0, 70.0])  # a 5-7 cm box written in millimetres
     box.export(tmp_path / "mm_box.stl")

@@ -114,6 +114,9 @@ def _read_mesh(path: Path) -> trimesh.Trimesh:
         raise MeshLoadError(f"cannot read mesh file {path}: {type(exc).__name__}: {exc}") from exc
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise MeshLoadError(f"mesh file {path} holds no triangles (not a readable STL / OBJ / PLY mesh?)")
+    shape = np.shape(mesh.vertices)
+    if len(shape) != 2 or shape[1] != 3:  # a damaged OBJ can give 1-coordinate vertices, which trimesh takes
+        raise MeshLoadError(f"mesh file {path}: its vertices have shape {shape}, not (n, 3) (a corrupted file?)")
     bad = ~np.isfinite(np.asarray(mesh.vertices, dtype=np.float64)).all(axis=1)
     if bad.any():
         raise MeshLoadError(f"mesh file {path}: {int(bad.sum())} of {len(bad)} vertices are not finite (NaN or inf), "
@@ -126,7 +129,10 @@ def _read_mesh(path: Path) -> trimesh.Trimesh:
     if faces.min() < 0 or faces.max() >= len(bad):  # a corrupted face list (trimesh does not check it)
         raise MeshLoadError(f"mesh file {path}: faces reference vertices outside [0, {len(bad)}), e.g. "
                             f"{int(faces.max() if faces.max() >= len(bad) else faces.min())}")
-    mesh.process()  # merge duplicate vertices (what loading with process=True does)
+    try:
+        mesh.process()  # merge duplicate vertices (what loading with process=True does)
+    except Exception as exc:  # whatever else trimesh trips on in a damaged file, named with the file
+        raise MeshLoadError(f"cannot process mesh file {path}: {type(exc).__name__}: {exc}") from exc
     if len(mesh.faces) == 0:
         raise MeshLoadError(f"mesh file {path} holds no triangles")
     return mesh
