@@ -34,7 +34,7 @@ report is written.
 
 The agents' own random numbers under env seed ``s`` (random approaches, the look-ahead's candidates, sampled SB3
 actions) come from a stream apart from the env's (:func:`agent_seed_for`); ``--agent-stream env`` draws them from the
-env seed's own stream, as every run before 2026-12-07 did, to repeat a committed run.
+env seed's own stream, as every run before the fix of 2026-12-07 did, to repeat a committed run.
 
 Command line (a sub-command of ``python -m haptic_env.cli``)::
 
@@ -103,8 +103,8 @@ def _check_episodes(n_episodes) -> None:
 #: spawn key of the agents' random numbers under an env seed (:func:`agent_seed_for`)
 AGENT_SPAWN_KEY = 1
 #: where an agent's random numbers under env seed ``s`` come from (:func:`agent_seed_for`): ``"apart"`` (the
-#: default) a stream apart from the env's; ``"env"`` the env's own, as every ``evaluate`` run before 2026-12-07 drew
-#: them (to repeat a committed run)
+#: default) a stream apart from the env's; ``"env"`` the env's own, as every ``evaluate`` run before the fix of
+#: 2026-12-07 drew them (to repeat a committed run)
 AGENT_STREAMS = ("apart", "env")
 
 
@@ -118,7 +118,8 @@ def check_agent_stream(stream) -> str:
 def stream_words(stream: str) -> str:
     """What a report says of where its agents' random numbers came from."""
     if check_agent_stream(stream) == "env":
-        return "the agents' random numbers from the env seeds' own streams (--agent-stream env, as before 2026-12-07)"
+        return ("the agents' random numbers from the env seeds' own streams (--agent-stream env, as before the fix of "
+                "2026-12-07)")
     return "the agents' random numbers apart from the env's (agent_seed_for)"
 
 
@@ -149,7 +150,7 @@ def run_episodes(agent, make_env: Callable[[], Any], n_episodes: int, seed: int,
 
     The agent's own randomness (random actions, greedy's candidates, sampled SB3 actions) is seeded with
     :func:`agent_seed_for` of ``seed``, so that agents compared on one env seed share their random numbers, which are
-    apart from the env's (``agent_stream="env"``: the env's own, as ``evaluate`` before 2026-12-07); with
+    apart from the env's (``agent_stream="env"``: the env's own, as ``evaluate`` before the fix of 2026-12-07); with
     ``agent_seed`` the runs of one agent with different agent seeds differ (the objects and poses still depend on
     ``seed`` alone). Bad settings fail before the env is made."""
     _check_episodes(n_episodes)
@@ -884,9 +885,9 @@ def add_parser(subparsers) -> None:
                         "model acts so always, as it was trained: for it the flag only adds the suffix)")
     p.add_argument("--agent-stream", choices=AGENT_STREAMS, default="apart",
                    help="where the agents' random numbers under an env seed come from: apart (default) a stream apart "
-                        "from the env's; env the env seed's own, as every evaluate run before 2026-12-07 drew them (to "
-                        "repeat a committed run; a random agent's first action then reused the numbers of the "
-                        "episode's object and yaw)")
+                        "from the env's; env the env seed's own, as every evaluate run before the fix of 2026-12-07 "
+                        "drew them (to repeat a committed run; a random agent's first action then reused the numbers "
+                        "of the episode's object and yaw)")
     p.add_argument("--env-id", default="HapticRecog-v0", choices=list(ENV_VARIANTS))
     p.add_argument("--env-kwargs", type=json_object, default={}, help="JSON dict of HapticRecogConfig fields")
     p.add_argument("--out", type=output_path("folder"), default="outputs/eval")
