@@ -126,8 +126,8 @@ def stream_words(stream: str) -> str:
 def agent_seed_for(seed: int, agent_seed: int | None = None, stream: str = "apart") -> int:
     """The seed of an agent's own random numbers for env seed ``seed`` (an int >= 0): the first 64-bit word of
     ``SeedSequence(seed, spawn_key=(AGENT_SPAWN_KEY,))``, a stream apart from the env's. Gymnasium seeds the env with
-    ``SeedSequence(seed)``, and so did an agent seeded with ``seed`` itself, as every ``evaluate`` run did until
-    2026-12-07 (``stream="env"`` repeats it): a random agent's first action then reused the numbers that drew the
+    ``SeedSequence(seed)``, and so did an agent seeded with ``seed`` itself, as every ``evaluate`` run did before the
+    fix of 2026-12-07 (``stream="env"`` repeats it): a random agent's first action then reused the numbers that drew the
     episode's object and its yaw, its elevation a function of the yaw. With ``agent_seed`` (an int >= 0; either
     stream) the first 32-bit word of ``SeedSequence([seed, agent_seed])``, as the sweeps' jobs have always drawn it:
     the runs of one agent with different seeds differ. A ``ValueError`` names a bad seed or stream."""
@@ -962,8 +962,7 @@ def _main(args) -> int:
         if resumed else ""
     paths = write_report(records, args.out, config.max_grasps,
                          extra=f"env `{args.env_id}`, config overrides `{kwargs}`; {args.episodes} episodes x seeds "
-                               f"{args.seeds}; {time.time() - t0:.0f} s{note}"
-                               + f"; {stream_words(args.agent_stream)}.")
+                               f"{args.seeds}; {time.time() - t0:.0f} s{note}; {stream_words(args.agent_stream)}.")
     shutil.rmtree(store, ignore_errors=True)
     if curves:
         _plot_curves(curves, Path(args.out) / "learning_curves.png")

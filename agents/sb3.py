@@ -46,8 +46,7 @@ from haptic_env.numbers import finite_number, whole_at_least, whole_number
 __all__ = ["ALGOS", "DEFAULT_HYPERPARAMS", "make_vec_env", "build_model", "load_model", "algo_of_file", "train",
            "SB3Agent", "TrainingInterrupted", "latest_checkpoint", "checkpoint_extras", "close_vec_env",
            "check_hyperparams", "replay_buffer_problem", "replay_envs_problem", "approach_table", "approaches_for",
-           "DiscreteApproaches",
-           "DISCRETE_ALGOS", "discrete_approaches_problem", "RepeatTracker", "RepeatMask"]
+           "DiscreteApproaches", "DISCRETE_ALGOS", "discrete_approaches_problem", "RepeatTracker", "RepeatMask"]
 
 #: ``rppo``: sb3-contrib's ``RecurrentPPO`` (an LSTM policy); ``mppo``: sb3-contrib's ``MaskablePPO`` over fixed
 #: approaches, trained and acting with :class:`RepeatMask`. Their model files are named ``rppo_*`` / ``mppo_*``.

@@ -108,8 +108,8 @@ def test_agent_numbers_are_apart_from_the_env_seeds_stream():
 
 
 def test_evaluate_agents_repeats_the_env_stream_runs_on_request(env_config):
-    """``agent_stream="env"`` plays what an agent seeded with the env seed itself plays (every evaluation before
-    2026-12-07); the default plays other random approaches on the same objects; a bad stream fails before any
+    """``agent_stream="env"`` plays what an agent seeded with the env seed itself plays (every evaluate run before
+    the fix of 2026-12-07); the default plays other random approaches on the same objects; a bad stream fails before any
     episode."""
     from agents.evaluate import evaluate_agents, run_episodes
 
