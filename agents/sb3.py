@@ -239,8 +239,9 @@ def make_vec_env(config=None, n_envs: int = 2, seed: int = 0, log_dir: str | os.
     ``vec="native"``) and the action mask ``mppo`` trains with (:class:`RepeatMask`). ``probe``: an env of
     ``config`` already built in this process (``haptic_env.make(config, env_id=env_id)``, not yet reset; e.g.
     ``train.py``'s check of a resumed checkpoint's spaces), taken over instead of building another: with
-    ``vec="subproc"`` it prepares the workers' cache, with ``"dummy"`` it is env 0; ``"native"`` closes it. It is
-    closed here too when the vec env cannot be built (a bad argument, a failing env)."""
+    ``vec="subproc"`` and ``n_envs > 1`` it prepares the workers' cache, else it is env 0 (``"subproc"`` with one
+    env runs it here, as ``"dummy"`` does); ``"native"`` closes it. It is closed here too when the vec env cannot be
+    built (a bad argument, a failing env)."""
     try:
         return _vec_env(config, n_envs, seed, log_dir, vec, env_id, monitor_suffix, discrete_approaches, probe)
     except BaseException:
@@ -278,7 +279,8 @@ def _vec_env(config, n_envs, seed, log_dir, vec, env_id, monitor_suffix, discret
         venv.seed(seed)
         venv.action_space.seed(seed)
         return venv
-    if vec == "subproc":
+    subproc = vec == "subproc" and n_envs > 1  # one env needs no worker: it runs here (the probe is env 0)
+    if subproc:
         # build (or load) the recogniser once here so the workers only read the cache
         import haptic_env
 
@@ -290,7 +292,6 @@ def _vec_env(config, n_envs, seed, log_dir, vec, env_id, monitor_suffix, discret
         inner.reset(seed=0)
         probe.close()
         probe = None
-    subproc = vec == "subproc" and n_envs > 1
     fns = [_env_fn(config, i, monitor_dir, env_id, monitor_suffix, worker=subproc,
                    discrete_approaches=discrete_approaches, env=probe if i == 0 else None) for i in range(n_envs)]
     venv = SubprocVecEnv(fns) if subproc else DummyVecEnv(fns)

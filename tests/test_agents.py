@@ -786,6 +786,23 @@ def test_make_vec_env_closes_a_probe_it_could_not_take_over(env_config):
     assert closed == [True]
 
 
+def test_make_vec_env_subproc_with_one_env_takes_the_probe_over(env_config, monkeypatch):
+    """``vec="subproc"`` with one env runs it in this process: a ``probe`` is that env, not closed and built again
+    (``train.py --vec subproc --n-envs 1 --resume`` built its env twice)."""
+    from agents import sb3
+
+    env = haptic_env.make(env_config.replace(max_grasps=4))
+    built = []
+    make = haptic_env.make
+    monkeypatch.setattr(haptic_env, "make", lambda *a, **k: (built.append(a), make(*a, **k))[1])
+    venv = sb3.make_vec_env(env_config.replace(max_grasps=4), n_envs=1, vec="subproc", probe=env)
+    try:
+        assert built == [] and venv.envs[0].unwrapped is env.unwrapped
+        venv.reset()
+    finally:
+        sb3.close_vec_env(venv)
+
+
 def test_training_envs_are_seeded_apart_from_the_evaluation_seeds():
     """train.py's envs start at 10000 + 1000 * seed by default (no training env replays the episodes of a test
     seed 0-4, a validation seed 500-504 or a sweep seed 1000-1002); --env-seed gives the earlier seed + rank."""
