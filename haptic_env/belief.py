@@ -58,7 +58,8 @@ import numpy as np
 from haptic_env.grasp_features import feature_dim
 from haptic_env.recognizers.touch import check_touch_updater, check_touch_weight
 from haptic_env.recognizers.updaters import DEFAULT_IC_CERTAINTY, DEFAULT_THRESHOLD, DEFAULT_UPDATER, UPDATERS
-from haptic_env.recognizers.zfinger import DEFAULT_SUBSET_K, check_min_fingers, check_subset_k, subset_weight
+from haptic_env.recognizers.zfinger import (DEFAULT_SUBSET_K, check_min_fingers, check_subset_k, check_z_fingers,
+                                             subset_weight)
 
 if TYPE_CHECKING:
     from haptic_env.config import HapticRecogConfig
@@ -137,6 +138,7 @@ class Belief:
                  ic_certainty: str = DEFAULT_IC_CERTAINTY):
         if kind not in UPDATERS:
             raise ValueError(f"unknown updater kind {kind!r}; choose one of {UPDATERS}")
+        z_fingers = check_z_fingers(z_fingers, int(recognizer.n_fingers))
         if score_subsets and z_fingers is None:
             raise ValueError("score_subsets=True needs z_fingers (the subset size)")
         min_fingers = check_min_fingers(min_fingers, z_fingers, score_subsets)
@@ -228,6 +230,7 @@ class Belief:
         if not math.isfinite(support_z):
             raise ValueError(f"support_z must be a finite height (m), got {support_z!r}")
         self._probs = self._checked(self.updater.reset(prior))
+        self._probs.flags.writeable = False  # read-only, as every later belief (_set)
         self.support_z = support_z
         return self._probs
 
@@ -262,6 +265,10 @@ class Belief:
         Returns ``(q, usable)``: the grasp vector of the touching contacts zero-padded to ``(d,)`` (a fresh array;
         all 0 with fewer than two touching) and whether the grasp updated the belief."""
         touched = np.asarray(touched, dtype=bool).reshape(-1)
+        if touched.shape != (self.n_fingers,):  # checked before the compiled path, which reads only its count
+            raise ValueError(f"touched must have shape ({self.n_fingers},), got {touched.shape}")
+        if not self.recognizer.normals:  # a recogniser without normals ignores them on every path
+            normals = None
         contacts = self._support_frame(contacts)  # from here on in the support frame: rows(..., support_z=0.0)
         if self._touch is None:
             if (self._scorer is not None and self.compiled and np.count_nonzero(touched) == touched.size
@@ -441,9 +448,14 @@ class Belief:
         C = np.asarray(self._support_frame(contacts), dtype=np.float64)
         G, n, _ = C.shape
         allsub = np.array(list(combinations(range(n), z)))
+        if not self.recognizer.normals:  # a recogniser without normals ignores them, as rows_batch does
+            normals = None
         if k is None or k >= len(allsub):
             pick = np.broadcast_to(np.arange(len(allsub)), (G, len(allsub)))
         else:
+            if rng is None:
+                raise ValueError(f"subset_scores: k={k!r} of the {len(allsub)} {z}-subsets are drawn at random; "
+                                 "pass rng (a numpy Generator)")
             pick = np.argsort(rng.random((G, len(allsub))), axis=1)[:, :k]
         idx = allsub[pick]  # (G, m, z)
         at = np.arange(G)[:, None, None]

@@ -24,7 +24,7 @@ from haptic_env.recognizers.calibration import check_calibrate_grasps
 from haptic_env.recognizers.touch import check_touch_updater, check_touch_weight
 from haptic_env.recognizers.updaters import (DEFAULT_IC_CERTAINTY, DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD,
                                              DEFAULT_UPDATER, UPDATERS, check_ic_certainty, check_threshold)
-from haptic_env.recognizers.zfinger import DEFAULT_SUBSET_K, check_min_fingers, check_subset_k
+from haptic_env.recognizers.zfinger import DEFAULT_SUBSET_K, check_min_fingers, check_subset_k, check_z_fingers
 from haptic_env.scene import POSE_MODES
 from haptic_env.task import REWARD_KINDS
 
@@ -228,8 +228,7 @@ class HapticRecogConfig:
         if cost is None or cost < 0.0:
             raise ValueError(f"grasp_cost must be a finite number >= 0, got {self.grasp_cost!r}")
         whole_at_least(self.max_grasps, 1, "max_grasps")
-        if self.z_fingers is not None and not 2 <= (whole_number(self.z_fingers) or 0) < self.n_fingers:
-            raise ValueError(f"z_fingers must be None or in [2, n_fingers={self.n_fingers}), got {self.z_fingers!r}")
+        check_z_fingers(self.z_fingers, self.n_fingers)
         if self.score_subsets and self.z_fingers is None:
             raise ValueError("score_subsets=True needs z_fingers (the subset size)")
         check_min_fingers(self.min_fingers, self.z_fingers, self.score_subsets)

@@ -375,3 +375,51 @@ def test_a_recogniser_of_other_grasp_vectors_is_refused_by_the_belief(env_config
     with pytest.raises(ValueError, match="lack the contact heights but the config has grasp_heights=True"):
         check_grasp_vectors(SimpleNamespace(normal_axis="t2", heights=False), env_config.replace(grasp_heights=True))
     check_grasp_vectors(SimpleNamespace(normal_axis="t2", heights=False), env_config)
+
+
+def test_bad_grasps_are_refused_alike_on_the_compiled_and_the_general_path(recognizer):
+    """``update`` checks ``touched`` before either path (the compiled one read only its count: a ``touched`` of the
+    wrong length was scored as a complete grasp); ``z_fingers`` outside ``[2, n)`` is refused as the env config
+    refuses it; the prior after a reset is read-only as every later belief."""
+    contacts = np.array([[0.03, 0, 0], [-0.03, 0, 0], [0, 0.03, 0.01], [0, -0.03, -0.01]])
+    normals = -contacts / np.linalg.norm(contacts, axis=1, keepdims=True)
+    for compiled in (True, False):
+        b = Belief(recognizer, "bc-np")
+        b.compiled = compiled
+        for touched in (np.ones(3, bool), np.ones(5, bool), np.ones(0, bool)):
+            with pytest.raises(ValueError, match=rf"touched must have shape \(4,\), got \({len(touched)},\)"):
+                b.update(contacts, normals, touched)
+        assert b.n_grasps == 0
+        assert not b.probs.flags.writeable
+        with pytest.raises(ValueError, match="read-only"):
+            b.probs[0] = 5.0
+    for z in (1, 4, 5, 2.0, True):
+        with pytest.raises(ValueError, match=r"z_fingers must be None or in \[2, n_fingers=4\)"):
+            Belief(recognizer, "bc-np", z_fingers=z)
+
+
+def test_a_recogniser_without_normals_ignores_them_on_every_path(env_config):
+    """Normals given to a belief whose recogniser has none are ignored by ``update`` (compiled and general, as
+    ``rows_batch`` ignores them) and by ``subset_scores``, which refuses ``k`` random subsets without an ``rng``."""
+    from haptic_env.objects import load_object_set
+
+    rec = get_recognizer(load_object_set(env_config.objects), env_config.replace(normals=False, z_fingers=3))
+    assert not rec.normals
+    contacts = np.array([[0.03, 0, 0], [-0.03, 0, 0], [0, 0.03, 0.01], [0, -0.03, -0.01]])
+    normals = -contacts / np.linalg.norm(contacts, axis=1, keepdims=True)
+    touched = np.ones(4, bool)
+    posts = []
+    for compiled in (True, False):
+        for n in (None, normals):
+            b = Belief(rec, "bc-np")
+            b.compiled = compiled
+            b.update(contacts, n, touched)
+            posts.append(b.probs)
+    for p in posts[1:]:
+        np.testing.assert_allclose(p, posts[0], rtol=1e-12, atol=1e-15)
+    b = Belief(rec, "bc-np", z_fingers=3, score_subsets=True)
+    with_n, without = b.subset_scores(contacts[None], normals[None], 3), b.subset_scores(contacts[None], None, 3)
+    for x, y in zip(with_n, without):
+        np.testing.assert_array_equal(x, y)
+    with pytest.raises(ValueError, match=r"k=2 of the 4 3-subsets are drawn at random; pass rng"):
+        b.subset_scores(contacts[None], None, 3, k=2)

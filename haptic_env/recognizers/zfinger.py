@@ -20,6 +20,7 @@ from math import comb
 import numpy as np
 
 from haptic_env.grasp_features import feature_dim, normalize_scale, phi
+from haptic_env.numbers import whole_number
 
 __all__ = ["subsets", "subset_vectors", "grasp_vectors_for", "ZFingerUpdater", "sample_finger_counts", "check_subset_k",
            "check_min_fingers", "DEFAULT_SUBSET_K"]
@@ -60,6 +61,17 @@ def check_subset_k(k) -> int | None:
     if k is not None and (isinstance(k, bool) or not (isinstance(k, (int, np.integer)) and k >= 1)):
         raise ValueError(f"subset_k must be None or an int >= 1, got {k!r}")
     return None if k is None else int(k)
+
+
+def check_z_fingers(z, n_fingers: int) -> int | None:
+    """``z`` (the fewest touching fingers scored, ``HapticRecogConfig.z_fingers``) as an int, or None (complete grasps
+    only); a ``ValueError`` naming it unless it is None or a whole number in ``[2, n_fingers)``."""
+    if z is None:
+        return None
+    w = whole_number(z)
+    if w is None or not 2 <= w < n_fingers:
+        raise ValueError(f"z_fingers must be None or in [2, n_fingers={n_fingers}), got {z!r}")
+    return w
 
 
 def check_min_fingers(m, z: int | None, score_subsets: bool) -> int | None:
