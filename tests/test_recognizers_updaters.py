@@ -358,3 +358,29 @@ def test_a_prior_normalises_without_overflow_and_its_zeros_stay_impossible():
     np.testing.assert_array_equal(u.belief, [1.0, 0.0, 0.0])  # no information: the belief stays
     u.update_scores(log_lik=np.array([[-1.0, 0.0, -5.0]]))
     np.testing.assert_array_equal(u.belief, [1.0, 0.0, 0.0])
+
+
+def test_empty_rows_bad_starts_and_a_first_bc_ip_weight_are_handled_alike_on_every_path():
+    """An empty row range leaves a belief unchanged with the row mean too (``0 / 0`` was NaN and raised); ``predict``
+    refuses fractional ``starts`` as ``bayes_steps`` does (1.5 was cut to 1); BC-IP refuses a bad ``weight`` at its
+    first grasp as at every later one."""
+    from haptic_env.recognizers.updaters import bayes_steps
+
+    L = np.log([[0.7, 0.2, 0.1], [0.2, 0.7, 0.1], [0.5, 0.25, 0.25]])
+    logb = np.log(np.full((2, 3), 1 / 3))
+    for combine in ("product", "mean"):
+        new, updated = bayes_steps(logb, L[:1], [0, 0, 1], combine=combine)
+        np.testing.assert_array_equal(new[0], logb[0])
+        assert updated.tolist() == [False, True]
+        u = BayesianUpdater(FixedModel(L), combine=combine)
+        u.update([[0.0]])
+        pred = u.predict(np.array([[1.0]]), [0, 0, 1])
+        np.testing.assert_allclose(pred[0], u.belief, rtol=1e-12)
+    u = BayesianUpdater(FixedModel(L))
+    with pytest.raises(ValueError, match="starts must be whole numbers"):
+        u.predict(np.array([[0.0], [1.0], [2.0]]), [0, 1.5, 3])
+    for bad in (True, -1.0, 0.0, "2"):
+        v = BCIP(FixedModel(np.exp(L)), FixedModel(L))
+        with pytest.raises(ValueError, match="weight must be positive"):
+            v.update([[0.0]], weight=bad)
+        assert not v.prior_set and v.n_grasps == 0

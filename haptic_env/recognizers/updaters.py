@@ -106,6 +106,8 @@ def _bayes_step(log_belief, L, product, max_log_ratio):
     log-likelihood is raised to at least ``best - max_log_ratio`` (``inf``: the plain rule).
     """
     m, K = L.shape
+    if m == 0:  # no rows: no information (the row mean of none is not 0)
+        return log_belief, _NO_INFORMATION
     ll = np.zeros(K)
     for r in range(m):
         for c in range(K):
@@ -182,7 +184,13 @@ def _logsumexp(v: np.ndarray) -> float:
 
 def _grouped(Q, starts) -> tuple[np.ndarray, np.ndarray]:
     Q = _rows(Q)
-    starts = np.arange(len(Q) + 1) if starts is None else np.asarray(starts, dtype=np.int64)
+    if starts is None:
+        starts = np.arange(len(Q) + 1)
+    else:
+        starts = np.asarray(starts)
+        if starts.dtype.kind not in "iu":  # 1.5 was cut to 1 (as bayes_steps refuses it)
+            raise ValueError(f"starts must be whole numbers, got {starts}")
+        starts = starts.astype(np.int64, copy=False)
     if starts.ndim != 1 or len(starts) < 1 or starts[0] != 0 or starts[-1] != len(Q) or (np.diff(starts) < 0).any():
         raise ValueError(f"starts must rise from 0 to {len(Q)}, got {starts}")
     return Q, starts
@@ -530,7 +538,9 @@ class BCIP(BayesianUpdater):
         return self.belief
 
     def update(self, q, weight: float = 1.0, *, evidence=None) -> np.ndarray:
-        """As :meth:`BayesianUpdater.update`; the first grasp's classifier prior takes no weight."""
+        """As :meth:`BayesianUpdater.update`; the first grasp's classifier prior takes no weight (a bad one is refused
+        all the same, before anything changes)."""
+        _check_weight(weight)
         Q = _rows(q)
         if len(Q) == 0:
             return self.update_scores(log_lik=np.zeros((0, self.n_classes)), proba=np.zeros((0, self.n_classes)),
