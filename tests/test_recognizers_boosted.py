@@ -83,7 +83,7 @@ def test_bad_training_data_is_named_before_any_fit():
         AnalysisConfig(likelihood="forest")
     with pytest.raises(ValueError, match="no training vectors"):
         BoostedLikelihood().fit(X[:0], y[:0])
-    with pytest.raises(ValueError, match=r"class labels must lie in 0\.\.1, got labels from 0 to 2"):
+    with pytest.raises(ValueError, match=r"class labels must lie in 0\.\.1 \(n_classes=2\), got a label 2"):
         BoostedLikelihood().fit(np.nan_to_num(X), y, n_classes=2)
 
 

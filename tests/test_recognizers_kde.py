@@ -128,6 +128,13 @@ def test_kde_errors():
         kde.log_likelihood(np.zeros((1, 3)))
     with pytest.raises(ValueError, match="not finite"):
         kde.log_likelihood(np.array([[np.nan, 0.0]]))
+    X, y = np.random.default_rng(0).normal(size=(30, 2)), np.arange(30) % 3
+    for fit in (lambda: KDELikelihood(KDEConfig(factor=1.0)).fit(X, y, n_classes=2),  # class 2 was dropped
+                lambda: KDELikelihood(KDEConfig(factor=1.0)).fit(X[y < 2], y[y < 2], X, y, n_classes=2)):
+        with pytest.raises(ValueError, match=r"class labels must lie in 0\.\.1 \(n_classes=2\), got a label 2"):
+            fit()
+    with pytest.raises(ValueError, match="n_classes must be an int >= 1, got 2.0"):
+        KDELikelihood(KDEConfig(factor=1.0)).fit(X, y, n_classes=2.0)
 
 
 def test_pooled_matches_tree_and_dense():

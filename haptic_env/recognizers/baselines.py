@@ -14,6 +14,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from haptic_env.recognizers.mlp import MLPClassifier, MLPConfig, _check_xy
+from haptic_env.recognizers.preprocess import class_count
 
 __all__ = ["Classifier", "SklearnClassifier", "make_classifier", "CLASSIFIERS", "DEFAULT_MAX_TRAIN"]
 
@@ -96,7 +97,7 @@ class SklearnClassifier:
         from sklearn.preprocessing import StandardScaler
 
         X, y = _check_xy(X, y)
-        self.n_classes = int(n_classes or y.max() + 1)
+        self.n_classes = class_count(n_classes, y)
         if self.max_train is not None and len(X) > self.max_train:
             rng = np.random.default_rng(self.seed)
             idx = rng.choice(len(X), self.max_train, replace=False)

@@ -33,6 +33,7 @@ from scipy.special import expit, softmax
 from haptic_env.cache import KEY_ONLY_WHEN_SET
 from haptic_env.numbers import whole_at_least
 from haptic_env.recognizers.calibration import check_calibrate_grasps
+from haptic_env.recognizers.preprocess import class_count
 
 __all__ = ["BoostedConfig", "BoostedLikelihood", "LIKELIHOODS", "check_likelihood"]
 
@@ -117,9 +118,9 @@ class BoostedLikelihood:
             raise ValueError(f"y must hold integer class labels, got dtype {y.dtype}")
         if len(y) == 0:
             raise ValueError("no training vectors (X and y are empty)")
-        k = int(y.max()) + 1 if n_classes is None else int(n_classes)
-        if y.min() < 0 or y.max() >= k:
-            raise ValueError(f"class labels must lie in 0..{k - 1}, got labels from {int(y.min())} to {int(y.max())}")
+        if y.min() < 0:
+            raise ValueError(f"class labels must be >= 0, got a label {int(y.min())}")
+        k = class_count(n_classes, y)
         counts = np.bincount(y, minlength=k)
         if not (counts > 0).all():
             raise ValueError(f"every one of the {k} classes needs training vectors, got counts {counts.tolist()}")

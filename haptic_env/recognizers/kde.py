@@ -78,6 +78,7 @@ from haptic_env.recognizers.calibration import (CORRECTIONS, PowerCorrection, Sc
 from haptic_env.recognizers.knn import KDTree, pooled_log_density
 from haptic_env.recognizers.preprocess import Standardizer
 from haptic_env.recognizers.preprocess import check_xy as _check_xy
+from haptic_env.recognizers.preprocess import class_count
 
 __all__ = ["KDEConfig", "KDELikelihood", "scott_bandwidth", "BANDWIDTHS", "SELECTS"]
 
@@ -222,7 +223,7 @@ class KDELikelihood:
         cfg = self.config
         X, y = _check_xy(X, y)
         rng = np.random.default_rng(cfg.seed)
-        self.n_classes = int(n_classes or y.max() + 1)
+        self.n_classes = class_count(n_classes, y, y_val)
         self.scaler = Standardizer.fit(X)
         Z = self.scaler(X)
         self.data = [Z[y == c] for c in range(self.n_classes)]

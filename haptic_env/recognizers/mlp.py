@@ -33,6 +33,7 @@ from haptic_env.recognizers.calibration import fit_temperature
 from haptic_env.recognizers.mlp_config import MLPConfig
 from haptic_env.recognizers.preprocess import Standardizer
 from haptic_env.recognizers.preprocess import check_xy as _check_xy
+from haptic_env.recognizers.preprocess import class_count
 
 __all__ = ["MLPConfig", "MLPClassifier", "FORMAT_VERSION", "torch_threads", "Standardizer"]
 
@@ -160,7 +161,7 @@ class MLPClassifier:
             X, y = X[perm[n_val:]], y[perm[n_val:]]
         else:
             X_val, y_val = _check_xy(X_val, y_val, X.shape[1], "X_val")
-        self.n_classes = int(n_classes or max(y.max(), y_val.max()) + 1)
+        self.n_classes = class_count(n_classes, y, y_val)
         self.scaler = Standardizer.fit(X)
         gen = torch.Generator().manual_seed(cfg.seed)
         torch_state = torch.random.get_rng_state()  # nn.Linear() draws from the global RNG: restore it

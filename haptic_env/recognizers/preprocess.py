@@ -9,7 +9,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Standardizer", "check_xy"]
+from haptic_env.numbers import whole_at_least
+
+__all__ = ["Standardizer", "check_xy", "class_count"]
 
 
 @dataclass(frozen=True)
@@ -46,3 +48,17 @@ def check_xy(X, y=None, d: int | None = None, what: str = "X"):
     if not np.issubdtype(y.dtype, np.integer) or (y < 0).any():
         raise ValueError("labels must be non-negative integers (class indices)")
     return X, y.astype(np.int64)
+
+
+def class_count(n_classes, *labels) -> int:
+    """The classes a model is fitted for: ``n_classes`` (an int >= 1), or with None one more than the largest of
+    ``labels`` (class-index arrays: the training labels, and the validation labels where given; None entries are
+    skipped). A ``ValueError`` names a label at or past the count, which the model would silently drop or misplace."""
+    labels = [np.asarray(y) for y in labels if y is not None]
+    top = max((int(y.max()) for y in labels if y.size), default=-1)
+    if n_classes is None:
+        return top + 1 if top >= 0 else whole_at_least(n_classes, 1, "n_classes")
+    k = whole_at_least(n_classes, 1, "n_classes")
+    if top >= k:
+        raise ValueError(f"class labels must lie in 0..{k - 1} (n_classes={k}), got a label {top}")
+    return k
