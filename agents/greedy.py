@@ -29,7 +29,8 @@ Approximations (documented, deliberate):
 * the per-episode random scale (``scale_range``) is ignored (hypotheses at scale 1);
 * ``simulate="geometric"`` (default): the simulation uses the geometric backend, even when the env uses another
   backend (the mujoco hand's contacts differ from the simulated ones, so on a hand env the look-ahead does not know
-  which approaches give the hand complete grasps); ``simulate="env"``: every hypothesis is grasped by a backend of
+  which approaches give the hand complete grasps; it takes that backend's ``support``, so an action is the same
+  approach in both); ``simulate="env"``: every hypothesis is grasped by a backend of
   the env's own kind and settings (``config.backend``, ``config.backend_kwargs``; one per object), the hand-matched
   look-ahead. On a MuJoCo hand that costs ``M`` simulated hand grasps per hypothesis object and step (Allegro:
   about 0.5-1 s per step with 16 candidates and 10 objects), so it measures what one-step active selection can
@@ -106,8 +107,9 @@ class GreedyInfoGainAgent:
                 kind, kw = cfg.backend, dict(cfg.backend_kwargs)
             else:
                 kind, kw = "geometric", self.backend_kwargs
-                if kw is None:
-                    kw = dict(cfg.backend_kwargs) if cfg.backend == "geometric" else {}
+                if kw is None:  # another backend's support decodes the approach as the env's does (its elevation)
+                    kw = (dict(cfg.backend_kwargs) if cfg.backend == "geometric"
+                          else {k: v for k, v in dict(cfg.backend_kwargs).items() if k == "support"})
             if kind == "replay":
                 # one replay backend over the env's whole set, as the env's own: an object's recorded approaches
                 # depend on its index in the set it was prepared with (a backend per object would record each as

@@ -237,6 +237,12 @@ def test_greedy_env_lookahead_simulates_the_envs_own_backend(env_config):
                            objects=env.unwrapped.objects[:2])
     sims = GreedyInfoGainAgent(simulate="env")._sim_backends(hand)
     assert len(sims) == 2 and all(isinstance(b, MujocoBackend) for b in sims)
+    # the default geometric look-ahead decodes an action as the hand env does: with its support (the elevation)
+    floating = SimpleNamespace(config=HapticRecogConfig(backend="mujoco", pose="so3", backend_kwargs={
+        "hand": "generic", "support": "floating"}), objects=env.unwrapped.objects[:2])
+    sims = GreedyInfoGainAgent()._sim_backends(floating)
+    assert [b.config.support for b in sims] == ["floating", "floating"]
+    assert [b.config.support for b in GreedyInfoGainAgent()._sim_backends(hand)] == ["table", "table"]
     with pytest.raises(ValueError, match="'hand'"):
         GreedyInfoGainAgent(simulate="hand")
     with pytest.raises(ValueError, match="backend_kwargs"):
