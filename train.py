@@ -51,7 +51,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")  # before numpy/torch: one thread 
 
 import numpy as np
 
-from haptic_env.config import HapticRecogConfig
+from haptic_env.config import HapticRecogConfig, resolve_env_config
 
 ALGOS = ("ppo", "sac", "rppo", "mppo")  # agents.sb3.ALGOS (tests/test_agents.py holds them equal)
 
@@ -423,8 +423,9 @@ def _env_id(argv: list[str]) -> str:
 
 
 def env_config(args: Args) -> HapticRecogConfig:
-    """``--env.*`` with ``--env-kwargs`` on top."""
-    return args.env.replace(**json.loads(args.env_kwargs))
+    """``--env.*`` with ``--env-kwargs`` on top (a mapping field there updates the ``--env-id`` variant's, e.g. its
+    ``backend_kwargs``' hand: :func:`haptic_env.config.with_keys`)."""
+    return resolve_env_config(args.env, None, json.loads(args.env_kwargs))
 
 
 #: What a resumed segment may change without note: its length, its checkpoints, its output and its machine's threads

@@ -104,7 +104,11 @@ def make(config=None, env_id: str = "HapticRecog-v0", **kwargs):
 
 def config_kwargs(config, env_id: str, kwargs: dict[str, Any]) -> dict[str, Any]:
     """The keyword arguments that make ``gymnasium.make(env_id, config=config, **result)`` build ``config`` with
-    ``kwargs`` on top: the fields the variant of ``env_id`` sets, taken from ``config`` (none without a config)."""
+    ``kwargs`` on top: the fields the variant of ``env_id`` sets, taken from ``config`` (none without a config); a
+    mapping field in ``kwargs`` updates the config's (:func:`~haptic_env.config.with_keys`)."""
+    from haptic_env.config import MAPPING_FIELDS, with_keys
+
     if config is None:
         return dict(kwargs)
-    return {**{k: getattr(config, k) for k in ENV_VARIANTS.get(env_id, {})}, **kwargs}
+    return {**{k: getattr(config, k) for k in ENV_VARIANTS.get(env_id, {})},
+            **with_keys({k: getattr(config, k) for k in MAPPING_FIELDS}, kwargs)}

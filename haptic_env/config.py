@@ -328,11 +328,28 @@ class HapticRecogConfig:
         return dataclasses.replace(self, **changes)
 
 
+#: The config fields that are mappings of settings: a keyword argument of one updates the mapping (:func:`with_keys`)
+MAPPING_FIELDS = ("object_kwargs", "backend_kwargs", "recognizer_kwargs")
+
+
+def with_keys(base: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
+    """``overrides`` (keyword arguments of config fields) with each mapping field of :data:`MAPPING_FIELDS` given as
+    a mapping laid over ``base``'s mapping of that field (its keys win): ``backend_kwargs={"solid_table": False}``
+    on the Shadow env keeps the variant's ``"hand": "shadow"`` (a whole replacement fell back to the generic hand).
+    To drop a key, build the whole config and ``replace`` the field."""
+    out = dict(overrides)
+    for k in MAPPING_FIELDS:
+        if isinstance(out.get(k), Mapping) and isinstance(base.get(k), Mapping):
+            out[k] = {**dict(base[k]), **dict(out[k])}
+    return out
+
+
 def resolve_env_config(config: HapticRecogConfig | None = None, variant: str | None = None,
                        overrides: Mapping[str, Any] | None = None) -> HapticRecogConfig:
     """The config an env is built with: ``config`` (None: the defaults), the registered ``variant``'s fields
     (``haptic_env.ENV_VARIANTS[variant]``; ``gym.make(id)`` passes ``variant=id``) over it, then ``overrides`` (the
-    keyword arguments) over both.
+    keyword arguments) over both; a mapping field given as a keyword argument (``backend_kwargs``, ...) updates the
+    mapping it would get otherwise, its keys winning (:func:`with_keys`).
 
     A ``config`` that set a field of the variant to something else (not its default, not the variant's value) and
     no keyword argument naming that field is refused by name: the variant's value would silently replace the
@@ -344,6 +361,7 @@ def resolve_env_config(config: HapticRecogConfig | None = None, variant: str | N
     if not isinstance(config, HapticRecogConfig):
         raise TypeError(f"config must be a HapticRecogConfig, got {type(config).__name__}")
     overrides = dict(overrides or {})
+    maps = {k: getattr(config, k) for k in MAPPING_FIELDS}  # the mappings the keywords update: the config's, or
     if variant is not None:
         from haptic_env import ENV_VARIANTS
 
@@ -363,7 +381,10 @@ def resolve_env_config(config: HapticRecogConfig | None = None, variant: str | N
                 f"{variant} sets {', '.join(lost)} over the given config: {said}. Build the whole config with "
                 f"haptic_env.variant_config({variant!r}, ...) and make it with haptic_env.make(config, "
                 f"env_id={variant!r}), or pass those fields as keyword arguments")
-        overrides = {**fields, **overrides}  # one replace: no in-between config to fail the checks
+        maps.update({k: v for k, v in fields.items() if k in MAPPING_FIELDS})  # the variant's where it sets one
+        overrides = {**fields, **with_keys(maps, overrides)}  # one replace: no in-between config to fail the checks
+    else:
+        overrides = with_keys(maps, overrides)
     return config.replace(**overrides) if overrides else config
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import pickle
 import subprocess
 import sys
@@ -180,6 +181,34 @@ def test_a_variant_refuses_a_config_whose_choices_it_would_replace():
     cfg = haptic_env.variant_config("HapticRecogShadow-v0", updater="ic", touch_weight=0.0)
     kw = haptic_env.config_kwargs(cfg, "HapticRecogShadow-v0", {})
     assert resolve_env_config(cfg, "HapticRecogShadow-v0", kw) == cfg
+
+
+def test_a_mapping_keyword_updates_the_variants_mapping_rather_than_dropping_its_hand():
+    """``backend_kwargs={"solid_table": False}`` on a hand variant keeps its hand (a whole replacement fell back to
+    the generic hand, silently): through ``gym.make``, ``variant_config``, ``haptic_env.make(config, ...)``, the
+    native vector env and ``train.py --env-kwargs``; the keyword's own keys win."""
+    import train
+    from haptic_env.config import backend_hand, resolve_env_config
+
+    kw = {"backend_kwargs": {"solid_table": False}}
+    want = {"hand": "shadow", "solid_table": False}
+    assert dict(haptic_env.variant_config("HapticRecogShadow-v0", **kw).backend_kwargs) == want
+    assert dict(resolve_env_config(None, "HapticRecogShadow-v0", kw).backend_kwargs) == want
+    cfg = haptic_env.variant_config("HapticRecogShadow-v0", backend_kwargs={"contact_noise": 0.001})
+    assert dict(resolve_env_config(cfg, "HapticRecogShadow-v0", haptic_env.config_kwargs(
+        cfg, "HapticRecogShadow-v0", kw)).backend_kwargs) == {**want, "contact_noise": 0.001}
+    other = haptic_env.variant_config("HapticRecogShadow-v0", backend_kwargs={"hand": "generic"})
+    assert backend_hand(other) == "generic"  # the keyword's keys win
+    args = train.parse_args(["--env-id", "HapticRecogAero-v0", "--env-kwargs", json.dumps(kw)])
+    assert dict(train.env_config(args).backend_kwargs) == {"hand": "aero", "solid_table": False}
+    # gym.make and the vector env resolve alike (stopped before any MuJoCo model is built: an unknown key)
+    for make in (lambda: gym.make("HapticRecogShadow-v0", backend_kwargs={"bogus": 1}),
+                 lambda: gym.make_vec("HapticRecogShadow-v0", num_envs=2, backend_kwargs={"bogus": 1})):
+        with pytest.raises((TypeError, ValueError), match="bogus"):
+            make()
+    plain = HapticRecogConfig(backend_kwargs={"margin": 1.1})
+    assert dict(resolve_env_config(plain, None, {"backend_kwargs": {"min_spread": 0.1}}).backend_kwargs) == {
+        "margin": 1.1, "min_spread": 0.1}
 
 
 def test_kit_variant_without_data_raises_clearly(tmp_path):
