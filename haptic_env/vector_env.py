@@ -283,8 +283,8 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
         stepped = np.zeros(B, dtype=bool)
         stepped[live] = True
         info = self._info(np.arange(B), usable=usable, decided=decided)
-        info["reward_terms"] = {"gain": gain, "grasp_cost": np.where(stepped, -float(self.config.grasp_cost), 0.0)}
-        info["_reward_terms"] = stepped
+        terms = {"gain": gain, "grasp_cost": np.where(stepped, -float(self.config.grasp_cost), 0.0)}
+        _set_reward_terms(info, terms, stepped)
         if mode == AutoresetMode.NEXT_STEP:
             if len(resets):  # these sub-envs were reset at this step: their info is the reset's (no reward_terms)
                 info["usable"][resets] = False
@@ -303,7 +303,7 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
                 for key, value in reset_info.items():
                     if not key.startswith("_"):
                         info[key][done] = value[done]
-                info["_reward_terms"] = stepped & ~ended
+                _set_reward_terms(info, terms, stepped & ~ended)  # a reset row's info is the reset's
                 info["final_obs"], info["_final_obs"] = final_obs, ended.copy()
                 info["final_info"], info["_final_info"] = final_info, ended.copy()
         else:
@@ -449,6 +449,19 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
     def __repr__(self) -> str:
         return f"HapticRecogVectorEnv(num_envs={self.num_envs}, objects={self.config.objects!r}, " \
                f"autoreset_mode={self.autoreset_mode.value!r})"
+
+
+def _set_reward_terms(info: dict[str, Any], terms: dict[str, np.ndarray], mask: np.ndarray) -> None:
+    """``info["reward_terms"]`` of the sub-envs ``mask`` whose info is a step's, each term with its ``_<term>`` mask
+    as ``SyncVectorEnv`` nests them; no key where no sub-env's is (every one was reset at this step)."""
+    if mask.any():
+        nested: dict[str, np.ndarray] = {}
+        for name, value in terms.items():
+            nested[name], nested["_" + name] = value, mask.copy()
+        info["reward_terms"], info["_reward_terms"] = nested, mask.copy()
+    else:
+        info.pop("reward_terms", None)
+        info.pop("_reward_terms", None)
 
 
 def _masked(info: dict[str, Any], mask: np.ndarray) -> dict[str, Any]:

@@ -31,11 +31,13 @@ def _assert_same_step(r1, r2):
         np.testing.assert_array_equal(i1["_" + key], i2["_" + key], err_msg=key)
         m = i2["_" + key]
         np.testing.assert_array_equal(np.asarray(i1[key])[m], np.asarray(i2[key])[m], err_msg=key)
-    np.testing.assert_array_equal(i1.get("_reward_terms", np.zeros(len(r1[1]), bool)),
-                                  i2.get("_reward_terms", np.zeros(len(r1[1]), bool)))
+    assert ("reward_terms" in i1) == ("reward_terms" in i2)  # none where every sub-env was reset
     if "reward_terms" in i2:
         m = i2["_reward_terms"]
+        np.testing.assert_array_equal(i1["_reward_terms"], m)
+        assert sorted(i1["reward_terms"]) == sorted(i2["reward_terms"])  # each term with its nested mask
         for k in ("gain", "grasp_cost"):
+            np.testing.assert_array_equal(i1["reward_terms"]["_" + k], i2["reward_terms"]["_" + k])
             np.testing.assert_array_equal(i1["reward_terms"][k][m], i2["reward_terms"][k][m])
     if "final_obs" in i2:
         np.testing.assert_array_equal(i1["_final_obs"], i2["_final_obs"])
