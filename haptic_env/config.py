@@ -283,7 +283,8 @@ class HapticRecogConfig:
 
     def _check_backend(self) -> None:
         """``backend`` and ``backend_kwargs`` checked at make through the backend's own config (they failed when the
-        scene built the backend; a hand's finger count is still checked when the hand is loaded)."""
+        scene built the backend; a hand's finger count is still checked when the hand is loaded), and what the
+        backend needs of the env: normals it can sense, the replay's upright objects at their own scale."""
         from haptic_env.grasping.base import BACKENDS, backend_config
 
         if not isinstance(self.backend, str) or self.backend not in BACKENDS:
@@ -292,9 +293,18 @@ class HapticRecogConfig:
             raise ValueError(f"backend_kwargs must not set n_fingers ({self.backend_kwargs['n_fingers']!r}): it is the "
                              f"config's own n_fingers field (now {self.n_fingers!r})")
         try:
-            backend_config(self.backend, self.n_fingers, **dict(self.backend_kwargs))
+            bc = backend_config(self.backend, self.n_fingers, **dict(self.backend_kwargs))
         except TypeError as exc:
             raise ValueError(f"invalid backend_kwargs for backend {self.backend!r} ({exc})") from exc
+        # refused here, not at the first step (after the recogniser was built): only the physics has ground-truth
+        # normals to give when its sensed ones are off
+        if self.normals and not getattr(bc, "normals", True) and self.backend != "mujoco":
+            raise ValueError(f"normals=True but backend {self.backend!r} with backend_kwargs normals=False senses no "
+                             "contact normals; use normals=False")
+        if self.backend == "replay" and (self.pose != "table-yaw" or self.scale_range is not None):
+            raise ValueError("the replay backend replays the hand's recorded grasps of each object turned about the "
+                             "vertical, at its own scale: it needs pose='table-yaw' and scale_range=None, got "
+                             f"pose={self.pose!r}, scale_range={self.scale_range!r}")
 
     def _check_recognizer_settings(self) -> None:
         """``recognizer_kwargs`` that contradict the env's own settings, refused at make (they failed at the first

@@ -128,6 +128,13 @@ BAD = [
     (lambda v: H(n_fingers=v), 50, r"n_fingers must be an integer in \[2, 16\], got 50"),
     (lambda v: H(backend="mujoco", backend_kwargs={"hand": "allegro", "friction": v}), -1,
      r"friction must be finite and >= 0, got -1"),
+    # what the backend needs of the env, at make (they failed at the first step or reset)
+    (lambda v: H(backend_kwargs={"normals": v}), False,
+     r"normals=True but backend 'geometric' with backend_kwargs normals=False senses no contact normals"),
+    (lambda v: H(backend="replay", backend_kwargs={"hand": "allegro"}, pose=v), "so3",
+     r"the replay backend .* needs pose='table-yaw' and scale_range=None, got pose='so3', scale_range=None"),
+    (lambda v: H(backend="replay", backend_kwargs={"hand": "allegro"}, scale_range=v), (0.9, 1.1),
+     r"needs pose='table-yaw' and scale_range=None, got pose='table-yaw', scale_range=\(0.9, 1.1\)"),
     # DatasetConfig: whole numbers are ints (4.0 was stored as 4.0), fractions numbers, yes/no fields bools
     (lambda v: D(n_fingers=v), 4.0, r"n_fingers must be an int >= 2, got 4.0"),
     (lambda v: D(n_fingers=v), np.float64(4.0), r"n_fingers must be an int >= 2, got np.float64\(4.0\)"),
