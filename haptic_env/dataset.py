@@ -79,7 +79,8 @@ class DatasetConfig:
         normalize_scale: divide contacts by the square root of the grasp polyhedron's area.
         scale_range: ``(lo, hi)``: every grasp sees the object scaled by ``U(lo, hi)``; ``None``: 1.
         sampling: surface sampling method, ``"area"`` or ``"centroid"`` (see ``GraspObject``).
-        val_fraction: fraction of each object's grasps held out for validation, in ``[0, 1)``.
+        val_fraction: fraction of each object's grasps held out for validation, in ``[0, 1)`` (at least one of an
+            object's grasps stays for training).
         seed: seed of everything random in the dataset.
         source: where contacts come from. ``"surface"`` (the paper's analysis protocol): ``n``
             independent random surface points. ``"geometric"``: grasps of the geometric approach
@@ -92,9 +93,9 @@ class DatasetConfig:
             ``grasps_per_object`` counts *approaches*: every grasp with at least ``n_fingers``
             touching fingers gives one row, so objects get different row counts.
         hand_fingers: with ``source="geometric"`` or ``"hand"``, the fingers of the simulated hand
-            (default ``n_fingers``; ``"hand"``: the hand's own); each training grasp is a random
-            ``n_fingers``-subset of the fingers that touched, which models incomplete grasps /
-            z-finger subsets of a bigger hand.
+            (default ``n_fingers``, which with ``"hand"`` must then be the hand's own count); each training grasp is a
+            random ``n_fingers``-subset of the fingers that touched, which models incomplete grasps / z-finger subsets
+            of a bigger hand.
         support: with ``source="geometric"`` or ``"hand"``, ``"table"`` (approaches from the upper
             hemisphere) or ``"floating"`` (the full sphere).
         hand: with ``source="hand"``, the hand (a name of
@@ -167,6 +168,9 @@ class DatasetConfig:
             object.__setattr__(self, "hand_fingers", hf)
         check_support(self.support)
         check_solid_table(self.solid_table, self.support)
+        if self.heights and self.support != "table":
+            raise ValueError(f"heights=True measures the contacts above the table an object rests on; support "
+                             f"{self.support!r} has none (use support='table')")
         if self.hand_budget not in BUDGETS:
             raise ValueError(f"hand_budget must be one of {BUDGETS}, got {self.hand_budget!r}")
         # settings of other sources were taken and ignored (the dataset command refused only --hand)
@@ -194,15 +198,17 @@ class DatasetConfig:
 
     def key_config(self) -> DatasetConfig:
         """This config as the cache keys read it: the settings its grasps ignore at their defaults (``sampling`` with
-        the geometric and hand sources, ``normal_noise_deg`` without normals), so that configs that give the same
-        grasps share their cached files. A config at those defaults is itself (its keys are as before).
+        the geometric and hand sources, ``normal_noise_deg`` and ``normal_axis`` without normals, the latter since
+        2026-12-07), so that configs that give the same grasps share their cached files. A config at those defaults
+        is itself (its keys are as before).
         ``hand_fingers`` None (the geometric and hand sources: ``n_fingers``) is keyed as ``n_fingers``, as the envs
         give it, which gives the same grasps (since 2026-12-07; before, the dataset command's and the hand benchmarks'
         None kept files apart from the envs'). The hand source's table is keyed as its pool keys it: a solid one (the
         default, ``None``, resolved) as ``True``, the visual one unkeyed, as before 2026-12-07."""
         fields = type(self).__dataclass_fields__
         keyed_as = ([("sampling", fields["sampling"].default)] if self.source != "surface" else []) + (
-            [] if self.normals else [("normal_noise_deg", fields["normal_noise_deg"].default)])
+            [] if self.normals else [("normal_noise_deg", fields["normal_noise_deg"].default),
+                                     ("normal_axis", fields["normal_axis"].default)])
         if self.source != "surface":
             keyed_as.append(("hand_fingers", self.hand_fingers or self.n_fingers))
         if self.source == "hand":
@@ -310,15 +316,26 @@ def draw_held_grasps(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Exactly ``count`` grasps in force closure with friction ``mu``: :func:`held_grasps` of ``4 * count`` random
     grasps at a time until there are enough (the first ``count`` kept; ``sampling``: the surface sampling method;
-    ``edges``, ``frame``: the pyramids').
+    ``edges``, ``frame``: the pyramids'). A ``ValueError`` for ``n_fingers < 3`` (two point contacts are never in
+    closure) and a ``RuntimeError`` after ``_MAX_TOPUP_ROUNDS`` rounds without enough (it looped forever).
 
     Returns:
         ``contacts (count, n, 3)`` and inward ``normals (count, n, 3)``.
     """
-    parts = [held_grasps(obj, 4 * int(count), n_fingers, rng, mu, sampling=sampling, edges=edges, frame=frame)]
-    while sum(len(C) for C, _ in parts) < count:
-        parts.append(held_grasps(obj, 4 * int(count), n_fingers, rng, mu, sampling=sampling, edges=edges, frame=frame))
-    C, N = (np.concatenate(a)[: int(count)] for a in zip(*parts))
+    count = whole_at_least(count, 0, "count")
+    if whole_at_least(n_fingers, 1, "n_fingers") < 3:
+        raise ValueError(f"force closure needs n_fingers >= 3 (two point contacts never are), got {n_fingers}")
+    parts, have = [], 0
+    for _ in range(_MAX_TOPUP_ROUNDS):
+        if have >= count and parts:
+            break
+        parts.append(held_grasps(obj, 4 * count, n_fingers, rng, mu, sampling=sampling, edges=edges, frame=frame))
+        have += len(parts[-1][0])
+    else:
+        if have < count:
+            raise RuntimeError(f"object {obj.name!r}: only {have} of {count} random {n_fingers}-contact grasps in "
+                               f"force closure (mu={mu}) after {_MAX_TOPUP_ROUNDS} rounds of {4 * count}")
+    C, N = (np.concatenate(a)[:count] for a in zip(*parts))
     return C, N
 
 
@@ -506,7 +523,7 @@ def build_dataset(
         return ds
     streams = np.random.SeedSequence(config.seed).spawn(len(objects))
     G = config.grasps_per_object
-    n_val = int(round(config.val_fraction * G))
+    n_val = min(int(round(config.val_fraction * G)), G - 1)  # one row at least for training, as the hand source
     Xtr, Ytr, Xva, Yva = [], [], [], []
     # force-closure grasps are slow (hours at the paper's scale): each object's split is kept until the set is saved,
     # so an interrupted build resumes at the first object not done (each object has its own random stream)
@@ -724,7 +741,7 @@ def _run_cli(args: argparse.Namespace) -> int:
         if config.source == "hand":  # an unknown --hand is named before any grasp
             from haptic_env.grasping.hands import load_hand
 
-            load_hand(config.hand, None)
+            load_hand(config.hand, config.hand_fingers or config.n_fingers)  # and its finger count
     except (ValueError, TypeError, FileNotFoundError) as exc:  # bad --objects / --units / --hand / combinations
         raise UsageError(str(exc)) from exc
     try:

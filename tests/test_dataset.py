@@ -352,6 +352,8 @@ def test_cache_keys_are_normalised_and_keep_the_keys_of_configs_at_their_default
     assert key(contact_noise=0) == key(contact_noise=0.0) == key() and key(contact_noise=1) == key(contact_noise=1.0)
     assert key(normal_noise_deg=0, val_fraction=0) == key(normal_noise_deg=0.0, val_fraction=0.0)
     assert key(normals=False, normal_noise_deg=5.0) == key(normals=False) != key(normal_noise_deg=5.0)
+    for axis in ("ab", "frame"):  # no normals: no normal axis to read (since 2026-12-07)
+        assert key(normals=False, normal_axis=axis) == key(normals=False) and key(normal_axis=axis) != key()
     for source in ("geometric", "hand"):
         hand = {"hand": "generic"} if source == "hand" else {}
         assert key(source=source, sampling="centroid", **hand) == key(source=source, **hand)
@@ -369,3 +371,32 @@ def test_cache_keys_are_normalised_and_keep_the_keys_of_configs_at_their_default
         assert cfg.key_config() is cfg
         before = config_key(_CACHE_VERSION, objects.identity, cfg)
         assert dataset_cache_path(objects, cfg).name.endswith(f"-{before}.npz")
+
+
+def test_settings_that_left_a_build_empty_stuck_or_crashing_are_refused_or_bounded(objects, usage_error):
+    """A ``val_fraction`` near 1 keeps a training row per object (it left none); ``draw_held_grasps`` refuses two
+    contacts and stops after its rounds (it looped forever); heights above a table that a floating support lacks are
+    refused; the dataset command names a hand whose finger count is not ``--fingers`` as a usage error (a
+    traceback)."""
+    from haptic_env.dataset import _MAX_TOPUP_ROUNDS, draw_held_grasps
+
+    ds = build_dataset(objects, DatasetConfig(grasps_per_object=4, val_fraction=0.9), cache=False)
+    assert all(tr == 1 and va == 3 for tr, va in ds.counts().values())
+    rng = np.random.default_rng(0)
+    with pytest.raises(ValueError, match=r"force closure needs n_fingers >= 3 .*got 2"):
+        draw_held_grasps(objects[0], 10, 2, rng, 0.5)
+    with pytest.raises(RuntimeError, match=rf"only 0 of 5 random 3-contact grasps in force closure \(mu=0.0\) after "
+                                           rf"{_MAX_TOPUP_ROUNDS} rounds of 20"):
+        draw_held_grasps(objects[0], 5, 3, rng, 0.0)  # no friction: three contacts never hold
+    C, N = draw_held_grasps(objects[0], 5, 3, np.random.default_rng(0), 0.5)
+    assert C.shape == N.shape == (5, 3, 3) and force_closure(C, N, 0.5).all()
+    with pytest.raises(ValueError, match=r"heights=True measures the contacts above the table .*support 'floating'"):
+        DatasetConfig(heights=True, source="geometric", support="floating")
+    from haptic_env.grasping.hands import HandUnavailableError, load_hand
+
+    try:
+        load_hand("allegro")
+    except HandUnavailableError as exc:
+        pytest.skip(f"allegro hand unavailable (menagerie data absent, no download): {exc}")
+    usage_error(cli_main, ["dataset", "--source", "hand", "--hand", "allegro", "--fingers", "3", "--grasps", "2",
+                           "--no-cache", "--quiet"], match=r"hand 'allegro_right' has 4 fingers but n_fingers=3")
