@@ -704,7 +704,10 @@ def read_monitor(folder: str | Path) -> dict[str, np.ndarray]:
     next one resumed from (up to a checkpoint interval after a kill), and the next segment played those steps again.
     Where the run folder's ``args.part<k>.json`` records the step its segment resumed at (``resumed_at_step``,
     written by ``train.py`` since 2026-12-06), the episodes of the segment before it past that step are dropped, so
-    the steps count each step once and the curve is of the line the final model learned from."""
+    the steps count each step once and the curve is of the line the final model learned from. The step of an episode
+    is the sum of the finished episodes' lengths, which lags the trainer's count by the steps of the other envs'
+    episodes in progress (at most ``(n_envs - 1) x max_grasps``), so up to that many steps past the resume point
+    may be kept."""
     files = sorted(Path(folder).glob("*monitor.csv"))
     if not files:
         raise FileNotFoundError(f"no *.monitor.csv in {folder} (train with agents.sb3.make_vec_env(log_dir=...))")
