@@ -253,6 +253,9 @@ def _parse(argv: list[str] | None) -> tuple[Args, object | None]:
             args = dataclasses.replace(args, run_dir=str(home))
         later = latest_checkpoint(home, args.algo)
         data = _saved_data(Path(args.resume))  # read once: its steps (a final model's) and its action space
+        if data is None:  # refused before any file is written (a segment's files, a segment number used up)
+            _usage_error(f"argument --resume: {args.resume} is not a model file stable-baselines3 can read (a damaged "
+                         "or truncated checkpoint?); resume from an earlier checkpoint of its run")
         steps = _saved_steps(Path(args.resume), data)
         if (Path(args.run_dir).resolve() == home.resolve() and later is not None and steps is not None
                 and checkpoint_steps(later) > steps):
@@ -369,13 +372,15 @@ def hold_run_dir(run_dir: Path) -> Iterator[None]:
 
 
 def _saved_data(path: Path) -> dict | None:
-    """The data a model file was saved with (SB3's ``data``), or None for a file SB3 cannot read (not a zip file:
-    the resume itself names the problem)."""
+    """The data a model file was saved with (SB3's ``data``), or None for a file SB3 cannot read (not a zip file, a
+    truncated one: :func:`_parse` refuses to resume from it)."""
+    import zipfile
+
     from stable_baselines3.common.save_util import load_from_zip_file
 
     try:
         data, _, _ = load_from_zip_file(path, load_data=True, device="cpu")
-    except ValueError:
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile):
         return None
     return data or {}
 

@@ -32,6 +32,7 @@ import contextlib
 import os
 import pickle
 import re
+import sys
 import time
 import warnings
 from pathlib import Path
@@ -482,6 +483,10 @@ def _run_guard(save_path: Path, algo: str, checkpoint_freq: int, max_minutes: fl
         * :meth:`request_stop` (a signal handler) or the ``max_minutes`` deadline: the next env step returns
           ``False`` and ``num_timesteps`` is rewound to the last consistent point (the unfinished rollout is
           dropped), so a run resumed from the saved state counts every step it learned from exactly once.
+
+        ``updating`` is True from the end of a rollout to the start of the next one, while the model learns from it
+        (PPO's epochs, SAC's gradient steps): a second signal then waits for the update's end (a stop at once there
+        saved a model half-way through an update under the rollout's starting step count).
         """
 
         def __init__(self) -> None:
@@ -493,6 +498,7 @@ def _run_guard(save_path: Path, algo: str, checkpoint_freq: int, max_minutes: fl
             self._safe: int | None = None
             self._saved_at = -1
             self.saving = False  # inside save(): a signal now is deferred to its end
+            self.updating = False  # learning from the last rollout: a second signal now is deferred to its end
 
         def request_stop(self, reason: str, signum: int | None = None) -> None:
             if self.stop_reason is None:
@@ -505,6 +511,7 @@ def _run_guard(save_path: Path, algo: str, checkpoint_freq: int, max_minutes: fl
             self._next = (self._safe // self.save_freq + 1) * self.save_freq
 
         def _on_rollout_start(self) -> None:
+            self.updating = False
             self._safe = self.model.num_timesteps
             if self._safe >= self._next:
                 path = self.save()
@@ -522,7 +529,11 @@ def _run_guard(save_path: Path, algo: str, checkpoint_freq: int, max_minutes: fl
                 return False
             return True
 
+        def _on_rollout_end(self) -> None:
+            self.updating = True  # the update on this rollout comes next
+
         def _on_training_end(self) -> None:
+            self.updating = False
             if not self.stopped:
                 self._on_rollout_start()  # the last update is done
 
@@ -595,12 +606,18 @@ def handling_signals(handler: Callable[[int, Any], None]):
 
 @contextlib.contextmanager
 def _stop_on_signals(guard):
-    """SIGINT / SIGTERM ask ``guard`` to stop at the next env step; a second one raises KeyboardInterrupt."""
+    """SIGINT / SIGTERM ask ``guard`` to stop at the next env step; a second one raises KeyboardInterrupt, except
+    while a checkpoint is written or the model learns from a rollout (``guard.updating``): those finish first, and the
+    run stops at the env step after them."""
     import signal
 
     def handler(signum, frame):
         if guard.stop_reason is not None and guard.signum is not None:
             if guard.saving:  # a checkpoint being written: let it finish (the run stops right after)
+                return
+            if guard.updating:  # a model half-way through an update is no state to save: the update finishes
+                print(f"[train] {signal.Signals(signum).name} again: the update in progress finishes first, then "
+                      "the run stops and saves", file=sys.stderr, flush=True)
                 return
             raise KeyboardInterrupt
         guard.request_stop(signal.Signals(signum).name, signum)
@@ -666,6 +683,7 @@ def train(algo: str, venv, total_timesteps: int, log_dir: str | os.PathLike, *, 
             else:
                 venv = loaded
         model = load_model(resume, algo, env=venv)
+        model.verbose = verbose  # this segment's (SB3's load restored the checkpoint's)
         model.set_random_seed(seed)  # not the checkpoint's seed again (SB3's load set it): this segment's
         model.tensorboard_log = str(log_dir / "tb")
         if "replay_buffer" in extras and hasattr(model, "load_replay_buffer"):  # SAC's (replay_buffer_problem)

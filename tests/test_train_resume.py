@@ -399,6 +399,51 @@ def test_a_failed_first_reset_still_saves_and_names_its_checkpoint(env_config, t
     assert "an env worker died (EOFError)" in info.value.reason and Path(info.value.path).is_file()
 
 
+def test_a_second_signal_during_an_update_lets_it_finish_and_a_resume_takes_its_verbose(env_config, tmp_path,
+                                                                                         monkeypatch, capsys):
+    """Two SIGINTs while PPO learns from a rollout: the second waits for the update's end (it stopped at once
+    there, saving a half-updated model under the rollout's starting step count), so the checkpoint is the model an
+    uninterrupted run has at that step; a resumed segment logs at its own ``verbose``, not the checkpoint's."""
+    import torch
+    from stable_baselines3 import PPO
+
+    from agents import sb3
+
+    cfg = env_config.replace(max_grasps=10)
+    hp = {"n_steps": 64, "batch_size": 32, "n_epochs": 2}
+    venv = sb3.make_vec_env(cfg, n_envs=1, vec="dummy", seed=7)
+    ref, _ = sb3.train("ppo", venv, 128, tmp_path / "ref", checkpoint_freq=10_000, **hp)
+    venv.close()
+    update, calls = PPO.train, []
+
+    def interrupted_update(self):
+        calls.append(1)
+        if len(calls) == 2:  # Ctrl-C twice as the second update begins
+            signal.raise_signal(signal.SIGINT)
+            signal.raise_signal(signal.SIGINT)
+        return update(self)
+
+    monkeypatch.setattr(PPO, "train", interrupted_update)
+    venv = sb3.make_vec_env(cfg, n_envs=1, vec="dummy", seed=7)
+    try:
+        with pytest.raises(sb3.TrainingInterrupted) as info:
+            sb3.train("ppo", venv, 512, tmp_path / "run", checkpoint_freq=10_000, **hp)
+    finally:
+        venv.close()
+    assert "the update in progress finishes first" in capsys.readouterr().err
+    assert info.value.num_timesteps == 128 and Path(info.value.path).name == "ppo_128_steps.zip"
+    saved = sb3.load_model(info.value.path, "ppo")
+    for (k, a), b in zip(ref.policy.state_dict().items(), saved.policy.state_dict().values()):
+        assert torch.equal(a, b), k
+    monkeypatch.setattr(PPO, "train", update)
+    venv = sb3.make_vec_env(cfg, n_envs=1, vec="dummy", seed=8)
+    try:
+        model, _ = sb3.train("ppo", venv, 192, tmp_path / "run", resume=info.value.path, verbose=1, **hp)
+    finally:
+        venv.close()
+    assert model.verbose == 1 and "rollout/" in capsys.readouterr().out
+
+
 def test_checkpoints_are_written_whole_extras_first(env_config, tmp_path, monkeypatch):
     """A save killed mid-write leaves no file under a checkpoint's name (``latest_checkpoint`` never picks a torn
     one); the SAC replay buffer is written before the model's zip, so a zip found has its buffer; and resuming SAC
@@ -451,6 +496,12 @@ def test_a_resume_the_env_or_its_files_cannot_take_is_refused_before_any_file(sm
     usage_error(train.main, more + ["--env.observe-contacts"],
                 match=r"--resume: .*ppo_128_steps.zip was trained with a 33-dim observation, this run's env has a "
                       r"57-dim one: resume with the --env-id and --env.\* settings it was trained with")
+    assert _snapshot(run) == before
+    damaged = run / "checkpoints" / "ppo_999_steps.zip"  # a truncated file: a traceback after the segment's files
+    damaged.write_bytes((run / "checkpoints" / "ppo_128_steps.zip").read_bytes()[:100])
+    usage_error(train.main, _args("ppo", 1200, run, small_recognizer_kwargs, hp) + ["--resume", str(damaged)],
+                match=r"--resume: .*ppo_999_steps.zip is not a model file stable-baselines3 can read")
+    damaged.unlink()
     assert _snapshot(run) == before
     from haptic_env.env import HapticRecogEnv
 
