@@ -52,6 +52,9 @@ __all__ = [
 ]
 
 _CACHE_VERSION = "grasp-dataset-v1"
+#: in :meth:`DatasetConfig.source_key` of two-contact vectors with heights: their heights ordered lower first where
+#: the normals do not order the contacts (since 2026-12-07)
+_PHI2_HEIGHTS = "phi2-heights-sorted"
 #: Values of :attr:`DatasetConfig.source`.
 SOURCES = ("surface", "geometric", "hand")
 #: The most contacts per grasp the command lines take (``dataset --fingers``, ``analysis --fingers``).
@@ -217,16 +220,20 @@ class DatasetConfig:
         return replace(self, **changed) if changed else self
 
     def source_key(self) -> str:
-        """The identity of the grasp source beyond this config: for ``source="hand"`` the pools' cache version
+        """The identity of the grasp source beyond this config (and, for two contacts with heights, of their grasp
+        vectors' code: ``_PHI2_HEIGHTS``): for ``source="hand"`` the pools' cache version
         (:data:`~haptic_env.hand_grasps.POOL_VERSION`: a new pool format gives new data sets too), the hand's physics
         (:func:`~haptic_env.hand_grasps.hand_physics_key`) and, for a balanced budget, how its pool is spread
         (:func:`~haptic_env.hand_grasps.budget_key`), else empty. Part of every cache key built on it."""
+        # two contacts' heights in finger order where their normals do not order them: before 2026-12-07 (now lower
+        # first, finger-order invariant), so such vectors are keyed apart from the files made before
+        phi2 = [_PHI2_HEIGHTS] if self.n_fingers == 2 and self.heights else []
         if self.source != "hand":
-            return ""
+            return ":".join(phi2)
         from .hand_grasps import POOL_VERSION, budget_key, hand_physics_key
 
         return ":".join([POOL_VERSION, hand_physics_key(self.hand, self.hand_fingers or self.n_fingers),
-                         *budget_key(self.hand_budget, self.grasps_per_object)])
+                         *budget_key(self.hand_budget, self.grasps_per_object), *phi2])
 
     @property
     def feature_dim(self) -> int:

@@ -51,7 +51,8 @@ Heights above the support (``phi(..., heights=True)``)
     An object resting on a table in one of its resting poses, turned only about the vertical, keeps the
     heights of its surface points above the table. With the contacts given in the *support frame*
     (z up, ``z = 0`` on the table top), ``heights=True`` appends each contact's height ``z`` in chain
-    order: ``n`` more values. That vector is invariant to turns about the vertical and to horizontal
+    order (two contacts: Phi_2's order, the lower first where the normals' angles do not order them, since
+    2026-12-07): ``n`` more values. That vector is invariant to turns about the vertical and to horizontal
     moves, not to tilts, so it only suits objects that keep their resting pose (the envs' ``"table-yaw"``
     poses); a robot knows its table, so the heights are sensed as the contacts are (forward kinematics).
 
@@ -376,6 +377,9 @@ def phi(contacts, normals=None, *, strict: bool = False, tol: float = DEFAULT_TO
             f"grasp {i} is degenerate ({DEGENERACY_REASONS[int(reason[i])]}): contacts {P[i].tolist()}"
         )
     if heights:
+        if P.shape[1] == 2:  # Phi_2 orders the contacts by their normals' angles; where none do (no normals, or
+            tie = np.ones(len(q), bool) if N is None else q[:, 1] == q[:, 2]  # equal angles) the lower goes first
+            order[tie] = np.argsort(P[tie, :, 2], axis=1, kind="stable")
         h = np.take_along_axis(P[:, :, 2], order, axis=1)
         q = np.concatenate([q, np.where(valid[:, None], h, 0.0)], axis=1)
     if single:

@@ -367,15 +367,31 @@ def test_heights_append_the_contact_heights_in_chain_order(n, normals):
     d = feature_dim(n, normals)
     assert fh.q.shape == (32, feature_dim(n, normals, heights=True)) == (32, d + n)
     np.testing.assert_array_equal(fh.q[:, :d], f.q)
-    np.testing.assert_array_equal(fh.q[:, d:], np.take_along_axis(P[:, :, 2], f.order, axis=1))
+    np.testing.assert_array_equal(fh.q[:, d:], np.take_along_axis(P[:, :, 2], fh.order, axis=1))
+    if n > 2 or normals:  # two contacts without normals have no chain order: the heights' own, the lower first
+        np.testing.assert_array_equal(fh.order, f.order)
     R = Rotation.from_euler("z", 1.234).as_matrix()
     shift = np.array([0.3, -2.0, 0.0])
     moved = phi(P @ R.T + shift, None if N is None else N @ R.T, heights=True)
     np.testing.assert_allclose(moved.q, fh.q, atol=1e-9)
+    swapped = phi(P[:, ::-1], None if N is None else N[:, ::-1], heights=True)  # the fingers in another order
+    np.testing.assert_allclose(swapped.q, fh.q, atol=1e-9)
     lifted = phi(P + [0.0, 0.0, 0.5], N, heights=True)
     np.testing.assert_allclose(lifted.q[:, d:], fh.q[:, d:] + 0.5, atol=1e-12)
     flat = np.zeros((1, max(n, 3), 3))  # coincident contacts: no polyhedron
     assert not phi(flat[:, :n], heights=True).q.any()
+
+
+def test_two_contacts_heights_are_finger_order_invariant_where_the_normals_tie():
+    """A pinch across two parallel faces (antiparallel normals: equal angles to the line) has no Phi_2 order: its
+    heights came in finger order; now the lower contact's first, with and without normals."""
+    P = np.array([[0.035, 0.0, 0.05], [-0.035, 0.0, 0.12]])
+    N = np.array([[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    for normals in (None, N):
+        a = phi(P, normals, heights=True)
+        b = phi(P[::-1], None if normals is None else normals[::-1], heights=True)
+        np.testing.assert_array_equal(a.q, b.q)
+        np.testing.assert_array_equal(a.q[-2:], [0.05, 0.12])
 
 
 def test_feature_dim_with_heights():
