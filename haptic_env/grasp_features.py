@@ -296,26 +296,28 @@ def _canonical_hull_triangles(pts: np.ndarray, tol: float) -> np.ndarray | None:
     Qhull's triangulation of a planar face depends on the input order. Here each planar face is
     fanned from its vertex with the largest sum of distances to all contacts (a rigid- and
     permutation-invariant key), around the face in the direction of its outward normal, so the
-    triangulation, and hence the chain, is a function of the geometry alone.
+    triangulation, and hence the chain, is a function of the geometry alone. A planar face is a set of facets linked
+    pairwise by unit normals within ``1e3 * tol`` of each other (Euclidean) and offsets within ``1e3 * tol`` of the
+    grasp's largest contact distance: a test and a grouping that no pose or finger order changes (since
+    2026-12-07; the test was per axis, and the grouping followed Qhull's facet order).
     """
+    from scipy.sparse.csgraph import connected_components
     from scipy.spatial import ConvexHull
 
     try:
         hull = ConvexHull(pts - pts.mean(0))  # centred: the facets' offsets are lengths within the grasp
     except Exception:
         return None
-    scale = np.linalg.norm(pts.max(0) - pts.min(0))
-    key = _norm(pts[:, None] - pts[None]).sum(1)
+    dist = _norm(pts[:, None] - pts[None])
+    scale, key = dist.max(), dist.sum(1)  # the grasp's size and each contact's key: neither depends on the pose
     eq = hull.equations  # (F, 4): outward unit normal, offset from the centroid
-    groups: list[list[int]] = []
-    for f in range(len(eq)):
-        for g in groups:
-            d = np.abs(eq[g[0]] - eq[f])  # one plane: unit normals alike, and offsets alike relative to the size
-            if d[:3].max() <= 1e3 * tol and d[3] <= 1e3 * tol * scale:
-                g.append(f)
-                break
-        else:
-            groups.append([f])
+    # one plane: facets linked by unit normals alike (their distance, not per axis, which turned with the grasp) and
+    # offsets alike relative to the size; the linked sets (connected components, not a first-come grouping, which
+    # followed Qhull's facet order and so the contacts' order) are the planar faces
+    alike = ((_norm(eq[:, None, :3] - eq[None, :, :3]) <= 1e3 * tol)
+             & (np.abs(eq[:, None, 3] - eq[None, :, 3]) <= 1e3 * tol * scale))
+    _, label = connected_components(alike, directed=False)
+    groups = [np.flatnonzero(label == c) for c in np.unique(label)]
     out = []
     for g in groups:
         verts = np.unique(hull.simplices[g])

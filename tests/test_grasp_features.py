@@ -382,6 +382,28 @@ def test_heights_append_the_contact_heights_in_chain_order(n, normals):
     assert not phi(flat[:, :n], heights=True).q.any()
 
 
+def test_a_nearly_flat_hull_face_is_grouped_alike_in_every_pose_and_finger_order():
+    """Four contacts flat to about 1e-5 of the grasp's size: the planar-face grouping of the ambiguous path compared
+    unit normals per axis (a turn about z split the face) and grouped in Qhull's facet order (the fingers' order);
+    now every turn and order gives the same vector and area (the facets linked by a pose-free test)."""
+    from itertools import permutations
+
+    from scipy.spatial.transform import Rotation
+
+    P = np.array([[1.2565096553428839e-01, 7.7448920908867513e-02, 1.0006409423733347e-05],
+                  [2.6196862488829153e-01, -3.1228040870757375e-02, -8.7685184581013863e-06],
+                  [-2.3681708051255725e+00, 3.0344607141912495e-02, 9.0717773465503850e-06],
+                  [-7.5968597300239382e-01, 2.2993934633839939e-02, -1.0674565894923128e-06],
+                  [1.6045130164280344e-02, -8.4880404088263278e-02, 1.2918433900417066e+00]])
+    ref, area = phi(P).q, surface_area(P)
+    for deg in range(0, 360, 5):
+        R = Rotation.from_euler("z", deg, degrees=True).as_matrix()
+        np.testing.assert_allclose(phi(P @ R.T).q, ref, atol=1e-9, err_msg=f"turned {deg} deg")
+        np.testing.assert_allclose(surface_area(P @ R.T), area, rtol=1e-12)
+    for perm in permutations(range(5)):
+        np.testing.assert_allclose(phi(P[list(perm)]).q, ref, atol=1e-9, err_msg=f"fingers {perm}")
+
+
 def test_two_contacts_heights_are_finger_order_invariant_where_the_normals_tie():
     """A pinch across two parallel faces (antiparallel normals: equal angles to the line) has no Phi_2 order: its
     heights came in finger order; now the lower contact's first, with and without normals."""
