@@ -311,6 +311,7 @@ def test_smoke_sweep_report_rerun_and_retries(local_ray, tmp_path, capsys, monke
     assert f"From the earlier report `{out}` (run folders not here): random [0], greedy [0]." in merged
     assert "Not run (or not finished): random [1], greedy [1]." in merged
     assert (out2 / "report/default/episodes.csv").read_text() == (out / "report/default/episodes.csv").read_text()
+    assert json.loads((out2 / "report/default/agent_seeds.json").read_text()) == {"random": [0, 1], "greedy": [0, 1]}
     rl = [json.loads((o / "report/default/results.json").read_text())["rliable"]["agents"] for o in (out, out2)]
     assert rl[0] == rl[1]
     only_random = {**doc, "agent": [a for a in doc["agent"] if a["name"] == "random"]}
@@ -648,6 +649,20 @@ def test_a_prior_report_of_other_episodes_or_env_seeds_is_refused(tmp_path, usag
     same = [(s, i * 2 + e) for i in (0, 1) for s in (1000, 1001) for e in (0, 1)]
     got = load_prior_records(spec, prior(same), "default")
     assert sorted(got) == [("random", 0), ("random", 1)] and all(len(r) == 4 for r in got.values())
+    # the offsets count in the earlier spec's seed list (agent_seeds.json): a seed this spec does not evaluate is
+    # refused (its episodes were filed under this spec's seed at that index), the others offset as this spec counts
+    other = prior(same)
+    (other / "report" / "default" / "agent_seeds.json").write_text(json.dumps({"random": [0, 2]}))
+    with pytest.raises(ValueError, match=r"agent 'random' seed 2 is not among this spec's agent seeds \[0, 1\]"):
+        load_prior_records(spec, other, "default")
+    (other / "report" / "default" / "agent_seeds.json").write_text(json.dumps({"random": [1, 0]}))
+    swapped = load_prior_records(spec, other, "default")
+    assert sorted(swapped) == sorted(got) and [r.episode for r in swapped["random", 1]] == [2, 3, 2, 3]
+    assert [r.episode for r in swapped["random", 0]] == [0, 1, 0, 1]
+    wider = parse_spec({**doc, "seeds": [0, 1, 2]})  # more seeds than the earlier report's: its own stay theirs
+    (other / "report" / "default" / "agent_seeds.json").write_text(json.dumps({"random": [0, 2]}))
+    assert sorted(load_prior_records(wider, other, "default")) == [("random", 0), ("random", 2)]
+    assert [r.episode for r in load_prior_records(wider, other, "default")["random", 2]] == [4, 5, 4, 5]
     for rows, why in (([(s, i * 2 + e) for i in (0, 1) for s in (1000, 1002) for e in (0, 1)],  # another env seed
                        r"agent 'random' seed 0 has episodes per env seed \{1000: 2, 1002: 2\}, this spec 2 on each "
                        r"of env seeds \[1000, 1001\]"),

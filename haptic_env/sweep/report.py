@@ -19,10 +19,13 @@ An earlier report of the same spec can stand in for run folders that are gone (`
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import shlex
 from pathlib import Path
 from typing import Any
+
+from haptic_env.cache import atomic_write
 
 from .jobs import attempts, is_done, read_done
 from .runner import SweepResult
@@ -41,6 +44,10 @@ def _read_episodes(path: Path, offset: int = 0) -> list:
                               correct=row["correct"] == "True", certainty=float(row["certainty"]),
                               ret=float(row["ret"]), predicted=row.get("predicted") or "")
                 for row in csv.DictReader(fh)]
+
+
+#: beside a report's ``episodes.csv``: each agent's seed list, whose order its episode offsets follow
+AGENT_SEEDS = "agent_seeds.json"
 
 
 def _agent_seeds(spec: SweepSpec, env: str) -> dict[str, list[int]]:
@@ -69,12 +76,16 @@ def load_records(spec: SweepSpec, out: Path, env: str) -> list:
 def load_prior_records(spec: SweepSpec, prior: Path, env: str) -> dict[tuple[str, int], list]:
     """(agent, agent seed) -> its episodes of ``env`` in an earlier report of this spec
     (``prior/report/<env>/episodes.csv`` as :func:`write_sweep_report` wrote it, e.g. one committed after its
-    run folders were gone); the agent seed is read back from the episode offset (see :func:`load_records`).
-    Empty if the earlier report has no such file.
+    run folders were gone); the agent seed is read back from the episode offset (see :func:`load_records`), which
+    counts in the earlier spec's seed list of each agent: the one in ``agent_seeds.json`` beside the file (written
+    since 2026-12-07; a report without it is read with this spec's lists, which filed episodes under other seeds
+    when the lists had changed), and the episodes are offset again as this spec's list counts. Empty if the earlier
+    report has no such file.
 
     Raises ``ValueError`` if an agent of the file is not evaluated on ``env`` by this spec, if an episode index
-    lies beyond its agent's seeds, or if an agent seed's episodes are not ``episodes`` on each of the spec's
-    ``env_seeds``: the file is of another spec (its episodes would be taken for other runs)."""
+    lies beyond its agent's seeds, if an agent seed of the file is not among this spec's, or if an agent seed's
+    episodes are not ``episodes`` on each of the spec's ``env_seeds``: the file is of another spec (its episodes
+    would be taken for other runs)."""
     from collections import Counter
 
     path = prior / "report" / env / "episodes.csv"
@@ -83,16 +94,27 @@ def load_prior_records(spec: SweepSpec, prior: Path, env: str) -> dict[tuple[str
     seeds = _agent_seeds(spec, env)
     p = next(j.params for j in spec.jobs if j.kind == "evaluate" and j.params["env"] == env)
     episodes, env_seeds = p["episodes"], p["env_seeds"]
+    listed = path.with_name(AGENT_SEEDS)
+    theirs = {**seeds, **(json.loads(listed.read_text()) if listed.is_file() else {})}
+    rows = _read_episodes(path)
+    unknown = next((r.agent for r in rows if r.agent not in seeds), None)
+    if unknown is not None:
+        raise ValueError(f"{path}: agent {unknown!r} is not evaluated on env {env!r} by this spec (the earlier "
+                         "report is of another spec)")
     by_job: dict[tuple[str, int], list] = {}
-    for r in _read_episodes(path):
-        if r.agent not in seeds:
-            raise ValueError(f"{path}: agent {r.agent!r} is not evaluated on env {env!r} by this spec (the earlier "
-                             "report is of another spec)")
-        idx = r.episode // episodes
-        if idx >= len(seeds[r.agent]):
-            raise ValueError(f"{path}: episode {r.episode} of agent {r.agent!r} lies beyond its {len(seeds[r.agent])} "
-                             f"agent seed(s) x {episodes} episodes (the earlier report is of another spec)")
-        by_job.setdefault((r.agent, seeds[r.agent][idx]), []).append(r)
+    for r in rows:
+        idx, e = divmod(r.episode, episodes)
+        if idx >= len(theirs[r.agent]):
+            raise ValueError(f"{path}: episode {r.episode} of agent {r.agent!r} lies beyond its "
+                             f"{len(theirs[r.agent])} agent seed(s) x {episodes} episodes (the earlier report is of "
+                             "another spec)")
+        seed = theirs[r.agent][idx]
+        if seed not in seeds[r.agent]:
+            raise ValueError(f"{path}: agent {r.agent!r} seed {seed} is not among this spec's agent seeds "
+                             f"{seeds[r.agent]} (the earlier report is of another spec)")
+        # offset as this spec's seed list counts (load_records), where the earlier list may have counted otherwise
+        by_job.setdefault((r.agent, seed), []).append(
+            dataclasses.replace(r, episode=seeds[r.agent].index(seed) * episodes + e))
     for (agent, seed), recs in by_job.items():
         got = Counter(r.seed for r in recs)
         if got != dict.fromkeys(env_seeds, episodes):
@@ -234,6 +256,8 @@ def write_sweep_report(spec: SweepSpec, result: SweepResult, command: list[str] 
             extra += " Not run (or not finished): " + ", ".join(f"{a} {s}" for a, s in missing.items()) + "."
         write_report(records, env_out, _max_grasps(env_id, kwargs), title=f"Sweep {spec.name}: {env}", extra=extra,
                      period=p["episodes"])  # every agent seed replays the same episodes per env seed: clusters
+        with atomic_write(env_out / AGENT_SEEDS, "w") as fh:  # the seed lists episodes.csv's offsets count in
+            json.dump(_agent_seeds(spec, env), fh)
         agg = json.loads((env_out / "results.json").read_text())["rliable"]
         aggs[env] = agg
         rel = env_out.relative_to(out)
