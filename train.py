@@ -609,7 +609,9 @@ def _train(args: Args, probe=None) -> Path:
     dt = time.time() - t0
     steps = int(model.num_timesteps)
     new = steps - int(getattr(model, "_num_timesteps_at_start", 0)) if args.resume else steps
-    print(f"[train] {steps} steps ({new} in this run) in {dt / 60:.1f} min ({new / dt:.0f} steps/s); "
+    short = (f", stopped by --max-minutes {args.max_minutes:g} before --total-timesteps {args.total_timesteps}"
+             if steps < args.total_timesteps else "")
+    print(f"[train] {steps} steps ({new} in this run{short}) in {dt / 60:.1f} min ({new / dt:.0f} steps/s); "
           f"saved {path}", flush=True)
     return path
 

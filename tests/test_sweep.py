@@ -41,8 +41,12 @@ def _fake_train_py(monkeypatch, folder: Path) -> list[list[str]]:
     runs: list[list[str]] = []
 
     def run_logged(cmd, log, cwd, pidfile):
+        from stable_baselines3.common.save_util import save_to_zip_file
+
         runs.append(cmd)
-        (folder / "ppo_final.zip").write_bytes(b"model")
+        steps = int(cmd[cmd.index("--total-timesteps") + 1]) // (2 if "--max-minutes" in cmd and float(
+            cmd[cmd.index("--max-minutes") + 1]) > 0 else 1)  # a time limit stops it half-way
+        save_to_zip_file(folder / "ppo_final.zip", data={"num_timesteps": steps})
         return 0
 
     monkeypatch.setattr(jobs, "_run_logged", run_logged)
@@ -515,9 +519,43 @@ def test_a_retried_train_job_reuses_a_finished_model_and_resumes_otherwise(tmp_p
     out = jobs._train(p, tmp_path, 2, {})
     assert len(runs) == 1 and runs[0][-2:] == ["--resume", str(tmp_path)]
     assert out["resumed_from"].endswith("ppo_128_steps.zip")
+    assert out["steps"] == 256
     out = jobs._train(p, tmp_path, 3, {})
     assert len(runs) == 1 and out == {"model": str(tmp_path / "ppo_final.zip"), "resumed_from": None,
-                                      "reused_final_model": True}
+                                      "reused_final_model": True, "steps": 256}
+    # a time limit that stopped it early: done, with its steps (the report lists it)
+    (tmp_path / "ppo_final.zip").unlink()
+    assert jobs._train({**p, "max_minutes": 0.5}, tmp_path, 4, {})["steps"] == 128
+
+
+def test_the_report_lists_the_trainings_that_their_time_limit_stopped(tmp_path, monkeypatch):
+    """A train job that ``max_minutes`` stopped before ``total_timesteps`` is done (a later run does not go on with
+    it) and was ranked as if trained to the end, unsaid: the report lists it with its steps, from ``done.json`` or,
+    for a job done before the steps were recorded, from its model."""
+    from haptic_env.sweep import jobs
+    from haptic_env.sweep.report import write_sweep_report
+    from haptic_env.sweep.runner import SweepResult
+
+    doc = {"name": "t", "seeds": [0, 1], "env_ids": ["HapticRecog-v0"],
+           "agent": [{"name": "ppo", "algo": "ppo", "total_timesteps": 256, "max_minutes": 1}]}
+    spec = parse_spec(doc)
+    out = tmp_path / "sweep"
+    trains = [j for j in spec.jobs if j.kind == "train"]
+    for j in trains:
+        j.run_dir(out).mkdir(parents=True)
+    runs = _fake_train_py(monkeypatch, trains[0].run_dir(out))
+    (trains[0].run_dir(out) / "done.json").write_text(json.dumps(jobs._train(trains[0].params, trains[0].run_dir(
+        out), 1, {})))
+    assert len(runs) == 1
+    from stable_baselines3.common.save_util import save_to_zip_file
+
+    save_to_zip_file(trains[1].run_dir(out) / "ppo_final.zip", data={"num_timesteps": 256})  # trained to the end
+    (trains[1].run_dir(out) / "done.json").write_text(json.dumps({"model": str(trains[1].run_dir(out) /
+                                                                               "ppo_final.zip")}))
+    text = write_sweep_report(spec, SweepResult(out=out)).read_text()
+    assert "### Trainings stopped by their time limit" in text
+    assert f"- `{trains[0].id}`: 128 of 256 steps (its time limit, max_minutes = 1)" in text
+    assert trains[1].id not in text.split("### Trainings stopped by their time limit")[1].split("###")[0]
 
 
 def test_a_dataset_job_builds_its_hand_grasp_pool_in_as_many_processes_as_its_cpus(tmp_path, monkeypatch):

@@ -188,7 +188,7 @@ def _train(p: dict[str, Any], run_dir: Path, attempt: int, job: dict[str, Any]) 
     _wait_previous(run_dir / "train.pid")
     final = run_dir / f"{p['algo']}_final.zip"
     if final.is_file():  # an earlier attempt finished training but not the job (train.py writes it whole, last)
-        return {"model": str(final), "resumed_from": None, "reused_final_model": True}
+        return {"model": str(final), "resumed_from": None, "reused_final_model": True, "steps": model_steps(final)}
     cmd = [sys.executable, str(TRAIN_PY), "--algo", p["algo"], "--env-id", p["env_id"],
            "--total-timesteps", str(p["total_timesteps"]), "--n-envs", str(p["n_envs"]), "--vec", p["vec"],
            "--seed", str(p["seed"]), "--env-seed", str(p["env_seed"]), "--run-dir", str(run_dir),
@@ -204,7 +204,18 @@ def _train(p: dict[str, Any], run_dir: Path, attempt: int, job: dict[str, Any]) 
     rc = _run_logged(cmd, log, cwd=TRAIN_PY.parent, pidfile=run_dir / "train.pid")
     if rc != 0 or not final.is_file():
         raise RuntimeError(f"train.py exited with status {rc} (attempt {attempt}); last lines of {log}:\n{_tail(log)}")
-    return {"model": str(final), "resumed_from": str(resumed) if resumed is not None and "--resume" in cmd else None}
+    # the steps it learned: fewer than total_timesteps where max_minutes stopped it (the report says so)
+    return {"model": str(final), "resumed_from": str(resumed) if resumed is not None and "--resume" in cmd else None,
+            "steps": model_steps(final)}
+
+
+def model_steps(path: Path) -> int | None:
+    """The steps a model file was saved at (stable-baselines3's ``num_timesteps``), or None if it does not say."""
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    data, _, _ = load_from_zip_file(path, load_data=True, device="cpu")
+    steps = (data or {}).get("num_timesteps")
+    return None if steps is None else int(steps)
 
 
 def _evaluate(p: dict[str, Any], run_dir: Path, attempt: int, job: dict[str, Any]) -> dict[str, Any]:

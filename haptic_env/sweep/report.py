@@ -27,7 +27,7 @@ from typing import Any
 
 from haptic_env.cache import atomic_write
 
-from .jobs import attempts, is_done, read_done
+from .jobs import attempts, is_done, model_steps, read_done
 from .runner import SweepResult
 from .spec import SweepSpec
 
@@ -207,6 +207,20 @@ def write_sweep_report(spec: SweepSpec, result: SweepResult, command: list[str] 
             lines += [f"- `{jid}` ({len(a)} attempt(s)):", "", "  ```", *["  " + ln for ln in err.splitlines()[-8:]],
                       "  ```"]
         lines.append("")
+    short = []  # trainings that max_minutes stopped before total_timesteps: done, and ranked, with fewer steps
+    for j in spec.jobs:
+        if j.kind == "train" and is_done(j.run_dir(out)):
+            d = read_done(j.run_dir(out))
+            steps = d.get("steps")
+            if "steps" not in d and Path(d["model"]).is_file():  # a job done before its steps were recorded
+                steps = model_steps(Path(d["model"]))
+            if steps is not None and steps < j.params["total_timesteps"]:
+                short.append(f"- `{j.id}`: {steps} of {j.params['total_timesteps']} steps (its time limit, "
+                             f"max_minutes = {j.params['max_minutes']:g})")
+    if short:
+        lines += ["### Trainings stopped by their time limit", "",
+                  "Each is done (a later run does not continue it) and its agent is evaluated as trained:", "",
+                  *short, ""]
     retried = [(j, attempts(j.run_dir(out))) for j in spec.jobs]
     retried = [(j, a) for j, a in retried if len(a) > 1]
     if retried:
