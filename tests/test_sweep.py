@@ -122,6 +122,18 @@ def test_grid_expansion_keys_and_dependencies():
     assert {i.split("/")[0] for i in changed} == {"train", "evaluate"} and len(changed) == 8
 
 
+def test_a_hand_env_row_may_add_backend_settings_that_keep_its_hand():
+    """A mapping keyword updates the variant's mapping (``haptic_env.config.with_keys``), so a row of a hand env that
+    adds ``solid_table`` keeps the variant's hand and is that env (it was refused as a change of what it sets)."""
+    import haptic_env
+
+    doc = {"name": "x", "env": [{"id": "HapticRecogShadow-v0", "kwargs": {"backend_kwargs": {"solid_table": False}}}],
+           "agent": [{"name": "random"}]}
+    spec = parse_spec(doc)
+    env_id, kwargs = spec.envs["HapticRecogShadow-v0"]
+    assert dict(haptic_env.variant_config(env_id, **kwargs).backend_kwargs) == {"hand": "shadow", "solid_table": False}
+
+
 def test_a_changed_env_variant_is_a_new_job(monkeypatch):
     """What a registered id sets is part of its jobs' keys: a release that changes it re-runs them."""
     import haptic_env
@@ -141,6 +153,8 @@ def test_a_changed_env_variant_is_a_new_job(monkeypatch):
     ({"name": "x", "env_ids": ["Nope-v0"], "agent": [{"name": "random"}]}, "unknown env id"),
     ({"name": "x", "env": [{"id": "HapticRecogKIT-v0", "kwargs": {"objects": "kit20"}}], "agent": [{"name": "random"}]},
      "change what HapticRecogKIT-v0 sets"),
+    ({"name": "x", "env": [{"id": "HapticRecogShadow-v0", "kwargs": {"backend_kwargs": {"hand": "allegro"}}}],
+      "agent": [{"name": "random"}]}, r"kwargs \['backend_kwargs'\] change what HapticRecogShadow-v0 sets"),
     ({"name": "x", "env_ids": ["HapticRecog-v0"], "env_kwargs": {"max_grasps": 0}, "agent": [{"name": "random"}]},
      "max_grasps"),
     ({"name": "x", "env_ids": ["HapticRecog-v0"], "agent": [{"name": "ppo", "algo": "dqn"}]}, "algo"),

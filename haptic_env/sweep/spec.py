@@ -53,6 +53,7 @@ import hashlib
 import json
 import re
 import tomllib
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from itertools import product
 from pathlib import Path
@@ -214,6 +215,15 @@ def _categorical(a: dict, where: str) -> tuple[int, bool]:
     return n, no_repeat
 
 
+def _changes(given: Any, variants: Any) -> bool:
+    """Whether a keyword ``given`` changes a variant's value: a mapping (``backend_kwargs``) only where it gives one
+    of the variant's keys another value, since its keys update the variant's (:func:`haptic_env.config.with_keys`);
+    any other value where it differs."""
+    if isinstance(given, Mapping) and isinstance(variants, Mapping):
+        return any(k in given and given[k] != v for k, v in variants.items())
+    return given != variants
+
+
 def _envs(doc: dict) -> dict[str, tuple[str, dict[str, Any]]]:
     from haptic_env import ENV_VARIANTS, variant_config
 
@@ -233,7 +243,7 @@ def _envs(doc: dict) -> dict[str, tuple[str, dict[str, Any]]]:
         if not isinstance(own, dict):
             raise SpecError(f"{where}.kwargs: expected a table of HapticRecogConfig fields, got {own!r}")
         kwargs = {**common, **own}
-        clash = sorted(k for k in kwargs if k in ENV_VARIANTS[env_id] and kwargs[k] != ENV_VARIANTS[env_id][k])
+        clash = sorted(k for k in kwargs if k in ENV_VARIANTS[env_id] and _changes(kwargs[k], ENV_VARIANTS[env_id][k]))
         if clash:  # a row named after a registered env is that env (changes beyond its variant: HapticRecog-v0)
             raise SpecError(f"{where}: kwargs {clash} change what {env_id} sets ({ENV_VARIANTS[env_id]}); "
                             "use id = \"HapticRecog-v0\" with the full kwargs instead")
