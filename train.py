@@ -140,6 +140,32 @@ def segment_seeds(args: Args, part: int, used: dict[int, tuple[int, int]] | None
     return model_seed, max(ends)
 
 
+def _segment(args: Args) -> tuple[int, dict[int, tuple[int, int]]]:
+    """``(part, used)`` of this run: its segment number (1: a start; a resume counts the segments of its run folder
+    and of its checkpoint's run, since a resume into a new folder is not that run's start) and the earlier segments'
+    env seeds (:func:`used_env_seeds`)."""
+    if not args.resume:
+        return 1, {}
+    run_dir, home = Path(args.run_dir), run_folder(Path(args.resume))
+    return max(2, _next_part(run_dir), _next_part(home)), used_env_seeds(run_dir, home)
+
+
+def _check_env_seed_block(args: Args) -> None:
+    """A usage error when this segment's envs would leave the run's block of default training env seeds (into the next
+    ``--seed``'s envs: ``--n-envs`` past the block, or many resumed segments); none with ``--env-seed``."""
+    if args.env_seed >= 0:
+        return
+    from haptic_env.splits import TRAINING_ENV_SEED_BLOCK, training_env_seed
+
+    part, used = _segment(args)
+    first = segment_seeds(args, part, used)[1]
+    end = training_env_seed(args.seed) + TRAINING_ENV_SEED_BLOCK
+    if first + args.n_envs > end:
+        _usage_error(f"argument --n-envs: this segment's envs would have seeds {first}..{first + args.n_envs - 1}, "
+                     f"past the {TRAINING_ENV_SEED_BLOCK} training env seeds of --seed {args.seed} (up to {end - 1}; "
+                     "the next --seed's envs start there): use fewer --n-envs, or give --env-seed")
+
+
 def used_env_seeds(*folders: Path) -> dict[int, tuple[int, int]]:
     """``{segment: (first env seed, n_envs)}`` of the run segments whose args files in ``folders`` say them
     (``args.json``: ``first_env_seed``; ``args.part<k>.json``: ``segment_env_seed``); an unreadable one is left out.
@@ -272,10 +298,12 @@ def _parse(argv: list[str] | None) -> tuple[Args, object | None]:
         problem = replay_envs_problem(args.algo, None if data is None else data.get("n_envs"), args.n_envs)
         if problem is not None:
             _usage_error(f"argument --n-envs: {args.resume} {problem}")
+        _check_env_seed_block(args)
         problem, env = _resume_problem(args, data, config)
         if problem is not None:
             _usage_error(f"argument --resume: {problem}")
         return args, env
+    _check_env_seed_block(args)
     return args, None
 
 
@@ -546,11 +574,10 @@ def _train(args: Args, probe=None) -> Path:
     first_env_seed = env_seed(args)
     # a resumed run keeps the earlier args and Monitor files; its segment number counts the segments of its
     # checkpoint's run too (a resume into a new folder is not that run's start: other seeds than the start's)
-    part = max(2, _next_part(run_dir), _next_part(run_folder(Path(args.resume)))) if args.resume else 1
+    part, used = _segment(args)
     from agents.evaluate import segment_suffix
 
     suffix = segment_suffix(part)
-    used = used_env_seeds(run_dir, run_folder(Path(args.resume))) if args.resume else {}
     seed, segment_env_seed = segment_seeds(args, part, used)
     # explicit seeding: python, numpy, torch; env rank r is seeded segment_env_seed + r by make_vec_env
     random.seed(seed)

@@ -49,8 +49,13 @@ def hand_pool_seed(split: str, seed: int) -> int:
 def training_env_seed(seed: int) -> int:
     """The first training env's seed for training seed ``seed`` (env ``rank`` gets it ``+ rank``): apart from every
     evaluation seed (test 0-4, validation 500-504, sweeps 1000-1002), so that no training env replays the episode
-    draws of an evaluation seed."""
-    return 10_000 + 1_000 * _seed_in(seed, None, "seed")
+    draws of an evaluation seed. Its run's envs (every segment's) keep to ``TRAINING_ENV_SEED_BLOCK`` seeds from it,
+    apart from the next training seed's."""
+    return 10_000 + TRAINING_ENV_SEED_BLOCK * _seed_in(seed, None, "seed")
+
+
+#: the env seeds of one training seed's run, from :func:`training_env_seed` on
+TRAINING_ENV_SEED_BLOCK = 1_000
 
 
 #: how many seeds a split's offsets leave apart (validation 500 + s must stay below the test pools' 1000)

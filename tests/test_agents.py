@@ -818,6 +818,30 @@ def test_training_envs_are_seeded_apart_from_the_evaluation_seeds():
     assert train.env_seed(train.parse_args(["--seed", "2", "--env-seed", "2"])) == 2
 
 
+def test_a_run_whose_envs_would_leave_its_block_of_training_env_seeds_is_refused(tmp_path, usage_error):
+    """Each --seed has 1,000 default training env seeds; nothing bounded --n-envs x segments, so a wide or long run
+    took the next --seed's env seeds (its episodes). Refused before any file; --env-seed is the caller's own."""
+    import dataclasses
+
+    import train
+
+    usage_error(train.parse_args, ["--n-envs", "1001"],
+                match=r"--n-envs: this segment's envs would have seeds 10000\.\.11000, past the 1000 training env "
+                      r"seeds of --seed 0 \(up to 10999")
+    assert train.parse_args(["--n-envs", "1000"]).n_envs == 1000
+    assert train.parse_args(["--n-envs", "1001", "--env-seed", "5"]).n_envs == 1001
+    run = tmp_path / "run"  # a run whose first segment had 600 envs: a resume with 600 more would pass 11999
+    (run / "checkpoints").mkdir(parents=True)
+    (run / "args.json").write_text(json.dumps({"first_env_seed": 11000, "n_envs": 600, "seed": 1}))
+    resume = str(run / "checkpoints" / "ppo_64_steps.zip")
+    args = dataclasses.replace(train.parse_args(["--seed", "1", "--n-envs", "600", "--run-dir", str(run)]),
+                               resume=resume)
+    usage_error(train._check_env_seed_block, args, match=r"seeds 11600\.\.12199, past the 1000 training env seeds "
+                                                         r"of --seed 1 \(up to 11999")
+    train._check_env_seed_block(dataclasses.replace(args, n_envs=400))
+    assert sorted(p.name for p in run.iterdir()) == ["args.json", "checkpoints"]
+
+
 def test_two_agents_of_one_name_are_refused_not_pooled(env_config):
     make = lambda: haptic_env.make(env_config.replace(max_grasps=4))  # noqa: E731
     with pytest.raises(ValueError, match=r"agents must have distinct names, got \['random'\] more than once"):
