@@ -245,7 +245,7 @@ def _parse(argv: list[str] | None) -> tuple[Args, object | None]:
     from agents.sb3 import check_hyperparams
 
     try:
-        check_hyperparams(args.algo, json.loads(args.hyperparams))
+        check_hyperparams(args.algo, json.loads(args.hyperparams), n_envs=args.n_envs)
     except ValueError as exc:
         _usage_error(f"argument --hyperparams: {exc}")
     try:

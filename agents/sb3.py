@@ -329,18 +329,31 @@ def _auto_problem(key: str, value: str) -> str | None:
     return "'auto'" if key == "target_entropy" else "'auto' or 'auto_<initial value > 0>'"
 
 
-def check_hyperparams(algo: str, hyperparams: dict) -> None:
+def check_hyperparams(algo: str, hyperparams: dict, n_envs: int | None = None) -> None:
     """A ``ValueError`` naming every key of ``hyperparams`` that the SB3 ``algo`` class does not take (or that
-    :func:`build_model` sets itself), or a common count or number out of its range (``n_steps``, ``batch_size``,
-    ``gamma``, ``learning_rate``, ...), before any env or run file is made. A number given as a string is refused
-    (SB3 would fail on it mid-training) except SB3's own strings, SAC's ``ent_coef`` ``"auto"`` / ``"auto_0.1"``
-    and ``target_entropy`` ``"auto"`` (:data:`_AUTO`)."""
+    :func:`build_model` sets itself, or a private one such as ``_init_setup_model``), a ``policy_kwargs`` key its
+    policy class does not take, or a common count or number out of its range (``n_steps``, ``batch_size``,
+    ``gamma``, ``learning_rate``, ...), before any env or run file is made; with ``n_envs``, also an on-policy
+    rollout of one step (``n_steps x n_envs``, which SB3 asserts > 1 only when it builds the model). A number given
+    as a string is refused (SB3 would fail on it mid-training) except SB3's own strings, SAC's ``ent_coef``
+    ``"auto"`` / ``"auto_0.1"`` and ``target_entropy`` ``"auto"`` (:data:`_AUTO`)."""
     import inspect
 
-    taken = set(inspect.signature(_algo_class(algo).__init__).parameters) - {"self", *_SET_BY_BUILD}
+    cls = _algo_class(algo)
+    taken = {k for k in inspect.signature(cls.__init__).parameters if not k.startswith("_")} - {"self", *_SET_BY_BUILD}
     bad = sorted(set(hyperparams) - taken)
     if bad:
         raise ValueError(f"unknown {algo.upper()} hyperparameter(s) {bad}; valid: {sorted(taken)}")
+    if "policy_kwargs" in hyperparams:  # the policy's own arguments: a typo failed once the run's files were there
+        pk = hyperparams["policy_kwargs"]
+        policy = cls.policy_aliases[_POLICY[algo.lower()]]
+        own = set(inspect.signature(policy.__init__).parameters) - {"self", "observation_space", "action_space",
+                                                                     "lr_schedule"}
+        if not isinstance(pk, dict):
+            raise ValueError(f"{algo.upper()} hyperparameter policy_kwargs must be a table of {policy.__name__}'s "
+                             f"arguments, got {pk!r}")
+        if set(pk) - own:
+            raise ValueError(f"unknown {policy.__name__} policy_kwargs {sorted(set(pk) - own)}; valid: {sorted(own)}")
     for key, value in hyperparams.items():  # the common numbers' ranges (SB3 asserts some only when it builds)
         if key in _WHOLE_AT_LEAST and (whole_number(value) is None or value < _WHOLE_AT_LEAST[key]):
             raise ValueError(f"{algo.upper()} hyperparameter {key} must be an int >= {_WHOLE_AT_LEAST[key]}, "
@@ -356,6 +369,10 @@ def check_hyperparams(algo: str, hyperparams: dict) -> None:
             f = finite_number(value)
             if f is None or not lo(f) or f > hi:
                 raise ValueError(f"{algo.upper()} hyperparameter {key} must be a number {text}, got {value!r}")
+    n_steps = {**DEFAULT_HYPERPARAMS[algo.lower()], **hyperparams}.get("n_steps")  # checked whole above
+    if n_envs is not None and n_steps is not None and n_steps * n_envs <= 1:
+        raise ValueError(f"{algo.upper()} needs a rollout of more than one step, n_steps x n_envs > 1, got n_steps="
+                         f"{n_steps} with n_envs={n_envs}")
 
 
 def build_model(algo: str, venv, seed: int = 0, log_dir: str | os.PathLike | None = None, verbose: int = 0,

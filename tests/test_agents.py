@@ -641,6 +641,14 @@ def test_train_env_flags_change_the_fields_a_variant_sets(small_recognizer_kwarg
     (["--hyperparams", '{"batch_size": 1}'], r"PPO hyperparameter batch_size must be an int >= 2, got 1"),
     (["--hyperparams", '{"gamma": 1.5}'], r"PPO hyperparameter gamma must be a number in \[0, 1\], got 1.5"),
     (["--algo", "sac", "--hyperparams", '{"tau": 0}'], r"SAC hyperparameter tau must be a number in \(0, 1\]"),
+    # these failed once the lock, args.json and the Monitor files were written
+    (["--hyperparams", '{"policy_kwargs": {"nett_arch": [8]}}'],
+     r"unknown ActorCriticPolicy policy_kwargs \['nett_arch'\]; valid: \['activation_fn'"),
+    (["--hyperparams", '{"_init_setup_model": false}'], r"unknown PPO hyperparameter\(s\) \['_init_setup_model'\]"),
+    (["--n-envs", "1", "--hyperparams", '{"n_steps": 1}'],
+     r"PPO needs a rollout of more than one step, n_steps x n_envs > 1, got n_steps=1 with n_envs=1"),
+    (["--algo", "sac", "--hyperparams", '{"policy_kwargs": 3}'],
+     r"SAC hyperparameter policy_kwargs must be a table of SACPolicy's arguments, got 3"),
     (["--vec", "native", "--env.backend", "uniform"], r"--vec: the native vector env steps the backends "
                                                         r"\('geometric',\), got --env.backend 'uniform'"),
     (["--env-kwargs", '{"backend_kwargs": {"foo": 1}}'], r"invalid backend_kwargs for backend 'geometric'.*'foo'"),

@@ -181,14 +181,14 @@ def _minutes(v: Any, where: str) -> float:
     return f
 
 
-def _hyperparams(algo: str, hp: Any, where: str) -> dict[str, Any]:
+def _hyperparams(algo: str, hp: Any, where: str, n_envs: int) -> dict[str, Any]:
     """A trained agent's ``hyperparams``: a table of keys its SB3 class takes (``agents.sb3.check_hyperparams``)."""
     from agents.sb3 import check_hyperparams
 
     if not isinstance(hp, dict):
         raise SpecError(f"{where}.hyperparams: expected a table, got {hp!r}")
     try:
-        check_hyperparams(algo, hp)
+        check_hyperparams(algo, hp, n_envs=n_envs)
     except ValueError as exc:
         raise SpecError(f"{where}.hyperparams: {exc}") from None
     return hp
@@ -328,7 +328,7 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
                     "n_envs": n_envs, "vec": _train_vec(a.get("vec", "dummy" if n_envs == 1 else "subproc"), where),
                     "checkpoint_freq": _int(a.get("checkpoint_freq", 20_000), f"{where}.checkpoint_freq", 1),
                     "max_minutes": _minutes(a.get("max_minutes", 0.0), where),
-                    "hyperparams": _hyperparams(a["algo"], a.get("hyperparams", {}), where),
+                    "hyperparams": _hyperparams(a["algo"], a.get("hyperparams", {}), where, n_envs),
                     # only when set: the keys of jobs without it stay those of earlier sweeps
                     **({"discrete_approaches": n_approaches} if n_approaches else {}),
                 }, cpus=_cpus(a, where, n_envs))
