@@ -165,6 +165,8 @@ BAD = [
     (lambda v: A(normals=v), "no", r"normals must be a bool, got 'no'"),
     (lambda v: A(calibrated=v), None, r"calibrated must be a bool, got None"),
     (lambda v: A(stop_scale=v), 0, r"stop_scale must be a bool, got 0"),
+    # experiment 5 fits its temperature on beliefs of up to max_grasps: it failed there, after experiments 1-4
+    (lambda v: A(max_grasps=v), 150, r"max_grasps must be <= 100 with experiment 5 on calibrated scores .*got 150"),
     (lambda v: A(progress=v), "no", r"progress must be a bool, got 'no'"),
     (lambda v: A(family_members=v), True, r"family_members must be an int >= 1, got True"),
     (lambda v: A(threshold=v), True, r"threshold must be in \(0, 1\], got True"),

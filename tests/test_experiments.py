@@ -198,6 +198,9 @@ def test_calibration_lowers_ece_of_overconfident_scores():
     assert raw["accuracy"] == cal["accuracy"]
     assert cal["ece"] < 0.05 < raw["ece"] and cal["nll"] < raw["nll"]
     assert np.allclose(oneshot_posterior(np.full((2, 3), -np.inf)), 1 / 3)  # no information: uniform
+    for bad in (np.inf, np.nan):  # put at the floor before: a class scored +inf got probability 0
+        with pytest.raises(ValueError, match=r"NaN or \+inf"):
+            oneshot_posterior([[bad, 0.0]])
 
 
 def test_simulate_trials_reports_decided():

@@ -42,3 +42,10 @@ def test_duplicates_k_equals_n_and_errors():
         KDTree(X).query(np.zeros((1, 2)), k=1)
     with pytest.raises(ValueError, match="non-empty"):
         KDTree(np.zeros((0, 3)))
+    for bad in (np.nan, np.inf):  # as cKDTree (they gave NaN / inf distances and arbitrary neighbours)
+        with pytest.raises(ValueError, match="query row 1 is not finite"):
+            KDTree(X).query(np.array([[0.0, 0, 0], [bad, 0, 0]]), k=1)
+        Y = X.copy()
+        Y[7, 2] = bad
+        with pytest.raises(ValueError, match="KDTree data row 7 is not finite"):
+            KDTree(Y)

@@ -36,6 +36,9 @@ def test_training_is_seeded_and_leaves_global_rng_alone(trained):
     again = MLPClassifier(cfg).fit(X, y)
     assert torch.equal(state, torch.random.get_rng_state())
     assert np.allclose(again.predict_proba(X[:50]), clf.predict_proba(X[:50]), atol=1e-5)
+    loaded = MLPClassifier.from_dict(clf.to_dict())  # a load (a warm cache) too: it drew from it, a fit did not
+    assert torch.equal(state, torch.random.get_rng_state())
+    assert np.array_equal(loaded.predict_proba(X[:50]), clf.predict_proba(X[:50]))
 
 
 def test_fit_trains_on_its_threads_and_gives_the_callers_back(monkeypatch):

@@ -21,7 +21,7 @@ from haptic_env.experiments.plots import plot_lambda_sweep, plot_reliability
 from haptic_env.experiments.report import Report, kde_temperature, mean_std
 from haptic_env.experiments.stop_scale import fit_cell_stop_scales, scaled
 from haptic_env.experiments.trials import simulate_trials
-from haptic_env.recognizers.calibration import _finite_rows, expected_calibration_error
+from haptic_env.recognizers.calibration import _finite_or_minus_inf, _finite_rows, expected_calibration_error
 from haptic_env.recognizers.recognizer import build_recognizer
 from haptic_env.splits import TEST_SEED_OFFSET
 
@@ -31,8 +31,8 @@ __all__ = ["run", "oneshot_posterior", "calibration_summary", "cell_name"]
 def oneshot_posterior(scores) -> np.ndarray:
     """Row-wise softmax of class scores ``(B, K)`` (BC's one-shot posterior under a uniform prior when the
     scores are KDE log-likelihoods). ``-inf`` allowed; a row with no finite score is uniform (the updater
-    leaves its belief unchanged)."""
-    return softmax(_finite_rows(np.asarray(scores, dtype=np.float64)), axis=1)
+    leaves its belief unchanged); NaN or ``+inf`` is a ValueError (it was put at the floor: probability 0)."""
+    return softmax(_finite_rows(_finite_or_minus_inf(scores)), axis=1)
 
 
 def calibration_summary(proba, y, bins: int = 10) -> dict[str, float]:

@@ -206,6 +206,13 @@ class AnalysisConfig:
         lam = [finite_number(v) for v in items(self.lambdas) or ()]
         if not lam or not all(v is not None and 0.0 < v <= 1.0 for v in lam):
             raise ValueError(f"lambdas must be a non-empty tuple of thresholds in (0, 1], got {self.lambdas!r}")
+        from haptic_env.recognizers.calibration import MAX_CALIBRATE_GRASPS
+
+        if 5 in self.experiments and self.calibrated and self.max_grasps > MAX_CALIBRATE_GRASPS:
+            # experiment 5 fits its family temperature and floor on beliefs of up to max_grasps grasps (it failed
+            # there, after experiments 1-4 and its own models)
+            raise ValueError(f"max_grasps must be <= {MAX_CALIBRATE_GRASPS} with experiment 5 on calibrated scores "
+                             f"(the longest calibrated belief), got {self.max_grasps}")
 
     @property
     def family_grasps(self) -> dict:

@@ -38,6 +38,8 @@ class KDTree:
         X = np.ascontiguousarray(X, dtype=np.float64)
         if X.ndim != 2 or len(X) == 0:
             raise ValueError(f"KDTree needs a non-empty (N, d) array, got shape {X.shape}")
+        if not np.isfinite(X).all():  # as cKDTree: a NaN row would be placed and found arbitrarily
+            raise ValueError(f"KDTree data row {int(np.flatnonzero(~np.isfinite(X).all(axis=1))[0])} is not finite")
         order, nodes, split = _build(X, whole_at_least(leafsize, 1, "leafsize"))
         self.indices = order  #: tree position -> row of X
         self.data = np.ascontiguousarray(X[order], dtype=np.float32)  #: vectors in tree order
@@ -50,6 +52,8 @@ class KDTree:
         Z = np.ascontiguousarray(Z, dtype=np.float64)
         if Z.ndim != 2 or Z.shape[1] != self.m:
             raise ValueError(f"queries must have shape (B, {self.m}), got {Z.shape}")
+        if not np.isfinite(Z).all():  # as cKDTree (NaN distances and arbitrary neighbours otherwise)
+            raise ValueError(f"query row {int(np.flatnonzero(~np.isfinite(Z).all(axis=1))[0])} is not finite")
         if not 1 <= (whole_number(k) or 0) <= self.n:
             raise ValueError(f"k must be in [1, {self.n}], got {k!r}")
         e = finite_number(eps)

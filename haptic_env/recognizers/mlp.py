@@ -64,12 +64,16 @@ def torch_threads(n: int | None = None) -> Iterator[int]:
 
 
 def _network(d: int, k: int, depth: int, width: int) -> nn.Sequential:
+    """The MLP's layers; ``nn.Linear`` initialises them from torch's global RNG, whose state is put back (a fit
+    draws its own initialisation, a load its saved weights: neither may move the caller's random numbers)."""
+    state = torch.random.get_rng_state()
     layers: list[nn.Module] = []
     last = d
     for _ in range(depth):
         layers += [nn.Linear(last, width), nn.ReLU()]
         last = width
     layers.append(nn.Linear(last, k))
+    torch.random.set_rng_state(state)
     return nn.Sequential(*layers)
 
 
@@ -164,9 +168,7 @@ class MLPClassifier:
         self.n_classes = class_count(n_classes, y, y_val)
         self.scaler = Standardizer.fit(X)
         gen = torch.Generator().manual_seed(cfg.seed)
-        torch_state = torch.random.get_rng_state()  # nn.Linear() draws from the global RNG: restore it
-        self.net = _network(X.shape[1], self.n_classes, cfg.depth, cfg.width)
-        torch.random.set_rng_state(torch_state)
+        self.net = _network(X.shape[1], self.n_classes, cfg.depth, cfg.width)  # the global RNG's state kept
         with torch.no_grad():  # He-uniform initialisation from our own generator
             for m in self.net:
                 if isinstance(m, nn.Linear):
