@@ -104,9 +104,9 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
                 stop_rows[-1] += ([f"{z[li][2]:.1f}", f"{z[li][0]:.1f}", mean_std(z[li][1], z[li][3], 2)] if z
                                   else ["-", "-", "-"])
     rep.p(f"Test grasps: {cfg.test_grasps} fresh grasps per object (seed {cfg.seed + TEST_SEED_OFFSET}), never used to "
-          f"fit T (T is fitted on the training data's validation split). One-shot posterior: BC = softmax of the KDE "
-          f"log-likelihoods ({_kde_calibration(cfg.kde)}), MLP = softmax(logits / T). ECE over {cfg.ece_bins} equal-width confidence bins; NLL "
-          "of the true class; conf = mean max posterior; acc = one-shot accuracy of each variant's own argmax (a "
+          f"fit T (T is fitted on the training data's validation split). One-shot posterior: "
+          f"BC = {_bc_posterior(cfg)}, MLP = softmax(logits / T). ECE over {cfg.ece_bins} equal-width confidence "
+          "bins; NLL of the true class; conf = mean max posterior; acc = one-shot accuracy of each variant's own argmax (a "
           "temperature does not move it, the KDE's learned correction can). Reliability diagrams: "
           "`reliability_<cell>.png`.")
     rep.table(["n", "normals", "model", "T", "acc raw %", "ECE raw", "NLL raw", "conf raw %", "acc cal %", "ECE cal",
@@ -137,6 +137,14 @@ def _sweep_point(res: dict) -> tuple[float, float, float, float]:
     """One lambda of the sweep from ``simulate_trials``: (decided and correct %, mean grasps, correct %, grasps std)."""
     dc = res["success"] & res["decided"]
     return 100 * dc.mean(), float(res["grasps"].mean()), 100 * res["success"].mean(), float(res["grasps"].std())
+
+
+def _bc_posterior(cfg: AnalysisConfig) -> str:
+    """BC's one-shot posterior in words: of the KDE, as it is calibrated, or of the opt-in gradient boosting."""
+    if cfg.likelihood == "hgb":
+        return ("softmax of the gradient-boosting log-likelihoods (`--likelihood hgb`: no correction, and no "
+                "temperature of its own: T = 1)")
+    return f"softmax of the KDE log-likelihoods ({_kde_calibration(cfg.kde)})"
 
 
 def _kde_calibration(kde) -> str:

@@ -66,8 +66,11 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     rep.table(hdr, rows)
     rep.p(f"{cfg.trials} trials per cell, at most {cfg.max_grasps} grasps; success ± binomial std; grasps mean ± std. "
           "T: the calibration temperatures fitted on validation grasps (" +
-          ("applied" if cfg.calibrated else "not applied: `--raw`") + "); \"corrected\": the KDE's learned correction "
-          "comes first (`KDEConfig.correct`). Confusion matrices for n = 4: `confusion_n4_<kind>.png`." +
+          ("applied" if cfg.calibrated else "not applied: `--raw`") + "); " +
+          ("BC's likelihood: gradient boosting (`--likelihood hgb`), no correction and no temperature of its own. "
+           if cfg.likelihood == "hgb" else
+           "\"corrected\": the KDE's learned correction comes first (`KDEConfig.correct`). ") +
+          "Confusion matrices for n = 4: `confusion_n4_<kind>.png`." +
           (f" Stop scale s (the default; `--no-stop-scale` turns it off): BC-NP and BC-IP sum log-likelihoods / s; "
            f"s is the scale of "
            f"{list(STOP_SCALES)} with the fewest BC-NP grasps whose validation stops are decided and right in at "
