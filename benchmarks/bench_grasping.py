@@ -84,7 +84,8 @@ def usable_fraction(backend: str, objects, n_approaches: int, seed: int, **cfg) 
             for r in res:
                 for j in np.flatnonzero(r.touched):
                     angles.append(np.degrees(np.arccos(np.clip(r.normals[j] @ r.gt_normals[j], -1, 1))))
-                    clean.append(not r.info["link_contact"][j])
+                    # fingertip-only: no other link on the object, nothing of the finger on the (solid) table
+                    clean.append(not (r.info["link_contact"][j] or r.info["table_contact"][j]))
         else:
             fracs.append(float(be.grasp_batch(acts, rng).usable.mean()))
     out = {"usable": np.array(fracs)}

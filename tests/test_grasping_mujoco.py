@@ -10,7 +10,7 @@ import trimesh
 
 from haptic_env.grasping import make_backend
 from haptic_env.grasping.hands import HandUnavailableError
-from haptic_env.objects import GraspObject
+from haptic_env.objects import GraspObject, load_object_set
 
 ANGLE_DEG = 15.0
 MENAGERIE_MEDIAN_DEG = 20.0
@@ -86,6 +86,40 @@ def test_a_hand_whose_fingertips_close_behind_its_palm_grasps_a_small_ball():
         rng = np.random.default_rng(0)
         res = [be.grasp(a, rng) for a in rng.uniform(-1, 1, (30, 4))]
         assert np.mean([r.usable for r in res]) >= least, (solid, [r.n_touched for r in res])
+
+
+def test_a_finger_pressing_on_the_solid_table_is_flagged():
+    """``info["table_contact"]``: the fingers any of whose links touch a solid table, whose push biases their torque
+    normals as a link's contact with the object does (``link_contact`` counted only the object's); read here from
+    the contacts by each finger's chain of bodies up to its tip. A visual table touches nothing."""
+    import mujoco
+
+    ring = load_object_set("default")["ring"]
+    for solid in (True, False):
+        be = make_backend("mujoco", 4, hand="generic", solid_table=solid)
+        be.set_object(ring)
+        m = be.scene.model
+        chains = []  # the bodies from each fingertip up to (not including) the bodies all fingers share
+        for t in be.scene.tip_body_ids:
+            chain, b = [], int(t)
+            while b > 0:
+                chain.append(b)
+                b = int(m.body_parentid[b])
+            chains.append(chain)
+        shared = set.intersection(*map(set, chains))
+        rng = np.random.default_rng(0)
+        flagged = 0
+        for a in rng.uniform(-1, 1, (30, 4)):
+            r = be.grasp(a, rng)
+            d, table = be.scene.data, mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "table")
+            want = np.zeros(4, bool)
+            for c in d.contact[:d.ncon]:
+                if c.dist <= 0 and table in (c.geom[0], c.geom[1]):
+                    body = int(m.geom_bodyid[c.geom[1] if c.geom[0] == table else c.geom[0]])
+                    want |= [body in set(ch) - shared for ch in chains]
+            np.testing.assert_array_equal(r.info["table_contact"], want)
+            flagged += int(want.any())
+        assert (flagged > 0) == solid, (solid, flagged)
 
 
 def test_a_solid_table_keeps_the_fingertips_out_of_it(load_benchmark):

@@ -507,6 +507,20 @@ class GraspScene:
             out[np.unique(f[keep])] = True
         return out
 
+    def finger_table_contacts(self) -> np.ndarray:
+        """(n,) bool: any link of finger i (the tip included) touches the table (a solid one: a visual table
+        collides with nothing). Its push enters the finger's joint torques, so the finger's torque normal is biased,
+        as by a link's contact with the object."""
+        out = np.zeros(len(self.site_ids), dtype=bool)
+        n = self.data.ncon
+        if n and self._table_geom >= 0:
+            c = self.data.contact
+            g = c.geom[:n]
+            on = ((g[:, 0] == self._table_geom) | (g[:, 1] == self._table_geom)) & (c.dist[:n] <= 0)
+            finger = self._geom_finger[np.where(g[:, 0] == self._table_geom, g[:, 1], g[:, 0])[on]]
+            out[np.unique(finger[finger >= 0])] = True
+        return out
+
     def sensed_torque(self, source: str) -> np.ndarray:
         d = self.data
         if source == "constraint":
@@ -778,7 +792,9 @@ class MujocoBackend:
                                  # >= 3 fingertips touch (both for a 2-finger gripper)
                                  "usable": bool(usable_touch(touched)),
                                  # fingers touching with other links too: their torque normal is biased
-                                 "link_contact": sc.finger_link_contacts(exclude_tip=True)})
+                                 "link_contact": sc.finger_link_contacts(exclude_tip=True),
+                                 # fingers pressing on the (solid) table: biased likewise
+                                 "table_contact": sc.finger_table_contacts()})
 
     def scene_spec(self, action: np.ndarray, rng: np.random.Generator) -> tuple[mujoco.MjSpec, GraspResult]:
         """The current object's grasp scene as an ``MjSpec`` (``.to_xml()`` opens in MuJoCo's viewer), with the
