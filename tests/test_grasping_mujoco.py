@@ -339,6 +339,29 @@ def test_any_mjcf_hand_from_file(tmp_path):
         make_backend("mujoco", 3, hand=str(path), hand_kwargs=(("tips", ("nope", "f1_tip", "f2_tip")),))
 
 
+def test_a_hand_given_with_its_closing_controls_takes_its_approach_axis_and_is_warned_without_one(tmp_path):
+    """``mjcf_hand(close_ctrl=...)`` used the backend's estimate of the approach axis from the closing motion, which
+    can miss the object (the generic hand given so: 101 degrees off its own axis); it takes ``approach_axis`` now,
+    and without one the estimate comes with a warning."""
+    from haptic_env.grasping.hands import generic_hand, mjcf_hand
+    from haptic_env.grasping.mujoco_backend import MujocoBackend, MujocoConfig
+
+    desc = generic_hand(4)
+    path = tmp_path / "claw.xml"
+    path.write_text(desc.spec.to_xml())
+    given = dict(tips=desc.tips, root=desc.root, open_ctrl=desc.open_ctrl, close_ctrl=desc.close_ctrl)
+    hand = mjcf_hand(str(path), **given, approach_axis=(0.0, 0.0, 2.0))
+    np.testing.assert_array_equal(hand.approach_axis, [0.0, 0.0, 1.0])
+    be = MujocoBackend(MujocoConfig(hand=hand, n_fingers=None))
+    be.set_object(_cyl())
+    np.testing.assert_array_equal(be._calibrated[0], [0.0, 0.0, 1.0])
+    be = MujocoBackend(MujocoConfig(hand=mjcf_hand(str(path), **given), n_fingers=None))
+    with pytest.warns(UserWarning, match="has no approach_axis: estimated from the closing motion"):
+        be.set_object(_cyl())
+    with pytest.raises(ValueError, match="approach_axis must be a finite non-zero 3-vector"):
+        mjcf_hand(str(path), **given, approach_axis=(0.0, 0.0))
+
+
 def test_backends_follow_protocol(generic):
     from haptic_env.grasping import GraspBackend
 

@@ -295,12 +295,16 @@ def robotiq_hand() -> HandDescription:
 
 def mjcf_hand(path: str | Path, tips: tuple[str, ...] | list[str] | None = None, *, root: str | None = None,
               open_ctrl: dict[str, float] | None = None, close_ctrl: dict[str, float] | None = None,
-              spread: dict[str, tuple[float, float]] | None = None) -> HandDescription:
+              spread: dict[str, tuple[float, float]] | None = None,
+              approach_axis: tuple[float, float, float] | None = None) -> HandDescription:
     """Any MJCF hand (a file or a MuJoCo Menagerie name): ``tips`` are its fingertip bodies (thumb last;
     None: detected). Without ``close_ctrl`` the fingertips, closing synergy, approach axis and physics
     options are found automatically (:func:`~.auto_hand.auto_hand`); ``open_ctrl``/``spread`` override
     its open pose / add spread actuators. With ``close_ctrl`` the hand is used as given (several
-    top-level bodies are still wrapped into one root, its own ``<option>`` cone/impratio/noslip kept)."""
+    top-level bodies are still wrapped into one root, its own ``<option>`` cone/impratio/noslip kept), and
+    ``approach_axis`` (the direction from the palm to where the closing fingertips meet, in the root's frame) should
+    be given too: without it the grasp backend estimates one from the closing motion alone, with a warning, which
+    can miss the object (on the Allegro given so, 86 degrees off the automatic path's axis, and no usable grasp)."""
     from .auto_hand import auto_hand, hand_options, load_mjcf, single_root
 
     if close_ctrl is None:
@@ -325,8 +329,15 @@ def mjcf_hand(path: str | Path, tips: tuple[str, ...] | list[str] | None = None,
     elif root not in names:
         raise ValueError(f"root body {root!r} not in {src} (bodies: {names})")
     option, timestep = hand_options(spec)
+    axis = None
+    if approach_axis is not None:
+        axis = np.asarray(approach_axis, dtype=np.float64)
+        if axis.shape != (3,) or not np.isfinite(axis).all() or np.linalg.norm(axis) < 1e-9:
+            raise ValueError(f"approach_axis must be a finite non-zero 3-vector, got {approach_axis!r}")
+        axis = axis / np.linalg.norm(axis)
     return HandDescription(name=name, spec=spec, root=root, tips=tuple(tips), open_ctrl=open_ctrl or {},
-                           close_ctrl=close_ctrl, spread=spread or {}, option=option, timestep=timestep)
+                           close_ctrl=close_ctrl, spread=spread or {}, option=option, timestep=timestep,
+                           approach_axis=axis)
 
 
 def finger_of_bodies(m: mujoco.MjModel, tip_ids) -> np.ndarray:

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import os
 import time
+import warnings
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -670,6 +671,9 @@ class MujocoBackend:
         if h.approach_axis is not None:
             n = np.asarray(h.approach_axis, dtype=np.float64)
         else:
+            warnings.warn(f"hand {h.name!r} has no approach_axis: estimated from the closing motion, which can miss "
+                          "the object; give it (mjcf_hand(..., approach_axis=...)) or let mjcf_hand find it (no "
+                          "close_ctrl)", UserWarning, stacklevel=2)
             a = p_open[:-1].mean(0)
             a /= np.linalg.norm(a)
             b = p_closed.mean(0) - p_open.mean(0)
