@@ -453,6 +453,28 @@ def test_pads_and_finger_couplings(tmp_path):
     assert all(np.allclose(p, 0, atol=1e-9) and np.isclose(r, 0.01) for p, r in g.tip_sites)
 
 
+def test_a_slide_dof_counts_as_at_its_limit_within_half_a_millimetre_not_a_centimetre(tmp_path):
+    """``dofs_at_limit`` used its hinge tolerance, 0.01, for slide joints too: 1 cm of a 4 cm gripper stroke, so a
+    free slide dof 1 cm from its stop left the normal estimate (its finger's normal fell back to the ground truth's
+    direction). A slide's tolerance is 0.5 mm now."""
+    import trimesh
+
+    from haptic_env.grasping.mujoco_backend import MujocoBackend, MujocoConfig
+    from haptic_env.objects import GraspObject
+
+    be = MujocoBackend(MujocoConfig(hand=auto_hand(_write(tmp_path, "grip", gripper()), cache=False), n_fingers=None,
+                                    support="floating"))
+    be.set_object(GraspObject("cyl", trimesh.creation.cylinder(0.033, 0.12, sections=48)))
+    sc = be.scene
+    m, d = sc.model, sc.data
+    slides = np.flatnonzero(m.jnt_type == mujoco.mjtJoint.mjJNT_SLIDE)
+    assert len(slides) == 2
+    lo = m.jnt_range[slides, 0]
+    for off, at in ((0.008, False), (0.0003, True)):  # 8 mm from the stop: free; 0.3 mm: at it
+        d.qpos[m.jnt_qposadr[slides]] = lo + off
+        assert (sc.dofs_at_limit()[m.jnt_dofadr[slides]] == at).all(), off
+
+
 def test_reset_sets_each_servo_joint_as_a_loop_over_the_actuators_would(tmp_path):
     """``GraspScene.reset`` (one array step) gives, bit for bit, what a loop over the actuators in order gives: a
     joint-transmission actuator with a finite ``ctrl_per_length`` and a nonzero gear sets its joint to

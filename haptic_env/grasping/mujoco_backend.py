@@ -528,14 +528,17 @@ class GraspScene:
             return d.qfrc_constraint.copy()
         return -(d.qfrc_actuator + d.qfrc_passive - d.qfrc_bias)
 
-    def dofs_at_limit(self, tol: float = 0.01) -> np.ndarray:
-        """(nv,) bool: hinge/slide dofs within ``tol`` of (or beyond) a joint limit."""
+    def dofs_at_limit(self, tol: float = 0.01, slide_tol: float = 5e-4) -> np.ndarray:
+        """(nv,) bool: hinge dofs within ``tol`` (rad) and slide dofs within ``slide_tol`` (m) of (or beyond) a
+        joint limit. The slide's own tolerance is about what 0.01 rad moves a 5 cm link's tip (the hinge tolerance
+        in metres was 1 cm, a quarter of a gripper's stroke: a free slide dof was dropped from the normal estimate)."""
         m, d = self.model, self.data
         out = np.zeros(m.nv, dtype=bool)
         lim = self._limited_1dof
         q = d.qpos[m.jnt_qposadr[lim]]
         lo, hi = m.jnt_range[lim, 0], m.jnt_range[lim, 1]
-        out[m.jnt_dofadr[lim]] = (q <= lo + tol) | (q >= hi - tol)
+        t = np.where(m.jnt_type[lim] == mujoco.mjtJoint.mjJNT_SLIDE, slide_tol, tol)
+        out[m.jnt_dofadr[lim]] = (q <= lo + t) | (q >= hi - t)
         return out
 
     def equality_jacobian(self) -> np.ndarray:
