@@ -251,7 +251,7 @@ class HapticRecogConfig:
         if self.kde_method not in KDE_METHODS:
             raise ValueError(f"kde_method must be 'pooled', 'tree' or 'dense', got {self.kde_method!r}")
         check_likelihood(self.likelihood)
-        for name in ("recognizer_kwargs", "object_kwargs", "backend_kwargs"):
+        for name in MAPPING_FIELDS:
             if not isinstance(getattr(self, name), Mapping):
                 raise TypeError(f"{name} must be a mapping (dict), got {getattr(self, name)!r}")
         self._check_backend()
