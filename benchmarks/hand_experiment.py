@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import argparse
 import re
+import shlex
 import sys
 import time
 from pathlib import Path
@@ -107,8 +108,10 @@ TABLE_HEADER = ("| hand | fingers | normals | training | method | success % | ac
 
 
 def seed_std(x: np.ndarray) -> float:
-    """The sample standard deviation over seeds (ddof = 1; 0 for one seed): the "+-" of the hand benchmarks."""
-    return float(np.std(x, ddof=min(1, len(x) - 1)))
+    """The sample standard deviation over seeds (ddof = 1): the "+-" of the hand benchmarks; NaN for one seed, which
+    has no spread to give (it printed 0 under a caption that says ddof = 1)."""
+    x = np.asarray(x, dtype=np.float64)
+    return float(np.std(x, ddof=1)) if x.size > 1 else float("nan")
 
 
 def check_pool_seeds(ap: argparse.ArgumentParser, split: str, seeds) -> None:
@@ -143,7 +146,7 @@ def env_config(name: str, heights: bool = False) -> HapticRecogConfig:
 def write_table(out: Path, name: str, script: str, argv, seconds: float, text: str) -> None:
     """Write ``text`` to ``out/name`` atomically, headed by the command that made it (``python benchmarks/<script>
     <argv>``; the process's own arguments when ``argv`` is None) and its wall time."""
-    cmd = f"python benchmarks/{script} " + " ".join(sys.argv[1:] if argv is None else argv)
+    cmd = f"python benchmarks/{script} " + shlex.join(sys.argv[1:] if argv is None else argv)  # quoted: re-runnable
     with atomic_write(out / name, "w") as fh:
         fh.write(f"`{cmd}` ({seconds:.0f} s)\n\n{text}\n")
 
@@ -282,7 +285,7 @@ def evaluate(rec, pools, objects, n: int, normals: bool, args, touch_weight: flo
                   "the BC-IP row is it")
             continue
         succ, acc, used = [], [], []
-        for s, pool in enumerate(pools):
+        for s, pool in zip(args.seeds, pools):  # the seed's value keys its subsets' stream, not its place in --seeds
             rng = np.random.default_rng([7, s])
             upd = rec.make_updater(kind, threshold=args.threshold, z=z, k=k, rng=rng, calibrated=not args.raw,
                                    ic_certainty=args.ic_certainty)
@@ -325,7 +328,8 @@ def main(argv=None) -> int:
     ap.add_argument("--surface-grasps", type=int_in(1), default=20_000,
                     help="surface regime: training grasps per object")
     ap.add_argument("--surface-noise", type=float_in(0.0), default=0.0, help="surface regime: contact noise std (m)")
-    ap.add_argument("--surface-normal-noise", type=float, default=0.0, help="surface regime: normal noise (deg)")
+    ap.add_argument("--surface-normal-noise", type=float_in(0.0), default=0.0,
+                    help="surface regime: normal noise (deg)")
     ap.add_argument("--calibrate-grasps", type=int_in(1), default=None,
                     help="fit the KDE temperature for beliefs of 1..K grasps of one object (1: one-shot; default: "
                          "the hand's registered env's setting, HapticRecogConfig.calibrate_grasps)")
@@ -369,6 +373,8 @@ def main(argv=None) -> int:
     if args.touch_weight is not None and not (np.isfinite(args.touch_weight) and args.touch_weight >= 0):
         ap.error(f"--touch-weight must be a finite number >= 0, got {args.touch_weight}")
     check_pool_seeds(ap, args.split, args.seeds)
+    for flag, values in (("--hands", args.hands), ("--regimes", args.regimes), ("--methods", args.methods)):
+        distinct(ap, flag, values)  # a hand twice wrote its rows twice; a method twice was merged without a word
     for spec in args.hands:  # every name checked before the first hand's pools are built
         if spec.partition("=")[0] not in SETUPS:
             ap.error(f"--hands: unknown hand {spec.partition('=')[0]!r}; choose from {list(SETUPS)}")

@@ -78,6 +78,21 @@ def test_command_line_errors_name_the_bad_value(bench, usage_error):
     usage_error(bench.main, ["--likelihood", "mlp"], match=r"--likelihood: invalid choice: 'mlp'")
     usage_error(bench.main, ["--likelihood", "hgb", "--kde-bandwidth", "per-class"],
                 match=r"--kde-bandwidth per-class sets the KDE, which --likelihood hgb replaces")
+    # taken before: a hand twice wrote its rows twice, a method twice was merged, a bad noise failed after the pools
+    usage_error(bench.main, ["--hands", "aero", "aero"], match=r"--hands: each value once, got \['aero', 'aero'\]")
+    usage_error(bench.main, ["--methods", "BC-NP", "BC-NP"], match=r"--methods: each value once")
+    usage_error(bench.main, ["--surface-normal-noise", "nan"], match=r"--surface-normal-noise: .*got nan")
+
+
+def test_the_recorded_command_runs_again_and_one_seed_has_no_spread(bench, tmp_path):
+    """The command atop a table is quoted (methods named "BC-NP, z=3" were split into two words); the "+-" of one
+    seed is NaN (it printed 0 under "sample std, ddof = 1")."""
+    import shlex
+
+    bench.write_table(tmp_path, "t.md", "hand_experiment.py", ["--methods", "BC-NP, z=3", "BC-IP"], 1.0, "x")
+    cmd = (tmp_path / "t.md").read_text().split("`")[1]
+    assert shlex.split(cmd)[2:] == ["--methods", "BC-NP, z=3", "BC-IP"]
+    assert np.isnan(bench.seed_std(np.array([0.9]))) and np.isclose(bench.seed_std(np.array([1.0, 2.0, 3.0])), 1.0)
 
 
 _TABLE = """`python benchmarks/hand_experiment.py --out somewhere` (9 s)
