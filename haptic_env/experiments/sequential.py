@@ -64,7 +64,9 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     if with_paper:
         hdr += [f"paper {kind} grasps" for kind in PAPER_KINDS]
     rep.table(hdr, rows)
-    rep.p(f"{cfg.trials} trials per cell, at most {cfg.max_grasps} grasps; success ± binomial std; grasps mean ± std. "
+    rep.p(f"{cfg.trials} trials per cell, at most {cfg.max_grasps} grasps; success = the prediction right at the "
+          f"stop, the decision or the {cfg.max_grasps}th grasp (undecided trials count when right: not the hand "
+          "table's decided and correct) ± binomial std; grasps mean ± std. "
           "T: the calibration temperatures fitted on validation grasps (" +
           ("applied" if cfg.calibrated else "not applied: `--raw`") + "); " +
           ("BC's likelihood: gradient boosting (`--likelihood hgb`), no correction and no temperature of its own. "

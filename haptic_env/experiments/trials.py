@@ -149,7 +149,9 @@ def family_trials(LL: np.ndarray, PR: np.ndarray, kind: str, *, trials: int, max
 
 
 def summarize(res: dict) -> tuple[float, float, float, float]:
-    """``(success %, its binomial std %, mean grasps, std of grasps)`` of trial results."""
+    """``(success %, its binomial std %, mean grasps, std of grasps)`` of trial results; success is the prediction
+    right at the stop, the decision or the last grasp (an undecided trial counts when right; experiments 2-4's
+    measure, not the decided-and-correct share of the hand table and experiment 7's d&c)."""
     s = res["success"]
     T = len(s)
     p = float(s.mean())
