@@ -47,7 +47,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
             res = simulate_trials(LL, PR, kind, trials=cfg.trials, max_grasps=cfg.max_grasps, threshold=cfg.threshold,
                                   rng=rng, ic_certainty=cfg.ic_certainty)
             sr, se, gm, gs = summarize(res)
-            row += [f"{sr:.1f} ± {se:.1f}", mean_std(gm, gs, 2)]
+            dc = 100 * float(np.mean(res["success"] & res["decided"]))  # the hand table's measure beside it
+            row += [f"{sr:.1f} ± {se:.1f} (d&c {dc:.1f})", mean_std(gm, gs, 2)]
             curves.setdefault(kind, []).append((n, sr, gm))
             if n == 4:
                 plot_confusion(confusion(res["truth"], res["pred"], K), objects.names,
@@ -65,8 +66,9 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
         hdr += [f"paper {kind} grasps" for kind in PAPER_KINDS]
     rep.table(hdr, rows)
     rep.p(f"{cfg.trials} trials per cell, at most {cfg.max_grasps} grasps; success = the prediction right at the "
-          f"stop, the decision or the {cfg.max_grasps}th grasp (undecided trials count when right: not the hand "
-          "table's decided and correct) ± binomial std; grasps mean ± std. "
+          f"stop, the decision or the {cfg.max_grasps}th grasp (undecided trials count when right) ± binomial std, "
+          "and in brackets d&c, decided (certainty >= lambda) and correct, the hand table's measure; grasps mean ± "
+          "std. "
           "T: the calibration temperatures fitted on validation grasps (" +
           ("applied" if cfg.calibrated else "not applied: `--raw`") + "); " +
           ("BC's likelihood: gradient boosting (`--likelihood hgb`), no correction and no temperature of its own. "
