@@ -30,6 +30,7 @@ for it: :func:`haptic_env.config.resolve_env_config`): for a variant with change
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 from gymnasium.envs.registration import register, registry
@@ -105,10 +106,12 @@ def make(config=None, env_id: str = "HapticRecog-v0", **kwargs):
 def config_kwargs(config, env_id: str, kwargs: dict[str, Any]) -> dict[str, Any]:
     """The keyword arguments that make ``gymnasium.make(env_id, config=config, **result)`` build ``config`` with
     ``kwargs`` on top: the fields the variant of ``env_id`` sets, taken from ``config`` (none without a config); a
-    mapping field in ``kwargs`` updates the config's (:func:`~haptic_env.config.with_keys`)."""
-    from haptic_env.config import MAPPING_FIELDS, with_keys
+    mapping field in ``kwargs`` updates the config's (:func:`~haptic_env.config.with_keys`), and the config's mappings
+    are passed whole (:class:`~haptic_env.config.WholeMapping`: the variant's keys are not laid under them)."""
+    from haptic_env.config import MAPPING_FIELDS, WholeMapping, with_keys
 
     if config is None:
         return dict(kwargs)
-    return {**{k: getattr(config, k) for k in ENV_VARIANTS.get(env_id, {})},
-            **with_keys({k: getattr(config, k) for k in MAPPING_FIELDS}, kwargs)}
+    out = {**{k: getattr(config, k) for k in ENV_VARIANTS.get(env_id, {})},
+           **with_keys({k: getattr(config, k) for k in MAPPING_FIELDS}, kwargs)}
+    return {k: WholeMapping(v) if k in MAPPING_FIELDS and isinstance(v, Mapping) else v for k, v in out.items()}

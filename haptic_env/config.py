@@ -342,14 +342,22 @@ class HapticRecogConfig:
 MAPPING_FIELDS = ("object_kwargs", "backend_kwargs", "recognizer_kwargs")
 
 
+class WholeMapping(dict):
+    """A mapping field's keyword value that is the field's whole value, not laid over another mapping
+    (:func:`with_keys`): :func:`haptic_env.config_kwargs` passes a given config's own mappings so."""
+
+
 def with_keys(base: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
     """``overrides`` (keyword arguments of config fields) with each mapping field of :data:`MAPPING_FIELDS` given as
     a mapping laid over ``base``'s mapping of that field (its keys win): ``backend_kwargs={"solid_table": False}``
     on the Shadow env keeps the variant's ``"hand": "shadow"`` (a whole replacement fell back to the generic hand).
-    To drop a key, build the whole config and ``replace`` the field."""
+    A :class:`WholeMapping` is taken as it is. To drop a key, build the whole config, ``replace`` the field and make
+    it with ``haptic_env.make(config, env_id=...)``."""
     out = dict(overrides)
     for k in MAPPING_FIELDS:
-        if isinstance(out.get(k), Mapping) and isinstance(base.get(k), Mapping):
+        if isinstance(out.get(k), WholeMapping):
+            out[k] = dict(out[k])
+        elif isinstance(out.get(k), Mapping) and isinstance(base.get(k), Mapping):
             out[k] = {**dict(base[k]), **dict(out[k])}
     return out
 
@@ -371,7 +379,7 @@ def resolve_env_config(config: HapticRecogConfig | None = None, variant: str | N
     if not isinstance(config, HapticRecogConfig):
         raise TypeError(f"config must be a HapticRecogConfig, got {type(config).__name__}")
     overrides = dict(overrides or {})
-    maps = {k: getattr(config, k) for k in MAPPING_FIELDS}  # the mappings the keywords update: the config's, or
+    maps = {k: getattr(config, k) for k in MAPPING_FIELDS}  # the mappings keywords update: the config's, or where
     if variant is not None:
         from haptic_env import ENV_VARIANTS
 
@@ -391,7 +399,7 @@ def resolve_env_config(config: HapticRecogConfig | None = None, variant: str | N
                 f"{variant} sets {', '.join(lost)} over the given config: {said}. Build the whole config with "
                 f"haptic_env.variant_config({variant!r}, ...) and make it with haptic_env.make(config, "
                 f"env_id={variant!r}), or pass those fields as keyword arguments")
-        maps.update({k: v for k, v in fields.items() if k in MAPPING_FIELDS})  # the variant's where it sets one
+        maps.update({k: v for k, v in fields.items() if k in MAPPING_FIELDS})  # the variant sets one, the variant's
         overrides = {**fields, **with_keys(maps, overrides)}  # one replace: no in-between config to fail the checks
     else:
         overrides = with_keys(maps, overrides)

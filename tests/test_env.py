@@ -199,6 +199,10 @@ def test_a_mapping_keyword_updates_the_variants_mapping_rather_than_dropping_its
         cfg, "HapticRecogShadow-v0", kw)).backend_kwargs) == {**want, "contact_noise": 0.001}
     other = haptic_env.variant_config("HapticRecogShadow-v0", backend_kwargs={"hand": "generic"})
     assert backend_hand(other) == "generic"  # the keyword's keys win
+    # haptic_env.make(config, env_id) keeps the config's mappings whole: a key the config left out stays out
+    bare = haptic_env.variant_config("HapticRecogMuJoCo-v0").replace(backend_kwargs={})
+    assert dict(resolve_env_config(bare, "HapticRecogMuJoCo-v0", haptic_env.config_kwargs(
+        bare, "HapticRecogMuJoCo-v0", {})).backend_kwargs) == {}
     args = train.parse_args(["--env-id", "HapticRecogAero-v0", "--env-kwargs", json.dumps(kw)])
     assert dict(train.env_config(args).backend_kwargs) == {"hand": "aero", "solid_table": False}
     # gym.make and the vector env resolve alike (stopped before any MuJoCo model is built: an unknown key)
