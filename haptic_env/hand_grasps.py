@@ -130,6 +130,12 @@ def hand_physics_key(hand: str, n_fingers: int) -> str:
     # a hand with a joint actuator other than a position servo of gear 1 opens where its actuators hold the joints
     # since 2026-12-06 (GraspScene.reset), so its pools are built again; every other hand keeps its key
     held = [] if all(_plain_servo(a) for a in h.spec.actuators) else ["reset: held angles"]
+    # a slide joint counts as at its limit within 0.5 mm since 2026-12-07 (GraspScene.dofs_at_limit; 1 cm before),
+    # which moves its torque normals: a hand with one has its pools built again; hinge-only hands keep their key
+    import mujoco
+
+    if any(j.type == mujoco.mjtJoint.mjJNT_SLIDE for j in h.spec.joints):
+        held.append("slide limits: 0.5 mm")
     return config_key(h.spec.to_xml(), fields, MujocoConfig(n_fingers=int(n_fingers), hand=hand), *held)
 
 
