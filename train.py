@@ -295,7 +295,7 @@ def _parse(argv: list[str] | None) -> tuple[Args, object | None]:
                          f"{saved}, got {args.discrete_approaches} (resume with the N it was started with)")
         from agents.sb3 import replay_envs_problem
 
-        problem = replay_envs_problem(args.algo, None if data is None else data.get("n_envs"), args.n_envs)
+        problem = replay_envs_problem(args.algo, data.get("n_envs"), args.n_envs)
         if problem is not None:
             _usage_error(f"argument --n-envs: {args.resume} {problem}")
         _check_env_seed_block(args)
@@ -400,17 +400,10 @@ def hold_run_dir(run_dir: Path) -> Iterator[None]:
 
 
 def _saved_data(path: Path) -> dict | None:
-    """The data a model file was saved with (SB3's ``data``), or None for a file SB3 cannot read (not a zip file, a
-    truncated one: :func:`_parse` refuses to resume from it)."""
-    import zipfile
+    """:func:`agents.sb3.saved_data` (None for a file SB3 cannot read: :func:`_parse` refuses to resume from it)."""
+    from agents.sb3 import saved_data
 
-    from stable_baselines3.common.save_util import load_from_zip_file
-
-    try:
-        data, _, _ = load_from_zip_file(path, load_data=True, device="cpu")
-    except (ValueError, OSError, EOFError, zipfile.BadZipFile):
-        return None
-    return data or {}
+    return saved_data(path)
 
 
 def _saved_steps(path: Path, data: dict | None = None) -> int | None:
@@ -427,7 +420,7 @@ def _saved_steps(path: Path, data: dict | None = None) -> int | None:
 
 def _saved_approaches(data: dict | None) -> int | None:
     """The ``--discrete-approaches`` a model file (its :func:`_saved_data` ``data``) was trained with (0: the
-    continuous action; None: a file SB3 cannot read, left to the loader to report)."""
+    continuous action; None: no data)."""
     import gymnasium as gym
 
     if data is None:

@@ -369,8 +369,9 @@ def check_hyperparams(algo: str, hyperparams: dict, n_envs: int | None = None) -
             f = finite_number(value)
             if f is None or not lo(f) or f > hi:
                 raise ValueError(f"{algo.upper()} hyperparameter {key} must be a number {text}, got {value!r}")
-    n_steps = {**DEFAULT_HYPERPARAMS[algo.lower()], **hyperparams}.get("n_steps")  # checked whole above
-    if n_envs is not None and n_steps is not None and n_steps * n_envs <= 1:
+    params = {**DEFAULT_HYPERPARAMS[algo.lower()], **hyperparams}
+    n_steps = params.get("n_steps")  # checked whole above; SB3 asserts a longer rollout only to normalise advantages
+    if n_envs is not None and n_steps is not None and n_steps * n_envs <= 1 and params.get("normalize_advantage", True):
         raise ValueError(f"{algo.upper()} needs a rollout of more than one step, n_steps x n_envs > 1, got n_steps="
                          f"{n_steps} with n_envs={n_envs}")
 
@@ -391,6 +392,20 @@ def build_model(algo: str, venv, seed: int = 0, log_dir: str | os.PathLike | Non
     params = {**DEFAULT_HYPERPARAMS[algo], **hyperparams}
     tb = str(Path(log_dir) / "tb") if log_dir is not None else None
     return cls(_POLICY[algo], venv, seed=seed, tensorboard_log=tb, verbose=verbose, device="cpu", **params)
+
+
+def saved_data(path: str | os.PathLike) -> dict | None:
+    """The data a model file was saved with (stable-baselines3's ``data``: its ``num_timesteps``, spaces, ...), or
+    None for a file SB3 cannot read (not a zip file, a truncated one)."""
+    import zipfile
+
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    try:
+        data, _, _ = load_from_zip_file(path, load_data=True, device="cpu")
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile):
+        return None
+    return data or {}
 
 
 def algo_of_file(path: str | os.PathLike) -> str | None:

@@ -660,6 +660,8 @@ def test_train_refuses_bad_values_before_its_run_folder(argv, match, usage_error
     usage_error(train.main, ["--run-dir", str(run), *argv] if "--run-dir" not in argv else argv, match=match)
     assert not run.exists()
     assert train.parse_args(["--algo", "sac", "--hyperparams", '{"ent_coef": "auto_0.1", "tau": 1}']).algo == "sac"
+    # SB3 asserts a rollout of more than one step only to normalise its advantages
+    assert train.parse_args(["--n-envs", "1", "--hyperparams", '{"n_steps": 1, "normalize_advantage": false}']).n_envs == 1
 
 
 @pytest.mark.parametrize("argv, match", [

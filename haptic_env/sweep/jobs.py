@@ -210,11 +210,11 @@ def _train(p: dict[str, Any], run_dir: Path, attempt: int, job: dict[str, Any]) 
 
 
 def model_steps(path: Path) -> int | None:
-    """The steps a model file was saved at (stable-baselines3's ``num_timesteps``), or None if it does not say."""
-    from stable_baselines3.common.save_util import load_from_zip_file
+    """The steps a model file was saved at (stable-baselines3's ``num_timesteps``), or None if it does not say (or
+    cannot be read)."""
+    from agents.sb3 import saved_data
 
-    data, _, _ = load_from_zip_file(path, load_data=True, device="cpu")
-    steps = (data or {}).get("num_timesteps")
+    steps = (saved_data(path) or {}).get("num_timesteps")
     return None if steps is None else int(steps)
 
 
