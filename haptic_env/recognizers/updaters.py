@@ -158,12 +158,7 @@ def bayes_steps(log_beliefs, log_lik, starts, *, combine: str = "product", max_l
     if logb.ndim != 2:
         raise ValueError(f"bayes_steps: log_beliefs must be (B, K), got shape {logb.shape}")
     L = score_rows(log_lik, logb.shape[1], "log_lik")
-    starts = np.asarray(starts)
-    if starts.dtype.kind not in "iu":  # 1.5 was cut to 1
-        raise ValueError(f"bayes_steps: starts must be whole numbers, got {starts}")
-    starts = np.ascontiguousarray(starts, dtype=np.int64)
-    if starts.shape != (len(logb) + 1,) or starts[0] != 0 or starts[-1] != len(L) or (np.diff(starts) < 0).any():
-        raise ValueError(f"bayes_steps: starts must rise from 0 to {len(L)} with {len(logb) + 1} entries, got {starts}")
+    starts = _check_starts(starts, len(L), len(logb) + 1, "bayes_steps: ")
     check_combine(combine)
     mlr = check_max_log_ratio(max_log_ratio)
     out = np.empty_like(logb)
@@ -182,18 +177,23 @@ def _logsumexp(v: np.ndarray) -> float:
     return float(m + np.log(np.exp(v - m).sum()))
 
 
+def _check_starts(starts, n_rows: int, n_entries: int | None = None, where: str = "") -> np.ndarray:
+    """``starts`` as contiguous int64, rising from 0 to ``n_rows`` (with ``n_entries`` entries when given); a
+    ValueError otherwise, also for fractional values (1.5 was cut to 1). ``where`` heads the message."""
+    starts = np.asarray(starts)
+    if starts.dtype.kind not in "iu":
+        raise ValueError(f"{where}starts must be whole numbers, got {starts}")
+    starts = np.ascontiguousarray(starts, dtype=np.int64)
+    if (starts.ndim != 1 or len(starts) < 1 or (n_entries is not None and len(starts) != n_entries)
+            or starts[0] != 0 or starts[-1] != n_rows or (np.diff(starts) < 0).any()):
+        entries = "" if n_entries is None else f" with {n_entries} entries"
+        raise ValueError(f"{where}starts must rise from 0 to {n_rows}{entries}, got {starts}")
+    return starts
+
+
 def _grouped(Q, starts) -> tuple[np.ndarray, np.ndarray]:
     Q = _rows(Q)
-    if starts is None:
-        starts = np.arange(len(Q) + 1)
-    else:
-        starts = np.asarray(starts)
-        if starts.dtype.kind not in "iu":  # 1.5 was cut to 1 (as bayes_steps refuses it)
-            raise ValueError(f"starts must be whole numbers, got {starts}")
-        starts = starts.astype(np.int64, copy=False)
-    if starts.ndim != 1 or len(starts) < 1 or starts[0] != 0 or starts[-1] != len(Q) or (np.diff(starts) < 0).any():
-        raise ValueError(f"starts must rise from 0 to {len(Q)}, got {starts}")
-    return Q, starts
+    return Q, np.arange(len(Q) + 1) if starts is None else _check_starts(starts, len(Q))
 
 
 def score_rows(x, n_classes: int, name: str) -> np.ndarray:
