@@ -299,9 +299,10 @@ def _canonical_hull_triangles(pts: np.ndarray, tol: float) -> np.ndarray | None:
     fanned from its vertex with the largest sum of distances to all contacts (a rigid- and
     permutation-invariant key), around the face in the direction of its outward normal, so the
     triangulation, and hence the chain, is a function of the geometry alone. A planar face is a set of facets linked
-    pairwise by unit normals within ``1e3 * tol`` of each other (Euclidean) and offsets within ``1e3 * tol`` of the
-    grasp's largest contact distance: a test and a grouping that no pose or finger order changes (since
-    2026-12-07; the test was per axis, and the grouping followed Qhull's facet order).
+    pairwise by unit normals within ``1e3 * tol`` of each other (Euclidean) and offsets within ``1e3 * tol`` times
+    the grasp's largest contact distance: a test and a grouping that no pose or finger order changes (since
+    2026-12-07; before, the normals were compared per axis, the offsets against the bounding box's diagonal, and
+    the grouping followed Qhull's facet order).
     """
     from scipy.sparse.csgraph import connected_components
     from scipy.spatial import ConvexHull

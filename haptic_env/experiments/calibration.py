@@ -106,8 +106,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     rep.p(f"Test grasps: {cfg.test_grasps} fresh grasps per object (seed {cfg.seed + TEST_SEED_OFFSET}), never used to "
           f"fit T (T is fitted on the training data's validation split). One-shot posterior: "
           f"BC = {_bc_posterior(cfg)}, MLP = softmax(logits / T). ECE over {cfg.ece_bins} equal-width confidence "
-          "bins; NLL of the true class; conf = mean max posterior; acc = one-shot accuracy of each variant's own argmax (a "
-          "temperature does not move it, the KDE's learned correction can). Reliability diagrams: "
+          "bins; NLL of the true class; conf = mean max posterior; acc = one-shot accuracy of each variant's own "
+          "argmax (a temperature does not move it, the KDE's learned correction can). Reliability diagrams: "
           "`reliability_<cell>.png`.")
     rep.table(["n", "normals", "model", "T", "acc raw %", "ECE raw", "NLL raw", "conf raw %", "acc cal %", "ECE cal",
                "NLL cal", "conf cal %"], ece_rows)

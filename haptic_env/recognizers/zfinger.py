@@ -23,7 +23,7 @@ from haptic_env.grasp_features import feature_dim, normalize_scale, phi
 from haptic_env.numbers import whole_number
 
 __all__ = ["subsets", "subset_vectors", "grasp_vectors_for", "ZFingerUpdater", "sample_finger_counts", "check_subset_k",
-           "check_min_fingers", "DEFAULT_SUBSET_K"]
+           "check_min_fingers", "check_z_fingers", "DEFAULT_SUBSET_K"]
 
 
 def subsets(n: int, z: int, k: int | None = None, rng: np.random.Generator | None = None) -> np.ndarray:
