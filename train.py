@@ -290,7 +290,7 @@ def _parse(argv: list[str] | None) -> tuple[Args, object | None]:
             _usage_error(f"argument --resume: {args.resume} is not its run's latest checkpoint ({later.name}); go on "
                          "from it into another --run-dir, move the later checkpoints away, or resume from the latest")
         saved = _saved_approaches(data)
-        if saved is not None and saved != args.discrete_approaches:
+        if saved != args.discrete_approaches:
             _usage_error(f"argument --discrete-approaches: {args.resume} was trained with --discrete-approaches "
                          f"{saved}, got {args.discrete_approaches} (resume with the N it was started with)")
         from agents.sb3 import replay_envs_problem
@@ -307,17 +307,17 @@ def _parse(argv: list[str] | None) -> tuple[Args, object | None]:
     return args, None
 
 
-def _resume_problem(args: Args, data: dict | None, config: HapticRecogConfig) -> tuple[str | None, object | None]:
+def _resume_problem(args: Args, data: dict, config: HapticRecogConfig) -> tuple[str | None, object | None]:
     """Why ``args.resume`` (its :func:`_saved_data` ``data``) cannot go on in this run's env (``config``), or None:
     a SAC checkpoint without its replay buffer (``agents.sb3.replay_buffer_problem``), or a model whose observation
     (or continuous action) space is not the env's, which stable-baselines3's load refuses only once the segment's
-    files are written. With the env built to compare the spaces (closed, and None, when there is a problem or no
-    comparison), for the training to take over."""
+    files are written. With the env built to compare the spaces (closed, and None, when there is a problem), for the
+    training to take over."""
     import haptic_env
     from agents.sb3 import replay_buffer_problem
 
     problem = replay_buffer_problem(args.resume, args.algo)
-    if problem is not None or data is None:
+    if problem is not None:
         return problem, None
     env = haptic_env.make(config, env_id=args.env_id)
     problem = _space_problem(args, data, env)
@@ -418,13 +418,11 @@ def _saved_steps(path: Path, data: dict | None = None) -> int | None:
     return None if data is None or data.get("num_timesteps") is None else int(data["num_timesteps"])
 
 
-def _saved_approaches(data: dict | None) -> int | None:
+def _saved_approaches(data: dict) -> int:
     """The ``--discrete-approaches`` a model file (its :func:`_saved_data` ``data``) was trained with (0: the
-    continuous action; None: no data)."""
+    continuous action)."""
     import gymnasium as gym
 
-    if data is None:
-        return None
     space = data.get("action_space")
     return int(space.n) if isinstance(space, gym.spaces.Discrete) else 0
 
