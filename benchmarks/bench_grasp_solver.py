@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from haptic_env.cli import int_in  # noqa: E402
 from haptic_env.grasping import make_backend  # noqa: E402
 from haptic_env.grasping.hands import HandUnavailableError  # noqa: E402
-from haptic_env.grasping.mujoco_backend import SOLVERS  # noqa: E402
+from haptic_env.grasping.mujoco_backend import SOLVERS, closing_steps  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 
 N_FINGERS = {"allegro": 4, "shadow": 5, "aero": 5, "robotiq": 2}
@@ -54,7 +54,7 @@ def run(hand: str, objects, approaches: int, variants: dict) -> dict:
                     out[v][key].append(x)
             out[v]["seconds"] += time.perf_counter() - t
     for v, be in backends.items():
-        out[v].update({key: np.array(out[v][key]) for key in keys}, cap=be.config.max_steps or be.hand.max_steps)
+        out[v].update({key: np.array(out[v][key]) for key in keys}, cap=be.config.max_steps or closing_steps(be.hand, be.config.timestep or be.hand.timestep))
         out[v]["gps"] = len(out[v]["touched"]) / out[v]["seconds"]
         be.close()
     return out

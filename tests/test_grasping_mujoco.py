@@ -193,6 +193,20 @@ def test_timing_counts_the_steps_of_every_object_grasped():
     be.close()
 
 
+def test_another_timestep_keeps_the_hands_closing_time():
+    """``max_steps=None`` is the hand's closing time (its step count at its own timestep), not its step count: at
+    half the generic hand's 2 ms the fingers get twice the steps to close (they got 200 steps, half the time)."""
+    rng = np.random.default_rng(6)
+    a = rng.uniform(-1, 1, 4)
+    steps = {}
+    for dt in (None, 0.001):  # a rest speed no finger reaches: every grasp closes for its whole time
+        be = make_backend("mujoco", 4, hand="generic", solid_table=False, timestep=dt, rest_qvel=1e-9)
+        be.set_object(_cyl())
+        steps[dt] = be.grasp(a, np.random.default_rng(0)).info["steps"]
+        be.close()
+    assert steps == {None: 200, 0.001: 400}
+
+
 def test_an_object_scaled_in_place_grasps_as_one_built_at_that_size(tmp_path):
     """``scale_object`` edits the compiled model (no recompile); the object's bounding-volume trees and inertial frame
     must follow, else MuJoCo's midphase skips pieces outside their unscaled boxes (an object of several convex

@@ -88,7 +88,9 @@ class MujocoConfig:
     contact_point: str = "surface"  # "surface": site + r * normal estimate; "site": fingertip site centre
     timestep: float | None = None  # s (None: the hand's own, HandDescription.timestep)
     solver: str | None = None  # MuJoCo constraint solver "CG" | "Newton" | "PGS" (None: the hand's own, else Newton)
-    max_steps: int | None = None  # closing steps at most (None: the hand's default, HandDescription.max_steps)
+    #: closing steps at most. None: the hand's closing time (HandDescription.max_steps steps of its own timestep) in
+    #: steps of this config's timestep, so that another ``timestep`` keeps the time the fingers have to close
+    max_steps: int | None = None
     min_time: float = 0.08  # s of closing before the rest test may end a grasp
     check_interval: float = 0.02  # s: test for new tip contacts / rest this often (rounded to whole steps)
     squeeze: float = 0.15  # rad past the contact configuration (x moment arm for tendons); 0: close fully
@@ -141,6 +143,12 @@ class MujocoConfig:
                 raise ValueError(f"{name} must be finite and >= 0{none}, got {v!r}")
         if self.max_steps is not None and (whole_number(self.max_steps) is None or self.max_steps < 1):
             raise ValueError(f"max_steps must be an int >= 1 or None, got {self.max_steps!r}")
+
+
+def closing_steps(hand, timestep: float) -> int:
+    """The steps of ``timestep`` (s) in ``hand``'s closing time, ``hand.max_steps`` steps of ``hand.timestep``
+    (:attr:`MujocoConfig.max_steps` None): the hand's own count at its own timestep, at least 1."""
+    return max(1, int(round(hand.max_steps * hand.timestep / timestep)))
 
 
 def quat_from_matrix(R: np.ndarray) -> np.ndarray:
@@ -737,8 +745,8 @@ class MujocoBackend:
         mujoco.mj_forward(sc.model, sc.data)
         steps = 0
         held = np.zeros(self.n_fingers, dtype=bool)
-        max_steps = cfg.max_steps or self.hand.max_steps
         dt = sc.model.opt.timestep
+        max_steps = cfg.max_steps or closing_steps(self.hand, dt)
         check_every, min_steps = max(1, round(cfg.check_interval / dt)), round(cfg.min_time / dt)
         while steps < max_steps:
             k = min(check_every, max_steps - steps)
