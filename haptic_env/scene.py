@@ -199,8 +199,11 @@ class Scene:
         replay pool of random approaches (cached on disk; recorded first if not), a replay env's own ``approaches``
         and ``pool_seed`` if it sets them, with the kernel's default neighbours (at most the records per object). A
         replay env's ``table`` records are not used: the kernel's nearest records would then be one approach at
-        neighbouring yaws, not the approaches around the asked one. What it needs of the env:
-        :func:`~haptic_env.config.check_yaw_belief`."""
+        neighbouring yaws, not the approaches around the asked one. The pool is the hand's grasps with its default
+        physics (``MujocoConfig``'s defaults but ``hand``, ``n_fingers``, ``support`` and ``solid_table``), as the
+        hand-trained recogniser's pool (:func:`~haptic_env.hand_grasps.hand_grasp_pool`): an env that changes other
+        physics settings (``friction``, ``timestep``, ...) reads its yaw from grasps of the default physics. What it
+        needs of the env: :func:`~haptic_env.config.check_yaw_belief`."""
         from haptic_env.config import backend_hand, check_yaw_belief
         from haptic_env.grasping.replay import YAW_NEIGHBOURS, ReplayBackend, ReplayConfig, YawBelief
 
