@@ -51,7 +51,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.hand_experiment import (PAPER, SETUPS, check_pool_seeds, env_config, query_pools,  # noqa: E402
-                                        seed_std, training_config, write_table)
+                                        pm, training_config, write_table)
 from benchmarks.stop_frontier import grasp_scores, replay  # noqa: E402
 from haptic_env.cli import int_in, output_path  # noqa: E402
 from haptic_env.cache import atomic_write, cache_dir, config_key, resume_state, save_keyed_json  # noqa: E402
@@ -262,7 +262,7 @@ def main(argv=None) -> int:
                     acc[name], nll[name] = [a for a, _ in res], [b for _, b in res]
                     print(f"  {hand} normals={normals} z={z or n} {name}: {100 * np.mean(acc[name]):.1f} % "
                           f"({time.perf_counter() - t1:.0f} s)", flush=True)
-                cells = [f"{100 * np.mean(acc[k]):.1f} +- {100 * seed_std(np.array(acc[k])):.1f} % / "
+                cells = [f"{pm(acc[k], 100)} % / "
                          f"{np.mean(nll[k]):.3f}" for k in names]
                 what = "complete" if z is None else "3-subsets"
                 one.append(f"| {hand} | {'yes' if normals else 'no'} | {what} | {len(ds.X_train):,} | "
@@ -283,7 +283,7 @@ def main(argv=None) -> int:
                     paper = PAPER[method][f"{n}{'+' if normals else '-'}"]
                     for name in S:
                         s_, g_ = np.array(S[name]).T, np.array(G[name]).T  # (scales, seeds)
-                        cells = [f"{100 * s_[i].mean():.1f} +- {100 * seed_std(s_[i]):.1f} % / {g_[i].mean():.2f}"
+                        cells = [f"{pm(s_[i], 100)} % / {g_[i].mean():.2f}"
                                  for i in range(len(scales))]
                         front.append(f"| {hand} | {'yes' if normals else 'no'} | {method} | {paper[0]} % / "
                                      f"{paper[1]} | {name} | " + " | ".join(cells) + " |")

@@ -114,6 +114,14 @@ def seed_std(x: np.ndarray) -> float:
     return float(np.std(x, ddof=1)) if x.size > 1 else float("nan")
 
 
+def pm(x, scale: float = 1.0, digits: int = 1) -> str:
+    """``x``'s mean and sample std over seeds (:func:`seed_std`), times ``scale``, as "mean +- std"; one seed's cell is
+    its value alone (it printed "+- nan"). :func:`read_table` reads both."""
+    x = scale * np.asarray(x, dtype=np.float64)
+    s = seed_std(x)
+    return f"{x.mean():.{digits}f}" if np.isnan(s) else f"{x.mean():.{digits}f} +- {s:.{digits}f}"
+
+
 def check_pool_seeds(ap: argparse.ArgumentParser, split: str, seeds) -> None:
     """``ap.error`` unless every ``--seeds`` value is given once and lies in ``split``'s pool range (before the first
     pool is built; the hand benchmarks' one check)."""
@@ -167,7 +175,7 @@ def read_table(text: str) -> tuple[list[dict], float]:
 
     def mean_std(cell: str) -> tuple[float, float]:
         mean, _, std = cell.partition("+-")
-        return float(mean), float(std)
+        return float(mean), float(std) if std.strip() else float("nan")  # one seed: the value alone
 
     rows = []
     for ln in lines[2:]:  # after the header and its |---| line
@@ -429,9 +437,8 @@ def main(argv=None) -> int:
         paper = PAPER[label].get(cols[(n, normals)])
         lines.append(
             f"| {hand} | {n} | {'yes' if normals else 'no'} | {regime} | {label} | "
-            f"{100 * r['success'].mean():.1f} +- {100 * seed_std(r['success']):.1f} | "
-            f"{100 * r['accuracy'].mean():.1f} +- {100 * seed_std(r['accuracy']):.1f} | "
-            f"{r['grasps'].mean():.2f} +- {seed_std(r['grasps']):.2f} | {paper[0]} / {paper[1]} | {usable:.2f} | "
+            f"{pm(r['success'], 100)} | {pm(r['accuracy'], 100)} | "
+            f"{pm(r['grasps'], digits=2)} | {paper[0]} / {paper[1]} | {usable:.2f} | "
             f"{temps['kde']:.2f} / {temps['classifier']:.2f} | {K} | {data:,} | {w:g} |")
     text = "\n".join(lines)
     print("\n" + text)
@@ -442,8 +449,8 @@ def main(argv=None) -> int:
     if rows:  # a cell fixed in advance: the first BC-NP row (the first hand and regime asked for), not the best one
         head = next((r for r in rows if r[4] == "BC-NP"), rows[0])
         s, g = head[5]["success"], head[5]["grasps"]
-        print(f"HEADLINE: {head[4]} success at the stop {100 * s.mean():.1f} +- {100 * seed_std(s):.1f} % in "
-              f"{g.mean():.2f} +- {seed_std(g):.2f} grasps ({head[0]}, {head[3]} training, "
+        print(f"HEADLINE: {head[4]} success at the stop {pm(s, 100)} % in "
+              f"{pm(g, digits=2)} grasps ({head[0]}, {head[3]} training, "
               f"{'with' if head[2] else 'without'} normals; mean +- sample std over {len(s)} seeds)")
     return 0
 

@@ -28,7 +28,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.hand_experiment import seed_std  # noqa: E402
+from benchmarks.hand_experiment import pm  # noqa: E402
 from haptic_env.cache import atomic_write  # noqa: E402
 from haptic_env.cli import distinct, int_in, output_path  # noqa: E402
 from haptic_env.dataset import DatasetConfig, support_frame  # noqa: E402
@@ -113,7 +113,7 @@ def main(argv=None) -> int:
                         cells.append("-")
                         continue
                     acc = one_shot(tr, te, name)
-                    cells.append(f"{100 * acc.mean():.1f} +- {100 * seed_std(acc):.1f} %")
+                    cells.append(f"{pm(acc, 100)} %")
                     if name == "phi":
                         base = acc.mean()
                     if name == "phi+heights":

@@ -37,7 +37,7 @@ from scipy.special import logsumexp
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.hand_experiment import seed_std  # noqa: E402
+from benchmarks.hand_experiment import pm  # noqa: E402
 from benchmarks.heights_information import SETUPS, features, one_shot  # noqa: E402
 from haptic_env.cache import atomic_write  # noqa: E402
 from haptic_env.cli import int_in, output_path  # noqa: E402
@@ -135,7 +135,7 @@ def main(argv=None) -> int:
 
     def cell(values) -> str:
         v = 100 * np.asarray(values, dtype=float)
-        return f"{v.mean():.1f} +- {seed_std(v):.1f} %"
+        return f"{pm(v)} %"
 
     lines = ["Kernel chosen on pool 500 (one-shot accuracy, all grasps): "
              + ", ".join(f"sigma {s * 1000:g} mm, {kk} records: {100 * a:.1f} %" for (s, kk), a in choice.items())

@@ -50,7 +50,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.hand_experiment import (PAPER, SETUPS, check_pool_seeds, env_config, query_pools,  # noqa: E402
-                                        run_query, seed_std, training_config, write_table)
+                                        pm, run_query, training_config, write_table)
 from haptic_env.cache import atomic_write  # noqa: E402
 from haptic_env.cli import int_in, output_path  # noqa: E402
 from haptic_env.config import HAND_APPROACHES  # noqa: E402
@@ -202,7 +202,7 @@ def main(argv=None) -> int:
              "|---|---|---|---|---|" + "---|" * len(scales)]
     for hand, normals, method, usable, S, Gr in results:
         paper = PAPER[method][cols[(SETUPS[hand][0], normals)]]
-        cells = [f"{100 * S[i].mean():.1f} +- {100 * seed_std(S[i]):.1f} % / {Gr[i].mean():.2f}"
+        cells = [f"{pm(S[i], 100)} % / {Gr[i].mean():.2f}"
                  for i in range(len(scales))]
         lines.append(f"| {hand} | {'yes' if normals else 'no'} | {method} | {paper[0]} / {paper[1]} | "
                      f"{1 / usable:.2f} | " + " | ".join(cells) + " |")

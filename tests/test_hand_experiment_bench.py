@@ -118,6 +118,8 @@ def test_read_table_gives_the_rows_the_script_wrote(bench):
                        "grasps_std": 0.14, "paper": (pytest.approx(0.92), 4.8)}
     assert rows[1]["hand"] == "shadow" and rows[1]["normals"] is False and rows[1]["method"] == "IC, z=3"
     assert rows[1]["grasps"] == 30.0 and rows[1]["paper"] == (pytest.approx(0.51), 1.04)
+    one, _ = bench.read_table(_TABLE.replace("| 3.31 +- 0.14 |", "| 3.31 |"))  # a one-seed cell (bench.pm)
+    assert one[0]["grasps"] == 3.31 and np.isnan(one[0]["grasps_std"])
 
 
 def test_the_committed_hand_table_reads_with_the_papers_figures(bench):
