@@ -93,7 +93,33 @@ def _from_files(obj: Any) -> list[trimesh.Trimesh]:
         m.apply_transform(T)
         m.apply_translation(offset)
         pieces.append(m)
+    check_pieces_fit(obj, pieces)
     return pieces
+
+
+#: how far (a share of the mesh's largest extent) the placed pieces' bounding box may lie from the mesh's: the YCB
+#: pieces lie within 0.5 %
+PIECES_FIT = 0.05
+
+
+def check_pieces_fit(obj: Any, pieces: list[trimesh.Trimesh]) -> None:
+    """A ``ValueError`` naming ``obj`` when its shipped ``pieces``, placed in its mesh's frame, do not cover the mesh:
+    their bounding box and the mesh's differ by more than :data:`PIECES_FIT` of the mesh's largest extent. The
+    pieces' place comes from the mesh file (its centring offset), which the cache keys do not hold: a mesh file
+    re-exported with another origin beside its old pieces would collide the object where it is not."""
+    if not pieces:
+        return
+    lo = np.min([p.bounds[0] for p in pieces], axis=0)
+    hi = np.max([p.bounds[1] for p in pieces], axis=0)
+    b = np.asarray(obj.mesh.bounds, dtype=np.float64)
+    off = float(np.abs(np.concatenate([lo - b[0], hi - b[1]])).max())
+    size = float(np.max(obj.mesh.extents))
+    if not off <= PIECES_FIT * size:
+        raise ValueError(f"object {obj.name!r}: its {len(pieces)} collision pieces, placed in its mesh's frame, span "
+                         f"{np.round(lo, 4).tolist()} to {np.round(hi, 4).tolist()} m but its mesh spans "
+                         f"{np.round(b[0], 4).tolist()} to {np.round(b[1], 4).tolist()} m ({off * 1e3:.1f} mm off, "
+                         f"more than {PIECES_FIT:.0%} of its {size * 1e3:.0f} mm): the pieces are not of this mesh "
+                         "file (another origin, units or up axis?)")
 
 
 def hull_depth(vertices: np.ndarray, hull: trimesh.Trimesh) -> float:

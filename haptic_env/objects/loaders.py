@@ -189,12 +189,19 @@ def load_folder(folder: str | Path, *, units: str | float = "m", name: str | Non
             set_name,
             [
                 load_mesh_object(p / "mesh.stl", units=units, name=p.name, up=up,
-                                 collision_paths=tuple(sorted(p.glob("collision_*.stl"))))
+                                 collision_paths=_collision_files(p))
                 for p in subs
             ],
         )
     raise ValueError(f"object folder {folder} has no mesh files ({', '.join(MESH_SUFFIXES)}) "
                      "and no sub-folders with a mesh.stl")
+
+
+def _collision_files(folder: Path) -> tuple[Path, ...]:
+    """``folder``'s ``collision_*.stl`` files, sorted by name, the suffix in any case (as the meshes': an upper-case
+    ``collision_00.STL`` was skipped, and the physics backend decomposed the mesh instead)."""
+    return tuple(sorted(q for q in folder.iterdir()
+                        if q.is_file() and q.name.lower().startswith("collision_") and q.suffix.lower() == ".stl"))
 
 
 def _kit(root: Path, names: tuple[str, ...] | None, set_name: str) -> ObjectSet:
@@ -303,7 +310,7 @@ def check_object_spec(spec: str | Path) -> str:
         return s
     if s.startswith("families:"):
         n = s.split(":", 1)[1]
-        if not (n.isdigit() and 1 <= int(n) <= MAX_FAMILY_MEMBERS):
+        if not (n.isascii() and n.isdigit() and 1 <= int(n) <= MAX_FAMILY_MEMBERS):  # "²".isdigit() is True
             raise ValueError(f"bad families spec {s!r}; expected 'families' or 'families:N' with "
                              f"1 <= N <= {MAX_FAMILY_MEMBERS}")
         return s
