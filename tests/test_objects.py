@@ -14,6 +14,7 @@ from haptic_env.objects import (
     data_dir,
     family_set,
     load_object_set,
+    prepare_mesh,
     up_rotation,
 )
 from haptic_env.experiments.config import AnalysisConfig
@@ -148,12 +149,16 @@ def test_family_set_labels_and_scales():
     assert len(load_object_set("families:2")) == 6
     with pytest.raises(ValueError, match="families:x"):
         load_object_set("families:x")
+    for bad in ("families:\u00b2", "families:\u0663"):  # digits to str.isdigit, not to the spec (int() or silently 3)
+        with pytest.raises(ValueError, match="bad families spec"):
+            load_object_set(bad)
 
 
 @pytest.mark.parametrize("kwargs, match", [
     ({"families": "box"}, "families must be a non-empty list or tuple"),  # its letters were read as families
     ({"families": ("box", "torus")}, "torus"),
     ({"families": ()}, "non-empty"),
+    ({"families": ("box", "box")}, "distinct names"),  # was refused only after the members were drawn and built
     ({"size_range": (1e-9, 1e-9)}, "smallest member would be 4e-11 m"),
     ({"scale_range": (0.001, 1.0)}, "smallest member would be 8e-05 m"),
 ])
@@ -277,6 +282,42 @@ def test_up_axis_turns_shipped_collision_pieces(tmp_path):
     (piece,) = convex_pieces(o)
     np.testing.assert_allclose(piece.bounds, o.mesh.bounds, atol=1e-6)
     np.testing.assert_allclose(o.extents, [0.03, 0.05, 0.12], rtol=1e-5)
+
+
+def test_upper_case_collision_pieces_are_found_and_misplaced_ones_refused(tmp_path):
+    """A YCB-layout folder's ``collision_00.STL`` counts like ``.stl`` (it was skipped, and the mesh decomposed
+    instead); pieces that do not cover their mesh (here the mesh moved in its file, the pieces not) are refused by
+    name when the backend loads them, not collided where the object is not."""
+    obj = tmp_path / "ycbish" / "000_block"
+    obj.mkdir(parents=True)
+    box = trimesh.creation.box([0.03, 0.12, 0.05])
+    box.export(obj / "collision_00.STL")
+    box.export(obj / "mesh.stl")
+    o = load_object_set(str(tmp_path / "ycbish"))["000_block"]
+    assert [p.name for p in o.collision_paths] == ["collision_00.STL"]
+    np.testing.assert_allclose(convex_pieces(o, cache=False)[0].bounds, o.mesh.bounds, atol=1e-6)
+    box.apply_translation([0.1, 0.0, 0.0])
+    box.export(obj / "mesh.stl")  # re-exported at another origin: the same pieces, now 10 cm off the centred mesh
+    moved = load_object_set(str(tmp_path / "ycbish"))["000_block"]
+    assert moved.pieces_hash == o.pieces_hash
+    with pytest.raises(ValueError, match="'000_block': its 1 collision pieces.*100.0 mm off"):
+        convex_pieces(moved, cache=False)
+
+
+def test_flat_meshes_bad_scales_and_non_finite_vertices_are_refused_by_name():
+    """A flat mesh has no inside (its "inward" normal was whichever way the file wound it); a scale of 0, NaN or inf
+    gave a degenerate or NaN mesh, and a GraspObject with a NaN vertex failed only at sampling, unnamed."""
+    sheet = trimesh.Trimesh([[0, 0, 0], [0.1, 0, 0], [0.1, 0.1, 0], [0, 0.1, 0]], [[0, 1, 2], [0, 2, 3]])
+    with pytest.raises(ValueError, match="object 'sheet': mesh is flat"):
+        prepare_mesh(sheet, "sheet")
+    box = trimesh.creation.box([0.05, 0.05, 0.05])
+    for bad in (0.0, float("nan"), float("inf"), -1.0):
+        with pytest.raises(ValueError, match="object 'b': scale must be a finite number > 0"):
+            prepare_mesh(box, "b", scale=bad)
+    nan = box.copy()
+    nan.vertices[0, 0] = np.nan
+    with pytest.raises(ValueError, match="object 'n': mesh has non-finite vertices"):
+        GraspObject("n", nan)
 
 
 def test_data_dir_env(tmp_path, monkeypatch):

@@ -16,6 +16,8 @@ from typing import Iterator, Mapping
 import numpy as np
 import trimesh
 
+from ..numbers import positive_number
+
 __all__ = ["GraspObject", "ObjectSet", "SAMPLING_METHODS", "UP_AXES", "prepare_mesh", "up_rotation"]
 
 #: Surface sampling methods of :meth:`GraspObject.sample_surface`.
@@ -51,7 +53,8 @@ def prepare_mesh(mesh: trimesh.Trimesh, name: str, scale: float = 1.0, up: str =
         the prepared mesh and the ``(3,)`` translation applied after scaling and turning (to centre it).
 
     Raises:
-        ValueError: naming ``name`` if the mesh has no faces or non-finite vertices.
+        ValueError: naming ``name`` if the mesh has no faces or non-finite vertices, ``scale`` is not a finite number
+            > 0, or the mesh is flat (its vertices in one plane: it has no inside, so no inward normal).
     """
     if not isinstance(mesh, trimesh.Trimesh):
         raise TypeError(f"object {name!r}: expected a trimesh.Trimesh, got {type(mesh).__name__}")
@@ -60,6 +63,12 @@ def prepare_mesh(mesh: trimesh.Trimesh, name: str, scale: float = 1.0, up: str =
     if not np.isfinite(mesh.vertices).all():
         raise ValueError(f"object {name!r}: mesh has non-finite vertices")
     R = up_rotation(up)  # first: a bad axis is named before any work
+    scale = positive_number(scale, f"object {name!r}: scale")
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    spread = np.linalg.eigvalsh(np.cov(v.T)) if len(v) > 1 else np.zeros(3)  # ascending
+    if not spread[0] > 1e-12 * spread[-1]:  # std along the thinnest axis < 1e-6 x along the widest
+        raise ValueError(f"object {name!r}: mesh is flat (its vertices lie in one plane, or on a line), so it has no "
+                         "inside to grasp and no inward normal")
     m = mesh.copy()
     if scale != 1.0:
         m.apply_scale(scale)
@@ -123,6 +132,8 @@ class GraspObject:
             raise ValueError(f"object name must be a non-empty string, got {self.name!r}")
         if not isinstance(self.mesh, trimesh.Trimesh) or len(self.mesh.faces) == 0:
             raise ValueError(f"object {self.name!r}: mesh must be a trimesh.Trimesh with faces")
+        if not np.isfinite(self.mesh.vertices).all():
+            raise ValueError(f"object {self.name!r}: mesh has non-finite vertices")
 
     # ------------------------------------------------------------------ cached geometry tables
     @cached_property

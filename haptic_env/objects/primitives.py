@@ -211,8 +211,9 @@ def family_set(n_per_family: int, rng: np.random.Generator, families=FAMILIES,
     whole_at_least(n_per_family, 1, "n_per_family")
     checked_flag(lying, "lying")
     fams = tuple(families) if isinstance(families, (list, tuple)) else ()
-    if not fams or not all(isinstance(f, str) and f in FAMILIES for f in fams):
-        raise ValueError(f"families must be a non-empty list or tuple of names from {FAMILIES}, got {families!r}")
+    if not fams or not all(isinstance(f, str) and f in FAMILIES for f in fams) or len(set(fams)) != len(fams):
+        raise ValueError(f"families must be a non-empty list or tuple of distinct names from {FAMILIES}, "
+                         f"got {families!r}")
     lo, hi = positive_range(scale_range, "scale_range")
     slo = 1.0
     if size_range is not None:
