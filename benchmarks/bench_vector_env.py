@@ -84,7 +84,9 @@ def _time_sync(B: int, cfg, mode, seconds: float) -> float:
     if B * envs[0].n_classes <= 600:  # warm: every env's Embree scene of every object built before timing
         for env in envs:
             for obj in env.objects:
-                env.backend._scene_of(obj.mesh)
+                # trimesh builds an intersector's Embree scene at its first ray (a cached property): touch it here,
+                # else B x K builds fell inside the timing (SyncVectorEnv at B = 64 ran at 1/4 of its warm speed)
+                getattr(env.backend._scene_of(obj.mesh).intersector, "_scene", None)
     try:
         return time_vector(sync, seconds)
     finally:
