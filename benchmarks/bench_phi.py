@@ -113,6 +113,8 @@ def main(argv=None) -> int:
                                 f"area {ac / an:.1f}x")
         print(f"   n={n}: valid/order/reason identical: {same}; max |dq| {dq:.1e}; max |d area| {da:.1e}; "
               f"valid {f.valid.mean():.3f}; planar hull faces (Qhull) {np.mean(_planar_faced(C)):.3f}", flush=True)
+        if not (same and dq <= 1e-9 and da <= 1e-9):  # a speed of a wrong answer is no figure
+            raise SystemExit(f"bench_phi: the compiled Phi_{n} / surface area differ from the NumPy oracle")
     print(f"compiled / NumPy speed at {args.grasps:,} {args.source} grasps with normals, one thread: "
           + "; ".join(headline))
     return 0
