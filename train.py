@@ -35,6 +35,7 @@ Evaluate the result with the ``evaluate`` sub-command::
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import dataclasses
 import json
@@ -52,6 +53,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")  # before numpy/torch: one thread 
 import numpy as np
 
 from haptic_env.config import HapticRecogConfig, resolve_env_config
+from haptic_env.cli import output_path
 
 ALGOS = ("ppo", "sac", "rppo", "mppo")  # agents.sb3.ALGOS (tests/test_agents.py holds them equal)
 
@@ -230,6 +232,10 @@ def _parse(argv: list[str] | None) -> tuple[Args, object | None]:
         _usage_error(f"argument --max-minutes: must be finite (0: no limit), got {args.max_minutes}")
     if not args.run_dir.strip():
         _usage_error("argument --run-dir: must name a folder, got ''")
+    try:  # an existing file, or a path under one, was a traceback after the env settings were checked
+        output_path("folder")(args.run_dir)
+    except argparse.ArgumentTypeError as exc:
+        _usage_error(f"argument --run-dir: {exc}")
     from agents.sb3 import discrete_approaches_problem
 
     problem = discrete_approaches_problem(args.discrete_approaches, args.algo, args.vec)
@@ -305,6 +311,18 @@ def _parse(argv: list[str] | None) -> tuple[Args, object | None]:
         return args, env
     _check_env_seed_block(args)
     return args, None
+
+
+def _probe(args: Args, config: HapticRecogConfig):
+    """A fresh run's first env, built by :func:`main` before any file is written (the training's envs take it over):
+    an env that cannot be built (an unknown hand, too few grasps of an object) is a usage error, not a traceback
+    after the run folder's ``args.json`` and ``monitor/``."""
+    import haptic_env
+
+    try:
+        return haptic_env.make(config, env_id=args.env_id)
+    except (TypeError, ValueError, FileNotFoundError) as exc:
+        _usage_error(f"env settings: {exc}")
 
 
 def _resume_problem(args: Args, data: dict, config: HapticRecogConfig) -> tuple[str | None, object | None]:
@@ -544,6 +562,9 @@ def _signals_stop_the_set_up() -> Iterator[None]:
 
 def main(argv: list[str] | None = None) -> Path:
     args, env = _parse(argv)  # env: a --resume's, built once: the training's envs take it over
+    if env is None:  # a fresh run: its folder's refusals first (cheap; checked again once held), then its env
+        refuse_a_held_run_dir(args)
+        env = _probe(args, env_config(args))
     try:
         with hold_run_dir(Path(args.run_dir)):  # checked held: a run that began meanwhile has its files there now
             refuse_a_held_run_dir(args)

@@ -900,6 +900,21 @@ def add_parser(subparsers) -> None:
                                              "from them")
 
 
+def _command(args, kwargs: dict) -> str:
+    """The ``haptic-recog evaluate`` command line of ``args`` with every setting spelled out (the report's first
+    line: the agents' model files and the overrides as JSON, so that it reruns the evaluation)."""
+    import shlex
+
+    words = ["haptic-recog", "evaluate", "--env-id", args.env_id]
+    words += ["--env-kwargs", json.dumps(kwargs)] if kwargs else []
+    words += ["--agents", *args.agents, "--episodes", str(args.episodes), "--seeds", *map(str, args.seeds),
+              "--agent-stream", args.agent_stream]
+    words += ["--stochastic"] if args.stochastic else []
+    words += ["--no-repeat"] if args.no_repeat else []
+    words += ["--learning-curves", *args.learning_curves] if args.learning_curves else []
+    return shlex.join(words + ["--out", str(args.out)])
+
+
 def _main(args) -> int:
     import haptic_env
     from haptic_env.cli import UsageError
@@ -914,8 +929,11 @@ def _main(args) -> int:
     if repeated(args.seeds):  # a seed twice would count its episodes twice (narrower intervals)
         raise UsageError(f"--seeds: each seed once, got {args.seeds}")
     curves = {}
-    for spec in args.learning_curves:
-        name, _, path = spec.partition("=") if "=" in spec else (Path(spec).name, "", spec)
+    named = [spec.partition("=") if "=" in spec else (Path(spec).name, "", spec) for spec in args.learning_curves]
+    twice = sorted({name for name, _, _ in named if [n for n, _, _ in named].count(name) > 1})
+    if twice:  # the later run's curve replaced the earlier one's, silently
+        raise UsageError(f"--learning-curves: {twice} named more than once; give each a name, NAME=LOG_DIR")
+    for spec, (name, _, path) in zip(args.learning_curves, named):
         if not Path(path).is_dir():
             raise UsageError(f"--learning-curves {spec}: {path} is not a folder")
         try:  # read now, not after every episode has run (and once: the plot at the end draws these)
@@ -964,10 +982,14 @@ def _main(args) -> int:
     note = f" (resumed: {resumed} of {len(keys) * len(args.seeds)} agent-seed blocks read from an interrupted run)" \
         if resumed else ""
     paths = write_report(records, args.out, config.max_grasps,
-                         extra=f"env `{args.env_id}`, config overrides `{kwargs}`; {args.episodes} episodes x seeds "
-                               f"{args.seeds}; {time.time() - t0:.0f} s{note}; {stream_words(args.agent_stream)}.")
+                         extra=f"`{_command(args, kwargs)}`\n\n"
+                               f"env `{args.env_id}`, config overrides `{json.dumps(kwargs)}`; {args.episodes} episodes "
+                               f"x seeds {args.seeds}; {time.time() - t0:.0f} s{note}; {stream_words(args.agent_stream)}.")
     shutil.rmtree(store, ignore_errors=True)
+    plot = Path(args.out) / "learning_curves.png"
     if curves:
-        _plot_curves(curves, Path(args.out) / "learning_curves.png")
+        _plot_curves(curves, plot)
+    else:  # an earlier run's plot beside this run's report would read as this run's
+        plot.unlink(missing_ok=True)
     print(paths["md"].read_text())
     return 0

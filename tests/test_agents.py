@@ -885,6 +885,7 @@ def test_evaluate_refuses_a_seed_given_twice(tmp_path, usage_error, env_config):
 def test_the_resumed_note_counts_only_the_blocks_read_back(tmp_path, small_recognizer_kwargs, monkeypatch):
     """The report's "resumed" note counts the saved blocks the run read back, not a damaged one it ran again."""
     import json
+    import shlex
 
     import agents.evaluate as ev
     from haptic_env.cli import main
@@ -903,9 +904,18 @@ def test_the_resumed_note_counts_only_the_blocks_read_back(tmp_path, small_recog
     blocks = sorted((out / ".partial").glob("*.json"))
     assert len(blocks) == 2
     blocks[0].write_text("not json")
+    (out / "learning_curves.png").write_bytes(b"an earlier run's")
     with pytest.warns(RuntimeWarning, match="running them again"):
         assert main(argv) == 0
-    assert "resumed: 1 of 2 agent-seed blocks" in (out / "results.md").read_text()
+    text = (out / "results.md").read_text()
+    assert "resumed: 1 of 2 agent-seed blocks" in text
+    # the report's command reruns it: JSON overrides (it gave a Python repr), every setting; no stale curves beside it
+    command = text.split("`")[1]
+    assert shlex.split(command)[:2] == ["haptic-recog", "evaluate"] and argv[-1] in command
+    from haptic_env.cli import build_parser
+
+    assert build_parser().parse_args(shlex.split(command)[1:]).env_kwargs == json.loads(argv[-1])
+    assert not (out / "learning_curves.png").exists()
 
 
 def test_the_ratio_interval_is_not_a_crash_when_one_side_has_one_episode():

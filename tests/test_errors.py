@@ -348,6 +348,7 @@ def test_truncated_recognizer_json_is_rebuilt(tmp_path, monkeypatch):
     (["evaluate", "--agents", "greedy:1000000000:1000000000"], "n_candidates x n_samples must be <= 100,000"),
     (["evaluate", "--out", "README.md/sub"], "argument --out: cannot create README.md/sub: "),
     (["evaluate", "--learning-curves", "x=tests"], "--learning-curves x=tests: no *.monitor.csv in tests"),
+    (["evaluate", "--learning-curves", "runA/ppo", "runB/ppo"], "--learning-curves: ['ppo'] named more than once"),
     (["evaluate", "--env-id", "Nope-v0"], "argument --env-id: invalid choice"),
     # an agent the env does not suit raised a ValueError traceback at its first episode, after the others had run
     (["evaluate", "--agents", "random", "greedy-env-infer", "--episodes", "1", "--seeds", "0",
@@ -367,6 +368,14 @@ def test_truncated_recognizer_json_is_rebuilt(tmp_path, monkeypatch):
     (["analysis", "--out", "outputs/never", "--max-grasps", "0"], "max_grasps must be an int >= 1, got 0"),
     (["analysis", "--out", "outputs/never", "--classifiers", "mlp,svm"], r"unknown classifier\(s\) \['svm'\]"),
     (["analysis", "--out", "outputs/never", "--threshold", "2"], r"threshold must be in \(0, 1\], got 2.0"),
+    # these were accepted: a late traceback after the recognisers were built, a traceback (or a failed sweep job), or
+    # a setting silently ignored
+    (["analysis", "--out", "outputs/never", "--baseline-max-train", "1"], "baseline_max_train must be None or an int >= 100"),
+    (["analysis", "--out", "outputs/never", "--experiments", "5", "--family-source", "hand", "--family-hand", "bogus"],
+     "--family-hand bogus: unknown hand 'bogus'"),
+    (["analysis", "--out", "outputs/never", "--family-hand", "shadow"], "--family-hand shadow needs --family-source hand"),
+    (["analysis", "--out", "outputs/never", "--no-correction", "--kde-corrections", "power"],
+     "--kde-corrections power weighs corrections that --no-correction turns off"),
 ])
 def test_cli_bad_values_are_one_line_usage_errors(argv, match, capsys):
     import re
@@ -381,6 +390,22 @@ def test_cli_bad_values_are_one_line_usage_errors(argv, match, capsys):
     last = err.strip().splitlines()[-1]
     assert last.startswith(f"haptic-recog {argv[0]}: error: ") and re.search(match if "\\" in match or "(" in match
                                                                              else re.escape(match), last), err
+
+
+def test_analysis_object_folders_without_readable_meshes_are_usage_errors(tmp_path, capsys):
+    """A folder with no meshes, or with a mesh that cannot be read, was a traceback (evaluate named it in one line);
+    nothing is written to --out."""
+    from haptic_env.cli import main
+
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "bad").mkdir()
+    (tmp_path / "bad" / "junk.obj").write_text("junk")
+    for folder, match in (("empty", "has no mesh files"), ("bad", "junk.obj holds no triangles")):
+        with pytest.raises(SystemExit) as exc:
+            main(["analysis", "--objects", str(tmp_path / folder), "--out", str(tmp_path / "out"), "--quiet"])
+        err = capsys.readouterr().err
+        assert exc.value.code == 2 and "Traceback" not in err and match in err.strip().splitlines()[-1]
+    assert not (tmp_path / "out").exists()
 
 
 def test_dataset_out_folder_fails_before_the_work(tmp_path, capsys, monkeypatch):
@@ -413,6 +438,9 @@ def test_dataset_out_folder_fails_before_the_work(tmp_path, capsys, monkeypatch)
     (["--resume", "/no/ckpt.zip"], "argument --resume: checkpoint /no/ckpt.zip does not exist"),
     (["--hyperparams", '{"lr": 1}'], "argument --hyperparams: unknown PPO hyperparameter(s) ['lr']"),
     (["--env.objects", "nosuch"], "unknown object set 'nosuch'"),
+    # an env that cannot be built: a traceback after args.json, monitor/ and the lock were written
+    (["--env-id", "HapticRecogMuJoCo-v0", "--env-kwargs", '{"backend_kwargs": {"hand": "bogus"}}'],
+     "env settings: unknown hand 'bogus'"),
 ])
 def test_train_bad_flags_fail_at_once_without_run_files(argv, match, tmp_path):
     run_dir = tmp_path / "run"
@@ -423,6 +451,17 @@ def test_train_bad_flags_fail_at_once_without_run_files(argv, match, tmp_path):
     tyro_box = lines[-1].startswith("╰")  # tyro's own parse errors: a box ending in "--help"
     assert "Traceback" not in proc.stderr and (match in lines[-1] or tyro_box and match in proc.stderr), proc.stderr
     assert not run_dir.exists()
+
+
+@pytest.mark.parametrize("under", [False, True])
+def test_train_run_dir_that_is_a_file_is_a_usage_error(under, tmp_path):
+    """An existing file as --run-dir (or a folder under one) was a FileExistsError / NotADirectoryError traceback."""
+    (tmp_path / "f").write_text("x")
+    run_dir = tmp_path / "f" / "sub" if under else tmp_path / "f"
+    proc = subprocess.run([sys.executable, "train.py", "--run-dir", str(run_dir)], capture_output=True, text=True,
+                          timeout=120, cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    assert proc.stderr.strip().splitlines()[-1].startswith("train.py: error: argument --run-dir: ")
 
 
 def test_ctrl_c_in_a_subcommand_is_one_line_saying_what_a_rerun_keeps(monkeypatch, capsys):

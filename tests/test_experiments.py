@@ -289,7 +289,8 @@ def test_incomplete_trials_draw_like_the_reference_loop(kind):
     ({"scale_range": (2.0, 1.0)}, r"scale_range must be \(lo, hi\) with 0 < lo <= hi, got \(2.0, 1.0\)"),
     ({"lambdas": (0.5, 2.0)}, r"lambdas must be .* in \(0, 1\], got \(0.5, 2.0\)"),
     ({"ece_bins": 0}, r"ece_bins must be an int >= 1, got 0"),
-    ({"baseline_max_train": 0}, r"baseline_max_train must be None or an int >= 1, got 0"),
+    ({"baseline_max_train": 0}, r"baseline_max_train must be None or an int >= 100 .*, got 0"),
+    ({"baseline_max_train": 1}, r"baseline_max_train must be None or an int >= 100 .*, got 1"),  # was a late crash
     ({"units": "furlong"}, r"unknown units 'furlong'"),
     ({"force_closure": 0.5, "fingers": (3, 4), "oneshot_fingers": (3,), "calib_fingers": (3,),
       "calib_fingers_no_normals": (4,), "incomplete_pn": ((2, 0.5), (4, 0.5))},

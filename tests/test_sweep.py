@@ -262,6 +262,15 @@ def test_match_selects_jobs_and_what_they_need(tmp_path, capsys):
             main(["sweep", str(SMOKE), "--dry-run", "--match", bad])
         assert exc.value.code == 2
         assert why in capsys.readouterr().err
+    # --only a kind the spec has no job of ran nothing, wrote an empty report and exited 0; an --out that is a file
+    # was a traceback
+    (tmp_path / "file").write_text("x")
+    for argv, why in ((["--only", "train", "--out", str(tmp_path / "o")], "--only train selects none of the spec's"),
+                      (["--out", str(tmp_path / "file")], "is a file; give a folder")):
+        with pytest.raises(SystemExit) as exc:
+            main(["sweep", str(SMOKE), *argv])
+        assert exc.value.code == 2 and why in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
 
 
 # ------------------------------------------------------------------------------------------ Ray

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import shlex
+from pathlib import Path
 
 from haptic_env.cli import float_in, output_path, parse_int_list
 from haptic_env.grasp_features import NORMAL_AXES
@@ -192,12 +193,17 @@ def _run_cli(args) -> int:
     from haptic_env.experiments.analysis import run_analysis
 
     from haptic_env.cli import UsageError
-    from haptic_env.objects.loaders import check_object_data
+    from haptic_env.objects import load_object_set
+    from haptic_env.objects.loaders import NAMED_SETS, check_object_data
 
     cfg = config_from_args(args)
     try:
         check_object_data(cfg.objects, cfg.data_dir)  # missing data: a usage error before any work
-    except FileNotFoundError as exc:
+        if Path(cfg.objects).expanduser().is_dir() and cfg.objects not in NAMED_SETS:
+            # a folder with no meshes or an unreadable one: a usage error too (run_analysis reads it again; a
+            # folder of the user's few meshes loads in moments)
+            load_object_set(cfg.objects, units=cfg.units, up=cfg.up)
+    except (FileNotFoundError, ValueError) as exc:  # MeshLoadError is a ValueError
         raise UsageError(f"--objects {cfg.objects}: {exc}") from exc
     path = run_analysis(cfg, args.out, command=_equivalent_command(args))
     print(path.read_text())
@@ -248,4 +254,18 @@ def config_from_args(args) -> AnalysisConfig:
         raise
     except ValueError as exc:
         raise UsageError(str(exc)) from None
+    d = AnalysisConfig()
+    if cfg.family_source != "hand" and cfg.family_hand != d.family_hand:  # it was accepted and ignored
+        raise UsageError(f"--family-hand {cfg.family_hand} needs --family-source hand (got --family-source "
+                         f"{cfg.family_source})")
+    if args.no_correction and cfg.kde.correct_candidates != d.kde.correct_candidates:
+        raise UsageError(f"--kde-corrections {args.kde_corrections} weighs corrections that --no-correction turns off "
+                         "(drop one of them)")
+    if 5 in cfg.experiments and cfg.family_source == "hand":
+        from haptic_env.grasping.hands import load_hand
+
+        try:  # a bad name is a usage error now (a sweep's spec check too), not a traceback or a failed job
+            load_hand(cfg.family_hand, n_fingers=4)
+        except ValueError as exc:
+            raise UsageError(f"--family-hand {cfg.family_hand}: {exc}") from None
     return cfg  # AnalysisConfig checked the experiment numbers

@@ -31,6 +31,9 @@ __all__ = ["AnalysisConfig", "KINDS", "MAIN_KINDS", "FAMILY_SOURCES"]
 KINDS = UPDATERS
 #: IC, BC-NP and BC-IP: the updaters of experiments 3, 4 and 7.
 MAIN_KINDS = ("ic", "bc-np", "bc-ip")
+#: The fewest training rows :attr:`AnalysisConfig.baseline_max_train` may give a scikit-learn baseline (a cap of 1
+#: was accepted and failed after the recognisers were built: kNN needs its 15 neighbours, an SVM two classes).
+MIN_BASELINE_TRAIN = 100
 
 #: Values of :attr:`AnalysisConfig.family_source`: experiment 5's grasps are independent surface points (the
 #: paper's analysis protocol), the geometric hand's grasps under random approaches over the full sphere, or a robot
@@ -178,8 +181,9 @@ class AnalysisConfig:
         if isinstance(self.threshold, np.generic):  # a Python int or float stays as given
             object.__setattr__(self, "threshold", t)
         cap = self.baseline_max_train
-        if cap is not None and (whole_number(cap) or 0) < 1:
-            raise ValueError(f"baseline_max_train must be None or an int >= 1, got {self.baseline_max_train!r}")
+        if cap is not None and (whole_number(cap) or 0) < MIN_BASELINE_TRAIN:  # kNN's 15 neighbours, SVMs' 2 classes
+            raise ValueError(f"baseline_max_train must be None or an int >= {MIN_BASELINE_TRAIN} (fewer rows leave a "
+                             f"baseline too few neighbours or classes to fit), got {self.baseline_max_train!r}")
         if (not items(self.experiments) or not all(whole_number(e) in EXPERIMENTS for e in self.experiments)
                 or repeated(self.experiments)):
             raise ValueError(f"experiments must be a non-empty tuple of experiment numbers {sorted(EXPERIMENTS)}, "

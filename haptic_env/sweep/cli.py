@@ -24,7 +24,7 @@ __all__ = ["add_parser"]
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
-    from haptic_env.cli import int_in
+    from haptic_env.cli import int_in, output_path
 
     from .spec import KINDS
 
@@ -33,8 +33,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                               formatter_class=argparse.RawDescriptionHelpFormatter,
                               epilog="\n".join(__doc__.split("\n")[3:]))
     p.add_argument("spec", type=Path, help="TOML sweep spec (see haptic_env/sweep/spec.py; examples in sweeps/)")
-    p.add_argument("--out", type=Path, default=None, help="sweep folder (default: the spec's out, else "
-                   "outputs/sweeps/<name>)")
+    p.add_argument("--out", type=output_path("folder"), default=None, help="sweep folder (default: the spec's out, "
+                   "else outputs/sweeps/<name>)")
     p.add_argument("--address", default=None, help="join this Ray cluster (HOST:PORT or 'auto'); default: start "
                    "a local one")
     p.add_argument("--num-cpus", type=int_in(1), default=None, help="CPUs of the local Ray (default: all cores)")
@@ -83,6 +83,11 @@ def _main(args) -> int:
         if not any(pattern.search(j.id) for j in spec.jobs):
             raise UsageError(f"--match {args.match!r} matches none of the spec's {len(spec.jobs)} job ids "
                              "(--dry-run lists them)")
+    if not select_jobs(spec, kinds, args.match):  # it ran nothing and wrote an empty report, exit status 0
+        raise UsageError(f"--only {' '.join(sorted(kinds or ()))}"
+                         + (f" with --match {args.match!r}" if args.match else "")
+                         + f" selects none of the spec's {len(spec.jobs)} jobs (of kinds "
+                         f"{sorted({j.kind for j in spec.jobs})})")
     if args.prior_report is not None:  # checked before anything runs or is written
         from .report import load_prior_records
 
