@@ -74,6 +74,21 @@ def test_plane_reduction_gives_qhulls_answers_at_three_contacts(mu, edges):
     assert exact.sum() >= 10 and (~exact).sum() >= 10
 
 
+def test_a_pyramid_that_only_touches_the_contact_plane_is_not_cut_by_it():
+    """Three contacts on the equator, contact 0's normal 45 degrees out of their plane at mu = 1: one edge of its
+    pyramid lies in the plane (z = -1e-16 after rounding), the others above, so its out-of-plane force has one sign
+    and the grasp is not in closure. The planar reduction said True (its sector shrank to that edge), every other
+    method and epsilon_quality False."""
+    a = 2 * np.pi * np.arange(3) / 3
+    C = np.stack([np.cos(a), np.sin(a), np.zeros(3)], axis=1)
+    N = -C.copy()
+    N[0] = [-np.cos(np.pi / 4), 0.0, np.sin(np.pi / 4)]
+    for frame in FRAMES:
+        answers = {m: bool(force_closure(C, N, 1.0, 4, frame=frame, method=m)) for m in ("plane", "search", "qhull")}
+        assert answers == {"plane": False, "search": False, "qhull": False}, (frame, answers)
+        assert epsilon_quality(C, N, 1.0, 4, frame=frame) == 0.0
+
+
 def test_plane_reduction_refuses_other_finger_counts_and_bad_methods():
     C, N = _equator(4)
     with pytest.raises(ValueError, match="three-contact grasps only, got 4"):

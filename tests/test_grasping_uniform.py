@@ -21,3 +21,11 @@ def test_uniform_points_on_surface_ignore_action_and_are_seeded():
     assert d.max() < 1e-6
     with pytest.raises(ValueError, match="outside"):
         be.grasp(np.array([2.0, 0, 0, 0]), np.random.default_rng(0))
+
+
+def test_grasping_or_rendering_before_set_object_names_the_call():
+    """``render`` before ``set_object`` was an AttributeError on the missing pose; ``grasp_batch`` named the call."""
+    be = make_backend("uniform", 4)
+    for call in (lambda: be.grasp_batch(np.zeros((1, 4)), np.random.default_rng(0)), lambda: be.render(64, 64)):
+        with pytest.raises(RuntimeError, match=r"call set_object\(obj, pose\) before"):
+            call()

@@ -78,6 +78,8 @@ class UniformBackend:
         from no finger rays, which that picture draws)."""
         from .geometric import GeometricBackend
 
+        if self._obj is None:  # it was an AttributeError on a pose not yet set
+            raise RuntimeError("call set_object(obj, pose) before rendering")
         if self._geo is None:
             self._geo = GeometricBackend()
             self._geo.set_object(self._obj, self._T)
