@@ -73,6 +73,10 @@ def main(argv=None) -> int:
           f"vectors, {lik.clf.n_iter_} iterations ({trees} trees), fitted in {time.perf_counter() - t:.1f} s")
     Q = np.asarray(ds.X_val[: a.batch], dtype=np.float64)
     singles = Q[: a.singles]
+    if not isinstance(lik._trees, tuple):  # trees this scikit-learn's layout hides: both sides would be its own path
+        print("the compiled walk is not in use (BoostedLikelihood could not read this scikit-learn's trees): "
+              "nothing to compare", file=sys.stderr)
+        return 1
     compiled = lik.log_likelihood(Q)  # also compiles the walk (numba caches it on disk)
     library = BoostedLikelihood.from_bytes(lik.config, lik.to_bytes())
     library._trees = False  # scikit-learn's own path
