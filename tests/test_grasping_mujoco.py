@@ -509,3 +509,28 @@ def test_a_menagerie_hand_from_the_data_folder_leaves_the_environment_alone(monk
     monkeypatch.delenv("MENAGERIE_ROOT", raising=False)
     assert load_hand("allegro", None).n_fingers == 4
     assert "MENAGERIE_ROOT" not in os.environ
+
+
+def test_a_menagerie_hand_that_is_there_but_does_not_load_is_an_error_not_unavailable(tmp_path, monkeypatch):
+    """``HandUnavailableError`` (on which the hand tests skip, "menagerie data absent") means absent: a hand whose
+    folder is there but whose MJCF does not load (a MuJoCo upgrade, a changed file) is a ``RuntimeError`` that names
+    the folder. It was ``HandUnavailableError`` too, so such a break skipped the hand tests instead of failing them."""
+    import shutil
+
+    from haptic_env.grasping.hands import _menagerie_spec
+    from haptic_env.objects import data_dir
+
+    d = data_dir()
+    if d is None or not (d / "menagerie" / "wonik_allegro").is_dir():
+        pytest.skip("needs the shared data's menagerie/ (../shared/data or $HAPTIC_DATA)")
+    shutil.copytree(d / "menagerie" / "wonik_allegro", tmp_path / "wonik_allegro")
+    xml = tmp_path / "wonik_allegro" / "right_hand.xml"
+    xml.write_text(xml.read_text().replace("<mujoco", '<mujoco bogus_attribute="1"', 1))
+    monkeypatch.setenv("MENAGERIE_ROOT", str(tmp_path))
+    with pytest.raises(RuntimeError, match=r"'wonik_allegro'/'right_hand' is in .*wonik_allegro but does not load") \
+            as exc:
+        _menagerie_spec("wonik_allegro", "right_hand")
+    assert not isinstance(exc.value, HandUnavailableError)
+    monkeypatch.setenv("MENAGERIE_ROOT", str(tmp_path / "empty"))  # absent (and no download in the tests)
+    with pytest.raises(HandUnavailableError, match="cannot load MuJoCo Menagerie hand 'wonik_allegro'"):
+        _menagerie_spec("wonik_allegro", "right_hand")

@@ -47,7 +47,9 @@ HANDS = ("generic", "allegro", "shadow", "aero", "robotiq")
 
 
 class HandUnavailableError(RuntimeError):
-    """A hand model cannot be loaded (menagerie data missing and no download possible)."""
+    """A hand model cannot be loaded: its menagerie data is missing and no download possible. (A hand whose files
+    are there but do not load, e.g. after a MuJoCo upgrade, is a plain ``RuntimeError``: tests that skip on this
+    error must not skip a broken hand.)"""
 
 
 @dataclass
@@ -172,11 +174,15 @@ def _menagerie_spec(robot: str, entry: str) -> mujoco.MjSpec:
         d = data_dir()
         if d is not None and (d / "menagerie" / robot).is_dir():
             root = d / "menagerie"
+    local = Path(os.environ["MENAGERIE_ROOT"]).expanduser() if os.environ.get("MENAGERIE_ROOT") else root
     try:
         import mujoco_menagerie as mm
 
         return mm.get(robot).spec(entry, None if root is None else mm.Cache(root=root))
     except Exception as exc:  # missing data + no network, unknown robot, bad files ...
+        if local is not None and (local / robot).is_dir():  # there, and it does not load: an error, not "absent"
+            raise RuntimeError(f"MuJoCo Menagerie hand {robot!r}/{entry!r} is in {local / robot} but does not load "
+                               f"({type(exc).__name__}: {exc})") from exc
         raise HandUnavailableError(
             f"cannot load MuJoCo Menagerie hand {robot!r}/{entry!r} ({type(exc).__name__}: {exc}). "
             f"Set MENAGERIE_ROOT to a menagerie folder containing {robot}/ (e.g. <data_dir>/menagerie), "
