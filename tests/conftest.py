@@ -91,7 +91,7 @@ def usage_error(capsys):
         assert exc.value.code == 2, (exc.value.code, err)
         # the message from its "error:" on: the usage block above it names every flag, so a pattern that is a flag's
         # name matched any usage error of the script
-        message = err[err.find("error:"):] if "error:" in err else err
+        message = err[err.rfind("\n", 0, err.find("error:")) + 1:] if "error:" in err else err  # from its line
         assert re.search(match, message), (match, err)
         return err
 
