@@ -122,7 +122,8 @@ def main(argv=None) -> int:
                          "axes, or towards the grasp's centroid (the same answer in any frame)")
     ap.add_argument("--min-epsilon", type=float_in(0.0), default=0.0,
                     help="also a column of force-closure grasps whose epsilon quality reaches this (0: none)")
-    ap.add_argument("--hand", default=None, help="also score ycb10 surface-trained kNN on this hand's grasps")
+    ap.add_argument("--hand", default=None, help="also score ycb10 surface-trained kNN on this hand's grasps (its "
+                    "force-closure grasps with the default --edges and --frame and no --min-epsilon)")
     ap.add_argument("--speed-grasps", type=int_in(10), default=3_000, help="grasps per object of the speed check")
     ap.add_argument("--seed", type=int_in(0), default=0)
     args = ap.parse_args(argv)
@@ -133,6 +134,12 @@ def main(argv=None) -> int:
     if not fingers or min(fingers) < 3:
         ap.error(f"--fingers: finger counts >= 3 (fewer are never in force closure), got {args.fingers!r}")
     hand = None
+    if args.hand and not args.objects:  # only the transfer table: the separability table's settings do not reach it
+        ignored = [f"--{k.replace('_', '-')}" for k in ("edges", "frame", "min_epsilon")
+                   if getattr(args, k) != ap.get_default(k)]
+        if ignored:
+            ap.error(f"{', '.join(ignored)} set the separability table (--objects ''), which this run skips; the "
+                     "--hand transfer table uses the default pyramids")
     if args.hand:  # resolved before the tables, so that a typo does not wait for them
         from haptic_env.grasping.hands import HandUnavailableError, load_hand
 

@@ -185,7 +185,8 @@ def main(argv=None):
     p.add_argument("--seed", type=int_in(0), default=0)
     p.add_argument("--trials", type=int_in(1), default=300)
     p.add_argument("--ms", default="1,3,5,10,30")
-    p.add_argument("--models", default="member,mlp,rf")
+    p.add_argument("--models", default="member,mlp,rf",
+                   help="the models beside the KDE and its BC-NP votes: a comma list of member, mlp, rf, or none")
     p.add_argument("--lo", type=float_in(0.0, lo_open=True), default=0.5)
     p.add_argument("--hi", type=float_in(0.0, lo_open=True), default=1.5)
     p.add_argument("--source", choices=FAMILY_SOURCES, default="surface",
@@ -209,9 +210,14 @@ def main(argv=None):
         p.error(f"--ms: a comma list of grasp counts, got {a.ms!r}")
     if min(ms) < 1:
         p.error(f"--ms: grasp counts >= 1, got {a.ms!r}")
-    models = set(a.models.split(","))
+    models = set() if a.models == "none" else set(a.models.split(","))  # none: the KDE alone (committed commands)
     if unknown := models - {"member", "mlp", "rf"}:
-        p.error(f"--models: unknown {sorted(unknown)}; choose among member, mlp, rf")
+        p.error(f"--models: unknown {sorted(unknown)}; choose among member, mlp, rf, or none")
+    if a.sweep == "sizes":  # size_cell: the KDE on the fixed shapes, its members' per-axis factors U(0.5, 1.5)
+        ignored = [f"--{k}" for k in ("lying", "lo", "hi", "models", "trials", "ms") if getattr(a, k) != p.get_default(k)]
+        if ignored:
+            p.error(f"--sweep sizes does not use {', '.join(ignored)} (it scores the KDE on the fixed shapes, its "
+                    "members' factors U(0.5, 1.5), standing)")
     if a.sweep == "spread":
         cells = [(lo, hi, False, True) for lo, hi in ((1, 1), (0.9, 1.1), (0.75, 1.25), (0.5, 1.5))]
     elif a.sweep == "norm":

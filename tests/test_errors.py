@@ -480,6 +480,9 @@ def test_ctrl_c_in_a_subcommand_is_one_line_saying_what_a_rerun_keeps(monkeypatc
 
 @pytest.mark.parametrize("bench, argv, match", [
     ("bench_env", ["--steps", "0"], r"argument --steps: must be >= 1, got 0"),
+    ("geometry_families", ["--sweep", "sizes", "--lying", "--trials", "5"],
+     r"--sweep sizes does not use --lying, --trials"),  # they were ignored
+    ("geometry_families", ["--models", "svm"], r"--models: unknown \['svm'\]; choose among member, mlp, rf, or none"),
     ("bench_vector_env", ["--seconds", "0"], r"argument --seconds: must be a finite number in \(0.0, inf\], got 0"),
     ("bench_vector_env", ["--sizes", "8", "0"], r"argument --sizes: must be >= 1, got 0"),
     ("bench_recognizers", ["--grasps", "1000"], r"--queries 300 is more than the 160 held-out grasps of --grasps 1000"),
