@@ -88,7 +88,8 @@ def main(argv=None) -> None:
             S = [logp[:, np.clip(np.searchsorted(edges, v[:, 0]) - 1, 0, bins - 1)].T for v in Xv]
             line, succ = bc_np(S, args.trials)
             best = max(best, succ)
-            print(f"histogram of {args.big} grasps per object, {bins} bins: {line}")
+            print(f"histogram of {len(x) // K} grasps per object (the training split of --big {args.big}), {bins} "
+                  f"bins: {line}")
     else:
         for N, data in ((10_000, build_dataset(objects, dataclasses.replace(dcfg, grasps_per_object=10_000, seed=12345),
                                                progress=False)), (args.big, big)):
