@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import shlex
 import sys
 import time
 
@@ -182,7 +183,9 @@ def main(argv=None):
             print(r, file=sys.stderr, flush=True)
     best = min(rows, key=lambda r: r["A_nll"])
     keys = list(rows[0])
-    lines = [f"seed {a.seed}, {a.members} members, {a.trials} vote draws per cell; chosen on A (lowest A_nll): "
+    command = shlex.join(["python", "benchmarks/family_bandwidth.py", *(sys.argv[1:] if argv is None else argv)])
+    lines = [f"`{command}`", "",
+             f"seed {a.seed}, {a.members} members, {a.trials} vote draws per cell; chosen on A (lowest A_nll): "
              f"factor {best['factor']}, floor {best['floor']:g}; {time.time() - t0:.0f} s", "",
              "| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
     lines += ["| " + " | ".join(cell(k, r[k]) for k in keys) + " |" for r in rows]

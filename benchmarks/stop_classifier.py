@@ -95,7 +95,7 @@ def main(argv=None):
                               f"{r['us']:.1f}"] for r in rows])
     head = ["n", "likelihood", "set"] + [f"s = {s:g}" for s in SCALES if s <= 1.0]
     lines += ["", "Every scale (the frontier of right stops against grasps; s > 1 only adds grasps here):", ""]
-    emit(lines + md_table(head, frontier), a.out)
+    emit(lines + md_table(head, frontier), a.out, "stop_classifier.py", argv)
 
 
 if __name__ == "__main__":

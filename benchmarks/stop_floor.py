@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import shlex
 import sys
 import time
 from pathlib import Path
@@ -104,9 +105,11 @@ def md_table(head: list[str], rows: list[list[str]]) -> list[str]:
     return ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)] + ["| " + " | ".join(r) + " |" for r in rows]
 
 
-def emit(lines: list[str], out) -> None:
-    """Print the report's ``lines`` and write them to ``out`` (a path, or None: print only), atomically."""
-    text = "\n".join(lines)
+def emit(lines: list[str], out, script: str = "stop_floor.py", argv=None) -> None:
+    """Print the report's ``lines`` and write them to ``out`` (a path, or None: print only), atomically, under the
+    command that made them (``python benchmarks/<script> <argv>``; ``argv`` None: this process's)."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    text = "\n".join([f"`{shlex.join(['python', f'benchmarks/{script}', *map(str, argv)])}`", "", *lines])
     print(text)
     if out is not None:
         with atomic_write(out, "w") as fh:
@@ -164,7 +167,7 @@ def main(argv=None):
     lines += md_table(head, [[str(r["n"]), f"{r['eps']:g}", f"{r['s']:g}", r["A"], r["B"]] for r in rows])
     head = ["n", "eps", "set"] + [f"s = {s:g}" for s in STOP_SCALES if s <= 1.0]
     lines += ["", "Every scale (the frontier of right stops against grasps; s > 1 only adds grasps here):", ""]
-    emit(lines + md_table(head, frontier), a.out)
+    emit(lines + md_table(head, frontier), a.out, argv=argv)
 
 
 if __name__ == "__main__":

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import shlex
+
 import pytest
 
 from haptic_env.experiments.stop_scale import VALIDATION_TRIALS
@@ -27,5 +29,7 @@ def test_it_fits_a_stop_scale_for_each_likelihood_on_validation_grasps(load_benc
     # a run started again with the same settings reads each finished finger count back: nothing is trained again
     monkeypatch.setattr(bench, "build_recognizer", lambda *a, **k: pytest.fail("the finished n = 3 was computed again"))
     bench.main(argv)
-    assert out.read_text().splitlines()[1:] == text.splitlines()[1:]  # all but the first line (its wall time)
+    again = out.read_text().splitlines()
+    assert again[0] == text.splitlines()[0] == f"`{shlex.join(['python', 'benchmarks/stop_classifier.py', *argv])}`"
+    assert again[3:] == text.splitlines()[3:]  # all but the caption under the command (its wall time)
     assert (tmp_path / "table.md.state.json").is_file()
