@@ -983,8 +983,9 @@ def _main(args) -> int:
         if resumed else ""
     paths = write_report(records, args.out, config.max_grasps,
                          extra=f"`{_command(args, kwargs)}`\n\n"
-                               f"env `{args.env_id}`, config overrides `{json.dumps(kwargs)}`; {args.episodes} episodes "
-                               f"x seeds {args.seeds}; {time.time() - t0:.0f} s{note}; {stream_words(args.agent_stream)}.")
+                               f"env `{args.env_id}`, config overrides `{json.dumps(kwargs)}`; {args.episodes} "
+                               f"episodes x seeds {args.seeds}; {time.time() - t0:.0f} s{note}; "
+                               f"{stream_words(args.agent_stream)}.")
     shutil.rmtree(store, ignore_errors=True)
     plot = Path(args.out) / "learning_curves.png"
     if curves:

@@ -54,7 +54,8 @@ def run(hand: str, objects, approaches: int, variants: dict) -> dict:
                     out[v][key].append(x)
             out[v]["seconds"] += time.perf_counter() - t
     for v, be in backends.items():
-        out[v].update({key: np.array(out[v][key]) for key in keys}, cap=be.config.max_steps or closing_steps(be.hand, be.config.timestep or be.hand.timestep))
+        cap = be.config.max_steps or closing_steps(be.hand, be.config.timestep or be.hand.timestep)
+        out[v].update({key: np.array(out[v][key]) for key in keys}, cap=cap)
         out[v]["gps"] = len(out[v]["touched"]) / out[v]["seconds"]
         be.close()
     return out

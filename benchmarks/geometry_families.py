@@ -214,7 +214,8 @@ def main(argv=None):
     if unknown := models - {"member", "mlp", "rf"}:
         p.error(f"--models: unknown {sorted(unknown)}; choose among member, mlp, rf, or none")
     if a.sweep == "sizes":  # size_cell: the KDE on the fixed shapes, its members' per-axis factors U(0.5, 1.5)
-        ignored = [f"--{k}" for k in ("lying", "lo", "hi", "models", "trials", "ms") if getattr(a, k) != p.get_default(k)]
+        ignored = [f"--{k}" for k in ("lying", "lo", "hi", "models", "trials", "ms")
+                   if getattr(a, k) != p.get_default(k)]
         if ignored:
             p.error(f"--sweep sizes does not use {', '.join(ignored)} (it scores the KDE on the fixed shapes, its "
                     "members' factors U(0.5, 1.5), standing)")

@@ -362,8 +362,9 @@ def exp2_table(cells: list[dict], threshold: float, trials_per_object: int) -> l
             dc = f", d&c {100 * x[k]['decided_correct']:.1f}" if "decided_correct" in x[k] else ""
             return f"{x[k]['success']:.1f}{se} (decided {100 * x[k]['decided']:.1f}{dc}) / {x[k]['grasps']:.2f}"
 
-        L.append(f"| {c['n']} | {'yes' if c['normals'] else 'no'} | {_label(c['model'])} | {c['grasps_per_object']:,} | "
-                 f"{100 * x['kde_oneshot']:.1f} | {f('ic')} | {f('bc-np')} | {f('bc-ip')} |")
+        L.append(f"| {c['n']} | {'yes' if c['normals'] else 'no'} | {_label(c['model'])} | "
+                 f"{c['grasps_per_object']:,} | {100 * x['kde_oneshot']:.1f} | {f('ic')} | {f('bc-np')} | "
+                 f"{f('bc-ip')} |")
     return L
 
 

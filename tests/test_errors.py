@@ -370,10 +370,12 @@ def test_truncated_recognizer_json_is_rebuilt(tmp_path, monkeypatch):
     (["analysis", "--out", "outputs/never", "--threshold", "2"], r"threshold must be in \(0, 1\], got 2.0"),
     # these were accepted: a late traceback after the recognisers were built, a traceback (or a failed sweep job), or
     # a setting silently ignored
-    (["analysis", "--out", "outputs/never", "--baseline-max-train", "1"], "baseline_max_train must be None or an int >= 100"),
+    (["analysis", "--out", "outputs/never", "--baseline-max-train", "1"],
+     "baseline_max_train must be None or an int >= 100"),
     (["analysis", "--out", "outputs/never", "--experiments", "5", "--family-source", "hand", "--family-hand", "bogus"],
      "--family-hand bogus: unknown hand 'bogus'"),
-    (["analysis", "--out", "outputs/never", "--family-hand", "shadow"], "--family-hand shadow needs --family-source hand"),
+    (["analysis", "--out", "outputs/never", "--family-hand", "shadow"],
+     "--family-hand shadow needs --family-source hand"),
     (["analysis", "--out", "outputs/never", "--no-correction", "--kde-corrections", "power"],
      "--kde-corrections power weighs corrections that --no-correction turns off"),
 ])
