@@ -315,8 +315,8 @@ def _parse(argv: list[str] | None) -> tuple[Args, object | None]:
 
 def _probe(args: Args, config: HapticRecogConfig):
     """A fresh run's first env, built by :func:`main` before any file is written (the training's envs take it over):
-    an env that cannot be built (an unknown hand, too few grasps of an object) is a usage error, not a traceback
-    after the run folder's ``args.json`` and ``monitor/``."""
+    an env that cannot be made (an unknown hand, say) is a usage error, not a traceback after the run folder's
+    ``args.json`` and ``monitor/``. (The recogniser is built at the first reset, by the training's set-up.)"""
     import haptic_env
 
     try:
