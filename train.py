@@ -314,9 +314,10 @@ def _parse(argv: list[str] | None) -> tuple[Args, object | None]:
 
 
 def _probe(args: Args, config: HapticRecogConfig):
-    """A fresh run's first env, built by :func:`main` before any file is written (the training's envs take it over):
-    an env that cannot be made (an unknown hand, say) is a usage error, not a traceback after the run folder's
-    ``args.json`` and ``monitor/``. (The recogniser is built at the first reset, by the training's set-up.)"""
+    """The run's first env, built before any file is written (by :func:`main` for a fresh run, by
+    :func:`_resume_problem` for a resumed one; the training's envs take it over): an env that cannot be made (an
+    unknown hand, say) is a usage error, not a traceback after the run folder's ``args.json`` and ``monitor/``. (The
+    recogniser is built at the first reset, by the training's set-up.)"""
     import haptic_env
 
     try:
@@ -331,13 +332,12 @@ def _resume_problem(args: Args, data: dict, config: HapticRecogConfig) -> tuple[
     (or continuous action) space is not the env's, which stable-baselines3's load refuses only once the segment's
     files are written. With the env built to compare the spaces (closed, and None, when there is a problem), for the
     training to take over."""
-    import haptic_env
     from agents.sb3 import replay_buffer_problem
 
     problem = replay_buffer_problem(args.resume, args.algo)
     if problem is not None:
         return problem, None
-    env = haptic_env.make(config, env_id=args.env_id)
+    env = _probe(args, config)
     problem = _space_problem(args, data, env)
     if problem is not None:
         env.close()

@@ -930,7 +930,7 @@ def _main(args) -> int:
         raise UsageError(f"--seeds: each seed once, got {args.seeds}")
     curves = {}
     named = [spec.partition("=") if "=" in spec else (Path(spec).name, "", spec) for spec in args.learning_curves]
-    twice = sorted({name for name, _, _ in named if [n for n, _, _ in named].count(name) > 1})
+    twice = repeated(name for name, _, _ in named)
     if twice:  # the later run's curve replaced the earlier one's, silently
         raise UsageError(f"--learning-curves: {twice} named more than once; give each a name, NAME=LOG_DIR")
     for spec, (name, _, path) in zip(args.learning_curves, named):
