@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import shlex
 import sys
 import time
 
@@ -42,7 +41,7 @@ from scipy.optimize import minimize
 from scipy.special import log_softmax
 
 from haptic_env.cache import atomic_write
-from haptic_env.cli import int_in, output_path
+from haptic_env.cli import int_in, output_path, script_command
 from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.families import floored, grasp_config, member_grasps, sequence_fit
 from haptic_env.objects import FAMILIES, family_set
@@ -183,8 +182,7 @@ def main(argv=None):
             print(r, file=sys.stderr, flush=True)
     best = min(rows, key=lambda r: r["A_nll"])
     keys = list(rows[0])
-    command = shlex.join(["python", "benchmarks/family_bandwidth.py", *(sys.argv[1:] if argv is None else argv)])
-    lines = [f"`{command}`", "",
+    lines = [f"`{script_command('family_bandwidth.py', argv)}`", "",
              f"seed {a.seed}, {a.members} members, {a.trials} vote draws per cell; chosen on A (lowest A_nll): "
              f"factor {best['factor']}, floor {best['floor']:g}; {time.time() - t0:.0f} s", "",
              "| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]

@@ -47,7 +47,6 @@ from __future__ import annotations
 
 import argparse
 import re
-import shlex
 import sys
 import time
 from pathlib import Path
@@ -59,7 +58,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from haptic_env import variant_config  # noqa: E402
 from haptic_env.cache import atomic_write  # noqa: E402
-from haptic_env.cli import distinct, float_in, int_in, output_path  # noqa: E402
+from haptic_env.cli import distinct, float_in, int_in, output_path, script_command  # noqa: E402
 from haptic_env.config import HAND_APPROACHES, HapticRecogConfig  # noqa: E402
 from haptic_env.dataset import DatasetConfig, support_frame  # noqa: E402
 from haptic_env.grasp_features import NORMAL_AXES, NORMAL_AXIS_WORDS  # noqa: E402
@@ -154,9 +153,8 @@ def env_config(name: str, heights: bool = False) -> HapticRecogConfig:
 def write_table(out: Path, name: str, script: str, argv, seconds: float, text: str) -> None:
     """Write ``text`` to ``out/name`` atomically, headed by the command that made it (``python benchmarks/<script>
     <argv>``; the process's own arguments when ``argv`` is None) and its wall time."""
-    cmd = f"python benchmarks/{script} " + shlex.join(sys.argv[1:] if argv is None else argv)  # quoted: re-runnable
     with atomic_write(out / name, "w") as fh:
-        fh.write(f"`{cmd}` ({seconds:.0f} s)\n\n{text}\n")
+        fh.write(f"`{script_command(script, argv)}` ({seconds:.0f} s)\n\n{text}\n")
 
 
 def read_table(text: str) -> tuple[list[dict], float]:

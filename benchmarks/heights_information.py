@@ -30,7 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.hand_experiment import pm  # noqa: E402
 from haptic_env.cache import atomic_write  # noqa: E402
-from haptic_env.cli import distinct, int_in, output_path  # noqa: E402
+from haptic_env.cli import distinct, int_in, output_path, script_command  # noqa: E402
 from haptic_env.dataset import DatasetConfig, support_frame  # noqa: E402
 from haptic_env.grasp_features import phi  # noqa: E402
 from haptic_env.hand_grasps import hand_grasp_pool, pool_actions, pool_rows  # noqa: E402
@@ -125,7 +125,7 @@ def main(argv=None) -> int:
             f"validation pools {args.validation_seeds} ({args.queries} approaches per object each); mean +- sample std "
             "over the validation pools.\n\n" + "\n".join(lines))
     if args.out is not None:
-        cmd = "python benchmarks/heights_information.py " + " ".join(sys.argv[1:] if argv is None else argv)
+        cmd = script_command("heights_information.py", argv)  # shell-quoted (it was joined by spaces)
         with atomic_write(args.out / "information.md", "w") as fh:
             fh.write(f"`{cmd}` ({time.perf_counter() - t0:.0f} s)\n\n{text}\n")
     print(f"HEADLINE: the contacts' heights add {100 * np.mean(gains):.1f} points of k-NN one-shot accuracy "

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import shlex
 import sys
 from pathlib import Path
 
@@ -33,6 +32,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from haptic_env.cli import script_command  # noqa: E402
 from haptic_env.splits import ENV_VALIDATION_SEEDS  # noqa: E402
 
 MODES = ("zero", "yaw")
@@ -122,10 +122,9 @@ def main(argv: list[str] | None = None) -> int:
     agents += [ObsAblation(make_agent(f"{name}={args.model}"), args.parts, mode) for mode in args.modes]
     records = evaluate_agents(agents, make_env, args.episodes, args.seeds)
     out = Path(args.out)
-    command = shlex.join(["python", "benchmarks/obs_ablation.py", *(sys.argv[1:] if argv is None else argv)])
     write_report(records, out, max_grasps=probe.unwrapped.config.max_grasps,
                  title=f"{args.env_id}, {kwargs}: {args.model} with observation parts {args.parts} ablated",
-                 extra=f"`{command}`")
+                 extra=f"`{script_command('obs_ablation.py', argv)}`")
     lines = [f"{row['agent']}: {100 * row['success']:.1f} % in {row['grasps_mean']:.2f} grasps, "
              f"{100 * row['fewer_than_random']:.1f} % fewer than random" for row in summarize(records)[1:]]
     print(f"[obs_ablation] {len(args.seeds)} seeds x {args.episodes} episodes; " + "; ".join(lines))

@@ -33,7 +33,6 @@ import hashlib
 import json
 import os
 import platform
-import shlex
 import signal
 import sys
 import time
@@ -472,7 +471,7 @@ def plot(series: dict, path: Path) -> None:
 # -------------------------------------------------------------------------------------------------- main
 def main(argv=None) -> int:
     args = parse_args(argv)
-    command = "python benchmarks/paper_scale.py " + shlex.join(sys.argv[1:] if argv is None else list(argv))
+    command = cli.script_command("paper_scale.py", argv)
     out = Path(args.out)
     if args.report_only:
         print(write_report(out, args, command))

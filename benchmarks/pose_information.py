@@ -40,7 +40,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.hand_experiment import pm  # noqa: E402
 from benchmarks.heights_information import SETUPS, features, one_shot  # noqa: E402
 from haptic_env.cache import atomic_write  # noqa: E402
-from haptic_env.cli import int_in, output_path  # noqa: E402
+from haptic_env.cli import int_in, output_path, script_command  # noqa: E402
 from haptic_env.hand_grasps import hand_grasp_pool, pool_actions  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 
@@ -162,7 +162,7 @@ def main(argv=None) -> int:
             + "\n".join(lines))
     print(text)
     if args.out is not None:
-        cmd = "python benchmarks/pose_information.py " + " ".join(sys.argv[1:] if argv is None else argv)
+        cmd = script_command("pose_information.py", argv)  # shell-quoted (it was joined by spaces)
         with atomic_write(args.out / "information.md", "w") as fh:
             fh.write(f"`{cmd}` ({time.perf_counter() - t0:.0f} s)\n\n{text}\n")
     best = {name: max(np.mean(v) for (nm, _), v in knn.items() if nm == name) for name in ("phi", "phi+heights")}

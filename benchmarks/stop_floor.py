@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import shlex
 import sys
 import time
 from pathlib import Path
@@ -33,7 +32,7 @@ import numpy as np
 from scipy.special import log_softmax
 
 from haptic_env.cache import atomic_write, cache_dir, config_key, resume_state, save_keyed_json
-from haptic_env.cli import float_in, int_in, int_list_in, output_path
+from haptic_env.cli import float_in, int_in, int_list_in, output_path, script_command
 from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.families import floored
 from haptic_env.experiments.fresh_grasps import fresh_pool
@@ -108,8 +107,7 @@ def md_table(head: list[str], rows: list[list[str]]) -> list[str]:
 def emit(lines: list[str], out, script: str = "stop_floor.py", argv=None) -> None:
     """Print the report's ``lines`` and write them to ``out`` (a path, or None: print only), atomically, under the
     command that made them (``python benchmarks/<script> <argv>``; ``argv`` None: this process's)."""
-    argv = sys.argv[1:] if argv is None else list(argv)
-    text = "\n".join([f"`{shlex.join(['python', f'benchmarks/{script}', *map(str, argv)])}`", "", *lines])
+    text = "\n".join([f"`{script_command(script, argv)}`", "", *lines])
     print(text)
     if out is not None:
         with atomic_write(out, "w") as fh:

@@ -175,6 +175,14 @@ def output_path(kind: str = "file"):
     return parse
 
 
+def script_command(script: str, argv=None) -> str:
+    """``python benchmarks/<script> <argv>``, shell-quoted so that it re-runs as written: the command line a
+    benchmark's output records (``argv`` None: this process's own arguments)."""
+    import shlex
+
+    return shlex.join(["python", f"benchmarks/{script}", *map(str, sys.argv[1:] if argv is None else argv)])
+
+
 def json_object(text: str) -> dict:
     """argparse ``type``: a JSON object (``{"key": value, ...}``)."""
     try:

@@ -555,6 +555,20 @@ def test_an_existing_output_folder_is_checked_itself_and_a_huge_range_is_refused
     assert len(parse_int_list(f"1-{MAX_RANGE}")) == MAX_RANGE
 
 
+def test_a_benchmarks_recorded_command_reruns_as_written(monkeypatch):
+    """``script_command`` (every benchmark's recorded command): shell-quoted, so an argument with a space or a JSON
+    object splits back into the arguments given; without ``argv``, the process's own."""
+    import shlex
+
+    from haptic_env.cli import script_command
+
+    argv = ["--env-kwargs", '{"hand": "shadow"}', "--methods", "BC-NP, z=3", "--seeds", 0, 1]
+    cmd = script_command("hand_experiment.py", argv)
+    assert shlex.split(cmd) == ["python", "benchmarks/hand_experiment.py", *map(str, argv)]
+    monkeypatch.setattr(sys, "argv", ["x.py", "--out", "a b"])
+    assert script_command("x.py") == "python benchmarks/x.py --out 'a b'"
+
+
 def test_env_settings_that_contradict_the_recognisers_are_refused_at_make():
     """recognizer_kwargs' grasp settings against the env's (normal_axis, grasp_heights) and a touch pattern switched
     off under a touch_weight failed at the first reset, after training; a hand given as a Path is its path."""
