@@ -292,6 +292,10 @@ class GraspScene:
         body_finger = finger_of_bodies(m, self.tip_body_ids)  # closed linkages join the finger they connect to
         self._geom_finger = body_finger[m.geom_bodyid]  # finger of every geom (any link), -1 palm/none
         self._finger_pairs = self._pair_owner(self._geom_finger)
+        if self._table_geom >= 0:  # contact geom pair -> finger touching the table
+            table = np.zeros(m.ngeom, dtype=bool)
+            table[self._table_geom] = True
+            self._table_pairs = self._pair_owner(self._geom_finger, table)
         # fingers each actuator moves: the dofs its transmission acts on (moment arms at qpos0; works
         # for joint, fixed- and spatial-tendon actuators alike). act_fingers[a, i]: actuator a moves
         # finger i; act_finger[a]: its finger when it moves exactly one, else -1 (none, or several as
@@ -459,17 +463,19 @@ class GraspScene:
     def tip_positions(self) -> np.ndarray:
         return self.data.site_xpos[self.site_ids].copy()
 
-    def _pair_owner(self, per_geom: np.ndarray) -> np.ndarray:
+    def _pair_owner(self, per_geom: np.ndarray, other: np.ndarray | None = None) -> np.ndarray:
         """``(ngeom, ngeom)`` table: for a contact between geoms ``(g0, g1)``, ``per_geom`` of its hand geom (a
-        finger index) when exactly one of the two is an object geom, else -1 (:meth:`_object_contacts` reads it)."""
-        obj = self._is_obj_geom
+        finger index) when exactly one of the two is an ``other`` geom (a mask; None: the object's geoms), else -1
+        (:meth:`_object_contacts` reads it)."""
+        obj = self._is_obj_geom if other is None else other
         per = np.asarray(per_geom, dtype=np.int16)  # finger indices (a scene keeps two tables of ngeom^2 entries)
         return np.where(obj[:, None] & ~obj[None, :], per[None, :],
                         np.where(obj[None, :] & ~obj[:, None], per[:, None], np.int16(-1)))
 
     def _object_contacts(self, pairs: np.ndarray) -> np.ndarray:
         """For each current contact: the finger index that ``pairs`` (a :meth:`_pair_owner` table) gives its
-        geom pair where it is a touching (``dist <= 0``) hand-object contact, else -1."""
+        geom pair where it is a touching (``dist <= 0``) hand-object contact (hand-table with the table's
+        pairs), else -1."""
         c = self.data.contact
         n = self.data.ncon
         geom = c.geom[:n]
@@ -521,13 +527,9 @@ class GraspScene:
         collides with nothing). Its push enters the finger's joint torques, so the finger's torque normal is biased,
         as by a link's contact with the object."""
         out = np.zeros(len(self.site_ids), dtype=bool)
-        n = self.data.ncon
-        if n and self._table_geom >= 0:
-            c = self.data.contact
-            g = c.geom[:n]
-            on = ((g[:, 0] == self._table_geom) | (g[:, 1] == self._table_geom)) & (c.dist[:n] <= 0)
-            finger = self._geom_finger[np.where(g[:, 0] == self._table_geom, g[:, 1], g[:, 0])[on]]
-            out[np.unique(finger[finger >= 0])] = True
+        if self.data.ncon and self._table_geom >= 0:
+            f = self._object_contacts(self._table_pairs)
+            out[np.unique(f[f >= 0])] = True
         return out
 
     def sensed_torque(self, source: str) -> np.ndarray:
