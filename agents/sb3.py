@@ -528,6 +528,7 @@ def _run_guard(save_path: Path, algo: str, checkpoint_freq: int, max_minutes: fl
             self.signum: int | None = None
             self.stopped = False  # learn() was stopped early (not: reached total_timesteps)
             self._safe: int | None = None
+            self._buffer_at: tuple[int, bool] | None = None  # the replay buffer's (pos, full) at _safe
             self._saved_at = -1
             self.saving = False  # inside save(): a signal now is deferred to its end
             self.updating = False  # learning from the last rollout: a second signal now is deferred to its end
@@ -540,11 +541,17 @@ def _run_guard(save_path: Path, algo: str, checkpoint_freq: int, max_minutes: fl
             self._t_start = time.monotonic()
             self._deadline = time.monotonic() + 60.0 * max_minutes if max_minutes else None
             self._safe = self.model.num_timesteps
+            self._buffer_at = self._buffer_position()
             self._next = (self._safe // self.save_freq + 1) * self.save_freq
+
+        def _buffer_position(self) -> tuple[int, bool] | None:
+            buffer = getattr(self.model, "replay_buffer", None)
+            return None if buffer is None else (buffer.pos, buffer.full)
 
         def _on_rollout_start(self) -> None:
             self.updating = False
             self._safe = self.model.num_timesteps
+            self._buffer_at = self._buffer_position()
             if self._safe >= self._next:
                 path = self.save()
                 self._next = (self._safe // self.save_freq + 1) * self.save_freq
@@ -570,9 +577,15 @@ def _run_guard(save_path: Path, algo: str, checkpoint_freq: int, max_minutes: fl
                 self._on_rollout_start()  # the last update is done
 
         def rewind(self) -> None:
-            """Back to the last consistent step count (after an early stop or an exception in learn())."""
+            """Back to the last consistent step count (after an early stop or an exception in learn()), and an
+            off-policy replay buffer back to where it stood then: with ``train_freq > 1`` a rollout stores
+            transitions before its stop, which the saved buffer kept although their steps were not counted (a
+            resume stored those steps again)."""
             if self._safe is not None:
                 self.model.num_timesteps = self._safe
+            buffer = getattr(self.model, "replay_buffer", None)
+            if buffer is not None and self._buffer_at is not None:
+                buffer.pos, buffer.full = self._buffer_at
 
         def save(self) -> Path:
             """Save the model (and replay buffer / VecNormalize) as ``<algo>_<num_timesteps>_steps.zip``.

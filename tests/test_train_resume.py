@@ -444,6 +444,34 @@ def test_a_second_signal_during_an_update_lets_it_finish_and_a_resume_takes_its_
     assert model.verbose == 1 and "rollout/" in capsys.readouterr().out
 
 
+def test_a_sac_stop_mid_rollout_saves_a_buffer_of_the_counted_steps_only(env_config, tmp_path, monkeypatch):
+    """SAC with ``train_freq > 1`` stores a rollout's transitions before a stop mid-way; the stop rewinds
+    ``num_timesteps`` to the rollout's start, and the saved replay buffer kept the transitions after it (19 in a
+    checkpoint of 16 steps), which a resume stored again. The buffer is rewound with the step count."""
+    from agents import sb3
+
+    venv = sb3.make_vec_env(env_config.replace(max_grasps=5), n_envs=1, vec="dummy", seed=0)
+    step_wait, calls = venv.step_wait, []
+
+    def stopping_step_wait():
+        calls.append(1)
+        if len(calls) == 20:  # handled by train's signal handler: the next env step stops learning
+            signal.raise_signal(signal.SIGTERM)
+        return step_wait()
+
+    monkeypatch.setattr(venv, "step_wait", stopping_step_wait)
+    try:
+        with pytest.raises(sb3.TrainingInterrupted) as info:
+            sb3.train("sac", venv, 10_000, tmp_path / "run", seed=0, checkpoint_freq=10**6, train_freq=8,
+                      learning_starts=0, batch_size=4, buffer_size=1000)
+    finally:
+        venv.close()
+    assert info.value.num_timesteps == 16
+    model = sb3.load_model(info.value.path, "sac")
+    model.load_replay_buffer(str(sb3.checkpoint_extras(info.value.path)["replay_buffer"]))
+    assert model.replay_buffer.size() == model.num_timesteps == 16
+
+
 def test_checkpoints_are_written_whole_extras_first(env_config, tmp_path, monkeypatch):
     """A save killed mid-write leaves no file under a checkpoint's name (``latest_checkpoint`` never picks a torn
     one); the SAC replay buffer is written before the model's zip, so a zip found has its buffer; and resuming SAC
