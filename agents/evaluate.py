@@ -810,6 +810,14 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False, no_repeat: bo
         from agents.random_policy import RandomAgent
 
         return RandomAgent(seed)
+    if "=" in spec or spec.endswith(".zip"):  # before greedy: a model may be named greedy-ft=... or greedy_ppo.zip
+        from agents.sb3 import ALGOS, SB3Agent, algo_of_file, load_model
+
+        name, _, path = spec.partition("=") if "=" in spec else (Path(spec).stem, "", spec)
+        # the file's own name first (a sweep's <algo>_final.zip), then an agent named after an algorithm
+        algo = algo_of_file(path) or (name.lower() if name.lower() in ALGOS else None)
+        name += "-stochastic" * bool(stochastic) + "-norepeat" * bool(no_repeat)
+        return SB3Agent(load_model(path, algo), name=name, deterministic=not stochastic, no_repeat=no_repeat)
     if spec.startswith("greedy"):
         from agents.greedy import GreedyInfoGainAgent
 
@@ -825,16 +833,8 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False, no_repeat: bo
                                     pose_known=kind.endswith(("greedy", "-env")), infer_pose=kind.endswith("-infer"))
         agent.name = spec
         return agent
-    if "=" in spec or spec.endswith(".zip"):
-        from agents.sb3 import ALGOS, SB3Agent, algo_of_file, load_model
-
-        name, _, path = spec.partition("=") if "=" in spec else (Path(spec).stem, "", spec)
-        # the file's own name first (a sweep's <algo>_final.zip), then an agent named after an algorithm
-        algo = algo_of_file(path) or (name.lower() if name.lower() in ALGOS else None)
-        name += "-stochastic" * bool(stochastic) + "-norepeat" * bool(no_repeat)
-        return SB3Agent(load_model(path, algo), name=name, deterministic=not stochastic, no_repeat=no_repeat)
-    raise ValueError(f"unknown agent spec {spec!r}; use random, greedy[-env][-blind|-infer][:M[:S]] or "
-                     "NAME=path/to/model.zip")
+    raise ValueError(f"unknown agent spec {spec!r}; use random, greedy[-env][-blind][:M[:S]], "
+                     "greedy-env-infer[:M[:S]] or NAME=path/to/model.zip")
 
 
 def code_fingerprint() -> str:
@@ -872,9 +872,9 @@ def add_parser(subparsers) -> None:
     p = subparsers.add_parser("evaluate", help="evaluate agents on HapticRecog (table + plots)",
                               description=__doc__.split("\n\n")[0])
     p.add_argument("--agents", nargs="+", default=["random", "greedy"],
-                   help="random | greedy[-env][-blind|-infer][:M[:S]] (-env: look-ahead with the env's own backend; "
-                        "-blind: without the object's pose; -infer: the pose drawn from the yaw posterior of the "
-                        "episode's grasps, greedy-env-infer on the hand envs) | "
+                   help="random | greedy[-env][-blind][:M[:S]] (-env: look-ahead with the env's own backend; "
+                        "-blind: without the object's pose) | greedy-env-infer[:M[:S]] (the pose drawn from the yaw "
+                        "posterior of the episode's grasps, on the hand envs) | "
                         "NAME=model.zip (ppo=..., sac=..., rppo=..., mppo=...)")
     p.add_argument("--episodes", type=int_in(1), default=40, help="episodes per seed")
     p.add_argument("--seeds", type=int_in(0), nargs="+", default=list(ENV_TEST_SEEDS))

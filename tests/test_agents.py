@@ -247,8 +247,10 @@ def test_greedy_env_lookahead_simulates_the_envs_own_backend(env_config):
         GreedyInfoGainAgent(simulate="hand")
     with pytest.raises(ValueError, match="backend_kwargs"):
         GreedyInfoGainAgent(simulate="env", backend_kwargs={"n_rays": 4})
-    with pytest.raises(ValueError, match="greedy-envy"):
+    with pytest.raises(ValueError, match=r"greedy-envy.*greedy\[-env\]\[-blind\]\[:M\[:S\]\] or greedy-env-infer"):
         make_agent("greedy-envy")
+    with pytest.raises(ValueError, match="greedy-infer"):  # -infer needs the env's look-ahead
+        make_agent("greedy-infer")
 
 
 def _train_args(algo: str, steps: int, run, recognizer_kwargs: dict, hyperparams: dict) -> list[str]:
@@ -288,6 +290,10 @@ def test_tiny_ppo_trains_saves_reloads_and_resumes(env_config, small_recognizer_
     assert not np.array_equal(s1, a1)  # a sample, not the mean action
     with pytest.raises(ValueError, match=r"no_repeat .* needs a categorical policy .*'ppo-norepeat' has an action"):
         make_agent(f"ppo={path}", no_repeat=True)  # evaluate --no-repeat with a Gaussian policy
+    # a model whose name starts as a baseline's is a model (it was refused as an unknown greedy spec)
+    named = make_agent(f"greedy-ft={path}")
+    assert named.name == "greedy-ft" and isinstance(named, SB3Agent)
+    np.testing.assert_array_equal(named.act(obs, env), a1)
 
     capsys.readouterr()
     path2 = train.main(args[:-2] + ["--resume", str(run / "checkpoints" / "ppo_128_steps.zip"),
