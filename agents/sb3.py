@@ -42,7 +42,7 @@ import gymnasium as gym
 import numpy as np
 
 from haptic_env.grasping.base import approach_table
-from haptic_env.numbers import finite_number, whole_at_least, whole_number
+from haptic_env.numbers import finite_number, flag, whole_at_least, whole_number
 
 __all__ = ["ALGOS", "DEFAULT_HYPERPARAMS", "make_vec_env", "build_model", "load_model", "algo_of_file", "train",
            "SB3Agent", "TrainingInterrupted", "latest_checkpoint", "checkpoint_extras", "close_vec_env",
@@ -305,8 +305,18 @@ def _vec_env(config, n_envs, seed, log_dir, vec, env_id, monitor_suffix, discret
 _SET_BY_BUILD = ("policy", "env", "seed", "tensorboard_log", "verbose", "device")
 
 
-#: Hyperparameters that are counts, and their least value (PPO asserts batch_size > 1).
-_WHOLE_AT_LEAST = {"n_steps": 1, "batch_size": 2, "n_epochs": 1, "buffer_size": 1, "learning_starts": 0}
+#: Hyperparameters that are counts, and their least value (PPO asserts batch_size > 1; -1: SB3's "every step" /
+#: "as many gradient steps as env steps").
+_WHOLE_AT_LEAST = {"n_steps": 1, "batch_size": 2, "n_epochs": 1, "buffer_size": 1, "learning_starts": 0,
+                   "target_update_interval": 1, "stats_window_size": 1, "sde_sample_freq": -1, "gradient_steps": -1}
+#: Hyperparameters that are a number > 0 or None (off).
+_POSITIVE_OR_NONE = ("target_kl", "clip_range_vf")
+#: Hyperparameters and policy_kwargs that are yes / no.
+_FLAGS = ("normalize_advantage", "use_sde", "use_sde_at_warmup", "optimize_memory_usage", "ortho_init",
+          "share_features_extractor", "squash_output", "full_std", "use_expln", "normalize_images")
+#: Hyperparameters and policy_kwargs that are Python objects or classes (JSON names none of them).
+_OBJECTS = ("action_noise", "replay_buffer_class", "rollout_buffer_class", "features_extractor_class",
+            "optimizer_class")
 #: Hyperparameters that are numbers: (lower-bound test, upper bound, the range in words).
 _NUMBER_IN = {"learning_rate": (lambda f: f > 0, np.inf, "> 0"), "gamma": (lambda f: f >= 0, 1.0, "in [0, 1]"),
               "gae_lambda": (lambda f: f >= 0, 1.0, "in [0, 1]"), "clip_range": (lambda f: f > 0, np.inf, "> 0"),
@@ -329,14 +339,69 @@ def _auto_problem(key: str, value: str) -> str | None:
     return "'auto'" if key == "target_entropy" else "'auto' or 'auto_<initial value > 0>'"
 
 
+def _value_problem(key: str, value) -> str | None:
+    """What ``value`` must be for the SB3 argument ``key`` (a hyperparameter or a policy_kwargs key), or None when it
+    is that or ``key`` is not checked here (the counts and numbers are :func:`check_hyperparams`' own loop)."""
+    if key in _POSITIVE_OR_NONE and value is not None and (finite_number(value) is None or value <= 0):
+        return "a number > 0 or null"
+    if key in _FLAGS and flag(value) is None:
+        return "true or false"
+    if key in _OBJECTS and isinstance(value, (str, int, float, list, dict)):
+        return "a Python object or class (given from Python; JSON cannot name one) or null"
+    if key == "train_freq":
+        if whole_number(value) is not None and value >= 1:
+            return None
+        if (isinstance(value, (list, tuple)) and len(value) == 2 and whole_number(value[0]) is not None
+                and value[0] >= 1 and value[1] in ("step", "episode")):
+            return None
+        return 'an int >= 1 or [int >= 1, "step" | "episode"]'
+    if key in ("rollout_buffer_kwargs", "replay_buffer_kwargs", "features_extractor_kwargs", "optimizer_kwargs"):
+        return None if value is None or isinstance(value, dict) else "a table or null"
+    return None
+
+
+def _layers(value) -> bool:
+    return isinstance(value, (list, tuple)) and all(whole_number(v) is not None and v >= 1 for v in value)
+
+
+def _check_policy_kwargs(algo: str, pk: dict) -> None:
+    """A ``ValueError`` naming a ``policy_kwargs`` value its policy would fail on once built or trained: ``net_arch``
+    (a list of layer widths >= 1, or a table of such lists), ``activation_fn`` (a ``torch.nn`` module class, or the
+    name of one, e.g. ``"Tanh"``, which :func:`build_model` looks up), ``log_std_init`` (a finite number) and the
+    yes / no and object keys."""
+    for key, value in pk.items():
+        problem = _value_problem(key, value)
+        if key == "net_arch" and not (_layers(value) or (isinstance(value, dict) and value
+                                                         and all(_layers(v) for v in value.values()))):
+            problem = "a list of layer widths >= 1 or a table of such lists (pi / vf / qf)"
+        if key == "activation_fn" and _activation(value) is None:
+            problem = "a torch.nn activation module class or its name (e.g. \"Tanh\", \"ReLU\")"
+        if key == "log_std_init" and finite_number(value) is None:
+            problem = "a finite number"
+        if problem is not None:
+            raise ValueError(f"{algo.upper()} policy_kwargs {key} must be {problem}, got {value!r}")
+
+
+def _activation(value):
+    """The ``torch.nn.Module`` subclass ``value`` is or names (a ``torch.nn`` attribute), else None."""
+    import inspect
+
+    import torch
+
+    cls = getattr(torch.nn, value, None) if isinstance(value, str) else value
+    return cls if inspect.isclass(cls) and issubclass(cls, torch.nn.Module) else None
+
+
 def check_hyperparams(algo: str, hyperparams: dict, n_envs: int | None = None) -> None:
     """A ``ValueError`` naming every key of ``hyperparams`` that the SB3 ``algo`` class does not take (or that
     :func:`build_model` sets itself, or a private one such as ``_init_setup_model``), a ``policy_kwargs`` key its
     policy class does not take, or a common count or number out of its range (``n_steps``, ``batch_size``,
     ``gamma``, ``learning_rate``, ...), before any env or run file is made; with ``n_envs``, also an on-policy
     rollout of one step (``n_steps x n_envs``, which SB3 asserts > 1 only when it builds the model). A number given
-    as a string is refused (SB3 would fail on it mid-training) except SB3's own strings, SAC's ``ent_coef``
-    ``"auto"`` / ``"auto_0.1"`` and ``target_entropy`` ``"auto"`` (:data:`_AUTO`)."""
+    as a string is refused (SB3 would fail on it mid-training, after the run's files were written) except SB3's own
+    strings, SAC's ``ent_coef`` ``"auto"`` / ``"auto_0.1"`` and ``target_entropy`` ``"auto"`` (:data:`_AUTO`); so are
+    a yes / no that is not one, ``target_kl`` / ``clip_range_vf`` that are not > 0 or null, a ``train_freq`` SB3
+    cannot read, an object or class named in JSON, and the ``policy_kwargs`` values of :func:`_check_policy_kwargs`."""
     import inspect
 
     cls = _algo_class(algo)
@@ -354,7 +419,11 @@ def check_hyperparams(algo: str, hyperparams: dict, n_envs: int | None = None) -
                              f"arguments, got {pk!r}")
         if set(pk) - own:
             raise ValueError(f"unknown {policy.__name__} policy_kwargs {sorted(set(pk) - own)}; valid: {sorted(own)}")
-    for key, value in hyperparams.items():  # the common numbers' ranges (SB3 asserts some only when it builds)
+        _check_policy_kwargs(algo, pk)
+    for key, value in hyperparams.items():  # the types and ranges SB3 checks only when it builds or trains
+        problem = _value_problem(key, value)
+        if problem is not None:
+            raise ValueError(f"{algo.upper()} hyperparameter {key} must be {problem}, got {value!r}")
         if key in _WHOLE_AT_LEAST and (whole_number(value) is None or value < _WHOLE_AT_LEAST[key]):
             raise ValueError(f"{algo.upper()} hyperparameter {key} must be an int >= {_WHOLE_AT_LEAST[key]}, "
                              f"got {value!r}")
@@ -390,6 +459,9 @@ def build_model(algo: str, venv, seed: int = 0, log_dir: str | os.PathLike | Non
         raise ValueError(f"mppo masks fixed approaches: it needs a Discrete action, got the env's {venv.action_space} "
                          "(make_vec_env(discrete_approaches=N))")
     params = {**DEFAULT_HYPERPARAMS[algo], **hyperparams}
+    if "activation_fn" in params.get("policy_kwargs", {}):  # a torch.nn class named in JSON
+        params["policy_kwargs"] = {**params["policy_kwargs"],
+                                   "activation_fn": _activation(params["policy_kwargs"]["activation_fn"])}
     tb = str(Path(log_dir) / "tb") if log_dir is not None else None
     return cls(_POLICY[algo], venv, seed=seed, tensorboard_log=tb, verbose=verbose, device="cpu", **params)
 

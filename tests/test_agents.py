@@ -679,6 +679,22 @@ def test_train_refuses_bad_values_before_its_run_folder(argv, match, usage_error
     (["--algo", "sac", "--hyperparams", '{"ent_coef": "auto_0"}'], r"SAC hyperparameter ent_coef .* got 'auto_0'"),
     (["--algo", "sac", "--hyperparams", '{"target_entropy": "auto_1"}'],
      r"SAC hyperparameter target_entropy must be a number \(any finite value\) or 'auto', got 'auto_1'"),
+    # these too were taken, then failed in the first update (after the run's files were written)
+    (["--hyperparams", '{"target_kl": "0.01"}'],
+     r"PPO hyperparameter target_kl must be a number > 0 or null, got '0.01'"),
+    (["--hyperparams", '{"target_kl": -1}'], r"PPO hyperparameter target_kl must be a number > 0 or null, got -1"),
+    (["--algo", "sac", "--hyperparams", '{"target_update_interval": "1"}'],
+     r"SAC hyperparameter target_update_interval must be an int >= 1, got '1'"),
+    (["--algo", "sac", "--hyperparams", '{"train_freq": [2, "steps"]}'],
+     r"SAC hyperparameter train_freq must be an int >= 1 or \[int >= 1, \"step\" \| \"episode\"\], got \[2, 'steps'\]"),
+    (["--hyperparams", '{"normalize_advantage": "false"}'],
+     r"PPO hyperparameter normalize_advantage must be true or false, got 'false'"),
+    (["--algo", "sac", "--hyperparams", '{"action_noise": "normal"}'],
+     r"SAC hyperparameter action_noise must be a Python object or class .*got 'normal'"),
+    (["--hyperparams", '{"policy_kwargs": {"activation_fn": "tanh"}}'],
+     r"PPO policy_kwargs activation_fn must be a torch.nn activation module class or its name .*got 'tanh'"),
+    (["--hyperparams", '{"policy_kwargs": {"net_arch": [64, "a"]}}'],
+     r"PPO policy_kwargs net_arch must be a list of layer widths >= 1 or a table of such lists"),
 ])
 def test_train_refuses_a_number_given_as_a_string(argv, match, usage_error):
     """A string for a numeric hyperparameter was taken, then failed inside SB3 after the first rollout (the run's
@@ -687,8 +703,23 @@ def test_train_refuses_a_number_given_as_a_string(argv, match, usage_error):
 
     usage_error(train.parse_args, argv, match=match)
     for sac in ('{"ent_coef": "auto_0.1"}', '{"ent_coef": "auto", "target_entropy": "auto"}',
-                '{"ent_coef": 0.1, "target_entropy": -3.5}'):
+                '{"ent_coef": 0.1, "target_entropy": -3.5}', '{"train_freq": [2, "episode"], "gradient_steps": -1}'):
         assert train.parse_args(["--algo", "sac", "--hyperparams", sac]).algo == "sac"
+    ppo = '{"target_kl": null, "policy_kwargs": {"activation_fn": "Tanh", "net_arch": {"pi": [8], "vf": [8]}}}'
+    assert train.parse_args(["--hyperparams", ppo]).algo == "ppo"
+
+
+def test_an_activation_named_in_json_builds_its_torch_class(env_config):
+    import torch
+
+    from agents import sb3
+
+    venv = sb3.make_vec_env(env_config.replace(max_grasps=5), n_envs=1, vec="dummy")
+    try:
+        model = sb3.build_model("ppo", venv, n_steps=8, batch_size=8, policy_kwargs={"activation_fn": "Tanh"})
+    finally:
+        venv.close()
+    assert model.policy.activation_fn is torch.nn.Tanh
 
 
 def test_evaluate_writes_table_and_plots(env_config, tmp_path):
