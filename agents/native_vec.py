@@ -8,6 +8,8 @@ values, as ``DummyVecEnv`` gives them; an episode's last step: its final info). 
 SB3 ``Monitor``'s job for every sub-env: ``infos[i]["episode"] = {"r", "l", "t"}`` at an episode's end and, with a
 ``monitor_dir``, ``<monitor_dir>/<rank><suffix>.monitor.csv`` per sub-env with the same columns as the
 ``SubprocVecEnv`` run's (``r, l, t, correct, grasps``), so ``evaluate --learning-curves`` reads either.
+``set_options`` (an ``"object"`` per sub-env) applies to the next ``reset()`` and ``reset_infos`` holds each
+sub-env's last reset info (an autoreset's too), as in ``DummyVecEnv``.
 
 Seeding as SB3's ``DummyVecEnv``: ``seed(s)`` then ``reset()`` seeds sub-env ``i`` with ``s + i`` (the native env's
 scheme, see :mod:`haptic_env.vector_env`), so with the same actions it steps exactly like ``DummyVecEnv`` /
@@ -51,7 +53,13 @@ class NativeVecEnv(VecEnv):
                                            extra_keys=self.info_keywords) for i in range(self.num_envs)]
 
     def reset(self):
-        obs, info = self.venv.reset(seed=list(self._seeds) if any(s is not None for s in self._seeds) else None)
+        from haptic_env.scene import reset_options
+
+        # set_options' per-sub-env options (DummyVecEnv passes each its own; checked as the single env checks them)
+        objects = [reset_options(o, ("object",)).get("object") for o in self._options]
+        options = {"object": objects} if any(o is not None for o in objects) else None
+        obs, info = self.venv.reset(seed=list(self._seeds) if any(s is not None for s in self._seeds) else None,
+                                    options=options)
         self.reset_infos = _rows(info, self.num_envs)
         self._reset_seeds()
         self._reset_options()
@@ -68,6 +76,8 @@ class NativeVecEnv(VecEnv):
         self._ep_return += rewards
         self._ep_len += 1
         infos = _rows(info, self.num_envs)  # a sub-env whose episode goes on: its step's info, as DummyVecEnv's
+        for i in np.flatnonzero(dones).tolist():  # an autoreset's info, which DummyVecEnv keeps in reset_infos
+            self.reset_infos[i] = dict(infos[i])
         for fi in infos:
             fi["TimeLimit.truncated"] = False  # DummyVecEnv sets it at every step (an ending one's: below)
         if dones.any():

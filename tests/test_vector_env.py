@@ -305,7 +305,11 @@ def test_sb3_adapter_steps_like_dummy_vec_env(env_config, tmp_path):
     cfg = env_config.replace(grasp_cost=0.05, max_grasps=5)
     nat = make_vec_env(cfg, n_envs=3, seed=7, log_dir=tmp_path / "nat", vec="native")
     ref = make_vec_env(cfg, n_envs=3, seed=7, log_dir=tmp_path / "ref", vec="dummy")
+    for venv in (nat, ref):  # the next reset's objects (the native adapter ignored set_options)
+        venv.set_options([{"object": 2}, {}, {"object": 5}])
     np.testing.assert_array_equal(nat.reset(), ref.reset())
+    assert [i["true_index"] for i in nat.reset_infos] == [i["true_index"] for i in ref.reset_infos]
+    assert [nat.reset_infos[i]["true_index"] for i in (0, 2)] == [2, 5]
     episodes = 0
     for a in _actions(30, 3, seed=2):
         o1, r1, d1, inf1 = nat.step(a)
@@ -313,6 +317,10 @@ def test_sb3_adapter_steps_like_dummy_vec_env(env_config, tmp_path):
         np.testing.assert_array_equal(o1, o2)
         np.testing.assert_array_equal(r1, r2)
         np.testing.assert_array_equal(d1, d2)
+        for x, y in zip(nat.reset_infos, ref.reset_infos):  # an autoreset's info (it kept the first reset's)
+            assert set(x) == set(y)
+            for key in y:
+                np.testing.assert_equal(x[key], y[key])
         for x, y in zip(inf1, inf2):
             assert set(x) == set(y) and x  # the single env's keys, every step
             for key in set(y) - {"terminal_observation", "episode"}:
