@@ -201,10 +201,10 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
             if len(seeds) != B:
                 raise ValueError(f"reset: {len(seeds)} seeds for {B} sub-envs")
         which = options.get("object")
-        if which is None or isinstance(which, (str, int, np.integer)):
-            which = [which] * B
-        elif len(which) != B:
-            raise ValueError(f"options['object'] must be a name, an index or a sequence of {B} of them")
+        if which is None or isinstance(which, (str, int, np.integer, bool, np.bool_)):
+            which = [which] * B  # a bool is refused by the scene's check, naming it
+        elif not isinstance(which, (list, tuple, np.ndarray)) or len(which) != B:
+            raise ValueError(f"options['object'] must be a name, an index or a sequence of {B} of them, got {which!r}")
         if self._scorer is None and self._beliefs is None:
             self._build_beliefs()
         idx = np.flatnonzero(mask)
@@ -428,8 +428,11 @@ class HapticRecogVectorEnv(VectorEnv, utils.EzPickle):
         B, A = self.num_envs, self.action_dim
         try:
             a = np.asarray(actions)
-            if a.dtype.kind == "c":
-                raise ValueError(f"actions must be real numbers, got complex values {actions!r}")
+        except ValueError as exc:  # a ragged sequence
+            raise ValueError(f"actions must be a numeric array of shape ({B}, {A}), got {actions!r}") from exc
+        if a.dtype.kind == "c":
+            raise ValueError(f"actions must be real numbers, got complex values {actions!r}")
+        try:
             if a.dtype.kind not in "fiu":  # strings, bools, objects: numpy would cast them to numbers silently
                 raise TypeError(f"non-numeric dtype {a.dtype}")
             a = a.astype(np.float64)

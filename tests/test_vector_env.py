@@ -122,6 +122,11 @@ def test_seed_list_object_option_and_reset_mask(env_config):
         venv.reset(options={"reset_mask": np.zeros(B, bool)})
     with pytest.raises(ValueError, match="unknown reset option"):
         venv.reset(options={"objects": 1})
+    # a float or bool object and a ragged action were numpy / Python errors that did not name the value
+    with pytest.raises(ValueError, match=r"options\['object'\] must be a name, an index or a sequence .*got 2.0"):
+        venv.reset(options={"object": 2.0})
+    with pytest.raises(ValueError, match=r"options\['object'\] must be an object name or index, got True"):
+        venv.reset(options={"object": True})
 
 
 def test_vector_contract_spaces_and_infos(env_config):
@@ -147,7 +152,9 @@ def test_vector_contract_spaces_and_infos(env_config):
             assert info["_" + key].all()
         np.testing.assert_allclose(info["belief"].sum(axis=1), 1.0)
     for bad, match in [(np.zeros((B, 3)), "shape"), (np.full((B, 4), 1.5), r"\[-1, 1\]"),
-                       (np.full((B, 4), np.nan), "finite")]:
+                       (np.full((B, 4), np.nan), "finite"),
+                       ([[0, 0, 0]] + [[0, 0, 0, 0]] * (B - 1), "got \\[\\[0, 0, 0\\]"),
+                       (None, "numeric array of shape .* got None"), (np.full((B, 4), 1j), "complex")]:
         with pytest.raises(ValueError, match=match):
             venv.step(bad)
     venv.close()
