@@ -46,7 +46,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator, Literal
+from typing import Iterator, Literal, NoReturn
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")  # before numpy/torch: one thread per env process
 
@@ -321,9 +321,12 @@ def _probe(args: Args, config: HapticRecogConfig):
     import haptic_env
 
     try:
-        return haptic_env.make(config, env_id=args.env_id)
+        with _signals_stop_the_set_up():  # a hand env's first make builds its grasp pool: minutes
+            return haptic_env.make(config, env_id=args.env_id)
     except (TypeError, ValueError, FileNotFoundError) as exc:
         _usage_error(f"env settings: {exc}")
+    except _SetUpStopped as exc:
+        _exit_set_up_stopped(exc)
 
 
 def _resume_problem(args: Args, data: dict, config: HapticRecogConfig) -> tuple[str | None, object | None]:
@@ -546,11 +549,19 @@ class _SetUpStopped(Exception):
         self.signum, self.name = signum, signal.Signals(signum).name
 
 
+def _exit_set_up_stopped(exc: _SetUpStopped) -> NoReturn:
+    """One line and exit status 130 / 143: a signal before learning began (nothing learned, nothing saved)."""
+    print(f"[train] stopped by {exc.name} before learning began (nothing learned, nothing saved); run the same "
+          "command again", file=sys.stderr, flush=True)
+    raise SystemExit(128 + exc.signum) from None
+
+
 @contextlib.contextmanager
 def _signals_stop_the_set_up() -> Iterator[None]:
     """SIGINT / SIGTERM while the envs and the model are built or loaded raise :class:`_SetUpStopped` (which
-    :func:`_train` turns into one line and exit status 130 / 143, not a traceback); ``agents.sb3.train`` puts its own
-    handlers over these while it learns (stop at the next step, save a checkpoint) and puts these back after."""
+    :func:`_exit_set_up_stopped` turns into one line and exit status 130 / 143, not a traceback; the first env, in
+    :func:`_probe`, too); ``agents.sb3.train`` puts its own handlers over these while it learns (stop at the next
+    step, save a checkpoint) and puts these back after."""
     from agents.sb3 import handling_signals
 
     def handler(signum, frame):
@@ -634,9 +645,7 @@ def _train(args: Args, probe=None) -> Path:
                 **json.loads(args.hyperparams),
             )
     except _SetUpStopped as exc:
-        print(f"[train] stopped by {exc.name} before learning began (nothing learned, nothing saved); run the same "
-              "command again", file=sys.stderr, flush=True)
-        raise SystemExit(128 + exc.signum) from None
+        _exit_set_up_stopped(exc)
     except sb3.TrainingInterrupted as exc:
         extra = " (+ replay buffer)" if sb3.checkpoint_extras(exc.path).get("replay_buffer") else ""
         print(f"[train] {exc.reason} at {exc.num_timesteps} steps; saved {exc.path}{extra}; "

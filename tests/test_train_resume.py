@@ -622,9 +622,11 @@ def test_the_envs_are_closed_and_a_signal_before_learning_is_one_line(small_reco
     left it, and its workers, open), and a Ctrl-C while the model was built was a KeyboardInterrupt traceback: the
     env is closed however training ends, and SIGINT / SIGTERM before learning exit 130 / 143 with one line."""
     monkeypatch.syspath_prepend(str(ROOT))
+    import haptic_env
     import train
     from agents import sb3
 
+    make = haptic_env.make
     made, closed = [], []
     real, close = sb3.make_vec_env, sb3.close_vec_env
     monkeypatch.setattr(sb3, "make_vec_env", lambda *a, **k: made.append(real(*a, **k)) or made[-1])
@@ -658,6 +660,14 @@ def test_the_envs_are_closed_and_a_signal_before_learning_is_one_line(small_reco
             assert exc.value.code == code and closed == made
             assert err.strip() == (f"[train] stopped by {sig.name} before learning began (nothing learned, nothing "
                                    "saved); run the same command again")
+            # while the first env is made (a hand env's builds its grasp pool for minutes): the same line, no
+            # traceback, no run file
+            monkeypatch.setattr(haptic_env, "make", interrupted)
+            with pytest.raises(SystemExit) as exc:
+                train.main(_args("ppo", 64, tmp_path / f"{sig.name}-probe", small_recognizer_kwargs, hp))
+            monkeypatch.setattr(haptic_env, "make", make)
+            assert exc.value.code == code and capsys.readouterr().err.strip() == err.strip()
+            assert not (tmp_path / f"{sig.name}-probe").exists()
         assert signal.getsignal(signal.SIGTERM) is fallback  # put back
     finally:
         signal.signal(signal.SIGTERM, previous)
