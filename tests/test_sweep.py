@@ -208,10 +208,69 @@ def test_a_changed_env_variant_is_a_new_job(monkeypatch):
     ({"name": "x", "command": [{"name": "c", "run": []}]}, r"command\[0\]\.run: expected a command, got \[\]"),
     ({"name": "x", "command": [{"name": "c", "run": "  "}]}, r"command\[0\]\.run: expected a command, got '  '"),
     ({"name": "x", "command": [{"name": "c", "run": "echo 'open"}]}, r"command\[0\]\.run: No closing quotation"),
+    # a TypeError, an IndexError, no job without a word, or a TypeError / FileExistsError once run
+    ({"name": "x", "env_ids": ["HapticRecog-v0"], "agent": {"name": "random"}},
+     r"\[agent\]: expected \[\[agent\]\] tables \(an array of tables, one per agent\), got a single \[agent\]"),
+    ({"name": "x", "dataset": {"objects": "kit8"}}, r"\[dataset\]: expected \[\[dataset\]\] tables"),
+    ({"name": "x", "analysis": [{"flags": {"help": True}}]}, r"analysis\[0\]: flags must be a table .* --help"),
+    ({"name": "x", "analysis": [{"objects": []}]}, r"analysis\[0\]\.objects: expected a value or a non-empty list"),
+    ({"name": "x", "analysis": [{"objects": "no_such_set"}]}, r"analysis\[0\]\.objects: unknown object set"),
+    ({"name": "x", "out": 3, "command": [{"name": "c", "run": "true"}]},
+     r"out: expected the sweep folder's path \(a string\), got 3"),
 ])
 def test_bad_specs_are_one_line_errors(doc, match):
     with pytest.raises(SpecError, match=match):
         parse_spec(doc)
+
+
+def test_labels_stay_in_their_folders_and_a_file_is_no_sweep_folder(tmp_path):
+    """An env named ``..`` wrote its report into the sweep folder and its runs beside the others' (``runs/random``);
+    a spec ``out`` that is a file was taken (a FileExistsError once run); a trained agent with ``n_envs`` in one
+    process (``vec = "native"`` / ``"dummy"``) asked Ray for ``n_envs`` CPUs, which a 2-core Ray never grants."""
+    doc = {"name": "x", "env": [{"name": "..", "id": "HapticRecog-v0"}, {"name": ".", "id": "HapticRecogKIT-v0"}],
+           "agent": [{"name": "random"}]}
+    spec = parse_spec(doc)
+    assert sorted(spec.envs) == ["_", "__"] and all("/./" not in j.id and "/../" not in j.id for j in spec.jobs)
+    (tmp_path / "afile").write_text("")
+    with pytest.raises(SpecError, match="out: .*afile is a file; give a folder"):
+        parse_spec({"name": "x", "out": str(tmp_path / "afile"), "command": [{"name": "c", "run": "true"}]})
+    agents = [{"name": f"p{v}", "algo": "ppo", "n_envs": 4, "vec": v} for v in ("native", "dummy", "subproc")]
+    spec = parse_spec({"name": "x", "env_ids": ["HapticRecog-v0"], "agent": agents})
+    assert {j.label.split("/")[1]: j.cpus for j in spec.jobs if j.kind == "train"} == \
+        {"pnative": 1.0, "pdummy": 1.0, "psubproc": 4.0}
+
+
+def test_a_trained_agent_named_with_an_equals_sign_evaluates_its_own_model(tmp_path, monkeypatch):
+    """``make_agent`` splits ``NAME=model.zip`` at the first ``=``: an agent named ``ppo=v2`` had its evaluate job
+    load ``v2=<folder>/ppo_final.zip`` after its training (a FileNotFoundError on every retry)."""
+    from haptic_env.sweep import jobs
+
+    spec = parse_spec({"name": "e", "seeds": [0], "env_ids": ["HapticRecog-v0"],
+                       "agent": [{"name": "ppo=v2", "algo": "ppo", "total_timesteps": 64}]})
+    ev = next(j for j in spec.jobs if j.kind == "evaluate")
+    (tmp_path / "ppo_final.zip").write_bytes(b"a model")
+    loaded = []
+
+    def make_agent(spec, **kw):
+        loaded.append(spec)
+        raise RuntimeError("stop here")
+
+    monkeypatch.setattr("agents.evaluate.make_agent", make_agent)
+    with pytest.raises(RuntimeError, match="stop here"):
+        jobs._evaluate(ev.params, tmp_path / "run", 1, {"dep_dirs": [str(tmp_path)]})
+    assert loaded == [f"model={tmp_path / 'ppo_final.zip'}"]
+
+
+def test_a_job_that_asks_for_more_cpus_than_the_local_ray_has_is_refused(tmp_path):
+    """Ray holds back a task whose CPUs no node has, for ever and without a word (its log does not reach the driver):
+    the sweep waited until killed. It is refused before any job or folder."""
+    pytest.importorskip("ray", reason="the sweep runs on Ray: pip install 'haptic-recog[sweep]'")
+    from haptic_env.sweep.runner import InfeasibleJob, run_sweep
+
+    spec = parse_spec({"name": "inf", "command": [{"name": "c", "run": [sys.executable, "-c", "pass"], "cpus": 3}]})
+    with pytest.raises(InfeasibleJob, match=r"job command/c-\w+ asks for cpus 3, more than the local Ray's 2 CPUs"):
+        run_sweep(spec, tmp_path / "out", num_cpus=2, progress=False)
+    assert not (tmp_path / "out").exists()
 
 
 def test_cli_dry_run_and_bad_spec(tmp_path, capsys):

@@ -61,7 +61,7 @@ def _main(args) -> int:
 
     from .jobs import is_done
     from .report import write_sweep_report
-    from .runner import finished_before, ray_available, run_sweep, select_jobs, write_status
+    from .runner import InfeasibleJob, finished_before, ray_available, run_sweep, select_jobs, write_status
     from .spec import SpecError, load_spec
 
     if not args.spec.is_file():
@@ -117,8 +117,11 @@ def _main(args) -> int:
         if not ray_available():
             raise UsageError("the sweep runs on Ray, which is not installed: pip install 'haptic-recog[sweep]' "
                              "(or pip install 'ray>=2.40')")
-        result = run_sweep(spec, out, address=args.address, num_cpus=args.num_cpus, max_retries=args.max_retries,
-                           kinds=kinds, match=args.match, progress=not args.quiet)
+        try:
+            result = run_sweep(spec, out, address=args.address, num_cpus=args.num_cpus,
+                               max_retries=args.max_retries, kinds=kinds, match=args.match, progress=not args.quiet)
+        except InfeasibleJob as exc:  # refused before any job or file
+            raise UsageError(str(exc)) from None
     write_status(result, spec)
     report = write_sweep_report(spec, result, command=["haptic-recog", "sweep", *sys.argv[2:]]
                                 if sys.argv[1:2] == ["sweep"] else None, prior=args.prior_report)

@@ -227,7 +227,7 @@ def _evaluate(p: dict[str, Any], run_dir: Path, attempt: int, job: dict[str, Any
         model = Path(job["dep_dirs"][0]) / spec
         if not model.is_file():
             raise FileNotFoundError(f"model {model} does not exist (its train job has not finished)")
-        spec = f"{p['agent']}={model}"
+        spec = f"model={model}"  # the agent's own name may hold "=" (make_agent splits at the first); named below
     if p.get("seeding") != "env+agent":
         raise ValueError(f"evaluate job: unknown seeding {p.get('seeding')!r} (this version writes 'env+agent')")
     agent = make_agent(spec, seed=p["seed"], no_repeat=bool(p.get("no_repeat", False)))

@@ -21,7 +21,8 @@ from typing import Any, Callable
 from .jobs import attempts, execute, is_done, read_done
 from .spec import Job, SweepSpec
 
-__all__ = ["SweepResult", "run_sweep", "run_jobs_inline", "ray_available", "select_jobs", "finished_before"]
+__all__ = ["SweepResult", "run_sweep", "run_jobs_inline", "ray_available", "select_jobs", "finished_before",
+           "InfeasibleJob"]
 
 #: environment variables every worker gets from the driver (cache, data, rendering)
 FORWARD_ENV = ("HAPTIC_CACHE", "HAPTIC_CACHE_READONLY", "HAPTIC_DATA", "MENAGERIE_ROOT", "MUJOCO_GL")
@@ -33,6 +34,11 @@ def ray_available() -> bool:
     except ImportError:
         return False
     return True
+
+
+class InfeasibleJob(ValueError):
+    """A job asks for more CPUs than the local Ray has: Ray would hold it back for ever, without a word (its log does
+    not reach the driver)."""
 
 
 @dataclass
@@ -110,7 +116,6 @@ def run_sweep(spec: SweepSpec, out: str | Path | None = None, *, address: str | 
     from tqdm.auto import tqdm
 
     out = Path(out or spec.default_out()).resolve()
-    out.mkdir(parents=True, exist_ok=True)
     retries = spec.max_retries if max_retries is None else max_retries
     by_id = spec.by_id()
     todo, done_before = _plan(spec, out, kinds, match)
@@ -131,6 +136,15 @@ def run_sweep(spec: SweepSpec, out: str | Path | None = None, *, address: str | 
     remote = ray.remote(execute)
     refs: dict[str, Any] = {}  # job id -> ObjectRef
     try:
+        if own and address in (None, "local"):  # a cluster may add nodes; a local Ray never does
+            cpus = float(ray.cluster_resources().get("CPU", 0.0))
+            big = [j for j in todo if j.cpus > cpus]
+            if big:
+                raise InfeasibleJob(f"job {big[0].id} asks for cpus {big[0].cpus:g}, more than the local Ray's "
+                                    f"{cpus:g} CPUs (--num-cpus), so it would never start"
+                                    + (f" ({len(big) - 1} more jobs too)" if len(big) > 1 else "")
+                                    + ": lower its cpus in the spec or give more CPUs")
+        out.mkdir(parents=True, exist_ok=True)
         for j in todo:
             deps = [refs[d] for d in j.deps if d in refs]  # a dependency done earlier needs no wait
             refs[j.id] = remote.options(num_cpus=j.cpus, max_retries=retries, retry_exceptions=True,

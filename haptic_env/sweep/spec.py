@@ -22,13 +22,15 @@ agent x env x seed), and dataset, analysis and command jobs::
                                            # discrete_approaches (train.py --discrete-approaches; ppo / rppo /
                                            # mppo, which needs them) and
                                            # no_repeat (evaluate --no-repeat; with discrete_approaches, ppo;
-                                           # mppo acts so anyway)
+                                           # mppo acts so anyway); cpus defaults to n_envs with vec = "subproc"
+                                           # (the default for n_envs > 1), else 1 (one process)
 
     [evaluate]
     episodes = 40                          # episodes per env seed
     env_seeds = [1000, 1001, 1002]         # every agent sees the same objects and poses per env seed
 
-    [[dataset]]                            # build_dataset through the shared cache; lists are grid axes
+    [[dataset]]                            # build_dataset through the shared cache; objects, fingers and
+                                           # normals lists are grid axes
     objects = ["kit8", "kit20"]
     fingers = [2, 3, 4, 5]
     normals = [true, false]
@@ -84,7 +86,10 @@ def _key(*parts: Any) -> str:
 
 
 def _safe(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_.=:-]+", "_", str(text)).replace(":", "-")[:60] or "x"
+    """``text`` as one folder name: other characters as ``_``, ``:`` as ``-``, at most 60 characters; a name of dots
+    only (``.``, ``..``: the folder itself or its parent) as underscores."""
+    name = re.sub(r"[^A-Za-z0-9_.=:-]+", "_", str(text)).replace(":", "-")[:60] or "x"
+    return name.replace(".", "_") if set(name) == {"."} else name
 
 
 @dataclass(frozen=True)
@@ -127,7 +132,7 @@ class SweepSpec:
     source: str = ""
 
     def default_out(self) -> Path:
-        return Path(self.out) if self.out else Path("outputs") / "sweeps" / _safe(self.name)
+        return Path(self.out).expanduser() if self.out else Path("outputs") / "sweeps" / _safe(self.name)
 
     def by_id(self) -> dict[str, Job]:
         return {j.id: j for j in self.jobs}
@@ -139,6 +144,18 @@ def _check_keys(table: dict, allowed: set, where: str) -> None:
     bad = sorted(set(table) - allowed)
     if bad:
         raise SpecError(f"{where}: unknown key(s) {bad}; allowed: {sorted(allowed)}")
+
+
+def _tables(doc: dict, key: str) -> list[dict]:
+    """The spec's ``[[key]]`` tables (an array of tables; none: ``[]``). A single ``[key]`` table was walked as its
+    keys (a ``TypeError``, or a misleading message about the first key)."""
+    tables = doc.get(key, [])
+    if isinstance(tables, dict):
+        raise SpecError(f"[{key}]: expected [[{key}]] tables (an array of tables, one per {key}), got a single "
+                        f"[{key}] table")
+    if not isinstance(tables, list) or not all(isinstance(t, dict) for t in tables):
+        raise SpecError(f"{key}: expected [[{key}]] tables, got {tables!r}")
+    return tables
 
 
 def _as_list(v: Any) -> list:
@@ -230,7 +247,7 @@ def _envs(doc: dict) -> dict[str, tuple[str, dict[str, Any]]]:
     common = doc.get("env_kwargs", {})
     if not isinstance(common, dict):
         raise SpecError(f"env_kwargs: expected a table, got {common!r}")
-    tables = list(doc.get("env", []))
+    tables = _tables(doc, "env")
     tables += [{"id": i} for i in _as_list(doc.get("env_ids", []))]
     out: dict[str, tuple[str, dict[str, Any]]] = {}
     for i, t in enumerate(tables):
@@ -263,7 +280,7 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
     from haptic_env import ENV_VARIANTS
     from haptic_env.splits import SWEEP_ENV_SEEDS, training_env_seed
 
-    agents = doc.get("agent", [])
+    agents = _tables(doc, "agent")
     if agents and not envs:
         raise SpecError("[[agent]] given without any env ([[env]] or env_ids)")
     ev = doc.get("evaluate", {})
@@ -319,19 +336,20 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
             deps: tuple[str, ...] = ()
             if trained:
                 n_envs = _int(a.get("n_envs", 1), f"{where}.n_envs", 1)
+                vec = _train_vec(a.get("vec", "dummy" if n_envs == 1 else "subproc"), where)
                 train = Job("train", f"{env}/{name}/seed{s}", {
                     "algo": a["algo"], "env_id": env_id, "env_variant": variant, "env_kwargs": kwargs, "seed": s,
                     # how the training envs are seeded is part of the job: jobs trained the earlier way train again
                     # ("seeding": since 2026-12-06 the envs keep env_seed; before, SB3 re-seeded them seed + rank)
                     "env_seed": training_env_seed(s), "seeding": "env_seed kept",
                     "total_timesteps": _int(a.get("total_timesteps", 200_000), f"{where}.total_timesteps", 1),
-                    "n_envs": n_envs, "vec": _train_vec(a.get("vec", "dummy" if n_envs == 1 else "subproc"), where),
+                    "n_envs": n_envs, "vec": vec,
                     "checkpoint_freq": _int(a.get("checkpoint_freq", 20_000), f"{where}.checkpoint_freq", 1),
                     "max_minutes": _minutes(a.get("max_minutes", 0.0), where),
                     "hyperparams": _hyperparams(a["algo"], a.get("hyperparams", {}), where, n_envs),
                     # only when set: the keys of jobs without it stay those of earlier sweeps
                     **({"discrete_approaches": n_approaches} if n_approaches else {}),
-                }, cpus=_cpus(a, where, n_envs))
+                }, cpus=_cpus(a, where, n_envs if vec == "subproc" else 1))  # dummy / native: one process
                 jobs.append(train)
                 deps = (train.id,)
                 spec = f"{a['algo']}_final.zip"  # in the train job's folder (resolved by the evaluate job)
@@ -351,7 +369,7 @@ def _dataset_jobs(doc: dict) -> list[Job]:
 
     fields = set(DatasetConfig.__dataclass_fields__) - {"n_fingers", "normals"}
     jobs = []
-    for i, t in enumerate(doc.get("dataset", [])):
+    for i, t in enumerate(_tables(doc, "dataset")):
         where = f"dataset[{i}]"
         _check_keys(t, _DATASET_KEYS | fields, where)
         rest = {k: v for k, v in t.items() if k in fields}
@@ -438,15 +456,24 @@ def _check_analysis_flags(objects: str, flags: dict[str, Any], where: str) -> No
 def _analysis_jobs(doc: dict, datasets: list[Job]) -> list[Job]:
     """One job per object set; it waits for the spec's dataset jobs of that set (the analysis then reads their
     grasps from the cache instead of generating them a second time)."""
+    from haptic_env.objects.loaders import check_object_spec
+
     jobs = []
-    for i, t in enumerate(doc.get("analysis", [])):
+    for i, t in enumerate(_tables(doc, "analysis")):
         where = f"analysis[{i}]"
         _check_keys(t, _ANALYSIS, where)
         flags = t.get("flags", {})
-        if not isinstance(flags, dict) or "out" in flags or "objects" in flags:
+        if not isinstance(flags, dict) or "out" in flags or "objects" in flags or "help" in flags:
             raise SpecError(f"{where}: flags must be a table of `haptic-recog analysis` flags other than "
-                            f"--out and --objects, got {flags!r}")
-        for objects in _as_list(t.get("objects", "default")):
+                            f"--out, --objects and --help, got {flags!r}")
+        sets = _as_list(t.get("objects", "default"))
+        if not sets:  # the entry had no jobs, without a word
+            raise SpecError(f"{where}.objects: expected a value or a non-empty list, got []")
+        for objects in sets:
+            try:  # an unknown set was named as a flags problem
+                check_object_spec(objects)
+            except ValueError as exc:
+                raise SpecError(f"{where}.objects: {exc}") from None
             _check_analysis_flags(objects, flags, where)
             label = _safe(t.get("name", objects)) + ("" if "name" not in t else f"/{_safe(objects)}")
             deps = tuple(d.id for d in datasets if d.params["objects"] == objects)
@@ -461,7 +488,7 @@ def _command_jobs(doc: dict) -> list[Job]:
     from haptic_env.numbers import finite_number
 
     jobs = []
-    for i, t in enumerate(doc.get("command", [])):
+    for i, t in enumerate(_tables(doc, "command")):
         where = f"command[{i}]"
         _check_keys(t, _COMMAND, where)
         if "name" not in t or "run" not in t:
@@ -499,7 +526,12 @@ def parse_spec(doc: dict[str, Any], source: str = "") -> SweepSpec:
         raise SpecError(f"spec: the same job twice: {dup}")
     if not jobs:
         raise SpecError("spec: no jobs (give [[agent]] with envs, [[dataset]], [[analysis]] or [[command]])")
-    return SweepSpec(name=str(doc["name"]), description=str(doc.get("description", "")), out=doc.get("out"),
+    out = doc.get("out")
+    if out is not None and (not isinstance(out, str) or not out.strip()):
+        raise SpecError(f"out: expected the sweep folder's path (a string), got {out!r}")
+    if out is not None and Path(out).expanduser().is_file():
+        raise SpecError(f"out: {out} is a file; give a folder")
+    return SweepSpec(name=str(doc["name"]), description=str(doc.get("description", "")), out=out,
                      max_retries=_int(doc.get("max_retries", 2), "max_retries"), jobs=jobs, envs=envs, source=source)
 
 
