@@ -402,7 +402,7 @@ class Belief:
         if self._touch is None:
             return self.predict(rows), scored
         # with the touch pattern every grasp updates: its contacts' rows (if scored) plus its pattern's row
-        from haptic_env.recognizers.updaters import bayes_steps
+        from haptic_env.recognizers.updaters import bayes_steps, model_rows
 
         touch = self.touch_rows(touched)
         B = len(touch)
@@ -413,11 +413,12 @@ class Belief:
             for g, i in enumerate(scored):
                 base[i] = self.updater.with_prior(base[i], self.models.predict_proba(rows[g]))
         else:
-            for g, i in enumerate(scored):
-                per[i] = self.row_weight(len(rows[g])) * self.models.log_likelihood(rows[g])
+            for g, i in enumerate(scored):  # combined as the updater's step combines them (the pattern's row apart)
+                per[i] = model_rows(self.row_weight(len(rows[g])) * self.models.log_likelihood(rows[g]),
+                                    self.updater.combine)
         L = np.concatenate([np.concatenate([per[i], touch[i:i + 1]]) for i in range(B)]) if B else touch
         starts = np.concatenate([[0], np.cumsum([len(per[i]) + 1 for i in range(B)])]).astype(np.int64)
-        post, _ = bayes_steps(base, L, starts, combine=self.updater.combine, max_log_ratio=self.updater.max_log_ratio)
+        post, _ = bayes_steps(base, L, starts, combine="product", max_log_ratio=self.updater.max_log_ratio)
         return np.exp(post), np.arange(B)
 
     # ----------------------------------------------------------------------------------- scores

@@ -200,12 +200,15 @@ def test_touch_pattern_adds_w_log_p_at_every_grasp(touch_recognizer):
     lb = np.log(ref.probs) + belief.touch_rows(res.touched[full])[0] + w * touch_recognizer.touch.log_p[:, 0]
     np.testing.assert_allclose(belief.probs, np.exp(lb - logsumexp_(lb)), rtol=1e-9)
 
-    post, scored = belief.predict_grasps(res.contacts, res.normals, res.touched)
-    assert scored.tolist() == list(range(24))
-    for p, i in zip(post, scored):
-        cp = copy.deepcopy(belief)
-        cp.update(res.contacts[i], res.normals[i], res.touched[i])
-        np.testing.assert_allclose(p, cp.probs, rtol=1e-9, atol=1e-12)
+    mean = copy.deepcopy(belief)  # the subsets' mean row (combine="mean"), the pattern's row beside it
+    mean.updater.combine = "mean"
+    for b in (belief, mean):
+        post, scored = b.predict_grasps(res.contacts, res.normals, res.touched)
+        assert scored.tolist() == list(range(24))
+        for p, i in zip(post, scored):
+            cp = copy.deepcopy(b)
+            cp.update(res.contacts[i], res.normals[i], res.touched[i])
+            np.testing.assert_allclose(p, cp.probs, rtol=1e-9, atol=1e-12)
 
 
 def test_touch_pattern_with_bc_ip_sets_the_classifier_prior_at_the_first_scored_grasp(touch_recognizer):

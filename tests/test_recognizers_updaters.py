@@ -133,6 +133,12 @@ def test_bc_decided_threshold_and_sub_grasp_product():
     m = BayesianUpdater(FixedModel(ll), combine="mean")
     m.update(np.array([[1.0], [1.0]]))
     assert m.certainty == pytest.approx(0.9)
+    # evidence rows (the touch pattern) are summed beside the models' mean row, not averaged in with its rows
+    E = np.log([[0.2, 0.8]])
+    for combine, model in (("product", 2 * ll[1]), ("mean", ll[1])):
+        u = BayesianUpdater(FixedModel(ll), combine=combine)
+        post = model + E[0]
+        np.testing.assert_allclose(u.update(np.array([[1.0], [1.0]]), evidence=E), np.exp(post) / np.exp(post).sum())
 
 
 def test_bcip_prior_from_classifier_then_kde():

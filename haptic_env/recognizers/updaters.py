@@ -229,11 +229,23 @@ def check_max_log_ratio(max_log_ratio) -> float:
     return math.inf if max_log_ratio is None else float(max_log_ratio)
 
 
-def _joined(log_lik, evidence, n_classes: int) -> np.ndarray:
-    """One grasp's log-likelihood rows ``(m + r, K)``: the models' ``log_lik (m, K)`` and the ``evidence (r, K)``
-    (either may be None), each checked (:func:`score_rows`)."""
+def model_rows(L: np.ndarray, combine: str) -> np.ndarray:
+    """The models' checked rows ``L (m, K)`` of one grasp as a summing (product) step takes them: ``L`` itself, or
+    with ``combine="mean"`` their mean row (none when ``m = 0``), so that evidence rows joined after them are summed
+    as they are, not averaged in with the models' rows."""
+    if combine == "product" or len(L) <= 1:
+        return L
+    with np.errstate(over="ignore", invalid="ignore"):  # a NaN or a sum past the float range: the step refuses it
+        return L.mean(axis=0, keepdims=True)
+
+
+def _joined(log_lik, evidence, n_classes: int, combine: str = "product") -> np.ndarray:
+    """One grasp's log-likelihood rows for a summing step: the models' ``log_lik (m, K)`` (:func:`model_rows`) and
+    the ``evidence (r, K)`` (either may be None), each checked (:func:`score_rows`)."""
     parts = [score_rows(x, n_classes, name) for x, name in ((log_lik, "log_lik"), (evidence, "evidence"))
              if x is not None]
+    if log_lik is not None:
+        parts[0] = model_rows(parts[0], combine)
     return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
 
@@ -434,17 +446,15 @@ class BayesianUpdater(BeliefUpdater):
         # the belief is normalised: max b = exp(max log b) (ufunc reduce: no Python wrapper on the env's hot path)
         return math.exp(float(np.maximum.reduce(self.log_belief)))
 
-    def _bayes(self, log_lik: np.ndarray) -> None:
-        self.log_belief = self._stepped(self.log_belief, score_rows(log_lik, self.n_classes, "log_lik"))
-
     def _stepped(self, log_belief: np.ndarray, L: np.ndarray, what: str = "log-likelihood") -> np.ndarray:
-        """The log belief after a Bayes step of the checked rows ``L (m, K)`` (this updater's rule), or
-        ``log_belief`` itself when ``L`` has no rows or every class is impossible (no information); raises before
-        anything changes when ``L`` holds NaN or +inf, or its rows sum past the float range (``what``: its name)."""
+        """The log belief after a Bayes step that sums the checked rows ``L (m, K)`` (the models' rows already
+        combined by :func:`model_rows`, evidence rows beside them), or ``log_belief`` itself when ``L`` has no rows
+        or every class is impossible (no information); raises before anything changes when ``L`` holds NaN or +inf,
+        or its rows sum past the float range (``what``: its name)."""
         if len(L) == 0:
             return log_belief
         mlr = np.inf if self.max_log_ratio is None else float(self.max_log_ratio)
-        post, status = _bayes_step(log_belief, L, self.combine == "product", mlr)
+        post, status = _bayes_step(log_belief, L, True, mlr)
         if status == _NAN:
             raise ValueError(f"{what} contains NaN or +inf, or its rows sum past the float range")
         return post if status == _OK else log_belief
@@ -452,7 +462,8 @@ class BayesianUpdater(BeliefUpdater):
     def update_scores(self, log_lik=None, proba=None, *, evidence=None) -> np.ndarray:
         if log_lik is None and evidence is None:
             raise ValueError("Bayesian updates need log-likelihoods (log_lik or evidence rows)")
-        self._bayes(_joined(log_lik, evidence, self.n_classes))  # raises on NaN, +inf, a bad shape before any change
+        # raises on NaN, +inf, a bad shape before any change
+        self.log_belief = self._stepped(self.log_belief, _joined(log_lik, evidence, self.n_classes, self.combine))
         self.n_grasps += 1
         return self.belief
 
