@@ -80,6 +80,17 @@ def test_reliability_bins_count_every_row():
     assert np.all((r["confidence"][ok] >= r["edges"][:-1][ok]) & (r["confidence"][ok] <= r["edges"][1:][ok]))
 
 
+def test_reliability_takes_probabilities_only():
+    """Log-probabilities or scores above 1 gave an ECE (above 1 at times) without a word."""
+    from haptic_env.recognizers.calibration import expected_calibration_error
+
+    P, y = np.array([[0.7, 0.3], [0.4, 0.6]]), np.array([0, 0])
+    assert expected_calibration_error(P, y) == pytest.approx(0.5 * 0.3 + 0.5 * 0.6)
+    for bad in (np.log(P), 3 * P, P + 0.2):
+        with pytest.raises(ValueError, match=r"proba must hold probabilities .* got row 0"):
+            expected_calibration_error(bad, y)
+
+
 def test_reliability_bins_are_half_open_at_every_edge():
     """A confidence of exactly k / 10 opens bin k, for every k (numpy's linspace put 0.3, 0.6 and 0.7 a hair above
     themselves, so those three once fell into the bin below); 1.0 is in the last bin."""

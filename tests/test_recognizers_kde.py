@@ -135,6 +135,16 @@ def test_kde_errors():
             fit()
     with pytest.raises(ValueError, match="n_classes must be an int >= 1, got 2.0"):
         KDELikelihood(KDEConfig(factor=1.0)).fit(X, y, n_classes=2.0)
+    # a method typo was the dense sum without a word; X_val without y_val a numpy unpacking error
+    with pytest.raises(ValueError, match=r"method must be one of .*got 'bogus'"):
+        kde.log_likelihood(np.zeros((1, 2)), method="bogus")
+    for val in ((X[:5], None), (None, y[:5]), (X[:2], None)):
+        with pytest.raises(ValueError, match="X_val and y_val go together"):
+            KDELikelihood(KDEConfig(factor=1.0)).fit(X, y, *val)
+    from haptic_env.recognizers.mlp import MLPClassifier, MLPConfig
+
+    with pytest.raises(ValueError, match="X_val and y_val go together: got X_val without y_val"):
+        MLPClassifier(MLPConfig(max_epochs=1, progress=False)).fit(X, y, X[:5])
 
 
 def test_pooled_matches_tree_and_dense():

@@ -209,8 +209,14 @@ def test_bc_weight_tempers_one_step_and_predict_matches_update():
         for bad in (0.0, -1.0, np.inf, np.nan):
             with pytest.raises(ValueError, match="weight"):
                 copy.deepcopy(u).update([[0.0]], weight=bad)
-        with pytest.raises(ValueError, match="weights"):
-            u.predict(Q, starts, weights=[1.0])
+        for bad in ([1.0], [True, True], ["2", "1"], [1.0, np.nan]):
+            with pytest.raises(ValueError, match="weights must be 2 positive finite numbers"):
+                u.predict(Q, starts, weights=bad)
+        if cls is BCIP:  # before its prior too (the weights were dropped unchecked there)
+            fresh = BCIP(proba, model)
+            for bad in ([-1.0, 0.0], [np.nan, np.inf], ["2", "x"]):
+                with pytest.raises(ValueError, match="weights must be 2 positive finite numbers"):
+                    fresh.predict(Q, starts, weights=bad)
 
 
 def test_a_grasp_that_fits_only_ruled_out_classes_leaves_the_belief_as_it_was():

@@ -372,6 +372,11 @@ def reliability(proba, y, bins: int = 10) -> dict[str, np.ndarray]:
     (the last one closed), the mean confidence, the accuracy and the count (``nan`` for empty bins)."""
     P, Y = _check(proba, y)
     whole_at_least(bins, 1, "bins")
+    bad = ~((P >= 0) & (P <= 1)).all(axis=1) | (P.sum(axis=1) > 1 + 1e-6)
+    if bad.any():  # log-probabilities or scores gave an ECE (above 1 at times) without a word
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"proba must hold probabilities (each in [0, 1], each row summing to at most 1), got row "
+                         f"{i}: {P[i].tolist()}")
     conf = P.max(axis=1)
     hit = (P.argmax(axis=1) == Y).astype(np.float64)
     edges = np.arange(bins + 1) / bins  # each edge the double nearest k / bins (linspace puts 0.3 a hair above 0.3)

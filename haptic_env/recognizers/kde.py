@@ -77,6 +77,7 @@ from haptic_env.recognizers.calibration import (CORRECTIONS, PowerCorrection, Sc
                                                 select_calibration, sequence_scores)
 from haptic_env.recognizers.knn import KDTree, pooled_log_density
 from haptic_env.recognizers.preprocess import Standardizer
+from haptic_env.recognizers.preprocess import check_validation_pair
 from haptic_env.recognizers.preprocess import check_xy as _check_xy
 from haptic_env.recognizers.preprocess import class_count
 
@@ -222,6 +223,7 @@ class KDELikelihood:
         """
         cfg = self.config
         X, y = _check_xy(X, y)
+        check_validation_pair(X_val, y_val)
         rng = np.random.default_rng(cfg.seed)
         self.n_classes = class_count(n_classes, y, y_val)
         self.scaler = Standardizer.fit(X)
@@ -423,6 +425,8 @@ class KDELikelihood:
         if Z is None or not np.isfinite(Z).all():
             _check_xy(Q, d=self.n_features, what="q")  # raises, naming the bad shape or row
         method = method or self.config.method
+        if method not in _METHODS:  # a typo was the dense sum, without a word
+            raise ValueError(f"KDELikelihood.log_likelihood: method must be one of {_METHODS}, got {method!r}")
         if (method == "tree" and not self.trees) or (method == "pooled" and self.pooled is None):
             method = "dense"
         inv = 0.5 / self.bandwidth**2

@@ -32,6 +32,7 @@ from haptic_env.numbers import whole_number
 from haptic_env.recognizers.calibration import fit_temperature
 from haptic_env.recognizers.mlp_config import MLPConfig
 from haptic_env.recognizers.preprocess import Standardizer
+from haptic_env.recognizers.preprocess import check_validation_pair
 from haptic_env.recognizers.preprocess import check_xy as _check_xy
 from haptic_env.recognizers.preprocess import class_count
 
@@ -151,6 +152,7 @@ class MLPClassifier:
     def _fit(self, X, y, X_val, y_val, *, n_classes: int | None, checkpoint: str | os.PathLike | None) -> MLPClassifier:
         cfg = self.config
         X, y = _check_xy(X, y)
+        check_validation_pair(X_val, y_val)
         rng = np.random.default_rng(cfg.seed)
         if cfg.max_train is not None and len(X) > cfg.max_train:
             keep = rng.choice(len(X), cfg.max_train, replace=False)

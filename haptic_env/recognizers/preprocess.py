@@ -50,6 +50,14 @@ def check_xy(X, y=None, d: int | None = None, what: str = "X"):
     return X, y.astype(np.int64)
 
 
+def check_validation_pair(X_val, y_val) -> None:
+    """A ``ValueError`` when only one of a fit's ``X_val`` / ``y_val`` is given (the labels were unpacked from the
+    vectors' rows: a numpy error, or a fit on the wrong rows)."""
+    if (X_val is None) != (y_val is None):
+        raise ValueError("X_val and y_val go together: got " + ("X_val without y_val" if y_val is None
+                                                               else "y_val without X_val"))
+
+
 def class_count(n_classes, *labels) -> int:
     """The classes a model is fitted for: ``n_classes`` (an int >= 1), or with None one more than the largest of
     ``labels`` (class-index arrays: the training labels, and the validation labels where given; None entries are

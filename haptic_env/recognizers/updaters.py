@@ -265,6 +265,18 @@ def _check_weight(weight) -> float:
     return w
 
 
+def _check_weights(weights, G: int) -> np.ndarray:
+    """``weights`` of ``G`` grasps as ``(G,)`` float64, each one :func:`_check_weight` takes (a bool or a string
+    is refused, as :meth:`BayesianUpdater.update` refuses it)."""
+    w = list(weights) if isinstance(weights, (list, tuple, np.ndarray)) else None
+    if w is None or len(w) != G or np.ndim(weights) != 1:
+        raise ValueError(f"weights must be {G} positive finite numbers, got {weights!r}")
+    try:
+        return np.array([_check_weight(x) for x in w], dtype=np.float64)
+    except ValueError:
+        raise ValueError(f"weights must be {G} positive finite numbers, got {weights!r}") from None
+
+
 def _rows(q) -> np.ndarray:
     Q = np.asarray(q, dtype=np.float64)
     if Q.ndim == 1:
@@ -484,9 +496,7 @@ class BayesianUpdater(BeliefUpdater):
         G = len(starts) - 1
         L = self.likelihood.log_likelihood(Q) if len(Q) else np.zeros((0, self.n_classes))
         if weights is not None:
-            w = np.asarray(weights, dtype=np.float64)
-            if w.shape != (G,) or not (w > 0).all() or not np.isfinite(w).all():
-                raise ValueError(f"weights must be {G} positive finite numbers, got {weights!r}")
+            w = _check_weights(weights, G)
             L = L * np.repeat(w, np.diff(starts))[:, None]
         post, _ = bayes_steps(np.broadcast_to(self.log_belief, (G, self.n_classes)), L, starts, combine=self.combine,
                               max_log_ratio=self.max_log_ratio)
@@ -562,6 +572,8 @@ class BCIP(BayesianUpdater):
 
     def predict(self, Q, starts=None, weights=None) -> np.ndarray:
         if not self.prior_set:  # the first scored grasp sets the classifier prior: not a Bayes step (no weight)
+            if weights is not None:  # refused all the same, as update refuses a bad weight before the prior
+                _check_weights(weights, len(_grouped(Q, starts)[1]) - 1)
             return BeliefUpdater.predict(self, Q, starts)
         return super().predict(Q, starts, weights)
 
