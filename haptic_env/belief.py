@@ -451,6 +451,8 @@ class Belief:
         allsub = np.array(list(combinations(range(n), z)))
         if not self.recognizer.normals:  # a recogniser without normals ignores them, as rows_batch does
             normals = None
+        elif normals is None:  # as rows_batch says it (the vectors without normals found no model)
+            raise ValueError("this recogniser was trained with normals; pass the contact normals")
         if k is None or k >= len(allsub):
             pick = np.broadcast_to(np.arange(len(allsub)), (G, len(allsub)))
         else:

@@ -136,6 +136,8 @@ def test_subset_scores_are_the_rows_of_each_grasps_subsets(recognizer):
         np.testing.assert_allclose(pr[g], P.mean(0), rtol=1e-10)
     # k = 2 random subsets per grasp: the two drawn from the same generator (an independent random order per grasp)
     ll2, pr2, _ = belief.subset_scores(C, N, 3, k=2, rng=np.random.default_rng(0))
+    with pytest.raises(ValueError, match="trained with normals; pass the contact normals"):  # as rows_batch says
+        belief.subset_scores(C, None, 3)
     subsets = list(combinations(range(4), 3))
     pick = np.argsort(np.random.default_rng(0).random((5, len(subsets))), axis=1)[:, :2]
     for g in range(5):

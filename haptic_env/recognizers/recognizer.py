@@ -8,8 +8,9 @@ Training data come from :func:`haptic_env.dataset.build_dataset`; trained models
 ``cache_dir("recognizers")``, one file per model, keyed by the object meshes, ``z``, ``normals``, the
 training grasps and the model's config (atomic writes; an unreadable cache file is rebuilt with a
 warning). Only the models an updater needs have to be built (:func:`models_for`: BC-NP needs the
-KDE only). Every model carries a calibration temperature fitted on the validation grasps; the
-:class:`ModelBank` applies it unless asked for the raw scores.
+KDE only). Every model carries a calibration temperature fitted on the validation grasps (the KDE also a learned
+correction of its scores where it is fitted, ``KDEConfig.correct``); the :class:`ModelBank` applies them unless asked
+for the raw scores.
 """
 
 from __future__ import annotations
@@ -96,10 +97,10 @@ class RecognizerConfig:
 class ModelBank:
     """Classifier + likelihood per finger count, dispatched by the feature dimension of ``Q``.
 
-    With ``calibrated`` (the default) the scores are temperature-scaled by each model's fitted
-    ``temperature`` (:mod:`~haptic_env.recognizers.calibration`): ``log_likelihood`` returns
-    ``log p(q | c) / T_kde`` (a tempered likelihood) and ``predict_proba`` returns
-    ``softmax(log p_clf / T_clf)``. :meth:`with_calibration` gives the raw view (the paper's method).
+    With ``calibrated`` (the default) the scores are calibrated as each model was fitted
+    (:mod:`~haptic_env.recognizers.calibration`): ``log_likelihood`` returns the KDE's learned correction of
+    ``log p(q | c)`` (where one was fitted, ``KDEConfig.correct``), divided by ``T_kde``
+    (:meth:`KDELikelihood.calibrate_scores`), and ``predict_proba`` returns ``softmax(log p_clf / T_clf)``. :meth:`with_calibration` gives the raw view (the paper's method).
     A model that was not built (``models=`` of :func:`build_recognizer`) is ``None``.
     """
 
@@ -224,8 +225,9 @@ class Recognizer:
 
         ``kind``: one of ``"bc-np" | "bc-ip" | "ic" | "ic-full"``. ``z``: score each grasp through its
         z-finger subsets (all, or ``k`` random ones drawn from ``rng``); ``None`` scores the touching
-        contacts as one grasp with the model of their count. ``calibrated``: scores scaled by the
-        temperatures fitted on validation grasps (default); False: the paper's raw scores. The returned
+        contacts as one grasp with the model of their count. ``calibrated``: scores calibrated on validation
+        grasps (the KDE's learned correction where fitted, and the temperatures; default); False: the paper's raw
+        scores. The returned
         updater has ``update(q)`` (grasp vectors) and ``update_grasp(contacts, normals, touched)`` (raw contacts).
         """
         if kind not in UPDATERS:
