@@ -370,6 +370,21 @@ def test_an_interrupted_analysis_resumes_after_its_finished_experiments(tmp_path
         analysis.run_analysis(cfg, out)
 
     assert cut_then_again("code", 3, other_code) == [1, 2, 3]
+    monkeypatch.undo()
+    monkeypatch.setattr(analysis, "EXPERIMENTS", {e: fake(e) for e in (1, 2, 3)})
+    monkeypatch.setattr(analysis.time, "perf_counter", lambda: 0.0)
+
+    # run A cut after experiment 1, run B (other settings) cut in its first experiment (its plots drawn over A's):
+    # A cannot resume any more (it kept B's plots), it starts over
+    def other_settings_cut_in_its_first(out):
+        fail["at"] = 1
+        with pytest.raises(KeyboardInterrupt):
+            analysis.run_analysis(seed1, out)
+        fail["at"] = None
+        calls.clear()
+        analysis.run_analysis(cfg, out)
+
+    assert cut_then_again("ab", 2, other_settings_cut_in_its_first) == [1, 2, 3]
 
 
 def test_analysis_refuses_a_bad_family_hand_before_writing_anything(tmp_path):

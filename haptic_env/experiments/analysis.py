@@ -58,6 +58,9 @@ def run_analysis(cfg: AnalysisConfig, out: str | Path, command: str | None = Non
             print(f"resuming {out}: experiment(s) {done} finished earlier (delete {state_path} to start over)",
                   flush=True)
         return _run(cfg, objects, rep, rng, done, state_path, key)
+    # another settings' unfinished run here: this run starts over and redraws its plots, so that run's state can no
+    # longer resume (it would keep the plots this run draws before its first experiment is saved)
+    state_path.unlink(missing_ok=True)
     rep.lines = [f"# Recognition analysis: `{cfg.objects}` ({len(objects)} objects: {', '.join(objects.names)})", ""]
     if command:
         rep.lines += ["```", command, "```", ""]
