@@ -203,6 +203,11 @@ def test_family_source_is_checked_and_reaches_the_grasps(tmp_path, usage_error):
         AnalysisConfig(family_size_range=(0, 1))
     with pytest.raises(ValueError, match="family_hand must be a hand name"):
         AnalysisConfig(family_hand="")
+    # members too small for family_set: refused by the config (experiment 5 raised it after experiments 1-4)
+    with pytest.raises(ValueError, match=r"family_scale_range / family_size_range: the smallest member would be "
+                                         r"0.0008 m across"):
+        AnalysisConfig(experiments=(6, 5), family_scale_range=(0.01, 1.5))
+    assert AnalysisConfig(experiments=(6,), family_scale_range=(0.01, 1.5)).experiments == (6,)  # no members
     assert AnalysisConfig().family_floors == (0.0, 0.01, 0.03, 0.1, 0.2)
     assert AnalysisConfig(family_floors=[0, 0.5]).family_floors == (0.0, 0.5)
     for bad in ((), (1.0,), (-0.1, 0.0), ("0",)):

@@ -147,6 +147,13 @@ class AnalysisConfig:
         object.__setattr__(self, "family_scale_range", positive_range(self.family_scale_range, "family_scale_range"))
         if self.family_size_range is not None:
             object.__setattr__(self, "family_size_range", positive_range(self.family_size_range, "family_size_range"))
+        if 5 in self.experiments:  # members too small: refused now, not in experiment 5 after the others ran
+            from haptic_env.objects.primitives import check_member_sizes
+
+            try:
+                check_member_sizes(self.family_scale_range, self.family_size_range)
+            except ValueError as exc:
+                raise ValueError(f"family_scale_range / family_size_range: {exc}") from None
         fl = tuple(finite_number(q) for q in items(self.family_floors) or ())
         if not fl or not all(q is not None and 0.0 <= q < 1.0 for q in fl):
             raise ValueError(f"family_floors must be a non-empty tuple of quantiles in [0, 1), "

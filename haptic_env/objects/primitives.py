@@ -185,6 +185,21 @@ def _family_mesh(family: str, s: np.ndarray) -> trimesh.Trimesh:
     return _refine(m)
 
 
+def check_member_sizes(scale_range, size_range=None) -> tuple[float, float, float, float]:
+    """``(lo, hi, size_lo, size_hi)`` of :func:`family_set`'s ranges (``size_range`` None: ``1, 1``), each a range of
+    positive numbers; a ``ValueError`` naming them when the smallest member would be under
+    :data:`MIN_FAMILY_MEMBER_SIZE` (checked by the analyses' config too, before any experiment runs)."""
+    lo, hi = positive_range(scale_range, "scale_range")
+    slo = shi = 1.0
+    if size_range is not None:
+        slo, shi = positive_range(size_range, "size_range")
+    if FAMILY_BASE_SIZE * lo * slo < MIN_FAMILY_MEMBER_SIZE:
+        raise ValueError(f"the smallest member would be {FAMILY_BASE_SIZE * lo * slo:.3g} m across (base "
+                         f"{FAMILY_BASE_SIZE} m x scale_range {scale_range!r} x size_range {size_range!r}); members "
+                         f"must be at least {MIN_FAMILY_MEMBER_SIZE} m")
+    return lo, hi, slo, shi
+
+
 def family_set(n_per_family: int, rng: np.random.Generator, families=FAMILIES,
                scale_range: tuple[float, float] = FAMILY_SCALE_RANGE,
                size_range: tuple[float, float] | None = None, lying: bool = False) -> ObjectSet:
@@ -214,14 +229,7 @@ def family_set(n_per_family: int, rng: np.random.Generator, families=FAMILIES,
     if not fams or not all(isinstance(f, str) and f in FAMILIES for f in fams) or len(set(fams)) != len(fams):
         raise ValueError(f"families must be a non-empty list or tuple of distinct names from {FAMILIES}, "
                          f"got {families!r}")
-    lo, hi = positive_range(scale_range, "scale_range")
-    slo = 1.0
-    if size_range is not None:
-        slo, shi = positive_range(size_range, "size_range")
-    if FAMILY_BASE_SIZE * lo * slo < MIN_FAMILY_MEMBER_SIZE:
-        raise ValueError(f"the smallest member would be {FAMILY_BASE_SIZE * lo * slo:.3g} m across (base "
-                         f"{FAMILY_BASE_SIZE} m x scale_range {scale_range!r} x size_range {size_range!r}); members "
-                         f"must be at least {MIN_FAMILY_MEMBER_SIZE} m")
+    lo, hi, slo, shi = check_member_sizes(scale_range, size_range)
     objs = []
     for fam in fams:
         for i in range(int(n_per_family)):
