@@ -269,6 +269,29 @@ def test_experiment_5_reports_held_back_and_new_members_and_the_object_votes(tmp
     assert "Plot: `family_votes.png`." in text and (out / "family_votes.png").stat().st_size > 5000
 
 
+def test_a_tied_vote_is_no_majority_and_raw_scores_are_named_raw(tmp_path, monkeypatch):
+    """A 5 / 5 vote went to the first family (box) by argmax, a hit where box was expected and a miss elsewhere; it is
+    a tie now, a miss everywhere. On raw scores the report said temperatures were fitted and a floor chosen, and its
+    heading named experiments 2-4's KDE correction (experiment 5 scores with its own family models)."""
+    import haptic_env.experiments.families as families
+    from haptic_env.cli import main
+
+    def tied(LL, PR, kind, *, trials, **kw):
+        return np.array([trials // 2, trials - trials // 2, 0]), trials, np.full(trials, 3)
+
+    monkeypatch.setattr(families, "family_trials", tied)
+    out = tmp_path / "fam"
+    assert main(["analysis", "--out", str(out), "--experiments", "5", "--objects", "default", "--family-members", "2",
+                 "--grasps-per-object", "100", "--test-grasps", "40", "--trials", "5", "--max-grasps", "5",
+                 "--no-normals", "--mlp-epochs", "2", "--family-size-range", "1,1.2", "--raw", "--quiet"]) == 0
+    text = (out / "results.md").read_text()
+    assert "\n| box | box | 5 / 5 / 0 | 10/10 | 5 / 5 / 0 | 10/10 | 3.0 | tie | no |" in text
+    assert "BC-NP's majority vote is the expected family for 0/" in text and "counts as a miss" in text
+    assert "Raw scores (the paper's): no temperatures, no outlier floor." in text and "Temperatures fitted" not in text
+    heading = next(line for line in text.splitlines() if line.startswith("## 5."))
+    assert heading.endswith("; raw scores (paper))") and "correction" not in heading
+
+
 def test_members_the_hand_cannot_grasp_are_left_out_and_a_family_without_members_is_an_error():
     """With a hand source, experiment 5 leaves out a random member that the hand never grasps with 4 fingers (and
     names it); a family with no graspable member is an error naming both member ranges."""

@@ -61,6 +61,11 @@ def test_fit_stop_scale_refuses_bad_input_by_name():
         fit_stop_scale(LL, PR, 0.85, scales=(0.5, -1.0), rng=np.random.default_rng(0))
     with pytest.raises(ValueError, match="scales"):
         fit_stop_scale(LL, PR, 0.85, scales=(), rng=np.random.default_rng(0))
+    # 0 trials or grasps gave a stop scale of 1 (nan figures) without a word, -1 a numpy error
+    for kw, match in (({"trials": 0}, "trials must be an int >= 1, got 0"), ({"trials": -1}, "trials must be"),
+                      ({"max_grasps": 0}, "max_grasps must be an int >= 1, got 0")):
+        with pytest.raises(ValueError, match=match):
+            fit_stop_scale(LL, PR, 0.85, rng=np.random.default_rng(0), **kw)
 
 
 def test_analysis_stop_scale_is_the_default_and_keeps_the_test_trials(tmp_path, monkeypatch):

@@ -64,9 +64,9 @@ def run_analysis(cfg: AnalysisConfig, out: str | Path, command: str | None = Non
     rep.lines = [f"# Recognition analysis: `{cfg.objects}` ({len(objects)} objects: {', '.join(objects.names)})", ""]
     if command:
         rep.lines += ["```", command, "```", ""]
-    rep.lines += [f"{cfg.scores_label} in experiments 2-6; seed {cfg.seed}; {cfg.grasps_per_object} training grasps "
-                  f"per object; {cfg.test_grasps} fresh test grasps per object; {cfg.trials} trials; max {cfg.max_grasps} "
-                  f"grasps; MLP {cfg.mlp.depth}x{cfg.mlp.width}; "
+    rep.lines += [f"{cfg.scores_label} in experiments 2-4 and 6; seed {cfg.seed}; {cfg.grasps_per_object} "
+                  f"training grasps per object; {cfg.test_grasps} fresh test grasps per object; {cfg.trials} trials; "
+                  f"max {cfg.max_grasps} grasps; MLP {cfg.mlp.depth}x{cfg.mlp.width}; "
                   + (f"KDE {cfg.kde.method} (k={cfg.kde.k}, cutoff {cfg.kde.cutoff} h, factor {cfg.kde.factor}"
                      f"{_select_words(cfg.kde)})." if cfg.likelihood == "kde" else
                      f"BC's likelihood {cfg.likelihood} (experiment 5's family models: KDE {cfg.kde.method}).")

@@ -249,10 +249,26 @@ class AnalysisConfig:
         return self.stop_scale and self.calibrated
 
     @property
+    def ic_label(self) -> str:
+        """IC's certainty rule as the headings name it when it is not the default ('' otherwise)."""
+        return ("; IC certainty: the winner's share of the winners' scores (the authors' code)"
+                if self.ic_certainty == "share" else "")
+
+    @property
+    def family_scores_label(self) -> str:
+        """How experiment 5 scores grasps: its family KDE and MLP, whatever ``likelihood`` and the KDE's correction
+        say for the other experiments."""
+        if not self.calibrated:
+            return "raw scores (paper)" + self.ic_label
+        return ("calibrated scores: the family KDE's log-likelihoods above an outlier floor, tempered for beliefs of "
+                f"1-{self.max_grasps} grasps of one member, and the MLP's temperature, each fitted on validation "
+                "members" + self.ic_label)
+
+    @property
     def scores_label(self) -> str:
-        """How experiments 2-6 score grasps (and IC's certainty, if not the default), as the report's headings say it."""
-        ic = "; IC certainty: the winner's share of the winners' scores (the authors' code)" \
-            if self.ic_certainty == "share" else ""
+        """How experiments 2-4 and 6 score grasps (and IC's certainty, if not the default), as the report's headings
+        say it (experiment 5's family models: :attr:`family_scores_label`)."""
+        ic = self.ic_label
         if self.likelihood == "hgb":
             return ("BC's likelihood: gradient boosting (`--likelihood hgb`, not the paper's; no correction or "
                     "temperature of its own), " + ("raw scores" if not self.calibrated else

@@ -248,7 +248,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
                   *cfg.family_size_range)) + ("; every second cylinder lying" if cfg.family_lying else "")
           + ("; with each contact's height above the table" if cfg.family_heights else "")
           + ("" if cfg.family_force_closure is None else f"; only grasps in force closure at friction "
-                                                           f"{cfg.family_force_closure:g}") + f"; {cfg.scores_label})")
+                                                           f"{cfg.family_force_closure:g}")
+          + f"; {cfg.family_scores_label})")
     m = family_models(cfg, len(objects))
     fam_idx = {f: i for i, f in enumerate(FAMILIES)}
 
@@ -287,14 +288,16 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
     rep.p(f"Held-back grasps of {len(held)} of the {n_tr} training members (fresh, test seed; a member without such "
           f"grasps is left out): one-shot family accuracy MLP "
           f"{100 * one_h:.1f} %, KDE argmax {100 * one_kde_h:.1f} % (chance 33.3 %).")
+    fitted = (f"Temperatures fitted on {n_val} validation members: KDE {m.T_kde:.2f} (for beliefs of "
+              f"1-{cfg.max_grasps} grasps of one member), MLP {m.T_mlp:.2f} (one-shot). KDE outlier floor: "
+              + ("none" if m.floor_q == 0 else f"the {m.floor_q:g}-quantile of the true family's log-likelihood on "
+                 f"held-back training-member grasps ({m.floor:.2f})") + f", chosen from {list(cfg.family_floors)} on "
+              "the validation members." if cfg.calibrated else
+              "Raw scores (the paper's): no temperatures, no outlier floor.")
     rep.p(f"Held-out family members ({n_te} new random boxes/cylinders/ellipsoids, test seed); one-shot "
-          f"family accuracy MLP {100 * one:.1f} %, KDE argmax {100 * one_kde:.1f} % (chance 33.3 %). Temperatures "
-          f"fitted on {n_val} validation members: KDE {m.T_kde:.2f} (for beliefs of 1-{cfg.max_grasps} grasps of one "
-          f"member), MLP {m.T_mlp:.2f} (one-shot). KDE outlier floor: "
-          + ("none" if m.floor_q == 0 else f"the {m.floor_q:g}-quantile of the true family's log-likelihood on "
-             f"held-back training-member grasps ({m.floor:.2f})") + f", chosen from {list(cfg.family_floors)} on "
-          f"the validation members. {cfg.trials} trials, "
-          f"lambda = {cfg.threshold}, at most {cfg.max_grasps} grasps; success = family right at the stop.")
+          f"family accuracy MLP {100 * one:.1f} %, KDE argmax {100 * one_kde:.1f} % (chance 33.3 %). {fitted} "
+          f"{cfg.trials} trials, lambda = {cfg.threshold}, at most {cfg.max_grasps} grasps; success = family right "
+          "at the stop.")
     rep.table(["updater", "family success %", "decided %", "grasps"], rows)
     LL, PR, _ = scores(objects)
     ntr = FAMILY_OBJECT_TRIALS
@@ -317,18 +320,21 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
             all_votes[kind][k] = out[kind][0]
         ic_dec += out["ic"][1]
         ic_all += ntr
-        vote = FAMILIES[int(np.argmax(out["bc-np"][0]))]
+        votes = np.asarray(out["bc-np"][0])
+        top = np.flatnonzero(votes == votes.max())
+        vote = FAMILIES[int(top[0])] if len(top) == 1 else None  # a tie (5 / 5) is no majority: a miss
         if exp is not None:
             labelled += 1
             hits += vote == exp
         rows.append([nm, short.get(exp, "-") if exp else "(none)",
                      " / ".join(str(v) for v in out["ic"][0]), f"{out['ic'][1]}/{ntr}",
                      " / ".join(str(v) for v in out["bc-np"][0]), f"{out['bc-np'][1]}/{ntr}",
-                     f"{out['bc-np'][2].mean():.1f}", short[vote],
+                     f"{out['bc-np'][2].mean():.1f}", "tie" if vote is None else short[vote],
                      "-" if exp is None else ("yes" if vote == exp else "no")])
     rep.p(f"Objects of '{cfg.objects}' classified into families ({ntr} trials per object; votes = predictions at "
           f"the stop, box / cyl / ell; expected = the family a person would expect, '(none)': no clear family, not "
-          f"scored). BC-NP's majority vote is the expected family for {hits}/{labelled} labelled objects; IC decided "
+          f"scored; a tie of the most votes is no majority and counts as a miss). BC-NP's majority vote is the "
+          f"expected family for {hits}/{labelled} labelled objects; IC decided "
           f"within {cfg.max_grasps} grasps in {ic_dec}/{ic_all} trials."
           + (f" The {cfg.family_hand} never grasped {', '.join(ungrasped)} with 4 fingers in {cfg.test_grasps} "
              "approaches (a labelled one counts as a miss)." if ungrasped else "") + " Plot: `family_votes.png`.")

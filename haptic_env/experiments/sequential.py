@@ -74,7 +74,8 @@ def run(objects, cfg: AnalysisConfig, rep: Report, rng: np.random.Generator) -> 
           ("BC's likelihood: gradient boosting (`--likelihood hgb`), no correction and no temperature of its own. "
            if cfg.likelihood == "hgb" else
            "\"corrected\": the KDE's learned correction comes first (`KDEConfig.correct`). ") +
-          "Confusion matrices for n = 4: `confusion_n4_<kind>.png`." +
+          ("Confusion matrices for n = 4: `confusion_n4_<kind>.png`." if 4 in cfg.fingers else
+           "(Confusion matrices are drawn for n = 4, not in this run's finger counts.)") +
           (f" Stop scale s (the default; `--no-stop-scale` turns it off): BC-NP and BC-IP sum log-likelihoods / s; "
            f"s is the scale of "
            f"{list(STOP_SCALES)} with the fewest BC-NP grasps whose validation stops are decided and right in at "

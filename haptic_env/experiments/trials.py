@@ -19,6 +19,7 @@ from typing import Iterable
 
 import numpy as np
 
+from haptic_env.numbers import whole_at_least
 from haptic_env.recognizers.updaters import DEFAULT_IC_CERTAINTY, BeliefUpdater, make_updater
 
 __all__ = ["scores_updater", "run_trial", "simulate_trials", "incomplete_trials", "family_trials", "summarize",
@@ -81,6 +82,8 @@ def simulate_trials(log_lik: list[np.ndarray], proba: list[np.ndarray], kind: st
         reached the threshold), ``grasps (T,) int``, ``truth``, ``pred`` and, when ``fixed_steps``,
         ``correct_at (T, max_grasps) bool`` (prediction right after m grasps).
     """
+    whole_at_least(trials, 1, "trials")  # 0 gave nan summaries (and a stop scale of 1 without a word)
+    whole_at_least(max_grasps, 1, "max_grasps")
     n_obj = len(log_lik)
     K = (log_lik[0] if log_lik[0] is not None and len(log_lik[0]) else proba[0]).shape[1]  # classes
     u = scores_updater(kind, K, threshold, ic_certainty)
@@ -138,6 +141,8 @@ def family_trials(LL: np.ndarray, PR: np.ndarray, kind: str, *, trials: int, max
     """``trials`` runs of ``kind`` on ONE object's test pool (``LL``/``PR``: ``(G, C)``, at most ``max_grasps``
     of its grasps without replacement per trial): the class votes ``(C,)`` (prediction at the stop), how many
     decided, and the grasps used ``(trials,)``."""
+    whole_at_least(trials, 1, "trials")
+    whole_at_least(max_grasps, 1, "max_grasps")
     u = scores_updater(kind, LL.shape[1], threshold, ic_certainty)
     votes, decided, used = np.zeros(LL.shape[1], dtype=np.int64), 0, []
     for _ in range(trials):
