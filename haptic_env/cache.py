@@ -63,15 +63,20 @@ def cache_dir(sub: str | None = None) -> Path:
     """Root of the cache (``$HAPTIC_CACHE``, default ``~/.cache/haptic_recog``), created on demand.
 
     Raises :class:`CacheNotWritableError` (naming the folder) if it cannot be created or is not writable,
-    unless ``$HAPTIC_CACHE_READONLY`` is set; removes stale temporary files of killed writers."""
+    unless ``$HAPTIC_CACHE_READONLY`` is set (then a folder the cache lacks is returned all the same, with a warning:
+    every file in it is a miss); removes stale temporary files of killed writers."""
     root = _cache_root()
     path = root / sub if sub else root
     readonly_ok = _readonly_ok()
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        if not (readonly_ok and path.is_dir()):
+        if not readonly_ok:
             raise CacheNotWritableError(f"cannot create the cache folder {path} ({exc.strerror or exc}); {_HELP}") from exc
+        if not path.is_dir():  # a read-only cache without this folder: it holds none of its files (each one a miss)
+            warnings.warn(f"the read-only cache has no {path} ({exc.strerror or exc}; HAPTIC_CACHE_READONLY): what "
+                          "belongs there is computed each time it is needed", stacklevel=2)
+            return path
     if not readonly_ok:
         if not os.access(path, os.W_OK | os.X_OK):
             raise CacheNotWritableError(f"the cache folder {path} is not writable; {_HELP} "

@@ -791,7 +791,13 @@ def _print_summary(args: argparse.Namespace, objects, config: DatasetConfig, ds,
     width = max(len(n) for n in ds.names)
     for name, (tr, va) in ds.counts().items():
         print(f"  {name:<{width}}  train {tr:>7}  val {va:>7}")
-    if config.source == "hand" and not args.no_cache:  # the pool is cached: reading it back gives its build time
+    from .hand_grasps import pool_cache_path
+
+    if config.source == "hand" and not args.no_cache and pool_cache_path(
+            objects, config.hand, config.hand_fingers or config.n_fingers, config.grasps_per_object, config.support,
+            config.seed, config.hand_budget, solid_table=config.solid_table).is_file():
+        # reading the cached pool back gives its build time (a pool not in the cache, e.g. a read-only one, was
+        # grasped a second time here just to print it)
         pool = hand_pool(objects, config, progress=False)
         print(f"hand grasps ({config.hand}): {pool.touched.shape[1]} approaches x {len(objects)} objects built in "
               f"{pool.seconds:.1f} s ({pool.grasps_per_second:.0f} grasps/s on all cores)")

@@ -266,6 +266,19 @@ def test_read_only_cache_fails_before_any_work(tmp_path, monkeypatch):
     with pytest.warns(UserWarning, match=r"not saved: .*ro/datasets/.*Read-only file system.*HAPTIC_CACHE_READONLY"):
         ds = build_dataset(objs.subset(objs.names[:2]), DatasetConfig(grasps_per_object=50), progress=False)
     assert len(ds.X_train) + len(ds.X_val) == 100 and not any(root.rglob("*.npz"))
+    # a read-only cache without a folder (here: recognizers/) is read as one that holds none of its files (it raised)
+    real_mkdir = Path.mkdir
+
+    def no_new_folders(self, *a, **k):
+        if str(self).startswith(str(root)) and not self.is_dir():
+            raise OSError(30, "Read-only file system", str(self))
+        return real_mkdir(self, *a, **k)
+
+    with monkeypatch.context() as m:
+        m.setattr(Path, "mkdir", no_new_folders)
+        with pytest.warns(UserWarning, match=r"the read-only cache has no .*ro/recognizers .*computed each time"):
+            assert cache_dir("recognizers") == root / "recognizers"
+        assert not (root / "recognizers").exists()
     monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path / "elsewhere"))
     with pytest.raises(CacheNotWritableError, match=r"cannot write .*out.json"):  # outside the cache: an error still
         with atomic_write(root / "out.json", "w") as fh:
