@@ -46,7 +46,7 @@ from tqdm.auto import tqdm
 
 from .cache import CacheError, cache_dir, clean_stale_tmp, config_key, file_stem, load_npz, save_npz_atomic
 from .grasping.base import approach_table, check_solid_table, check_support, validate_actions
-from .numbers import finite_number, whole_at_least
+from .numbers import finite_number, whole_at_least, whole_number
 from .processes import die_with_parent
 
 __all__ = ["HandGraspPool", "hand_grasp_pool", "pool_actions", "table_actions", "pool_rows", "pool_cache_path",
@@ -136,7 +136,30 @@ def hand_physics_key(hand: str, n_fingers: int) -> str:
 
     if any(j.type == mujoco.mjtJoint.mjJNT_SLIDE for j in h.spec.joints):
         held.append("slide limits: 0.5 mm")
-    return config_key(h.spec.to_xml(), fields, MujocoConfig(n_fingers=int(n_fingers), hand=hand), *held)
+    # the mesh files' bytes since 2026-12-07: the XML names them only, so a changed mesh (another Menagerie version,
+    # an edited STL) kept the pools of the old one; a hand without meshes keeps its key
+    meshes = mesh_files_key(h.spec)
+    return config_key(h.spec.to_xml(), fields, MujocoConfig(n_fingers=int(n_fingers), hand=hand), *held,
+                      *([f"meshes: {meshes}"] if meshes else []))
+
+
+def mesh_files_key(spec) -> str:
+    """sha256 over the bytes of the mesh files an ``MjSpec`` names (each under ``modelfiledir / meshdir`` or among its
+    in-memory ``assets``; a file found in neither is keyed by its name), '' for a spec without mesh files."""
+    names = sorted((m.name, m.file) for m in spec.meshes if m.file)
+    if not names:
+        return ""
+    folder = Path(spec.modelfiledir or ".") / (spec.meshdir or "")
+    assets = dict(getattr(spec, "assets", {}) or {})
+    h = hashlib.sha256()
+    for name, file in names:
+        h.update(f"{name}\0{file}\0".encode())
+        path = folder / file
+        data = assets.get(file)
+        if data is None and path.is_file():
+            data = path.read_bytes()
+        h.update(b"?" if data is None else hashlib.sha256(data).digest())
+    return h.hexdigest()
 
 
 def _plain_servo(act) -> bool:
@@ -306,6 +329,8 @@ def hand_grasp_pool(objects, hand: str, n_fingers: int, approaches: int, *, supp
     whole_at_least(approaches, 1, "approaches")
     whole_at_least(n_fingers, 2, "n_fingers")
     whole_at_least(seed, 0, "seed")
+    if workers is not None:  # -3 and 1.7 were taken, 'two' a bare int() error
+        whole_at_least(workers, 1, "workers")
     if budget not in BUDGETS:
         raise ValueError(f"budget must be one of {BUDGETS}, got {budget!r}")
     check_support(support)
@@ -442,6 +467,8 @@ def _run(phases, todo, put, args, workers: int, objects) -> None:
 def pool_rows(pool: HandGraspPool, k: int, z: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """``z``-finger grasps of object ``k``: every grasp with at least ``z`` touching fingers, reduced to a random
     ``z``-subset of them (fingers kept in hand order). Returns ``contacts (m, z, 3)``, ``normals (m, z, 3)``."""
+    if whole_number(k) is None or not 0 <= k < len(pool.touched):  # -1 was the last object without a word
+        raise ValueError(f"k must be an object index in [0, {len(pool.touched)}), got {k!r}")
     T = pool.touched[k]
     n = T.shape[1]
     if not 2 <= z <= n:

@@ -43,6 +43,57 @@ def test_pool_rows_take_touching_fingers_only(two_objects):
         np.testing.assert_allclose(np.linalg.norm(N, axis=-1), 1.0, atol=1e-6)  # never a missed finger's zero row
     with pytest.raises(ValueError, match="z must be"):
         pool_rows(pool, 0, 4, rng)
+    for k in (-1, 2, 1.0):  # -1 was the last object without a word, 2 an IndexError
+        with pytest.raises(ValueError, match=rf"k must be an object index in \[0, 2\), got {k}"):
+            pool_rows(pool, k, 2, rng)
+    for w in (-3, 0, 1.7, True, "two"):  # taken (-3, 1.7, True; 0 meant all cores) or a bare int() error
+        with pytest.raises(ValueError, match=rf"workers must be an int >= 1, got {w!r}"):
+            hand_grasp_pool(two_objects, "generic", 3, 12, seed=5, progress=False, workers=w)
+
+
+def test_a_hands_key_holds_its_mesh_files_bytes(tmp_path):
+    """The MJCF names its mesh files, not their contents: a changed mesh (another Menagerie version, an edited STL)
+    kept the hand's key, so its old pools, data sets and recognisers were reused."""
+    import mujoco
+
+    from haptic_env.hand_grasps import mesh_files_key
+
+    mesh = tmp_path / "assets" / "tip.obj"
+    mesh.parent.mkdir()
+    tetra = "v 0 0 0\nv 0.01 0 0\nv 0 0.01 0\nv 0 0 0.01\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+    mesh.write_text(tetra)
+    xml = tmp_path / "hand.xml"
+    xml.write_text('<mujoco><compiler meshdir="assets"/><asset><mesh name="tip" file="tip.obj"/></asset>'
+                   '<worldbody><body><geom type="mesh" mesh="tip"/></body></worldbody></mujoco>')
+    key = mesh_files_key(mujoco.MjSpec.from_file(str(xml)))
+    assert len(key) == 64 and mesh_files_key(mujoco.MjSpec.from_file(str(xml))) == key
+    mesh.write_text(tetra.replace("0.01 0 0", "0.02 0 0"))
+    assert mesh_files_key(mujoco.MjSpec.from_file(str(xml))) not in ("", key)
+    assert mesh_files_key(mujoco.MjSpec.from_string("<mujoco><worldbody/></mujoco>")) == ""  # no meshes: no term
+
+
+def test_the_dataset_summary_reads_a_cached_pool_and_grasps_none(two_objects, monkeypatch, tmp_path):
+    """``haptic-recog dataset`` printed the pool's build time by asking for the pool again: a pool gone from the cache
+    (or never saved, in a read-only one) was grasped a second time just for that line."""
+    import haptic_env.dataset as dataset
+    import haptic_env.hand_grasps as hg
+    from haptic_env.cli import main
+
+    import os
+
+    monkeypatch.setenv("HAPTIC_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(os, "cpu_count", lambda: 1)  # grasped in this process, where the chunks are counted
+    monkeypatch.setattr(dataset, "load_object_set", lambda *a, **k: two_objects)
+    chunks = []
+    real = hg._grasp_chunk
+    monkeypatch.setattr(hg, "_grasp_chunk", lambda *a, **k: chunks.append(1) or real(*a, **k))
+    argv = ["dataset", "--objects", "default", "--source", "hand", "--hand", "generic", "--fingers", "2",
+            "--hand-fingers", "3", "--grasps", "12", "--quiet"]
+    assert main(argv) == 0 and chunks
+    for f in (tmp_path / "cache" / "hand_grasps").iterdir():
+        f.unlink()
+    chunks.clear()
+    assert main(argv) == 0 and not chunks  # the data set is a hit; its pool is not rebuilt to print a line
 
 
 def test_hand_source_dataset(two_objects):
