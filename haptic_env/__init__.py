@@ -17,8 +17,9 @@
 
 The ``Heights`` hand envs differ from their plain ones only in the grasp vector (the paper's frame-invariant
 Phi_n plus each contact's height above the table, ``grasp_heights``) and in the belief settings chosen
-for it on validation grasps (``touch_weight``; RESULTS.md), and the Allegro's keeps the ``z_fingers=3`` it was
-validated with (the plain Allegro env's is 2 since the solid table). The plain envs keep the paper's vector, and the
+for it on validation grasps (``touch_weight``; RESULTS.md), the Allegro's keeps the ``z_fingers=3`` it was
+validated with (the plain Allegro env's is 2 since the solid table), and the Shadow's the ``calibrate_grasps=5`` it
+was validated with (the plain Shadow env's is 10 since 2026-12-07). The plain envs keep the paper's vector, and the
 leaderboard and RL results are theirs.
 
 All take ``config=HapticRecogConfig(...)`` and/or single config fields as keyword arguments, see
@@ -108,10 +109,13 @@ def config_kwargs(config, env_id: str, kwargs: dict[str, Any]) -> dict[str, Any]
     ``kwargs`` on top: the fields the variant of ``env_id`` sets, taken from ``config`` (none without a config); a
     mapping field in ``kwargs`` updates the config's (:func:`~haptic_env.config.with_keys`), and the config's mappings
     are passed whole (:class:`~haptic_env.config.WholeMapping`: the variant's keys are not laid under them)."""
-    from haptic_env.config import MAPPING_FIELDS, WholeMapping, with_keys
+    from haptic_env.config import MAPPING_FIELDS, HapticRecogConfig, WholeMapping, with_keys
 
     if config is None:
         return dict(kwargs)
+    if not isinstance(config, HapticRecogConfig):  # make("HapticRecogShadow-v0"): an AttributeError of its fields
+        raise TypeError(f"config must be a HapticRecogConfig, got {config!r} (an env id goes in env_id=..., "
+                        "settings in keyword arguments)")
     out = {**{k: getattr(config, k) for k in ENV_VARIANTS.get(env_id, {})},
            **with_keys({k: getattr(config, k) for k in MAPPING_FIELDS}, kwargs)}
     return {k: WholeMapping(v) if k in MAPPING_FIELDS and isinstance(v, Mapping) else v for k, v in out.items()}

@@ -280,6 +280,10 @@ class HapticRecogConfig:
                              "data_dir, units and up") from exc
         if k is not None and k < 2:
             raise ValueError(f"object set {self.objects!r} has {k} object(s); recognising one needs at least 2")
+        for f in dataclasses.fields(self):  # a numpy scalar as the Python value it stands for (checked above): a
+            v = getattr(self, f.name)       # np.int64 max_grasps made `truncated` a numpy bool
+            if isinstance(v, np.generic):
+                object.__setattr__(self, f.name, v.item())
 
     def _check_backend(self) -> None:
         """``backend`` and ``backend_kwargs`` checked at make through the backend's own config (they failed when the

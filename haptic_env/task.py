@@ -148,7 +148,7 @@ class Task:
         return float(sum(terms.values())), terms
 
     def truncated(self, grasps: int, terminated: bool) -> bool:
-        return (not terminated) and grasps >= self.config.max_grasps
+        return bool((not terminated) and grasps >= self.config.max_grasps)
 
     def fill(self, obs: np.ndarray, parts: dict[str, Any]) -> np.ndarray:
         """Write every part of the layout into ``obs (..., D)`` from ``parts`` (name -> value broadcastable to

@@ -256,7 +256,7 @@ def test_defaults_are_stored_as_declared(cls):
         assert got == default and type(got) is type(default), f.name
 
 
-def test_numpy_scalars_are_accepted_and_stored_as_python_values():
+def test_numpy_scalars_are_accepted_and_stored_as_python_values(env_config):
     # AnalysisConfig: one whole-number check for every count (numpy ints too), np.bool_ for flags
     assert _same_types(A(family_members=np.int64(5)), A(family_members=5))
     assert A(family_members=np.int64(5)) == A(family_members=5)
@@ -294,6 +294,26 @@ def test_numpy_scalars_are_accepted_and_stored_as_python_values():
     py_h = H(threshold=0.5, max_grasps=5, calibrate_grasps=2, normals=False, observe_contacts=True)
     assert np_h == py_h and np_h.normals is False and np_h.observe_contacts is True
     assert type(np_h.threshold) is float and H(threshold=1).threshold == 1 and type(H(threshold=1).threshold) is int
+    # every count and number too (a np.int64 max_grasps made the env's `truncated` a numpy bool)
+    np_h = H(max_grasps=np.int64(3), n_fingers=np.int64(4), z_fingers=np.int64(3), training_grasps=np.int32(900),
+             grasp_cost=np.float32(0.25))
+    assert _same_types(np_h, H(max_grasps=3, n_fingers=4, z_fingers=3, training_grasps=900, grasp_cost=0.25))
+    import haptic_env
+
+    env = haptic_env.make(env_config.replace(max_grasps=np.int64(1)))
+    env.reset(seed=0)
+    *_, terminated, truncated, _ = env.step(env.action_space.sample())
+    assert type(truncated) is bool and type(terminated) is bool
+
+
+def test_make_names_a_config_that_is_not_one():
+    """``haptic_env.make("HapticRecogShadow-v0")`` (the id where the config goes) was an AttributeError of a str."""
+    import haptic_env
+
+    for bad in ("HapticRecogShadow-v0", {"n_fingers": 3}):
+        match = rf"config must be a HapticRecogConfig, got {re.escape(repr(bad))} \(an env"
+        with pytest.raises(TypeError, match=match):
+            haptic_env.make(bad)
 
 
 def test_valid_arguments_of_the_functions_stay_accepted():
