@@ -191,8 +191,10 @@ class HapticRecogConfig:
     trained with ``"estimated"``). False: the paper's observation."""
     recognizer_kwargs: Mapping[str, Any] = field(default_factory=dict)
     """Extra keyword arguments of :func:`haptic_env.recognizers.build_recognizer`, e.g.
-    ``{"config": RecognizerConfig(grasps=DatasetConfig(grasps_per_object=5000))}``; ``config`` may also be a
-    JSON-style dict (``{"grasps": {"grasps_per_object": 5000}, "mlp": {"max_epochs": 5}}``)."""
+    ``{"config": {"grasps": {"grasps_per_object": 5000}, "mlp": {"max_epochs": 5}}}``: a JSON-style ``config`` updates
+    the recogniser this env would build (its ``recognizer_source``, ``training_grasps``, ``kde_method``,
+    ``calibrate_grasps`` and ``likelihood`` fill in what it leaves out). A ``RecognizerConfig`` object as ``config``
+    is used whole, as given: those env fields do not apply to it (its own defaults: surface grasps, the tree KDE)."""
 
     def __post_init__(self) -> None:
         check_flag_fields(self, ("normals", "score_subsets", "calibrated", "observe_contacts", "grasp_heights",
@@ -501,5 +503,10 @@ def recognizer_kwargs(config: HapticRecogConfig) -> dict[str, Any]:
         kw["config"] = RecognizerConfig(**rc)
     elif not isinstance(rc, RecognizerConfig):
         raise ValueError(f"recognizer_kwargs['config'] must be a RecognizerConfig or a JSON-style dict, got {rc!r}")
+    elif kw.get("touch") and rc.grasps.source != "hand":  # refused at make as the JSON form is (it failed at reset)
+        what = (f"touch_weight={config.touch_weight}" if config.touch_weight > 0
+                else f"recognizer_kwargs['touch']={kw['touch']!r}")
+        raise ValueError(f"{what} needs hand-matched training grasps (source 'hand'), got the RecognizerConfig's "
+                         f"source {rc.grasps.source!r}")
     check_build_options(**{k: kw[k] for k in ("models", "touch", "cache", "progress") if k in kw})
     return kw

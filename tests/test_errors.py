@@ -595,6 +595,12 @@ def test_env_settings_that_contradict_the_recognisers_are_refused_at_make():
         HapticRecogConfig(backend="replay", touch_weight=0.5, recognizer_kwargs={"touch": False})
     with pytest.raises(ValueError, match=r"recognizer_kwargs\['touch'\]=True needs hand-matched training grasps"):
         HapticRecogConfig(recognizer_kwargs={"touch": True})
+    from haptic_env.dataset import DatasetConfig
+    from haptic_env.recognizers import RecognizerConfig
+
+    whole = RecognizerConfig(grasps=DatasetConfig(grasps_per_object=500))  # surface grasps: taken, failed at reset
+    with pytest.raises(ValueError, match=r"touch_weight=0.5 needs hand-matched .* the RecognizerConfig's source 'surf"):
+        HapticRecogConfig(backend="replay", touch_weight=0.5, recognizer_kwargs={"config": whole})
     hand = Path(__file__).resolve().parents[1] / "assets" / "generic_hand_4.xml"
     cfg = HapticRecogConfig(backend="mujoco", backend_kwargs={"hand": hand}, n_fingers=4)
     assert recognizer_kwargs(cfg)["config"].grasps.hand == str(hand)
