@@ -125,9 +125,9 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     When the updater's certainty reaches ``threshold`` (:math:`\lambda`, default
     :data:`~haptic_env.recognizers.updaters.DEFAULT_THRESHOLD`) after at least one grasp that moved the belief (the
     uniform prior alone never decides, even under a threshold below ``1 / K``): the recogniser has decided;
-    ``info["correct"]`` says whether the decision is the true object. The certainty is the belief's maximum for BC-NP and BC-IP and
-    for IC's default ``ic_certainty="count"``; with ``"share"`` it is the last winner's score share (the authors'
-    code), and IC decides from the second grasp on.
+    ``info["correct"]`` says whether the decision is the true object. The certainty is the belief's maximum for
+    BC-NP and BC-IP and for IC's default ``ic_certainty="count"``; with ``"share"`` it is the last winner's score
+    share (the authors' code), and IC decides from the second grasp on.
     ### Truncation
     After ``max_grasps`` grasps (default 30). The env truncates itself: ``max_grasps`` is the one source of the
     episode length (the registered envs set no ``max_episode_steps``, so no ``TimeLimit`` wrapper is added).
