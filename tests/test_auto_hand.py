@@ -266,6 +266,23 @@ def test_a_root_without_close_ctrl_is_refused_not_dropped(tmp_path):
 
     with pytest.raises(ValueError, match=r"root='palm' is for a hand used as given \(with close_ctrl=\)"):
         mjcf_hand(_write(tmp_path, "sib", sibling_roots_hand()), root="palm")
+    with pytest.raises(ValueError, match=r"approach_axis=\(1, 0, 0\) is for a hand used as given"):  # dropped too
+        mjcf_hand(_write(tmp_path, "sib", sibling_roots_hand()), approach_axis=(1, 0, 0))
+
+
+def test_the_named_menagerie_hands_keep_their_automatic_report():
+    """The Allegro and the Shadow are the automatic path's descriptions with their own physics; ``report()`` gave
+    None for them (``dataclasses.replace`` did not copy what ``auto_hand`` chose)."""
+    from haptic_env.grasping.hands import load_hand
+
+    for name, n in (("allegro", 4), ("shadow", 5)):
+        try:
+            desc = load_hand(name, n)
+        except HandUnavailableError as exc:
+            pytest.skip(f"Menagerie hand {name} unavailable (shared data absent: set MENAGERIE_ROOT / HAPTIC_DATA): "
+                        f"{exc}")
+        rep = report(desc)
+        assert rep is not None and rep.tips == desc.tips
 
 
 def test_unnamed_actuators_are_refused_by_name(tmp_path):

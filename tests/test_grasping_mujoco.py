@@ -351,6 +351,20 @@ def test_any_mjcf_hand_from_file(tmp_path):
     assert sum(r.n_touched for r in res) > 0
     with pytest.raises(ValueError, match="fingertip bodies"):
         make_backend("mujoco", 3, hand=str(path), hand_kwargs=(("tips", ("nope", "f1_tip", "f2_tip")),))
+    # a repeated tip (its finger never flagged touching), a scale that is not a number, an object without a mesh,
+    # and hand_kwargs that are no table: taken, or errors that did not name them
+    for tips in (("f0_tip", "f0_tip", "f2_tip"),):
+        with pytest.raises(ValueError, match=r"each fingertip body once, got tips=\('f0_tip', 'f0_tip', 'f2_tip'\)"):
+            make_backend("mujoco", 3, hand=str(path), hand_kwargs=(("tips", tips),))
+        with pytest.raises(ValueError, match="each fingertip body once"):
+            make_backend("mujoco", 3, hand=str(path), hand_kwargs=(("tips", tips), ("close_ctrl", {"a": 1.0})))
+    for bad in ("1.5", True, None):
+        with pytest.raises(ValueError, match=rf"scale must be a finite number > 0, got {bad!r}"):
+            be.set_object(_cyl(), scale=bad)
+    with pytest.raises(ValueError, match="has no usable triangle mesh"):
+        be.set_object(object())
+    with pytest.raises(ValueError, match=r"hand_kwargs must be a table or \(name, value\) pairs.*got 'abc'"):
+        make_backend("mujoco", 3, hand=str(path), hand_kwargs="abc")
 
 
 def test_a_hand_given_with_its_closing_controls_takes_its_approach_axis_and_is_warned_without_one(tmp_path):

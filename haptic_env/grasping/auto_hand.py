@@ -639,6 +639,8 @@ def auto_hand(source: str | Path | mujoco.MjSpec, tips: tuple[str, ...] | list[s
             raise ValueError(f"fingertip bodies {missing} not in {src} (bodies: {bodies[1:]})")
         if len(tips) < 2:
             raise ValueError(f"a hand needs >= 2 fingertips, got tips={tips}")
+        if len(set(tips)) != len(tips):  # a repeated tip: its finger was never flagged touching
+            raise ValueError(f"each fingertip body once, got tips={tuple(tips)} ({src})")
         bad = [t for t in tips if not _collides(m, m.body(t).id)]
         if bad:
             raise ValueError(f"fingertip bodies {bad} of {src} have no collision geoms")

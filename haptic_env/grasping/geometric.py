@@ -35,7 +35,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import trimesh
 
-from haptic_env.numbers import checked_flag, finite_number
+from haptic_env.numbers import checked_flag, finite_number, positive_number
 
 from . import _geometric_kernels as gk
 from .base import (
@@ -166,12 +166,7 @@ class GeometricBackend:
         if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
             raise ValueError(f"object {getattr(obj, 'name', obj)!r} has no usable triangle mesh")
         T = validate_pose(pose)
-        try:
-            s = float(scale)
-        except (TypeError, ValueError):
-            raise ValueError(f"scale must be a positive number, got {scale!r}") from None
-        if not (np.isfinite(s) and s > 0.0):
-            raise ValueError(f"scale must be a positive finite number, got {scale!r}")
+        s = positive_number(scale, "scale")  # '1.5' and True were taken as numbers
         sc = self._scene_of(mesh)
         self._obj = obj
         self._mesh = mesh

@@ -190,7 +190,8 @@ def _menagerie_spec(robot: str, entry: str) -> mujoco.MjSpec:
 
 
 def allegro_hand(side: str = "right") -> HandDescription:
-    """Wonik Allegro V3 (4 fingers: ff, mf, rf, thumb; 16 position actuators).
+    """Wonik Allegro V3 (4 fingers: ff, mf, rf, thumb on the right hand; the left hand's fingertips come in the
+    automatic path's order, rf, mf, ff, thumb; 16 position actuators).
 
     The closing synergy, open pose, approach axis and standoff are the automatic path's
     (:func:`~haptic_env.grasping.auto_hand.auto_hand` on the Menagerie file), as for the Shadow: every
@@ -205,7 +206,9 @@ def allegro_hand(side: str = "right") -> HandDescription:
     from .auto_hand import auto_hand
 
     d = auto_hand(f"wonik_allegro/{side}_hand")
-    return replace(d, name=f"allegro_{side}", timestep=0.004, max_steps=60)
+    out = replace(d, name=f"allegro_{side}", timestep=0.004, max_steps=60)
+    out.auto = d.auto  # what auto_hand chose (report()), which replace does not copy
+    return out
 
 
 def shadow_hand(side: str = "right") -> HandDescription:
@@ -231,8 +234,10 @@ def shadow_hand(side: str = "right") -> HandDescription:
     from .auto_hand import auto_hand
 
     d = auto_hand(f"shadow_hand/{side}_hand")
-    return replace(d, name=f"shadow_{side}", timestep=0.004, max_steps=75,
-                   option={**d.option, "solver": mujoco.mjtSolver.mjSOL_CG})
+    out = replace(d, name=f"shadow_{side}", timestep=0.004, max_steps=75,
+                  option={**d.option, "solver": mujoco.mjtSolver.mjSOL_CG})
+    out.auto = d.auto  # what auto_hand chose (report()), which replace does not copy
+    return out
 
 
 def aero_hand(side: str = "right") -> HandDescription:
@@ -317,6 +322,10 @@ def mjcf_hand(path: str | Path, tips: tuple[str, ...] | list[str] | None = None,
         if root is not None:  # it was dropped without a word
             raise ValueError(f"MJCF hand {path}: root={root!r} is for a hand used as given (with close_ctrl=); the "
                              "automatic path mounts the hand at the root it finds (leave root out, or give close_ctrl)")
+        if approach_axis is not None:  # dropped without a word too: the automatic path finds its own
+            raise ValueError(f"MJCF hand {path}: approach_axis={approach_axis!r} is for a hand used as given (with "
+                             "close_ctrl=); the automatic path finds the axis from its closing synergy (leave it out, "
+                             "or give close_ctrl)")
         desc = auto_hand(path, tips)
         if open_ctrl:
             desc.open_ctrl = {**desc.open_ctrl, **open_ctrl}
@@ -324,6 +333,8 @@ def mjcf_hand(path: str | Path, tips: tuple[str, ...] | list[str] | None = None,
         return desc
     if tips is None:
         raise ValueError(f"MJCF hand {path}: close_ctrl= given by hand needs tips= (fingertip body names, thumb last)")
+    if len(set(tips)) != len(tips):  # a repeated tip: its finger was never flagged touching
+        raise ValueError(f"MJCF hand {path}: each fingertip body once, got tips={tuple(tips)}")
     spec, name, src = load_mjcf(path)
     spec, auto_root, _ = single_root(spec)
     names = [spec.bodies[i].name for i in range(len(spec.bodies))]

@@ -37,16 +37,18 @@ import os
 import time
 import warnings
 from collections import OrderedDict
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import trimesh
 
 import mujoco
 
 from haptic_env.cache import KEY_ONLY_WHEN_SET
-from haptic_env.numbers import checked_flag, finite_number, whole_number
+from haptic_env.numbers import checked_flag, finite_number, positive_number, whole_number
 
 from .base import (
     ACTION_DIM,
@@ -121,6 +123,12 @@ class MujocoConfig:
         check_solid_table(self.solid_table, self.support)  # refused here, resolved by table_is_solid
         if self.solver is not None and self.solver not in SOLVERS:
             raise ValueError(f"solver must be one of {tuple(SOLVERS)}, got {self.solver!r}")
+        hk = self.hand_kwargs  # 'abc' was a dict() error at the backend's build, not naming the field
+        pairs = hk.items() if isinstance(hk, Mapping) else hk if isinstance(hk, (tuple, list)) else None
+        if pairs is None or not all(isinstance(kv, (tuple, list)) and len(kv) == 2 and isinstance(kv[0], str)
+                                    for kv in pairs):
+            raise ValueError(f"hand_kwargs must be a table or (name, value) pairs, e.g. (('tips', ('a', 'b')),), got "
+                             f"{hk!r}")
         if self.torque_source not in ("actuator", "constraint"):
             raise ValueError(f"torque_source must be 'actuator' or 'constraint', got {self.torque_source!r}")
         if self.contact_point not in ("surface", "site"):
@@ -626,11 +634,11 @@ class MujocoBackend:
     supports_scale = True
 
     def set_object(self, obj: Any, pose: np.ndarray | None = None, scale: float = 1.0) -> None:
+        mesh = getattr(obj, "mesh", None)
+        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:  # an AttributeError before
+            raise ValueError(f"object {getattr(obj, 'name', obj)!r} has no usable triangle mesh")
         T = validate_pose(pose)
-        scale = float(scale)
-        if not (np.isfinite(scale) and scale > 0):
-            raise ValueError(f"scale must be a positive finite number, got {scale!r}")
-        mesh = obj.mesh
+        scale = positive_number(scale, "scale")  # '1.5' and True were taken, None a bare TypeError
         v = scale * np.asarray(mesh.vertices, dtype=np.float64)
         vw = v @ T[:3, :3].T + T[:3, 3]
         c_obj = 0.5 * (v.min(0) + v.max(0))
