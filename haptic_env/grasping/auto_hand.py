@@ -102,7 +102,8 @@ class AutoHandReport:
     tips           fingertip bodies (thumb last); ``tips_given``: names passed by the caller
     closing        actuator -> closing target (ctrl)
     held           actuator -> why it is held at its neutral control
-    neutral        actuator -> neutral control (holds ``qpos0``; held actuators stay there)
+    neutral        actuator -> neutral control (holds ``qpos0``; held actuators stay there until their finger's
+                   first touch, which squeezes them too: ``GraspScene.hold_fingers``)
     open_ctrl      actuator -> control of the open (pre-grasp) pose
     approach_axis  (3,) palm centre -> closed fingertips, in the mount frame
     wrapped_roots  top-level bodies wrapped into one root (empty: the hand had one)

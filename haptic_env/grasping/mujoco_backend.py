@@ -453,7 +453,16 @@ class GraspScene:
         to the actuator's length units by its largest moment arm) towards the closing target (a light,
         constant squeeze instead of driving to full closure). An actuator that moves several fingers
         (a gripper's single motor) is held only once all of them are in ``fingers`` or ``held`` (bool
-        mask). Actuators that are not position-like keep closing."""
+        mask). Actuators that are not position-like keep closing.
+
+        Every position-like actuator of a held finger takes the squeeze, its spread actuators and those the
+        automatic path holds at neutral too, each ``squeeze`` past its current length in the direction of its
+        residual from its target: for an actuator already at its target that direction is numerical noise (measured
+        2026-12-07 on the generic hand: its swivels end a median 0.143 rad off their spread targets; leaving the
+        spread actuators alone moves the contacts a median 2 mm and changes 1 touch pattern in 20; the Allegro's and
+        the Shadow's neutral-held actuators end a median 0.145 rad off). Every hand figure was measured with this
+        behaviour; changing it changes every hand's grasps (a new pool key) and calls for the hand figures to be
+        measured again (RESULTS.md, "The squeeze at first touch turns the spread joints too")."""
         d = self.data
         new = np.zeros(self.act_fingers.shape[1], dtype=bool)
         new[np.asarray(fingers, dtype=np.int64)] = True
