@@ -102,15 +102,17 @@ def check_friction(value, name: str = "force_closure") -> float:
 
 
 def _check(contacts, normals, mu, edges, frame) -> tuple[np.ndarray, np.ndarray, bool]:
-    C = np.asarray(contacts, dtype=np.float64)
-    N = np.asarray(normals, dtype=np.float64)
+    from .grasp_features import _float64
+
+    C = _float64(contacts, "contacts")  # complex ones were cut to their real parts (a ComplexWarning)
+    N = _float64(normals, "normals")
     single = C.ndim == 2
     if single:
         C, N = C[None], N[None]
     if C.ndim != 3 or C.shape[-1] != 3:
         raise ValueError(f"contacts must have shape (B, n, 3) or (n, 3), got {np.shape(contacts)}")
-    if N.shape != C.shape:
-        raise ValueError(f"normals must have the shape of contacts {C.shape}, got {np.shape(normals)}")
+    if N.shape != C.shape:  # the shapes as given
+        raise ValueError(f"normals must have the shape of contacts {np.shape(contacts)}, got {np.shape(normals)}")
     for name, X in (("contacts", C), ("normals", N)):
         if not np.isfinite(X).all():
             b, i = np.argwhere(~np.isfinite(X).all(axis=-1))[0]

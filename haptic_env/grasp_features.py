@@ -102,7 +102,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .numbers import positive_number, whole_number
+from .numbers import checked_flag, positive_number, whole_number
 
 __all__ = [
     "DegenerateGraspError",
@@ -171,6 +171,7 @@ def feature_dim(n: int, normals: bool = False, dim: int = 3, heights: bool = Fal
     if m is None or m < 2:
         raise ValueError(f"a grasp needs at least 2 contacts: n must be a whole number >= 2, got n={n!r}")
     check_normal_axis(normal_axis)
+    normals, heights = checked_flag(normals, "normals"), checked_flag(heights, "heights")  # "no" was read as True
     if heights and d != 3:
         raise ValueError("contact heights need 3-d contacts (dim=3)")
     return _feature_dim(m, normals, d, heights, normal_axis)
@@ -206,12 +207,22 @@ def _real(x, name: str) -> np.ndarray:
     return a
 
 
+def _float64(x, name: str) -> np.ndarray:
+    """``x`` (:func:`_real`) as contiguous float64; an object array of what is not a real number (complex, None) is
+    a ``ValueError`` naming ``name`` (a ``TypeError`` of ``float()`` before)."""
+    a = _real(x, name)
+    try:
+        return np.ascontiguousarray(a, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be real numbers, got {x!r}") from None
+
+
 def _batched(contacts, normals) -> tuple[np.ndarray, np.ndarray | None, bool]:
     """Contiguous float64 ``(P, N, single)``, a single grasp given a batch axis; no checks but the dtype's
     (:func:`_real`)."""
-    P = np.ascontiguousarray(_real(contacts, "contacts"), dtype=np.float64)
+    P = _float64(contacts, "contacts")
     single = P.ndim == 2
-    N = None if normals is None else np.ascontiguousarray(_real(normals, "normals"), dtype=np.float64)
+    N = None if normals is None else _float64(normals, "normals")
     if single:
         P, N = P[None], None if N is None else N[None]
     return P, N, single
@@ -228,8 +239,8 @@ def _as_batch(contacts, normals, dim: int) -> tuple[np.ndarray, np.ndarray | Non
         i = int(np.flatnonzero(bad)[0])
         raise ValueError(f"contacts of grasp {i} are not finite: {P[i].tolist()}")
     if N is not None:
-        if N.shape != P.shape:
-            raise ValueError(f"normals must have the shape of contacts {P.shape}, got {np.shape(normals)}")
+        if N.shape != P.shape:  # the shapes as given (a single grasp's were reported with its batch axis)
+            raise ValueError(f"normals must have the shape of contacts {np.shape(contacts)}, got {np.shape(normals)}")
         norm = _norm(N)
         bad = ~(np.isfinite(norm) & (norm > 1e-12))
         if bad.any():
@@ -368,6 +379,7 @@ def phi(contacts, normals=None, *, strict: bool = False, tol: float = DEFAULT_TO
     """
     tol = _check_tol(tol)
     check_normal_axis(normal_axis)
+    strict, heights = checked_flag(strict, "strict"), checked_flag(heights, "heights")  # "no" was read as True
     P, N, single = _batched(contacts, normals)
     if _compiled_shapes(P, N):
         q, valid, order, reason = _phi_rows(P, N, tol, normal_axis)

@@ -680,6 +680,25 @@ def test_complex_contacts_and_normals_are_refused():
                                                                                                 N[..., :2] + 0j)):
         with pytest.raises(ValueError, match="normals must be real numbers, got an array of dtype complex"):
             call()
+    # an object array of complex numbers (a float() TypeError), and complex input to force closure (its real part
+    # taken with a ComplexWarning)
+    from haptic_env.force_closure import force_closure
+
+    with pytest.raises(ValueError, match="contacts must be real numbers"):
+        phi(np.array([[1j, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=object))
+    for call, what in ((lambda: force_closure(P + 5j, N), "contacts"), (lambda: force_closure(P, N + 0j), "normals")):
+        with pytest.raises(ValueError, match=f"{what} must be real numbers, got an array of dtype complex"):
+            call()
+    # a single grasp with a batch of normals: the shapes as given (both were reported with the batch axis)
+    for call in (lambda: phi(P[0], N[:1]), lambda: force_closure(P[0], N[:1])):
+        with pytest.raises(ValueError, match=r"normals must have the shape of contacts \(4, 3\), got \(1, 4, 3\)"):
+            call()
+    # yes / no settings are flags, not truthy values ("no" gave the vector with heights, 14 values for normals)
+    for call, name in ((lambda: phi(P, heights="no"), "heights"), (lambda: phi(P, strict="no"), "strict"),
+                       (lambda: feature_dim(4, normals="no"), "normals"),
+                       (lambda: feature_dim(4, heights=1), "heights")):
+        with pytest.raises(ValueError, match=f"{name} must be a bool"):
+            call()
     # real input of any real dtype (and lists) is taken as before
     P32, N32 = P.astype(np.float32), N.astype(np.float32)
     np.testing.assert_array_equal(phi(P32, N32).q, phi(P32.astype(float), N32.astype(float)).q)

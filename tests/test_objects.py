@@ -310,6 +310,9 @@ def test_flat_meshes_bad_scales_and_non_finite_vertices_are_refused_by_name():
     sheet = trimesh.Trimesh([[0, 0, 0], [0.1, 0, 0], [0.1, 0.1, 0], [0, 0.1, 0]], [[0, 1, 2], [0, 2, 3]])
     with pytest.raises(ValueError, match="object 'sheet': mesh is flat"):
         prepare_mesh(sheet, "sheet")
+    stray = trimesh.Trimesh(np.vstack([sheet.vertices, [[0.05, 0.05, 0.3]]]), sheet.faces, process=False)
+    with pytest.raises(ValueError, match="object 'sheet': mesh is flat"):  # an unused vertex off its plane let it in
+        prepare_mesh(stray, "sheet")
     box = trimesh.creation.box([0.05, 0.05, 0.05])
     for bad in (0.0, float("nan"), float("inf"), -1.0):
         with pytest.raises(ValueError, match="object 'b': scale must be a finite number > 0"):

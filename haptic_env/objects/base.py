@@ -64,8 +64,8 @@ def prepare_mesh(mesh: trimesh.Trimesh, name: str, scale: float = 1.0, up: str =
         raise ValueError(f"object {name!r}: mesh has non-finite vertices")
     R = up_rotation(up)  # first: a bad axis is named before any work
     scale = positive_number(scale, f"object {name!r}: scale")
-    v = np.asarray(mesh.vertices, dtype=np.float64)
-    spread = np.linalg.eigvalsh(np.cov(v.T)) if len(v) > 1 else np.zeros(3)  # ascending
+    v = np.asarray(mesh.vertices, dtype=np.float64)[np.unique(mesh.faces)]  # an unused vertex off the plane let
+    spread = np.linalg.eigvalsh(np.cov(v.T)) if len(v) > 1 else np.zeros(3)  # a flat sheet through; ascending
     if not spread[0] > 1e-12 * spread[-1]:  # std along the thinnest axis < 1e-6 x along the widest
         raise ValueError(f"object {name!r}: mesh is flat (its vertices lie in one plane, or on a line), so it has no "
                          "inside to grasp and no inward normal")
