@@ -100,7 +100,8 @@ class ModelBank:
     With ``calibrated`` (the default) the scores are calibrated as each model was fitted
     (:mod:`~haptic_env.recognizers.calibration`): ``log_likelihood`` returns the KDE's learned correction of
     ``log p(q | c)`` (where one was fitted, ``KDEConfig.correct``), divided by ``T_kde``
-    (:meth:`KDELikelihood.calibrate_scores`), and ``predict_proba`` returns ``softmax(log p_clf / T_clf)``. :meth:`with_calibration` gives the raw view (the paper's method).
+    (:meth:`KDELikelihood.calibrate_scores`), and ``predict_proba`` returns ``softmax(log p_clf / T_clf)``.
+    :meth:`with_calibration` gives the raw view (the paper's method).
     A model that was not built (``models=`` of :func:`build_recognizer`) is ``None``.
     """
 
@@ -227,8 +228,8 @@ class Recognizer:
         z-finger subsets (all, or ``k`` random ones drawn from ``rng``); ``None`` scores the touching
         contacts as one grasp with the model of their count. ``calibrated``: scores calibrated on validation
         grasps (the KDE's learned correction where fitted, and the temperatures; default); False: the paper's raw
-        scores. The returned
-        updater has ``update(q)`` (grasp vectors) and ``update_grasp(contacts, normals, touched)`` (raw contacts).
+        scores. The returned updater has ``update(q)`` (grasp vectors) and ``update_grasp(contacts, normals,
+        touched)`` (raw contacts).
         """
         if kind not in UPDATERS:
             raise ValueError(f"unknown updater kind {kind!r}; choose one of {UPDATERS}")
