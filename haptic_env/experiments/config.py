@@ -260,9 +260,9 @@ class AnalysisConfig:
         say for the other experiments."""
         if not self.calibrated:
             return "raw scores (paper)" + self.ic_label
-        return ("calibrated scores: the family KDE's log-likelihoods above an outlier floor, tempered for beliefs of "
-                f"1-{self.max_grasps} grasps of one member, and the MLP's temperature, each fitted on validation "
-                "members" + self.ic_label)
+        return ("calibrated scores: the family KDE's log-likelihoods with an outlier floor (or none), tempered for "
+                f"beliefs of 1-{self.max_grasps} grasps of one member, and the MLP's temperature, each chosen on "
+                "validation members" + self.ic_label)
 
     @property
     def scores_label(self) -> str:
