@@ -36,8 +36,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.stop_floor import (CHECK_SEED_OFFSET, analysis_config, choose_and_check, emit,  # noqa: E402
-                                   experiment2_parser, finger_counts, kept_parts, md_table)
+from benchmarks.stop_floor import (CHECK_SEED_OFFSET, analysis_config, choose_and_check, chosen_cell,  # noqa: E402
+                                   emit, experiment2_parser, finger_counts, kept_parts, md_table)
 from haptic_env.cache import save_keyed_json  # noqa: E402
 from haptic_env.experiments.fresh_grasps import fresh_pool  # noqa: E402
 from haptic_env.experiments.stop_scale import STOP_SCALES, VALIDATION_GRASPS, VALIDATION_TRIALS  # noqa: E402
@@ -76,9 +76,9 @@ def main(argv=None):
             t1 = time.time()
             sets = {name: [like[lik](X) for X in pool] for name, pool in pools.items()}
             score_us = 1e6 * (time.time() - t1) / sum(len(X) for pool in pools.values() for X in pool)
-            s, at, every = choose_and_check(sets, n, cfg, SCALES)
+            s, at, every, reached = choose_and_check(sets, n, cfg, SCALES)
             fit = fit_s if lik == "hgb" else float("nan")
-            r = {"n": n, "lik": lik, "us": score_us, "fit": fit, "s": s, **at}
+            r = {"n": n, "lik": lik, "us": score_us, "fit": fit, "s": s, "reached": reached, **at}
             frontier += [[str(n), lik, k] + [by_s[v] for v in SCALES if v <= 1.0] for k, by_s in every.items()]
             rows.append(r)
             print(r, file=sys.stderr, flush=True)
@@ -91,7 +91,7 @@ def main(argv=None):
              f"{a.threshold}; {VALIDATION_GRASPS} "
              f"validation grasps per object, {VALIDATION_TRIALS} BC-NP trials per cell (right = decided and right at "
              f"the stop); {time.time() - t0:.0f} s", ""]
-    lines += md_table(head, [[str(r["n"]), r["lik"], f"{r['s']:g}", r["A"], r["B"], f"{r['fit']:.0f}",
+    lines += md_table(head, [[str(r["n"]), r["lik"], chosen_cell(r), r["A"], r["B"], f"{r['fit']:.0f}",
                               f"{r['us']:.1f}"] for r in rows])
     head = ["n", "likelihood", "set"] + [f"s = {s:g}" for s in SCALES if s <= 1.0]
     lines += ["", "Every scale (the frontier of right stops against grasps; s > 1 only adds grasps here):", ""]

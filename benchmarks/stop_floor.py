@@ -84,19 +84,26 @@ def analysis_config(a: argparse.Namespace) -> AnalysisConfig:
     return dataclasses.replace(cfg, kde=dataclasses.replace(cfg.kde, seed=a.seed))  # as `haptic-recog analysis` sets it
 
 
-def choose_and_check(sets: dict, n: int, cfg: AnalysisConfig, scales=STOP_SCALES) -> tuple[float, dict, dict]:
+def choose_and_check(sets: dict, n: int, cfg: AnalysisConfig, scales=STOP_SCALES
+                     ) -> tuple[float, dict, dict, bool]:
     """Experiment 2's stop scale chosen on ``sets["A"]`` (per object ``(G, K)`` scores, its trial stream) and checked
-    on ``sets["B"]``: ``(s, {set: "right / grasps" at s}, {set: {scale: "right / grasps"}})``."""
-    at, every, s = {}, {}, None
+    on ``sets["B"]``: ``(s, {set: "right / grasps" at s}, {set: {scale: "right / grasps"}}, reached)``; ``reached``:
+    some scale stopped right ``lambda`` of the time on A (else ``s`` is :func:`fit_stop_scale`'s fallback, 1)."""
+    at, every, s, reached = {}, {}, None, False
     for name, LL in sets.items():
         PR = [np.full(x.shape, 1.0 / x.shape[1]) for x in LL]  # BC-NP does not use the classifier
         rng = np.random.default_rng([cfg.seed, n, VALIDATION_SEED_OFFSET])  # experiment 2's stream on A
         chosen, table = fit_stop_scale(LL, PR, cfg.threshold, scales=scales, trials=VALIDATION_TRIALS, rng=rng)
         if name == "A":
-            s = chosen[0]
+            s, reached = chosen[0], bool(chosen[1] >= cfg.threshold)
         every[name] = {t[0]: f"{100 * t[1]:.1f} / {t[2]:.2f}" for t in table}
         at[name] = every[name][s]  # B: at the scale chosen on A
-    return s, at, every
+    return s, at, every, reached
+
+
+def chosen_cell(r: dict) -> str:
+    """A row's chosen scale as the tables print it, marked when no scale reached lambda on A (the fallback s = 1)."""
+    return f"{r['s']:g}" + ("" if r.get("reached", True) else " (none reached lambda)")
 
 
 def md_table(head: list[str], rows: list[list[str]]) -> list[str]:
@@ -127,9 +134,12 @@ def main(argv=None):
     p = experiment2_parser(__doc__.split("\n\n")[0])
     p.add_argument("--eps", default=",".join(f"{e:g}" for e in EPS), help="posterior floors (0: none)")
     a = p.parse_args(argv)
-    eps_grid = tuple(float(v) for v in a.eps.split(","))
-    for e in eps_grid:
-        posterior_floor(np.zeros((1, 2)), e)  # a bad value fails here, before any training
+    try:  # a usage error, before any training ('abc' and -1 were tracebacks)
+        eps_grid = tuple(float(v) for v in a.eps.split(","))
+        for e in eps_grid:
+            posterior_floor(np.zeros((1, 2)), e)
+    except ValueError as exc:
+        p.error(f"--eps {a.eps!r}: {exc}")
     t0 = time.time()
     objects = load_object_set(a.objects)
     cfg = analysis_config(a)
@@ -150,8 +160,8 @@ def main(argv=None):
             sets[name] = [models.log_likelihood(X) for X in pool]
         for eps in eps_grid:
             floored_sets = {k: [posterior_floor(x, eps) for x in LL] for k, LL in sets.items()}
-            s, at, every = choose_and_check(floored_sets, n, cfg)
-            r = {"n": n, "eps": eps, "s": s, **at}
+            s, at, every, reached = choose_and_check(floored_sets, n, cfg)
+            r = {"n": n, "eps": eps, "s": s, "reached": reached, **at}
             frontier += [[str(n), f"{eps:g}", k] + [by_s[v] for v in STOP_SCALES if v <= 1.0]
                          for k, by_s in every.items()]
             rows.append(r)
@@ -162,7 +172,7 @@ def main(argv=None):
     lines = [f"{a.objects}, normals: {cfg.normals}, {a.grasps_per_object} grasps per object, seed {a.seed}, lambda "
              f"{a.threshold}; {VALIDATION_GRASPS} validation grasps per object, {VALIDATION_TRIALS} BC-NP trials per "
              f"cell (right = decided and right at the stop); {time.time() - t0:.0f} s", ""]
-    lines += md_table(head, [[str(r["n"]), f"{r['eps']:g}", f"{r['s']:g}", r["A"], r["B"]] for r in rows])
+    lines += md_table(head, [[str(r["n"]), f"{r['eps']:g}", chosen_cell(r), r["A"], r["B"]] for r in rows])
     head = ["n", "eps", "set"] + [f"s = {s:g}" for s in STOP_SCALES if s <= 1.0]
     lines += ["", "Every scale (the frontier of right stops against grasps; s > 1 only adds grasps here):", ""]
     emit(lines + md_table(head, frontier), a.out, argv=argv)
