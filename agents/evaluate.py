@@ -551,7 +551,7 @@ def write_report(records: Sequence[EpisodeRecord], out: str | Path, max_grasps: 
              "curve": out / "success_vs_grasps.png", "box": out / "grasps_boxplot.png",
              "profile": out / "performance_profile.png"}
     conf = confusion(records)
-    paths["md"].write_text(
+    md = (
         f"# {title}\n\n{extra}\n\n{markdown_table(rows)}\n\n"
         + (f"## Errors at the stop\n\n{errors_markdown(conf)}\n\n" if conf else "")
         + f"## RL aggregates (rliable)\n\n{rl_markdown_table(agg)}\n\n"
@@ -578,6 +578,8 @@ def write_report(records: Sequence[EpisodeRecord], out: str | Path, max_grasps: 
         w.writeheader()
         for r in records:
             w.writerow(asdict(r))
+    with atomic_write(paths["md"], "w") as fh:  # last and whole: a stop before it keeps the md of one run
+        fh.write(md)
 
     fig = Figure(figsize=(6, 4))
     ax = fig.subplots()

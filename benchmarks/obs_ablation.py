@@ -32,7 +32,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from haptic_env.cli import script_command  # noqa: E402
+from haptic_env.cli import int_in, output_path, script_command  # noqa: E402
 from haptic_env.splits import ENV_VALIDATION_SEEDS  # noqa: E402
 
 MODES = ("zero", "yaw")
@@ -95,9 +95,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--env-kwargs", default="{}", help="JSON dict of HapticRecogConfig fields")
     ap.add_argument("--parts", nargs="+", default=["contacts", "contact_normals"])
     ap.add_argument("--modes", nargs="+", default=list(MODES), choices=MODES)
-    ap.add_argument("--episodes", type=int, default=40)
-    ap.add_argument("--seeds", type=int, nargs="+", default=list(ENV_VALIDATION_SEEDS))
-    ap.add_argument("--out", default="results/obs_ablation")
+    ap.add_argument("--episodes", type=int_in(1), default=40)
+    ap.add_argument("--seeds", type=int_in(0), nargs="+", default=list(ENV_VALIDATION_SEEDS))
+    ap.add_argument("--out", type=output_path("folder"), default="results/obs_ablation")  # checked before the episodes
     args = ap.parse_args(argv)
     try:
         kwargs = json.loads(args.env_kwargs)

@@ -44,10 +44,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # the sibling benchmar
 from relative_approaches import compare, compare_parser  # noqa: E402
 
 
-def cell_rates(env_id: str, bins: int) -> tuple[np.ndarray, np.ndarray, int]:
-    """``(complete (B, B, B), usable (B, B, B), grasps)``: the training pool's rate of complete and of usable grasps
-    (:func:`~haptic_env.grasping.usable_touch`) per (elevation, roll, spread) cell, pooled over the objects and
-    azimuths."""
+#: grasps a cell needs for its rate to count (a best cell, a weight of the ``weighted`` agent)
+MIN_CELL = 20
+
+
+def cell_rates(env_id: str, bins: int) -> tuple[np.ndarray, np.ndarray, int, tuple[float, float]]:
+    """``(complete (B, B, B), usable (B, B, B), grasps, (complete, usable) over all grasps)``: the training pool's rate
+    of complete and of usable grasps (:func:`~haptic_env.grasping.usable_touch`) per (elevation, roll, spread) cell,
+    pooled over the objects and azimuths (0 in a cell of fewer than :data:`MIN_CELL` grasps), and over the pool."""
     env = gym.make(env_id)
     try:
         dc = recognizer_kwargs(env.unwrapped.config)["config"].grasps
@@ -64,7 +68,11 @@ def cell_rates(env_id: str, bins: int) -> tuple[np.ndarray, np.ndarray, int]:
     n = np.bincount(flat, minlength=bins ** 3).astype(float)
     comp = np.bincount(flat, weights=T.all(1), minlength=bins ** 3) / np.maximum(n, 1)
     use = np.bincount(flat, weights=usable_touch(T), minlength=bins ** 3) / np.maximum(n, 1)
-    return comp.reshape((bins,) * 3), use.reshape((bins,) * 3), len(A)
+    # a cell with fewer than MIN_CELL grasps is no best cell (at --bins 40 one grasp made a "best cell 1.00")
+    sparse = n < MIN_CELL
+    comp[sparse], use[sparse] = 0.0, 0.0
+    pooled = (float(T.all(1).mean()), float(usable_touch(T).mean()))  # over grasps, not cells (empty ones as 0)
+    return comp.reshape((bins,) * 3), use.reshape((bins,) * 3), len(A), pooled
 
 
 class CellAgent(RandomAgent):
@@ -85,12 +93,13 @@ def main(argv=None) -> int:
     p = compare_parser(__doc__.split("\n\n")[0])
     p.add_argument("--bins", type=int_in(1), default=6, help="grid cells per approach parameter")
     a = p.parse_args(argv)
-    comp, use, n = cell_rates(a.env_id, a.bins)
+    comp, use, n, (pooled_comp, pooled_use) = cell_rates(a.env_id, a.bins)
     one = lambda r: np.eye(r.size)[np.argmax(r)]  # noqa: E731
     agents = [RandomAgent(), CellAgent("best-complete", one(comp), a.bins), CellAgent("best-usable", one(use), a.bins),
               CellAgent("weighted", comp.ravel() ** 2, a.bins)]
-    compare(agents, a, f"; training pool {n} grasps, {a.bins}^3 cells; pooled rates: complete {comp.mean():.2f} (best "
-            f"cell {comp.max():.2f}), usable {use.mean():.2f} (best {use.max():.2f})", "scripted policy", argv)
+    compare(agents, a, f"; training pool {n} grasps, {a.bins}^3 cells; pooled rates: complete {pooled_comp:.2f} (best "
+            f"cell {comp.max():.2f}), usable {pooled_use:.2f} (best {use.max():.2f}; cells of >= {MIN_CELL} grasps)",
+            "scripted policy", argv)
     return 0
 
 
