@@ -5,15 +5,14 @@ candidates are the matrix and the power correction) chose for each n.
 
     python benchmarks/correction_validation.py [--objects default] [--fingers 4,5,8] [--no-normals]
 
-The recogniser is the analyses' (``AnalysisConfig``: 10,000 surface grasps per object, tree KDE). Its
-validation split (15 % of the training grasps, never trained on) is halved per object: the calibration is fitted
-on half A and BC-NP runs on half B (600 trials, lambda = 0.85, at most 30 grasps, grasps drawn from the trial's
-object without replacement). Success = decided and correct at the stop. Also printed: the held-out NLL of the true
-class under the one-shot posterior on half B (the criterion of ``calibration.select_correction``), and the argmax
-accuracy of the summed scores after m grasps (does the belief converge on the right object at all?). Test grasps are
-never used.
-Headline (last line): BC-NP success with the correction against the one-shot temperature at the last ``--fingers``
-entry (the largest n of the default list), with its trial count (one seed).
+The recogniser is the analyses' (``AnalysisConfig``: 10,000 surface grasps per object, tree KDE). Its validation
+split (20 % of the training grasps, ``DatasetConfig.val_fraction``, never trained on) is halved per object: the
+calibration is fitted on half A and BC-NP runs on half B (600 trials, lambda = 0.85, at most 30 grasps, grasps drawn
+from the trial's object without replacement). Success = decided and correct at the stop. Also printed: the held-out
+NLL of the true class under the one-shot posterior on half B (the criterion of ``calibration.select_correction``),
+and the argmax accuracy of the summed scores after m grasps (does the belief converge on the right object at all?).
+Test grasps are never used. Headline (last line): BC-NP success with the correction against the one-shot temperature
+at the last ``--fingers`` entry (the largest n of the default list), with its trial count (one seed).
 """
 
 from __future__ import annotations

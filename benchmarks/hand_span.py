@@ -76,8 +76,9 @@ def main(argv=None) -> int:
                  f"{args.spans!r}, {args.min_seps!r}")
     if min(fingers) < 3 or args.grasps < 50 or args.test_grasps < 1:
         ap.error(f"need --fingers >= 3, --grasps >= 50, --test-grasps >= 1; got {vars(args)}")
-    if min(spans) <= 0 or min(seps) < 0 or max(seps) > min(spans):
-        ap.error(f"need --spans > 0 and 0 <= --min-seps <= every span; got {args.spans!r}, {args.min_seps!r}")
+    if any(x != x for x in spans + seps) or min(spans) <= 0 or min(seps) < 0 or max(seps) > min(spans):  # NaN too
+        ap.error(f"need --spans > 0 and 0 <= --min-seps <= every span (numbers, not nan); got {args.spans!r}, "
+                 f"{args.min_seps!r}")
     from tqdm import tqdm
 
     from haptic_env.dataset import DatasetConfig

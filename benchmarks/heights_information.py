@@ -2,8 +2,8 @@
 
 One-shot accuracy of a k-NN classifier (scikit-learn, 15 neighbours, distance-weighted, standardised features)
 trained on a hand's grasp pool of the YCB-10 meshes (pool seed 0, the envs' training pool) and scored on the
-validation pools (seeds 500-502, 300 approaches per object each), complete grasps (every fingertip touching) and,
-with ``--z 3``, a random 3-subset of the touching fingertips of every grasp with at least three. Feature sets:
+validation pools (seeds 500-502, 300 approaches per object each), complete grasps (every fingertip touching) and
+(always, rows ``z = 3``) a random 3-subset of the touching fingertips of every grasp with at least three. Feature sets:
 
 * ``phi``: the paper's frame-invariant Phi_n (with normals where the hand senses them);
 * ``phi+approach``: plus the approach's yaw-free parameters (elevation, roll as cos / sin, spread);

@@ -41,7 +41,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
 from haptic_env.cache import atomic_write  # noqa: E402
-from haptic_env.cli import float_in, output_path  # noqa: E402
+from haptic_env.cli import float_in, int_in, output_path  # noqa: E402
 
 #: name -> (env id, config overrides); the options run on the default geometric env
 OPTION_VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
@@ -213,12 +213,12 @@ def table(rows: list[tuple[str, dict[str, Any]]]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--steps", type=int, default=100_000, help="measured steps per variant (default 100000)")
-    p.add_argument("--warmup", type=int, default=2000, help="steps before the first RSS reading (default 2000)")
+    p.add_argument("--steps", type=int_in(1), default=100_000, help="measured steps per variant (default 100000)")
+    p.add_argument("--warmup", type=int_in(0), default=2000, help="steps before the first RSS reading (default 2000)")
     p.add_argument("--variants", nargs="+", default=["all"],
                    help="'all', 'geometric' (all but the MuJoCo env) or variant names")
     p.add_argument("--max-growth-mb", type=float_in(0.0), default=20.0, help="RSS growth bound after the warm-up (MiB)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int_in(0), default=0)  # -1 was reported as a crash of the env
     p.add_argument("--timeout", type=float_in(0.0), default=0.0, help="seconds per variant (0: none)")
     p.add_argument("--out", type=output_path("file"), default=None, help="also write the markdown table here")
     p.add_argument("--child", default=None, help=argparse.SUPPRESS)

@@ -32,7 +32,7 @@ the 4-finger Allegro with them. A 5-finger hand's z = 3 replay is not checked: t
 as the paper's k = 4 (``subset_k``), which the hand table's updater (the product over all subsets) does not.
 
     python benchmarks/stop_frontier.py [--hands allegro] [--split validation] [--seeds 0 1 2] [--queries 10]
-        [--scales 0.5 0.7 1 1.4 2 3 4 6] [--heights] [--out docs/results/stop_frontier]
+        [--scales 0.5 0.7 1 1.4 2 3 4 6 10] [--heights] [--out docs/results/stop_frontier]
 
 Writes ``frontier.md`` and ``frontier.png`` under ``--out``; the headline is printed last.
 """
@@ -59,6 +59,7 @@ from haptic_env.objects import data_dir, load_object_set  # noqa: E402
 from haptic_env.recognizers import build_recognizer, models_for  # noqa: E402
 from haptic_env.recognizers.updaters import DEFAULT_MAX_GRASPS, DEFAULT_THRESHOLD  # noqa: E402
 from haptic_env.recognizers.zfinger import subset_vectors, subset_weight  # noqa: E402
+from haptic_env.splits import hand_pool_seed  # noqa: E402
 
 METHODS = ("BC-NP", "BC-NP, z=3")
 
@@ -192,7 +193,8 @@ def main(argv=None) -> int:
     if not results:
         return 1
     cols = {(4, True): "4+", (4, False): "4-", (5, False): "5-"}
-    lines = [f"YCB-10, {args.queries} queries per object x {len(args.seeds)} {args.split} pool seeds {args.seeds}, "
+    pool_seeds = [hand_pool_seed(args.split, sd) for sd in args.seeds]  # the pools' own seeds (500 + s: validation)
+    lines = [f"YCB-10, {args.queries} queries per object x {len(args.seeds)} {args.split} pool seeds {pool_seeds}, "
              f"<= {args.max_grasps} random-approach grasps per query, lambda = {args.threshold}. Scale s multiplies "
              "the calibrated per-grasp log-likelihood of the hand's registered env (s = 1; checked against the hand "
              "table's updaters). Success = decided and correct at the stop, mean +- sample std over the pool seeds. "

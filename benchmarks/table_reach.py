@@ -23,7 +23,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from haptic_env.cli import float_in, int_in  # noqa: E402
+from haptic_env.cli import distinct, float_in, int_in  # noqa: E402
 from haptic_env.grasping import make_backend  # noqa: E402
 from haptic_env.grasping.base import support_height  # noqa: E402
 from haptic_env.grasping.hands import HANDS, HandUnavailableError  # noqa: E402
@@ -72,6 +72,7 @@ def main(argv=None) -> int:
     bad = [h for h in hands if h not in HANDS]
     if not hands or bad:
         p.error(f"--hands: unknown hand {', '.join(bad) or '(none)'}; choose from {HANDS}")
+    distinct(p, "--hands", hands)  # a hand twice printed its rows twice and dropped the HEADLINE
     try:
         objects = load_object_set(a.objects)
     except (ValueError, FileNotFoundError) as exc:
