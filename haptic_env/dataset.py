@@ -763,6 +763,13 @@ def _run_cli(args: argparse.Namespace) -> int:
 
 
 def _cli_config(args: argparse.Namespace) -> DatasetConfig:
+    # flags the config keys as fixed where they change nothing: taken and ignored on the command line before
+    if args.sampling != "area" and args.source != "surface":
+        raise ValueError(f"--sampling {args.sampling} samples surface points: it needs --source surface, got --source "
+                         f"{args.source}")
+    if args.normal_noise > 0 and args.no_normals:
+        raise ValueError(f"--normal-noise {args.normal_noise:g} tilts the normals that --no-normals leaves out (drop "
+                         "one of them)")
     return DatasetConfig(
         n_fingers=args.fingers,
         normals=not args.no_normals,

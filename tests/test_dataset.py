@@ -203,6 +203,11 @@ def test_cli_dataset_force_closure(capsys, usage_error):
     with pytest.raises(SystemExit):
         cli_main([*argv[:3], "--fingers", "2", "--force-closure", "0.5"])
     assert "n_fingers >= 3" in capsys.readouterr().err
+    # taken and ignored before: surface sampling for other sources, normal noise without normals
+    usage_error(cli_main, [*argv, "--source", "geometric", "--sampling", "centroid"],
+                match=r"--sampling centroid samples surface points: it needs --source surface, got --source geometric")
+    usage_error(cli_main, [*argv, "--no-normals", "--normal-noise", "5"],
+                match=r"--normal-noise 5 tilts the normals that --no-normals leaves out")
 
 
 def test_cli_dataset_folder_and_no_normals(tmp_path, capsys):

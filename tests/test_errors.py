@@ -166,6 +166,9 @@ def test_one_object_set_fails_at_make(tmp_path, haptic_cache):
         HapticRecogConfig(objects="families:100000000")  # it generated members without end
     with pytest.raises(ValueError, match=r"unknown units 'furlong'"):
         HapticRecogConfig(object_kwargs={"units": "furlong"})  # a named set ignores a good unit, not a bad one
+    for bad in ("0", "-1", "nan", "inf"):  # a number given as text, as the command lines give it
+        with pytest.raises(ValueError, match=rf"units factor must be positive and finite, got '{bad}'"):
+            HapticRecogConfig(object_kwargs={"units": bad})
     from haptic_env.objects import load_object_set
 
     with pytest.raises(ValueError, match=r"data_dir must be a folder path or None, got 5"):  # was a bare TypeError

@@ -180,7 +180,7 @@ def _write_meshes(folder, units_scale=1.0):
     (folder / "notes.txt").write_text("not a mesh")
 
 
-@pytest.mark.parametrize("units,factor", [("m", 1.0), ("mm", 1000.0), ("cm", 100.0), (0.5, 2.0)])
+@pytest.mark.parametrize("units,factor", [("m", 1.0), ("mm", 1000.0), ("cm", 100.0), (0.5, 2.0), ("0.5", 2.0)])
 def test_folder_loader_units(tmp_path, units, factor):
     _write_meshes(tmp_path / "objs", factor)
     s = load_object_set(str(tmp_path / "objs"), units=units)
