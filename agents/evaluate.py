@@ -723,6 +723,8 @@ def read_monitor(folder: str | Path) -> dict[str, np.ndarray]:
                 raise ValueError(f"{f} is not a Monitor log (no '#{{...}}' header line)")
             t0 = float(json.loads(first[1:]).get("t_start", 0.0))
             for row in csv.DictReader(fh):
+                if None in row.values() or None in row:  # a line cut short (a kill or a full disk mid-write)
+                    continue
                 row["t"] = str(float(row["t"]) + t0)
                 segments[k].append(row)
     run = Path(folder).parent if Path(folder).name == "monitor" else Path(folder)  # where the args files are

@@ -394,6 +394,8 @@ def test_truncated_recognizer_json_is_rebuilt(tmp_path, monkeypatch):
      "--family-hand shadow needs --family-source hand"),
     (["analysis", "--out", "outputs/never", "--no-correction", "--kde-corrections", "power"],
      "--kde-corrections power weighs corrections that --no-correction turns off"),
+    (["analysis", "--out", "outputs/never", "--raw", "--family-floors", "0.5"],  # taken and ignored before
+     "--family-floors 0.5 chooses experiment 5's outlier floor on calibrated scores; --raw has neither"),
 ])
 def test_cli_bad_values_are_one_line_usage_errors(argv, match, capsys):
     import re

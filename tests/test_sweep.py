@@ -217,6 +217,8 @@ def test_a_changed_env_variant_is_a_new_job(monkeypatch):
     ({"name": "x", "analysis": [{"objects": "no_such_set"}]}, r"analysis\[0\]\.objects: unknown object set"),
     ({"name": "x", "out": 3, "command": [{"name": "c", "run": "true"}]},
      r"out: expected the sweep folder's path \(a string\), got 3"),
+    ({"name": "x", "max_retries": 10**19, "command": [{"name": "c", "run": "true"}]},
+     r"max_retries: expected an integer in \[0, 1000\]"),
 ])
 def test_bad_specs_are_one_line_errors(doc, match):
     with pytest.raises(SpecError, match=match):
@@ -275,6 +277,19 @@ def test_a_job_that_asks_for_more_cpus_than_the_local_ray_has_is_refused(tmp_pat
 
 def test_cli_dry_run_and_bad_spec(tmp_path, capsys):
     from haptic_env.cli import main
+
+    # a binary file as the spec, a spec out under a file, a retry count Ray cannot take: tracebacks once run
+    binary = tmp_path / "spec.npz"
+    binary.write_bytes(b"\x93NUMPY\xff\xfe")
+    (tmp_path / "afile").write_text("x")
+    under = tmp_path / "under.toml"
+    under.write_text(f'name = "u"\nout = "{tmp_path / "afile" / "sweep"}"\n[[command]]\nname = "c"\nrun = "true"\n')
+    for argv, why in (([str(binary), "--dry-run"], "not a TOML text file (not UTF-8)"),
+                      ([str(under), "--dry-run"], "spec out: "),
+                      ([str(SMOKE), "--max-retries", str(10**19)], "--max-retries: must be in [0, 1000]")):
+        with pytest.raises(SystemExit) as exc:
+            main(["sweep", *argv])
+        assert exc.value.code == 2 and why in capsys.readouterr().err, why
 
     assert main(["sweep", str(SMOKE), "--dry-run", "--out", str(tmp_path)]) == 0
     assert "todo  evaluate/default/greedy/seed0-" in capsys.readouterr().out

@@ -258,6 +258,9 @@ def config_from_args(args) -> AnalysisConfig:
     if cfg.family_source != "hand" and cfg.family_hand != d.family_hand:  # it was accepted and ignored
         raise UsageError(f"--family-hand {cfg.family_hand} needs --family-source hand (got --family-source "
                          f"{cfg.family_source})")
+    if not cfg.calibrated and cfg.family_floors != d.family_floors:  # raw scores have no floor: it was ignored
+        raise UsageError(f"--family-floors {args.family_floors} chooses experiment 5's outlier floor on calibrated "
+                         "scores; --raw has neither (drop one of them)")
     if args.no_correction and cfg.kde.correct_candidates != d.kde.correct_candidates:
         raise UsageError(f"--kde-corrections {args.kde_corrections} weighs corrections that --no-correction turns off "
                          "(drop one of them)")

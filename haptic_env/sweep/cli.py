@@ -38,7 +38,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--address", default=None, help="join this Ray cluster (HOST:PORT or 'auto'); default: start "
                    "a local one")
     p.add_argument("--num-cpus", type=int_in(1), default=None, help="CPUs of the local Ray (default: all cores)")
-    p.add_argument("--max-retries", type=int_in(0), default=None, help="retries of a failed job (default: the "
+    p.add_argument("--max-retries", type=int_in(0, 1000), default=None, help="retries of a failed job (default: the "
                    "spec's max_retries, else 2)")
     p.add_argument("--only", nargs="+", choices=KINDS, default=None, help="run only these job kinds (and what "
                    "they need)")
@@ -73,6 +73,13 @@ def _main(args) -> int:
         spec = load_spec(args.spec)
     except SpecError as exc:
         raise UsageError(str(exc)) from exc
+    if args.out is None:  # the spec's own out, checked as --out is (a path under a file failed once Ray had started)
+        from haptic_env.cli import output_path
+
+        try:
+            output_path("folder")(str(spec.default_out()))
+        except argparse.ArgumentTypeError as exc:
+            raise UsageError(f"spec out: {exc}") from None
     out = (args.out or spec.default_out()).resolve()
     kinds = set(args.only) if args.only else None
     if args.match is not None:

@@ -531,8 +531,11 @@ def parse_spec(doc: dict[str, Any], source: str = "") -> SweepSpec:
         raise SpecError(f"out: expected the sweep folder's path (a string), got {out!r}")
     if out is not None and Path(out).expanduser().is_file():
         raise SpecError(f"out: {out} is a file; give a folder")
+    retries = _int(doc.get("max_retries", 2), "max_retries")
+    if retries > 1000:  # Ray's retry count is a C long: a huge one failed at the first submission
+        raise SpecError(f"max_retries: expected an integer in [0, 1000], got {retries}")
     return SweepSpec(name=str(doc["name"]), description=str(doc.get("description", "")), out=out,
-                     max_retries=_int(doc.get("max_retries", 2), "max_retries"), jobs=jobs, envs=envs, source=source)
+                     max_retries=retries, jobs=jobs, envs=envs, source=source)
 
 
 def load_spec(path: str | Path) -> SweepSpec:
@@ -542,4 +545,6 @@ def load_spec(path: str | Path) -> SweepSpec:
         doc = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as exc:
         raise SpecError(f"{path}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError:  # a binary file given as the spec: a traceback before
+        raise SpecError(f"{path}: not a TOML text file (not UTF-8)") from None
     return parse_spec(doc, source=str(path))
