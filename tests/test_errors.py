@@ -394,6 +394,10 @@ def test_truncated_recognizer_json_is_rebuilt(tmp_path, monkeypatch):
      "--family-hand shadow needs --family-source hand"),
     (["analysis", "--out", "outputs/never", "--no-correction", "--kde-corrections", "power"],
      "--kde-corrections power weighs corrections that --no-correction turns off"),
+    (["analysis", "--out", "outputs/never", "--experiments", "1", "--oneshot-fingers", ""],  # a header-only table
+     "experiment 1 needs finger counts, but oneshot_fingers is empty"),
+    (["analysis", "--out", "outputs/never", "--experiments", "7", "--calib-fingers", "", "--calib-fingers-no-normals",
+      ""], "experiment 7 needs finger counts, but calib_fingers and calib_fingers_no_normals are empty"),
     (["analysis", "--out", "outputs/never", "--raw", "--family-floors", "0.5"],  # taken and ignored before
      "--family-floors 0.5 chooses experiment 5's outlier floor on calibrated scores; --raw has neither"),
 ])

@@ -202,6 +202,13 @@ class AnalysisConfig:
             if ns is None or not all(lo <= (whole_number(n) or 0) <= MAX_CLI_FINGERS for n in ns) or repeated(ns):
                 raise ValueError(f"{name} must be a tuple of ints in [{lo}, {MAX_CLI_FINGERS}], each once, got "
                                  f"{getattr(self, name)!r}")
+        # a selected experiment whose finger lists are all empty wrote a table of its header only, exit 0
+        needs = {1: ("oneshot_fingers",), 2: ("fingers",), 3: ("zfinger_hands",),
+                 7: ("calib_fingers", "calib_fingers_no_normals")}
+        for e, names in needs.items():
+            if e in self.experiments and not any(items(getattr(self, n)) for n in names):
+                raise ValueError(f"experiment {e} needs finger counts, but {' and '.join(names)} "
+                                 f"{'is' if len(names) == 1 else 'are'} empty (leave the experiment out instead)")
         cl = items(self.classifiers) or ()
         bad = [c for c in cl if c not in CLASSIFIERS]
         if not cl or bad:
