@@ -225,6 +225,20 @@ def test_bad_specs_are_one_line_errors(doc, match):
         parse_spec(doc)
 
 
+def test_jobs_that_can_only_fail_on_a_worker_are_refused_at_load(tmp_path):
+    """A baseline's missing model file and a mesh folder with an unreadable mesh were taken at load and failed on
+    their workers (the analysis and dataset commands refuse that folder at once)."""
+    bad = tmp_path / "objs_bad"
+    bad.mkdir()
+    (bad / "x.stl").write_text("solid x\nendsolid x\n")
+    with pytest.raises(SpecError, match=r"agent\[0\]\.spec: no model file 'nonexistent_model.zip'"):
+        parse_spec({"name": "x", "env_ids": ["HapticRecog-v0"],
+                    "agent": [{"name": "m", "spec": "nonexistent_model.zip"}]})
+    for kind in ("dataset", "analysis"):
+        with pytest.raises(SpecError, match=rf"{kind}\[0\]\.objects: .*x.stl"):
+            parse_spec({"name": "x", kind: [{"objects": str(bad)}]})
+
+
 def test_labels_stay_in_their_folders_and_a_file_is_no_sweep_folder(tmp_path):
     """An env named ``..`` wrote its report into the sweep folder and its runs beside the others' (``runs/random``);
     a spec ``out`` that is a file was taken (a FileExistsError once run); a trained agent with ``n_envs`` in one

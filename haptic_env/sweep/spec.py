@@ -146,6 +146,22 @@ def _check_keys(table: dict, allowed: set, where: str) -> None:
         raise SpecError(f"{where}: unknown key(s) {bad}; allowed: {sorted(allowed)}")
 
 
+def _folder_problem(objects: str) -> str | None:
+    """Why a user's mesh folder given as a job's ``objects`` cannot be loaded (an empty or unreadable mesh), or None;
+    named sets and what is not a folder are :func:`~haptic_env.objects.loaders.check_object_spec`'s (the analysis
+    command reads a folder so before any work)."""
+    from haptic_env.objects import load_object_set
+    from haptic_env.objects.loaders import NAMED_SETS
+
+    if objects in NAMED_SETS or not Path(objects).expanduser().is_dir():
+        return None
+    try:
+        load_object_set(objects)
+    except (ValueError, FileNotFoundError) as exc:  # MeshLoadError is a ValueError
+        return str(exc)
+    return None
+
+
 def _tables(doc: dict, key: str) -> list[dict]:
     """The spec's ``[[key]]`` tables (an array of tables; none: ``[]``). A single ``[key]`` table was walked as its
     keys (a ``TypeError``, or a misleading message about the first key)."""
@@ -319,6 +335,8 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
             if not isinstance(spec, str):
                 raise SpecError(f"{where}.{'spec' if 'spec' in a else 'name'}: expected an agent spec string "
                                 f"(random, greedy, ..., or a model .zip), got {spec!r}")
+            if spec.endswith(".zip") and not Path(spec.partition("=")[2] or spec).expanduser().is_file():
+                raise SpecError(f"{where}.spec: no model file {spec!r} (it failed on its worker)")
             if not spec.endswith(".zip"):  # what the evaluate job will build, checked by the one parser of specs
                 from agents.evaluate import make_agent
 
@@ -382,6 +400,9 @@ def _dataset_jobs(doc: dict) -> list[Job]:
                 check_object_spec(objects)
             except ValueError as exc:
                 raise SpecError(f"{where}.objects: {exc}") from None
+            problem = _folder_problem(str(objects))  # a folder's bad mesh too
+            if problem:
+                raise SpecError(f"{where}.objects: {problem}")
         for objects, n, normals in product(axes["objects"], axes["fingers"], axes["normals"]):
             b = flag(normals)
             if b is None:  # bool("false") is True
@@ -474,6 +495,9 @@ def _analysis_jobs(doc: dict, datasets: list[Job]) -> list[Job]:
                 check_object_spec(objects)
             except ValueError as exc:
                 raise SpecError(f"{where}.objects: {exc}") from None
+            problem = _folder_problem(str(objects))
+            if problem:
+                raise SpecError(f"{where}.objects: {problem}")
             _check_analysis_flags(objects, flags, where)
             label = _safe(t.get("name", objects)) + ("" if "name" not in t else f"/{_safe(objects)}")
             deps = tuple(d.id for d in datasets if d.params["objects"] == objects)
