@@ -578,8 +578,6 @@ def write_report(records: Sequence[EpisodeRecord], out: str | Path, max_grasps: 
         w.writeheader()
         for r in records:
             w.writerow(asdict(r))
-    with atomic_write(paths["md"], "w") as fh:  # last and whole: a stop before it keeps the md of one run
-        fh.write(md)
 
     fig = Figure(figsize=(6, 4))
     ax = fig.subplots()
@@ -622,6 +620,8 @@ def write_report(records: Sequence[EpisodeRecord], out: str | Path, max_grasps: 
     if conf:
         paths["confusion"] = out / "confusion.png"
         plot_confusion(conf, paths["confusion"])
+    with atomic_write(paths["md"], "w") as fh:  # last and whole: a stop before it keeps the md of an earlier run
+        fh.write(md)
     return paths
 
 
@@ -723,8 +723,8 @@ def read_monitor(folder: str | Path) -> dict[str, np.ndarray]:
                 raise ValueError(f"{f} is not a Monitor log (no '#{{...}}' header line)")
             t0 = float(json.loads(first[1:]).get("t_start", 0.0))
             for row in csv.DictReader(fh):
-                if None in row.values() or None in row:  # a line cut short (a kill or a full disk mid-write)
-                    continue
+                if None in row or any(v is None or v == "" for v in row.values()):
+                    continue  # a line cut short (a kill or a full disk mid-write)
                 row["t"] = str(float(row["t"]) + t0)
                 segments[k].append(row)
     run = Path(folder).parent if Path(folder).name == "monitor" else Path(folder)  # where the args files are

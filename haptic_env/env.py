@@ -123,8 +123,8 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     ## Episode End
     ### Termination
     When the updater's certainty reaches ``threshold`` (:math:`\lambda`, default
-    :data:`~haptic_env.recognizers.updaters.DEFAULT_THRESHOLD`) after at least one grasp that moved the belief (the
-    uniform prior alone never decides, even under a threshold below ``1 / K``): the recogniser has decided;
+    :data:`~haptic_env.recognizers.updaters.DEFAULT_THRESHOLD`) after at least one scored grasp (the uniform prior
+    alone never decides, even under a threshold below ``1 / K``): the recogniser has decided;
     ``info["correct"]`` says whether the decision is the true object. The certainty is the belief's maximum for
     BC-NP and BC-IP and for IC's default ``ic_certainty="count"``; with ``"share"`` it is the last winner's score
     share (the authors' code), and IC decides from the second grasp on.

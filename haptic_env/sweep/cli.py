@@ -70,7 +70,7 @@ def _main(args) -> int:
     if args.dry_run and args.report_only:
         raise UsageError("--dry-run lists the jobs and --report-only writes the report: give one of them")
     try:
-        spec = load_spec(args.spec)
+        spec = load_spec(args.spec, check_files=not (args.dry_run or args.report_only))  # files: for jobs to run
     except SpecError as exc:
         raise UsageError(str(exc)) from exc
     if args.out is None:  # the spec's own out, checked as --out is (a path under a file failed once Ray had started)

@@ -291,7 +291,7 @@ def _envs(doc: dict) -> dict[str, tuple[str, dict[str, Any]]]:
     return out
 
 
-def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
+def _rl_jobs(doc: dict, envs: dict, seeds: list[int], files: bool = True) -> list[Job]:
     from agents.sb3 import ALGOS
     from haptic_env import ENV_VARIANTS
     from haptic_env.splits import SWEEP_ENV_SEEDS, training_env_seed
@@ -335,7 +335,7 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
             if not isinstance(spec, str):
                 raise SpecError(f"{where}.{'spec' if 'spec' in a else 'name'}: expected an agent spec string "
                                 f"(random, greedy, ..., or a model .zip), got {spec!r}")
-            if spec.endswith(".zip") and not Path(spec.partition("=")[2] or spec).expanduser().is_file():
+            if files and spec.endswith(".zip") and not Path(spec.partition("=")[2] or spec).expanduser().is_file():
                 raise SpecError(f"{where}.spec: no model file {spec!r} (it failed on its worker)")
             if not spec.endswith(".zip"):  # what the evaluate job will build, checked by the one parser of specs
                 from agents.evaluate import make_agent
@@ -380,7 +380,7 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int]) -> list[Job]:
     return jobs
 
 
-def _dataset_jobs(doc: dict) -> list[Job]:
+def _dataset_jobs(doc: dict, files: bool = True) -> list[Job]:
     from haptic_env.dataset import DatasetConfig
     from haptic_env.numbers import flag
     from haptic_env.objects.loaders import check_object_spec
@@ -400,7 +400,7 @@ def _dataset_jobs(doc: dict) -> list[Job]:
                 check_object_spec(objects)
             except ValueError as exc:
                 raise SpecError(f"{where}.objects: {exc}") from None
-            problem = _folder_problem(str(objects))  # a folder's bad mesh too
+            problem = files and _folder_problem(str(objects))  # a folder's bad mesh too
             if problem:
                 raise SpecError(f"{where}.objects: {problem}")
         for objects, n, normals in product(axes["objects"], axes["fingers"], axes["normals"]):
@@ -474,7 +474,7 @@ def _check_analysis_flags(objects: str, flags: dict[str, Any], where: str) -> No
         raise SpecError(f"{where}.flags: {exc}") from None
 
 
-def _analysis_jobs(doc: dict, datasets: list[Job]) -> list[Job]:
+def _analysis_jobs(doc: dict, datasets: list[Job], files: bool = True) -> list[Job]:
     """One job per object set; it waits for the spec's dataset jobs of that set (the analysis then reads their
     grasps from the cache instead of generating them a second time)."""
     from haptic_env.objects.loaders import check_object_spec
@@ -495,7 +495,7 @@ def _analysis_jobs(doc: dict, datasets: list[Job]) -> list[Job]:
                 check_object_spec(objects)
             except ValueError as exc:
                 raise SpecError(f"{where}.objects: {exc}") from None
-            problem = _folder_problem(str(objects))
+            problem = files and _folder_problem(str(objects))
             if problem:
                 raise SpecError(f"{where}.objects: {problem}")
             _check_analysis_flags(objects, flags, where)
@@ -535,15 +535,18 @@ def _command_jobs(doc: dict) -> list[Job]:
     return jobs
 
 
-def parse_spec(doc: dict[str, Any], source: str = "") -> SweepSpec:
-    """A parsed TOML document as a :class:`SweepSpec` with its jobs expanded (raises :class:`SpecError`)."""
+def parse_spec(doc: dict[str, Any], source: str = "", *, check_files: bool = True) -> SweepSpec:
+    """A parsed TOML document as a :class:`SweepSpec` with its jobs expanded (raises :class:`SpecError`).
+    ``check_files``: also refuse a baseline's model file that is not there and a mesh folder that does not load
+    (jobs that could only fail on a worker); a dry run or a report of finished jobs needs neither."""
     _check_keys(doc, _TOP, "spec")
     if "name" not in doc:
         raise SpecError("spec: needs a name")
     seeds = [_int(s, "seeds") for s in _as_list(doc.get("seeds", [0]))]
     envs = _envs(doc)
-    datasets = _dataset_jobs(doc)
-    jobs = datasets + _analysis_jobs(doc, datasets) + _rl_jobs(doc, envs, seeds) + _command_jobs(doc)
+    datasets = _dataset_jobs(doc, check_files)
+    jobs = (datasets + _analysis_jobs(doc, datasets, check_files) + _rl_jobs(doc, envs, seeds, check_files)
+            + _command_jobs(doc))
     ids = [j.id for j in jobs]
     dup = sorted({i for i in ids if ids.count(i) > 1})
     if dup:
@@ -562,7 +565,7 @@ def parse_spec(doc: dict[str, Any], source: str = "") -> SweepSpec:
                      max_retries=retries, jobs=jobs, envs=envs, source=source)
 
 
-def load_spec(path: str | Path) -> SweepSpec:
+def load_spec(path: str | Path, *, check_files: bool = True) -> SweepSpec:
     """Read and expand a TOML spec file."""
     path = Path(path)
     try:
@@ -571,4 +574,4 @@ def load_spec(path: str | Path) -> SweepSpec:
         raise SpecError(f"{path}: not valid TOML: {exc}") from None
     except UnicodeDecodeError:  # a binary file given as the spec: a traceback before
         raise SpecError(f"{path}: not a TOML text file (not UTF-8)") from None
-    return parse_spec(doc, source=str(path))
+    return parse_spec(doc, source=str(path), check_files=check_files)
