@@ -333,6 +333,18 @@ def support_height(vertices, pose=None, scale: float = 1.0) -> float:
     return float((v @ T[2, :3]).min() + T[2, 3])
 
 
+def placement(obj: Any, pose: Any = None, scale: Any = 1.0) -> tuple[Any, np.ndarray, float]:
+    """A backend's ``set_object(obj, pose, scale)`` arguments checked: ``(obj.mesh, pose (4, 4), scale)``; a
+    ``ValueError`` naming an object without a usable triangle mesh, a bad pose (:func:`validate_pose`) or a scale
+    that is not a finite number > 0."""
+    import trimesh
+
+    mesh = getattr(obj, "mesh", None)
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise ValueError(f"object {getattr(obj, 'name', obj)!r} has no usable triangle mesh")
+    return mesh, validate_pose(pose), positive_number(scale, "scale")
+
+
 def validate_pose(pose: Any) -> np.ndarray:
     """A 4x4 rigid transform (identity when ``None``); ValueError naming what is wrong."""
     if pose is None:

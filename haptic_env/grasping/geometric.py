@@ -35,7 +35,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import trimesh
 
-from haptic_env.numbers import checked_flag, finite_number, positive_number
+from haptic_env.numbers import checked_flag, finite_number
 
 from . import _geometric_kernels as gk
 from .base import (
@@ -45,10 +45,10 @@ from .base import (
     approach_frame,
     check_support,
     decode_approach,
+    placement,
     support_height,
     validate_action,
     validate_actions,
-    validate_pose,
 )
 
 __all__ = ["GeometricConfig", "GeometricBackend", "make_intersector", "MAX_SCENES", "PlacedObjects"]
@@ -162,11 +162,7 @@ class GeometricBackend:
     def set_object(self, obj: Any, pose: np.ndarray | None = None, scale: float = 1.0) -> None:
         """``obj`` has ``.mesh`` (trimesh, metres, object frame); ``pose`` (4, 4) object-to-world; ``scale`` > 0
         a uniform scale of the mesh about its frame origin (applied before the pose; the mesh is not copied)."""
-        mesh = getattr(obj, "mesh", None)
-        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-            raise ValueError(f"object {getattr(obj, 'name', obj)!r} has no usable triangle mesh")
-        T = validate_pose(pose)
-        s = positive_number(scale, "scale")  # '1.5' and True were taken as numbers
+        mesh, T, s = placement(obj, pose, scale)
         sc = self._scene_of(mesh)
         self._obj = obj
         self._mesh = mesh

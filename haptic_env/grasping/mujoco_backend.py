@@ -43,12 +43,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import trimesh
 
 import mujoco
 
 from haptic_env.cache import KEY_ONLY_WHEN_SET
-from haptic_env.numbers import checked_flag, finite_number, positive_number, whole_number
+from haptic_env.numbers import checked_flag, finite_number, whole_number
 
 from .base import (
     ACTION_DIM,
@@ -58,11 +57,11 @@ from .base import (
     check_solid_table,
     check_support,
     decode_approach,
+    placement,
     support_height,
     usable_touch,
     validate_action,
     validate_actions,
-    validate_pose,
 )
 from .collision import CollisionConfig, convex_pieces
 from .hands import HandDescription, finger_of_bodies, load_hand
@@ -643,11 +642,7 @@ class MujocoBackend:
     supports_scale = True
 
     def set_object(self, obj: Any, pose: np.ndarray | None = None, scale: float = 1.0) -> None:
-        mesh = getattr(obj, "mesh", None)
-        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:  # an AttributeError before
-            raise ValueError(f"object {getattr(obj, 'name', obj)!r} has no usable triangle mesh")
-        T = validate_pose(pose)
-        scale = positive_number(scale, "scale")  # '1.5' and True were taken, None a bare TypeError
+        mesh, T, scale = placement(obj, pose, scale)
         v = scale * np.asarray(mesh.vertices, dtype=np.float64)
         vw = v @ T[:3, :3].T + T[:3, 3]
         c_obj = 0.5 * (v.min(0) + v.max(0))
