@@ -146,20 +146,20 @@ def _check_keys(table: dict, allowed: set, where: str) -> None:
         raise SpecError(f"{where}: unknown key(s) {bad}; allowed: {sorted(allowed)}")
 
 
-def _folder_problem(objects: str) -> str | None:
-    """Why a user's mesh folder given as a job's ``objects`` cannot be loaded (an empty or unreadable mesh), or None;
-    named sets and what is not a folder are :func:`~haptic_env.objects.loaders.check_object_spec`'s (the analysis
-    command reads a folder so before any work)."""
+def _check_objects(objects, where: str, files: bool) -> None:
+    """A job's ``objects`` as the worker will load them, refused now (a :class:`SpecError` naming ``where``): an unknown
+    set or a missing folder (:func:`~haptic_env.objects.loaders.check_object_spec`) and, with ``files``, a user's mesh
+    folder that does not load (an empty or unreadable mesh; the analysis command reads a folder so before any work).
+    Each failed on its worker, after its retries."""
     from haptic_env.objects import load_object_set
-    from haptic_env.objects.loaders import NAMED_SETS
+    from haptic_env.objects.loaders import NAMED_SETS, check_object_spec
 
-    if objects in NAMED_SETS or not Path(objects).expanduser().is_dir():
-        return None
     try:
-        load_object_set(objects)
+        check_object_spec(objects)
+        if files and objects not in NAMED_SETS and Path(str(objects)).expanduser().is_dir():
+            load_object_set(str(objects))
     except (ValueError, FileNotFoundError) as exc:  # MeshLoadError is a ValueError
-        return str(exc)
-    return None
+        raise SpecError(f"{where}.objects: {exc}") from None
 
 
 def _tables(doc: dict, key: str) -> list[dict]:
@@ -383,7 +383,6 @@ def _rl_jobs(doc: dict, envs: dict, seeds: list[int], files: bool = True) -> lis
 def _dataset_jobs(doc: dict, files: bool = True) -> list[Job]:
     from haptic_env.dataset import DatasetConfig
     from haptic_env.numbers import flag
-    from haptic_env.objects.loaders import check_object_spec
 
     fields = set(DatasetConfig.__dataclass_fields__) - {"n_fingers", "normals"}
     jobs = []
@@ -395,14 +394,8 @@ def _dataset_jobs(doc: dict, files: bool = True) -> list[Job]:
         empty = [k for k, v in axes.items() if not v]
         if empty:  # the entry had no jobs, without a word
             raise SpecError(f"{where}.{empty[0]}: expected a value or a non-empty list, got []")
-        for objects in axes["objects"]:  # an unknown set failed on its worker, after its retries
-            try:
-                check_object_spec(objects)
-            except ValueError as exc:
-                raise SpecError(f"{where}.objects: {exc}") from None
-            problem = files and _folder_problem(str(objects))  # a folder's bad mesh too
-            if problem:
-                raise SpecError(f"{where}.objects: {problem}")
+        for objects in axes["objects"]:
+            _check_objects(objects, where, files)
         for objects, n, normals in product(axes["objects"], axes["fingers"], axes["normals"]):
             b = flag(normals)
             if b is None:  # bool("false") is True
@@ -477,8 +470,6 @@ def _check_analysis_flags(objects: str, flags: dict[str, Any], where: str) -> No
 def _analysis_jobs(doc: dict, datasets: list[Job], files: bool = True) -> list[Job]:
     """One job per object set; it waits for the spec's dataset jobs of that set (the analysis then reads their
     grasps from the cache instead of generating them a second time)."""
-    from haptic_env.objects.loaders import check_object_spec
-
     jobs = []
     for i, t in enumerate(_tables(doc, "analysis")):
         where = f"analysis[{i}]"
@@ -491,13 +482,7 @@ def _analysis_jobs(doc: dict, datasets: list[Job], files: bool = True) -> list[J
         if not sets:  # the entry had no jobs, without a word
             raise SpecError(f"{where}.objects: expected a value or a non-empty list, got []")
         for objects in sets:
-            try:  # an unknown set was named as a flags problem
-                check_object_spec(objects)
-            except ValueError as exc:
-                raise SpecError(f"{where}.objects: {exc}") from None
-            problem = files and _folder_problem(str(objects))
-            if problem:
-                raise SpecError(f"{where}.objects: {problem}")
+            _check_objects(objects, where, files)  # before the flags' check, which named an unknown set as theirs
             _check_analysis_flags(objects, flags, where)
             label = _safe(t.get("name", objects)) + ("" if "name" not in t else f"/{_safe(objects)}")
             deps = tuple(d.id for d in datasets if d.params["objects"] == objects)
