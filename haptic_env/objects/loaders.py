@@ -84,20 +84,17 @@ def data_dir(required: bool = False) -> Path | None:
 
 def unit_scale(units: str | float) -> float:
     """Metres per file unit for ``"m"``, ``"cm"``, ``"mm"`` or a positive finite factor."""
+    value = units
     if isinstance(units, str):
         if units.strip().lower() in _UNITS:
             return _UNITS[units.strip().lower()]
         try:  # a number given on a command line ("0.001"), which the help offers
-            number = float(units)
+            value = float(units)
         except ValueError:
             raise ValueError(f"unknown units {units!r}; expected one of {list(_UNITS)} or a positive number") from None
-        f = finite_number(number)
-        if f is None or f <= 0:
-            raise ValueError(f"units factor must be positive and finite, got {units!r}")
-        return f
-    if isinstance(units, (bool, np.bool_)) or not isinstance(units, (int, float, np.integer, np.floating)):
+    elif isinstance(units, (bool, np.bool_)) or not isinstance(units, (int, float, np.integer, np.floating)):
         raise ValueError(f"units must be 'm', 'cm', 'mm' or a positive number, got {units!r}")
-    f = finite_number(units)  # None for NaN, inf and ints beyond a float
+    f = finite_number(value)  # None for NaN, inf and ints beyond a float
     if f is None or f <= 0:
         raise ValueError(f"units factor must be positive and finite, got {units!r}")
     return f
