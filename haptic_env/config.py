@@ -223,9 +223,7 @@ class HapticRecogConfig:
             raise ValueError(f"reward must be one of {REWARD_KINDS}, got {self.reward!r}")
         if self.pose not in POSE_MODES:
             raise ValueError(f"pose must be one of {POSE_MODES}, got {self.pose!r}")
-        t = check_threshold(self.threshold, "threshold")
-        if isinstance(self.threshold, np.generic):  # a Python int or float stays as given
-            object.__setattr__(self, "threshold", t)
+        check_threshold(self.threshold, "threshold")  # a numpy value is stored as Python's below, as every field's
         cost = finite_number(self.grasp_cost)
         if cost is None or cost < 0.0:
             raise ValueError(f"grasp_cost must be a finite number >= 0, got {self.grasp_cost!r}")
