@@ -601,11 +601,17 @@ def hand_pool(objects: ObjectSet, config: DatasetConfig, progress: bool = True, 
     ``workers``: the processes that build it (default: all cores; the pool does not depend on them)."""
     from .hand_grasps import hand_grasp_pool
 
+    return hand_grasp_pool(objects, **_pool_settings(config), progress=progress, cache=cache, workers=workers)
+
+
+def _pool_settings(config: DatasetConfig) -> dict:
+    """The settings of ``config``'s hand grasp pool, as :func:`~haptic_env.hand_grasps.hand_grasp_pool` and
+    :func:`~haptic_env.hand_grasps.pool_cache_path` take them (one mapping for the pool and its cache file)."""
     if config.source != "hand":
         raise ValueError(f"only source='hand' grasps come from a hand grasp pool, got source={config.source!r}")
-    return hand_grasp_pool(objects, config.hand, config.hand_fingers or config.n_fingers, config.grasps_per_object,
-                           support=config.support, seed=config.seed, budget=config.hand_budget, progress=progress,
-                           cache=cache, solid_table=config.solid_table, workers=workers)
+    return {"hand": config.hand, "n_fingers": config.hand_fingers or config.n_fingers,
+            "approaches": config.grasps_per_object, "support": config.support, "seed": config.seed,
+            "budget": config.hand_budget, "solid_table": config.solid_table}
 
 
 def _hand_rows(objects: ObjectSet, config: DatasetConfig, progress: bool, cache: bool = True,
@@ -800,9 +806,7 @@ def _print_summary(args: argparse.Namespace, objects, config: DatasetConfig, ds,
         print(f"  {name:<{width}}  train {tr:>7}  val {va:>7}")
     from .hand_grasps import pool_cache_path
 
-    if config.source == "hand" and not args.no_cache and pool_cache_path(
-            objects, config.hand, config.hand_fingers or config.n_fingers, config.grasps_per_object, config.support,
-            config.seed, config.hand_budget, solid_table=config.solid_table).is_file():
+    if config.source == "hand" and not args.no_cache and pool_cache_path(objects, **_pool_settings(config)).is_file():
         # reading the cached pool back gives its build time (a pool not in the cache, e.g. a read-only one, was
         # grasped a second time here just to print it)
         pool = hand_pool(objects, config, progress=False)
