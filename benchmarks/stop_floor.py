@@ -32,7 +32,7 @@ import numpy as np
 from scipy.special import log_softmax
 
 from haptic_env.cache import atomic_write, cache_dir, config_key, resume_state, save_keyed_json
-from haptic_env.cli import float_in, int_in, int_list_in, output_path, script_command
+from haptic_env.cli import float_in, float_list_in, int_in, int_list_in, output_path, script_command
 from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.families import floored
 from haptic_env.experiments.fresh_grasps import fresh_pool
@@ -132,14 +132,12 @@ def kept_parts(a: argparse.Namespace, name: str) -> tuple[Path, dict, dict]:
 
 def main(argv=None):
     p = experiment2_parser(__doc__.split("\n\n")[0])
-    p.add_argument("--eps", default=",".join(f"{e:g}" for e in EPS), help="posterior floors (0: none)")
+    p.add_argument("--eps", type=float_list_in(0.0), default=",".join(f"{e:g}" for e in EPS),
+                   help="posterior floors, finite and >= 0 (0: none)")  # 'abc' and -1 were tracebacks
     a = p.parse_args(argv)
-    try:  # a usage error, before any training ('abc' and -1 were tracebacks)
-        eps_grid = tuple(float(v) for v in a.eps.split(","))
-        for e in eps_grid:
-            posterior_floor(np.zeros((1, 2)), e)
-    except ValueError as exc:
-        p.error(f"--eps {a.eps!r}: {exc}")
+    eps_grid = tuple(a.eps)
+    if not eps_grid:
+        p.error("--eps: expected at least one posterior floor, got none")
     t0 = time.time()
     objects = load_object_set(a.objects)
     cfg = analysis_config(a)
