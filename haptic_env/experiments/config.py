@@ -40,6 +40,11 @@ MIN_BASELINE_TRAIN = 100
 #: hand's own MuJoCo grasps (:attr:`AnalysisConfig.family_hand`) under random approaches, the object on the table.
 FAMILY_SOURCES = ("surface", "geometric", "hand")
 
+#: The finger-count lists of the config and the experiment whose grasps each gives (experiment 7 takes two).
+FINGER_LISTS = {"fingers": 2, "oneshot_fingers": 1, "zfinger_hands": 3, "calib_fingers": 7,
+                "calib_fingers_no_normals": 7}
+
+
 @dataclass(frozen=True)
 class AnalysisConfig:
     """Settings of :func:`~haptic_env.experiments.run_analysis` (the CLI flags)."""
@@ -161,8 +166,7 @@ class AnalysisConfig:
         object.__setattr__(self, "family_floors", fl)
         if self.force_closure is not None:
             check_friction(self.force_closure)
-            used = {"fingers": 2, "oneshot_fingers": 1, "calib_fingers": 7, "calib_fingers_no_normals": 7}
-            for name, exp in used.items():
+            for name, exp in FINGER_LISTS.items():
                 if exp in self.experiments and min(getattr(self, name), default=3) < 3:
                     raise ValueError(f"force_closure needs every finger count >= 3 (two point contacts are never in "
                                      f"force closure), got {name}={getattr(self, name)}")
@@ -203,9 +207,8 @@ class AnalysisConfig:
                 raise ValueError(f"{name} must be a tuple of ints in [{lo}, {MAX_CLI_FINGERS}], each once, got "
                                  f"{getattr(self, name)!r}")
         # a selected experiment whose finger lists are all empty wrote a table of its header only, exit 0
-        needs = {1: ("oneshot_fingers",), 2: ("fingers",), 3: ("zfinger_hands",),
-                 7: ("calib_fingers", "calib_fingers_no_normals")}
-        for e, names in needs.items():
+        for e in sorted(set(FINGER_LISTS.values())):
+            names = [n for n, x in FINGER_LISTS.items() if x == e]
             if e in self.experiments and not any(items(getattr(self, n)) for n in names):
                 raise ValueError(f"experiment {e} needs finger counts, but {' and '.join(names)} "
                                  f"{'is' if len(names) == 1 else 'are'} empty (leave the experiment out instead)")
