@@ -139,6 +139,10 @@ def hand_physics_key(hand: str, n_fingers: int) -> str:
     # the mesh files' bytes since 2026-12-07: the XML names them only, so a changed mesh (another Menagerie version,
     # an edited STL) kept the pools of the old one; a hand without meshes keeps its key
     meshes = mesh_files_key(h.spec)
+    # since 2026-12-07 (fiftieth session) the squeeze at a finger's first touch moves its closing actuators only
+    # (GraspScene.hold_fingers: it turned the spread and neutral-held joints too) and the fingers count as at rest
+    # at two checks in a row (MujocoConfig.rest_qvel): every hand's grasps change
+    held.append("squeeze: closing actuators; rest: two checks")
     return config_key(h.spec.to_xml(), fields, MujocoConfig(n_fingers=int(n_fingers), hand=hand), *held,
                       *([f"meshes: {meshes}"] if meshes else []))
 

@@ -73,6 +73,28 @@ def test_same_seed_same_grasp(generic):
     assert np.array_equal(r1.contacts, r2.contacts) and np.array_equal(r1.touched, r2.touched)
 
 
+def test_the_squeeze_at_first_touch_moves_the_closing_actuators_only(generic):
+    """A finger's first touch squeezes its closing actuators; its spread (swivel) actuator keeps its target (until
+    2026-12-07 it was pushed 0.15 rad either way by the sign of a residual: the swivels ended a median 0.14 rad off)."""
+    from haptic_env.grasping.base import decode_approach
+
+    sc = generic.scene
+    swivel = np.array([sc.act_index[k] for k in generic.hand.spread])
+    closing = np.flatnonzero(sc.squeezed)
+    assert len(swivel) == 3 and len(closing) == 12 and not np.isin(swivel, closing).any()
+    rng = np.random.default_rng(3)
+    squeezed, off = 0, []
+    for a in rng.uniform(-1, 1, (12, 4)):
+        r = generic.grasp(a, rng)
+        _, close_u = generic._ctrls(float(decode_approach(a, generic.config.support).spread))
+        np.testing.assert_array_equal(sc.data.ctrl[swivel], close_u[swivel])
+        squeezed += int(np.sum(sc.data.ctrl[closing] != close_u[closing]))
+        touched = r.touched[:-1]  # the thumb (last) has no spread actuator
+        off.extend(np.abs(sc.data.actuator_length[swivel] - close_u[swivel])[touched])
+    assert squeezed > 0 and len(off) >= 10
+    assert np.median(off) < 0.02, np.percentile(off, [50, 90, 100])
+
+
 def test_a_hand_whose_fingertips_close_behind_its_palm_grasps_a_small_ball():
     """The generic hand's closed fingertips meet 3.8 cm behind its palm (``g . n < 0``); the pre-grasp search started
     the palm that far past a small object's centre, already free of it and facing away, so no fingertip ever touched

@@ -68,8 +68,10 @@ __all__ = ["auto_hand", "AutoHandReport", "report", "find_fingertips", "load_mjc
 
 log = logging.getLogger(__name__)
 
-#: Bumped whenever the probe's rules change (invalidates cached synergies).
-AUTO_VERSION = 8
+#: Bumped whenever the probe's rules change (invalidates cached synergies). 9: the standoff trial's grasps squeeze the
+#: closing actuators only (``GraspScene.hold_fingers``, 2026-12-07), so a cached hand's standoff is chosen as an empty
+#: cache chooses it.
+AUTO_VERSION = 9
 #: s: the coarsest physics step the grasp scene keeps from a hand's own ``<option timestep>``.
 MAX_TIMESTEP = 0.004
 ROOT_NAME = "auto_hand_root"
@@ -102,8 +104,8 @@ class AutoHandReport:
     tips           fingertip bodies (thumb last); ``tips_given``: names passed by the caller
     closing        actuator -> closing target (ctrl)
     held           actuator -> why it is held at its neutral control
-    neutral        actuator -> neutral control (holds ``qpos0``; held actuators stay there until their finger's
-                   first touch, which squeezes them too: ``GraspScene.hold_fingers``)
+    neutral        actuator -> neutral control (holds ``qpos0``; held actuators stay there through the grasp: the
+                   squeeze at a finger's first touch moves its closing actuators only, ``GraspScene.hold_fingers``)
     open_ctrl      actuator -> control of the open (pre-grasp) pose
     approach_axis  (3,) palm centre -> closed fingertips, in the mount frame
     wrapped_roots  top-level bodies wrapped into one root (empty: the hand had one)

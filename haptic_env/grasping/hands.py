@@ -60,8 +60,9 @@ class HandDescription:
     tips        fingertip body names (thumb last); ``tip_sites[i] = (pos (3,) in the tip body, radius)``
     open_ctrl   actuator name -> control in the pre-grasp (open) pose
     close_ctrl  actuator name -> control target while closing
-    spread      actuator name -> (ctrl at spread 0, ctrl at spread 1), held during the grasp (but for the squeeze
-                at a finger's first touch: :meth:`~haptic_env.grasping.mujoco_backend.GraspScene.hold_fingers`)
+    spread      actuator name -> (ctrl at spread 0, ctrl at spread 1), held during the grasp (the squeeze at a
+                finger's first touch moves the closing actuators only:
+                :meth:`~haptic_env.grasping.mujoco_backend.GraspScene.hold_fingers`)
     approach_axis / thumb_axis (3,) in the mount frame, or None to calibrate them (see
                 :class:`~haptic_env.grasping.mujoco_backend.GraspScene`)
     Actuators not named in any dict are held at 0 (clipped to their range).

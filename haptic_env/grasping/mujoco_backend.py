@@ -95,7 +95,9 @@ class MujocoConfig:
     min_time: float = 0.08  # s of closing before the rest test may end a grasp
     check_interval: float = 0.02  # s: test for new tip contacts / rest this often (rounded to whole steps)
     squeeze: float = 0.15  # rad past the contact configuration (x moment arm for tendons); 0: close fully
-    rest_qvel: float = 0.05  # rad/s: fingers at rest below this
+    #: rad/s: fingers at rest below this at two checks in a row (one check until 2026-12-07: a finger swinging
+    #: sideways passed it at a turning point, its torque normals 26-32 degrees off, on the generic hand)
+    rest_qvel: float = 0.05
     joint_frictionloss: float | None = 0.0  # override the hand's dry joint friction (None: keep the model's)
     friction: float = 0.1  # sliding friction of object and hand geoms (normal error <~ atan(friction))
     march_step: float = 0.01  # m: pre-grasp placement search step along the approach
@@ -289,6 +291,10 @@ class GraspScene:
             bad = [k for k in d if k not in self.act_index]
             if bad:
                 raise ValueError(f"hand {hand.name!r}: unknown actuators {bad} (have {list(self.act_index)})")
+        # what the squeeze at a finger's first touch moves: its closing actuators, not those that hold a spread or
+        # the automatic path's neutral pose (hold_fingers)
+        self.squeezed = np.zeros(m.nu, dtype=bool)
+        self.squeezed[[self.act_index[k] for k in hand.close_ctrl if k not in hand.spread]] = True
         self.ctrl_lo = m.actuator_ctrlrange[:, 0].copy()
         self.ctrl_hi = m.actuator_ctrlrange[:, 1].copy()
         limited = m.actuator_ctrllimited.astype(bool)
@@ -454,20 +460,18 @@ class GraspScene:
         (a gripper's single motor) is held only once all of them are in ``fingers`` or ``held`` (bool
         mask). Actuators that are not position-like keep closing.
 
-        Every position-like actuator of a held finger takes the squeeze, its spread actuators and those the
-        automatic path holds at neutral too, each ``squeeze`` past its current length in the direction of its
-        residual from its target: for an actuator already at its target that direction is numerical noise (measured
-        2026-12-07 on the generic hand: its swivels end a median 0.143 rad off their spread targets; leaving the
-        spread actuators alone moves the contacts a median 2 mm and changes 1 touch pattern in 20; the Allegro's and
-        the Shadow's neutral-held actuators end a median 0.145 rad off). Every hand figure was measured with this
-        behaviour; changing it changes every hand's grasps (a new pool key) and calls for the hand figures to be
-        measured again (RESULTS.md, "The squeeze at first touch turns the spread joints too")."""
+        Only the closing actuators take the squeeze (``squeezed``: those in the hand's ``close_ctrl`` and not in its
+        ``spread``); its spread actuators and those the automatic path holds at neutral keep their targets. Until the
+        fiftieth session (2026-12-07) every position-like actuator of the finger took it, each ``squeeze`` past its current length in
+        the direction of its residual, for an actuator already at its target numerical noise: the spread joints and
+        neutral-held joints ended a median 0.14 rad off the pose they were said to hold (RESULTS.md, "The squeeze at
+        first touch turns the spread joints too")."""
         d = self.data
         new = np.zeros(self.act_fingers.shape[1], dtype=bool)
         new[np.asarray(fingers, dtype=np.int64)] = True
         done = new if held is None else new | held
         sel = (self.act_fingers[:, new].any(axis=1) & ~(self.act_fingers & ~done).any(axis=1)
-               & np.isfinite(self.ctrl_per_length))
+               & np.isfinite(self.ctrl_per_length) & self.squeezed)
         if not sel.any():
             return
         k, c0 = self.ctrl_per_length[sel], self.ctrl_offset[sel]
@@ -762,6 +766,7 @@ class MujocoBackend:
         dt = sc.model.opt.timestep
         max_steps = cfg.max_steps or closing_steps(self.hand, dt)
         check_every, min_steps = max(1, round(cfg.check_interval / dt)), round(cfg.min_time / dt)
+        was_still = False
         while steps < max_steps:
             k = min(check_every, max_steps - steps)
             sc.step(k)
@@ -771,8 +776,10 @@ class MujocoBackend:
                 if touched.any():
                     sc.hold_fingers(np.flatnonzero(touched), close_u, cfg.squeeze, held=held)
                     held |= touched
-            if steps >= min_steps and np.max(np.abs(sc.data.qvel)) < cfg.rest_qvel:
+            still = steps >= min_steps and np.max(np.abs(sc.data.qvel)) < cfg.rest_qvel
+            if still and was_still:
                 break
+            was_still = still
         res = self._read(rng, steps)
         self.grasp_time += time.perf_counter() - t0
         self.n_grasps += 1
