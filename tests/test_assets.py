@@ -80,6 +80,9 @@ def test_write_assets_rebuilds_the_same_files(tmp_path):
         new, old = mujoco.MjModel.from_xml_path(str(p)), mujoco.MjModel.from_xml_path(str(asset_path(p.name)))
         for kind, count in (("body", "nbody"), ("joint", "njnt"), ("actuator", "nu"), ("key", "nkey")):
             assert names(new, kind, getattr(new, count)) == names(old, kind, getattr(old, count)), REGENERATE
+        for field in ("key_qpos", "key_ctrl", "key_mpos", "key_mquat"):  # the grasp's state, as the backend reads it
+            np.testing.assert_allclose(getattr(new, field), getattr(old, field), atol=1e-5,
+                                       err_msg=f"{p.name}: {field}; {REGENERATE}")
     assert not list(tmp_path.glob(".*.tmp"))  # atomic writes leave no temporary files
 
 

@@ -45,6 +45,8 @@ def generic_results(generic):
 
 
 def test_torque_normals_agree_with_contact_normals(generic_results):
+    """Also the rest test's: with the fingers counted at rest at one check (before 2026-12-07), 5 of these 30 grasps
+    ended while a finger swung sideways, their torque normals 26-32 degrees off, and 82 % were within 15 degrees."""
     _, res = generic_results
     ang = _angles(res)
     assert len(ang) >= 60
