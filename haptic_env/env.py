@@ -140,7 +140,7 @@ class HapticRecogEnv(gym.Env, utils.EzPickle):
     ``z``-subsets by the ``z``-finger model instead (the paper's z-finger scoring; a Bayes step counts them as
     at most ``subset_k = 4`` subsets, the paper's Algorithm 4); with ``min_fingers=m`` a grasp of ``m <= t < z``
     touching fingers is then scored by the ``t``-finger model, where the paper's scoring drops it. With
-    ``touch_weight=w > 0`` (the Allegro, Shadow and Aero envs and every ``Heights`` hand env) every grasp,
+    ``touch_weight=w > 0`` (every registered hand env, ``Heights`` or not) every grasp,
     incomplete or not, also adds ``w log P(pattern | object)`` of its touch pattern (which fingertips touched),
     estimated from the hand's own grasps of the meshes (:mod:`haptic_env.recognizers.touch`); such a grasp always
     updates the belief (BC-NP, or BC-IP, whose classifier prior then comes with the first grasp it scores).

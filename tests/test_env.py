@@ -522,6 +522,7 @@ def test_touch_weight_is_checked_at_make_and_reaches_the_recogniser(env_config):
     assert _recognizer_kwargs(hand.replace(updater="bc-ip"))["touch"] is True  # BC-IP weighs it too
     assert ENV_VARIANTS["HapticRecogShadow-v0"]["touch_weight"] == 0.5  # chosen per hand on validation grasps
     assert ENV_VARIANTS["HapticRecogAero-v0"]["touch_weight"] == 0.5
+    assert ENV_VARIANTS["HapticRecogRobotiq-v0"]["touch_weight"] == 1.0  # on 600 validation episodes, for a margin
     for bad, match in [({"touch_weight": -1.0}, "touch_weight"), ({"touch_weight": float("nan")}, "touch_weight"),
                        ({"touch_weight": True}, "touch_weight"), ({"touch_weight": 0.5}, "hand-matched"),
                        ({"touch_weight": 0.5, "backend": "mujoco", "updater": "ic"}, "bc-np"),
