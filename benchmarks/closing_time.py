@@ -1,8 +1,8 @@
 """Could a hand's MuJoCo grasp end sooner? Closing-step caps below the hand's own, against its default grasps.
 
 Every grasp of the MuJoCo backend closes the fingers for at most ``HandDescription.max_steps`` physics steps (the
-rest test, all joint speeds under ``MujocoConfig.rest_qvel`` at two checks in a row, may end it sooner). The 5-finger envs' first ``make``
-is these grasps (60,000 per hand), so a grasp that could stop earlier with the same readout would shorten it in
+rest test, all joint speeds under ``MujocoConfig.rest_qvel`` at two checks in a row, may end it sooner). The 5-finger
+envs' first ``make`` is these grasps (60,000 per hand), so a grasp that could stop earlier with the same readout would shorten it in
 proportion. This benchmark grasps the same random approaches to ycb10 with the hand's default and with lower caps
 (``MujocoConfig.max_steps``), interleaved per object, one process, and reports per cap: the share of grasps that
 close until the cap (the others came to rest), the grasps/s as a ratio to the default's from the same run, how often

@@ -462,10 +462,10 @@ class GraspScene:
 
         Only the closing actuators take the squeeze (``squeezed``: those in the hand's ``close_ctrl`` and not in its
         ``spread``); its spread actuators and those the automatic path holds at neutral keep their targets. Until the
-        fiftieth session (2026-12-07) every position-like actuator of the finger took it, each ``squeeze`` past its current length in
-        the direction of its residual, for an actuator already at its target numerical noise: the spread joints and
-        neutral-held joints ended a median 0.14 rad off the pose they were said to hold (RESULTS.md, "The squeeze at
-        first touch turns the spread joints too")."""
+        fiftieth session (2026-12-07) every position-like actuator of the finger took it, each ``squeeze`` past its
+        current length in the direction of its residual, for an actuator already at its target numerical noise: the
+        spread joints and neutral-held joints ended a median 0.14 rad off the pose they were said to hold (RESULTS.md,
+        "The squeeze at first touch turns the spread joints too")."""
         d = self.data
         new = np.zeros(self.act_fingers.shape[1], dtype=bool)
         new[np.asarray(fingers, dtype=np.int64)] = True
