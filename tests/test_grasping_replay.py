@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from haptic_env.grasping import make_backend
-from haptic_env.grasping.replay import ReplayConfig, approach_embedding
+from haptic_env.grasping.replay import ReplayBackend, ReplayConfig, approach_embedding
 from haptic_env.hand_grasps import hand_grasp_pool, pool_actions
 from haptic_env.objects import load_object_set
 
@@ -481,6 +481,14 @@ def test_env_reads_the_azimuth_in_the_estimated_frame(small_recognizer_kwargs):
         env.reset(seed=2)
         assert env._yaw_belief.grasps == 0
         assert env._yaw_belief.kernel["neighbours"] == 32  # the default: 40 records per object
+        # the belief's records are a pool apart from the replay's, which answer the env's grasps (with the same, each
+        # grasp is one of the belief's records turned by the true yaw: a yaw found almost exactly)
+        answers = env.backend.records(env.objects[0])
+        believed = env._yaw_belief.records[0]
+        assert answers[1].shape == believed[1].shape and not np.allclose(answers[1], believed[1])
+        pooled = ReplayBackend(ReplayConfig(hand="generic", approaches=40, pool_seed=2, progress=False))
+        pooled.prepare(env.objects)
+        np.testing.assert_array_equal(pooled.records(env.objects[0])[1], believed[1])
         from agents.greedy import GreedyInfoGainAgent  # the look-ahead simulates world-frame actions: refused
 
         with pytest.raises(ValueError, match="it needs action_frame='world', got 'estimated'"):
