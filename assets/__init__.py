@@ -120,7 +120,7 @@ def add_parser(subparsers):
                    f"first object whose name contains it, else the set's first)")
     p.add_argument("--action", default=",".join(str(v) for v in SCENE_ACTION),
                    help="the approach, 4 comma-separated values in [-1, 1]: azimuth, elevation, roll, spread")
-    p.add_argument("--out", type=output_path("file"), default=Path(SCENE_FILE),
+    p.add_argument("--out", type=output_path("file"), default=SCENE_FILE,  # a string: argparse checks it as given
                    help=f"the MJCF file to write (default {SCENE_FILE})")
     p.set_defaults(func=_run_cli)
     return p

@@ -138,10 +138,15 @@ def test_scene_command_names_missing_data(tmp_path, capsys, monkeypatch):
     assert exc.value.code == 2 and "KIT meshes missing" in capsys.readouterr().err
 
 
-def test_scene_command_refuses_a_folder(tmp_path, capsys):
+def test_scene_command_refuses_a_folder(tmp_path, capsys, monkeypatch):
     with pytest.raises(SystemExit):
         main(["scene", "--out", str(tmp_path)])
     assert "is a folder" in capsys.readouterr().err
+    (tmp_path / "grasp_scene.xml").mkdir()  # the default --out is checked as a given one is, before the grasp
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exc:
+        main(["scene"])
+    assert exc.value.code == 2 and "grasp_scene.xml is a folder" in capsys.readouterr().err
     (tmp_path / "file").write_text("x")
     with pytest.raises(SystemExit) as exc:  # a path under a file was refused only after the grasp
         main(["scene", "--out", str(tmp_path / "file" / "s.xml")])
