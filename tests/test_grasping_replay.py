@@ -98,6 +98,9 @@ def test_bad_input(two_objects):
     for bad in ({"approaches": 0}, {"approaches": True}, {"pool_seed": -1}, {"hand": ""}, {"support": "wall"}):
         with pytest.raises(ValueError, match=next(iter(bad))):
             ReplayConfig(**bad)
+    from pathlib import Path
+
+    assert ReplayConfig(hand=Path("hand.xml")).hand == "hand.xml"  # an MJCF file as a Path, as the MuJoCo backend
 
 
 def test_env_on_the_replay_backend(small_recognizer_kwargs):

@@ -39,6 +39,7 @@ Distance between approaches: the actions' four coordinates, with azimuth and rol
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -87,6 +88,8 @@ class ReplayConfig:
             raise ValueError(f"n_fingers must be an int >= 2 or None, got {self.n_fingers!r}")
         for name in ("normals", "progress"):
             checked_flag(getattr(self, name), name)
+        if isinstance(self.hand, os.PathLike):  # an MJCF file given as a Path, as the MuJoCo backend takes it
+            object.__setattr__(self, "hand", os.fspath(self.hand))
         if not isinstance(self.hand, str) or not self.hand:
             raise ValueError(f"hand must be a hand name or an MJCF path, got {self.hand!r}")
         if isinstance(self.approaches, bool) or not (isinstance(self.approaches, (int, np.integer))
@@ -306,7 +309,10 @@ class ReplayBackend:
         self._geo = None
 
     def prepare(self, objects) -> None:
-        """Record (or read from the cache) the pools of every object of the ``ObjectSet`` ``objects``."""
+        """Record (or read from the cache) the pools of every object of the ``ObjectSet`` ``objects``. An object's
+        recorded approaches are drawn from ``SeedSequence([pool_seed, k])``, ``k`` its index among the objects this
+        call records: prepare the whole set once (as the env, the yaw belief and the look-ahead do), since a part of it
+        prepared first, or an object grasped unprepared (recorded as object 0 of a set of one), gets other records."""
         from scipy.spatial import cKDTree
 
         from haptic_env.hand_grasps import hand_grasp_pool, pool_actions, table_actions
