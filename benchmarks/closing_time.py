@@ -1,12 +1,12 @@
 """Could a hand's MuJoCo grasp end sooner? Closing-step caps below the hand's own, against its default grasps.
 
-Every grasp of the MuJoCo backend closes the fingers for at most ``HandDescription.max_steps`` physics steps (the
-rest test, all joint speeds under ``MujocoConfig.rest_qvel`` at two checks in a row, may end it sooner). The 5-finger
-envs' first ``make`` is these grasps (60,000 per hand), so a grasp that could stop earlier with the same readout would shorten it in
-proportion. This benchmark grasps the same random approaches to ycb10 with the hand's default and with lower caps
-(``MujocoConfig.max_steps``), interleaved per object, one process, and reports per cap: the share of grasps that
-close until the cap (the others came to rest), the grasps/s as a ratio to the default's from the same run, how often
-the same fingertips touch, and how far the touching fingertips' contact points and torque-derived normals move
+Every grasp of the MuJoCo backend closes the fingers for at most ``HandDescription.max_steps`` physics steps (the rest
+test, all joint speeds under ``MujocoConfig.rest_qvel`` at two checks in a row, may end it sooner). The 5-finger envs'
+first ``make`` is these grasps (60,000 per hand), so a grasp that could stop earlier with the same readout would
+shorten it in proportion. This benchmark grasps the same random approaches to ycb10 with the hand's default and with
+lower caps (``MujocoConfig.max_steps``), interleaved per object, one process, and reports per cap: the share of grasps
+that close until the cap (the others came to rest), the grasps/s as a ratio to the default's from the same run, how
+often the same fingertips touch, and how far the touching fingertips' contact points and torque-derived normals move
 (median / 90th percentile over fingertips that touch in both).
 
     OMP_NUM_THREADS=1 python benchmarks/closing_time.py [--approaches 20] [--hands shadow,aero,allegro]
