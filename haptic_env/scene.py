@@ -215,9 +215,12 @@ class Scene:
         cfg = self.config
         check_yaw_belief(cfg, "a yaw belief")
         kw = dict(cfg.backend_kwargs)
-        own = {k: kw[k] for k in ("approaches",) if cfg.backend == "replay" and k in kw}
-        if cfg.backend == "replay" and not kw.get("table"):  # a pool apart from the records that answer its grasps
-            own["pool_seed"] = int(kw.get("pool_seed", ReplayConfig.pool_seed)) + 1
+        own = {}
+        if cfg.backend == "replay":
+            if "approaches" in kw:
+                own["approaches"] = kw["approaches"]
+            if not kw.get("table"):  # a pool apart from the records that answer its grasps
+                own["pool_seed"] = int(kw.get("pool_seed", ReplayConfig.pool_seed)) + 1
         replay = ReplayBackend(ReplayConfig(hand=backend_hand(cfg), n_fingers=cfg.n_fingers,
                                             support=kw.get("support", "table"), solid_table=kw.get("solid_table"),
                                             **own))
