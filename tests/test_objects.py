@@ -19,7 +19,7 @@ from haptic_env.objects import (
 )
 from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.grasping.collision import convex_pieces
-from haptic_env.objects.loaders import KIT8, unit_scale
+from haptic_env.objects.loaders import KIT8, KIT_CUBE_SIDE, unit_scale
 
 
 @pytest.fixture(scope="module")
@@ -227,7 +227,8 @@ def test_a_file_in_the_wrong_units_is_warned_of_with_the_units_the_user_gave(tmp
         cube = tmp_path / "cube"
         cube.mkdir()
         trimesh.creation.box(extents=[1.0, 1.0, 1.0]).export(cube / "cube.stl")
-        assert load_object_set(str(cube), units="mm")["cube"].extents.max() == pytest.approx(1e-3)  # the KIT cube
+        # a unit cube read as millimetres: 1 mm, no warning
+        assert load_object_set(str(cube), units="mm")["cube"].extents.max() == pytest.approx(1e-3)
 
 
 def test_faces_wound_against_their_neighbours_are_turned_outward(tmp_path):
@@ -369,6 +370,25 @@ def test_kit20_loads():
     assert len(s) == 20 and "cube" in s
     pts, nrm = s["GreenCup"].sample_surface(100, np.random.default_rng(0))
     assert _surface_distance(s["GreenCup"].mesh, pts).max() < 1e-6
+    # the unit cube's side: the median of the 16 KIT objects' smallest extents (80.3 mm), rounded to 80 mm
+    np.testing.assert_allclose(s["cube"].extents, KIT_CUBE_SIDE, rtol=1e-9)
+    smallest = [o.extents.min() for o in s if o.name not in ("cube", "musroom", "octa", "tetra")]
+    assert len(smallest) == 16 and round(float(np.median(smallest)), 2) == KIT_CUBE_SIDE, np.median(smallest)
+
+
+def test_kit20_reads_its_unit_cube_at_a_hand_size(tmp_path):
+    """kit20's cube.stl is a unit cube in its file (the data set's README: "millimetres (cube is unit size)"): it
+    is read as KIT_CUBE_SIDE across, not 1 mm; the other files, kit8's too, stay in millimetres."""
+    kit = tmp_path / "kit"
+    kit.mkdir()
+    trimesh.creation.box(extents=[1.0, 1.0, 1.0]).export(kit / "cube.stl")
+    for name in KIT8:
+        trimesh.creation.box(extents=[50.0, 60.0, 70.0]).export(kit / f"{name}.stl")
+    s = load_object_set("kit20", data_dir=tmp_path)
+    assert s.names == (*KIT8, "cube")
+    np.testing.assert_allclose(s["cube"].extents, KIT_CUBE_SIDE, rtol=1e-9)
+    np.testing.assert_allclose(sorted(s["GreenCup"].extents), [0.05, 0.06, 0.07], rtol=1e-9)
+    assert load_object_set("kit8", data_dir=tmp_path).names == KIT8
 
 
 def test_grasp_object_validation():

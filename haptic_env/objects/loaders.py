@@ -9,8 +9,8 @@ Specs understood by :func:`load_object_set`:
 ``"kit8"``, ``"kit20"``
     KIT meshes from ``<data>/kit/*.stl`` (millimetres, converted to metres; y up in the files, stood up so
     that z is up: a bottle stands on the table instead of lying on its side). ``kit20`` is every file
-    of the folder; its ``cube.stl`` is unit size in the file and is taken, like the others, as
-    millimetres (a 1 mm cube): the file is used as shipped.
+    of the folder; its ``cube.stl`` is unit size in the file (the data set gives every other KIT mesh in
+    millimetres), and is read as a cube of :data:`KIT_CUBE_SIDE` (80 mm), not 1 mm, which no hand can grasp.
 ``"ycb10"``
     ``<data>/ycb/NNN_name/mesh.stl`` (metres), with the ``collision_NN.stl`` convex pieces listed in
     :attr:`GraspObject.collision_paths`.
@@ -32,11 +32,17 @@ from ..numbers import finite_number
 from .base import GraspObject, ObjectSet, prepare_mesh, up_rotation
 from .primitives import default_set, family_set
 
-__all__ = ["data_dir", "load_object_set", "load_folder", "MeshLoadError", "KIT8", "MESH_SUFFIXES", "unit_scale",
+__all__ = ["data_dir", "load_object_set", "load_folder", "MeshLoadError", "KIT8", "KIT_CUBE_SIDE", "MESH_SUFFIXES", "unit_scale",
            "object_count", "check_object_spec", "NAMED_SETS"]
 
 #: The KIT meshes' up axis (a bottle's axis, a cup's opening): y, as their extents show.
 KIT_UP = "y"
+#: The side (m) of kit20's ``cube.stl``, a unit cube in its file (the data set's other KIT meshes are in
+#: millimetres): the median of the smallest extents of the 16 KIT object meshes (the primitives left out), 80.3 mm,
+#: rounded. Read as millimetres it would be a 1 mm cube, which no hand grasps.
+KIT_CUBE_SIDE = 0.08
+#: KIT files read in other units than millimetres: file name -> metres per file unit.
+KIT_FILE_UNITS = {"cube.stl": KIT_CUBE_SIDE}
 #: The 8 KIT objects of the paper's main experiments.
 KIT8 = ("CatLying", "GreenCup", "HeringTin", "Shampoo", "ShowerGel", "Sprayflask", "ToyCarYelloq", "Wineglass")
 MESH_SUFFIXES = (".stl", ".obj", ".ply")
@@ -103,7 +109,7 @@ def unit_scale(units: str | float) -> float:
 #: A loaded object larger than this (m) gets a warning: its file is probably in millimetres (or cm).
 MAX_PLAUSIBLE_SIZE = 3.0
 #: A loaded object smaller than this (m) gets a warning: its file is probably in metres loaded as millimetres (an
-#: object up to 50 cm across read with units="mm"). The KIT cube, 1 mm as shipped, stays above it.
+#: object up to 50 cm across read with units="mm").
 MIN_PLAUSIBLE_SIZE = 5e-4
 #: A file coordinate beyond this (in the file's units) is rejected: no real object file holds one.
 MAX_FILE_COORDINATE = 1e9
@@ -211,8 +217,13 @@ def _kit(root: Path, names: tuple[str, ...] | None, set_name: str) -> ObjectSet:
     """The KIT meshes ``names`` (None: the whole folder) of a data folder that :func:`check_object_data` checked."""
     kit = root / "kit"
     if names is None:
-        return load_folder(kit, units="mm", name=set_name, up=KIT_UP)
-    return ObjectSet(set_name, [load_mesh_object(kit / f"{n}.stl", units="mm", up=KIT_UP) for n in names])
+        files = sorted(p for p in kit.iterdir() if p.is_file() and p.suffix.lower() in MESH_SUFFIXES)
+        if not files:
+            raise ValueError(f"object folder {kit} has no mesh files ({', '.join(MESH_SUFFIXES)})")
+    else:
+        files = [kit / f"{n}.stl" for n in names]
+    return ObjectSet(set_name, [load_mesh_object(p, units=KIT_FILE_UNITS.get(p.name, "mm"), up=KIT_UP)
+                                for p in files])
 
 
 def object_count(spec: str | Path = "default", *, data_dir: str | Path | None = None,
