@@ -16,7 +16,8 @@ Nothing is lost: Ctrl-C / SIGINT or SIGTERM (a second one stops at once) or a de
 save a checkpoint (SAC: with its replay buffer) and exit with one line naming it (exit status 130 / 143 / 1); a
 signal before learning began (the envs and the model being built or loaded) exits with one line too, nothing saved.
 ``--resume`` (a checkpoint, or the run directory: its latest checkpoint) continues the step counter up to
-``--total-timesteps`` in all, in the same TensorBoard run; the Monitor CSVs of each resumed segment go to new
+``--total-timesteps`` in all (a run whose final model is already there is left as it is: nothing is written), in the
+same TensorBoard run; the Monitor CSVs of each resumed segment go to new
 files ``monitor/<rank>.part<k>.monitor.csv`` and its flags to ``args.part<k>.json`` (every earlier file and line
 is kept; the learning-curve reader merges the segments by wall time and leaves out a killed segment's episodes past
 the step the next one resumed at, recorded as ``resumed_at_step``). PPO drops an unfinished rollout (its
@@ -198,15 +199,16 @@ def parse_args(argv: list[str] | None = None) -> Args:
     """The flags as :class:`Args`; bad values (unknown algorithm, zero steps or envs, JSON that is not an object,
     env settings ``HapticRecogConfig`` rejects, a missing ``--resume`` file or one this run cannot go on from:
     :func:`_resume_problem`) exit with a one-line usage error."""
-    args, env = _parse(argv)
+    args, env, _ = _parse(argv)
     if env is not None:
         env.close()
     return args
 
 
-def _parse(argv: list[str] | None) -> tuple[Args, object | None]:
-    """:func:`parse_args`, and the env a ``--resume``'s spaces were checked in (None when none was built), which
-    :func:`main` hands to the training's envs rather than build it again."""
+def _parse(argv: list[str] | None) -> tuple[Args, object | None, Path | None]:
+    """:func:`parse_args`, the env a ``--resume``'s spaces were checked in (None when none was built), which
+    :func:`main` hands to the training's envs rather than build it again, and the final model of a resumed run
+    that already has it at ``--total-timesteps`` (None otherwise; then no env is built: nothing is to train)."""
     import tyro
 
     from haptic_env import ENV_VARIANTS, variant_config
@@ -295,6 +297,13 @@ def _parse(argv: list[str] | None) -> tuple[Args, object | None]:
             # leaves, and a later --resume of the folder would go on from those (another --run-dir: a new line)
             _usage_error(f"argument --resume: {args.resume} is not its run's latest checkpoint ({later.name}); go on "
                          "from it into another --run-dir, move the later checkpoints away, or resume from the latest")
+        final = home / f"{args.algo}_final.zip"
+        done = _saved_steps(final) if final.is_file() and Path(args.run_dir).resolve() == home.resolve() else None
+        if done is not None and done >= max(args.total_timesteps, steps or 0):
+            # its run is finished (a rerun of a job that got there, say): nothing to train, no segment written (it
+            # added one that trained nothing, and from a checkpoint short of the final model trained that part again
+            # and replaced the final model with the result)
+            return args, None, final
         saved = _saved_approaches(data)
         if saved != args.discrete_approaches:
             _usage_error(f"argument --discrete-approaches: {args.resume} was trained with --discrete-approaches "
@@ -308,9 +317,9 @@ def _parse(argv: list[str] | None) -> tuple[Args, object | None]:
         problem, env = _resume_problem(args, data, config)
         if problem is not None:
             _usage_error(f"argument --resume: {problem}")
-        return args, env
+        return args, env, None
     _check_env_seed_block(args)
-    return args, None
+    return args, None, None
 
 
 def _probe(args: Args, config: HapticRecogConfig):
@@ -572,7 +581,11 @@ def _signals_stop_the_set_up() -> Iterator[None]:
 
 
 def main(argv: list[str] | None = None) -> Path:
-    args, env = _parse(argv)  # env: a --resume's, built once: the training's envs take it over
+    args, env, finished = _parse(argv)  # env: a --resume's, built once: the training's envs take it over
+    if finished is not None:
+        print(f"[train] {finished} is at {_saved_steps(finished)} steps, --total-timesteps {args.total_timesteps} in "
+              "all: nothing to train (raise --total-timesteps to go on)", flush=True)
+        return finished
     if env is None:  # a fresh run: its folder's refusals first (cheap; checked again once held), then its env
         refuse_a_held_run_dir(args)
         env = _probe(args, env_config(args))

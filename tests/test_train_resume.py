@@ -119,11 +119,13 @@ def test_sigterm_stops_saves_and_resume_ends_at_the_same_step(env_config, small_
     assert 256 <= _steps(ckpt) < 1536 and _steps(ckpt) % 64 == 0
     assert "Traceback" not in err
     _resume_and_check(args, run, "ppo", 1536, _snapshot(run))
-    # resuming a finished run is a no-op that still ends cleanly (in-process: quicker)
+    # resuming a finished run is a no-op that still ends cleanly and writes nothing (in-process: quicker)
     import train
 
+    before = _snapshot(run)
     assert train.main(args + ["--resume", str(run)]) == run / "ppo_final.zip"
-    assert "1536 steps (0 in this run)" in capsys.readouterr().out
+    assert "ppo_final.zip is at 1536 steps, --total-timesteps 1536 in all: nothing to train" in capsys.readouterr().out
+    assert _snapshot(run) == before
 
 
 @pytest.mark.slow
@@ -362,6 +364,13 @@ def test_a_resume_goes_on_in_its_own_run_folder(small_recognizer_kwargs, tmp_pat
     assert train.main(without + ["--resume", str(run), "--total-timesteps", "320"]) == run / "ppo_final.zip"
     assert not (tmp_path / "runs").exists()  # nothing written into the default folder
     assert (run / "args.part3.json").is_file()  # the third segment of the run, with seeds of its own
+    # its final model is at 320 steps, its latest checkpoint at 256 (the checkpoints' 128 do not divide 320): a rerun
+    # with the same --total-timesteps, from the folder or from that checkpoint, leaves the run as it is (it trained
+    # 256 -> 320 again and replaced the final model)
+    before = _snapshot(run)
+    for resume in (run, ckpts / "ppo_256_steps.zip", run / "ppo_final.zip"):
+        assert train.main(without + ["--resume", str(resume), "--total-timesteps", "320"]) == run / "ppo_final.zip"
+        assert _snapshot(run) == before and not (run / "args.part4.json").exists()
     # a resume into a new folder is a later segment of its checkpoint's run, not a start: other seeds than the start's
     fork = tmp_path / "fork"
     train.main(more[:i + 1] + [str(fork)] + more[i + 2:] + ["--resume", str(run), "--total-timesteps", "384"])
