@@ -40,6 +40,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
@@ -119,9 +120,12 @@ def main(argv=None) -> int:
     print("|---|---|---|---|---|---|")
     from tqdm.auto import tqdm
 
-    from haptic_env.cache import cache_dir, config_key, resume_state, save_keyed_json
+    import haptic_env
+    from haptic_env.cache import cache_dir, config_key, resume_state, save_keyed_json, source_fingerprint
 
-    key = {k: v for k, v in sorted(vars(args).items()) if k not in ("curve", "plot")}
+    # the settings and the code (haptic_env's and the benchmarks'): a resume after a code change starts again
+    key = {**{k: v for k, v in sorted(vars(args).items()) if k not in ("curve", "plot")},
+           "code": source_fingerprint(Path(haptic_env.__file__).parent, Path(__file__).parent)}
     state = cache_dir("sampling_protocol") / f"{config_key(key)}.json"
     rows = resume_state(state, key, "rows")  # the rows an interrupted run finished
 

@@ -242,7 +242,8 @@ def load_keyed_json(path: str | os.PathLike, key: Any) -> dict | None:
 def resume_state(path: str | os.PathLike, key: Any, field: str) -> dict:
     """The finished parts (``field`` of the document :func:`save_keyed_json` wrote at ``path``) that an interrupted
     run with these settings (``key``) kept, or ``{}``; when there are some, says so on stderr with the path: a state
-    kept by older code would be read back too, and deleting the file computes them again."""
+    kept by older code would be read back too unless ``key`` holds the code's :func:`source_fingerprint` (as the
+    analyses' and the benchmarks' keys do), and deleting the file computes them again."""
     parts = (load_keyed_json(path, key) or {}).get(field) or {}
     if parts:
         print(f"resuming: {len(parts)} finished part(s) kept in {path} (delete it to compute them again)",

@@ -131,8 +131,8 @@ def test_sampling_protocol_rejects_bad_values_first(load_benchmark, usage_error)
 
 
 def test_sampling_protocol_resumes_its_finished_rows(load_benchmark, monkeypatch, tmp_path, capsys):
-    """Each finished row is kept under the cache, keyed by the settings: a second run with them prints the same table
-    without computing a row; other settings compute theirs."""
+    """Each finished row is kept under the cache, keyed by the settings and the code: a second run with them prints the
+    same table without computing a row; other settings, or other code, compute theirs."""
     pytest.importorskip("fast_simplification", reason="the decimated meshes need the bench extra")
     from haptic_env.objects.loaders import data_dir
 
@@ -150,6 +150,10 @@ def test_sampling_protocol_resumes_its_finished_rows(load_benchmark, monkeypatch
     assert protocol.main(argv) == 0
     assert len(calls) == 6 and capsys.readouterr().out == first  # every row from the kept state
     assert protocol.main([*argv[:-1], "300"]) == 0 and len(calls) == 12  # other settings: their own rows
+    import haptic_env.cache
+
+    monkeypatch.setattr(haptic_env.cache, "source_fingerprint", lambda *packages: "other code")
+    assert protocol.main(argv) == 0 and len(calls) == 18  # other code: the rows again, not the kept ones
 
 
 def test_sampling_protocol_authors_vector(load_benchmark):
