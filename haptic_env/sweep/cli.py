@@ -37,7 +37,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    "else outputs/sweeps/<name>)")
     p.add_argument("--address", default=None, help="join this Ray cluster (HOST:PORT or 'auto'); default: start "
                    "a local one")
-    p.add_argument("--num-cpus", type=int_in(1), default=None, help="CPUs of the local Ray (default: all cores)")
+    p.add_argument("--num-cpus", type=int_in(1), default=None, help="CPUs of the local Ray (default: all cores; "
+                   "not with --address: a cluster has its own)")
     p.add_argument("--max-retries", type=int_in(0, 1000), default=None, help="retries of a failed job (default: the "
                    "spec's max_retries, else 2)")
     p.add_argument("--only", nargs="+", choices=KINDS, default=None, help="run only these job kinds (and what "
@@ -69,6 +70,9 @@ def _main(args) -> int:
                                                                  if args.spec.is_dir() else ""))
     if args.dry_run and args.report_only:
         raise UsageError("--dry-run lists the jobs and --report-only writes the report: give one of them")
+    if args.num_cpus is not None and args.address not in (None, "local"):  # Ray would ignore it: the cluster's own
+        raise UsageError(f"--num-cpus sets the CPUs of a local Ray; the cluster that --address {args.address} joins "
+                         "has its own (give one of them)")
     try:
         spec = load_spec(args.spec, check_files=not (args.dry_run or args.report_only))  # files: for jobs to run
     except SpecError as exc:
