@@ -207,8 +207,8 @@ def parse_args(argv: list[str] | None = None) -> Args:
 
 def _parse(argv: list[str] | None) -> tuple[Args, object | None, Path | None]:
     """:func:`parse_args`, the env a ``--resume``'s spaces were checked in (None when none was built), which
-    :func:`main` hands to the training's envs rather than build it again, and the final model of a resumed run
-    that already has it at ``--total-timesteps`` (None otherwise; then no env is built: nothing is to train)."""
+    :func:`main` hands to the training's envs rather than build it again, and, when the resumed run's final model is
+    already at ``--total-timesteps``, that model (nothing is to train, and no env is built; None otherwise)."""
     import tyro
 
     from haptic_env import ENV_VARIANTS, variant_config

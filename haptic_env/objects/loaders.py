@@ -32,8 +32,8 @@ from ..numbers import finite_number
 from .base import GraspObject, ObjectSet, prepare_mesh, up_rotation
 from .primitives import default_set, family_set
 
-__all__ = ["data_dir", "load_object_set", "load_folder", "MeshLoadError", "KIT8", "KIT_CUBE_SIDE", "MESH_SUFFIXES", "unit_scale",
-           "object_count", "check_object_spec", "NAMED_SETS"]
+__all__ = ["data_dir", "load_object_set", "load_folder", "MeshLoadError", "KIT8", "KIT_CUBE_SIDE", "MESH_SUFFIXES",
+           "unit_scale", "object_count", "check_object_spec", "NAMED_SETS"]
 
 #: The KIT meshes' up axis (a bottle's axis, a cup's opening): y, as their extents show.
 KIT_UP = "y"
