@@ -16,8 +16,8 @@ Nothing is lost: Ctrl-C / SIGINT or SIGTERM (a second one stops at once) or a de
 save a checkpoint (SAC: with its replay buffer) and exit with one line naming it (exit status 130 / 143 / 1); a
 signal before learning began (the envs and the model being built or loaded) exits with one line too, nothing saved.
 ``--resume`` (a checkpoint, or the run directory: its latest checkpoint) continues the step counter up to
-``--total-timesteps`` in all (a run whose final model is already there is left as it is: nothing is written), in the
-same TensorBoard run; the Monitor CSVs of each resumed segment go to new
+``--total-timesteps`` in all (resumed from its folder or its final model, a run whose final model is already there is
+left as it is: nothing is written), in the same TensorBoard run; the Monitor CSVs of each resumed segment go to new
 files ``monitor/<rank>.part<k>.monitor.csv`` and its flags to ``args.part<k>.json`` (every earlier file and line
 is kept; the learning-curve reader merges the segments by wall time and leaves out a killed segment's episodes past
 the step the next one resumed at, recorded as ``resumed_at_step``). PPO drops an unfinished rollout (its
@@ -207,8 +207,9 @@ def parse_args(argv: list[str] | None = None) -> Args:
 
 def _parse(argv: list[str] | None) -> tuple[Args, object | None, Path | None]:
     """:func:`parse_args`, the env a ``--resume``'s spaces were checked in (None when none was built), which
-    :func:`main` hands to the training's envs rather than build it again, and, when the resumed run's final model is
-    already at ``--total-timesteps``, that model (nothing is to train, and no env is built; None otherwise)."""
+    :func:`main` hands to the training's envs rather than build it again, and, when a run resumed from its folder or
+    its final model has that model at ``--total-timesteps`` already, ``(final model, its steps)`` (nothing is to
+    train, and no env is built; None otherwise)."""
     import tyro
 
     from haptic_env import ENV_VARIANTS, variant_config
@@ -269,7 +270,8 @@ def _parse(argv: list[str] | None) -> tuple[Args, object | None, Path | None]:
         from agents.sb3 import latest_checkpoint
 
         resume = Path(args.resume)
-        if resume.is_dir():
+        from_folder = resume.is_dir()
+        if from_folder:
             found = latest_checkpoint(resume, args.algo)
             if found is None:
                 _usage_error(f"argument --resume: no {args.algo}_<steps>_steps.zip checkpoint in {resume}")
@@ -297,13 +299,6 @@ def _parse(argv: list[str] | None) -> tuple[Args, object | None, Path | None]:
             # leaves, and a later --resume of the folder would go on from those (another --run-dir: a new line)
             _usage_error(f"argument --resume: {args.resume} is not its run's latest checkpoint ({later.name}); go on "
                          "from it into another --run-dir, move the later checkpoints away, or resume from the latest")
-        final = home / f"{args.algo}_final.zip"
-        done = _saved_steps(final) if final.is_file() and Path(args.run_dir).resolve() == home.resolve() else None
-        if done is not None and done >= max(args.total_timesteps, steps or 0):
-            # its run is finished (a rerun of a job that got there, say): nothing to train, no segment written (it
-            # added one that trained nothing, and from a checkpoint short of the final model trained that part again
-            # and replaced the final model with the result)
-            return args, None, final
         saved = _saved_approaches(data)
         if saved != args.discrete_approaches:
             _usage_error(f"argument --discrete-approaches: {args.resume} was trained with --discrete-approaches "
@@ -313,6 +308,15 @@ def _parse(argv: list[str] | None) -> tuple[Args, object | None, Path | None]:
         problem = replay_envs_problem(args.algo, data.get("n_envs"), args.n_envs)
         if problem is not None:
             _usage_error(f"argument --n-envs: {args.resume} {problem}")
+        final = home / f"{args.algo}_final.zip"
+        if (from_folder or Path(args.resume).resolve() == final.resolve()) and final.is_file() \
+                and Path(args.run_dir).resolve() == home.resolve():
+            done = _final_steps(final)
+            if done is not None and done >= max(args.total_timesteps, steps or 0):
+                # a finished run (a job run again after it got there, say): nothing to train, no segment written (it
+                # added one that trained nothing, and from a folder whose latest checkpoint was short of the final
+                # model trained that part again and replaced the final model); a checkpoint named itself trains
+                return args, None, (final, done)
         _check_env_seed_block(args)
         problem, env = _resume_problem(args, data, config)
         if problem is not None:
@@ -446,6 +450,19 @@ def _saved_steps(path: Path, data: dict | None = None) -> int | None:
         return steps
     data = _saved_data(path) if data is None else data
     return None if data is None or data.get("num_timesteps") is None else int(data["num_timesteps"])
+
+
+def _final_steps(path: Path) -> int | None:
+    """The steps in a model file's ``data`` member (stable-baselines3's zip), read without its parameters; None when
+    the file or that member cannot be read (the resume then goes on as if there were no final model)."""
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(path) as z:
+            steps = json.loads(z.read("data")).get("num_timesteps")
+    except (OSError, zipfile.BadZipFile, KeyError, ValueError, AttributeError):
+        return None
+    return int(steps) if isinstance(steps, int) and not isinstance(steps, bool) else None
 
 
 def _saved_approaches(data: dict) -> int:
@@ -582,10 +599,12 @@ def _signals_stop_the_set_up() -> Iterator[None]:
 
 def main(argv: list[str] | None = None) -> Path:
     args, env, finished = _parse(argv)  # env: a --resume's, built once: the training's envs take it over
-    if finished is not None:
-        print(f"[train] {finished} is at {_saved_steps(finished)} steps, --total-timesteps {args.total_timesteps} in "
-              "all: nothing to train (raise --total-timesteps to go on)", flush=True)
-        return finished
+    if finished is not None:  # the folder held all the same: a training running there is named
+        final, steps = finished
+        with hold_run_dir(Path(args.run_dir)):
+            print(f"[train] {final} is at {steps} steps, --total-timesteps {args.total_timesteps} in all: nothing to "
+                  "train (raise --total-timesteps to go on)", flush=True)
+        return final
     if env is None:  # a fresh run: its folder's refusals first (cheap; checked again once held), then its env
         refuse_a_held_run_dir(args)
         env = _probe(args, env_config(args))

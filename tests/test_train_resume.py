@@ -365,12 +365,22 @@ def test_a_resume_goes_on_in_its_own_run_folder(small_recognizer_kwargs, tmp_pat
     assert not (tmp_path / "runs").exists()  # nothing written into the default folder
     assert (run / "args.part3.json").is_file()  # the third segment of the run, with seeds of its own
     # its final model is at 320 steps, its latest checkpoint at 256 (the checkpoints' 128 do not divide 320): a rerun
-    # with the same --total-timesteps, from the folder or from that checkpoint, leaves the run as it is (it trained
-    # 256 -> 320 again and replaced the final model)
+    # with the same --total-timesteps, from the folder or the final model, leaves the run as it is (from the folder it
+    # trained 256 -> 320 again and replaced the final model)
     before = _snapshot(run)
-    for resume in (run, ckpts / "ppo_256_steps.zip", run / "ppo_final.zip"):
+    for resume in (run, run / "ppo_final.zip"):
         assert train.main(without + ["--resume", str(resume), "--total-timesteps", "320"]) == run / "ppo_final.zip"
         assert _snapshot(run) == before and not (run / "args.part4.json").exists()
+    # a checkpoint named itself is trained from, the final model notwithstanding (as before: the user's choice)
+    named = without + ["--resume", str(ckpts / "ppo_256_steps.zip"), "--total-timesteps", "320"]
+    _, env, finished = train._parse(named)
+    if env is not None:
+        env.close()
+    assert finished is None
+    # the final model's steps are read from its data alone; a damaged one is taken as none (no traceback)
+    assert train._final_steps(run / "ppo_final.zip") == 320
+    (tmp_path / "damaged.zip").write_bytes(b"PK\x03\x04 not a whole zip")
+    assert train._final_steps(tmp_path / "damaged.zip") is None
     # a resume into a new folder is a later segment of its checkpoint's run, not a start: other seeds than the start's
     fork = tmp_path / "fork"
     train.main(more[:i + 1] + [str(fork)] + more[i + 2:] + ["--resume", str(run), "--total-timesteps", "384"])
