@@ -34,7 +34,7 @@ grasps) lay above the KDE's, it would tell more per grasp. Nothing is chosen her
         [--classifiers knn hgb extra-trees mlp] [--frontier hgb extra-trees] [--scales ...] [--out DIR]
 
 Writes ``classifiers.md`` and ``frontier.png`` under ``--out``, and ``classifiers.state.json``, each finished (hand,
-normals) block, from which a run started again into the same folder with the same settings resumes (without
+normals) block, from which a run started again into the same folder with the same settings and code resumes (without
 ``--out`` that state is kept in the cache); the headline (per hand and method, the fewest grasps at
 the paper's success with each likelihood) is printed last.
 """
@@ -53,8 +53,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.hand_experiment import (PAPER, SETUPS, check_pool_seeds, env_config, query_pools,  # noqa: E402
                                         pm, training_config, write_table)
 from benchmarks.stop_frontier import grasp_scores, replay  # noqa: E402
-from haptic_env.cli import int_in, output_path  # noqa: E402
 import haptic_env  # noqa: E402
+from haptic_env.cli import int_in, output_path  # noqa: E402
 from haptic_env.cache import (atomic_write, cache_dir, config_key, resume_state, save_keyed_json,  # noqa: E402
                               source_fingerprint)
 from haptic_env.config import HAND_APPROACHES  # noqa: E402

@@ -26,8 +26,8 @@ decimated meshes, face centres against area-uniform points: the paper's candidat
 per face) that its training and test grasps share, which a large training set could cover.
 
 Each finished row of the table is kept in the cache (``<cache>/sampling_protocol/<settings key>.json``, written
-atomically), so an interrupted run started again with the same settings prints the rows it has and computes only the
-rest (a row takes minutes; with ``--force-closure`` the table took 31 minutes).
+atomically), so an interrupted run started again with the same settings and code prints the rows it has and computes
+only the rest (a row takes minutes; with ``--force-closure`` the table took 31 minutes).
 
 Needs the shared data (kit/) and ``pip install -e ".[bench]"`` (fast-simplification).
 

@@ -13,7 +13,7 @@ the scale with the fewest grasps whose validation stops are decided and right in
 * set B: further fresh grasps (seed + ``CHECK_SEED_OFFSET``), only to CHECK, with the scale chosen on A.
 
 No test grasp is used. Each finished finger count is kept beside ``--out`` (``<out>.state.json``; without ``--out`` in
-the cache), and a run started again with the same settings resumes from it. Run (the training data and KDEs are
+the cache), and a run started again with the same settings and code resumes from it. Run (the training data and KDEs are
 built once and cached; 200,000 grasps per object is experiment 2's reported setting)::
 
     OMP_NUM_THREADS=1 python benchmarks/stop_floor.py --objects kit8 --no-normals --fingers 3,4,5 \\

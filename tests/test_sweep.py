@@ -328,7 +328,7 @@ def test_cli_dry_run_and_bad_spec(tmp_path, capsys):
     assert not (tmp_path / "typo").exists()
     for argv, said in ((["sweep", str(SMOKE), "--dry-run", "--report-only"], "give one of them"),
                        (["sweep", str(SMOKE), "--address", "auto", "--num-cpus", "2"],
-                        "--num-cpus sets the CPUs of a local Ray; the cluster that --address auto joins has its own"),
+                        "--num-cpus sets the CPUs of a local Ray; the cluster that --address 'auto' joins has its own"),
                        (["sweep", str(tmp_path)], "(it is a folder; give the spec's .toml file)")):
         with pytest.raises(SystemExit) as exc:
             main(argv)

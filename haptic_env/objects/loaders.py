@@ -41,7 +41,7 @@ KIT_UP = "y"
 #: millimetres): the median of the smallest extents of the 16 KIT object meshes (the primitives left out), 80.3 mm,
 #: rounded. Read as millimetres it would be a 1 mm cube, which no hand grasps.
 KIT_CUBE_SIDE = 0.08
-#: KIT files read in other units than millimetres: file name -> metres per file unit.
+#: KIT files read in other units than millimetres: file name (in lower case) -> metres per file unit.
 KIT_FILE_UNITS = {"cube.stl": KIT_CUBE_SIDE}
 #: The 8 KIT objects of the paper's main experiments.
 KIT8 = ("CatLying", "GreenCup", "HeringTin", "Shampoo", "ShowerGel", "Sprayflask", "ToyCarYelloq", "Wineglass")
@@ -222,7 +222,7 @@ def _kit(root: Path, names: tuple[str, ...] | None, set_name: str) -> ObjectSet:
             raise ValueError(f"object folder {kit} has no mesh files ({', '.join(MESH_SUFFIXES)})")
     else:
         files = [kit / f"{n}.stl" for n in names]
-    return ObjectSet(set_name, [load_mesh_object(p, units=KIT_FILE_UNITS.get(p.name, "mm"), up=KIT_UP)
+    return ObjectSet(set_name, [load_mesh_object(p, units=KIT_FILE_UNITS.get(p.name.lower(), "mm"), up=KIT_UP)
                                 for p in files])
 
 

@@ -71,7 +71,7 @@ def _main(args) -> int:
     if args.dry_run and args.report_only:
         raise UsageError("--dry-run lists the jobs and --report-only writes the report: give one of them")
     if args.num_cpus is not None and args.address not in (None, "local"):  # Ray would ignore it: the cluster's own
-        raise UsageError(f"--num-cpus sets the CPUs of a local Ray; the cluster that --address {args.address} joins "
+        raise UsageError(f"--num-cpus sets the CPUs of a local Ray; the cluster that --address {args.address!r} joins "
                          "has its own (give one of them)")
     try:
         spec = load_spec(args.spec, check_files=not (args.dry_run or args.report_only))  # files: for jobs to run
