@@ -205,7 +205,7 @@ def parse_args(argv: list[str] | None = None) -> Args:
     return args
 
 
-def _parse(argv: list[str] | None) -> tuple[Args, object | None, Path | None]:
+def _parse(argv: list[str] | None) -> tuple[Args, object | None, tuple[Path, int] | None]:
     """:func:`parse_args`, the env a ``--resume``'s spaces were checked in (None when none was built), which
     :func:`main` hands to the training's envs rather than build it again, and, when a run resumed from its folder or
     its final model has that model at ``--total-timesteps`` already, ``(final model, its steps)`` (nothing is to
