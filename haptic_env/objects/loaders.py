@@ -188,7 +188,7 @@ def load_folder(folder: str | Path, *, units: str | float = "m", name: str | Non
         raise FileNotFoundError(f"object folder {folder} does not exist")
     unit_scale(units)  # a bad value is named before any file is read
     up_rotation(up)
-    files = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in MESH_SUFFIXES)
+    files = _mesh_files(folder)
     set_name = name or folder.name
     if files:
         return ObjectSet(set_name, [load_mesh_object(p, units=units, up=up) for p in files])
@@ -206,6 +206,11 @@ def load_folder(folder: str | Path, *, units: str | float = "m", name: str | Non
                      "and no sub-folders with a mesh.stl")
 
 
+def _mesh_files(folder: Path) -> list[Path]:
+    """``folder``'s mesh files (a suffix of :data:`MESH_SUFFIXES`, in any case), sorted by name."""
+    return sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in MESH_SUFFIXES)
+
+
 def _collision_files(folder: Path) -> tuple[Path, ...]:
     """``folder``'s ``collision_*.stl`` files, sorted by name, the suffix in any case (as the meshes': an upper-case
     ``collision_00.STL`` was skipped, and the physics backend decomposed the mesh instead)."""
@@ -217,7 +222,7 @@ def _kit(root: Path, names: tuple[str, ...] | None, set_name: str) -> ObjectSet:
     """The KIT meshes ``names`` (None: the whole folder) of a data folder that :func:`check_object_data` checked."""
     kit = root / "kit"
     if names is None:
-        files = sorted(p for p in kit.iterdir() if p.is_file() and p.suffix.lower() in MESH_SUFFIXES)
+        files = _mesh_files(kit)
         if not files:
             raise ValueError(f"object folder {kit} has no mesh files ({', '.join(MESH_SUFFIXES)})")
     else:
@@ -246,7 +251,7 @@ def object_count(spec: str | Path = "default", *, data_dir: str | Path | None = 
     if s in ("kit20", "ycb10"):
         return None
     p = Path(s).expanduser()  # an existing folder (check_object_spec)
-    files = [f for f in p.iterdir() if f.is_file() and f.suffix.lower() in MESH_SUFFIXES]
+    files = _mesh_files(p)
     if files:
         return len(files)
     return sum(1 for f in p.iterdir() if (f / "mesh.stl").is_file())
