@@ -844,10 +844,9 @@ def make_agent(spec: str, seed: int = 0, stochastic: bool = False, no_repeat: bo
 def code_fingerprint() -> str:
     """sha256 of the Python sources of ``haptic_env`` and ``agents`` (paths and bytes): the code that played a block
     (:func:`haptic_env.cache.source_fingerprint`)."""
-    import haptic_env
-    from haptic_env.cache import source_fingerprint
+    from haptic_env.cache import package_fingerprint
 
-    return source_fingerprint(Path(haptic_env.__file__).parent, Path(__file__).parent)
+    return package_fingerprint(Path(__file__).parent)
 
 
 def _block_key(spec: str, args, kwargs: dict, code: str) -> str:

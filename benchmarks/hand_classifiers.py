@@ -53,10 +53,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.hand_experiment import (PAPER, SETUPS, check_pool_seeds, env_config, query_pools,  # noqa: E402
                                         pm, training_config, write_table)
 from benchmarks.stop_frontier import grasp_scores, replay  # noqa: E402
-import haptic_env  # noqa: E402
 from haptic_env.cli import int_in, output_path  # noqa: E402
-from haptic_env.cache import (atomic_write, cache_dir, config_key, resume_state, save_keyed_json,  # noqa: E402
-                              source_fingerprint)
+from haptic_env.cache import (atomic_write, cache_dir, config_key, package_fingerprint, resume_state,  # noqa: E402
+                              save_keyed_json)
 from haptic_env.config import HAND_APPROACHES  # noqa: E402
 from haptic_env.dataset import build_dataset, support_frame  # noqa: E402
 from haptic_env.objects import data_dir, load_object_set  # noqa: E402
@@ -218,7 +217,7 @@ def main(argv=None) -> int:
     # a run started again after an interruption (the default run takes about 14 min) computes only the blocks it lacks
     # and by the code (haptic_env's and the benchmarks'): a resume after a code change computes every block again
     key = {**{k: v for k, v in sorted(vars(args).items()) if k != "out"},
-           "code": source_fingerprint(Path(haptic_env.__file__).parent, Path(__file__).parent)}
+           "code": package_fingerprint(Path(__file__).parent)}
     state = (args.out / "classifiers.state.json" if args.out is not None
              else cache_dir("hand_classifiers") / f"{config_key(key)}.json")
     finished = resume_state(state, key, "blocks")

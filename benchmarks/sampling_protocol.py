@@ -120,12 +120,11 @@ def main(argv=None) -> int:
     print("|---|---|---|---|---|---|")
     from tqdm.auto import tqdm
 
-    import haptic_env
-    from haptic_env.cache import cache_dir, config_key, resume_state, save_keyed_json, source_fingerprint
+    from haptic_env.cache import cache_dir, config_key, package_fingerprint, resume_state, save_keyed_json
 
     # the settings and the code (haptic_env's and the benchmarks'): a resume after a code change starts again
     key = {**{k: v for k, v in sorted(vars(args).items()) if k not in ("curve", "plot")},
-           "code": source_fingerprint(Path(haptic_env.__file__).parent, Path(__file__).parent)}
+           "code": package_fingerprint(Path(__file__).parent)}
     state = cache_dir("sampling_protocol") / f"{config_key(key)}.json"
     rows = resume_state(state, key, "rows")  # the rows an interrupted run finished
 

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 from scipy.special import log_softmax
 
-from haptic_env.cache import atomic_write, cache_dir, config_key, resume_state, save_keyed_json, source_fingerprint
+from haptic_env.cache import atomic_write, cache_dir, config_key, package_fingerprint, resume_state, save_keyed_json
 from haptic_env.cli import float_in, float_list_in, int_in, int_list_in, output_path, script_command
 from haptic_env.experiments.config import AnalysisConfig
 from haptic_env.experiments.families import floored
@@ -124,11 +124,9 @@ def emit(lines: list[str], out, script: str = "stop_floor.py", argv=None) -> Non
 def kept_parts(a: argparse.Namespace, name: str) -> tuple[Path, dict, dict]:
     """Where a run with the settings ``a`` keeps each finished finger count (beside ``--out``, else in the cache),
     its key, and the parts an interrupted run with them kept (:func:`~haptic_env.cache.resume_state`)."""
-    import haptic_env
-
     # the settings and the code (haptic_env's and the benchmarks'): a resume after a code change starts again
     key = {**{k: v for k, v in sorted(vars(a).items()) if k != "out"},
-           "code": source_fingerprint(Path(haptic_env.__file__).parent, Path(__file__).parent)}
+           "code": package_fingerprint(Path(__file__).parent)}
     path = a.out.with_name(a.out.name + ".state.json") if a.out is not None else \
         cache_dir(name) / f"{config_key(key)}.json"
     return path, key, resume_state(path, key, "parts")

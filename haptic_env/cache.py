@@ -28,7 +28,7 @@ import numpy as np
 
 __all__ = ["cache_dir", "config_key", "KEY_ONLY_WHEN_SET", "KEY_AS", "atomic_write", "save_npz_atomic", "load_npz",
            "CacheError", "CacheNotWritableError", "clean_stale_tmp", "STALE_TMP_SECONDS", "save_keyed_json",
-           "load_keyed_json", "resume_state", "file_stem"]
+           "load_keyed_json", "resume_state", "file_stem", "source_fingerprint", "package_fingerprint"]
 
 #: A temporary file older than this is removed even if its writer's process id is still in use (6 h).
 STALE_TMP_SECONDS = 6 * 3600.0
@@ -178,6 +178,12 @@ def source_fingerprint(*packages: str | os.PathLike) -> str:
     return h.hexdigest()
 
 
+def package_fingerprint(*more: str | os.PathLike) -> str:
+    """:func:`source_fingerprint` of the ``haptic_env`` package and the folders ``more`` (a script's own, say): the
+    code a kept result depends on, for the key of a run that resumes."""
+    return source_fingerprint(Path(__file__).parent, *more)
+
+
 def _umask() -> int:
     """The process's umask (read by setting it and putting it back: once, at import)."""
     mask = os.umask(0o022)
@@ -243,7 +249,7 @@ def resume_state(path: str | os.PathLike, key: Any, field: str) -> dict:
     """The finished parts (``field`` of the document :func:`save_keyed_json` wrote at ``path``) that an interrupted
     run with these settings (``key``) kept, or ``{}``; when there are some, says so on stderr with the path: a state
     kept by older code would be read back too unless ``key`` holds the code's :func:`source_fingerprint` (as the
-    analyses' and the benchmarks' keys do), and deleting the file computes them again."""
+    analyses' and the benchmarks' keys do: :func:`package_fingerprint`), and deleting the file computes them again."""
     parts = (load_keyed_json(path, key) or {}).get(field) or {}
     if parts:
         print(f"resuming: {len(parts)} finished part(s) kept in {path} (delete it to compute them again)",
