@@ -17,7 +17,7 @@ import numpy as np
 
 from haptic_env.experiments import cli as ecli
 from haptic_env.experiments.families import EXPECTED_FAMILY, family_models, family_vectors, grasp_config
-from haptic_env.objects import load_object_set
+from haptic_env.objects import FAMILIES, load_object_set
 from haptic_env.splits import TEST_SEED_OFFSET
 
 
@@ -41,7 +41,6 @@ def main(argv=None):
     print("| object | expected | 4-finger grasps | one-shot argmax box / cyl / ell % | mean tempered log-likelihood "
           "box / cyl / ell | expected minus the best other |")
     print("|---|---|---|---|---|---|")
-    fams = ("box", "elliptic_cylinder", "ellipsoid")
     for k, nm in enumerate(objects.names):
         exp = EXPECTED_FAMILY.get(nm)
         if len(pool[k]) == 0:
@@ -50,7 +49,7 @@ def main(argv=None):
         S = m.kde.log_likelihood(pool[k])
         mt = m.tempered(S).mean(0)
         share = 100 * np.bincount(S.argmax(1), minlength=3) / len(S)
-        margin = "-" if exp is None else f"{mt[fams.index(exp)] - np.delete(mt, fams.index(exp)).max():+.3f}"
+        margin = "-" if exp is None else f"{mt[FAMILIES.index(exp)] - np.delete(mt, FAMILIES.index(exp)).max():+.3f}"
         print(f"| {nm} | {exp or '-'} | {len(S)} | {share[0]:.0f} / {share[1]:.0f} / {share[2]:.0f} | "
               f"{mt[0]:.2f} / {mt[1]:.2f} / {mt[2]:.2f} | {margin} |")
 
